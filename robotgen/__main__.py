@@ -1,0 +1,3 @@
+from robotgen.cli import entry
+
+entry()

@@ -1,0 +1,155 @@
+"""The command line (../shared/CONTRACT.md): build, check, schema, info.
+
+Exit status: 0 success, 1 the user's input is wrong, 2 usage error, 3 a bug in robotgen."""
+from __future__ import annotations
+
+import argparse
+import sys
+import traceback
+from pathlib import Path
+
+from robotgen.errors import UserError, UserErrors
+
+EXIT_OK, EXIT_USER, EXIT_USAGE, EXIT_BUG = 0, 1, 2, 3
+
+
+def _load(args: argparse.Namespace):
+    """A RobotSystem from a YAML spec or, with --tip, a URDF file."""
+    path = args.spec
+    if path.lower().endswith(".urdf"):
+        from robotgen.urdf import load_urdf_system
+
+        if not getattr(args, "tip", None):
+            raise _Usage("a URDF needs --tip LINK")
+        return load_urdf_system(path, tip=args.tip, base=args.base, name=args.name)
+    from robotgen.spec import load_system
+
+    return load_system(path)
+
+
+class _Usage(Exception):
+    pass
+
+
+def _cmd_build(args: argparse.Namespace) -> int:
+    from robotgen.emit.build import emit
+    from robotgen.symbolic import kernels_for
+
+    system = _load(args)
+    out = Path(args.output) if args.output else Path("generated") / system.name
+    kernels = kernels_for(system)
+    emit(out, system.name, kernels, nq=system.root_node.nq, precision=args.precision,
+         compile=not args.no_compile, extra_info=system_info(system),
+         spec_sha256=system.source_sha256)
+    print(f"robotgen: built {system.name} ({len(kernels)} functions) in {out}")
+    return EXIT_OK
+
+
+def _cmd_check(args: argparse.Namespace) -> int:
+    system = _load(args)
+    print(f"{args.spec}: ok ({len(system.nodes)} node(s), root '{system.root}')")
+    return EXIT_OK
+
+
+def _cmd_schema(args: argparse.Namespace) -> int:
+    from robotgen.spec.schema import schema_json
+
+    print(schema_json())
+    return EXIT_OK
+
+
+def system_info(system) -> dict:
+    """The robot tree as plain data: printed by `info`, returned by the module's info()."""
+    nodes = {}
+    for name, node in system.nodes.items():
+        entry = {"primitive": node.primitive, "nq": node.nq, "coordinates": list(node.coordinates)}
+        leaf = node.leaf
+        if hasattr(leaf, "joints"):
+            entry["kind"] = "chain"
+            entry["joints"] = [_joint_info(j) for j in leaf.joints]
+            entry["base_link"], entry["tip_link"] = leaf.base_link, leaf.tip_link
+        else:
+            entry["kind"] = "formulas"
+        nodes[name] = entry
+    return {"root": system.root, "nodes": nodes}
+
+
+def _joint_info(joint) -> dict:
+    lim = joint.limits
+    return {
+        "name": joint.name, "type": joint.type, "parent": joint.parent,
+        "armature": joint.armature, "viscous": joint.viscous, "coulomb": joint.coulomb,
+        "damping": joint.damping,
+        "limits": {"lower": lim.lower, "upper": lim.upper, "velocity": lim.velocity, "effort": lim.effort},
+    }
+
+
+def _cmd_info(args: argparse.Namespace) -> int:
+    system = _load(args)
+    info = system_info(system)
+    print(f"{system.name} (root: {system.root})")
+    for name, node in info["nodes"].items():
+        print(f"  {name}: {node['primitive']} {node['kind']}, nq = {node['nq']}")
+        print(f"    coordinates: {', '.join(node['coordinates'])}")
+        for j in node.get("joints", []):
+            lim = j["limits"]
+            rng = "" if lim["lower"] is None else f" [{lim['lower']:g}, {lim['upper']:g}]"
+            print(f"    - {j['name']}: {j['type']}, parent {j['parent']}{rng}")
+    return EXIT_OK
+
+
+def _parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="robotgen", description="Compile robot systems to C and Python.")
+    sub = p.add_subparsers(dest="command", required=True)
+    b = sub.add_parser("build", help="compile a spec (or a URDF chain) to C and a Python module")
+    b.add_argument("spec", help="SPEC.yaml or ROBOT.urdf")
+    b.add_argument("-o", "--output", help="output directory (default generated/<name>/)")
+    b.add_argument("--precision", choices=["double", "float"], default="double")
+    b.add_argument("--no-compile", action="store_true", help="emit sources only")
+    b.add_argument("--tip", help="URDF: the tip link")
+    b.add_argument("--base", help="URDF: the base link (default: the root link)")
+    b.add_argument("--name", help="URDF: module name (default: the robot's name)")
+    b.set_defaults(run=_cmd_build)
+    for name, run, text in (("check", _cmd_check, "validate only"), ("info", _cmd_info, "print the robot tree")):
+        c = sub.add_parser(name, help=text)
+        c.add_argument("spec")
+        c.add_argument("--tip")
+        c.add_argument("--base")
+        c.add_argument("--name")
+        c.set_defaults(run=run)
+    s = sub.add_parser("schema", help="print the JSON Schema of the spec format")
+    s.set_defaults(run=_cmd_schema)
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = _parser()
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as e:  # argparse: usage error (2) or --help (0)
+        return int(e.code or 0)
+    try:
+        return args.run(args)
+    except UserErrors as e:
+        for err in e.errors:
+            print(err, file=sys.stderr)
+        return EXIT_USER
+    except UserError as e:
+        print(e, file=sys.stderr)
+        return EXIT_USER
+    except _Usage as e:
+        print(f"robotgen: error: {e}", file=sys.stderr)
+        return EXIT_USAGE
+    except Exception:  # noqa: BLE001 - a bug in robotgen, not the user's fault
+        traceback.print_exc()
+        print("robotgen: internal error (a bug in robotgen, not in your input); please report it",
+              file=sys.stderr)
+        return EXIT_BUG
+
+
+def entry() -> None:
+    sys.exit(main())
+
+
+if __name__ == "__main__":
+    entry()

@@ -1,0 +1,113 @@
+"""A kernel's CasADi SX instruction list, read once into plain data and checked.
+
+CasADi evaluates an SX Function as a straight-line program over work registers; this module
+turns that program into ``Instruction`` records whose input and output references are dense
+element indices of the kernel's ports, so printers and counters never touch CasADi again.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import casadi as ca
+
+from robotgen.symbolic.kernel import Kernel
+
+OP_NAMES: dict[int, str] = {
+    getattr(ca, attr): attr for attr in sorted(dir(ca)) if attr.startswith("OP_")
+}
+
+
+class KernelError(RuntimeError):
+    """A kernel handed to the emitters breaks the ``Kernel`` contract: a robotgen bug."""
+
+
+@dataclass(frozen=True)
+class Instruction:
+    """One step. ``target`` is the register written (-1 for OP_OUTPUT); ``args`` the
+    registers read. OP_INPUT/OP_OUTPUT carry ``port`` and ``element`` (dense index into
+    the port's flattened array); OP_CONST carries ``constant``."""
+
+    op: int
+    target: int
+    args: tuple[int, ...] = ()
+    port: int = -1
+    element: int = -1
+    constant: float = 0.0
+
+    @property
+    def op_name(self) -> str:
+        return OP_NAMES.get(self.op, f"op {self.op}")
+
+
+@dataclass(frozen=True)
+class Program:
+    instructions: tuple[Instruction, ...]
+    unwritten_outputs: tuple[tuple[int, tuple[int, ...]], ...]
+    """Per output port with structural zeros: (port index, dense elements never written)."""
+
+
+def read_program(kernel: Kernel) -> Program:
+    """The SX instruction list of ``kernel.function``, without writes that nothing reads."""
+    f = kernel.function
+    _check_signature(kernel)
+    in_elements = [_dense_elements(f.sparsity_in(i)) for i in range(f.n_in())]
+    out_elements = [_dense_elements(f.sparsity_out(j)) for j in range(f.n_out())]
+    steps = []
+    for k in range(f.n_instructions()):
+        op = f.instruction_id(k)
+        ins, outs = f.instruction_input(k), f.instruction_output(k)
+        if op == ca.OP_INPUT:
+            steps.append(Instruction(op, outs[0], port=ins[0], element=in_elements[ins[0]][ins[1]]))
+        elif op == ca.OP_OUTPUT:
+            steps.append(Instruction(op, -1, (ins[0],), port=outs[0],
+                                     element=out_elements[outs[0]][outs[1]]))
+        elif op == ca.OP_CONST:
+            steps.append(Instruction(op, outs[0], constant=float(f.instruction_constant(k))))
+        else:
+            if len(outs) != 1:
+                raise KernelError(f"kernel {kernel.name!r}: {OP_NAMES.get(op, op)} has "
+                                  f"{len(outs)} results; only scalar operations can be printed")
+            steps.append(Instruction(op, outs[0], tuple(ins)))
+    unwritten = tuple(
+        (j, tuple(sorted(set(range(port.size)) - set(out_elements[j]))))
+        for j, port in enumerate(kernel.outputs)
+        if len(out_elements[j]) < port.size
+    )
+    return Program(_drop_dead_writes(steps), unwritten)
+
+
+def _check_signature(kernel: Kernel) -> None:
+    f = kernel.function
+    if not isinstance(f, ca.Function) or not f.is_a("SXFunction"):
+        raise KernelError(f"kernel {kernel.name!r}: function must be a CasADi SX Function")
+    if f.has_free():
+        raise KernelError(f"kernel {kernel.name!r}: function has free symbols {f.get_free()}")
+    for kind, ports, count, sparsity in (
+        ("input", kernel.inputs, f.n_in(), f.sparsity_in),
+        ("output", kernel.outputs, f.n_out(), f.sparsity_out),
+    ):
+        if count != len(ports):
+            raise KernelError(f"kernel {kernel.name!r}: function has {count} {kind}s, "
+                              f"ports name {len(ports)}")
+        for i, port in enumerate(ports):
+            rows, cols = sparsity(i).size()
+            if rows * cols != port.size or min(rows, cols) > 1:
+                raise KernelError(
+                    f"kernel {kernel.name!r}: {kind} {port.name!r} is {rows}x{cols}, expected "
+                    f"a column of {port.size} ({port.rows}x{port.cols} flattened row-major)")
+
+
+def _dense_elements(sparsity: ca.Sparsity) -> list[int]:
+    """Dense index of each structural nonzero of a column or row vector."""
+    return [int(i) for i in sparsity.find()]
+
+
+def _drop_dead_writes(steps: list[Instruction]) -> tuple[Instruction, ...]:
+    """Removes register writes whose register is never read (until none is left), so the
+    printed C has no set-but-unused variables. Instructions have no side effects."""
+    while True:
+        read = {r for step in steps for r in step.args}
+        kept = [s for s in steps if s.op == ca.OP_OUTPUT or s.target in read]
+        if len(kept) == len(steps):
+            return tuple(steps)
+        steps = kept

@@ -1,0 +1,33 @@
+"""Errors that are the user's fault carry a location; everything else is a robotgen bug."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+
+@dataclass(frozen=True)
+class Location:
+    """1-based line and column in a user's file."""
+
+    file: str
+    line: int = 1
+    col: int = 1
+
+    def __str__(self) -> str:
+        return f"{self.file}:{self.line}:{self.col}"
+
+
+class UserError(Exception):
+    """The user's input is wrong: reported as FILE:LINE:COL: message, exit status 1."""
+
+    def __init__(self, location: Location, message: str):
+        super().__init__(f"{location}: {message}")
+        self.location = location
+        self.message = message
+
+
+class UserErrors(Exception):
+    """Several user errors found in one pass (a spec is checked whole before reporting)."""
+
+    def __init__(self, errors: list[UserError]):
+        super().__init__("\n".join(str(e) for e in errors))
+        self.errors = errors

@@ -1,0 +1,93 @@
+"""Kinematic trees of rigid bodies in one canonical form.
+
+Every way of describing a chain (DH standard, DH modified, URDF-style joint list) is
+normalised into this form, so the symbolic algorithms know only one convention:
+
+    frame(i) = frame(parent(i)) @ joint.origin @ motion(joint.axis, q_i)
+
+where ``motion`` is a rotation about ``axis`` (revolute) or a translation along it
+(prismatic), both in joint i's frame. Link i is rigidly attached to frame(i); its
+inertial data is expressed in frame(i). The base frame is frame(-1) = identity.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+REVOLUTE = "revolute"
+PRISMATIC = "prismatic"
+
+
+@dataclass(frozen=True, eq=False)
+class Body:
+    """Rigid-body inertia: mass [kg], centre of mass [m] and inertia tensor about the COM
+    [kg m^2], both in the frame of the joint that carries the body."""
+
+    mass: float
+    com: np.ndarray  # (3,)
+    inertia: np.ndarray  # (3, 3) symmetric, about the COM
+
+    @staticmethod
+    def zero() -> "Body":
+        return Body(0.0, np.zeros(3), np.zeros((3, 3)))
+
+
+@dataclass(frozen=True)
+class Limits:
+    lower: float | None = None
+    upper: float | None = None
+    velocity: float | None = None
+    effort: float | None = None
+
+
+@dataclass(frozen=True, eq=False)
+class Joint:
+    """One actuated joint with the body it carries.
+
+    armature: reflected motor inertia added on the diagonal of M (motor inertia * gear^2).
+    viscous, coulomb: joint-side friction, tau_f = viscous * qd + coulomb * tanh(qd / smoothing).
+    """
+
+    name: str
+    type: str  # REVOLUTE or PRISMATIC
+    parent: int  # index of the parent joint, -1 for the base
+    origin: np.ndarray  # (4, 4) parent frame -> this joint's frame at q = 0
+    axis: np.ndarray  # (3,) unit vector in this joint's frame
+    body: Body
+    armature: float = 0.0
+    viscous: float = 0.0
+    coulomb: float = 0.0
+    damping: float = 0.0  # URDF <dynamics damping>, kept apart for info(); folded into viscous
+    limits: Limits = field(default_factory=Limits)
+
+
+@dataclass(frozen=True, eq=False)
+class KinematicTree:
+    """Joints in topological order (parent index < own index). A serial chain has
+    parent(i) = i - 1. The tip frame is ``tool`` expressed in joint ``tip``'s frame."""
+
+    name: str
+    joints: tuple[Joint, ...]
+    tip: int  # index of the joint whose frame carries the tool frame
+    tool: np.ndarray  # (4, 4) joint frame(tip) -> tip frame
+    gravity: np.ndarray  # (3,) gravitational acceleration in the base frame, e.g. (0, 0, -9.81)
+    coulomb_smoothing: float = 1e-2  # [rad/s or m/s] velocity scale of tanh in Coulomb friction
+    base_link: str = "base"
+    tip_link: str = "tip"
+
+    @property
+    def nq(self) -> int:
+        return len(self.joints)
+
+    def support(self, i: int) -> list[int]:
+        """Joints from the base to joint i, inclusive, base first."""
+        path = []
+        while i >= 0:
+            path.append(i)
+            i = self.joints[i].parent
+        return path[::-1]
+
+    @property
+    def has_friction(self) -> bool:
+        return any(j.viscous or j.coulomb for j in self.joints)

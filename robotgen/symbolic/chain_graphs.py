@@ -1,0 +1,82 @@
+"""Every dynamic and kinematic quantity of a KinematicTree as CasADi SX expressions of
+shared symbols q, qd, qdd, tau."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import casadi as ca
+
+from robotgen.model.chain import KinematicTree
+from robotgen.symbolic.cholesky import cholesky_solve
+from robotgen.symbolic.christoffel import coriolis_matrix
+from robotgen.symbolic.crba import crba
+from robotgen.symbolic.friction import friction_torque
+from robotgen.symbolic.jacobian import geometric_jacobian, hand_jacobian, jacobian_dot_qd
+from robotgen.symbolic.kinematics import forward_kinematics, joint_motions
+from robotgen.symbolic.rnea import rnea
+
+
+@dataclass(frozen=True, eq=False)
+class Symbols:
+    q: ca.SX
+    qd: ca.SX
+    qdd: ca.SX
+    tau: ca.SX
+
+    @staticmethod
+    def make(n: int) -> "Symbols":
+        return Symbols(ca.SX.sym("q", n), ca.SX.sym("qd", n), ca.SX.sym("qdd", n), ca.SX.sym("tau", n))
+
+
+class ChainGraphs:
+    """Lazily built expressions; each is built once and shared by the kernels using it."""
+
+    def __init__(self, tree: KinematicTree, sym: Symbols):
+        self.tree = tree
+        self.sym = sym
+        self.motions = joint_motions(tree, sym.q)
+        self._cache: dict[str, ca.SX] = {}
+
+    def _get(self, key: str, build) -> ca.SX:
+        if key not in self._cache:
+            self._cache[key] = build()
+        return self._cache[key]
+
+    def fk(self) -> ca.SX:
+        return self._get("fk", lambda: forward_kinematics(self.tree, self.sym.q))
+
+    def jacobian(self) -> ca.SX:
+        return self._get("jacobian", lambda: geometric_jacobian(self.tree, self.sym.q))
+
+    def jacobian_hand(self) -> ca.SX:
+        return self._get("jacobian_hand", lambda: hand_jacobian(self.tree, self.sym.q))
+
+    def jacobian_dot_qd(self) -> ca.SX:
+        return self._get("jdqd", lambda: jacobian_dot_qd(self.jacobian(), self.sym.q, self.sym.qd))
+
+    def mass(self) -> ca.SX:
+        return self._get("mass", lambda: crba(self.tree, self.motions))
+
+    def coriolis(self) -> ca.SX:
+        return self._get("coriolis", lambda: coriolis_matrix(self.mass(), self.sym.q, self.sym.qd))
+
+    def friction(self) -> ca.SX:
+        return self._get("friction", lambda: friction_torque(self.tree, self.sym.qd))
+
+    def gravity(self) -> ca.SX:
+        return self._get("gravity", lambda: rnea(self.tree, self.motions, None, None))
+
+    def nonlinear(self) -> ca.SX:
+        """C(q, qd) qd + N(q, qd): Newton-Euler with qdd = 0, plus friction."""
+        return self._get("nonlinear",
+                         lambda: rnea(self.tree, self.motions, self.sym.qd, None) + self.friction())
+
+    def inverse_dynamics(self) -> ca.SX:
+        def build():
+            armature = ca.vertcat(*[j.armature * self.sym.qdd[i] for i, j in enumerate(self.tree.joints)])
+            return rnea(self.tree, self.motions, self.sym.qd, self.sym.qdd) + armature + self.friction()
+        return self._get("inverse_dynamics", build)
+
+    def forward_dynamics(self) -> ca.SX:
+        return self._get("forward_dynamics",
+                         lambda: cholesky_solve(self.mass(), self.sym.tau - self.nonlinear()))

@@ -1,0 +1,41 @@
+"""Rigid-body inertia about a frame origin, as (m, h = m c, Ibar = Ic + m(|c|^2 I - c c^T)),
+the form in which bodies are combined by the composite rigid body algorithm."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import casadi as ca
+import numpy as np
+
+from robotgen.model.chain import Body
+from robotgen.symbolic.spatial import const
+
+
+@dataclass(frozen=True, eq=False)
+class OriginInertia:
+    m: ca.SX
+    h: ca.SX  # (3,) first mass moment m c
+    Ibar: ca.SX  # (3, 3) rotational inertia about the frame origin
+
+    @staticmethod
+    def of_body(body: Body) -> "OriginInertia":
+        c = np.asarray(body.com, dtype=float)
+        Ibar = np.asarray(body.inertia, dtype=float) + body.mass * (np.dot(c, c) * np.eye(3) - np.outer(c, c))
+        return OriginInertia(ca.SX(body.mass), const(body.mass * c), const(Ibar))
+
+    def apply(self, w: ca.SX, v: ca.SX) -> tuple[ca.SX, ca.SX]:
+        """Spatial momentum of the motion (w, v): (Ibar w + h x v, m v - h x w)."""
+        return self.Ibar @ w + ca.cross(self.h, v), self.m * v - ca.cross(self.h, w)
+
+    def to_parent(self, E: ca.SX, r: ca.SX) -> "OriginInertia":
+        """Express about the parent origin: X^T I X with X = [E 0; -E skew(r) E]."""
+        h_rot = E.T @ self.h
+        I_rot = E.T @ self.Ibar @ E
+        eye = ca.SX.eye(3)
+        rr = ca.dot(r, r)
+        rh = ca.dot(r, h_rot)
+        Ibar = I_rot + self.m * (rr * eye - r @ r.T) + (2 * rh * eye - r @ h_rot.T - h_rot @ r.T)
+        return OriginInertia(self.m, h_rot + self.m * r, Ibar)
+
+    def __add__(self, other: "OriginInertia") -> "OriginInertia":
+        return OriginInertia(self.m + other.m, self.h + other.h, self.Ibar + other.Ibar)

@@ -1,0 +1,64 @@
+"""Forward kinematics of a KinematicTree: per-joint rigid motions and base-frame poses."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import casadi as ca
+
+from robotgen.model.chain import PRISMATIC, KinematicTree
+from robotgen.symbolic.spatial import axis_rotation, const, homogeneous
+
+
+@dataclass(frozen=True, eq=False)
+class JointMotion:
+    """Joint i relative to its parent at configuration q.
+    R: child orientation in parent coordinates (E = R^T maps parent to child coordinates);
+    r: child origin in parent coordinates; S: motion subspace (angular; linear) in the child."""
+
+    R: ca.SX
+    r: ca.SX
+    S_w: ca.SX
+    S_v: ca.SX
+
+    @property
+    def E(self) -> ca.SX:
+        return self.R.T
+
+
+def joint_motions(tree: KinematicTree, q: ca.SX) -> list[JointMotion]:
+    """One sin/cos pair per revolute joint, shared by every quantity built on it."""
+    motions = []
+    for i, joint in enumerate(tree.joints):
+        R0 = const(joint.origin[:3, :3])
+        p0 = const(joint.origin[:3, 3])
+        axis = const(joint.axis)
+        zero = ca.SX.zeros(3, 1)
+        if joint.type == PRISMATIC:
+            motions.append(JointMotion(R0, p0 + R0 @ axis * q[i], zero, axis))
+        else:
+            R = R0 @ axis_rotation(joint.axis, ca.cos(q[i]), ca.sin(q[i]))
+            motions.append(JointMotion(R, p0, axis, zero))
+    return motions
+
+
+def joint_poses(tree: KinematicTree, motions: list[JointMotion]) -> list[tuple[ca.SX, ca.SX]]:
+    """Base-frame orientation and origin of every joint frame."""
+    poses: list[tuple[ca.SX, ca.SX]] = []
+    for joint, m in zip(tree.joints, motions):
+        if joint.parent < 0:
+            poses.append((m.R, m.r))
+        else:
+            Rp, pp = poses[joint.parent]
+            poses.append((Rp @ m.R, pp + Rp @ m.r))
+    return poses
+
+
+def tip_pose(tree: KinematicTree, poses: list[tuple[ca.SX, ca.SX]]) -> tuple[ca.SX, ca.SX]:
+    R, p = poses[tree.tip]
+    return R @ const(tree.tool[:3, :3]), p + R @ const(tree.tool[:3, 3])
+
+
+def forward_kinematics(tree: KinematicTree, q: ca.SX) -> ca.SX:
+    """4x4 homogeneous transform of the tip frame in the base frame."""
+    R, p = tip_pose(tree, joint_poses(tree, joint_motions(tree, q)))
+    return homogeneous(R, p)

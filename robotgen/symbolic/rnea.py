@@ -1,0 +1,59 @@
+"""Inverse dynamics by the recursive Newton-Euler algorithm (Luh, Walker, Paul 1980), in
+spatial-vector form (Featherstone 2008, Table 5.1). Gravity enters as a base acceleration
+-g; the armature and friction terms of each joint are added to its torque."""
+from __future__ import annotations
+
+import casadi as ca
+
+from robotgen.model.chain import KinematicTree
+from robotgen.symbolic.inertia import OriginInertia
+from robotgen.symbolic.kinematics import JointMotion
+from robotgen.symbolic.spatial import (
+    const,
+    force_cross,
+    force_transform_to_parent,
+    motion_cross,
+    motion_transform,
+)
+
+
+def rnea(tree: KinematicTree, motions: list[JointMotion], qd: ca.SX | None, qdd: ca.SX | None,
+         gravity: bool = True) -> ca.SX:
+    """Rigid-body joint torques M qdd + C qd + g (no armature, no friction). ``qd`` or
+    ``qdd`` None means zero, so that gravity alone and C qd + g stay small graphs."""
+    n = tree.nq
+    zero = ca.SX.zeros(3, 1)
+    a_base = (zero, -const(tree.gravity)) if gravity else (zero, zero)
+    vel: list[tuple[ca.SX, ca.SX]] = []
+    acc: list[tuple[ca.SX, ca.SX]] = []
+    force: list[list[ca.SX]] = []
+    for i, (joint, m) in enumerate(zip(tree.joints, motions)):
+        vp, ap = ((zero, zero), a_base) if joint.parent < 0 else (vel[joint.parent], acc[joint.parent])
+        w, v = motion_transform(m.E, m.r, *vp)
+        aw, av = motion_transform(m.E, m.r, *ap)
+        if qd is not None:
+            w, v = w + m.S_w * qd[i], v + m.S_v * qd[i]
+            cw, cv = motion_cross(w, v, m.S_w * qd[i], m.S_v * qd[i])
+            aw, av = aw + cw, av + cv
+        if qdd is not None:
+            aw, av = aw + m.S_w * qdd[i], av + m.S_v * qdd[i]
+        vel.append((w, v))
+        acc.append((aw, av))
+        body = OriginInertia.of_body(joint.body)
+        n_i, f_i = body.apply(aw, av)
+        if qd is not None:
+            hw, hv = body.apply(w, v)
+            bw, bv = force_cross(w, v, hw, hv)
+            n_i, f_i = n_i + bw, f_i + bv
+        force.append([n_i, f_i])
+    tau = [ca.SX(0)] * n
+    for i in reversed(range(n)):
+        m = motions[i]
+        n_i, f_i = force[i]
+        tau[i] = ca.dot(m.S_w, n_i) + ca.dot(m.S_v, f_i)
+        p = tree.joints[i].parent
+        if p >= 0:
+            n_p, f_p = force_transform_to_parent(m.E, m.r, n_i, f_i)
+            force[p][0] = force[p][0] + n_p
+            force[p][1] = force[p][1] + f_p
+    return ca.vertcat(*tau)

@@ -1,0 +1,58 @@
+"""Small 3-D helpers on CasADi SX: rotations, cross products, rigid motions.
+
+Spatial vectors follow Featherstone's (angular; linear) ordering, but are kept as pairs of
+3-vectors so that CasADi sees only the products that are not structurally zero.
+"""
+from __future__ import annotations
+
+import casadi as ca
+import numpy as np
+
+
+def const(a: np.ndarray) -> ca.SX:
+    return ca.SX(ca.DM(np.asarray(a, dtype=float)))
+
+
+def skew(v: ca.SX) -> ca.SX:
+    return ca.vertcat(
+        ca.horzcat(0, -v[2], v[1]),
+        ca.horzcat(v[2], 0, -v[0]),
+        ca.horzcat(-v[1], v[0], 0),
+    )
+
+
+def axis_rotation(axis: np.ndarray, c: ca.SX, s: ca.SX) -> ca.SX:
+    """Rotation by an angle with cosine c and sine s about a constant unit axis (Rodrigues):
+    R = I + s K + (1 - c) K^2, K = skew(axis). Zero entries of K stay structural zeros."""
+    k = np.asarray(axis, dtype=float)
+    K = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
+    K2 = K @ K
+    R = ca.SX.eye(3)
+    R = R + s * const(K) + (1 - c) * const(K2)
+    return R
+
+
+def homogeneous(R: ca.SX, p: ca.SX) -> ca.SX:
+    return ca.vertcat(ca.horzcat(R, p), ca.horzcat(ca.SX.zeros(1, 3), ca.SX.ones(1, 1)))
+
+
+def motion_transform(E: ca.SX, r: ca.SX, w: ca.SX, v: ca.SX) -> tuple[ca.SX, ca.SX]:
+    """Apply X = [E 0; -E skew(r) E] to the motion (w, v) given in the parent frame; E maps
+    parent to child coordinates and r is the child origin in parent coordinates."""
+    return E @ w, E @ (v - ca.cross(r, w))
+
+
+def force_transform_to_parent(E: ca.SX, r: ca.SX, n: ca.SX, f: ca.SX) -> tuple[ca.SX, ca.SX]:
+    """Apply X^T to the force (n, f) given in the child frame."""
+    fp = E.T @ f
+    return E.T @ n + ca.cross(r, fp), fp
+
+
+def motion_cross(w: ca.SX, v: ca.SX, mw: ca.SX, mv: ca.SX) -> tuple[ca.SX, ca.SX]:
+    """(w, v) x (mw, mv) for motion vectors."""
+    return ca.cross(w, mw), ca.cross(w, mv) + ca.cross(v, mw)
+
+
+def force_cross(w: ca.SX, v: ca.SX, n: ca.SX, f: ca.SX) -> tuple[ca.SX, ca.SX]:
+    """(w, v) x* (n, f) for a force vector."""
+    return ca.cross(w, n) + ca.cross(v, f), ca.cross(w, f)
