@@ -17,7 +17,7 @@ def _load(args: argparse.Namespace):
     """A RobotSystem from a YAML spec or, with --tip, a URDF file."""
     path = args.spec
     if path.lower().endswith(".urdf"):
-        from robotgen.urdf import load_urdf_system
+        from robotgen.spec.urdf import load_urdf_system
 
         if not getattr(args, "tip", None):
             raise _Usage("a URDF needs --tip LINK")
