@@ -9,6 +9,7 @@ import traceback
 from pathlib import Path
 
 from robotgen.errors import UserError, UserErrors
+from robotgen.model.describe import system_info
 
 EXIT_OK, EXIT_USER, EXIT_USAGE, EXIT_BUG = 0, 1, 2, 3
 
@@ -32,10 +33,10 @@ class _Usage(Exception):
 
 
 def _cmd_build(args: argparse.Namespace) -> int:
+    system = _load(args)
     from robotgen.emit.build import emit
     from robotgen.symbolic import kernels_for
 
-    system = _load(args)
     out = Path(args.output) if args.output else Path("generated") / system.name
     kernels = kernels_for(system)
     emit(out, system.name, kernels, nq=system.root_node.nq, precision=args.precision,
@@ -56,32 +57,6 @@ def _cmd_schema(args: argparse.Namespace) -> int:
 
     print(schema_json())
     return EXIT_OK
-
-
-def system_info(system) -> dict:
-    """The robot tree as plain data: printed by `info`, returned by the module's info()."""
-    nodes = {}
-    for name, node in system.nodes.items():
-        entry = {"primitive": node.primitive, "nq": node.nq, "coordinates": list(node.coordinates)}
-        leaf = node.leaf
-        if hasattr(leaf, "joints"):
-            entry["kind"] = "chain"
-            entry["joints"] = [_joint_info(j) for j in leaf.joints]
-            entry["base_link"], entry["tip_link"] = leaf.base_link, leaf.tip_link
-        else:
-            entry["kind"] = "formulas"
-        nodes[name] = entry
-    return {"root": system.root, "nodes": nodes}
-
-
-def _joint_info(joint) -> dict:
-    lim = joint.limits
-    return {
-        "name": joint.name, "type": joint.type, "parent": joint.parent,
-        "armature": joint.armature, "viscous": joint.viscous, "coulomb": joint.coulomb,
-        "damping": joint.damping,
-        "limits": {"lower": lim.lower, "upper": lim.upper, "velocity": lim.velocity, "effort": lim.effort},
-    }
 
 
 def _cmd_info(args: argparse.Namespace) -> int:

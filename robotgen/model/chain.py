@@ -75,6 +75,7 @@ class KinematicTree:
     coulomb_smoothing: float = 1e-2  # [rad/s or m/s] velocity scale of tanh in Coulomb friction
     base_link: str = "base"
     tip_link: str = "tip"
+    locked_joints: tuple[str, ...] = ()  # movable joints of the source held at q = 0 (URDF)
 
     @property
     def nq(self) -> int:

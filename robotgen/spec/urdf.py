@@ -11,7 +11,7 @@ Normalisation (into robotgen.model.chain's canonical form):
 - fixed joints are folded away: the inertia of every link they carry is merged into the
   body of the nearest movable joint above it (or dropped when it is fixed to the base);
 - movable joints that are not on the base -> tip path (a gripper's fingers) are locked at
-  q = 0 and treated as fixed; they are listed in ``locked``;
+  q = 0 and treated as fixed; they are listed in ``KinematicTree.locked_joints``;
 - URDF <dynamics damping> becomes viscous friction, <dynamics friction> Coulomb friction.
 """
 from __future__ import annotations
@@ -162,7 +162,6 @@ def merge_bodies(parts: list[tuple[np.ndarray, Body]]) -> Body:
 @dataclass(frozen=True, eq=False)
 class UrdfChain:
     tree: KinematicTree
-    locked: tuple[str, ...]  # movable joints off the base -> tip path, locked at q = 0
     ignored_attributes: tuple[str, ...]
 
 
@@ -285,12 +284,27 @@ def read_urdf(path: str, tip: str, base: str | None = None, name: str | None = N
     robot_name = name or root.attrib.get("name", Path(path).stem)
     tree = KinematicTree(
         name=robot_name, joints=tuple(canonical), tip=tip_owner, tool=tool,
-        gravity=np.array([0.0, 0.0, -9.81]), base_link=base, tip_link=tip,
+        gravity=np.array([0.0, 0.0, -9.81]), base_link=base, tip_link=tip, locked_joints=tuple(locked),
     )
-    ignored = tuple(f"{r.loc(d)}: <dynamics> attribute '{a}' is not URDF; ignored"
-                    for j in actuated if (d := j.find("dynamics")) is not None
-                    for a in d.attrib if a not in ("damping", "friction"))
-    return UrdfChain(tree, tuple(locked), ignored)
+    ignored = _foreign_dynamics_attributes(r, actuated)
+    return UrdfChain(tree, ignored)
+
+
+def _foreign_dynamics_attributes(r: _Reader, joints: list[Element]) -> tuple[str, ...]:
+    """One warning for the <dynamics> attributes outside URDF (e.g. a simulator's), at the
+    first joint carrying them."""
+    first: Element | None = None
+    names: set[str] = set()
+    for j in joints:
+        d = j.find("dynamics")
+        extra = set(d.attrib) - {"damping", "friction"} if d is not None else set()
+        if extra and first is None:
+            first = d
+        names |= extra
+    if first is None:
+        return ()
+    listed = ", ".join(f"'{a}'" for a in sorted(names))
+    return (f"{r.loc(first)}: <dynamics> attributes {listed} are not URDF; ignored",)
 
 
 def load_urdf_system(path: str, tip: str, base: str | None = None, name: str | None = None) -> RobotSystem:

@@ -1,0 +1,26 @@
+# robotgen: developer entry points. `make install test` is what CI runs.
+PYTHON ?= python3
+SPECS := $(wildcard specs/*.yaml)
+
+.PHONY: install test demo bench generated clean
+
+install:
+	$(PYTHON) -m pip install --quiet --upgrade pip
+	$(PYTHON) -m pip install --quiet -e '.[test]'
+
+test:
+	$(PYTHON) -m pytest -q
+
+demo:
+	$(PYTHON) examples/demo.py
+
+bench:
+	$(PYTHON) bench/run.py
+
+# Rebuild the committed generated/ tree (sources and manifests; the compiled module is
+# built too but not committed). tests/test_generated.py checks it is never stale.
+generated:
+	@for spec in $(SPECS); do $(PYTHON) -m robotgen build $$spec || exit 1; done
+
+clean:
+	rm -rf build *.egg-info bench/out .pytest_cache

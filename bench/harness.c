@@ -1,0 +1,120 @@
+/* Timing harness for one robotgen-generated C library (bench/run.py compiles and runs it).
+ *
+ * Compiled as (run.py does this):
+ *   cc -std=c99 -O2 -DRG_HEADER='"puma560.h"' -DRG_PREFIX=puma560 -DRG_NQ=6 \
+ *      -I OUT bench/harness.c OUT/<generated kernels>.c -lm
+ * -O2 only, no -march=native: the numbers are what a user gets from a portable build.
+ *
+ * For each function: NSETS random input sets (deterministic LCG, angles in [-pi, pi],
+ * velocities and accelerations in [-2, 2]) are cycled through, so the kernel cannot be
+ * specialised to one input; one output element per call is added to an accumulator that
+ * is finally stored to a volatile, so the calls cannot be dropped as dead code (the kernels
+ * live in another translation unit and are not inlined without LTO anyway). The loop is
+ * calibrated to take >= ~50 ms, repeated REPEATS times; min and median ns per call printed
+ * as "name min_ns median_ns iterations", one line per function.
+ */
+#define _POSIX_C_SOURCE 199309L
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+
+#include RG_HEADER
+
+#ifndef RG_NQ
+#error "define RG_NQ (number of joint coordinates)"
+#endif
+#ifndef RG_PREFIX
+#error "define RG_PREFIX (the module name, the C prefix)"
+#endif
+
+#define RG_CAT_(a, b) a##_##b
+#define RG_CAT(a, b) RG_CAT_(a, b)
+#define FN(f) RG_CAT(RG_PREFIX, f)
+
+#define NQ RG_NQ
+#define NSETS 256 /* power of two */
+#define REPEATS 7
+#define MIN_NS 5.0e7
+
+static double Q[NSETS][NQ], QD[NSETS][NQ], QDD[NSETS][NQ];
+static double OUT[6 * NQ + NQ * NQ + 16];
+static volatile double sink;
+
+static double now_ns(void) {
+    struct timespec t;
+    clock_gettime(CLOCK_MONOTONIC, &t);
+    return (double)t.tv_sec * 1e9 + (double)t.tv_nsec;
+}
+
+static unsigned long long lcg_state = 88172645463325252ULL;
+static double uniform(double lo, double hi) {
+    lcg_state = lcg_state * 6364136223846793005ULL + 1442695040888963407ULL;
+    return lo + (hi - lo) * (double)(lcg_state >> 11) * (1.0 / 9007199254740992.0);
+}
+
+static int cmp_double(const void *a, const void *b) {
+    double x = *(const double *)a, y = *(const double *)b;
+    return (x > y) - (x < y);
+}
+
+/* CALL uses s (the input set) and writes OUT; outsize = number of outputs written. */
+#define BENCH(label, outsize, CALL)                                              \
+    do {                                                                        \
+        long iters = 1000, it;                                                  \
+        double t0, t1, acc = 0.0, times[REPEATS];                               \
+        int r;                                                                  \
+        for (;;) { /* calibrate */                                              \
+            t0 = now_ns();                                                      \
+            for (it = 0; it < iters; it++) {                                    \
+                int s = (int)(it & (NSETS - 1));                                \
+                CALL;                                                           \
+                acc += OUT[it % (outsize)];                                     \
+            }                                                                   \
+            t1 = now_ns();                                                      \
+            if (t1 - t0 >= MIN_NS || iters > (1L << 30)) break;                 \
+            iters *= 2;                                                         \
+        }                                                                       \
+        for (r = 0; r < REPEATS; r++) {                                         \
+            t0 = now_ns();                                                      \
+            for (it = 0; it < iters; it++) {                                    \
+                int s = (int)(it & (NSETS - 1));                                \
+                CALL;                                                           \
+                acc += OUT[it % (outsize)];                                     \
+            }                                                                   \
+            t1 = now_ns();                                                      \
+            times[r] = (t1 - t0) / (double)iters;                               \
+        }                                                                       \
+        sink += acc;                                                            \
+        qsort(times, REPEATS, sizeof times[0], cmp_double);                     \
+        printf("%s %.3f %.3f %ld\n", label, times[0], times[REPEATS / 2], iters); \
+        fflush(stdout);                                                         \
+    } while (0)
+
+static int selected(int argc, char **argv, const char *name) {
+    int i;
+    if (argc < 2) return 1;
+    for (i = 1; i < argc; i++)
+        if (strcmp(argv[i], name) == 0) return 1;
+    return 0;
+}
+
+int main(int argc, char **argv) {
+    int s, i;
+    for (s = 0; s < NSETS; s++)
+        for (i = 0; i < NQ; i++) {
+            Q[s][i] = uniform(-3.141592653589793, 3.141592653589793);
+            QD[s][i] = uniform(-2.0, 2.0);
+            QDD[s][i] = uniform(-2.0, 2.0);
+        }
+    if (selected(argc, argv, "mass")) BENCH("mass", NQ * NQ, FN(mass)(Q[s], OUT));
+    if (selected(argc, argv, "inverse_dynamics"))
+        BENCH("inverse_dynamics", NQ, FN(inverse_dynamics)(Q[s], QD[s], QDD[s], OUT));
+    if (selected(argc, argv, "jacobian")) BENCH("jacobian", 6 * NQ, FN(jacobian)(Q[s], OUT));
+    if (selected(argc, argv, "gravity")) BENCH("gravity", NQ, FN(gravity)(Q[s], OUT));
+    if (selected(argc, argv, "coriolis")) BENCH("coriolis", NQ * NQ, FN(coriolis)(Q[s], QD[s], OUT));
+    if (selected(argc, argv, "forward_dynamics"))
+        BENCH("forward_dynamics", NQ, FN(forward_dynamics)(Q[s], QD[s], QDD[s], OUT));
+    if (selected(argc, argv, "fk")) BENCH("fk", 16, FN(fk)(Q[s], OUT));
+    return sink == 12345.678 ? 1 : 0; /* use sink so it is observable */
+}

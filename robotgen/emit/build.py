@@ -1,0 +1,74 @@
+"""Writes a generated module's directory atomically: all or nothing."""
+from __future__ import annotations
+
+import os
+import shutil
+from pathlib import Path
+
+from robotgen.emit import compile as compiler
+from robotgen.emit.context import module_view
+from robotgen.emit.manifest import manifest_json
+from robotgen.emit.render import render_all
+from robotgen.symbolic.kernel import Kernel
+
+MANIFEST = "manifest.json"
+
+
+def emit(out_dir: Path, name: str, kernels: list[Kernel], *, nq: int,
+         precision: str = "double", compile: bool = True, extra_info: dict | None = None,
+         spec_sha256: str = "", attributes: dict | None = None) -> Path:
+    """Writes ``<name>.h``, ``<name>.c``, ``<name>_module.c``, ``Makefile``, ``manifest.json``
+    and (if ``compile``) the extension ``<name><EXT_SUFFIX>`` to ``out_dir``, replacing a
+    previous build there. ``extra_info`` adds keys to info() and the manifest (e.g.
+    ``nodes``); ``attributes`` adds json-valued module attributes. Everything is made in a
+    temporary sibling directory first, so a failure leaves ``out_dir`` as it was."""
+    out_dir = Path(out_dir)
+    view = module_view(name, kernels, nq=nq, precision=precision, spec_sha256=spec_sha256,
+                       extra_info=extra_info, attributes=attributes)
+    files = {**render_all(view), MANIFEST: manifest_json(view)}
+    _check_replaceable(out_dir)
+    out_dir.parent.mkdir(parents=True, exist_ok=True)
+    staging = out_dir.parent / f".{out_dir.name}.tmp-{os.getpid()}"
+    _remove(staging)
+    try:
+        staging.mkdir()
+        for file_name, text in files.items():
+            (staging / file_name).write_bytes(text.encode("utf-8"))
+        if compile:
+            compiler.compile_extension(staging, name, [f"{name}_module.c", f"{name}.c"])
+        _swap_in(staging, out_dir)
+    except BaseException:
+        _remove(staging)
+        raise
+    return out_dir
+
+
+def _check_replaceable(out_dir: Path) -> None:
+    """Only an empty directory or an earlier robotgen output is ever replaced."""
+    if out_dir.is_symlink() or (out_dir.exists() and not out_dir.is_dir()):
+        raise FileExistsError(f"{out_dir} exists and is not a directory")
+    if out_dir.is_dir() and any(out_dir.iterdir()) and not (out_dir / MANIFEST).is_file():
+        raise FileExistsError(f"{out_dir} is not empty and holds no robotgen {MANIFEST}; "
+                              "refusing to replace it")
+
+
+def _swap_in(staging: Path, out_dir: Path) -> None:
+    if not out_dir.exists():
+        staging.rename(out_dir)
+        return
+    previous = out_dir.parent / f".{out_dir.name}.old-{os.getpid()}"
+    _remove(previous)
+    out_dir.rename(previous)
+    try:
+        staging.rename(out_dir)
+    except BaseException:
+        previous.rename(out_dir)
+        raise
+    _remove(previous)
+
+
+def _remove(path: Path) -> None:
+    if path.is_dir() and not path.is_symlink():
+        shutil.rmtree(path)
+    elif path.exists() or path.is_symlink():
+        path.unlink()

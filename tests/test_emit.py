@@ -1,0 +1,490 @@
+"""robotgen.emit: printed C, compiled extension, manifest and atomic output, checked against
+CasADi's own evaluation of kernels built directly with casadi (no specs involved)."""
+from __future__ import annotations
+
+import importlib.util
+import inspect
+import json
+import re
+import shutil
+import subprocess
+from pathlib import Path
+
+import casadi as ca
+import numpy as np
+import pytest
+
+from robotgen.emit import build, compile as emit_compile
+from robotgen.emit.c_kernel import OPERATIONS
+from robotgen.emit.sx_program import KernelError
+from robotgen.symbolic.kernel import Kernel, Port
+
+GCC = shutil.which("gcc")
+CLANG = shutil.which("clang")
+STRICT = ["-std=c99", "-Wall", "-Wextra", "-Werror"]
+SOURCES = ["{name}.h", "{name}.c", "{name}_module.c", "Makefile", "manifest.json"]
+pytestmark = pytest.mark.skipif(GCC is None, reason="gcc is required")
+
+
+# ---------------------------------------------------------------- kernels built with casadi
+
+def _bounded(x):
+    return 0.9 * ca.tanh(x)
+
+
+UNARY = [
+    ca.sin, ca.cos, ca.tanh, ca.atan, ca.fabs, ca.erf, ca.sign, ca.floor, ca.ceil, ca.asinh,
+    lambda x: -x,
+    lambda x: x ** 2,
+    lambda x: 2 * x,
+    lambda x: ca.constpow(x, 3),
+    lambda x: ca.sqrt(x * x + 1),
+    lambda x: ca.log(x * x + 1),
+    lambda x: ca.exp(ca.tanh(x)),
+    lambda x: 1 / (1.5 + ca.sin(x)),
+    lambda x: ca.asin(_bounded(x)),
+    lambda x: ca.acos(_bounded(x)),
+    lambda x: ca.atanh(_bounded(x)),
+    lambda x: ca.tan(_bounded(x)),
+    lambda x: ca.sinh(_bounded(x)),
+    lambda x: ca.cosh(_bounded(x)),
+    lambda x: ca.acosh(1 + x * x),
+    lambda x: ca.log1p(x * x),
+    lambda x: ca.expm1(_bounded(x)),
+]
+BINARY = [
+    lambda a, b: a + b,
+    lambda a, b: a - b,
+    lambda a, b: a * b,
+    lambda a, b: a / (1 + b * b),
+    ca.atan2, ca.fmin, ca.fmax, ca.hypot, ca.copysign,
+    lambda a, b: ca.power(ca.fabs(a) + 0.5, ca.tanh(b)),
+    lambda a, b: ca.if_else(a > b, a, b * b),
+    lambda a, b: ca.fmod(a, ca.fabs(b) + 1),
+    lambda a, b: ca.remainder(a, ca.fabs(b) + 1),
+    lambda a, b: ca.logic_and(a < b, a != b) * a + ca.logic_or(a <= b, a == b) * b,
+    lambda a, b: ca.logic_not(a > b) * (a + 0.1),
+]
+
+
+def random_expression(rng, leaves, depth):
+    if depth == 0 or rng.random() < 0.15:
+        return leaves[rng.integers(len(leaves))] if rng.random() < 0.85 else ca.SX(rng.normal())
+    if rng.random() < 0.5:
+        return UNARY[rng.integers(len(UNARY))](random_expression(rng, leaves, depth - 1))
+    op = BINARY[rng.integers(len(BINARY))]
+    return op(random_expression(rng, leaves, depth - 1), random_expression(rng, leaves, depth - 1))
+
+
+def make_kernel(name, seed, inputs=(("q", 3), ("qd", 2)), outputs=(("y", 4, 1), ("M", 3, 3)),
+                depth=6):
+    """A random nonlinear kernel; matrix outputs leave flattened row-major."""
+    rng = np.random.default_rng(seed)
+    symbols = [ca.SX.sym(port, size) for port, size in inputs]
+    leaves = [s[i] for s in symbols for i in range(s.numel())]
+    columns = []
+    for _, rows, cols in outputs:
+        matrix = ca.SX(rows, cols)
+        for r in range(rows):
+            for c in range(cols):
+                matrix[r, c] = random_expression(rng, leaves, depth)
+        columns.append(ca.vec(matrix.T))
+    function = ca.Function(name, symbols, columns)
+    return Kernel(name, f"Random kernel {name} (seed {seed}).",
+                  tuple(Port(p, n) for p, n in inputs),
+                  tuple(Port(p, r, c) for p, r, c in outputs), function)
+
+
+def every_operation_kernel():
+    x = ca.SX.sym("x", 3)
+    a, b, c = x[0], x[1], x[2]
+    exprs = [
+        a + b, a - b, a * b, a / b, -a, a ** 2, 2 * a, 1 / a, ca.sqrt(ca.fabs(a)), ca.exp(a),
+        ca.log(ca.fabs(a)), ca.power(ca.fabs(a), b), ca.constpow(a, 3.5), ca.sin(a), ca.cos(a),
+        ca.tan(a), ca.asin(_bounded(a)), ca.acos(_bounded(a)), ca.atan(a), ca.atan2(a, b),
+        ca.sinh(a), ca.cosh(a), ca.tanh(a), ca.asinh(a), ca.acosh(ca.fabs(a) + 1),
+        ca.atanh(_bounded(a)), ca.fabs(a), ca.sign(a), ca.copysign(a, b), ca.fmin(a, b),
+        ca.fmax(a, b), ca.floor(a), ca.ceil(a), ca.fmod(a, b), ca.remainder(a, b),
+        ca.if_else(a < b, a, c), a < b, a <= b, a == b, a != b, ca.logic_not(a),
+        ca.logic_and(a, b), ca.logic_or(a, b), ca.erf(a), ca.log1p(ca.fabs(a)), ca.expm1(a),
+        ca.hypot(a, b), ca.inf * a, 1e300 * 1e300, 0.1 + a,
+    ]
+    function = ca.Function("every_op", [x], [ca.vertcat(*exprs)])
+    return Kernel("every_op", "Each printable operation once.", (Port("x", 3),),
+                  (Port("y", len(exprs)),), function)
+
+
+def planar_arm_kernels():
+    """Smooth robot-like kernels: a 3-link planar arm's pose, Jacobian and J^T J + I."""
+    q = ca.SX.sym("q", 3)
+    lengths = (0.4, 0.3, 0.2)
+    angle, x, y = 0, 0, 0
+    for i, length in enumerate(lengths):
+        angle = angle + q[i]
+        x, y = x + length * ca.cos(angle), y + length * ca.sin(angle)
+    pose = ca.SX.eye(4)
+    pose[0, 0], pose[0, 1], pose[1, 0], pose[1, 1] = ca.cos(angle), -ca.sin(angle), ca.sin(angle), ca.cos(angle)
+    pose[0, 3], pose[1, 3] = x, y
+    jac = ca.jacobian(ca.vertcat(x, y, angle), q)
+    mass = jac.T @ jac + ca.SX.eye(3)
+    flat = lambda m: ca.vec(m.T)  # noqa: E731
+    return [
+        Kernel("fk", "Tip pose.", (Port("q", 3),), (Port("T", 4, 4),),
+               ca.Function("fk", [q], [flat(pose)])),
+        Kernel("jacobian", "Planar Jacobian.", (Port("q", 3),), (Port("J", 3, 3),),
+               ca.Function("jacobian", [q], [flat(jac)])),
+        Kernel("mass", "J^T J + I.", (Port("q", 3),), (Port("M", 3, 3),),
+               ca.Function("mass", [q], [flat(mass)])),
+    ]
+
+
+def special_kernels():
+    x = ca.SX.sym("x", 2)
+    unused = ca.SX.sym("unused", 3)
+    sparse = ca.SX(4, 1)
+    sparse[1] = ca.sin(x[0])
+    sparse[3] = x[1] * 2.5
+    return [
+        Kernel("unused_input", "Ignores its second input.", (Port("x", 2), Port("unused", 3)),
+               (Port("out", 2),), ca.Function("u", [x, unused], [ca.cos(x)])),
+        Kernel("constant", "Returns constants only.", (Port("x", 2),), (Port("c", 3),),
+               ca.Function("c", [x], [ca.DM([1.5, -2.0, 1e-300])])),
+        Kernel("sparse_out", "Structural zeros in the output.", (Port("x", 2),),
+               (Port("s", 2, 2),), ca.Function("s", [x], [sparse])),
+    ]
+
+
+KERNELS = [make_kernel("rand_a", 1), make_kernel("rand_b", 2, outputs=(("m", 2, 3),)),
+           make_kernel("rand_c", 3, inputs=(("u", 4),), outputs=(("v", 5, 1),), depth=7),
+           every_operation_kernel(), *special_kernels()]
+
+
+def reference(kernel, args):
+    """CasADi's own evaluation, shaped per Port."""
+    values = kernel.function(*[np.asarray(a, float) for a in args])
+    values = values if isinstance(values, (list, tuple)) else [values]
+    return [np.array(v, float).ravel().reshape(p.rows, p.cols) if p.is_matrix
+            else np.array(v, float).ravel() for v, p in zip(values, kernel.outputs)]
+
+
+def random_args(kernel, rng, batch=None):
+    lead = () if batch is None else (batch,)
+    return [rng.normal(size=lead + ((p.rows, p.cols) if p.is_matrix else (p.rows,))) * 1.5
+            for p in kernel.inputs]
+
+
+def load_module(directory: Path, name: str):
+    path = directory / (name + emit_compile.extension_suffix())
+    spec = importlib.util.spec_from_file_location(name, path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def assert_close(actual, expected, rtol):
+    actual, expected = np.asarray(actual, float), np.asarray(expected, float)
+    scale = np.where(np.isfinite(expected), np.abs(expected), 0).max(initial=1.0)
+    np.testing.assert_allclose(actual, expected, rtol=rtol, atol=rtol * scale, equal_nan=True)
+
+
+@pytest.fixture(scope="module")
+def built(tmp_path_factory):
+    out = tmp_path_factory.mktemp("double") / "randbot"
+    build.emit(out, "randbot", KERNELS, nq=3, spec_sha256="ab" * 32,
+               extra_info={"nodes": ["arm"]}, attributes={"dt": 0.001, "tool": "gripper"})
+    return out
+
+
+@pytest.fixture(scope="module")
+def module(built):
+    return load_module(built, "randbot")
+
+
+# ------------------------------------------------------------------ (a) C compiles strictly
+
+@pytest.mark.parametrize("extra", [[], ["-DNDEBUG", "-O2"], ["-O3", "-pedantic"]])
+def test_source_compiles_warning_free_with_gcc(built, tmp_path, extra):
+    subprocess.run([GCC, *STRICT, *extra, "-c", str(built / "randbot.c"),
+                    "-o", str(tmp_path / "randbot.o")], check=True, capture_output=True)
+
+
+@pytest.mark.skipif(CLANG is None, reason="clang not installed")
+def test_source_compiles_warning_free_with_clang(built, tmp_path):
+    subprocess.run([CLANG, *STRICT, "-O2", "-c", str(built / "randbot.c"),
+                    "-o", str(tmp_path / "randbot.o")], check=True, capture_output=True)
+
+
+def test_makefile_builds_static_library(built, tmp_path):
+    if shutil.which("make") is None:
+        pytest.skip("make not installed")
+    copy = shutil.copytree(built, tmp_path / "copy")
+    subprocess.run(["make", "-C", str(copy)], check=True, capture_output=True)
+    assert (copy / "librandbot.a").is_file()
+
+
+# ---------------------------------------------------------- (b) a C harness agrees with casadi
+
+def harness_source(name, kernels):
+    lines = ["#include <stdio.h>", f'#include "{name}.h"', "",
+             "static int read_values(FILE *f, double *v, int n)", "{", "    int i;",
+             "    for (i = 0; i < n; ++i) {", '        if (fscanf(f, "%lf", &v[i]) != 1) {',
+             "            return -1;", "        }", "    }", "    return 0;", "}", "",
+             "static void print_values(const double *v, int n)", "{", "    int i;",
+             "    for (i = 0; i < n; ++i) {", '        printf("%.17g\\n", v[i]);', "    }", "}",
+             "", "int main(int argc, char **argv)", "{", "    FILE *f;", "    int samples, s;",
+             '    if (argc != 2 || (f = fopen(argv[1], "r")) == NULL) {', "        return 2;",
+             "    }", '    if (fscanf(f, "%d", &samples) != 1) {', "        return 3;", "    }",
+             "    for (s = 0; s < samples; ++s) {"]
+    for k in kernels:
+        ports = [*k.inputs, *k.outputs]
+        lines.append("        {")
+        lines += [f"            double {p.name}[{p.size}];" for p in ports]
+        lines += [f"            if (read_values(f, {p.name}, {p.size}) != 0) return 4;"
+                  for p in k.inputs]
+        lines.append(f"            if ({name}_{k.name}({', '.join(p.name for p in ports)}) != 0) return 5;")
+        lines += [f"            print_values({p.name}, {p.size});" for p in k.outputs]
+        lines.append("        }")
+    lines += ["    }", "    fclose(f);", "    return 0;", "}", ""]
+    return "\n".join(lines)
+
+
+def run_harness(built, tmp_path, name, kernels, samples):
+    (tmp_path / "harness.c").write_text(harness_source(name, kernels))
+    exe = tmp_path / "harness"
+    subprocess.run([GCC, *STRICT, "-O2", f"-I{built}", str(tmp_path / "harness.c"),
+                    str(built / f"{name}.c"), "-o", str(exe), "-lm"], check=True,
+                   capture_output=True)
+    values = [str(len(samples))]
+    for args in samples:
+        for k_args in args:
+            values += [repr(float(v)) for a in k_args for v in np.ravel(a)]
+    (tmp_path / "inputs.txt").write_text("\n".join(values) + "\n")
+    result = subprocess.run([str(exe), str(tmp_path / "inputs.txt")], check=True,
+                            capture_output=True, text=True)
+    numbers = iter(float(v) for v in result.stdout.split())
+    return [[[np.array([next(numbers) for _ in range(p.size)]) for p in k.outputs]
+             for k in kernels] for _ in samples]
+
+
+def test_c_harness_agrees_with_casadi(built, tmp_path):
+    rng = np.random.default_rng(7)
+    samples = [[random_args(k, rng) for k in KERNELS] for _ in range(20)]
+    outputs = run_harness(built, tmp_path, "randbot", KERNELS, samples)
+    for sample_args, sample_out in zip(samples, outputs):
+        for kernel, args, got in zip(KERNELS, sample_args, sample_out):
+            for value, expected in zip(got, reference(kernel, args)):
+                assert_close(value, expected.ravel(), 1e-12)
+
+
+# --------------------------------------------------------- (c) the Python module agrees too
+
+def test_module_agrees_with_casadi_and_c_harness(built, module, tmp_path):
+    rng = np.random.default_rng(11)
+    samples = [[random_args(k, rng) for k in KERNELS] for _ in range(10)]
+    c_outputs = run_harness(built, tmp_path, "randbot", KERNELS, samples)
+    for sample_args, sample_c in zip(samples, c_outputs):
+        for kernel, args, c_values in zip(KERNELS, sample_args, sample_c):
+            got = getattr(module, kernel.name)(*args)
+            got = got if isinstance(got, tuple) else (got,)
+            assert len(got) == len(kernel.outputs)
+            for value, expected, c_value, port in zip(got, reference(kernel, args), c_values,
+                                                      kernel.outputs):
+                assert value.shape == expected.shape == ((port.rows, port.cols) if port.is_matrix
+                                                         else (port.rows,))
+                assert_close(value, expected, 1e-12)
+                np.testing.assert_array_equal(value.ravel(), c_value)
+
+
+@pytest.mark.parametrize("batch", [1, 5])
+def test_batch_equals_looping_single_calls(module, batch):
+    rng = np.random.default_rng(batch)
+    for kernel in KERNELS:
+        fn = getattr(module, kernel.name)
+        args = random_args(kernel, rng, batch)
+        got = fn(*args)
+        got = got if isinstance(got, tuple) else (got,)
+        for j, port in enumerate(kernel.outputs):
+            assert got[j].shape[0] == batch
+            for b in range(batch):
+                single = fn(*[a[b] for a in args])
+                single = single if isinstance(single, tuple) else (single,)
+                np.testing.assert_array_equal(got[j][b], single[j])
+
+
+def test_empty_batch_and_argument_conversion(module):
+    kernel = KERNELS[0]
+    assert module.rand_a(np.zeros((0, 3)), np.zeros((0, 2)))[1].shape == (0, 3, 3)
+    q = np.asfortranarray(np.arange(6.0).reshape(3, 2))[:, 0]  # strided view
+    expected = module.rand_a(np.ascontiguousarray(q), np.array([1.0, 2.0]))
+    for got in (module.rand_a(q, [1, 2]), module.rand_a(list(q), np.array([1, 2]))):
+        for g, e in zip(got, expected):
+            np.testing.assert_array_equal(g, e)
+    assert kernel.name == "rand_a"
+
+
+@pytest.mark.parametrize("args, message", [
+    ((np.zeros(4), np.zeros(2)), r"rand_a\(\): argument 'q' must have shape \(3,\) or \(B, 3\), got \(4,\)"),
+    ((np.zeros((2, 3)), np.zeros(2)), r"'qd' lacks a batch axis"),
+    ((np.zeros((2, 3)), np.zeros((3, 2))), r"batch lengths differ: 'q' has 2, 'qd' has 3"),
+    ((np.zeros((1, 2, 3)), np.zeros(2)), r"argument 'q' must have shape"),
+    ((np.zeros(()), np.zeros(2)), r"argument 'q' must have shape"),
+])
+def test_wrong_shapes_raise_value_error(module, args, message):
+    with pytest.raises(ValueError, match=message):
+        module.rand_a(*args)
+
+
+def test_wrong_argument_count_raises_type_error(module):
+    with pytest.raises(TypeError, match=r"rand_a\(\) takes 2 positional arguments but 1"):
+        module.rand_a(np.zeros(3))
+
+
+def test_module_attributes_and_info(module):
+    info = module.info()
+    assert info == {
+        "name": "randbot", "nq": 3, "nodes": ["arm"], "functions": [k.name for k in KERNELS],
+        "robotgen_version": info["robotgen_version"], "spec_sha256": "ab" * 32,
+        "precision": "double"}
+    module.info()["nq"] = 99
+    assert module.info()["nq"] == 3 == module.nq
+    assert (module.dt, module.tool) == (0.001, "gripper")
+    assert str(inspect.signature(module.rand_a)) == "(q, qd, /)"
+    assert module.rand_a.__doc__.startswith("Random kernel rand_a")
+
+
+def test_manifest(built):
+    manifest = json.loads((built / "manifest.json").read_text())
+    assert manifest["name"] == "randbot" and manifest["casadi_version"] == ca.__version__
+    assert manifest["precision"] == "double" and manifest["nq"] == 3
+    by_name = {f["name"]: f for f in manifest["functions"]}
+    assert by_name["rand_a"]["outputs"] == [{"name": "y", "shape": [4]},
+                                            {"name": "M", "shape": [3, 3]}]
+    assert by_name["every_op"]["sin_cos_ops"] == 2
+    assert by_name["constant"]["arithmetic_ops"] == 0
+    assert all(f["arithmetic_ops"] > 10 for f in manifest["functions"] if f["name"].startswith("rand"))
+
+
+def test_every_operation_is_printed():
+    kernel = every_operation_kernel()
+    f = kernel.function
+    used = {f.instruction_id(k) for k in range(f.n_instructions())}
+    untested = {op for op in OPERATIONS if op not in used} - {ca.OP_ASSIGN}
+    assert not untested
+
+
+# ------------------------------------------------------------ (d) determinism, (e) atomicity
+
+def test_emitting_twice_is_byte_identical(tmp_path):
+    first, second = tmp_path / "a" / "bot", tmp_path / "b" / "elsewhere"
+    build.emit(first, "bot", KERNELS[:2], nq=3, compile=False)
+    build.emit(second, "bot", KERNELS[:2], nq=3, compile=False)
+    again = {f: (first / f.format(name="bot")).read_bytes() for f in SOURCES}
+    build.emit(first, "bot", KERNELS[:2], nq=3, compile=False)
+    for f in SOURCES:
+        text = (first / f.format(name="bot")).read_bytes()
+        assert text == again[f] == (second / f.format(name="bot")).read_bytes()
+        assert str(tmp_path).encode() not in text
+    assert sorted(p.name for p in tmp_path.joinpath("a").iterdir()) == ["bot"]
+
+
+def test_failed_emit_leaves_nothing_behind(tmp_path, monkeypatch):
+    def broken(*args, **kwargs):
+        raise RuntimeError("compiler exploded")
+
+    monkeypatch.setattr(emit_compile, "compile_extension", broken)
+    with pytest.raises(RuntimeError, match="exploded"):
+        build.emit(tmp_path / "bot", "bot", KERNELS[:1], nq=3)
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_failed_emit_keeps_previous_output(tmp_path, monkeypatch):
+    out = tmp_path / "bot"
+    build.emit(out, "bot", KERNELS[:1], nq=3, compile=False)
+    before = {p.name: p.read_bytes() for p in out.iterdir()}
+    monkeypatch.setattr(emit_compile, "compile_extension",
+                        lambda *a, **k: (_ for _ in ()).throw(RuntimeError("boom")))
+    with pytest.raises(RuntimeError, match="boom"):
+        build.emit(out, "bot", KERNELS[:2], nq=3)
+    assert {p.name: p.read_bytes() for p in out.iterdir()} == before
+    assert [p.name for p in tmp_path.iterdir()] == ["bot"]
+
+
+def test_refuses_to_replace_a_foreign_directory(tmp_path):
+    (tmp_path / "mine").mkdir()
+    (tmp_path / "mine" / "notes.txt").write_text("keep me")
+    with pytest.raises(FileExistsError):
+        build.emit(tmp_path / "mine", "bot", KERNELS[:1], nq=3, compile=False)
+    assert (tmp_path / "mine" / "notes.txt").read_text() == "keep me"
+
+
+def test_compiler_errors_carry_the_compiler_output(tmp_path):
+    (tmp_path / "bad.c").write_text("int broken(void) { return; }\n")
+    with pytest.raises(emit_compile.CompileError, match="bad.c"):
+        emit_compile.compile_extension(tmp_path, "bad", ["bad.c"])
+
+
+# ------------------------------------------------------------------------ (f) float precision
+
+def test_float_precision_agrees_to_single_precision(tmp_path):
+    kernels = planar_arm_kernels()
+    out = tmp_path / "armf"
+    build.emit(out, "armf", kernels, nq=3, precision="float")
+    source = (out / "armf.c").read_text()
+    assert "float *q" in source and "sinf(" in source and "double" not in source
+    subprocess.run([GCC, *STRICT, "-O2", "-c", str(out / "armf.c"), "-o", str(tmp_path / "a.o")],
+                   check=True, capture_output=True)
+    module = load_module(out, "armf")
+    assert module.info()["precision"] == "float"
+    rng = np.random.default_rng(3)
+    for kernel in kernels:
+        for _ in range(20):
+            q = rng.uniform(-np.pi, np.pi, 3)
+            got = getattr(module, kernel.name)(q)
+            assert got.dtype == np.float64
+            assert_close(got, reference(kernel, [q])[0], 1e-5)
+        batch = rng.uniform(-np.pi, np.pi, (4, 3))
+        np.testing.assert_array_equal(getattr(module, kernel.name)(batch)[2],
+                                      getattr(module, kernel.name)(batch[2]))
+
+
+# ------------------------------------------------------------- (g) no state, heap or I/O in C
+
+def test_c_library_has_no_mutable_statics_heap_or_io(built):
+    for file in ("randbot.c", "randbot.h"):
+        text = (built / file).read_text()
+        assert not re.search(r"\bstatic\b(?!\s+const\b)", text)
+        assert not re.search(r"\b(malloc|calloc|realloc|free|printf|fprintf|puts|fopen)\b", text)
+
+
+# ------------------------------------------------------------------- internal errors are clear
+
+def test_unprintable_operation_is_an_internal_error(tmp_path):
+    x = ca.SX.sym("x")
+    kernel = Kernel("inv_erf", "", (Port("x", 1),), (Port("y", 1),),
+                    ca.Function("f", [x], [ca.erfinv(x)]))
+    with pytest.raises(KernelError, match="OP_ERFINV"):
+        build.emit(tmp_path / "bad", "bad", [kernel], nq=1, compile=False)
+    assert not (tmp_path / "bad").exists()
+
+
+_X, _MX, _FREE = ca.SX.sym("x"), ca.MX.sym("x"), ca.SX.sym("free")
+_IDENTITY = ca.Function("f", [_X], [_X])
+
+
+@pytest.mark.parametrize("kernel, message", [
+    (Kernel("mx", "", (Port("x", 1),), (Port("y", 1),), ca.Function("f", [_MX], [2 * _MX])),
+     "SX Function"),
+    (Kernel("free", "", (Port("x", 1),), (Port("y", 1),),
+            ca.Function("f", [_X], [_X * _FREE], {"allow_free": True})), "free symbols"),
+    (Kernel("shape", "", (Port("x", 1),), (Port("y", 2, 2),),
+            ca.Function("f", [_X], [ca.SX.zeros(2, 2)])), "flattened row-major"),
+    (Kernel("count", "", (Port("x", 1), Port("z", 1)), (Port("y", 1),), _IDENTITY), "1 inputs"),
+    (Kernel("w1", "", (Port("w1", 1),), (Port("y", 1),), _IDENTITY), "reserved"),
+    (Kernel("names", "", (Port("sin", 1),), (Port("y", 1),), _IDENTITY), "reserved"),
+    (Kernel("same", "", (Port("y", 1),), (Port("y", 1),), _IDENTITY), "repeat"),
+    (Kernel("info", "", (Port("x", 1),), (Port("y", 1),), _IDENTITY), "repeat"),
+    (Kernel("bad-name", "", (Port("x", 1),), (Port("y", 1),), _IDENTITY), "identifier"),
+])
+def test_broken_kernels_are_internal_errors(tmp_path, kernel, message):
+    with pytest.raises(KernelError, match=message):
+        build.emit(tmp_path / "bad", "bad", [kernel], nq=1, compile=False)
