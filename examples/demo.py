@@ -34,8 +34,8 @@ def build(spec: Path, out: Path):
 
 def desired(t: float, q0: np.ndarray):
     """A smooth joint trajectory: q0 + 0.3 sin(w t) on every joint."""
-    w = 2.0
-    return q0 + 0.3 * np.sin(w * t), 0.3 * w * np.cos(w * t), -0.3 * w * w * np.sin(w * t)
+    w, ones = 2.0, np.ones_like(q0)
+    return q0 + 0.3 * np.sin(w * t), 0.3 * w * np.cos(w * t) * ones, -0.3 * w * w * np.sin(w * t) * ones
 
 
 def main() -> None:
@@ -80,6 +80,8 @@ def main() -> None:
             k4q, k4v = f(q + dt * k3q, qd + dt * k3v, tau)
             q = q + dt / 6 * (k1q + 2 * k2q + 2 * k3q + k4q)
             qd = qd + dt / 6 * (k1v + 2 * k2v + 2 * k3v + k4v)
+        print("(the measured error levels off near 1e-5 rad: tau is held constant over each 1 ms "
+              "step, as a servo loop holds it; the prediction is for a continuous controller)")
         print(f"tip position at the end: {np.round(arm.fk(q)[:3, 3], 4)} m")
         print(f"controller (M, C qd + N from the module, plus numpy): {t_ctrl / (steps + 1) * 1e6:.1f} us per step")
 

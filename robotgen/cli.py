@@ -22,10 +22,14 @@ def _load(args: argparse.Namespace):
 
         if not getattr(args, "tip", None):
             raise _Usage("a URDF needs --tip LINK")
-        return load_urdf_system(path, tip=args.tip, base=args.base, name=args.name)
-    from robotgen.spec import load_system
+        system = load_urdf_system(path, tip=args.tip, base=args.base, name=args.name)
+    else:
+        from robotgen.spec import load_system
 
-    return load_system(path)
+        system = load_system(path)
+    for warning in system.warnings:
+        print(warning, file=sys.stderr)
+    return system
 
 
 class _Usage(Exception):

@@ -94,15 +94,6 @@ MALFORMED = [
               mass: 1
               inertia: {ixx: 1, iyy: 1, izz: 1, ixy: 2}
         """), 14, 15, "joints[0].link.inertia: inertia is not positive semi-definite"),
-    ("triangle inequality", chain_spec("""
-        convention: dh_standard
-        joints:
-          - type: revolute
-            dh: {a: 1}
-            link:
-              mass: 1
-              inertia: {ixx: 0.1, iyy: 0.1, izz: 0.5}
-        """), 14, 15, "joints[0].link.inertia: principal moments 0.1, 0.1, 0.5 violate the triangle"),
     ("negative mass", chain_spec("""
         convention: dh_standard
         joints:
@@ -466,3 +457,23 @@ def test_schema_is_valid_and_deterministic():
     Draft202012Validator.check_schema(SCHEMA)
     assert schema_json() == schema_json()
     assert json.loads(schema_json())["properties"]["robotgen"]["const"] == 1
+
+
+def test_triangle_inequality_is_a_located_warning(tmp_path):
+    """Published sets (the PUMA 560's) carry inertias no rigid body has: warned, not refused."""
+    path = tmp_path / "spec.yaml"
+    path.write_text(chain_spec("""
+        convention: dh_standard
+        joints:
+          - type: revolute
+            dh: {a: 1}
+            link:
+              mass: 1
+              inertia: {ixx: 0.1, iyy: 0.1, izz: 0.5}
+        """))
+    system = load_system(str(path))
+    line = next(k for k, text in enumerate(path.read_text().splitlines(), 1) if "inertia:" in text)
+    col = path.read_text().splitlines()[line - 1].index("inertia") + 1
+    assert len(system.warnings) == 1
+    assert system.warnings[0].startswith(f"{path}:{line}:{col}: warning: ")
+    assert "principal moments 0.1, 0.1, 0.5 violate the triangle" in system.warnings[0]

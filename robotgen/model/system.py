@@ -39,6 +39,7 @@ class RobotSystem:
     source_sha256: str
     nodes: dict[str, DefineNode]
     root: str
+    warnings: tuple[str, ...] = ()  # located, printed by the CLI; the system is still valid
 
     @property
     def root_node(self) -> DefineNode:

@@ -4,7 +4,9 @@ convention, unique names, formula shapes and the names each formula may read.
 Every problem is collected; nothing is returned unless there are none."""
 from __future__ import annotations
 
+import dataclasses
 import keyword
+import pathlib
 
 import numpy as np
 
@@ -16,6 +18,7 @@ from robotgen.model.formula import FormulaRobot
 from robotgen.model.system import DefineNode, RobotSystem
 from robotgen.model.transforms import xyz_rpy
 from robotgen.spec.loader import Document, Path, format_path, sort_errors
+from robotgen.spec.urdf import read_urdf
 
 DEFAULT_GRAVITY = (0.0, 0.0, -9.81)
 DEFAULT_COULOMB_SMOOTHING = 1e-2
@@ -33,6 +36,7 @@ class _Builder:
     def __init__(self, doc: Document):
         self.doc = doc
         self.errors: list[UserError] = []
+        self.warnings: list[str] = []
 
     # -- reporting -------------------------------------------------------------------
     def error(self, location: Location, path: Path, message: str) -> None:
@@ -90,8 +94,11 @@ class _Builder:
         if moments[0] < -tolerance:
             self.at_key(path, f"inertia is not positive semi-definite (principal moments {shown})")
         elif moments[0] + moments[1] < moments[2] - tolerance:
-            self.at_key(path, f"principal moments {shown} violate the triangle inequality "
-                              f"I1 + I2 >= I3 (no rigid body has this inertia)")
+            # A warning, not an error: published parameter sets (the PUMA 560's among them)
+            # carry such estimates, and M stays positive definite with them.
+            self.warnings.append(f"{self.doc.source.key(path)}: warning: {format_path(self.doc.data, path)}: "
+                                 f"principal moments {shown} violate the triangle inequality I1 + I2 >= I3 "
+                                 "(no rigid body has this inertia)")
         return inertia
 
     def body(self, path: Path, link: dict | None) -> Body:
@@ -234,12 +241,29 @@ class _Builder:
             if "kinematics" in spec else None,
         )
 
+    def urdf(self, name: str, path: Path, spec: dict) -> KinematicTree | None:
+        """A URDF leaf; its own errors point into the URDF file, a missing file at the spec."""
+        file = pathlib.Path(self.doc.path).parent / spec["file"]
+        if not file.is_file():
+            self.at_value(path + ("file",), f"URDF file '{spec['file']}' not found (looked for {file})")
+            return None
+        try:
+            chain = read_urdf(str(file), spec["tip"], spec.get("base"), name)
+        except UserError as e:
+            self.errors.append(e)
+            return None
+        self.warnings.extend(chain.ignored_attributes)
+        gravity = self.vector(path + ("gravity",), spec.get("gravity"), DEFAULT_GRAVITY)
+        return dataclasses.replace(chain.tree, gravity=gravity)
+
     # -- system ----------------------------------------------------------------------
     def node(self, name: str, node: dict) -> DefineNode:
         path: Path = ("nodes", name, "define")
         define = node["define"]
         if "chain" in define:
             return DefineNode(name, self.chain(name, path + ("chain",), define["chain"]))
+        if "urdf" in define:
+            return DefineNode(name, self.urdf(name, path + ("urdf",), define["urdf"]))
         return DefineNode(name, self.formulas(name, path + ("formulas",), define["formulas"]))
 
     def system(self) -> RobotSystem:
@@ -248,7 +272,7 @@ class _Builder:
         if data["root"] not in nodes:
             self.at_value(("root",), f"'{data['root']}' is not a node (nodes: {', '.join(nodes)})")
         return RobotSystem(name=data["name"], source=self.doc.path, source_sha256=self.doc.sha256,
-                           nodes=nodes, root=data["root"])
+                           nodes=nodes, root=data["root"], warnings=tuple(self.warnings))
 
 
 def to_system(doc: Document) -> RobotSystem:

@@ -17,7 +17,6 @@ Normalisation (into robotgen.model.chain's canonical form):
 from __future__ import annotations
 
 import hashlib
-import sys
 import xml.parsers.expat
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -304,17 +303,16 @@ def _foreign_dynamics_attributes(r: _Reader, joints: list[Element]) -> tuple[str
     if first is None:
         return ()
     listed = ", ".join(f"'{a}'" for a in sorted(names))
-    return (f"{r.loc(first)}: <dynamics> attributes {listed} are not URDF; ignored",)
+    return (f"{r.loc(first)}: warning: <dynamics> attributes {listed} are not URDF; ignored",)
 
 
 def load_urdf_system(path: str, tip: str, base: str | None = None, name: str | None = None) -> RobotSystem:
     chain = read_urdf(path, tip, base, name)
-    for warning in chain.ignored_attributes:
-        print(f"warning: {warning}", file=sys.stderr)
     module_name = _identifier(chain.tree.name)
     node = DefineNode(module_name, chain.tree)
     sha = hashlib.sha256(Path(path).read_bytes()).hexdigest()
-    return RobotSystem(module_name, path, sha, {module_name: node}, module_name)
+    return RobotSystem(module_name, path, sha, {module_name: node}, module_name,
+                       warnings=chain.ignored_attributes)
 
 
 def _identifier(name: str) -> str:
