@@ -8,8 +8,8 @@ import sys
 import traceback
 from pathlib import Path
 
-from robotgen.errors import UserError, UserErrors
-from robotgen.model.describe import system_info
+from robotgen.errors import Location, UserError, UserErrors
+from robotgen.model.describe import system_info, system_nq
 
 EXIT_OK, EXIT_USER, EXIT_USAGE, EXIT_BUG = 0, 1, 2, 3
 
@@ -43,10 +43,43 @@ def _cmd_build(args: argparse.Namespace) -> int:
 
     out = Path(args.output) if args.output else Path("generated") / system.name
     kernels = kernels_for(system)
-    emit(out, system.name, kernels, nq=system.root_node.nq, precision=args.precision,
+    emit(out, system.name, kernels, nq=system_nq(system), precision=args.precision,
          compile=not args.no_compile, extra_info=system_info(system),
          spec_sha256=system.source_sha256)
     print(f"robotgen: built {system.name} ({len(kernels)} functions) in {out}")
+    return EXIT_OK
+
+
+def _cmd_simulate(args: argparse.Namespace) -> int:
+    import dataclasses
+    import tempfile
+
+    from robotgen import simulate
+    from robotgen.emit.build import emit
+    from robotgen.model.simulation import SimulationSettings
+    from robotgen.symbolic import kernels_for
+
+    system = _load(args)
+    if system.is_single_leaf:
+        raise _Usage("simulate needs a robot tree (attach/control); for one chain see examples/demo.py")
+    settings = system.simulation or SimulationSettings()
+    overrides = {k: getattr(args, k) for k in ("duration", "dt") if getattr(args, k) is not None}
+    settings = dataclasses.replace(settings, **overrides)
+    out = Path(args.output) if args.output else Path(f"{system.name}_simulation")
+    with tempfile.TemporaryDirectory(prefix="robotgen-sim-") as tmp:
+        build = Path(tmp) / system.name
+        emit(build, system.name, kernels_for(system), nq=system_nq(system), extra_info=system_info(system),
+             spec_sha256=system.source_sha256)
+        module = simulate.load_module(build, system.name)
+        try:
+            result = simulate.run(module, settings)
+        except ValueError as e:
+            raise UserError(Location(system.source), f"simulation: {e}") from None
+    out.mkdir(parents=True, exist_ok=True)
+    simulate.write_csv(result, out / f"{system.name}.csv")
+    simulate.plot(result, out / f"{system.name}.png", f"{system.name}: {system.root}")
+    print(simulate.summary(result))
+    print(f"robotgen: wrote {out / (system.name + '.csv')} and {out / (system.name + '.png')}")
     return EXIT_OK
 
 
@@ -66,10 +99,18 @@ def _cmd_schema(args: argparse.Namespace) -> int:
 def _cmd_info(args: argparse.Namespace) -> int:
     system = _load(args)
     info = system_info(system)
-    print(f"{system.name} (root: {system.root})")
+    print(f"{system.name} (root: {system.root}; sensed joints: {system_nq(system)} in "
+          f"{', '.join(info['leaves'])})")
     for name, node in info["nodes"].items():
         print(f"  {name}: {node['primitive']} {node['kind']}, nq = {node['nq']}")
         print(f"    coordinates: {', '.join(node['coordinates'])}")
+        for label in ("internal_motions", "internal_forces"):
+            if node[label]:
+                print(f"    {label.replace('_', ' ')}: {', '.join(node[label])}")
+        for key in ("robots", "payload", "robot"):
+            if node.get(key):
+                value = node[key]
+                print(f"    {key}: {', '.join(value) if isinstance(value, list) else value}")
         for j in node.get("joints", []):
             lim = j["limits"]
             rng = "" if lim["lower"] is None else f" [{lim['lower']:g}, {lim['upper']:g}]"
@@ -96,6 +137,12 @@ def _parser() -> argparse.ArgumentParser:
         c.add_argument("--base")
         c.add_argument("--name")
         c.set_defaults(run=run)
+    sim = sub.add_parser("simulate", help="run a tree's servo step against its true constrained plant")
+    sim.add_argument("spec")
+    sim.add_argument("-o", "--output", help="directory for the CSV and PNG (default <name>_simulation/)")
+    sim.add_argument("--duration", type=float, help="seconds (default: the spec's simulation section)")
+    sim.add_argument("--dt", type=float, help="servo period and RK4 step [s]")
+    sim.set_defaults(run=_cmd_simulate, tip=None, base=None, name=None)
     s = sub.add_parser("schema", help="print the JSON Schema of the spec format")
     s.set_defaults(run=_cmd_schema)
     return p

@@ -10,7 +10,19 @@ import yaml
 
 ROOT = Path(__file__).resolve().parent.parent
 SPECS = ROOT / "specs"
-EXAMPLE_SPECS = sorted(SPECS.glob("*.yaml"))
+ALL_SPECS = sorted(SPECS.glob("*.yaml"))
+
+
+def _is_single_leaf(spec: Path) -> bool:
+    with open(spec) as f:
+        data = yaml.safe_load(f)
+    return "define" in data["nodes"][data["root"]]
+
+
+# Specs whose root is one leaf robot: their module has the contract's chain/formula API.
+EXAMPLE_SPECS = [s for s in ALL_SPECS if _is_single_leaf(s)]
+# Robot trees (ATTACH / CONTROL): per-node functions, servo_step, plant_*.
+TREE_SPECS = [s for s in ALL_SPECS if not _is_single_leaf(s)]
 
 # Make `import robotgen` and `import reference` work however pytest is started.
 for p in (str(ROOT), str(Path(__file__).resolve().parent)):

@@ -48,6 +48,17 @@ static int rg_convert_args(const char *fn, PyObject *const *args, Py_ssize_t nar
         if (arrays[i] == NULL) {
             return -1;
         }
+        if (PyArray_NDIM(arrays[i]) == 0 && ports[i].ndim == 1 && ports[i].dims[0] == 1) {
+            /* a plain number for a length-1 port (a time step, a gain) */
+            npy_intp one = 1;
+            PyArray_Dims shape = {&one, 1};
+            PyArrayObject *vector = (PyArrayObject *)PyArray_Newshape(arrays[i], &shape, NPY_CORDER);
+            Py_DECREF(arrays[i]);
+            arrays[i] = vector;
+            if (vector == NULL) {
+                return -1;
+            }
+        }
         extra = PyArray_NDIM(arrays[i]) - ports[i].ndim;
         for (k = 0; (extra == 0 || extra == 1) && k < ports[i].ndim; ++k) {
             if (PyArray_DIM(arrays[i], extra + k) != ports[i].dims[k]) {
@@ -602,7 +613,7 @@ static PyObject *rg_info(PyObject *self, PyObject *unused)
     (void)self;
     (void)unused;
     return rg_from_json(
-    "{\"functions\":[\"fk\",\"jacobian\",\"jacobian_hand\",\"jacobian_dot_qd\",\"mass\",\"coriolis\",\"gravity\",\"nonlinear\",\"inverse_dynamics\",\"forward_dynamics\"],\"name\":\"puma560\",\"nodes\":{\"arm\":{\"base_link\":\"base\",\"coordinates\":[\"q1\",\"q2\",\"q3\",\"q4\",\"q5\",\"q6\"],\"joints\":[{\"armature\":0.784029968642,\"coulomb\":25.983606500000004,\"damping\":0.0,\"limits\":{\"effort\":null,\"lower\":-2.792526803190927,\"upper\":2.792526803190927,\"velocity\":null},\"name\":\"q1\",\"parent\":-1,\"type\":\"revolute\",\"viscous\":5.8018217679508},{\"armature\":2.324814845,\"coulomb\":10.6197775,\"damping\":0.0,\"limits\":{\"effort\":null,\"lower\":-0.7853981633974483,\"upper\":3.9269908169872414,\"velocity\":null},\"name\":\"q2\",\"parent\":0,\"type\":\"revolute\",\"viscous\":9.496868641825001},{\"armature\":0.576873331938,\"coulomb\":6.36419655,\"damping\":0.0,\"limits\":{\"effort\":null,\"lower\":-3.9269908169872414,\"upper\":0.7853981633974483,\"velocity\":null},\"name\":\"q3\",\"parent\":1,\"type\":\"revolute\",\"viscous\":3.9804259903721997},{\"armature\":0.19079062612368,\"coulomb\":1.06831142,\"damping\":0.0,\"limits\":{\"effort\":null,\"lower\":-1.9198621771937625,\"upper\":2.9670597283903604,\"velocity\":null},\"name\":\"q4\",\"parent\":2,\"type\":\"revolute\",\"viscous\":0.41164522969715195},{\"armature\":0.17070629165700002,\"coulomb\":0.85444524,\"damping\":0.0,\"limits\":{\"effort\":null,\"lower\":-1.7453292519943295,\"upper\":1.7453292519943295,\"velocity\":null},\"name\":\"q5\",\"parent\":3,\"type\":\"revolute\",\"viscous\":0.42728302093540005},{\"armature\":0.19406450566800004,\"coulomb\":0.55443978,\"damping\":0.0,\"limits\":{\"effort\":null,\"lower\":-4.642575810304916,\"upper\":4.642575810304916,\"velocity\":null},\"name\":\"q6\",\"parent\":4,\"type\":\"revolute\",\"viscous\":0.2158232532732}],\"kind\":\"chain\",\"locked_joints\":[],\"nq\":6,\"primitive\":\"define\",\"tip_link\":\"tool\"}},\"nq\":6,\"precision\":\"double\",\"robotgen_version\":\"0.1.0\",\"root\":\"arm\",\"spec_sha256\":\"74bfcdc43dcc8060511637324279fd9105b6eaa47acfee4004a341213677443d\"}");
+    "{\"functions\":[\"fk\",\"jacobian\",\"jacobian_hand\",\"jacobian_dot_qd\",\"mass\",\"coriolis\",\"gravity\",\"nonlinear\",\"inverse_dynamics\",\"forward_dynamics\"],\"leaves\":[\"arm\"],\"name\":\"puma560\",\"nodes\":{\"arm\":{\"base_link\":\"base\",\"coordinates\":[\"q1\",\"q2\",\"q3\",\"q4\",\"q5\",\"q6\"],\"internal_forces\":[],\"internal_motions\":[],\"joints\":[{\"armature\":0.784029968642,\"coulomb\":25.983606500000004,\"damping\":0.0,\"limits\":{\"effort\":null,\"lower\":-2.792526803190927,\"upper\":2.792526803190927,\"velocity\":null},\"name\":\"q1\",\"parent\":-1,\"type\":\"revolute\",\"viscous\":5.8018217679508},{\"armature\":2.324814845,\"coulomb\":10.6197775,\"damping\":0.0,\"limits\":{\"effort\":null,\"lower\":-0.7853981633974483,\"upper\":3.9269908169872414,\"velocity\":null},\"name\":\"q2\",\"parent\":0,\"type\":\"revolute\",\"viscous\":9.496868641825001},{\"armature\":0.576873331938,\"coulomb\":6.36419655,\"damping\":0.0,\"limits\":{\"effort\":null,\"lower\":-3.9269908169872414,\"upper\":0.7853981633974483,\"velocity\":null},\"name\":\"q3\",\"parent\":1,\"type\":\"revolute\",\"viscous\":3.9804259903721997},{\"armature\":0.19079062612368,\"coulomb\":1.06831142,\"damping\":0.0,\"limits\":{\"effort\":null,\"lower\":-1.9198621771937625,\"upper\":2.9670597283903604,\"velocity\":null},\"name\":\"q4\",\"parent\":2,\"type\":\"revolute\",\"viscous\":0.41164522969715195},{\"armature\":0.17070629165700002,\"coulomb\":0.85444524,\"damping\":0.0,\"limits\":{\"effort\":null,\"lower\":-1.7453292519943295,\"upper\":1.7453292519943295,\"velocity\":null},\"name\":\"q5\",\"parent\":3,\"type\":\"revolute\",\"viscous\":0.42728302093540005},{\"armature\":0.19406450566800004,\"coulomb\":0.55443978,\"damping\":0.0,\"limits\":{\"effort\":null,\"lower\":-4.642575810304916,\"upper\":4.642575810304916,\"velocity\":null},\"name\":\"q6\",\"parent\":4,\"type\":\"revolute\",\"viscous\":0.2158232532732}],\"kind\":\"chain\",\"locked_joints\":[],\"nq\":6,\"primitive\":\"define\",\"tip_link\":\"tool\"}},\"nq\":6,\"precision\":\"double\",\"robotgen_version\":\"0.1.0\",\"root\":\"arm\",\"spec_sha256\":\"74bfcdc43dcc8060511637324279fd9105b6eaa47acfee4004a341213677443d\"}");
 }
 
 static PyMethodDef rg_methods[] = {

@@ -48,6 +48,17 @@ static int rg_convert_args(const char *fn, PyObject *const *args, Py_ssize_t nar
         if (arrays[i] == NULL) {
             return -1;
         }
+        if (PyArray_NDIM(arrays[i]) == 0 && ports[i].ndim == 1 && ports[i].dims[0] == 1) {
+            /* a plain number for a length-1 port (a time step, a gain) */
+            npy_intp one = 1;
+            PyArray_Dims shape = {&one, 1};
+            PyArrayObject *vector = (PyArrayObject *)PyArray_Newshape(arrays[i], &shape, NPY_CORDER);
+            Py_DECREF(arrays[i]);
+            arrays[i] = vector;
+            if (vector == NULL) {
+                return -1;
+            }
+        }
         extra = PyArray_NDIM(arrays[i]) - ports[i].ndim;
         for (k = 0; (extra == 0 || extra == 1) && k < ports[i].ndim; ++k) {
             if (PyArray_DIM(arrays[i], extra + k) != ports[i].dims[k]) {
@@ -602,7 +613,7 @@ static PyObject *rg_info(PyObject *self, PyObject *unused)
     (void)self;
     (void)unused;
     return rg_from_json(
-    "{\"functions\":[\"fk\",\"jacobian\",\"jacobian_hand\",\"jacobian_dot_qd\",\"mass\",\"coriolis\",\"gravity\",\"nonlinear\",\"inverse_dynamics\",\"forward_dynamics\"],\"name\":\"stanford\",\"nodes\":{\"arm\":{\"base_link\":\"base\",\"coordinates\":[\"q1\",\"q2\",\"q3\",\"q4\",\"q5\",\"q6\"],\"joints\":[{\"armature\":0.953,\"coulomb\":0.0,\"damping\":0.0,\"limits\":{\"effort\":null,\"lower\":-2.9670597283903604,\"upper\":2.9670597283903604,\"velocity\":null},\"name\":\"q1\",\"parent\":-1,\"type\":\"revolute\",\"viscous\":0.0},{\"armature\":2.193,\"coulomb\":0.0,\"damping\":0.0,\"limits\":{\"effort\":null,\"lower\":-2.9670597283903604,\"upper\":2.9670597283903604,\"velocity\":null},\"name\":\"q2\",\"parent\":0,\"type\":\"revolute\",\"viscous\":0.0},{\"armature\":0.782,\"coulomb\":0.0,\"damping\":0.0,\"limits\":{\"effort\":null,\"lower\":0.30479999999999996,\"upper\":1.27,\"velocity\":null},\"name\":\"q3\",\"parent\":1,\"type\":\"prismatic\",\"viscous\":0.0},{\"armature\":0.106,\"coulomb\":0.0,\"damping\":0.0,\"limits\":{\"effort\":null,\"lower\":-2.9670597283903604,\"upper\":2.9670597283903604,\"velocity\":null},\"name\":\"q4\",\"parent\":2,\"type\":\"revolute\",\"viscous\":0.0},{\"armature\":0.097,\"coulomb\":0.0,\"damping\":0.0,\"limits\":{\"effort\":null,\"lower\":-1.5707963267948966,\"upper\":1.5707963267948966,\"velocity\":null},\"name\":\"q5\",\"parent\":3,\"type\":\"revolute\",\"viscous\":0.0},{\"armature\":0.02,\"coulomb\":0.0,\"damping\":0.0,\"limits\":{\"effort\":null,\"lower\":-2.9670597283903604,\"upper\":2.9670597283903604,\"velocity\":null},\"name\":\"q6\",\"parent\":4,\"type\":\"revolute\",\"viscous\":0.0}],\"kind\":\"chain\",\"locked_joints\":[],\"nq\":6,\"primitive\":\"define\",\"tip_link\":\"tool\"}},\"nq\":6,\"precision\":\"double\",\"robotgen_version\":\"0.1.0\",\"root\":\"arm\",\"spec_sha256\":\"5a4a0f1176be42f8e9f80dd9cf7c04aaee7b3089a354593a4f8e6f1215f0f099\"}");
+    "{\"functions\":[\"fk\",\"jacobian\",\"jacobian_hand\",\"jacobian_dot_qd\",\"mass\",\"coriolis\",\"gravity\",\"nonlinear\",\"inverse_dynamics\",\"forward_dynamics\"],\"leaves\":[\"arm\"],\"name\":\"stanford\",\"nodes\":{\"arm\":{\"base_link\":\"base\",\"coordinates\":[\"q1\",\"q2\",\"q3\",\"q4\",\"q5\",\"q6\"],\"internal_forces\":[],\"internal_motions\":[],\"joints\":[{\"armature\":0.953,\"coulomb\":0.0,\"damping\":0.0,\"limits\":{\"effort\":null,\"lower\":-2.9670597283903604,\"upper\":2.9670597283903604,\"velocity\":null},\"name\":\"q1\",\"parent\":-1,\"type\":\"revolute\",\"viscous\":0.0},{\"armature\":2.193,\"coulomb\":0.0,\"damping\":0.0,\"limits\":{\"effort\":null,\"lower\":-2.9670597283903604,\"upper\":2.9670597283903604,\"velocity\":null},\"name\":\"q2\",\"parent\":0,\"type\":\"revolute\",\"viscous\":0.0},{\"armature\":0.782,\"coulomb\":0.0,\"damping\":0.0,\"limits\":{\"effort\":null,\"lower\":0.30479999999999996,\"upper\":1.27,\"velocity\":null},\"name\":\"q3\",\"parent\":1,\"type\":\"prismatic\",\"viscous\":0.0},{\"armature\":0.106,\"coulomb\":0.0,\"damping\":0.0,\"limits\":{\"effort\":null,\"lower\":-2.9670597283903604,\"upper\":2.9670597283903604,\"velocity\":null},\"name\":\"q4\",\"parent\":2,\"type\":\"revolute\",\"viscous\":0.0},{\"armature\":0.097,\"coulomb\":0.0,\"damping\":0.0,\"limits\":{\"effort\":null,\"lower\":-1.5707963267948966,\"upper\":1.5707963267948966,\"velocity\":null},\"name\":\"q5\",\"parent\":3,\"type\":\"revolute\",\"viscous\":0.0},{\"armature\":0.02,\"coulomb\":0.0,\"damping\":0.0,\"limits\":{\"effort\":null,\"lower\":-2.9670597283903604,\"upper\":2.9670597283903604,\"velocity\":null},\"name\":\"q6\",\"parent\":4,\"type\":\"revolute\",\"viscous\":0.0}],\"kind\":\"chain\",\"locked_joints\":[],\"nq\":6,\"primitive\":\"define\",\"tip_link\":\"tool\"}},\"nq\":6,\"precision\":\"double\",\"robotgen_version\":\"0.1.0\",\"root\":\"arm\",\"spec_sha256\":\"5a4a0f1176be42f8e9f80dd9cf7c04aaee7b3089a354593a4f8e6f1215f0f099\"}");
 }
 
 static PyMethodDef rg_methods[] = {

@@ -48,6 +48,17 @@ static int rg_convert_args(const char *fn, PyObject *const *args, Py_ssize_t nar
         if (arrays[i] == NULL) {
             return -1;
         }
+        if (PyArray_NDIM(arrays[i]) == 0 && ports[i].ndim == 1 && ports[i].dims[0] == 1) {
+            /* a plain number for a length-1 port (a time step, a gain) */
+            npy_intp one = 1;
+            PyArray_Dims shape = {&one, 1};
+            PyArrayObject *vector = (PyArrayObject *)PyArray_Newshape(arrays[i], &shape, NPY_CORDER);
+            Py_DECREF(arrays[i]);
+            arrays[i] = vector;
+            if (vector == NULL) {
+                return -1;
+            }
+        }
         extra = PyArray_NDIM(arrays[i]) - ports[i].ndim;
         for (k = 0; (extra == 0 || extra == 1) && k < ports[i].ndim; ++k) {
             if (PyArray_DIM(arrays[i], extra + k) != ports[i].dims[k]) {
@@ -511,7 +522,7 @@ static PyObject *rg_info(PyObject *self, PyObject *unused)
     (void)self;
     (void)unused;
     return rg_from_json(
-    "{\"functions\":[\"mass\",\"coriolis\",\"gravity\",\"nonlinear\",\"inverse_dynamics\",\"forward_dynamics\",\"kinematics\",\"kinematics_jacobian\"],\"name\":\"styx_finger\",\"nodes\":{\"finger\":{\"coordinates\":[\"th1\",\"th2\"],\"kind\":\"formulas\",\"nq\":2,\"primitive\":\"define\"}},\"nq\":2,\"precision\":\"double\",\"robotgen_version\":\"0.1.0\",\"root\":\"finger\",\"spec_sha256\":\"aa4320780a00b9e65cdee41d398c06bfec61023312eff3f4b34a646637f111b0\"}");
+    "{\"functions\":[\"mass\",\"coriolis\",\"gravity\",\"nonlinear\",\"inverse_dynamics\",\"forward_dynamics\",\"kinematics\",\"kinematics_jacobian\"],\"leaves\":[\"finger\"],\"name\":\"styx_finger\",\"nodes\":{\"finger\":{\"coordinates\":[\"th1\",\"th2\"],\"internal_forces\":[],\"internal_motions\":[],\"kind\":\"formulas\",\"nq\":2,\"primitive\":\"define\"}},\"nq\":2,\"precision\":\"double\",\"robotgen_version\":\"0.1.0\",\"root\":\"finger\",\"spec_sha256\":\"aa4320780a00b9e65cdee41d398c06bfec61023312eff3f4b34a646637f111b0\"}");
 }
 
 static PyMethodDef rg_methods[] = {

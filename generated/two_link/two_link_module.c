@@ -48,6 +48,17 @@ static int rg_convert_args(const char *fn, PyObject *const *args, Py_ssize_t nar
         if (arrays[i] == NULL) {
             return -1;
         }
+        if (PyArray_NDIM(arrays[i]) == 0 && ports[i].ndim == 1 && ports[i].dims[0] == 1) {
+            /* a plain number for a length-1 port (a time step, a gain) */
+            npy_intp one = 1;
+            PyArray_Dims shape = {&one, 1};
+            PyArrayObject *vector = (PyArrayObject *)PyArray_Newshape(arrays[i], &shape, NPY_CORDER);
+            Py_DECREF(arrays[i]);
+            arrays[i] = vector;
+            if (vector == NULL) {
+                return -1;
+            }
+        }
         extra = PyArray_NDIM(arrays[i]) - ports[i].ndim;
         for (k = 0; (extra == 0 || extra == 1) && k < ports[i].ndim; ++k) {
             if (PyArray_DIM(arrays[i], extra + k) != ports[i].dims[k]) {
@@ -602,7 +613,7 @@ static PyObject *rg_info(PyObject *self, PyObject *unused)
     (void)self;
     (void)unused;
     return rg_from_json(
-    "{\"functions\":[\"fk\",\"jacobian\",\"jacobian_hand\",\"jacobian_dot_qd\",\"mass\",\"coriolis\",\"gravity\",\"nonlinear\",\"inverse_dynamics\",\"forward_dynamics\"],\"name\":\"two_link\",\"nodes\":{\"arm\":{\"base_link\":\"base\",\"coordinates\":[\"shoulder\",\"elbow\"],\"joints\":[{\"armature\":0.0,\"coulomb\":0.0,\"damping\":0.0,\"limits\":{\"effort\":null,\"lower\":null,\"upper\":null,\"velocity\":null},\"name\":\"shoulder\",\"parent\":-1,\"type\":\"revolute\",\"viscous\":0.0},{\"armature\":0.0,\"coulomb\":0.0,\"damping\":0.0,\"limits\":{\"effort\":null,\"lower\":null,\"upper\":null,\"velocity\":null},\"name\":\"elbow\",\"parent\":0,\"type\":\"revolute\",\"viscous\":0.0}],\"kind\":\"chain\",\"locked_joints\":[],\"nq\":2,\"primitive\":\"define\",\"tip_link\":\"tool\"}},\"nq\":2,\"precision\":\"double\",\"robotgen_version\":\"0.1.0\",\"root\":\"arm\",\"spec_sha256\":\"4a39c9365d690561fbb0674bc38d441aa8b8dd4623e06f7c71af6fc24f5b2d0d\"}");
+    "{\"functions\":[\"fk\",\"jacobian\",\"jacobian_hand\",\"jacobian_dot_qd\",\"mass\",\"coriolis\",\"gravity\",\"nonlinear\",\"inverse_dynamics\",\"forward_dynamics\"],\"leaves\":[\"arm\"],\"name\":\"two_link\",\"nodes\":{\"arm\":{\"base_link\":\"base\",\"coordinates\":[\"shoulder\",\"elbow\"],\"internal_forces\":[],\"internal_motions\":[],\"joints\":[{\"armature\":0.0,\"coulomb\":0.0,\"damping\":0.0,\"limits\":{\"effort\":null,\"lower\":null,\"upper\":null,\"velocity\":null},\"name\":\"shoulder\",\"parent\":-1,\"type\":\"revolute\",\"viscous\":0.0},{\"armature\":0.0,\"coulomb\":0.0,\"damping\":0.0,\"limits\":{\"effort\":null,\"lower\":null,\"upper\":null,\"velocity\":null},\"name\":\"elbow\",\"parent\":0,\"type\":\"revolute\",\"viscous\":0.0}],\"kind\":\"chain\",\"locked_joints\":[],\"nq\":2,\"primitive\":\"define\",\"tip_link\":\"tool\"}},\"nq\":2,\"precision\":\"double\",\"robotgen_version\":\"0.1.0\",\"root\":\"arm\",\"spec_sha256\":\"4a39c9365d690561fbb0674bc38d441aa8b8dd4623e06f7c71af6fc24f5b2d0d\"}");
 }
 
 static PyMethodDef rg_methods[] = {

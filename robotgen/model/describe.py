@@ -1,24 +1,41 @@
 """A robot system as plain data: printed by `robotgen info`, returned by the module's info()."""
 from __future__ import annotations
 
-from robotgen.model.system import RobotSystem
+from robotgen.model.chain import KinematicTree
+from robotgen.model.system import AttachNode, ControlNode, DefineNode, RobotSystem
+from robotgen.model.signature import robot_leaves, signature
+
+
+def system_nq(system: RobotSystem) -> int:
+    """Number of sensed joint coordinates: the actuated leaves' coordinates, stacked."""
+    return sum(system.nodes[leaf].leaf.nq for leaf in robot_leaves(system))
 
 
 def system_info(system: RobotSystem) -> dict:
-    """The robot tree as plain data: printed by `info`, returned by the module's info()."""
     nodes = {}
-    for name, node in system.nodes.items():
-        entry = {"primitive": node.primitive, "nq": node.nq, "coordinates": list(node.coordinates)}
-        leaf = node.leaf
-        if hasattr(leaf, "joints"):
-            entry["kind"] = "chain"
-            entry["joints"] = [_joint_info(j) for j in leaf.joints]
-            entry["base_link"], entry["tip_link"] = leaf.base_link, leaf.tip_link
-            entry["locked_joints"] = list(leaf.locked_joints)
-        else:
-            entry["kind"] = "formulas"
-        nodes[name] = entry
-    return {"root": system.root, "nodes": nodes}
+    for node in system.walk():
+        sig = signature(system, node.name)
+        entry = {"primitive": node.primitive, "coordinates": list(sig.external),
+                 "internal_motions": list(sig.internal_motions),
+                 "internal_forces": list(sig.internal_forces), "nq": sig.n_velocity}
+        if isinstance(node, DefineNode):
+            leaf = node.leaf
+            entry["kind"] = type(leaf).__name__
+            if isinstance(leaf, KinematicTree):
+                entry["kind"] = "chain"
+                entry["joints"] = [_joint_info(j) for j in leaf.joints]
+                entry["base_link"], entry["tip_link"] = leaf.base_link, leaf.tip_link
+                entry["locked_joints"] = list(leaf.locked_joints)
+            elif entry["kind"] == "FormulaRobot":
+                entry["kind"] = "formulas"
+            else:
+                entry["kind"] = "rigid_body"
+        elif isinstance(node, AttachNode):
+            entry.update(kind=node.constraint.kind, robots=list(node.robots), payload=node.payload)
+        elif isinstance(node, ControlNode):
+            entry.update(kind=node.law, robot=node.robot)
+        nodes[node.name] = entry
+    return {"root": system.root, "leaves": robot_leaves(system), "nodes": nodes}
 
 
 def _joint_info(joint) -> dict:

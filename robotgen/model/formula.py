@@ -17,6 +17,9 @@ class FormulaRobot:
                 "derive from M by Christoffel symbols".
     nonlinear:  nq expressions N(q, qd) (gravity, friction); None means zero.
     kinematics: optional output map x = f(q) (the finger-tip position, for ATTACH).
+    outputs:    names of the kinematics outputs (used by ATTACH formulas and inverse_kinematics).
+    inverse_kinematics: optional q = f^-1(x), expressions in the outputs and parameters
+                (StyxDefinitions.m's RobotInverse); lets positions flow down through ATTACH.
     """
 
     name: str
@@ -27,6 +30,8 @@ class FormulaRobot:
     coriolis: tuple[tuple[Expr, ...], ...] | None
     nonlinear: tuple[Expr, ...] | None
     kinematics: tuple[Expr, ...] | None
+    outputs: tuple[str, ...] = ()
+    inverse_kinematics: tuple[Expr, ...] | None = None
 
     @property
     def nq(self) -> int:

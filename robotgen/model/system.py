@@ -1,35 +1,132 @@
-"""A robot system: a tree of primitive nodes (Deno et al. 1990, ch. 3). The spine has
-DEFINE leaves only; ATTACH and CONTROL nodes join the tree in later versions."""
+"""A robot system: a tree of primitive nodes (Deno et al. 1990, ch. 3).
+
+DEFINE makes a leaf (a chain, a URDF chain, formulas, or a payload body), ATTACH joins
+robots to a payload through a constraint, CONTROL puts a controller on a robot. Each node
+names its children; the tree is walked the same way at every level."""
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+
+import numpy as np
 
 from robotgen.model.chain import KinematicTree
+from robotgen.model.expression import Expr
 from robotgen.model.formula import FormulaRobot
+from robotgen.model.simulation import SimulationSettings
 
-Leaf = KinematicTree | FormulaRobot
+
+@dataclass(frozen=True, eq=False)
+class PlanarBody:
+    """A rigid payload moving in a plane, coordinates (x, y, psi) of its centre of mass:
+    M = diag(m, m, I), C = 0, N = -m (gx, gy, 0). A payload has nil wr (§3.2)."""
+
+    name: str
+    coordinates: tuple[str, str, str]
+    mass: float
+    inertia: float
+    gravity: np.ndarray  # (2,)
+
+    @property
+    def nq(self) -> int:
+        return 3
+
+
+Leaf = KinematicTree | FormulaRobot | PlanarBody
+
+FRAME_CHANGE = "frame_change"
+PLANAR_CONTACTS = "planar_contacts"
+CONSTRAINT_FORMULAS = "formulas"
+
+
+@dataclass(frozen=True, eq=False)
+class Constraint:
+    """ATTACH's constraint J(y) ydot = G^T(x) xdot (eq 3.2) between the stacked coordinates y
+    of the attached robots and the new node's coordinates x = h(y).
+
+    frame_change:    nil payload, G = I; x = the robots' kinematic outputs (formula
+                     kinematics, or a chain's tip position), J = their Jacobian.
+    planar_contacts: fingertips (the robots' coordinates, 2 per contact) held at points
+                     ``contacts`` of a planar payload; x = the payload's (x, y, psi);
+                     J = I and G from the contact geometry. The Styx box grasp is the
+                     case of two contacts at (-r, 0) and (r, 0).
+    formulas:        the user's h, h^-1 (optional), J (default I) and G as expressions;
+                     y by the robots' coordinate names, x by ``coordinates``.
+    """
+
+    kind: str
+    coordinates: tuple[str, ...] = ()
+    output: str = "position"  # frame_change of a chain: "position" (3) or "planar" (x, y)
+    contacts: np.ndarray | None = None  # (k, 2), planar_contacts
+    h: tuple[Expr, ...] | None = None
+    h_inverse: tuple[Expr, ...] | None = None
+    J: tuple[tuple[Expr, ...], ...] | None = None
+    G: tuple[tuple[Expr, ...], ...] | None = None
+    parameters: dict[str, float] = field(default_factory=dict)
 
 
 @dataclass(frozen=True, eq=False)
 class DefineNode:
-    """DEFINE(M, C, N, rd, wr): a leaf robot. rd/wr are the joint state and torque ports."""
+    """DEFINE(M, C, N, rd, wr): a leaf robot. rd/wr are the joint state and torque ports;
+    used as an ATTACH payload it has nil wr."""
 
     name: str
     leaf: Leaf
 
-    @property
-    def primitive(self) -> str:
-        return "define"
+    primitive = "define"
 
     @property
-    def nq(self) -> int:
-        return self.leaf.nq
+    def children(self) -> tuple[str, ...]:
+        return ()
+
+
+@dataclass(frozen=True, eq=False)
+class AttachNode:
+    """ATTACH(J, G, h, payload, robot-list) (§3.3)."""
+
+    name: str
+    robots: tuple[str, ...]
+    payload: str | None
+    constraint: Constraint
+
+    primitive = "attach"
 
     @property
-    def coordinates(self) -> tuple[str, ...]:
-        if isinstance(self.leaf, FormulaRobot):
-            return self.leaf.coordinates
-        return tuple(j.name for j in self.leaf.joints)
+    def children(self) -> tuple[str, ...]:
+        return self.robots + ((self.payload,) if self.payload else ())
+
+
+COMPUTED_TORQUE = "computed_torque"
+FEEDFORWARD = "feedforward"
+PD_FEEDFORWARD = "pd_feedforward"
+PD = "pd"
+CONTROL_LAWS = (COMPUTED_TORQUE, FEEDFORWARD, PD_FEEDFORWARD, PD)
+
+
+@dataclass(frozen=True, eq=False)
+class ControlNode:
+    """CONTROL(robot, controller) (§3.4). Gains act on the robot's external coordinates;
+    ``kv_internal`` damps internal motions (eq 5.13). ``internal_forces`` resolves the
+    robot's internal forces to constant values (§5.1); ``resolve_internal_motion`` drives
+    internal motion rates to zero (§5.2). What a controller resolves is masked from the
+    levels above; what it leaves is passed up."""
+
+    name: str
+    robot: str
+    law: str
+    kp: np.ndarray  # (n, n) symmetric positive definite (zero for feedforward)
+    kv: np.ndarray
+    kv_internal: float = 0.0
+    internal_forces: np.ndarray | None = None
+    resolve_internal_motion: bool = False
+
+    primitive = "control"
+
+    @property
+    def children(self) -> tuple[str, ...]:
+        return (self.robot,)
+
+
+Node = DefineNode | AttachNode | ControlNode
 
 
 @dataclass(frozen=True, eq=False)
@@ -37,10 +134,22 @@ class RobotSystem:
     name: str
     source: str  # path of the spec (or URDF) it came from
     source_sha256: str
-    nodes: dict[str, DefineNode]
+    nodes: dict[str, Node]
     root: str
     warnings: tuple[str, ...] = ()  # located, printed by the CLI; the system is still valid
+    simulation: SimulationSettings | None = None  # the spec's `simulation` section
 
     @property
-    def root_node(self) -> DefineNode:
+    def root_node(self) -> Node:
         return self.nodes[self.root]
+
+    @property
+    def is_single_leaf(self) -> bool:
+        return isinstance(self.root_node, DefineNode)
+
+    def walk(self, name: str | None = None):
+        """Nodes below ``name`` (default the root), children before parents."""
+        node = self.nodes[name or self.root]
+        for child in node.children:
+            yield from self.walk(child)
+        yield node

@@ -13,7 +13,7 @@ import json
 
 IDENTIFIER = "^[A-Za-z_][A-Za-z0-9_]*$"
 MODULE_NAME = "^[a-z_][a-z0-9_]*$"
-PRIMITIVES = ("define",)
+PRIMITIVES = ("define", "attach", "control")
 
 
 def _number(description: str, **bounds: float) -> dict:
@@ -24,6 +24,25 @@ def _number(description: str, **bounds: float) -> dict:
 def _vector3(description: str) -> dict:
     return {"type": "array", "description": description, "minItems": 3, "maxItems": 3,
             "items": {"$ref": "#/$defs/number"}}
+
+
+def _vector2(description: str) -> dict:
+    return {"type": "array", "description": description, "minItems": 2, "maxItems": 2,
+            "items": {"$ref": "#/$defs/number"}}
+
+
+def _names(description: str, **bounds: int) -> dict:
+    return {"type": "array", "description": description,
+            "items": {"type": "string", "pattern": IDENTIFIER}, **bounds}
+
+
+def _expressions(description: str, **bounds: int) -> dict:
+    return {"type": "array", "description": description, "items": {"$ref": "#/$defs/expression"}, **bounds}
+
+
+def _expression_matrix(description: str) -> dict:
+    return {"type": "array", "description": description, "minItems": 1,
+            "items": {"type": "array", "items": {"$ref": "#/$defs/expression"}}}
 
 
 def _object(description: str, properties: dict, required: tuple[str, ...] = ()) -> dict:
@@ -121,8 +140,81 @@ _DEFS = {
          "N": {"type": "array", "items": {"$ref": "#/$defs/expression"},
                "description": "nq vector N(q, qd): gravity, friction; default zero"},
          "kinematics": {"type": "array", "minItems": 1, "items": {"$ref": "#/$defs/expression"},
-                        "description": "output map x = f(q) in coordinates and parameters"}},
+                        "description": "output map x = f(q) in coordinates and parameters"},
+         "outputs": _names("names of the kinematics outputs, default <node>_x1, <node>_x2, ...",
+                           minItems=1),
+         "inverse_kinematics": _expressions("q = f^-1(x): nq expressions in the outputs and "
+                                            "parameters", minItems=1)},
         ("coordinates", "M")),
+    "rigid_body": _object(
+        "a rigid payload body (never actuated): M = diag(m, m, I), C = 0, N = -m (gx, gy, 0)",
+        {"planar": _object("a body moving in a plane",
+                           {"mass": _number("mass [kg], >= 0", minimum=0),
+                            "inertia": _number("moment of inertia about the centre of mass "
+                                               "[kg m^2], >= 0", minimum=0)},
+                           ("mass", "inertia")),
+         "gravity": _vector2("in-plane gravitational acceleration [m/s^2], default 0 0"),
+         "coordinates": _names("names of the body's coordinates, default x, y, psi",
+                               minItems=3, maxItems=3)},
+        ("planar",)),
+    "frame_change": _object(
+        "nil payload, G = I: the node's coordinates are the robots' kinematic outputs",
+        {"output": {"enum": ["position", "planar"],
+                    "description": "a chain's output: tip position x y z (default) or planar x y"}}),
+    "planar_contacts": _object(
+        "fingertips (robot coordinates x, y per contact) held at body-frame points of a planar payload",
+        {"points": {"type": "array", "minItems": 2, "items": _vector2("contact point [x, y] in the "
+                                                                     "payload's frame [m]"),
+                    "description": "contact points in the payload's frame, one per fingertip"}},
+        ("points",)),
+    "constraint_formulas": _object(
+        "a constraint J(y) ydot = G(x)^T xdot given by expressions",
+        {"coordinates": _names("names of the node's coordinates x", minItems=1),
+         "parameters": {"type": "object", "propertyNames": {"pattern": IDENTIFIER},
+                        "additionalProperties": {"$ref": "#/$defs/number"},
+                        "description": "named constants usable in every expression"},
+         "h": _expressions("x = h(y): one expression per node coordinate, in the robots' "
+                           "coordinates and parameters", minItems=1),
+         "h_inverse": _expressions("y = h^-1(x): one expression per robot coordinate, in the node's "
+                                   "coordinates and parameters", minItems=1),
+         "J": _expression_matrix("constraint rows x robot coordinates, in the robots' coordinates "
+                                 "and parameters; default identity"),
+         "G": _expression_matrix("grasp map: node coordinates x constraint rows, in the node's and "
+                                 "robots' coordinates and parameters")},
+        ("coordinates", "h", "G")),
+    "constraint": {**_object("ATTACH's constraint: exactly one of frame_change, planar_contacts, formulas",
+                             {"frame_change": {"$ref": "#/$defs/frame_change"},
+                              "planar_contacts": {"$ref": "#/$defs/planar_contacts"},
+                              "formulas": {"$ref": "#/$defs/constraint_formulas"}}),
+                   "oneOf": _exactly_one_of(("frame_change", "planar_contacts", "formulas"))},
+    "attach": _object(
+        "ATTACH: robots joined to an optional payload through a constraint (Deno et al. 1990, 3.3)",
+        {"robots": {"type": "array", "minItems": 1,
+                    "items": {"type": "string", "pattern": IDENTIFIER},
+                    "description": "child robot nodes, in order; their coordinates are stacked"},
+         "payload": {"type": "string", "pattern": IDENTIFIER,
+                     "description": "a define node (rigid_body or formulas); default nil"},
+         "constraint": {"$ref": "#/$defs/constraint"}},
+        ("robots", "constraint")),
+    "gain": {"type": ["number", "string", "array"],
+             "description": "scalar (times I), per-axis list (diagonal) or matrix (symmetric "
+                            "positive definite), on the robot's external coordinates",
+             "minItems": 1,
+             "items": {"type": ["number", "string", "array"], "minItems": 1,
+                       "items": {"$ref": "#/$defs/number"}}},
+    "control": _object(
+        "CONTROL: a controller on a robot (Deno et al. 1990, 3.4)",
+        {"robot": {"type": "string", "pattern": IDENTIFIER, "description": "the controlled node"},
+         "law": {"enum": ["computed_torque", "feedforward", "pd_feedforward", "pd"],
+                 "description": "control law"},
+         "kp": {"$ref": "#/$defs/gain"},
+         "kv": {"$ref": "#/$defs/gain"},
+         "kv_internal": _number("damping of internal motion rates, >= 0, default 0", minimum=0),
+         "internal_forces": {"type": "array", "minItems": 1, "items": {"$ref": "#/$defs/number"},
+                             "description": "resolve all of the robot's internal forces to these values"},
+         "resolve_internal_motion": {"type": "boolean",
+                                     "description": "drive internal motion rates to zero and mask them"}},
+        ("robot", "law")),
     "urdf": _object(
         "a serial chain read from a URDF file, from a base link to a tip link",
         {"file": {"type": "string", "minLength": 1, "description": "URDF path, relative to the spec"},
@@ -130,10 +222,27 @@ _DEFS = {
          "base": {"type": "string", "minLength": 1, "description": "base link, default the root link"},
          "gravity": _vector3("gravitational acceleration in the base frame [m/s^2], default 0 0 -9.81")},
         ("file", "tip")),
-    "define": {**_object("DEFINE: a leaf robot, by exactly one of chain, urdf or formulas",
+    "define": {**_object("DEFINE: a leaf robot, by exactly one of chain, urdf, formulas or rigid_body",
                          {"chain": {"$ref": "#/$defs/chain"}, "urdf": {"$ref": "#/$defs/urdf"},
-                          "formulas": {"$ref": "#/$defs/formulas"}}),
-               "oneOf": _exactly_one_of(("chain", "urdf", "formulas"))},
+                          "formulas": {"$ref": "#/$defs/formulas"},
+                          "rigid_body": {"$ref": "#/$defs/rigid_body"}}),
+               "oneOf": _exactly_one_of(("chain", "urdf", "formulas", "rigid_body"))},
+    "simulation": _object(
+        "how `robotgen simulate` runs the closed loop (robot trees)",
+        {"duration": _number("simulated time [s], default 2", exclusiveMinimum=0),
+         "dt": _number("servo period and RK4 step [s], default 0.001", exclusiveMinimum=0),
+         "start": {"type": "array", "items": {"$ref": "#/$defs/number"},
+                   "description": "root positions at t = 0 (needs inverse kinematics in every attach)"},
+         "theta0": {"type": "array", "items": {"$ref": "#/$defs/number"},
+                    "description": "or the leaf joint positions at t = 0"},
+         "initial_error": {"type": "array", "items": {"$ref": "#/$defs/number"},
+                           "description": "the plant starts at start + initial_error"},
+         "amplitude": {"type": "array", "items": {"$ref": "#/$defs/number"},
+                       "description": "x_d(t) = start + amplitude sin(2 pi frequency t)"},
+         "frequency": {"type": "array", "items": {"$ref": "#/$defs/number"},
+                       "description": "[Hz] per root coordinate"},
+         "internal_forces": {"type": "array", "items": {"$ref": "#/$defs/number"},
+                             "description": "internal forces commanded at the root"}}),
     "node": {**_object("a node of the robot tree: exactly one primitive key",
                        {key: {"$ref": f"#/$defs/{key}"} for key in PRIMITIVES}),
              "oneOf": _exactly_one_of(PRIMITIVES)},
@@ -150,7 +259,8 @@ SCHEMA: dict = {
                "root": {"type": "string", "description": "name of the root node"},
                "nodes": {"type": "object", "minProperties": 1, "propertyNames": {"pattern": IDENTIFIER},
                          "additionalProperties": {"$ref": "#/$defs/node"},
-                         "description": "the nodes by name (C identifiers)"}},
+                         "description": "the nodes by name (C identifiers)"},
+               "simulation": {"$ref": "#/$defs/simulation"}},
               ("robotgen", "name", "root", "nodes")),
     "$defs": _DEFS,
 }

@@ -1,6 +1,8 @@
 """Schema-valid spec document -> RobotSystem, with the checks the schema cannot express:
 root exists, constant expressions, inertia physically valid, joint keys that fit the
-convention, unique names, formula shapes and the names each formula may read.
+convention, unique names, formula shapes and the names each formula may read; for robot
+trees, that the nodes form one tree below the root, that every ATTACH and CONTROL fits the
+dimensions of its children (robotgen.model.signature) and the gains' shapes.
 Every problem is collected; nothing is returned unless there are none."""
 from __future__ import annotations
 
@@ -15,12 +17,29 @@ from robotgen.model.chain import Body, KinematicTree, Limits
 from robotgen.model.dh import DH_MODIFIED, DH_STANDARD, JOINT_LIST, DHParameters, JointRow, canonical_chain, unit_axis
 from robotgen.model.expression import CONSTANTS, FUNCTIONS, Expr, parse_constant, parse_expression
 from robotgen.model.formula import FormulaRobot
-from robotgen.model.system import DefineNode, RobotSystem
+from robotgen.model.simulation import SimulationSettings
+from robotgen.model.signature import Signature, SignatureError, kinematic_outputs, signature
+from robotgen.model.system import (
+    CONSTRAINT_FORMULAS,
+    FEEDFORWARD,
+    FRAME_CHANGE,
+    PD,
+    PLANAR_CONTACTS,
+    AttachNode,
+    Constraint,
+    ControlNode,
+    DefineNode,
+    Node,
+    PlanarBody,
+    RobotSystem,
+)
 from robotgen.model.transforms import xyz_rpy
 from robotgen.spec.loader import Document, Path, format_path, sort_errors
 from robotgen.spec.urdf import read_urdf
 
 DEFAULT_GRAVITY = (0.0, 0.0, -9.81)
+DEFAULT_PLANAR_GRAVITY = (0.0, 0.0)
+DEFAULT_BODY_COORDINATES = ("x", "y", "psi")
 DEFAULT_COULOMB_SMOOTHING = 1e-2
 # keys a joint needs, and keys it must not have, by convention
 _CONVENTION_KEYS = {
@@ -228,10 +247,21 @@ class _Builder:
             entries += [(v, path + ("coordinates", i), "velocity") for i, v in enumerate(velocities)]
         raw_parameters = spec.get("parameters", {})
         entries += [(p, path + ("parameters", p), "parameter") for p in raw_parameters]
+        outputs = self.outputs(name, path, spec)
+        if "outputs" in spec:
+            entries += [(o, path + ("outputs", i), "output") for i, o in enumerate(outputs)]
+        else:
+            entries += [(o, path + ("kinematics", i), "output") for i, o in enumerate(outputs)]
         self.check_names(path, entries)
         parameters = {p: self.constant(path + ("parameters", p), v) for p, v in raw_parameters.items()}
         in_q = set(coordinates) | set(parameters)
         in_q_qd = in_q | set(velocities)
+        inverse = None
+        if "inverse_kinematics" in spec:
+            if "kinematics" not in spec:
+                self.at_key(path + ("inverse_kinematics",), "needs kinematics (it inverts them)")
+            inverse = self.vector_of_expressions(path + ("inverse_kinematics",), spec["inverse_kinematics"],
+                                                 nq, set(outputs) | set(parameters))
         return FormulaRobot(
             name=name, coordinates=coordinates, velocities=velocities, parameters=parameters,
             mass=self.matrix(path + ("M",), spec["M"], nq, in_q),
@@ -239,6 +269,31 @@ class _Builder:
             nonlinear=self.vector_of_expressions(path + ("N",), spec["N"], nq, in_q_qd) if "N" in spec else None,
             kinematics=self.vector_of_expressions(path + ("kinematics",), spec["kinematics"], None, in_q)
             if "kinematics" in spec else None,
+            outputs=outputs, inverse_kinematics=inverse,
+        )
+
+    def outputs(self, name: str, path: Path, spec: dict) -> tuple[str, ...]:
+        """Names of the kinematics outputs: given, or <node>_x1, <node>_x2, ..."""
+        n = len(spec.get("kinematics", ()))
+        if "outputs" not in spec:
+            return tuple(f"{name}_x{i + 1}" for i in range(n))
+        outputs = tuple(spec["outputs"])
+        if "kinematics" not in spec:
+            self.at_key(path + ("outputs",), "needs kinematics (outputs name the kinematics' entries)")
+        elif len(outputs) != n:
+            self.at_key(path + ("outputs",), f"expected {n} names (one per kinematics entry), got {len(outputs)}")
+        return outputs
+
+    def rigid_body(self, name: str, path: Path, spec: dict) -> PlanarBody:
+        coordinates = tuple(spec.get("coordinates", DEFAULT_BODY_COORDINATES))
+        self.check_names(path, [(c, path + ("coordinates", i) if "coordinates" in spec else path, "coordinate")
+                                for i, c in enumerate(coordinates)])
+        planar = spec["planar"]
+        return PlanarBody(
+            name=name, coordinates=coordinates,
+            mass=self.constant(path + ("planar", "mass"), planar["mass"], minimum=0.0),
+            inertia=self.constant(path + ("planar", "inertia"), planar["inertia"], minimum=0.0),
+            gravity=self.vector(path + ("gravity",), spec.get("gravity"), DEFAULT_PLANAR_GRAVITY),
         )
 
     def urdf(self, name: str, path: Path, spec: dict) -> KinematicTree | None:
@@ -256,23 +311,398 @@ class _Builder:
         gravity = self.vector(path + ("gravity",), spec.get("gravity"), DEFAULT_GRAVITY)
         return dataclasses.replace(chain.tree, gravity=gravity)
 
-    # -- system ----------------------------------------------------------------------
-    def node(self, name: str, node: dict) -> DefineNode:
+    # -- nodes -----------------------------------------------------------------------
+    def node(self, name: str, node: dict) -> Node:
+        if "attach" in node:
+            return self.attach(name, ("nodes", name, "attach"), node["attach"])
+        if "control" in node:
+            return self.control(name, ("nodes", name, "control"), node["control"])
         path: Path = ("nodes", name, "define")
         define = node["define"]
         if "chain" in define:
             return DefineNode(name, self.chain(name, path + ("chain",), define["chain"]))
         if "urdf" in define:
             return DefineNode(name, self.urdf(name, path + ("urdf",), define["urdf"]))
+        if "rigid_body" in define:
+            return DefineNode(name, self.rigid_body(name, path + ("rigid_body",), define["rigid_body"]))
         return DefineNode(name, self.formulas(name, path + ("formulas",), define["formulas"]))
 
+    def attach(self, name: str, path: Path, spec: dict) -> AttachNode:
+        """The node with its constraint's structure; a formulas constraint's expressions are
+        parsed once the robots' coordinate names are known (``constraint_formulas``)."""
+        raw = spec["constraint"]
+        where = path + ("constraint",)
+        if "frame_change" in raw:
+            constraint = Constraint(FRAME_CHANGE, output=raw["frame_change"].get("output", "position"))
+        elif "planar_contacts" in raw:
+            points = raw["planar_contacts"]["points"]
+            at = where + ("planar_contacts", "points")
+            contacts = np.array([[self.constant(at + (i, k), v) for k, v in enumerate(point)]
+                                 for i, point in enumerate(points)])
+            constraint = Constraint(PLANAR_CONTACTS, contacts=contacts)
+        else:
+            formulas = raw["formulas"]
+            at = where + ("formulas",)
+            coordinates = tuple(formulas["coordinates"])
+            raw_parameters = formulas.get("parameters", {})
+            self.check_names(at, [(c, at + ("coordinates", i), "coordinate") for i, c in enumerate(coordinates)]
+                             + [(p, at + ("parameters", p), "parameter") for p in raw_parameters])
+            parameters = {p: self.constant(at + ("parameters", p), v) for p, v in raw_parameters.items()}
+            # J's rows fix the node's signature; its entries are parsed later
+            rows = tuple(() for _ in formulas["J"]) if "J" in formulas else None
+            constraint = Constraint(CONSTRAINT_FORMULAS, coordinates=coordinates, parameters=parameters, J=rows)
+        return AttachNode(name, tuple(spec["robots"]), spec.get("payload"), constraint)
+
+    def control(self, name: str, path: Path, spec: dict) -> ControlNode:
+        """The node without its gains (they need the robot's dimension: ``control_gains``)."""
+        forces = spec.get("internal_forces")
+        return ControlNode(
+            name=name, robot=spec["robot"], law=spec["law"], kp=None, kv=None,
+            kv_internal=self.optional(spec, path, "kv_internal", 0.0, minimum=0.0),
+            internal_forces=None if forces is None else
+            np.array([self.constant(path + ("internal_forces", i), f) for i, f in enumerate(forces)]),
+            resolve_internal_motion=bool(spec.get("resolve_internal_motion", False)),
+        )
+
+    # -- the tree --------------------------------------------------------------------
+    def references(self, name: str, node: Node) -> list[tuple[str, Path, str]]:
+        """(child, path of the reference, role) of a node, in file order."""
+        if isinstance(node, AttachNode):
+            path: Path = ("nodes", name, "attach")
+            refs = [(r, path + ("robots", i), "robot") for i, r in enumerate(node.robots)]
+            if node.payload is not None:
+                refs.append((node.payload, path + ("payload",), "payload"))
+            return refs
+        if isinstance(node, ControlNode):
+            return [(node.robot, ("nodes", name, "control", "robot"), "controlled robot")]
+        return []
+
+    def check_tree(self, nodes: dict[str, Node], root: str) -> set[str]:
+        """Every reference names a node, each node is used at most once, the root is used by
+        none, there are no cycles and the root reaches every node. Returns the nodes whose
+        subtrees are whole (every node below exists, no cycle): their signatures can be
+        worked out."""
+        refs = {name: self.references(name, node) for name, node in nodes.items()}
+        used_by: dict[str, Path] = {}
+        reported: set[str] = set()  # nodes whose misuse is reported: not also "unreachable"
+        for name, node_refs in refs.items():
+            for child, path, role in node_refs:
+                if child not in nodes:
+                    self.at_value(path, f"'{child}' is not a node (nodes: {', '.join(nodes)})")
+                elif child == root:
+                    self.at_value(path, f"'{child}' is the root; the root cannot be used by another node")
+                    reported.add(name)
+                elif child in used_by:
+                    self.at_value(path, f"'{child}' is already used by {format_path(self.doc.data, used_by[child])}; "
+                                        "each node is used at most once")
+                else:
+                    used_by[child] = path
+
+        whole: dict[str, bool] = {}
+        stack: list[str] = []
+
+        def visit(name: str) -> bool:
+            if name in whole:
+                return whole[name]
+            stack.append(name)
+            ok = True
+            for child, path, _ in refs[name]:
+                if child not in nodes:
+                    ok = False
+                elif child in stack:
+                    ok = False
+                    if child != root:  # a use of the root is reported above
+                        loop = stack[stack.index(child):]
+                        reported.update(loop)
+                        self.at_value(path, f"'{child}' makes a cycle: {' -> '.join(loop + [child])}")
+                elif not visit(child):
+                    ok = False
+            stack.pop()
+            whole[name] = ok
+            return ok
+
+        for name in [root] + list(nodes) if root in nodes else nodes:
+            visit(name)
+        dangling = any(child not in nodes for node_refs in refs.values() for child, _, _ in node_refs)
+        if root in nodes and not dangling:  # a misspelt reference would make its node look unused
+            reached = {root} | reported
+            frontier = list(reached)
+            while frontier:
+                for child, _, _ in refs[frontier.pop()]:
+                    if child in nodes and child not in reached:
+                        reached.add(child)
+                        frontier.append(child)
+            for name in nodes:
+                if name not in reached:
+                    self.at_key(("nodes", name), f"node '{name}' is not reachable from the root '{root}' "
+                                                 "(every node but the root is used as a robot, payload or "
+                                                 "controlled robot)")
+        return {name for name, ok in whole.items() if ok}
+
+    def leaf_below(self, nodes: dict[str, Node], name: str) -> Node:
+        """The node itself, or what a chain of control nodes controls."""
+        node = nodes[name]
+        while isinstance(node, ControlNode):
+            node = nodes[node.robot]
+        return node
+
+    def signatures(self, nodes: dict[str, Node], root: str, whole: set[str]) -> dict[str, Node]:
+        """Checks every attach and control node against its children's signatures, children
+        first, and completes them (constraint formulas, gains). Returns the final nodes."""
+        system = RobotSystem(name=self.doc.data["name"], source=self.doc.path, source_sha256=self.doc.sha256,
+                             nodes=nodes, root=root)
+        known: dict[str, Signature | None] = {}
+
+        def sig(name: str) -> Signature | None:
+            if name in known:
+                return known[name]
+            known[name] = None
+            if name not in whole:
+                return None
+            node = nodes[name]
+            if any(sig(child) is None for child in node.children):
+                return None
+            if isinstance(node, DefineNode):
+                if node.leaf is None:  # a URDF that failed to load
+                    return None
+                result = signature(system, name)
+            else:
+                before = len(self.errors)
+                if isinstance(node, AttachNode):
+                    nodes[name] = node = self.check_attach(system, node, [sig(r) for r in node.robots])
+                else:
+                    nodes[name] = node = self.check_control(system, node, sig(node.robot))
+                if len(self.errors) > before:
+                    return None
+                try:
+                    result = signature(system, name)
+                except SignatureError as error:
+                    self.at_key(("nodes", name, node.primitive), str(error))
+                    return None
+            known[name] = result
+            return result
+
+        for name in list(nodes):
+            sig(name)
+        return nodes
+
+    def check_attach(self, system: RobotSystem, node: AttachNode, robots: list[Signature]) -> AttachNode:
+        nodes = system.nodes
+        path: Path = ("nodes", node.name, "attach")
+        for i, r in enumerate(node.robots):
+            leaf = getattr(nodes[r], "leaf", None)
+            if isinstance(leaf, PlanarBody):
+                self.at_value(path + ("robots", i), f"'{r}' is a rigid_body, a payload without actuators; "
+                                                    "it cannot be a robot (give it as payload)")
+        payload = None
+        if node.payload is not None:
+            payload = getattr(nodes[node.payload], "leaf", None)
+            if not isinstance(payload, (PlanarBody, FormulaRobot)):
+                kind = (f"a {nodes[node.payload].primitive} node" if not isinstance(nodes[node.payload], DefineNode)
+                        else "a chain")
+                self.at_value(path + ("payload",), f"payload '{node.payload}' must be a define node with "
+                                                   f"rigid_body or formulas (it is {kind})")
+                payload = None
+        m = sum(s.n_external for s in robots)
+        c = node.constraint
+        kind_path = path + ("constraint", c.kind)
+        if c.kind == FRAME_CHANGE:
+            if node.payload is not None:
+                self.at_key(path + ("payload",), "frame_change takes no payload (nil payload, G = I); "
+                                                 "use planar_contacts or formulas to hold one")
+            owner: dict[str, str] = {}
+            for i, r in enumerate(node.robots):
+                below = self.leaf_below(nodes, r)
+                leaf = getattr(below, "leaf", None)
+                if isinstance(leaf, PlanarBody):
+                    continue  # reported above
+                if not isinstance(leaf, (KinematicTree, FormulaRobot)):
+                    what = (f"an {below.primitive} node" if below is nodes[r]
+                            else f"a control of {below.primitive} node '{below.name}'")
+                    self.at_value(path + ("robots", i), f"'{r}' is {what}; frame_change needs a chain or a formulas "
+                                                        "leaf with kinematics (possibly under control nodes)")
+                    continue
+                if isinstance(leaf, FormulaRobot) and not leaf.kinematics:
+                    self.at_value(path + ("robots", i), f"robot '{r}' ({below.name}) has no kinematics; "
+                                                        "frame_change needs a formulas leaf's kinematics")
+                    continue
+                self.check_unique(owner, kinematic_outputs(system, r) or (), r, path + ("robots", i), "output",
+                                  "rename its outputs")
+        elif c.kind == PLANAR_CONTACTS:
+            if node.payload is None:
+                self.at_key(kind_path, "planar_contacts needs a payload (a planar body with coordinates "
+                                       "x, y, psi)")
+            elif payload is not None and len(leaf_names(payload)) != 3:
+                self.at_value(path + ("payload",), f"payload '{node.payload}' has {len(leaf_names(payload))} "
+                                                   "coordinates; planar_contacts needs a planar body (x, y, psi)")
+            k = len(c.contacts)
+            if m != 2 * k:
+                self.at_key(kind_path + ("points",), f"{k} contact points need {2 * k} robot coordinates "
+                                                     f"(fingertip x, y each); robots {', '.join(node.robots)} "
+                                                     f"have {m}")
+        else:
+            if payload is not None and len(leaf_names(payload)) != len(c.coordinates):
+                self.at_value(path + ("payload",), f"payload '{node.payload}' has {len(leaf_names(payload))} "
+                                                   f"coordinates, the constraint {len(c.coordinates)}; the "
+                                                   "payload's coordinates are the node's")
+            node = dataclasses.replace(node, constraint=self.constraint_formulas(node, robots, m))
+        return node
+
+    def check_unique(self, owner: dict[str, str], names, robot: str, path: Path, kind: str, fix: str) -> None:
+        for n in names:
+            if n in owner and owner[n] != robot:
+                self.at_value(path, f"{kind} '{n}' of '{robot}' is also one of '{owner[n]}'; "
+                                    f"names must be unique across the robots: {fix}")
+                return
+        for n in names:
+            owner.setdefault(n, robot)
+
+    def constraint_formulas(self, node: AttachNode, robots: list[Signature], m: int) -> Constraint:
+        """Parses h, h_inverse, J, G of a formulas constraint with the names each may read."""
+        path: Path = ("nodes", node.name, "attach")
+        at: Path = path + ("constraint", "formulas")
+        spec = self.doc.data["nodes"][node.name]["attach"]["constraint"]["formulas"]
+        c = node.constraint
+        owner: dict[str, str] = {}
+        for i, (r, s) in enumerate(zip(node.robots, robots)):
+            self.check_unique(owner, s.external, r, path + ("robots", i), "coordinate",
+                              "the formulas constraint reads robot coordinates by name; rename one")
+        for i, name in enumerate(c.coordinates):
+            if name in owner:
+                self.at_key(at + ("coordinates", i), f"coordinate '{name}' is also a coordinate of robot "
+                                                     f"'{owner[name]}'; rename one")
+        for name in c.parameters:
+            if name in owner:
+                self.at_key(at + ("parameters", name), f"parameter '{name}' is also a coordinate of robot "
+                                                       f"'{owner[name]}'; rename one")
+        y, x, p = set(owner), set(c.coordinates), set(c.parameters)
+        n = len(c.coordinates)
+        h = self.vector_of_expressions(at + ("h",), spec["h"], None, y | p)
+        if len(h) != n:
+            self.at_key(at + ("h",), f"expected {n} entries (one per node coordinate), got {len(h)}")
+        h_inverse = None
+        if "h_inverse" in spec:
+            h_inverse = self.vector_of_expressions(at + ("h_inverse",), spec["h_inverse"], None, x | p)
+            if len(h_inverse) != m:
+                self.at_key(at + ("h_inverse",), f"expected {m} entries (one per robot coordinate), "
+                                                 f"got {len(h_inverse)}")
+        J = None
+        rows = m
+        if "J" in spec:
+            J = self.rectangle(at + ("J",), spec["J"], None, m, y | p, "robot coordinate")
+            rows = len(J)
+        G = self.rectangle(at + ("G",), spec["G"], n, rows, x | y | p,
+                           "row of J" if "J" in spec else "robot coordinate, as J = I")
+        return dataclasses.replace(c, h=h, h_inverse=h_inverse, J=J, G=G)
+
+    def rectangle(self, path: Path, rows: list, n_rows: int | None, n_cols: int, names: set[str],
+                  columns: str) -> tuple[tuple[Expr, ...], ...]:
+        if n_rows is not None and len(rows) != n_rows:
+            self.at_key(path, f"expected {n_rows} rows (one per node coordinate), got {len(rows)}")
+        for i, row in enumerate(rows):
+            if len(row) != n_cols:
+                self.at_value(path + (i,), f"expected {n_cols} entries in each row (one per {columns}), "
+                                           f"got {len(row)}")
+        return tuple(self.vector_of_expressions(path + (i,), row, None, names) for i, row in enumerate(rows))
+
+    def check_control(self, system: RobotSystem, node: ControlNode, robot: Signature) -> ControlNode:
+        path: Path = ("nodes", node.name, "control")
+        spec = self.doc.data["nodes"][node.name]["control"]
+        target = system.nodes[node.robot]
+        if isinstance(getattr(target, "leaf", None), PlanarBody):
+            self.at_value(path + ("robot",), f"'{node.robot}' is a rigid_body, a payload without actuators; "
+                                             "it cannot be controlled")
+        n = robot.n_external
+        gains = {}
+        for key in ("kp", "kv"):
+            if node.law == FEEDFORWARD:
+                if key in spec:
+                    self.at_key(path + (key,), f"law feedforward takes no {key} (it is computed torque with "
+                                               "Kp = Kv = 0)")
+                gains[key] = np.zeros((n, n))
+            elif key not in spec:
+                self.at_key(path, f"missing required key '{key}' (law {node.law})")
+                gains[key] = np.zeros((n, n))
+            else:
+                gains[key] = self.gain(path + (key,), spec[key], robot, node.robot)
+        if node.internal_forces is not None:
+            have = robot.n_internal_forces
+            if node.law == PD:
+                self.at_key(path + ("internal_forces",), "law pd cannot resolve internal forces (it passes the "
+                                                         "robot's attributes up unchanged)")
+            elif len(node.internal_forces) != have:
+                listed = f" ({', '.join(robot.internal_forces)})" if have else ""
+                self.at_key(path + ("internal_forces",), f"expected {have} values, one per internal force of "
+                                                         f"'{node.robot}'{listed}, got {len(node.internal_forces)}")
+        if node.resolve_internal_motion:
+            if node.law == PD:
+                self.at_key(path + ("resolve_internal_motion",), "law pd cannot resolve internal motion (it passes "
+                                                                 "the robot's attributes up unchanged)")
+            elif not robot.internal_motions:
+                self.at_key(path + ("resolve_internal_motion",), f"robot '{node.robot}' has no internal motions "
+                                                                 "to resolve")
+        return dataclasses.replace(node, kp=gains["kp"], kv=gains["kv"])
+
+    def gain(self, path: Path, value: object, robot: Signature, name: str) -> np.ndarray:
+        """A scalar (times I), a per-axis list (diagonal) or a symmetric positive definite
+        matrix, on the robot's n external coordinates."""
+        n = robot.n_external
+        axes = f"'{name}' has {n} external coordinate{'' if n == 1 else 's'}: {', '.join(robot.external)}"
+        if not isinstance(value, list):
+            s = self.constant(path, value)
+            if s <= 0:
+                self.at_value(path, f"gain {s:g} must be positive (the gain matrix must be positive definite)")
+            return s * np.eye(n)
+        if all(not isinstance(v, list) for v in value):
+            if len(value) != n:
+                self.at_key(path, f"expected {n} entries ({axes}), got {len(value)}")
+            diagonal = [self.constant(path + (i,), v) for i, v in enumerate(value)]
+            for i, d in enumerate(diagonal):
+                if d <= 0:
+                    self.at_value(path + (i,), f"gain {d:g} must be positive (the gain matrix must be "
+                                               "positive definite)")
+            return np.diag(diagonal) if len(diagonal) == n else np.zeros((n, n))
+        if not all(isinstance(v, list) for v in value):
+            self.at_value(path, "mixes numbers and rows: give a number, a list of numbers or a matrix")
+            return np.zeros((n, n))
+        if len(value) != n or any(len(row) != n for row in value):
+            self.at_key(path, f"expected a {n} x {n} matrix ({axes}), got "
+                              f"{len(value)} rows of {', '.join(sorted({str(len(r)) for r in value}))}")
+            return np.zeros((n, n))
+        matrix = np.array([[self.constant(path + (i, k), v) for k, v in enumerate(row)]
+                           for i, row in enumerate(value)])
+        scale = max(1.0, float(np.abs(matrix).max()))
+        if not np.allclose(matrix, matrix.T, rtol=0, atol=1e-12 * scale):
+            self.at_key(path, "gain matrix is not symmetric")
+        elif np.linalg.eigvalsh(matrix)[0] <= 1e-12 * scale:
+            shown = ", ".join(f"{e:.6g}" for e in np.linalg.eigvalsh(matrix))
+            self.at_key(path, f"gain matrix is not positive definite (eigenvalues {shown})")
+        return matrix
+
+    # -- system ----------------------------------------------------------------------
     def system(self) -> RobotSystem:
         data = self.doc.data
         nodes = {name: self.node(name, node) for name, node in data["nodes"].items()}
-        if data["root"] not in nodes:
-            self.at_value(("root",), f"'{data['root']}' is not a node (nodes: {', '.join(nodes)})")
+        root = data["root"]
+        if root not in nodes:
+            self.at_value(("root",), f"'{root}' is not a node (nodes: {', '.join(nodes)})")
+        whole = self.check_tree(nodes, root)
+        nodes = self.signatures(nodes, root, whole)
+        simulation = self.simulation(data["simulation"]) if "simulation" in data else None
         return RobotSystem(name=data["name"], source=self.doc.path, source_sha256=self.doc.sha256,
-                           nodes=nodes, root=data["root"], warnings=tuple(self.warnings))
+                           nodes=nodes, root=root, warnings=tuple(self.warnings), simulation=simulation)
+
+    def simulation(self, spec: dict) -> SimulationSettings:
+        path: Path = ("simulation",)
+        values = {k: self.constant(path + (k,), spec[k]) for k in ("duration", "dt") if k in spec}
+        for k in ("start", "theta0", "initial_error", "amplitude", "frequency", "internal_forces"):
+            if k in spec:
+                values[k] = tuple(self.constant(path + (k, i), v) for i, v in enumerate(spec[k]))
+        return SimulationSettings(**values)
+
+
+def leaf_names(leaf) -> tuple[str, ...]:
+    return tuple(j.name for j in leaf.joints) if isinstance(leaf, KinematicTree) else tuple(leaf.coordinates)
 
 
 def to_system(doc: Document) -> RobotSystem:

@@ -73,5 +73,10 @@ def leaf_kernels(leaf: KinematicTree | FormulaRobot, prefix: str = "") -> list[K
 
 
 def kernels_for(system: RobotSystem) -> list[Kernel]:
-    """Kernels of the root node, under the contract's names."""
-    return leaf_kernels(system.root_node.leaf)
+    """A single leaf: its kernels under the contract's names. A tree: every node's
+    attributes, rd and wr, the fused servo step and the plant (robotgen.symbolic.tree_kernels)."""
+    if system.is_single_leaf:
+        return leaf_kernels(system.root_node.leaf)
+    from robotgen.symbolic.tree_kernels import tree_kernels
+
+    return tree_kernels(system)

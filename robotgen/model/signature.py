@@ -1,0 +1,139 @@
+"""The coordinates of every node of a robot tree, worked out from the structure alone.
+
+A node's velocity has external components (coordinates with positions) and internal-motion
+components (rates only, §5.2); its force input has, besides the forces conjugate to those,
+internal-force components (§5.1). ATTACH creates internal motions when its Jacobian has a
+null space (m robot coordinates, fewer constraint rows) and internal forces when its grasp
+map G has one (more contact components than node coordinates); the children's unresolved
+ones are appended (eqs 5.2, 5.6). CONTROL may resolve them, masking them from above.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from robotgen.model.chain import KinematicTree
+from robotgen.model.formula import FormulaRobot
+from robotgen.model.system import (
+    CONSTRAINT_FORMULAS,
+    FRAME_CHANGE,
+    PLANAR_CONTACTS,
+    AttachNode,
+    ControlNode,
+    DefineNode,
+    PlanarBody,
+    RobotSystem,
+)
+
+
+@dataclass(frozen=True)
+class Signature:
+    external: tuple[str, ...]  # coordinates with positions
+    internal_motions: tuple[str, ...] = ()  # rate-only coordinates
+    internal_forces: tuple[str, ...] = ()
+
+    @property
+    def n_external(self) -> int:
+        return len(self.external)
+
+    @property
+    def n_velocity(self) -> int:
+        """Dimension of the node's velocity, acceleration and (external) force vectors."""
+        return len(self.external) + len(self.internal_motions)
+
+    @property
+    def n_internal_forces(self) -> int:
+        return len(self.internal_forces)
+
+    @property
+    def velocity_names(self) -> tuple[str, ...]:
+        return self.external + self.internal_motions
+
+
+class SignatureError(ValueError):
+    """The tree's dimensions do not fit together (reported by the spec layer with a location)."""
+
+
+def leaf_coordinates(leaf) -> tuple[str, ...]:
+    if isinstance(leaf, KinematicTree):
+        return tuple(j.name for j in leaf.joints)
+    return tuple(leaf.coordinates)
+
+
+def kinematic_outputs(system: RobotSystem, name: str) -> tuple[str, ...]:
+    """Names of a robot's kinematic outputs, the coordinates a frame_change ATTACH gives it."""
+    node = system.nodes[name]
+    while isinstance(node, ControlNode):
+        node = system.nodes[node.robot]
+    if isinstance(node, DefineNode) and isinstance(node.leaf, FormulaRobot):
+        if not node.leaf.kinematics:
+            raise SignatureError(f"robot '{name}' has no kinematics for a frame_change")
+        return node.leaf.outputs
+    if isinstance(node, DefineNode) and isinstance(node.leaf, KinematicTree):
+        return ()  # decided by the constraint's ``output`` (position or planar)
+    raise SignatureError(f"robot '{name}' is not a leaf with kinematics; frame_change needs one")
+
+
+def chain_outputs(name: str, output: str) -> tuple[str, ...]:
+    axes = ("x", "y") if output == "planar" else ("x", "y", "z")
+    return tuple(f"{name}_{a}" for a in axes)
+
+
+def signature(system: RobotSystem, name: str) -> Signature:
+    node = system.nodes[name]
+    if isinstance(node, DefineNode):
+        return Signature(leaf_coordinates(node.leaf))
+    if isinstance(node, ControlNode):
+        child = signature(system, node.robot)
+        forces = () if node.internal_forces is not None else child.internal_forces
+        motions = () if node.resolve_internal_motion else child.internal_motions
+        return Signature(child.external, motions, forces)
+    return _attach_signature(system, node)
+
+
+def _attach_signature(system: RobotSystem, node: AttachNode) -> Signature:
+    children = [signature(system, r) for r in node.robots]
+    m = sum(c.n_external for c in children)
+    c = node.constraint
+    if c.kind == FRAME_CHANGE:
+        external = ()
+        for r in node.robots:
+            outputs = kinematic_outputs(system, r)
+            external += outputs or chain_outputs(r, c.output)
+        rows = len(external)  # J is (outputs x m), G = I
+        n_forces = 0
+    elif c.kind == PLANAR_CONTACTS:
+        payload = system.nodes[node.payload].leaf if node.payload else None
+        if not isinstance(payload, (PlanarBody, FormulaRobot)) or len(leaf_coordinates(payload)) != 3:
+            raise SignatureError(f"planar_contacts on '{node.name}' needs a planar payload (x, y, psi)")
+        external = leaf_coordinates(payload)
+        if m != 2 * len(c.contacts):
+            raise SignatureError(f"attach '{node.name}': {len(c.contacts)} planar contacts need "
+                                 f"{2 * len(c.contacts)} robot coordinates (fingertip x, y each), got {m}")
+        rows = m  # J = I
+        n_forces = m - 3
+    elif c.kind == CONSTRAINT_FORMULAS:
+        external = c.coordinates
+        rows = len(c.J) if c.J is not None else m
+        n_forces = rows - len(external)
+    else:
+        raise SignatureError(f"unknown constraint kind '{c.kind}'")
+    n_motions = m - rows
+    if n_motions < 0 or n_forces < 0:
+        raise SignatureError(f"attach '{node.name}': {m} robot coordinates, {rows} constraint rows and "
+                             f"{len(external)} node coordinates do not fit (need m >= rows >= n)")
+    motions = tuple(f"{node.name}_m{k + 1}" for k in range(n_motions))
+    forces = tuple(f"{node.name}_f{k + 1}" for k in range(n_forces))
+    for ch in children:
+        motions += ch.internal_motions
+        forces += ch.internal_forces
+    return Signature(external, motions, forces)
+
+
+def robot_leaves(system: RobotSystem, name: str | None = None) -> list[str]:
+    """The actuated leaves below a node, in tree order: their joint states are the sensed
+    state of the whole system (payloads are not actuated and not sensed)."""
+    node = system.nodes[name or system.root]
+    if isinstance(node, DefineNode):
+        return [node.name]
+    robots = node.robots if isinstance(node, AttachNode) else (node.robot,)
+    return [leaf for r in robots for leaf in robot_leaves(system, r)]

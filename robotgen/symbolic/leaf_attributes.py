@@ -1,0 +1,52 @@
+"""DEFINE's attributes (Deno et al. 1990, §3.2) for every kind of leaf, in one shape:
+M(q), C(q, qd), N(q, qd), and the kinematic output map an ATTACH frame change uses."""
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import casadi as ca
+
+from robotgen.model.chain import KinematicTree
+from robotgen.model.expression import evaluate
+from robotgen.model.formula import FormulaRobot
+from robotgen.model.system import PlanarBody
+from robotgen.symbolic.chain_graphs import ChainGraphs, Symbols
+from robotgen.symbolic.formula_graphs import CASADI_LIB, FormulaGraphs
+
+
+@dataclass(frozen=True, eq=False)
+class LeafAttributes:
+    M: ca.SX
+    C: ca.SX
+    N: ca.SX
+    kinematics: Callable[[str], ca.SX] | None  # output kind -> x = f(q)
+    inverse_kinematics: Callable[[ca.SX], ca.SX] | None  # x -> q
+
+
+def leaf_attributes(leaf, q: ca.SX, qd: ca.SX) -> LeafAttributes:
+    n = q.shape[0]
+    sym = Symbols(q, qd, ca.SX.zeros(n), ca.SX.zeros(n))
+    if isinstance(leaf, KinematicTree):
+        g = ChainGraphs(leaf, sym)
+
+        def tip(output: str) -> ca.SX:
+            p = g.fk()[:3, 3]
+            return p[:2] if output == "planar" else p
+
+        return LeafAttributes(g.mass(), g.coriolis(), g.gravity() + g.friction(), tip, None)
+    if isinstance(leaf, FormulaRobot):
+        g = FormulaGraphs(leaf, sym)
+        kin = (lambda output: g.kinematics()) if leaf.kinematics else None
+        ik = None
+        if leaf.inverse_kinematics:
+            def ik(x: ca.SX) -> ca.SX:
+                env = dict(leaf.parameters)
+                env.update({name: x[i] for i, name in enumerate(leaf.outputs)})
+                return ca.vertcat(*[ca.SX(evaluate(e, env, CASADI_LIB)) for e in leaf.inverse_kinematics])
+        return LeafAttributes(g.mass(), g.coriolis(), g.n_term(qd), kin, ik)
+    if isinstance(leaf, PlanarBody):
+        M = ca.SX(ca.DM(ca.diag(ca.DM([leaf.mass, leaf.mass, leaf.inertia]))))
+        N = ca.SX(ca.DM([-leaf.mass * leaf.gravity[0], -leaf.mass * leaf.gravity[1], 0.0]))
+        return LeafAttributes(M, ca.SX.zeros(3, 3), N, None, None)
+    raise TypeError(f"unknown leaf type {type(leaf).__name__}")

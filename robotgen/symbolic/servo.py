@@ -1,0 +1,155 @@
+"""The wr attributes of a robot tree, composed into one servo step (Deno et al. 1990):
+a desired trajectory written at a node flows down through CONTROL (§3.4, eq 2.10) and
+ATTACH (eqs 3.8, 5.3, 5.9) to the leaves, whose wr drives the actuators with the torque
+that reaches them. Every controller in the tree is evaluated on the way, in order.
+
+Computed-torque and feedforward controllers integrate their expected trajectory
+(x_e, xd_e) from xdd_e (§3.4); that is their state, passed in and out of the step (the
+emitted C keeps no state of its own)."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import casadi as ca
+
+from robotgen.model.system import (
+    COMPUTED_TORQUE,
+    FEEDFORWARD,
+    PD,
+    PD_FEEDFORWARD,
+    AttachNode,
+    ControlNode,
+    DefineNode,
+)
+from robotgen.symbolic.rows import rows
+from robotgen.symbolic.tree import TreeGraphs
+
+STATEFUL = (COMPUTED_TORQUE, FEEDFORWARD)
+
+
+class PositionsUnavailable(ValueError):
+    """A controller needs desired positions, but an ATTACH above it has no h^-1."""
+
+
+@dataclass(frozen=True, eq=False)
+class Trajectory:
+    """What wr carries, in the receiving node's coordinates (eq 5.1)."""
+
+    x: ca.SX | None  # external positions; None when no h^-1 lets them through
+    v: ca.SX
+    a: ca.SX
+    F: ca.SX
+    Fi: ca.SX  # internal forces
+
+
+def stateful_controllers(graphs: TreeGraphs, name: str) -> list[ControlNode]:
+    """Controllers with an integrated expected trajectory below ``name``, in walk order."""
+    return [n for n in graphs.system.walk(name) if isinstance(n, ControlNode) and n.law in STATEFUL]
+
+
+class Servo:
+    """Builds the write of one node: the leaf torques and next controller states."""
+
+    def __init__(self, graphs: TreeGraphs, top: str):
+        self.g = graphs
+        self.controllers = stateful_controllers(graphs, top)
+        self.layout: dict[str, tuple[int, int, int]] = {}  # name -> (offset, n_x, n_v)
+        o = 0
+        for c in self.controllers:
+            sig = graphs.graph(c.robot).sig
+            self.layout[c.name] = (o, sig.n_external, sig.n_velocity)
+            o += sig.n_external + sig.n_velocity
+        self.n_state = o
+        self.state = ca.SX.sym("state", o)
+        self.dt = ca.SX.sym("dt")
+        self.torques: dict[str, ca.SX] = {}
+        self.next_state: dict[str, ca.SX] = {}
+
+    def initial_state(self) -> ca.SX:
+        """Expected trajectories start at the controlled robots' current state."""
+        parts = []
+        for c in self.controllers:
+            child = self.g.graph(c.robot)
+            parts += [child.x, child.v]
+        return ca.vertcat(*parts) if parts else ca.SX(0, 1)
+
+    def tau(self) -> ca.SX:
+        return ca.vertcat(*[self.torques.get(leaf, ca.SX.zeros(self.g.sizes[leaf]))
+                            for leaf in self.g.leaves])
+
+    def state_next(self) -> ca.SX:
+        return ca.vertcat(*[self.next_state[c.name] for c in self.controllers]) if self.controllers else ca.SX(0, 1)
+
+    def write(self, name: str, t: Trajectory) -> None:
+        node = self.g.system.nodes[name]
+        if isinstance(node, DefineNode):
+            self.torques[name] = t.F  # a torque-driven leaf applies the force it is sent
+        elif isinstance(node, ControlNode):
+            self._control(node, t)
+        else:
+            self._attach(node, t)
+
+    # -- CONTROL ---------------------------------------------------------------------
+    def _control(self, node: ControlNode, t: Trajectory) -> None:
+        child = self.g.graph(node.robot)
+        sc = child.sig
+        ne, nvc = sc.n_external, sc.n_velocity
+        pad = nvc - t.v.shape[0]  # internal motions this controller resolves: desired rate 0
+        v_d = ca.vertcat(t.v, ca.SX.zeros(pad))
+        a_d = ca.vertcat(t.a, ca.SX.zeros(pad))
+        F_d = ca.vertcat(t.F, ca.SX.zeros(pad))
+        Fi = ca.SX(ca.DM(node.internal_forces)) if node.internal_forces is not None else t.Fi
+        Kp, Kv = ca.DM(node.kp), ca.DM(node.kv)
+        e_dot = v_d - child.v
+
+        def feedback(e: ca.SX | None) -> ca.SX:
+            """Kv e' + Kp e on external coordinates, kv_internal e' on internal ones (eq 5.13)."""
+            ext = Kv @ rows(e_dot, 0, ne) + (Kp @ e if e is not None else 0)
+            return ca.vertcat(ext, node.kv_internal * rows(e_dot, ne))
+
+        def position_error() -> ca.SX:
+            if t.x is None:
+                raise PositionsUnavailable(
+                    f"controller '{node.name}' needs desired positions, but an attach above it has no "
+                    "inverse kinematics (give the robots inverse_kinematics or the constraint h_inverse)")
+            return t.x - child.x
+
+        if node.law in STATEFUL:
+            e = position_error() if node.law == COMPUTED_TORQUE else None
+            a_e = a_d + feedback(e)  # §3.4: xdd_e = xdd_d + Kv (xd_d - xd) + Kp (x_d - x)
+            o, nx, nv = self.layout[node.name]
+            x_s, v_s = rows(self.state, o, o + nx), rows(self.state, o + nx, o + nx + nv)
+            F = child.M @ a_e + child.C @ child.v + child.N + F_d  # F_e = M xdd_e + C xd + N + F_d
+            self.next_state[node.name] = ca.vertcat(
+                x_s + self.dt * rows(v_s, 0, nx) + 0.5 * self.dt ** 2 * rows(a_e, 0, nx), v_s + self.dt * a_e)
+            self.write(node.robot, Trajectory(x_s, v_s, a_e, F, Fi))
+        elif node.law == PD_FEEDFORWARD:  # eq 2.10
+            F = child.M @ a_d + child.C @ v_d + child.N + feedback(position_error()) + F_d
+            self.write(node.robot, Trajectory(t.x, v_d, a_d, F, Fi))
+        elif node.law == PD:
+            F = F_d + feedback(position_error())
+            self.write(node.robot, Trajectory(t.x, v_d, a_d, F, Fi))
+        else:
+            raise ValueError(f"unknown control law {node.law}")
+
+    # -- ATTACH ----------------------------------------------------------------------
+    def _attach(self, node: AttachNode, t: Trajectory) -> None:
+        g = self.g.graph(node.name)
+        maps = g.attach
+        ne, m1, f1 = g.sig.n_external, maps.n_created_motions, maps.n_created_forces
+        w = maps.A @ t.v  # eq 3.8: children velocities
+        wa = maps.A @ t.a + maps.Adot @ t.v  # and accelerations
+        tau_e = maps.D @ ca.vertcat(rows(t.F, 0, ne), rows(t.F, ne, ne + m1), rows(t.Fi, 0, f1))  # eqs 5.3, 5.9
+        F_int, Fi_int = rows(t.F, ne + m1), rows(t.Fi, f1)  # the children's own, passed down
+        y = maps.h_inverse(t.x) if (t.x is not None and maps.h_inverse is not None) else None
+        row = e0 = i0 = fi0 = 0
+        for r in node.robots:
+            sc = self.g.graph(r).sig
+            ne_c, nv_c, nf_c = sc.n_external, sc.n_velocity, sc.n_internal_forces
+            ni_c = nv_c - ne_c
+            F_c = ca.vertcat(rows(tau_e, e0, e0 + ne_c), rows(F_int, i0, i0 + ni_c))
+            self.write(r, Trajectory(
+                rows(y, e0, e0 + ne_c) if y is not None else None,
+                rows(w, row, row + nv_c), rows(wa, row, row + nv_c), F_c, rows(Fi_int, fi0, fi0 + nf_c)))
+            row, e0, i0, fi0 = row + nv_c, e0 + ne_c, i0 + ni_c, fi0 + nf_c
+
