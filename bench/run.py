@@ -1,6 +1,8 @@
-"""Benchmark: ns per call of the generated C, the generated Python module, and CasADi.
+"""Benchmark: ns per call of the generated C, the generated Python module, and CasADi; and the
+generated C against Pinocchio's C++ on real URDF arms.
 
     python bench/run.py [--spec specs/puma560.yaml] [--out DIR] [--quick] [--json bench/results.json]
+                        [--urdf ur5 panda] [--pinocchio-headers]
 
 1. builds the spec with `robotgen build SPEC -o DIR` (a temporary directory unless --out);
 2. (a) compiles bench/harness.c against the generated header and kernel sources with
@@ -11,6 +13,17 @@
        Kernel.function): one call with a numpy argument, and Function.map over B states;
 3. prints a table and writes bench/results.json.
 
+Then, for each URDF arm (default UR5 and Panda; none when --spec is given, unless --urdf):
+4. builds it with `robotgen build URDF --tip TIP --name NAME -o DIR` (Panda's two finger joints
+   are locked at 0 by robotgen; Pinocchio's model gets them locked with buildReducedModel);
+5. checks once, before any timing, that the generated module, Pinocchio's Python bindings and
+   the C++ harness agree to 1e-9 (relative) on one random state -- a mismatch stops the bench;
+6. times bench/harness.c on the generated C and bench/pinocchio_harness.cpp (g++ -O2, linked
+   against the pin wheel's libpinocchio_default/_parsers, headers from the cmeel packages) on
+   the same input states, in alternating rounds, and prints ns per call, the ratio
+   Pinocchio / robotgen (> 1: the generated C is faster) and the generated kernels' op counts.
+The compiled Pinocchio harness is cached in bench/out/ (its compile takes ~35 s).
+
 Inputs are random states (angles in [-pi, pi], rates in [-2, 2]); every number is the
 minimum over several repeats (the least disturbed run), the C harness also reports the median.
 """
@@ -18,11 +31,14 @@ from __future__ import annotations
 
 import argparse
 import datetime
+import hashlib
 import importlib
 import json
 import os
 import platform
+import re
 import shutil
+import site
 import subprocess
 import sys
 import tempfile
