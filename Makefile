@@ -15,6 +15,7 @@ demo:
 	$(PYTHON) examples/demo.py
 
 bench:
+	$(PYTHON) -m pip install --quiet cmeel-eigen==3.4.1 cmeel-urdfdom-headers==3.0.0  # headers for bench/pinocchio_harness.cpp (the pin wheel has neither)
 	$(PYTHON) bench/run.py
 
 # Rebuild the committed generated/ tree (sources and manifests; the compiled module is

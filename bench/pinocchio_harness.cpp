@@ -1,11 +1,12 @@
 // Timing harness for Pinocchio's C++ algorithms on a URDF serial arm (bench/run.py compiles
 // and runs it), the counterpart of bench/harness.c for the generated C.
 //
-// Compiled as (run.py does this; PREFIX = site-packages/cmeel.prefix of the pin wheel):
-//   g++ -std=c++17 -O2 -DNDEBUG [-DPINOCCHIO_ENABLE_TEMPLATE_INSTANTIATION] \
-//       -DBOOST_MPL_LIMIT_LIST_SIZE=30 -DBOOST_MPL_LIMIT_VECTOR_SIZE=30 -DPINOCCHIO_WITH_URDFDOM \
-//       -I PREFIX/include -I EIGEN3 bench/pinocchio_harness.cpp \
-//       -L PREFIX/lib -Wl,-rpath,PREFIX/lib -lpinocchio_parsers -lpinocchio_default ...
+// Compiled as (run.py does this, and prints the full command; PREFIX = site-packages/cmeel.prefix
+// of the pin wheel, EIGEN3 = PREFIX/include/eigen3 from cmeel-eigen):
+//   g++ -std=c++17 -O2 -DNDEBUG [-DPINOCCHIO_ENABLE_TEMPLATE_INSTANTIATION]
+//       -DBOOST_MPL_LIMIT_LIST_SIZE=30 -DBOOST_MPL_LIMIT_VECTOR_SIZE=30 -DPINOCCHIO_WITH_URDFDOM ...
+//       -I PREFIX/include -I PREFIX/include/urdfdom_headers -I EIGEN3 bench/pinocchio_harness.cpp
+//       -L PREFIX/lib -Wl,-rpath,PREFIX/lib -lpinocchio_parsers -lpinocchio_default
 // With PINOCCHIO_ENABLE_TEMPLATE_INSTANTIATION (what the wheel's CMake target sets) the
 // algorithms are the wheel's own compiled instantiations in libpinocchio_default.so; without
 // it they are instantiated from the headers in this translation unit, at this -O level.
@@ -19,15 +20,14 @@
 // as qdd.
 //
 // Timing, as in harness.c: NSETS input sets from the same LCG as harness.c (angles in
-// [-pi, pi], rates and accelerations/torques in [-2, 2]; the same numbers as the C side when nq
-// matches) are cycled through; one output element per call goes into an accumulator stored to
+// [-pi, pi], rates and accelerations/torques in [-2, 2]: the very states the C side gets) are
+// cycled through; one output element per call goes into an accumulator stored to
 // a volatile sink; the loop is calibrated to >= 50 ms and repeated REPEATS times; min and
 // median ns per call. Only the algorithm call is timed (crba fills the upper triangle of
 // data.M, as Pinocchio users get it; symmetrising is not part of the call).
 #include <pinocchio/algorithm/aba.hpp>
 #include <pinocchio/algorithm/crba.hpp>
 #include <pinocchio/algorithm/frames.hpp>
-#include <pinocchio/algorithm/joint-configuration.hpp>
 #include <pinocchio/algorithm/model.hpp>
 #include <pinocchio/algorithm/rnea.hpp>
 #include <pinocchio/multibody.hpp>

@@ -83,7 +83,9 @@ def run_c(out: Path, name: str, nq: int, functions: list[str], work: Path) -> di
     exe = work / "harness"
     cmd = [cc, *CFLAGS, f'-DRG_HEADER="{name}.h"', f"-DRG_PREFIX={name}", f"-DRG_NQ={nq}",
            f"-I{out}", str(HERE / "harness.c"), *map(str, kernel_sources(out)), "-lm", "-o", str(exe)]
-    subprocess.run(cmd, check=True)
+    if not exe.exists():  # a work directory holds one build (run again in later rounds)
+        work.mkdir(parents=True, exist_ok=True)
+        subprocess.run(cmd, check=True)
     res = subprocess.run([str(exe), *functions], check=True, capture_output=True, text=True)
     results = {}
     for line in res.stdout.splitlines():
@@ -143,23 +145,300 @@ def table(rows: list[dict]) -> str:
     return "\n".join([fmt(lines[0]), fmt(["-" * w for w in widths])] + [fmt(r) for r in lines[1:]])
 
 
+# --- robotgen's generated C against Pinocchio's C++ on URDF arms ---------------------------
+
+URDF_ROBOTS = {  # name: (file under example-robot-data's robots/, tip frame)
+    "ur5": ("ur_description/urdf/ur5_robot.urdf", "tool0"),
+    "panda": ("panda_description/urdf/panda.urdf", "panda_hand_tcp"),
+}
+PIN_CALLS = {  # robotgen function -> the Pinocchio call timed by bench/pinocchio_harness.cpp
+    "mass": "crba (upper triangle, as returned)",
+    "inverse_dynamics": "rnea",
+    "gravity": "computeGeneralizedGravity",
+    "jacobian": "computeFrameJacobian LOCAL_WORLD_ALIGNED (with its forward kinematics)",
+    "coriolis": "computeCoriolisMatrix",
+    "forward_dynamics": "aba",
+}
+PIN_FUNCTIONS = ["mass", "inverse_dynamics", "gravity", "jacobian", "coriolis", "forward_dynamics"]
+CXX_FLAGS = ["-std=c++17", "-O2", "-DNDEBUG"]
+CHECK_TOL = 1e-9
+
+
+class ToolchainError(Exception):
+    """Pinocchio's C++ side cannot be built here; the message says exactly why."""
+
+
+def cmeel_prefix() -> Path:
+    """site-packages/cmeel.prefix of the pin wheel (headers in include/, libraries in lib/)."""
+    candidates = []
+    try:
+        import pinocchio
+
+        candidates += [p for p in Path(pinocchio.__file__).resolve().parents if p.name == "cmeel.prefix"]
+    except ImportError:
+        pass
+    candidates += [Path(sp) / "cmeel.prefix" for sp in site.getsitepackages() + [site.getusersitepackages()]]
+    for prefix in candidates:
+        if (prefix / "include" / "pinocchio").is_dir() and (prefix / "lib").is_dir():
+            return prefix
+    raise ToolchainError("no cmeel.prefix with include/pinocchio: the pin wheel is not installed "
+                         "(pip install pin==4.1.0)")
+
+
+def robots_dir() -> Path:
+    """example-robot-data ships only model files, under site-packages/cmeel.prefix/."""
+    for sp in site.getsitepackages() + [site.getusersitepackages()]:
+        d = Path(sp) / "cmeel.prefix/share/example-robot-data/robots"
+        if d.is_dir():
+            return d
+    sys.exit("bench: example-robot-data is not installed (pip install example-robot-data)")
+
+
+def pinocchio_toolchain(prefix: Path) -> dict:
+    """Include directories, macros and libraries for compiling against the pin wheel, as its
+    CMake targets (lib/cmake/pinocchio/pinocchioTargets.cmake) would give them."""
+    inc = prefix / "include"
+    eigen = next((d for d in [inc / "eigen3", Path("/usr/include/eigen3")] if (d / "Eigen" / "Core").is_file()), None)
+    if eigen is None:
+        raise ToolchainError(f"Eigen headers not found (looked in {inc / 'eigen3'} and /usr/include/eigen3); "
+                             "the pin wheel does not ship them: pip install cmeel-eigen==3.4.1")
+    urdf_headers = next((d for d in [inc / "urdfdom_headers", inc, Path("/usr/include")]
+                         if (d / "urdf_model" / "model.h").is_file()), None)
+    if urdf_headers is None:
+        raise ToolchainError(f"urdf_model/model.h not found (looked in {inc / 'urdfdom_headers'}); "
+                             "pinocchio/parsers/urdf.hpp needs it: pip install cmeel-urdfdom-headers==3.0.0")
+    libdir = prefix / "lib"
+    libs = [n for n in ("pinocchio_parsers", "pinocchio_default") if (libdir / f"lib{n}.so").exists()]
+    if "pinocchio_default" not in libs:
+        raise ToolchainError(f"no libpinocchio_default.so in {libdir}")
+    targets = (libdir / "cmake" / "pinocchio" / "pinocchioTargets.cmake")
+    text = targets.read_text() if targets.is_file() else ""
+    version = re.search(r"PINOCCHIO_URDFDOM_HEADERS_MAJOR_VERSION=(\d+);PINOCCHIO_URDFDOM_HEADERS_MINOR_VERSION=(\d+);"
+                        r"PINOCCHIO_URDFDOM_HEADERS_PATCH_VERSION=(\d+)", text)
+    major, minor, patch = version.groups() if version else ("3", "0", "0")
+    defines = [  # pinocchio_headers, pinocchio_default and pinocchio_parsers' interface definitions
+        "-DBOOST_MPL_LIMIT_LIST_SIZE=30", "-DBOOST_MPL_LIMIT_VECTOR_SIZE=30", "-DBOOST_MPL_CFG_NO_PREPROCESSED_HEADERS",
+        "-DBOOST_FUSION_INVOKE_MAX_ARITY=12", "-DPINOCCHIO_WITH_URDFDOM",
+        f"-DPINOCCHIO_URDFDOM_HEADERS_MAJOR_VERSION={major}", f"-DPINOCCHIO_URDFDOM_HEADERS_MINOR_VERSION={minor}",
+        f"-DPINOCCHIO_URDFDOM_HEADERS_PATCH_VERSION={patch}",
+    ]
+    return {"prefix": prefix, "includes": [f"-I{inc}", f"-I{urdf_headers}", f"-I{eigen}"], "defines": defines,
+            "libs": [f"-L{libdir}", f"-Wl,-rpath,{libdir}", *(f"-l{n}" for n in libs)], "eigen": str(eigen),
+            "urdf_headers": str(urdf_headers)}
+
+
+class PinocchioHarness:
+    """Compiles bench/pinocchio_harness.cpp (in the background, cached in bench/out/)."""
+
+    def __init__(self, headers: bool):
+        self.cxx = os.environ.get("CXX", "g++")
+        self.tool = pinocchio_toolchain(cmeel_prefix())
+        mode = [] if headers else ["-DPINOCCHIO_ENABLE_TEMPLATE_INSTANTIATION"]
+        self.instantiation = "header" if headers else "library"
+        src = HERE / "pinocchio_harness.cpp"
+        try:
+            version = (subprocess.run([self.cxx, "--version"], capture_output=True, text=True).stdout.splitlines()
+                       or [self.cxx])[0]
+        except OSError as e:
+            raise ToolchainError(f"C++ compiler {self.cxx!r} cannot be run: {e}") from None
+        lib = self.tool["prefix"] / "lib" / "libpinocchio_default.so"
+        self.flags = [*CXX_FLAGS, *mode]
+        cmd_tail = [*self.tool["defines"], *self.tool["includes"], str(src), *self.tool["libs"]]
+        key = hashlib.sha256("\0".join([src.read_text(), version, str(lib.resolve()), str(lib.stat().st_size),
+                                        *self.flags, *cmd_tail]).encode()).hexdigest()[:16]
+        cache = HERE / "out"
+        cache.mkdir(exist_ok=True)
+        self.exe = cache / f"pinocchio_harness-{self.instantiation}-{key}"
+        self.compiler = version
+        self.command = [self.cxx, *self.flags, *cmd_tail, "-o", str(self.exe)]
+        self.cached = self.exe.exists()
+        self._proc = None
+        if not self.cached:
+            self._tmp = self.exe.with_name(self.exe.name + ".tmp")
+            self._proc = subprocess.Popen([*self.command[:-1], str(self._tmp)], stdout=subprocess.PIPE,
+                                          stderr=subprocess.STDOUT, text=True)
+
+    def wait(self) -> Path:
+        if self._proc is not None:
+            log, _ = self._proc.communicate()
+            if self._proc.returncode != 0:
+                errors = [ln for ln in log.splitlines() if "error" in ln] or log.splitlines()[-20:]
+                raise ToolchainError(f"{' '.join(self.command)}\nfailed (exit {self._proc.returncode}):\n"
+                                     + "\n".join(errors[:20]))
+            self._tmp.replace(self.exe)
+            self._proc = None
+        return self.exe
+
+    def run(self, urdf: Path, tip: str, locked: list[str], args: list[str], stdin: str | None = None) -> dict:
+        cmd = [str(self.wait()), str(urdf), tip, *(["--lock", ",".join(locked)] if locked else []), *args]
+        res = subprocess.run(cmd, input=stdin, capture_output=True, text=True)
+        if res.returncode != 0:
+            raise ToolchainError(f"{' '.join(cmd)} failed (exit {res.returncode}): {res.stderr.strip()}")
+        return json.loads(res.stdout)
+
+    def describe(self) -> dict:
+        return {"compiler": self.compiler, "flags": self.flags, "command": " ".join(self.command),
+                "template_instantiation": self.instantiation, "eigen": self.tool["eigen"],
+                "urdf_headers": self.tool["urdf_headers"], "cached": self.cached}
+
+
+def rel_err(a, b) -> float:
+    a, b = np.asarray(a, float), np.asarray(b, float)
+    return float(np.abs(a - b).max() / max(1.0, np.abs(b).max()))
+
+
+def check_against_pinocchio(module, name: str, urdf: Path, tip: str, locked: list[str], harness) -> dict:
+    """One random state: generated module vs Pinocchio (Python) vs the C++ harness, <= 1e-9."""
+    import pinocchio as pin
+
+    model = pin.buildModelFromUrdf(str(urdf))
+    if locked:
+        model = pin.buildReducedModel(model, [model.getJointId(j) for j in locked], pin.neutral(model))
+    if model.nq != module.nq:
+        sys.exit(f"bench: {name}: Pinocchio's model has nq = {model.nq}, robotgen's {module.nq}")
+    data, fid = model.createData(), model.getFrameId(tip)
+    damping = np.array([j["damping"] for j in module.info()["nodes"][name]["joints"]])
+    rng = np.random.default_rng(2024)
+    q, qd, x = rng.uniform(-np.pi, np.pi, model.nq), rng.uniform(-2, 2, model.nq), rng.uniform(-2, 2, model.nq)
+    M = pin.crba(model, data, q)
+    M = np.triu(M) + np.triu(M, 1).T
+    pin_py = {
+        "mass": M,
+        "inverse_dynamics": pin.rnea(model, data, q, qd, x).copy(),
+        "gravity": pin.computeGeneralizedGravity(model, data, q).copy(),
+        "jacobian": pin.computeFrameJacobian(model, data, q, fid, pin.LOCAL_WORLD_ALIGNED),
+        "coriolis": pin.computeCoriolisMatrix(model, data, q, qd).copy(),
+        "forward_dynamics": pin.aba(model, data, q, qd, x).copy(),
+    }
+    # robotgen's URDF <dynamics damping> is viscous friction in inverse/forward dynamics.
+    generated = {
+        "mass": module.mass(q), "gravity": module.gravity(q), "jacobian": module.jacobian(q),
+        "coriolis": module.coriolis(q, qd),
+        "inverse_dynamics": module.inverse_dynamics(q, qd, x) - damping * qd,
+        "forward_dynamics": module.forward_dynamics(q, qd, x + damping * qd),
+    }
+    cxx = harness.run(urdf, tip, locked, ["--eval"], " ".join(f"{v:.17g}" for v in (*q, *qd, *x)))
+    errors = {}
+    for fn in PIN_FUNCTIONS:
+        errors[fn] = {"robotgen_vs_pinocchio": rel_err(generated[fn], pin_py[fn]),
+                      "pinocchio_cxx_vs_python": rel_err(np.reshape(cxx[fn], np.shape(pin_py[fn])), pin_py[fn])}
+    bad = {fn: e for fn, e in errors.items() if max(e.values()) > CHECK_TOL}
+    if bad:
+        sys.exit(f"bench: {name}: robotgen and Pinocchio disagree (relative error > {CHECK_TOL:g}), "
+                 f"not timing wrong code: {bad}")
+    return errors
+
+
+def op_counts(out: Path) -> dict:
+    manifest = json.loads((out / "manifest.json").read_text())
+    return {f["name"]: {"arithmetic_ops": f.get("arithmetic_ops"), "sin_cos_ops": f.get("sin_cos_ops")}
+            for f in manifest["functions"]}
+
+
+def versus_table(robots: list[dict]) -> str:
+    head = ["robot", "function", "robotgen C ns", "Pinocchio ns", "Pin/robotgen", "ops", "sin/cos"]
+    lines = [head]
+    for r in robots:
+        for f in r["functions"]:
+            lines.append([r["robot"], f["function"], f"{f['robotgen_c']['ns_min']:.1f}",
+                          f"{f['pinocchio']['ns_min']:.1f}", f"{f['ratio']:.2f}",
+                          str(f["arithmetic_ops"]), str(f["sin_cos_ops"])])
+    widths = [max(len(row[i]) for row in lines) for i in range(len(head))]
+    fmt = lambda row: "  ".join(s.rjust(w) if i > 1 else s.ljust(w) for i, (s, w) in enumerate(zip(row, widths)))  # noqa: E731
+    return "\n".join([fmt(lines[0]), fmt(["-" * w for w in widths])] + [fmt(r) for r in lines[1:]])
+
+
+def build_urdf(name: str, out: Path):
+    from robotgen.cli import main as robotgen_main
+
+    rel, tip = URDF_ROBOTS[name]
+    urdf = robots_dir() / rel
+    status = robotgen_main(["build", str(urdf), "--tip", tip, "--name", name, "-o", str(out)])
+    if status != 0:
+        sys.exit(f"bench: robotgen build {urdf} --tip {tip} failed with exit status {status}")
+    sys.path.insert(0, str(out))
+    importlib.invalidate_caches()
+    module = importlib.import_module(name)
+    locked = list(module.info()["nodes"][name].get("locked_joints", []))
+    return urdf, tip, module, locked
+
+
+def time_versus(built: dict, harness: PinocchioHarness, tmp: Path, rounds: int) -> list[dict]:
+    """Alternating rounds of the C harness and the Pinocchio harness per robot; min over rounds."""
+    robots = []
+    for name, b in built.items():
+        best_c: dict = {}
+        best_p: dict = {}
+        c_info = None
+        for _ in range(rounds):
+            c_info = run_c(b["out"], name, b["nq"], PIN_FUNCTIONS, tmp / f"c-{name}")
+            p = harness.run(b["urdf"], b["tip"], b["locked"], PIN_FUNCTIONS)
+            for best, res in ((best_c, c_info["results"]), (best_p, p["results"])):
+                for fn, t in res.items():
+                    if fn not in best or t["ns_min"] < best[fn]["ns_min"]:
+                        best[fn] = t
+        ops = op_counts(b["out"])
+        robots.append({
+            "robot": name, "urdf": b["urdf_rel"], "tip": b["tip"], "nq": b["nq"], "locked_joints": b["locked"],
+            "check": b["check"], "c_command": c_info["command"],
+            "functions": [{
+                "function": fn, "pinocchio_call": PIN_CALLS[fn],
+                "robotgen_c": best_c[fn], "pinocchio": best_p[fn],
+                "ratio": best_p[fn]["ns_min"] / best_c[fn]["ns_min"], **ops[fn],
+            } for fn in PIN_FUNCTIONS],
+        })
+    return robots
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--spec", default=str(ROOT / "specs" / "puma560.yaml"))
+    ap.add_argument("--spec", help="spec to benchmark (default specs/puma560.yaml)")
     ap.add_argument("--out", help="build directory (default: a temporary directory)")
     ap.add_argument("--json", default=str(HERE / "results.json"), help="where to write the results")
     ap.add_argument("--functions", nargs="*", default=FUNCTIONS)
     ap.add_argument("--quick", action="store_true", help="fewer repetitions (smoke test)")
+    ap.add_argument("--urdf", nargs="*", choices=sorted(URDF_ROBOTS),
+                    help="URDF arms to compare with Pinocchio's C++ (default: ur5 panda, none with --spec)")
+    ap.add_argument("--pinocchio-headers", action="store_true",
+                    help="instantiate Pinocchio's algorithms from its headers at -O2 in the harness "
+                         "(a ~2.5 min compile) instead of calling the wheel's libpinocchio_default")
     args = ap.parse_args(argv)
 
-    spec = Path(args.spec).resolve()
+    spec = Path(args.spec or ROOT / "specs" / "puma560.yaml").resolve()
+    urdf_names = args.urdf if args.urdf is not None else ([] if args.spec else list(URDF_ROBOTS))
     tmp = tempfile.mkdtemp(prefix="robotgen-bench-")
+    status = 0
     try:
+        # The Pinocchio harness compiles in the background while robotgen builds (not while timing).
+        harness, versus = None, None
+        if urdf_names:
+            try:
+                harness = PinocchioHarness(args.pinocchio_headers)
+            except ToolchainError as e:
+                versus = {"error": str(e)}
+
         out = Path(args.out).resolve() if args.out else Path(tmp) / "build"
         name = build(spec, out)
         sys.path.insert(0, str(out))
         module = importlib.import_module(name)
         nq = int(module.nq)
+
+        built = {}
+        for rname in urdf_names:
+            rout = Path(tmp) / f"build-{rname}"
+            urdf, tip, rmodule, locked = build_urdf(rname, rout)
+            built[rname] = {"out": rout, "urdf": urdf, "tip": tip, "module": rmodule, "locked": locked,
+                            "nq": int(rmodule.nq), "urdf_rel": str(urdf.relative_to(robots_dir().parent.parent))}
+        if harness is not None:
+            try:
+                harness.wait()
+                for rname, b in built.items():
+                    b["check"] = check_against_pinocchio(b["module"], rname, b["urdf"], b["tip"], b["locked"], harness)
+                    worst = max(max(e.values()) for e in b["check"].values())
+                    print(f"bench: {rname}: generated module, Pinocchio (Python) and the C++ harness agree, "
+                          f"max relative error {worst:.1e} <= {CHECK_TOL:g}", flush=True)
+            except ToolchainError as e:
+                versus, harness = {"error": str(e)}, None
 
         from robotgen.spec import load_system
         from robotgen.symbolic import kernels_for
@@ -178,6 +457,32 @@ def main(argv=None) -> int:
                 "casadi": run_casadi(kernels[fn], nq, args.quick),
             })
         print(table(rows))
+
+        if harness is not None:
+            import pinocchio as pin
+
+            print(f"\nbench: generated C ({' '.join(CFLAGS)}) vs Pinocchio {pin.__version__} C++ "
+                  f"({' '.join(harness.flags)}; algorithms from the wheel's "
+                  f"{'libpinocchio_default.so' if harness.instantiation == 'library' else 'headers, compiled here'})",
+                  flush=True)
+            robots = time_versus(built, harness, Path(tmp), 1 if args.quick else 2)
+            print(versus_table(robots))
+            print("ratio = Pinocchio ns / robotgen ns (> 1: the generated C is faster); ops: arithmetic "
+                  "operations in the generated kernel (manifest.json)")
+            versus = {
+                "pinocchio": pin.__version__, "c_flags": CFLAGS, "pinocchio_harness": harness.describe(),
+                "rounds": 1 if args.quick else 2, "check_tolerance": CHECK_TOL,
+                "units": "ns per call, min over repeats and rounds; ratio = pinocchio / robotgen_c",
+                "notes": ["both harnesses cycle through the same 256 random states (the same LCG)",
+                          "robotgen's inverse_dynamics and forward_dynamics include the URDF joint damping "
+                          "as viscous friction (Panda: 0.003); Pinocchio's rnea and aba do not",
+                          "Pinocchio's crba fills the upper triangle of M; robotgen's mass returns the full matrix"],
+                "robots": robots,
+            }
+        elif versus is not None:
+            print(f"\nbench: Pinocchio C++ comparison not run: {versus['error']}", file=sys.stderr)
+            status = 1
+
         result = {
             "robot": name, "spec": os.path.relpath(spec, ROOT), "nq": nq,
             "date": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
@@ -189,11 +494,13 @@ def main(argv=None) -> int:
             "units": "ns per call (min over repeats); *_batch / *_map: ns per state",
             "functions": rows,
         }
+        if versus is not None:
+            result["versus_pinocchio"] = versus
         Path(args.json).write_text(json.dumps(result, indent=2) + "\n")
         print(f"bench: wrote {args.json}")
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
-    return 0
+    return status
 
 
 if __name__ == "__main__":

@@ -118,7 +118,7 @@ def write_csv(result: Result, path: Path) -> None:
     with open(path, "w", newline="") as f:
         w = csv.writer(f)
         n_tau = result.tau.shape[1]
-        w.writerow(["t"] + [f"x_{c}" for c in result.names] + [f"xd_{c}" for c in result.names]
+        w.writerow(["t"] + [f"x_{c}" for c in result.names] + [f"xref_{c}" for c in result.names]
                    + [f"tau_{k + 1}" for k in range(n_tau)])
         for k in range(len(result.t)):
             w.writerow([f"{result.t[k]:.6f}"] + [f"{v:.10g}" for v in result.x[k]]

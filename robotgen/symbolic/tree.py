@@ -135,11 +135,12 @@ class TreeGraphs:
         w_e = ca.vertcat(*[rows(k.v, 0, k.sig.n_external) for k in kids])
         w_i = ca.vertcat(*[rows(k.v, k.sig.n_external) for k in kids])
         m = y.shape[0]
-        x, J, G, h_inverse, K = self._constraint(node, kids, y)
+        x, J, G, h_inverse, K, H = self._constraint(node, kids, y)
         n_rows, n = J.shape[0], sig.n_external
         if K is None:
             K = null_rows(J) if m > n_rows else ca.SX(0, m)
-        H = null_rows(G) if G.shape[1] > n else ca.SX(0, G.shape[1])
+        if H is None:
+            H = null_rows(G) if G.shape[1] > n else ca.SX(0, G.shape[1])
         GGt = G @ G.T
         G_pinv = G.T @ ca.solve(GGt, ca.SX.eye(n))  # G^+ (rows x n)
         J_pinv = J.T @ ca.solve(J @ J.T, ca.SX.eye(n_rows)) if m > n_rows else ca.solve(J, ca.SX.eye(m))
@@ -184,7 +185,8 @@ class TreeGraphs:
         return M, C, N
 
     def _constraint(self, node: AttachNode, kids: list[NodeGraph], y: ca.SX):
-        """x = h(y), J, G, h^-1 and (for frame changes) the block null basis K."""
+        """x = h(y), J, G, h^-1, and where the constraint fixes them, the null bases K of J
+        (frame changes: block by block) and H of G (two contacts: the squeeze)."""
         c = node.constraint
         m = y.shape[0]
         if c.kind == FRAME_CHANGE:
@@ -203,7 +205,7 @@ class TreeGraphs:
                         parts.append(lf.leaf.inverse_kinematics(rows(xe, o, o + s)))
                         o += s
                     return ca.vertcat(*parts)
-            return x, J, ca.SX.eye(x.shape[0]), h_inverse, K
+            return x, J, ca.SX.eye(x.shape[0]), h_inverse, K, None
         if c.kind == PLANAR_CONTACTS:
             pts = np.asarray(c.contacts, dtype=float)
             p1, p2 = y[0:2], y[2:4]
@@ -221,7 +223,11 @@ class TreeGraphs:
             for p in pts:
                 r = R @ ca.DM(p)  # contact point relative to the centre, base frame
                 cols += [ca.vertcat(1, 0, -r[1]), ca.vertcat(0, 1, r[0])]
-            return x, ca.SX.eye(m), ca.horzcat(*cols), h_inverse, None
+            H = None
+            if len(pts) == 2:  # positive internal force = squeeze: tip 1 pushes toward tip 2
+                u = R @ ca.DM((pts[1] - pts[0]) / np.linalg.norm(pts[1] - pts[0]))
+                H = ca.horzcat(u.T, -u.T) / np.sqrt(2.0)
+            return x, ca.SX.eye(m), ca.horzcat(*cols), h_inverse, None, H
         if c.kind == CONSTRAINT_FORMULAS:
             env: dict[str, object] = dict(c.parameters)
             names = [nm for k in kids for nm in k.sig.external]
@@ -237,5 +243,5 @@ class TreeGraphs:
                     e2 = dict(c.parameters)
                     e2.update({nm: xe[i] for i, nm in enumerate(c.coordinates)})
                     return ca.vertcat(*[ca.SX(evaluate(e, e2, CASADI_LIB)) for e in c.h_inverse])
-            return x, J, G, h_inverse, None
+            return x, J, G, h_inverse, None, None
         raise ValueError(f"unknown constraint kind {c.kind}")
