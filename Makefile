@@ -17,6 +17,7 @@ demo:
 bench:
 	$(PYTHON) -m pip install --quiet cmeel-eigen==3.4.1 cmeel-urdfdom-headers==3.0.0  # headers for bench/pinocchio_harness.cpp (the pin wheel has neither)
 	$(PYTHON) bench/run.py
+	$(PYTHON) bench/scaling.py  # build s and ns per call vs dof: chains of 2..30 links, a humanoid tree (~5 min)
 
 # Rebuild the committed generated/ tree (sources and manifests; the compiled module is
 # built too but not committed). tests/test_generated.py checks it is never stale.

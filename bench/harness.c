@@ -38,7 +38,7 @@
 #define MIN_NS 5.0e7
 
 static double Q[NSETS][NQ], QD[NSETS][NQ], QDD[NSETS][NQ];
-static double OUT[6 * NQ + NQ * NQ + 16];
+static double OUT[7 * NQ + NQ * NQ + 16];
 static volatile double sink;
 
 static double now_ns(void) {
@@ -116,5 +116,14 @@ int main(int argc, char **argv) {
     if (selected(argc, argv, "forward_dynamics"))
         BENCH("forward_dynamics", NQ, FN(forward_dynamics)(Q[s], QD[s], QDD[s], OUT));
     if (selected(argc, argv, "fk")) BENCH("fk", 16, FN(fk)(Q[s], OUT));
+    /* a computed-torque cycle's terms: one fused call against the four separate ones */
+    if (selected(argc, argv, "servo_terms"))
+        BENCH("servo_terms", NQ * NQ + NQ + 6 * NQ + 6,
+              FN(servo_terms)(Q[s], QD[s], OUT, OUT + NQ * NQ, OUT + NQ * NQ + NQ, OUT + NQ * NQ + 7 * NQ));
+    if (selected(argc, argv, "servo_terms_separate"))
+        BENCH("servo_terms_separate", NQ * NQ + NQ + 6 * NQ + 6,
+              (FN(mass)(Q[s], OUT), FN(nonlinear)(Q[s], QD[s], OUT + NQ * NQ),
+               FN(jacobian)(Q[s], OUT + NQ * NQ + NQ),
+               FN(jacobian_dot_qd)(Q[s], QD[s], OUT + NQ * NQ + 7 * NQ)));
     return sink == 12345.678 ? 1 : 0; /* use sink so it is observable */
 }

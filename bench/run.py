@@ -390,6 +390,18 @@ def time_versus(built: dict, harness: PinocchioHarness, tmp: Path, rounds: int) 
     return robots
 
 
+def fused_section(robots: list[tuple[str, Path, int]], tmp: Path) -> list[dict]:
+    """servo_terms (M, C qd + N, J, Jdot qd in one call) against the four separate calls."""
+    rows = []
+    print("\nbench: fused servo terms (one call) vs mass + nonlinear + jacobian + jacobian_dot_qd")
+    for name, out, nq in robots:
+        res = run_c(out, name, nq, ["servo_terms", "servo_terms_separate"], tmp / f"fused-{name}")["results"]
+        fused, separate = res["servo_terms"]["ns_min"], res["servo_terms_separate"]["ns_min"]
+        rows.append({"robot": name, "fused_ns": fused, "separate_ns": separate, "speedup": separate / fused})
+        print(f"  {name:10s} fused {fused:8.1f} ns   separate {separate:8.1f} ns   speedup {separate / fused:4.2f}x")
+    return rows
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--spec", help="spec to benchmark (default specs/puma560.yaml)")
@@ -496,6 +508,8 @@ def main(argv=None) -> int:
         }
         if versus is not None:
             result["versus_pinocchio"] = versus
+        result["fused_servo_terms"] = fused_section(
+            [(name, out, nq)] + [(n, b["out"], b["nq"]) for n, b in (built or {}).items()], Path(tmp))
         Path(args.json).write_text(json.dumps(result, indent=2) + "\n")
         print(f"bench: wrote {args.json}")
     finally:

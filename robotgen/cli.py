@@ -38,14 +38,28 @@ class _Usage(Exception):
 
 def _cmd_build(args: argparse.Namespace) -> int:
     system = _load(args)
-    from robotgen.emit.build import emit
-    from robotgen.symbolic import kernels_for
+    from robotgen.emit import cache
 
     out = Path(args.output) if args.output else Path("generated") / system.name
+    options = {"name": system.name, "precision": args.precision, "compile": not args.no_compile,
+               "tip": args.tip, "base": args.base}
+    key = cache.build_key([Path(system.source), *map(Path, system.dependencies)], options)
+    if cache.is_current(out, key, not args.no_compile, system.name):
+        print(f"robotgen: {out} is up to date")
+        return EXIT_OK
+    from robotgen.emit.build import emit
+    from robotgen.symbolic import kernels_for, module_extras
+
     kernels = kernels_for(system)
-    emit(out, system.name, kernels, nq=system_nq(system), precision=args.precision,
-         compile=not args.no_compile, extra_info=system_info(system),
-         spec_sha256=system.source_sha256)
+    extra_info, attributes = module_extras(system)
+    try:
+        emit(out, system.name, kernels, nq=system_nq(system), precision=args.precision,
+             compile=not args.no_compile, extra_info={**system_info(system), **extra_info},
+             spec_sha256=system.source_sha256, attributes=attributes)
+    except FileExistsError as e:
+        print(f"robotgen: error: {e}", file=sys.stderr)
+        return EXIT_USER
+    cache.record(out, key)
     print(f"robotgen: built {system.name} ({len(kernels)} functions) in {out}")
     return EXIT_OK
 
@@ -62,6 +76,9 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     system = _load(args)
     if system.is_single_leaf:
         raise _Usage("simulate needs a robot tree (attach/control); for one chain see examples/demo.py")
+    if system.is_rate_controlled:
+        raise _Usage("simulate runs torque trees; a resolved_rate controller outputs joint rates: "
+                     "integrate its rate_step / position_step (see tests/test_rate_control.py)")
     settings = system.simulation or SimulationSettings()
     overrides = {k: getattr(args, k) for k in ("duration", "dt") if getattr(args, k) is not None}
     settings = dataclasses.replace(settings, **overrides)

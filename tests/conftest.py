@@ -19,10 +19,18 @@ def _is_single_leaf(spec: Path) -> bool:
     return "define" in data["nodes"][data["root"]]
 
 
+def _is_rate_controlled(spec: Path) -> bool:
+    with open(spec) as f:
+        data = yaml.safe_load(f)
+    return data["nodes"][data["root"]].get("control", {}).get("law") == "resolved_rate"
+
+
 # Specs whose root is one leaf robot: their module has the contract's chain/formula API.
 EXAMPLE_SPECS = [s for s in ALL_SPECS if _is_single_leaf(s)]
+# Resolved-rate controllers of a chain (Whitney 1972): the chain's API plus rate_step etc.
+RATE_SPECS = [s for s in ALL_SPECS if _is_rate_controlled(s)]
 # Robot trees (ATTACH / CONTROL): per-node functions, servo_step, plant_*.
-TREE_SPECS = [s for s in ALL_SPECS if not _is_single_leaf(s)]
+TREE_SPECS = [s for s in ALL_SPECS if not _is_single_leaf(s) and s not in RATE_SPECS]
 
 # Make `import robotgen` and `import reference` work however pytest is started.
 for p in (str(ROOT), str(Path(__file__).resolve().parent)):

@@ -608,12 +608,65 @@ static PyObject *k_forward_dynamics(PyObject *self, PyObject *const *args, Py_ss
     return rg_finish("forward_dynamics", status, out, 1);
 }
 
+/* servo_terms */
+static const rg_port k_servo_terms_inputs[] = {
+    {"q", 1, {6, 1}, "(6,)", "(B, 6)"},
+    {"qd", 1, {6, 1}, "(6,)", "(B, 6)"},
+};
+static const rg_port k_servo_terms_outputs[] = {
+    {"mass", 2, {6, 6}, "(6, 6)", "(B, 6, 6)"},
+    {"nonlinear", 1, {6, 1}, "(6,)", "(B, 6)"},
+    {"jacobian", 2, {6, 6}, "(6, 6)", "(B, 6, 6)"},
+    {"jacobian_dot_qd", 1, {6, 1}, "(6,)", "(B, 6)"},
+};
+PyDoc_STRVAR(k_servo_terms_doc,
+    "servo_terms($module, q, qd, /)\n"
+    "--\n"
+    "\n"
+    "M(q), C(q, qd) qd + N, the tip Jacobian J and Jdot qd in one call: a computed-torque servo cycle's terms, sharing sin/cos and kinematics.\n"
+    "\n"
+    "q: float64 array (6,) or (B, 6)\n"
+    "qd: float64 array (6,) or (B, 6)\n"
+    "Returns mass (6, 6), nonlinear (6,), jacobian (6, 6), jacobian_dot_qd (6,) as a tuple; batched inputs give a leading B axis.");
+
+static PyObject *k_servo_terms(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    PyArrayObject *in[2] = {NULL};
+    PyArrayObject *out[4] = {NULL};
+    PyThreadState *unlocked;
+    npy_intp batch, count, b;
+    int status = 0;
+    (void)self;
+    if (rg_convert_args("servo_terms", args, nargs, k_servo_terms_inputs, 2, in, &batch) < 0
+        || rg_new_results(k_servo_terms_outputs, 4, batch, out) < 0) {
+        rg_release(in, 2);
+        rg_release(out, 4);
+        return NULL;
+    }
+    count = batch < 0 ? 1 : batch;
+    unlocked = count > 1 ? PyEval_SaveThread() : NULL;
+    for (b = 0; b < count && status == 0; ++b) {
+        status = puma560_servo_terms(
+            rg_data(in[0]) + b * 6,
+            rg_data(in[1]) + b * 6,
+            rg_data(out[0]) + b * 36,
+            rg_data(out[1]) + b * 6,
+            rg_data(out[2]) + b * 36,
+            rg_data(out[3]) + b * 6);
+    }
+    if (unlocked != NULL) {
+        PyEval_RestoreThread(unlocked);
+    }
+    rg_release(in, 2);
+    return rg_finish("servo_terms", status, out, 4);
+}
+
 static PyObject *rg_info(PyObject *self, PyObject *unused)
 {
     (void)self;
     (void)unused;
     return rg_from_json(
-    "{\"functions\":[\"fk\",\"jacobian\",\"jacobian_hand\",\"jacobian_dot_qd\",\"mass\",\"coriolis\",\"gravity\",\"nonlinear\",\"inverse_dynamics\",\"forward_dynamics\"],\"leaves\":[\"arm\"],\"name\":\"puma560\",\"nodes\":{\"arm\":{\"base_link\":\"base\",\"coordinates\":[\"q1\",\"q2\",\"q3\",\"q4\",\"q5\",\"q6\"],\"internal_forces\":[],\"internal_motions\":[],\"joints\":[{\"armature\":0.784029968642,\"coulomb\":25.983606500000004,\"damping\":0.0,\"limits\":{\"effort\":null,\"lower\":-2.792526803190927,\"upper\":2.792526803190927,\"velocity\":null},\"name\":\"q1\",\"parent\":-1,\"type\":\"revolute\",\"viscous\":5.8018217679508},{\"armature\":2.324814845,\"coulomb\":10.6197775,\"damping\":0.0,\"limits\":{\"effort\":null,\"lower\":-0.7853981633974483,\"upper\":3.9269908169872414,\"velocity\":null},\"name\":\"q2\",\"parent\":0,\"type\":\"revolute\",\"viscous\":9.496868641825001},{\"armature\":0.576873331938,\"coulomb\":6.36419655,\"damping\":0.0,\"limits\":{\"effort\":null,\"lower\":-3.9269908169872414,\"upper\":0.7853981633974483,\"velocity\":null},\"name\":\"q3\",\"parent\":1,\"type\":\"revolute\",\"viscous\":3.9804259903721997},{\"armature\":0.19079062612368,\"coulomb\":1.06831142,\"damping\":0.0,\"limits\":{\"effort\":null,\"lower\":-1.9198621771937625,\"upper\":2.9670597283903604,\"velocity\":null},\"name\":\"q4\",\"parent\":2,\"type\":\"revolute\",\"viscous\":0.41164522969715195},{\"armature\":0.17070629165700002,\"coulomb\":0.85444524,\"damping\":0.0,\"limits\":{\"effort\":null,\"lower\":-1.7453292519943295,\"upper\":1.7453292519943295,\"velocity\":null},\"name\":\"q5\",\"parent\":3,\"type\":\"revolute\",\"viscous\":0.42728302093540005},{\"armature\":0.19406450566800004,\"coulomb\":0.55443978,\"damping\":0.0,\"limits\":{\"effort\":null,\"lower\":-4.642575810304916,\"upper\":4.642575810304916,\"velocity\":null},\"name\":\"q6\",\"parent\":4,\"type\":\"revolute\",\"viscous\":0.2158232532732}],\"kind\":\"chain\",\"locked_joints\":[],\"nq\":6,\"primitive\":\"define\",\"tip_link\":\"tool\"}},\"nq\":6,\"precision\":\"double\",\"robotgen_version\":\"0.1.0\",\"root\":\"arm\",\"spec_sha256\":\"74bfcdc43dcc8060511637324279fd9105b6eaa47acfee4004a341213677443d\"}");
+    "{\"functions\":[\"fk\",\"jacobian\",\"jacobian_hand\",\"jacobian_dot_qd\",\"mass\",\"coriolis\",\"gravity\",\"nonlinear\",\"inverse_dynamics\",\"forward_dynamics\",\"servo_terms\"],\"leaves\":[\"arm\"],\"name\":\"puma560\",\"nodes\":{\"arm\":{\"base_link\":\"base\",\"coordinates\":[\"q1\",\"q2\",\"q3\",\"q4\",\"q5\",\"q6\"],\"internal_forces\":[],\"internal_motions\":[],\"joints\":[{\"armature\":0.784029968642,\"coulomb\":25.983606500000004,\"damping\":0.0,\"limits\":{\"effort\":null,\"lower\":-2.792526803190927,\"upper\":2.792526803190927,\"velocity\":null},\"name\":\"q1\",\"parent\":-1,\"type\":\"revolute\",\"viscous\":5.8018217679508},{\"armature\":2.324814845,\"coulomb\":10.6197775,\"damping\":0.0,\"limits\":{\"effort\":null,\"lower\":-0.7853981633974483,\"upper\":3.9269908169872414,\"velocity\":null},\"name\":\"q2\",\"parent\":0,\"type\":\"revolute\",\"viscous\":9.496868641825001},{\"armature\":0.576873331938,\"coulomb\":6.36419655,\"damping\":0.0,\"limits\":{\"effort\":null,\"lower\":-3.9269908169872414,\"upper\":0.7853981633974483,\"velocity\":null},\"name\":\"q3\",\"parent\":1,\"type\":\"revolute\",\"viscous\":3.9804259903721997},{\"armature\":0.19079062612368,\"coulomb\":1.06831142,\"damping\":0.0,\"limits\":{\"effort\":null,\"lower\":-1.9198621771937625,\"upper\":2.9670597283903604,\"velocity\":null},\"name\":\"q4\",\"parent\":2,\"type\":\"revolute\",\"viscous\":0.41164522969715195},{\"armature\":0.17070629165700002,\"coulomb\":0.85444524,\"damping\":0.0,\"limits\":{\"effort\":null,\"lower\":-1.7453292519943295,\"upper\":1.7453292519943295,\"velocity\":null},\"name\":\"q5\",\"parent\":3,\"type\":\"revolute\",\"viscous\":0.42728302093540005},{\"armature\":0.19406450566800004,\"coulomb\":0.55443978,\"damping\":0.0,\"limits\":{\"effort\":null,\"lower\":-4.642575810304916,\"upper\":4.642575810304916,\"velocity\":null},\"name\":\"q6\",\"parent\":4,\"type\":\"revolute\",\"viscous\":0.2158232532732}],\"kind\":\"chain\",\"locked_joints\":[],\"nq\":6,\"primitive\":\"define\",\"tip_link\":\"tool\"}},\"nq\":6,\"precision\":\"double\",\"robotgen_version\":\"0.1.0\",\"root\":\"arm\",\"spec_sha256\":\"74bfcdc43dcc8060511637324279fd9105b6eaa47acfee4004a341213677443d\"}");
 }
 
 static PyMethodDef rg_methods[] = {
@@ -627,6 +680,7 @@ static PyMethodDef rg_methods[] = {
     {"nonlinear", (PyCFunction)(void (*)(void))k_nonlinear, METH_FASTCALL, k_nonlinear_doc},
     {"inverse_dynamics", (PyCFunction)(void (*)(void))k_inverse_dynamics, METH_FASTCALL, k_inverse_dynamics_doc},
     {"forward_dynamics", (PyCFunction)(void (*)(void))k_forward_dynamics, METH_FASTCALL, k_forward_dynamics_doc},
+    {"servo_terms", (PyCFunction)(void (*)(void))k_servo_terms, METH_FASTCALL, k_servo_terms_doc},
     {"info", rg_info, METH_NOARGS,
      "info($module, /)\n--\n\nA new dict describing this module: name, nq, nodes, functions, "
      "robotgen_version, spec_sha256, precision."},
@@ -638,7 +692,7 @@ static struct PyModuleDef rg_module = {
     .m_name = "puma560",
     .m_doc = "puma560: robot functions generated by robotgen 0.1.0.\n"
     "\n"
-    "Functions: fk, jacobian, jacobian_hand, jacobian_dot_qd, mass, coriolis, gravity, nonlinear, inverse_dynamics, forward_dynamics. Arrays are float64, matrices row-major; a leading batch axis B on every argument gives results with that axis.",
+    "Functions: fk, jacobian, jacobian_hand, jacobian_dot_qd, mass, coriolis, gravity, nonlinear, inverse_dynamics, forward_dynamics, servo_terms. Arrays are float64, matrices row-major; a leading batch axis B on every argument gives results with that axis.",
     .m_size = -1,
     .m_methods = rg_methods,
 };

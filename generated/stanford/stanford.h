@@ -128,6 +128,24 @@ int stanford_inverse_dynamics(const double *q, const double *qd, const double *q
 #define STANFORD_FORWARD_DYNAMICS_FORWARD_DYNAMICS_SIZE 6
 int stanford_forward_dynamics(const double *q, const double *qd, const double *tau, double *forward_dynamics);
 
+/* stanford_servo_terms:
+ * M(q), C(q, qd) qd + N, the tip Jacobian J and Jdot qd in one call: a computed-torque servo cycle's terms, sharing sin/cos and kinematics.
+ *
+ *   in  q (6,)
+ *   in  qd (6,)
+ *   out mass (6, 6) row-major
+ *   out nonlinear (6,)
+ *   out jacobian (6, 6) row-major
+ *   out jacobian_dot_qd (6,)
+ */
+#define STANFORD_SERVO_TERMS_Q_SIZE 6
+#define STANFORD_SERVO_TERMS_QD_SIZE 6
+#define STANFORD_SERVO_TERMS_MASS_SIZE 36
+#define STANFORD_SERVO_TERMS_NONLINEAR_SIZE 6
+#define STANFORD_SERVO_TERMS_JACOBIAN_SIZE 36
+#define STANFORD_SERVO_TERMS_JACOBIAN_DOT_QD_SIZE 6
+int stanford_servo_terms(const double *q, const double *qd, double *mass, double *nonlinear, double *jacobian, double *jacobian_dot_qd);
+
 #ifdef __cplusplus
 }
 #endif

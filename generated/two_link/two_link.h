@@ -128,6 +128,24 @@ int two_link_inverse_dynamics(const double *q, const double *qd, const double *q
 #define TWO_LINK_FORWARD_DYNAMICS_FORWARD_DYNAMICS_SIZE 2
 int two_link_forward_dynamics(const double *q, const double *qd, const double *tau, double *forward_dynamics);
 
+/* two_link_servo_terms:
+ * M(q), C(q, qd) qd + N, the tip Jacobian J and Jdot qd in one call: a computed-torque servo cycle's terms, sharing sin/cos and kinematics.
+ *
+ *   in  q (2,)
+ *   in  qd (2,)
+ *   out mass (2, 2) row-major
+ *   out nonlinear (2,)
+ *   out jacobian (6, 2) row-major
+ *   out jacobian_dot_qd (6,)
+ */
+#define TWO_LINK_SERVO_TERMS_Q_SIZE 2
+#define TWO_LINK_SERVO_TERMS_QD_SIZE 2
+#define TWO_LINK_SERVO_TERMS_MASS_SIZE 4
+#define TWO_LINK_SERVO_TERMS_NONLINEAR_SIZE 2
+#define TWO_LINK_SERVO_TERMS_JACOBIAN_SIZE 12
+#define TWO_LINK_SERVO_TERMS_JACOBIAN_DOT_QD_SIZE 6
+int two_link_servo_terms(const double *q, const double *qd, double *mass, double *nonlinear, double *jacobian, double *jacobian_dot_qd);
+
 #ifdef __cplusplus
 }
 #endif

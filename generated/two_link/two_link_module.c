@@ -608,12 +608,65 @@ static PyObject *k_forward_dynamics(PyObject *self, PyObject *const *args, Py_ss
     return rg_finish("forward_dynamics", status, out, 1);
 }
 
+/* servo_terms */
+static const rg_port k_servo_terms_inputs[] = {
+    {"q", 1, {2, 1}, "(2,)", "(B, 2)"},
+    {"qd", 1, {2, 1}, "(2,)", "(B, 2)"},
+};
+static const rg_port k_servo_terms_outputs[] = {
+    {"mass", 2, {2, 2}, "(2, 2)", "(B, 2, 2)"},
+    {"nonlinear", 1, {2, 1}, "(2,)", "(B, 2)"},
+    {"jacobian", 2, {6, 2}, "(6, 2)", "(B, 6, 2)"},
+    {"jacobian_dot_qd", 1, {6, 1}, "(6,)", "(B, 6)"},
+};
+PyDoc_STRVAR(k_servo_terms_doc,
+    "servo_terms($module, q, qd, /)\n"
+    "--\n"
+    "\n"
+    "M(q), C(q, qd) qd + N, the tip Jacobian J and Jdot qd in one call: a computed-torque servo cycle's terms, sharing sin/cos and kinematics.\n"
+    "\n"
+    "q: float64 array (2,) or (B, 2)\n"
+    "qd: float64 array (2,) or (B, 2)\n"
+    "Returns mass (2, 2), nonlinear (2,), jacobian (6, 2), jacobian_dot_qd (6,) as a tuple; batched inputs give a leading B axis.");
+
+static PyObject *k_servo_terms(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    PyArrayObject *in[2] = {NULL};
+    PyArrayObject *out[4] = {NULL};
+    PyThreadState *unlocked;
+    npy_intp batch, count, b;
+    int status = 0;
+    (void)self;
+    if (rg_convert_args("servo_terms", args, nargs, k_servo_terms_inputs, 2, in, &batch) < 0
+        || rg_new_results(k_servo_terms_outputs, 4, batch, out) < 0) {
+        rg_release(in, 2);
+        rg_release(out, 4);
+        return NULL;
+    }
+    count = batch < 0 ? 1 : batch;
+    unlocked = count > 1 ? PyEval_SaveThread() : NULL;
+    for (b = 0; b < count && status == 0; ++b) {
+        status = two_link_servo_terms(
+            rg_data(in[0]) + b * 2,
+            rg_data(in[1]) + b * 2,
+            rg_data(out[0]) + b * 4,
+            rg_data(out[1]) + b * 2,
+            rg_data(out[2]) + b * 12,
+            rg_data(out[3]) + b * 6);
+    }
+    if (unlocked != NULL) {
+        PyEval_RestoreThread(unlocked);
+    }
+    rg_release(in, 2);
+    return rg_finish("servo_terms", status, out, 4);
+}
+
 static PyObject *rg_info(PyObject *self, PyObject *unused)
 {
     (void)self;
     (void)unused;
     return rg_from_json(
-    "{\"functions\":[\"fk\",\"jacobian\",\"jacobian_hand\",\"jacobian_dot_qd\",\"mass\",\"coriolis\",\"gravity\",\"nonlinear\",\"inverse_dynamics\",\"forward_dynamics\"],\"leaves\":[\"arm\"],\"name\":\"two_link\",\"nodes\":{\"arm\":{\"base_link\":\"base\",\"coordinates\":[\"shoulder\",\"elbow\"],\"internal_forces\":[],\"internal_motions\":[],\"joints\":[{\"armature\":0.0,\"coulomb\":0.0,\"damping\":0.0,\"limits\":{\"effort\":null,\"lower\":null,\"upper\":null,\"velocity\":null},\"name\":\"shoulder\",\"parent\":-1,\"type\":\"revolute\",\"viscous\":0.0},{\"armature\":0.0,\"coulomb\":0.0,\"damping\":0.0,\"limits\":{\"effort\":null,\"lower\":null,\"upper\":null,\"velocity\":null},\"name\":\"elbow\",\"parent\":0,\"type\":\"revolute\",\"viscous\":0.0}],\"kind\":\"chain\",\"locked_joints\":[],\"nq\":2,\"primitive\":\"define\",\"tip_link\":\"tool\"}},\"nq\":2,\"precision\":\"double\",\"robotgen_version\":\"0.1.0\",\"root\":\"arm\",\"spec_sha256\":\"4a39c9365d690561fbb0674bc38d441aa8b8dd4623e06f7c71af6fc24f5b2d0d\"}");
+    "{\"functions\":[\"fk\",\"jacobian\",\"jacobian_hand\",\"jacobian_dot_qd\",\"mass\",\"coriolis\",\"gravity\",\"nonlinear\",\"inverse_dynamics\",\"forward_dynamics\",\"servo_terms\"],\"leaves\":[\"arm\"],\"name\":\"two_link\",\"nodes\":{\"arm\":{\"base_link\":\"base\",\"coordinates\":[\"shoulder\",\"elbow\"],\"internal_forces\":[],\"internal_motions\":[],\"joints\":[{\"armature\":0.0,\"coulomb\":0.0,\"damping\":0.0,\"limits\":{\"effort\":null,\"lower\":null,\"upper\":null,\"velocity\":null},\"name\":\"shoulder\",\"parent\":-1,\"type\":\"revolute\",\"viscous\":0.0},{\"armature\":0.0,\"coulomb\":0.0,\"damping\":0.0,\"limits\":{\"effort\":null,\"lower\":null,\"upper\":null,\"velocity\":null},\"name\":\"elbow\",\"parent\":0,\"type\":\"revolute\",\"viscous\":0.0}],\"kind\":\"chain\",\"locked_joints\":[],\"nq\":2,\"primitive\":\"define\",\"tip_link\":\"tool\"}},\"nq\":2,\"precision\":\"double\",\"robotgen_version\":\"0.1.0\",\"root\":\"arm\",\"spec_sha256\":\"4a39c9365d690561fbb0674bc38d441aa8b8dd4623e06f7c71af6fc24f5b2d0d\"}");
 }
 
 static PyMethodDef rg_methods[] = {
@@ -627,6 +680,7 @@ static PyMethodDef rg_methods[] = {
     {"nonlinear", (PyCFunction)(void (*)(void))k_nonlinear, METH_FASTCALL, k_nonlinear_doc},
     {"inverse_dynamics", (PyCFunction)(void (*)(void))k_inverse_dynamics, METH_FASTCALL, k_inverse_dynamics_doc},
     {"forward_dynamics", (PyCFunction)(void (*)(void))k_forward_dynamics, METH_FASTCALL, k_forward_dynamics_doc},
+    {"servo_terms", (PyCFunction)(void (*)(void))k_servo_terms, METH_FASTCALL, k_servo_terms_doc},
     {"info", rg_info, METH_NOARGS,
      "info($module, /)\n--\n\nA new dict describing this module: name, nq, nodes, functions, "
      "robotgen_version, spec_sha256, precision."},
@@ -638,7 +692,7 @@ static struct PyModuleDef rg_module = {
     .m_name = "two_link",
     .m_doc = "two_link: robot functions generated by robotgen 0.1.0.\n"
     "\n"
-    "Functions: fk, jacobian, jacobian_hand, jacobian_dot_qd, mass, coriolis, gravity, nonlinear, inverse_dynamics, forward_dynamics. Arrays are float64, matrices row-major; a leading batch axis B on every argument gives results with that axis.",
+    "Functions: fk, jacobian, jacobian_hand, jacobian_dot_qd, mass, coriolis, gravity, nonlinear, inverse_dynamics, forward_dynamics, servo_terms. Arrays are float64, matrices row-major; a leading batch axis B on every argument gives results with that axis.",
     .m_size = -1,
     .m_methods = rg_methods,
 };

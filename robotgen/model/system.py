@@ -12,6 +12,7 @@ import numpy as np
 from robotgen.model.chain import KinematicTree
 from robotgen.model.expression import Expr
 from robotgen.model.formula import FormulaRobot
+from robotgen.model.rate_control import RESOLVED_RATE, RateControlSettings
 from robotgen.model.simulation import SimulationSettings
 
 
@@ -100,6 +101,8 @@ FEEDFORWARD = "feedforward"
 PD_FEEDFORWARD = "pd_feedforward"
 PD = "pd"
 CONTROL_LAWS = (COMPUTED_TORQUE, FEEDFORWARD, PD_FEEDFORWARD, PD)
+# Kinematic controllers: joint rates out, not torques (robotgen.model.rate_control).
+KINEMATIC_LAWS = (RESOLVED_RATE,)
 
 
 @dataclass(frozen=True, eq=False)
@@ -108,7 +111,10 @@ class ControlNode:
     ``kv_internal`` damps internal motions (eq 5.13). ``internal_forces`` resolves the
     robot's internal forces to constant values (§5.1); ``resolve_internal_motion`` drives
     internal motion rates to zero (§5.2). What a controller resolves is masked from the
-    levels above; what it leaves is passed up."""
+    levels above; what it leaves is passed up.
+
+    ``law: resolved_rate`` (Whitney 1972) is a kinematic controller of a chain leaf: it has
+    ``rate`` settings and no gains (kp, kv are zero)."""
 
     name: str
     robot: str
@@ -118,6 +124,7 @@ class ControlNode:
     kv_internal: float = 0.0
     internal_forces: np.ndarray | None = None
     resolve_internal_motion: bool = False
+    rate: RateControlSettings | None = None  # law resolved_rate only
 
     primitive = "control"
 
@@ -138,6 +145,7 @@ class RobotSystem:
     root: str
     warnings: tuple[str, ...] = ()  # located, printed by the CLI; the system is still valid
     simulation: SimulationSettings | None = None  # the spec's `simulation` section
+    dependencies: tuple[str, ...] = ()  # other files the spec reads (URDF leaves)
 
     @property
     def root_node(self) -> Node:
@@ -146,6 +154,13 @@ class RobotSystem:
     @property
     def is_single_leaf(self) -> bool:
         return isinstance(self.root_node, DefineNode)
+
+    @property
+    def is_rate_controlled(self) -> bool:
+        """The root is a kinematic (resolved-rate) controller of a chain leaf: the module is
+        the chain's functions plus the controller's steps, not a torque tree."""
+        root = self.root_node
+        return isinstance(root, ControlNode) and root.law in KINEMATIC_LAWS
 
     def walk(self, name: str | None = None):
         """Nodes below ``name`` (default the root), children before parents."""

@@ -17,6 +17,22 @@ from robotgen.model.chain import Body, KinematicTree, Limits
 from robotgen.model.dh import DH_MODIFIED, DH_STANDARD, JOINT_LIST, DHParameters, JointRow, canonical_chain, unit_axis
 from robotgen.model.expression import CONSTANTS, FUNCTIONS, Expr, parse_constant, parse_expression
 from robotgen.model.formula import FormulaRobot
+from robotgen.model.rate_control import (
+    EXTENDED_JACOBIAN,
+    GENERIC_AXES,
+    HAND,
+    JOINT_LIMITS,
+    LINE_OF_SIGHT,
+    PSEUDO_INVERSE,
+    RESOLVED_RATE,
+    SPHERICAL,
+    TOOL,
+    CommandFrame,
+    Damping,
+    LQRSettings,
+    RateControlSettings,
+    Redundancy,
+)
 from robotgen.model.simulation import SimulationSettings
 from robotgen.model.signature import Signature, SignatureError, kinematic_outputs, signature
 from robotgen.model.system import (
@@ -56,6 +72,7 @@ class _Builder:
         self.doc = doc
         self.errors: list[UserError] = []
         self.warnings: list[str] = []
+        self.dependencies: list[str] = []
 
     # -- reporting -------------------------------------------------------------------
     def error(self, location: Location, path: Path, message: str) -> None:
@@ -302,6 +319,7 @@ class _Builder:
         if not file.is_file():
             self.at_value(path + ("file",), f"URDF file '{spec['file']}' not found (looked for {file})")
             return None
+        self.dependencies.append(str(file))
         try:
             chain = read_urdf(str(file), spec["tip"], spec.get("base"), name)
         except UserError as e:
@@ -608,6 +626,10 @@ class _Builder:
     def check_control(self, system: RobotSystem, node: ControlNode, robot: Signature) -> ControlNode:
         path: Path = ("nodes", node.name, "control")
         spec = self.doc.data["nodes"][node.name]["control"]
+        if node.law == RESOLVED_RATE:
+            return self.check_rate_control(system, node, spec)
+        if "resolved_rate" in spec:
+            self.at_key(path + ("resolved_rate",), f"settings of law resolved_rate; this node's law is {node.law}")
         target = system.nodes[node.robot]
         if isinstance(getattr(target, "leaf", None), PlanarBody):
             self.at_value(path + ("robot",), f"'{node.robot}' is a rigid_body, a payload without actuators; "
@@ -642,6 +664,154 @@ class _Builder:
                 self.at_key(path + ("resolve_internal_motion",), f"robot '{node.robot}' has no internal motions "
                                                                  "to resolve")
         return dataclasses.replace(node, kp=gains["kp"], kv=gains["kv"])
+
+    # -- resolved motion rate control (Whitney 1972) ------------------------------------
+    def check_rate_control(self, system: RobotSystem, node: ControlNode, spec: dict) -> ControlNode:
+        """A resolved_rate controller: for now the root, over a chain or urdf leaf."""
+        path: Path = ("nodes", node.name, "control")
+        for key in ("kp", "kv", "kv_internal", "internal_forces", "resolve_internal_motion"):
+            if key in spec:
+                self.at_key(path + (key,), f"law resolved_rate takes no {key} (it outputs joint rates; "
+                                           "its settings go under resolved_rate)")
+        target = system.nodes[node.robot]
+        chain = getattr(target, "leaf", None)
+        if not isinstance(chain, KinematicTree):
+            what = (f"a {target.primitive} node" if not isinstance(target, DefineNode)
+                    else f"a {type(chain).__name__} leaf")
+            self.at_value(path + ("robot",), f"law resolved_rate controls a chain or urdf leaf; '{node.robot}' is "
+                                             f"{what} (composite robots are not supported yet)")
+            return node
+        if node.name != system.root:
+            self.at_key(("nodes", node.name), f"a resolved_rate controller must be the root (it outputs joint "
+                                              f"rates, which no node above can use); the root is '{system.root}'")
+            return node
+        rate = self.rate_settings(path + ("resolved_rate",), spec.get("resolved_rate", {}), chain)
+        n = chain.nq
+        return dataclasses.replace(node, kp=np.zeros((n, n)), kv=np.zeros((n, n)), rate=rate)
+
+    def rate_settings(self, path: Path, spec: dict, chain: KinematicTree) -> RateControlSettings:
+        n = chain.nq
+        kind = spec.get("frame", HAND)
+        needs = {LINE_OF_SIGHT: "eye", SPHERICAL: "centre", TOOL: "tool"}
+        for key in ("eye", "centre", "tool"):
+            if key in spec and needs.get(kind) != key:
+                self.at_key(path + (key,), f"'{key}' belongs to frame {next(f for f, k in needs.items() if k == key)}, "
+                                           f"not {kind}")
+        if kind in needs and needs[kind] not in spec:
+            self.at_key(path, f"frame {kind} needs '{needs[kind]}'")
+        point = tool = None
+        if kind in (LINE_OF_SIGHT, SPHERICAL) and needs[kind] in spec:
+            point = self.vector(path + (needs[kind],), spec[needs[kind]], (0, 0, 0))
+        if kind == TOOL:
+            tool = self.pose(path + ("tool",), spec.get("tool"))
+        frame = CommandFrame(kind, point, tool)
+        names = frame.axis_names
+
+        def axes(key: str) -> tuple[bool, ...]:
+            chosen = [False] * 6
+            for i, name in enumerate(spec.get(key, ())):
+                if name in names:
+                    chosen[names.index(name)] = True
+                elif name in GENERIC_AXES:
+                    chosen[GENERIC_AXES.index(name)] = True
+                else:
+                    self.at_value(path + (key, i), f"'{name}' is not a command axis of frame {kind} "
+                                                   f"({', '.join(names)}; or {', '.join(GENERIC_AXES)})")
+            return tuple(chosen)
+
+        active = axes("active") if "active" in spec else (True,) * 6
+        free = axes("free")
+        for i, name in enumerate(spec.get("free", ())):
+            k = names.index(name) if name in names else GENERIC_AXES.index(name) if name in GENERIC_AXES else -1
+            if k >= 0 and "active" in spec and active[k]:
+                self.at_value(path + ("free", i), f"axis '{names[k]}' is both active and free")
+        if "active" not in spec:
+            active = tuple(not f for f in free)
+        m = 6 - sum(free)
+        if m == 0:
+            self.at_key(path + ("free",), "every command axis is free: there is no task")
+        elif m > n:
+            self.at_key(path, f"the task has {m} command axes but '{chain.name}' has {n} joints; free "
+                              f"{m - n} of them (key 'free')")
+        weights = self.vector(path + ("weights",), spec.get("weights"), (1.0,) * 6)
+
+        raw = spec.get("redundancy", {})
+        rpath = path + ("redundancy",)
+        objective = raw.get("objective", "none")
+        redundancy = Redundancy(raw.get("method", PSEUDO_INVERSE), None if objective == "none" else objective,
+                                self.optional(raw, rpath, "gain", 1.0, minimum=0.0, exclusive=True))
+        if redundancy.method == EXTENDED_JACOBIAN:
+            if n != m + 1:
+                self.at_value(rpath + ("method",), f"extended_jacobian needs exactly one degree of redundancy: "
+                                                   f"{n} joints, {m} task axes")
+            if redundancy.objective != JOINT_LIMITS:
+                self.at_key(rpath, "extended_jacobian needs objective joint_limits (the optimality condition "
+                                   "z^T grad H = 0 is differentiated once more)")
+        elif redundancy.objective is not None and n == m:
+            self.warnings.append(f"{self.doc.source.key(rpath)}: warning: {format_path(self.doc.data, rpath)}: "
+                                 f"'{chain.name}' has no redundancy ({n} joints, {m} task axes); the objective "
+                                 "has no effect")
+        if redundancy.objective == JOINT_LIMITS:
+            if not any(j.limits.lower is not None and j.limits.upper is not None and j.limits.upper > j.limits.lower
+                       for j in chain.joints):
+                self.at_value(rpath + ("objective",), f"objective joint_limits needs position limits; no joint of "
+                                                      f"'{chain.name}' has both lower and upper")
+
+        damping = None
+        if "damping" in spec:
+            d = spec["damping"]
+            dpath = path + ("damping",)
+            damping = Damping(self.constant(dpath + ("lambda_max",), d["lambda_max"], minimum=0.0, exclusive=True),
+                              self.constant(dpath + ("threshold",), d["threshold"], minimum=0.0, exclusive=True))
+        rate_limits = self.rate_limits(path + ("rate_limits",), spec, chain)
+        horizon = self.optional(spec, path, "horizon", 0.1, minimum=0.0, exclusive=True)
+        lqr = self.lqr_settings(path + ("lqr",), spec["lqr"], n) if "lqr" in spec else None
+        return RateControlSettings(frame=frame, active=active, free=free, weights=weights, redundancy=redundancy,
+                                   damping=damping, rate_limits=rate_limits, horizon=horizon, lqr=lqr)
+
+    def per_joint(self, path: Path, value: object, n: int, what: str, *, positive: bool) -> np.ndarray:
+        """A number (the same for every joint) or a list of n numbers."""
+        if not isinstance(value, list):
+            values = np.full(n, self.constant(path, value))
+            if positive and values[0] <= 0:
+                self.at_value(path, f"{what} {values[0]:g} must be positive")
+            return values
+        if len(value) != n:
+            self.at_key(path, f"expected {n} entries (one per joint), got {len(value)}")
+            return np.ones(n)
+        values = np.array([self.constant(path + (i,), v) for i, v in enumerate(value)])
+        for i, v in enumerate(values):
+            if positive and v <= 0:
+                self.at_value(path + (i,), f"{what} {v:g} must be positive")
+        return values
+
+    def rate_limits(self, path: Path, spec: dict, chain: KinematicTree) -> np.ndarray | None:
+        if "rate_limits" in spec:
+            return self.per_joint(path, spec["rate_limits"], chain.nq, "rate limit", positive=True)
+        velocities = [j.limits.velocity for j in chain.joints]
+        if all(v is not None and v > 0 for v in velocities):
+            return np.array(velocities, dtype=float)
+        return None
+
+    def lqr_settings(self, path: Path, spec: dict, n: int) -> LQRSettings:
+        nominal = spec["nominal"]
+        if len(nominal) != n:
+            self.at_key(path + ("nominal",), f"expected {n} joint positions, got {len(nominal)}")
+        nominal = np.array([self.constant(path + ("nominal", i), v) for i, v in enumerate(nominal)])
+        q = spec.get("q", [100, 1])
+        if len(q) not in (2, 2 * n):
+            self.at_key(path + ("q",), f"expected 2 entries (position, rate) or {2 * n} (one per state), "
+                                       f"got {len(q)}")
+        weights = np.array([self.constant(path + ("q", i), v) for i, v in enumerate(q)])
+        for i, w in enumerate(weights):
+            if w <= 0:
+                self.at_value(path + ("q", i), f"weight {w:g} must be positive")
+        if len(weights) == 2:
+            weights = np.repeat(weights, n)
+        r = self.per_joint(path + ("r",), spec.get("r", 1), n, "weight", positive=True)
+        if len(nominal) != n or len(weights) != 2 * n:
+            nominal, weights = np.zeros(n), np.ones(2 * n)
+        return LQRSettings(nominal, weights, r)
 
     def gain(self, path: Path, value: object, robot: Signature, name: str) -> np.ndarray:
         """A scalar (times I), a per-axis list (diagonal) or a symmetric positive definite
@@ -690,7 +860,8 @@ class _Builder:
         nodes = self.signatures(nodes, root, whole)
         simulation = self.simulation(data["simulation"]) if "simulation" in data else None
         return RobotSystem(name=data["name"], source=self.doc.path, source_sha256=self.doc.sha256,
-                           nodes=nodes, root=root, warnings=tuple(self.warnings), simulation=simulation)
+                           nodes=nodes, root=root, warnings=tuple(self.warnings), simulation=simulation,
+                           dependencies=tuple(self.dependencies))
 
     def simulation(self, spec: dict) -> SimulationSettings:
         path: Path = ("simulation",)

@@ -1,5 +1,6 @@
 """Read a URDF file into a KinematicTree: the chain of movable joints from a base link to a
-tip link.
+tip link (``read_urdf``), or every movable joint below a base link (``read_urdf_tree``, e.g.
+a humanoid's joints below its pelvis).
 
 Parsed with the standard library's expat (to keep line numbers) into plain elements, then
 checked against the subset of URDF robotgen understands: an element or joint type outside
@@ -10,8 +11,9 @@ safety_controller) are accepted and not used.
 Normalisation (into robotgen.model.chain's canonical form):
 - fixed joints are folded away: the inertia of every link they carry is merged into the
   body of the nearest movable joint above it (or dropped when it is fixed to the base);
-- movable joints that are not on the base -> tip path (a gripper's fingers) are locked at
-  q = 0 and treated as fixed; they are listed in ``KinematicTree.locked_joints``;
+- chain: movable joints that are not on the base -> tip path (a gripper's fingers) are locked
+  at q = 0 and treated as fixed; they are listed in ``KinematicTree.locked_joints``;
+- tree: all movable joints below the base are kept, in depth-first order with parent indices;
 - URDF <dynamics damping> becomes viscous friction, <dynamics friction> Coulomb friction.
 """
 from __future__ import annotations
@@ -165,47 +167,12 @@ class UrdfChain:
 
 
 def read_urdf(path: str, tip: str, base: str | None = None, name: str | None = None) -> UrdfChain:
-    try:
-        data = Path(path).read_bytes()
-    except OSError as e:
-        raise UserError(Location(path, 1, 1), f"cannot read URDF file: {e.strerror}") from None
-    root = _parse_xml(path, data)
-    r = _Reader(path, root)
-    r.check_children(root)
-    links = {}
-    for el in root.children:
-        if el.tag == "link":
-            lname = r.attr(el, "name")
-            if lname in links:
-                raise r.fail(el, f"duplicate link '{lname}'")
-            links[lname] = el
-    joints = {}  # child link -> joint element
-    for el in root.children:
-        if el.tag != "joint":
-            continue
-        jtype = r.attr(el, "type")
-        if jtype in _UNSUPPORTED_TYPES:
-            raise r.fail(el, f"joint '{el.attrib.get('name')}' is {_UNSUPPORTED_TYPES[jtype]}, "
-                             "which robotgen does not support")
-        if jtype not in _JOINT_TYPES:
-            raise r.fail(el, f"joint '{el.attrib.get('name')}' has unknown type '{jtype}'")
-        for tag in ("parent", "child"):
-            ref = el.find(tag)
-            if ref is None:
-                raise r.fail(el, f"joint '{el.attrib.get('name')}' needs <{tag} link=...>")
-            if r.attr(ref, "link") not in links:
-                raise r.fail(ref, f"joint '{el.attrib.get('name')}' names unknown link '{ref.attrib['link']}'")
-        child = el.find("child").attrib["link"]
-        if child in joints:
-            raise r.fail(el, f"link '{child}' has two parent joints ('{joints[child].attrib.get('name')}' "
-                             f"and '{el.attrib.get('name')}'): closed loops are not supported")
-        joints[child] = el
-    parent_of = {c: j.find("parent").attrib["link"] for c, j in joints.items()}
-
-    roots = [l for l in links if l not in joints]
-    if len(roots) != 1:
-        raise r.fail(root, f"the links must form one tree; found roots {sorted(roots)}")
-    base = base or roots[0]
+    """The chain of movable joints from ``base`` (default: the root link) to ``tip``; movable
+    joints off that path are locked at q = 0."""
+    r, links, joints, parent_of, _ = _read_links_and_joints(path, floating_ok=False)
+    root = r.root
+    root_link = _single_root(r, links, joints)
+    base = base or root_link
     for label, link in (("base", base), ("tip", tip)):
         if link not in links:
             raise UserError(Location(path, root.line, root.col), f"{label} link '{link}' is not in the URDF")
@@ -227,11 +194,162 @@ def read_urdf(path: str, tip: str, base: str | None = None, name: str | None = N
         if mimic is not None:
             raise r.fail(mimic, f"joint '{j.attrib.get('name')}' is a mimic joint, which robotgen "
                                 "does not support on the chain")
+    canonical, frames, locked = _normalise(r, links, joints, parent_of, base, actuated)
+    tip_owner, tool = frames[tip]
+    robot_name = name or root.attrib.get("name", Path(path).stem)
+    tree = KinematicTree(
+        name=robot_name, joints=tuple(canonical), tip=tip_owner, tool=tool,
+        gravity=np.array([0.0, 0.0, -9.81]), base_link=base, tip_link=tip, locked_joints=tuple(locked),
+    )
+    ignored = _foreign_dynamics_attributes(r, actuated)
+    return UrdfChain(tree, ignored)
 
-    # frame of every link below base: (owner index among actuated joints or -1, T owner->link)
+
+def read_urdf_tree(path: str, base: str | None = None, tip: str | None = None,
+                   name: str | None = None) -> UrdfChain:
+    """The whole tree of movable joints below ``base`` (default: the root link), e.g. every
+    joint of a humanoid below its pelvis.
+
+    Joints are in depth-first order (children in the order their joints appear in the file),
+    so a joint's parent index is always smaller than its own; fixed joints are folded as in
+    ``read_urdf`` and nothing is locked. Links and joints not below ``base`` are not read
+    (their inertia does not move with any joint). The fk/Jacobian tip is the link ``tip``,
+    or, if none is given, the first leaf link (a link without child joints) in that order
+    that some movable joint carries.
+
+    Errors (each naming the element): a mimic joint anywhere below the base (it would couple
+    two coordinates); a floating or planar joint below the base. A humanoid whose URDF roots
+    it with a floating joint (world -> pelvis) is read with ``base`` = the floating joint's
+    child link, which gives the fixed-base tree below it."""
+    r, links, joints, parent_of, floating = _read_links_and_joints(path, floating_ok=True)
+    root = r.root
+    root_link = _single_root(r, links, joints)
+    children_of = _children_of(parent_of)
+    reachable = _depth_first(root_link, children_of)
+    if len(reachable) < len(links):  # one root, one parent per link: the rest form a cycle
+        seen = set(reachable)
+        stray = next(l for l in links if l not in seen)
+        raise r.fail(joints[stray], "the joints form a cycle")
+    if base is None:
+        base = root_link
+        at_root = [j for j in floating if j.find("parent").attrib["link"] == base]
+        if at_root:
+            j = at_root[0]
+            raise r.fail(j, f"joint '{j.attrib.get('name')}' is a floating joint at the root, which robotgen "
+                            f"does not support; read the tree below it with base='{j.find('child').attrib['link']}'")
+    for label, link in (("base", base), ("tip", tip)):
+        if link is not None and link not in links:
+            raise UserError(Location(path, root.line, root.col), f"{label} link '{link}' is not in the URDF")
+    order = _depth_first(base, children_of)  # links below base, base first
+    for link in order[1:]:
+        j = joints[link]
+        jtype = j.attrib["type"]
+        if jtype in _UNSUPPORTED_TYPES:
+            raise r.fail(j, f"joint '{j.attrib.get('name')}' is {_UNSUPPORTED_TYPES[jtype]}, "
+                            "which robotgen does not support")
+    actuated = [joints[l] for l in order[1:] if joints[l].attrib["type"] != "fixed"]
+    if not actuated:
+        raise UserError(r.loc(links[base]), f"no movable joint below base link '{base}'")
+    for j in actuated:
+        mimic = j.find("mimic")
+        if mimic is not None:
+            raise r.fail(mimic, f"joint '{j.attrib.get('name')}' is a mimic joint, which robotgen does "
+                                "not support in a tree (it couples two coordinates)")
+    canonical, frames, locked = _normalise(r, links, joints, parent_of, base, actuated)
+    assert not locked
+    if tip is None:
+        leaves = [l for l in order if not children_of.get(l) and frames[l][0] >= 0]
+        tip = leaves[0]  # a movable joint's child link is carried by it, so some leaf is
+    elif tip not in frames:
+        raise UserError(r.loc(links[tip]), f"tip link '{tip}' is not below base link '{base}'")
+    tip_owner, tool = frames[tip]
+    if tip_owner < 0:
+        raise UserError(r.loc(links[tip]), f"no movable joint between '{base}' and '{tip}'")
+    robot_name = name or root.attrib.get("name", Path(path).stem)
+    tree = KinematicTree(
+        name=robot_name, joints=tuple(canonical), tip=tip_owner, tool=tool,
+        gravity=np.array([0.0, 0.0, -9.81]), base_link=base, tip_link=tip,
+    )
+    return UrdfChain(tree, _foreign_dynamics_attributes(r, actuated))
+
+
+def _read_links_and_joints(path: str, floating_ok: bool):
+    """(reader, links by name, joint element by child link, parent link by child link,
+    floating joints). A floating joint is an error unless ``floating_ok`` (then it is
+    returned, for the caller to accept only above its base)."""
+    try:
+        data = Path(path).read_bytes()
+    except OSError as e:
+        raise UserError(Location(path, 1, 1), f"cannot read URDF file: {e.strerror}") from None
+    root = _parse_xml(path, data)
+    r = _Reader(path, root)
+    r.check_children(root)
+    links = {}
+    for el in root.children:
+        if el.tag == "link":
+            lname = r.attr(el, "name")
+            if lname in links:
+                raise r.fail(el, f"duplicate link '{lname}'")
+            links[lname] = el
+    joints = {}  # child link -> joint element
+    floating = []
+    for el in root.children:
+        if el.tag != "joint":
+            continue
+        jtype = r.attr(el, "type")
+        if jtype == "floating" and floating_ok:
+            floating.append(el)
+        elif jtype in _UNSUPPORTED_TYPES and not floating_ok:
+            raise r.fail(el, f"joint '{el.attrib.get('name')}' is {_UNSUPPORTED_TYPES[jtype]}, "
+                             "which robotgen does not support")
+        elif jtype not in _JOINT_TYPES and jtype not in _UNSUPPORTED_TYPES:
+            raise r.fail(el, f"joint '{el.attrib.get('name')}' has unknown type '{jtype}'")
+        for tag in ("parent", "child"):
+            ref = el.find(tag)
+            if ref is None:
+                raise r.fail(el, f"joint '{el.attrib.get('name')}' needs <{tag} link=...>")
+            if r.attr(ref, "link") not in links:
+                raise r.fail(ref, f"joint '{el.attrib.get('name')}' names unknown link '{ref.attrib['link']}'")
+        child = el.find("child").attrib["link"]
+        if child in joints:
+            raise r.fail(el, f"link '{child}' has two parent joints ('{joints[child].attrib.get('name')}' "
+                             f"and '{el.attrib.get('name')}'): closed loops are not supported")
+        joints[child] = el
+    parent_of = {c: j.find("parent").attrib["link"] for c, j in joints.items()}
+    return r, links, joints, parent_of, floating
+
+
+def _single_root(r: _Reader, links: dict, joints: dict) -> str:
+    roots = [l for l in links if l not in joints]
+    if len(roots) != 1:
+        raise r.fail(r.root, f"the links must form one tree; found roots {sorted(roots)}")
+    return roots[0]
+
+
+def _depth_first(start: str, children_of: dict[str, list[str]]) -> list[str]:
+    """Links below ``start`` (inclusive) in depth-first pre-order, children in file order."""
+    order, stack = [], [start]
+    while stack:
+        link = stack.pop()
+        order.append(link)
+        stack.extend(reversed(children_of.get(link, [])))
+    return order
+
+
+def _children_of(parent_of: dict[str, str]) -> dict[str, list[str]]:
+    """Child links of each link, in the order of their joints in the file."""
     children_of: dict[str, list[str]] = {}
     for c, p in parent_of.items():
         children_of.setdefault(p, []).append(c)
+    return children_of
+
+
+def _normalise(r: _Reader, links: dict, joints: dict, parent_of: dict, base: str,
+               actuated: list[Element]) -> tuple[list[Joint], dict, list[str]]:
+    """Canonical joints for the movable joints ``actuated`` (topologically ordered), the
+    frame of every link below ``base`` as (owner index or -1 for the base, T owner->link),
+    and the movable joints below base not in ``actuated`` (locked at q = 0)."""
+    children_of = _children_of(parent_of)
     actuated_index = {id(j): k for k, j in enumerate(actuated)}
     frames: dict[str, tuple[int, np.ndarray]] = {base: (-1, np.eye(4))}
     locked: list[str] = []
@@ -259,6 +377,7 @@ def read_urdf(path: str, tip: str, base: str | None = None, name: str | None = N
     for k, j in enumerate(actuated):
         parent_link = j.find("parent").attrib["link"]
         owner, T_parent = frames[parent_link]
+        assert owner < k, "joints must be in topological order"
         axis = r.floats(j.find("axis"), "xyz", 3, "1 0 0")
         norm = np.linalg.norm(axis)
         if norm == 0:
@@ -279,14 +398,7 @@ def read_urdf(path: str, tip: str, base: str | None = None, name: str | None = N
             origin=T_parent @ r.origin(j), axis=axis / norm, body=merge_bodies(parts[k]),
             viscous=damping, coulomb=friction, damping=damping, limits=limits,
         ))
-    tip_owner, tool = frames[tip]
-    robot_name = name or root.attrib.get("name", Path(path).stem)
-    tree = KinematicTree(
-        name=robot_name, joints=tuple(canonical), tip=tip_owner, tool=tool,
-        gravity=np.array([0.0, 0.0, -9.81]), base_link=base, tip_link=tip, locked_joints=tuple(locked),
-    )
-    ignored = _foreign_dynamics_attributes(r, actuated)
-    return UrdfChain(tree, ignored)
+    return canonical, frames, locked
 
 
 def _foreign_dynamics_attributes(r: _Reader, joints: list[Element]) -> tuple[str, ...]:
@@ -307,7 +419,16 @@ def _foreign_dynamics_attributes(r: _Reader, joints: list[Element]) -> tuple[str
 
 
 def load_urdf_system(path: str, tip: str, base: str | None = None, name: str | None = None) -> RobotSystem:
-    chain = read_urdf(path, tip, base, name)
+    return _single_leaf_system(path, read_urdf(path, tip, base, name))
+
+
+def load_urdf_tree_system(path: str, base: str | None = None, tip: str | None = None,
+                          name: str | None = None) -> RobotSystem:
+    """A single-leaf system of the whole tree below ``base`` (``read_urdf_tree``)."""
+    return _single_leaf_system(path, read_urdf_tree(path, base, tip, name))
+
+
+def _single_leaf_system(path: str, chain: UrdfChain) -> RobotSystem:
     module_name = _identifier(chain.tree.name)
     node = DefineNode(module_name, chain.tree)
     sha = hashlib.sha256(Path(path).read_bytes()).hexdigest()

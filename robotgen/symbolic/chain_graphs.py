@@ -7,8 +7,10 @@ from dataclasses import dataclass
 import casadi as ca
 
 from robotgen.model.chain import KinematicTree
+from robotgen.model.snap import snap_tree
 from robotgen.symbolic.cholesky import cholesky_solve
 from robotgen.symbolic.christoffel import coriolis_matrix
+from robotgen.symbolic.coriolis_spatial import coriolis_spatial, op_count
 from robotgen.symbolic.crba import crba
 from robotgen.symbolic.friction import friction_torque
 from robotgen.symbolic.jacobian import geometric_jacobian, hand_jacobian, jacobian_dot_qd
@@ -28,11 +30,16 @@ class Symbols:
         return Symbols(ca.SX.sym("q", n), ca.SX.sym("qd", n), ca.SX.sym("qdd", n), ca.SX.sym("tau", n))
 
 
+# Above this many joints the AD Christoffel form (O(n^3) terms) is not even tried: at 12 it
+# is already twice the spatial algorithm's size, at 30 seven times.
+AD_CORIOLIS_MAX_DOF = 12
+
+
 class ChainGraphs:
     """Lazily built expressions; each is built once and shared by the kernels using it."""
 
-    def __init__(self, tree: KinematicTree, sym: Symbols):
-        self.tree = tree
+    def __init__(self, tree: KinematicTree, sym: Symbols, snap: bool = True):
+        self.tree = tree = snap_tree(tree) if snap else tree
         self.sym = sym
         self.motions = joint_motions(tree, sym.q)
         self._cache: dict[str, ca.SX] = {}
@@ -58,7 +65,16 @@ class ChainGraphs:
         return self._get("mass", lambda: crba(self.tree, self.motions))
 
     def coriolis(self) -> ca.SX:
-        return self._get("coriolis", lambda: coriolis_matrix(self.mass(), self.sym.q, self.sym.qd))
+        """Christoffel symbols of M by AD (O(n^3) terms, compact for small arms) or the
+        spatial O(n^2) algorithm, whichever CasADi's CSE leaves with fewer operations."""
+        def build():
+            q, qd = self.sym.q, self.sym.qd
+            spatial = coriolis_spatial(self.tree, self.motions, qd)
+            if self.tree.nq > AD_CORIOLIS_MAX_DOF:
+                return spatial
+            candidates = [coriolis_matrix(self.mass(), q, qd), spatial]
+            return min(candidates, key=lambda C: op_count(C, q, qd))
+        return self._get("coriolis", build)
 
     def friction(self) -> ca.SX:
         return self._get("friction", lambda: friction_torque(self.tree, self.sym.qd))

@@ -66,17 +66,48 @@ def leaf_kernels(leaf: KinematicTree | FormulaRobot, prefix: str = "") -> list[K
         k = len(leaf.kinematics or ())
         if not k:
             del table["kinematics"], table["kinematics_jacobian"]
-    return [
+    kernels = [
         _kernel(name, doc, inputs, _resolve(shape, n, k), getattr(graphs, name)(), sym, n, prefix)
         for name, (inputs, shape, doc) in table.items()
     ]
+    if isinstance(leaf, KinematicTree):
+        kernels.append(_servo_terms(graphs, sym, n, prefix))
+    return kernels
+
+
+def _servo_terms(graphs: ChainGraphs, sym: Symbols, n: int, prefix: str) -> Kernel:
+    """What one computed-torque cycle needs, in one call sharing sin/cos and kinematics."""
+    outputs = [("mass", graphs.mass(), (n, n)), ("nonlinear", graphs.nonlinear(), (n, 1)),
+               ("jacobian", graphs.jacobian(), (6, n)), ("jacobian_dot_qd", graphs.jacobian_dot_qd(), (6, 1))]
+    name = prefix + "servo_terms"
+    f = ca.Function(name, [sym.q, sym.qd], [_row_major(e) for _, e, _ in outputs], ["q", "qd"],
+                    [o for o, _, _ in outputs], {"cse": True})
+    return Kernel(name, "M(q), C(q, qd) qd + N, the tip Jacobian J and Jdot qd in one call: a "
+                  "computed-torque servo cycle's terms, sharing sin/cos and kinematics.",
+                  (Port("q", n), Port("qd", n)), tuple(Port(o, *shape) for o, _, shape in outputs), f)
 
 
 def kernels_for(system: RobotSystem) -> list[Kernel]:
-    """A single leaf: its kernels under the contract's names. A tree: every node's
-    attributes, rd and wr, the fused servo step and the plant (robotgen.symbolic.tree_kernels)."""
+    """A single leaf: its kernels under the contract's names. A resolved-rate controller of a
+    chain: the chain's kernels plus the controller's steps (robotgen.symbolic.rate_control).
+    A tree: every node's attributes, rd and wr, the fused servo step and the plant
+    (robotgen.symbolic.tree_kernels)."""
     if system.is_single_leaf:
         return leaf_kernels(system.root_node.leaf)
+    if system.is_rate_controlled:
+        from robotgen.symbolic.rate_control import rate_control_kernels
+
+        return rate_control_kernels(system)
     from robotgen.symbolic.tree_kernels import tree_kernels
 
     return tree_kernels(system)
+
+
+def module_extras(system: RobotSystem) -> tuple[dict, dict]:
+    """(extra info() and manifest keys, module attributes) worked out in the symbolic layer:
+    a resolved-rate controller's settings and its regulator's gains and reports."""
+    if system.is_rate_controlled:
+        from robotgen.symbolic.rate_control import rate_control_report
+
+        return rate_control_report(system)
+    return {}, {}

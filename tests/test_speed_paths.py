@@ -1,0 +1,92 @@
+"""The speed measures keep the numbers: snapped constants, the O(n^2) spatial Coriolis
+matrix, the fused servo terms, and the content-hash build cache."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import casadi as ca
+import numpy as np
+import pinocchio as pin
+
+from robotgen.cli import main
+from robotgen.model.snap import SNAP_TOLERANCE, snap_tree
+from robotgen.spec.urdf import read_urdf
+from robotgen.symbolic.chain_graphs import ChainGraphs, Symbols
+from robotgen.symbolic.christoffel import coriolis_matrix
+from robotgen.symbolic.coriolis_spatial import coriolis_spatial, op_count
+from robotgen.symbolic.kernels import leaf_kernels
+from robots import PANDA, robots_dir
+from test_tree_pinocchio import pinocchio_model, random_tree
+
+TWO_LINK = Path(__file__).resolve().parent.parent / "specs" / "two_link.yaml"
+
+
+def test_snapping_removes_only_noise():
+    """Panda's rpy of pi/2 leaves 6e-17 in every joint rotation: snapped away, and every
+    quantity of the snapped model equals the unsnapped one to the snap tolerance."""
+    tree = read_urdf(str(robots_dir() / PANDA[0]), PANDA[1]).tree
+    snapped = snap_tree(tree)
+    noise = max(np.abs(a.origin - b.origin).max() for a, b in zip(tree.joints, snapped.joints))
+    assert 0 < noise < SNAP_TOLERANCE
+    n = tree.nq
+    raw_sym, snap_sym = Symbols.make(n), Symbols.make(n)
+    raw = ChainGraphs(tree, raw_sym, snap=False)
+    new = ChainGraphs(tree, snap_sym)
+    for name in ("mass", "gravity", "fk", "jacobian"):
+        f_raw = ca.Function("a", [raw_sym.q], [getattr(raw, name)()])
+        f_new = ca.Function("b", [snap_sym.q], [getattr(new, name)()])
+        assert op_count(getattr(new, name)(), snap_sym.q) < op_count(getattr(raw, name)(), raw_sym.q), name
+        for q in np.random.default_rng(0).uniform(-2, 2, (20, n)):
+            np.testing.assert_allclose(np.array(f_new(q)), np.array(f_raw(q)), atol=1e-8, err_msg=name)
+
+
+def test_spatial_coriolis_equals_christoffel_and_pinocchio():
+    tree = random_tree(4)
+    n = tree.nq
+    sym = Symbols.make(n)
+    g = ChainGraphs(tree, sym)
+    f = ca.Function("c", [sym.q, sym.qd], [coriolis_spatial(g.tree, g.motions, sym.qd),
+                                            coriolis_matrix(g.mass(), sym.q, sym.qd)])
+    model, _ = pinocchio_model(tree)
+    data = model.createData()
+    for q, qd in np.random.default_rng(5).normal(size=(20, 2, n)):
+        spatial, christoffel = (np.array(c) for c in f(q, qd))
+        np.testing.assert_allclose(spatial, christoffel, atol=1e-12)
+        np.testing.assert_allclose(spatial, pin.computeCoriolisMatrix(model, data, q, qd), atol=1e-12)
+
+
+def test_fused_servo_terms_equal_the_separate_functions():
+    tree = read_urdf(str(robots_dir() / PANDA[0]), PANDA[1]).tree
+    k = {kern.name: kern.function for kern in leaf_kernels(tree)}
+    n = tree.nq
+    for q, qd in np.random.default_rng(2).normal(size=(10, 2, n)):
+        M, h, J, a = (np.array(x).ravel() for x in k["servo_terms"](q, qd))
+        np.testing.assert_array_equal(M, np.array(k["mass"](q)).ravel())
+        np.testing.assert_array_equal(h, np.array(k["nonlinear"](q, qd)).ravel())
+        np.testing.assert_array_equal(J, np.array(k["jacobian"](q)).ravel())
+        np.testing.assert_array_equal(a, np.array(k["jacobian_dot_qd"](q, qd)).ravel())
+
+
+def test_unchanged_spec_is_not_rebuilt(tmp_path, capsys):
+    spec = tmp_path / "two_link.yaml"
+    spec.write_text(TWO_LINK.read_text())
+    out = tmp_path / "out"
+    assert main(["build", str(spec), "-o", str(out)]) == 0
+    so = next(out.glob("two_link*.so"))
+    stamp = so.stat().st_mtime_ns
+    capsys.readouterr()
+    assert main(["build", str(spec), "-o", str(out)]) == 0
+    assert "up to date" in capsys.readouterr().out
+    assert so.stat().st_mtime_ns == stamp
+    spec.write_text(spec.read_text().replace("robotgen: 1", "robotgen: 1\n# edited"))
+    assert main(["build", str(spec), "-o", str(out)]) == 0
+    assert "built two_link" in capsys.readouterr().out
+
+
+def test_build_refuses_to_replace_a_foreign_directory(tmp_path, capsys):
+    out = tmp_path / "mine"
+    out.mkdir()
+    (out / "notes.txt").write_text("keep me")
+    assert main(["build", str(TWO_LINK), "-o", str(out)]) == 1
+    assert "refusing to replace" in capsys.readouterr().err
+    assert (out / "notes.txt").read_text() == "keep me"
