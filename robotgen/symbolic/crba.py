@@ -16,7 +16,7 @@ def crba(tree: KinematicTree, motions: list[JointMotion]) -> ca.SX:
     for i in reversed(range(n)):
         p = tree.joints[i].parent
         if p >= 0:
-            composite[p] = composite[p] + composite[i].to_parent(motions[i].E, motions[i].r)
+            composite[p] = composite[p] + composite[i].to_parent(motions[i])
     M = ca.SX.zeros(n, n)
     for i in range(n):
         m = motions[i]
@@ -24,7 +24,7 @@ def crba(tree: KinematicTree, motions: list[JointMotion]) -> ca.SX:
         M[i, i] = ca.dot(m.S_w, n_f) + ca.dot(m.S_v, f_f) + tree.joints[i].armature
         j = i
         while tree.joints[j].parent >= 0:
-            n_f, f_f = force_transform_to_parent(motions[j].E, motions[j].r, n_f, f_f)
+            n_f, f_f = force_transform_to_parent(motions[j], n_f, f_f)
             j = tree.joints[j].parent
             M[i, j] = M[j, i] = ca.dot(motions[j].S_w, n_f) + ca.dot(motions[j].S_v, f_f)
     return M

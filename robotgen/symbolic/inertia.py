@@ -27,10 +27,12 @@ class OriginInertia:
         """Spatial momentum of the motion (w, v): (Ibar w + h x v, m v - h x w)."""
         return self.Ibar @ w + ca.cross(self.h, v), self.m * v - ca.cross(self.h, w)
 
-    def to_parent(self, E: ca.SX, r: ca.SX) -> "OriginInertia":
-        """Express about the parent origin: X^T I X with X = [E 0; -E skew(r) E]."""
-        h_rot = E.T @ self.h
-        I_rot = E.T @ self.Ibar @ E
+    def to_parent(self, m) -> "OriginInertia":
+        """Express about the parent origin of joint motion ``m``: X^T I X with
+        X = [E 0; -E skew(r) E]."""
+        r = m.r
+        h_rot = m.to_parent(self.h)
+        I_rot = m.matrix_to_parent(self.Ibar)
         eye = ca.SX.eye(3)
         rr = ca.dot(r, r)
         rh = ca.dot(r, h_rot)

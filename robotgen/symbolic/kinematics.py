@@ -11,18 +11,42 @@ from robotgen.symbolic.spatial import axis_rotation, const, homogeneous
 
 @dataclass(frozen=True, eq=False)
 class JointMotion:
-    """Joint i relative to its parent at configuration q.
-    R: child orientation in parent coordinates (E = R^T maps parent to child coordinates);
-    r: child origin in parent coordinates; S: motion subspace (angular; linear) in the child."""
+    """Joint i relative to its parent at configuration q: child orientation R = R0 Rm in
+    parent coordinates, R0 the constant origin rotation and Rm the joint's own rotation
+    (None for a prismatic joint); r the child origin in parent coordinates; S the motion
+    subspace (angular; linear) in the child.
 
-    R: ca.SX
+    Vectors are carried across the joint in two steps, the constant R0 (after snapping
+    mostly a signed permutation, so free) and the sparse Rm (a rotation about the joint
+    axis), which costs far fewer operations than one product with the dense R."""
+
+    R0: ca.SX
+    Rm: ca.SX | None
     r: ca.SX
     S_w: ca.SX
     S_v: ca.SX
 
     @property
+    def R(self) -> ca.SX:
+        return self.R0 if self.Rm is None else self.R0 @ self.Rm
+
+    @property
     def E(self) -> ca.SX:
         return self.R.T
+
+    def to_child(self, v: ca.SX) -> ca.SX:
+        """E v = Rm^T (R0^T v)."""
+        u = self.R0.T @ v
+        return u if self.Rm is None else self.Rm.T @ u
+
+    def to_parent(self, v: ca.SX) -> ca.SX:
+        """R v = R0 (Rm v)."""
+        return self.R0 @ (v if self.Rm is None else self.Rm @ v)
+
+    def matrix_to_parent(self, X: ca.SX) -> ca.SX:
+        """R X R^T, the rotation of a 3x3 tensor into parent coordinates."""
+        Y = X if self.Rm is None else self.Rm @ X @ self.Rm.T
+        return self.R0 @ Y @ self.R0.T
 
 
 def joint_motions(tree: KinematicTree, q: ca.SX) -> list[JointMotion]:
@@ -34,10 +58,10 @@ def joint_motions(tree: KinematicTree, q: ca.SX) -> list[JointMotion]:
         axis = const(joint.axis)
         zero = ca.SX.zeros(3, 1)
         if joint.type == PRISMATIC:
-            motions.append(JointMotion(R0, p0 + R0 @ axis * q[i], zero, axis))
+            motions.append(JointMotion(R0, None, p0 + R0 @ axis * q[i], zero, axis))
         else:
-            R = R0 @ axis_rotation(joint.axis, ca.cos(q[i]), ca.sin(q[i]))
-            motions.append(JointMotion(R, p0, axis, zero))
+            Rm = axis_rotation(joint.axis, ca.cos(q[i]), ca.sin(q[i]))
+            motions.append(JointMotion(R0, Rm, p0, axis, zero))
     return motions
 
 

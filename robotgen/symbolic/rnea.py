@@ -29,8 +29,8 @@ def rnea(tree: KinematicTree, motions: list[JointMotion], qd: ca.SX | None, qdd:
     force: list[list[ca.SX]] = []
     for i, (joint, m) in enumerate(zip(tree.joints, motions)):
         vp, ap = ((zero, zero), a_base) if joint.parent < 0 else (vel[joint.parent], acc[joint.parent])
-        w, v = motion_transform(m.E, m.r, *vp)
-        aw, av = motion_transform(m.E, m.r, *ap)
+        w, v = motion_transform(m, *vp)
+        aw, av = motion_transform(m, *ap)
         if qd is not None:
             w, v = w + m.S_w * qd[i], v + m.S_v * qd[i]
             cw, cv = motion_cross(w, v, m.S_w * qd[i], m.S_v * qd[i])
@@ -53,7 +53,7 @@ def rnea(tree: KinematicTree, motions: list[JointMotion], qd: ca.SX | None, qdd:
         tau[i] = ca.dot(m.S_w, n_i) + ca.dot(m.S_v, f_i)
         p = tree.joints[i].parent
         if p >= 0:
-            n_p, f_p = force_transform_to_parent(m.E, m.r, n_i, f_i)
+            n_p, f_p = force_transform_to_parent(m, n_i, f_i)
             force[p][0] = force[p][0] + n_p
             force[p][1] = force[p][1] + f_p
     return ca.vertcat(*tau)

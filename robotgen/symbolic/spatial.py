@@ -36,16 +36,17 @@ def homogeneous(R: ca.SX, p: ca.SX) -> ca.SX:
     return ca.vertcat(ca.horzcat(R, p), ca.horzcat(ca.SX.zeros(1, 3), ca.SX.ones(1, 1)))
 
 
-def motion_transform(E: ca.SX, r: ca.SX, w: ca.SX, v: ca.SX) -> tuple[ca.SX, ca.SX]:
-    """Apply X = [E 0; -E skew(r) E] to the motion (w, v) given in the parent frame; E maps
-    parent to child coordinates and r is the child origin in parent coordinates."""
-    return E @ w, E @ (v - ca.cross(r, w))
+def motion_transform(m, w: ca.SX, v: ca.SX) -> tuple[ca.SX, ca.SX]:
+    """Apply X = [E 0; -E skew(r) E] of joint motion ``m`` (a kinematics.JointMotion) to the
+    motion (w, v) given in the parent frame; E maps parent to child coordinates and r is
+    the child origin in parent coordinates."""
+    return m.to_child(w), m.to_child(v - ca.cross(m.r, w))
 
 
-def force_transform_to_parent(E: ca.SX, r: ca.SX, n: ca.SX, f: ca.SX) -> tuple[ca.SX, ca.SX]:
-    """Apply X^T to the force (n, f) given in the child frame."""
-    fp = E.T @ f
-    return E.T @ n + ca.cross(r, fp), fp
+def force_transform_to_parent(m, n: ca.SX, f: ca.SX) -> tuple[ca.SX, ca.SX]:
+    """Apply X^T of joint motion ``m`` to the force (n, f) given in the child frame."""
+    fp = m.to_parent(f)
+    return m.to_parent(n) + ca.cross(m.r, fp), fp
 
 
 def motion_cross(w: ca.SX, v: ca.SX, mw: ca.SX, mv: ca.SX) -> tuple[ca.SX, ca.SX]:
