@@ -20,9 +20,14 @@ def _load(args: argparse.Namespace):
     if path.lower().endswith(".urdf"):
         from robotgen.spec.urdf import load_urdf_system
 
-        if not getattr(args, "tip", None):
-            raise _Usage("a URDF needs --tip LINK")
-        system = load_urdf_system(path, tip=args.tip, base=args.base, name=args.name)
+        if getattr(args, "tree", False):
+            from robotgen.spec.urdf import load_urdf_tree_system
+
+            system = load_urdf_tree_system(path, base=args.base, tip=args.tip, name=args.name)
+        elif not getattr(args, "tip", None):
+            raise _Usage("a URDF needs --tip LINK (or --tree for every joint below the base)")
+        else:
+            system = load_urdf_system(path, tip=args.tip, base=args.base, name=args.name)
     else:
         from robotgen.spec import load_system
 
@@ -42,7 +47,7 @@ def _cmd_build(args: argparse.Namespace) -> int:
 
     out = Path(args.output) if args.output else Path("generated") / system.name
     options = {"name": system.name, "precision": args.precision, "compile": not args.no_compile,
-               "tip": args.tip, "base": args.base}
+               "tip": args.tip, "base": args.base, "tree": getattr(args, "tree", False)}
     key = cache.build_key([Path(system.source), *map(Path, system.dependencies)], options)
     if cache.is_current(out, key, not args.no_compile, system.name):
         print(f"robotgen: {out} is up to date")
@@ -146,6 +151,9 @@ def _parser() -> argparse.ArgumentParser:
     b.add_argument("--tip", help="URDF: the tip link")
     b.add_argument("--base", help="URDF: the base link (default: the root link)")
     b.add_argument("--name", help="URDF: module name (default: the robot's name)")
+    b.add_argument("--tree", action="store_true",
+                   help="URDF: keep every movable joint below the base (a branched tree); --tip then "
+                        "only names the frame of fk and jacobian")
     b.set_defaults(run=_cmd_build)
     for name, run, text in (("check", _cmd_check, "validate only"), ("info", _cmd_info, "print the robot tree")):
         c = sub.add_parser(name, help=text)
@@ -153,6 +161,7 @@ def _parser() -> argparse.ArgumentParser:
         c.add_argument("--tip")
         c.add_argument("--base")
         c.add_argument("--name")
+        c.add_argument("--tree", action="store_true")
         c.set_defaults(run=run)
     sim = sub.add_parser("simulate", help="run a tree's servo step against its true constrained plant")
     sim.add_argument("spec")

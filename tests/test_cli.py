@@ -85,3 +85,15 @@ def test_module_info_names_the_spec(tmp_path, build_module):
     assert info["nq"] == module.nq == 2
     assert info["spec_sha256"] == hashlib.sha256((ROOT / "specs" / "two_link.yaml").read_bytes()).hexdigest()
     assert "mass" in info["functions"] and "forward_dynamics" in info["functions"]
+
+
+def test_build_urdf_tree(tmp_path):
+    """--tree keeps every movable joint below the base: iCub's 32 joints in one module."""
+    from robots import robots_dir
+
+    urdf = robots_dir() / "icub_description" / "robots" / "icub.urdf"
+    out = tmp_path / "icub"
+    assert main(["build", str(urdf), "--tree", "--name", "icub", "-o", str(out), "--no-compile"]) == 0
+    manifest = json.loads((out / "manifest.json").read_text())
+    assert manifest["nq"] == 32
+    assert main(["build", str(urdf), "-o", str(tmp_path / "x")]) == 2  # neither --tip nor --tree
