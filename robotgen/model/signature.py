@@ -17,11 +17,13 @@ from robotgen.model.system import (
     CONSTRAINT_FORMULAS,
     FRAME_CHANGE,
     PLANAR_CONTACTS,
+    POINT_CONTACTS,
     AttachNode,
     ControlNode,
     DefineNode,
     PlanarBody,
     RobotSystem,
+    SpatialBody,
 )
 
 
@@ -111,6 +113,16 @@ def _attach_signature(system: RobotSystem, node: AttachNode) -> Signature:
                                  f"{2 * len(c.contacts)} robot coordinates (fingertip x, y each), got {m}")
         rows = m  # J = I
         n_forces = m - 3
+    elif c.kind == POINT_CONTACTS:
+        payload = system.nodes[node.payload].leaf if node.payload else None
+        if not isinstance(payload, (SpatialBody, FormulaRobot)) or len(leaf_coordinates(payload)) != 6:
+            raise SignatureError(f"point_contacts on '{node.name}' needs a spatial payload (6 coordinates)")
+        external = leaf_coordinates(payload)
+        if m != 3 * len(c.contacts):
+            raise SignatureError(f"attach '{node.name}': {len(c.contacts)} point contacts need "
+                                 f"{3 * len(c.contacts)} robot coordinates (fingertip x, y, z each), got {m}")
+        rows = m  # J = I
+        n_forces = m - 6
     elif c.kind == CONSTRAINT_FORMULAS:
         external = c.coordinates
         rows = len(c.J) if c.J is not None else m

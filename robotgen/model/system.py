@@ -32,10 +32,30 @@ class PlanarBody:
         return 3
 
 
-Leaf = KinematicTree | FormulaRobot | PlanarBody
+@dataclass(frozen=True, eq=False)
+class SpatialBody:
+    """A rigid payload in space, coordinates (x, y, z) of its body-frame origin (at the
+    centre of mass) and fixed-axis roll, pitch, yaw with R = Rz(yaw) Ry(pitch) Rx(roll), as
+    URDF writes them. With omega = E(rpy) rpy_dot: M = diag(m I, E^T R I_b R^T E), C from
+    Christoffel symbols, N = (-m g, 0). A payload has nil wr (§3.2)."""
+
+    name: str
+    coordinates: tuple[str, ...]  # 6
+    mass: float
+    inertia: np.ndarray  # (3, 3) about the centre of mass, body frame
+    gravity: np.ndarray  # (3,)
+
+    @property
+    def nq(self) -> int:
+        return 6
+
+
+PAYLOAD_BODIES = (PlanarBody, SpatialBody)
+Leaf = KinematicTree | FormulaRobot | PlanarBody | SpatialBody
 
 FRAME_CHANGE = "frame_change"
 PLANAR_CONTACTS = "planar_contacts"
+POINT_CONTACTS = "point_contacts"
 CONSTRAINT_FORMULAS = "formulas"
 
 
@@ -50,6 +70,8 @@ class Constraint:
                      ``contacts`` of a planar payload; x = the payload's (x, y, psi);
                      J = I and G from the contact geometry. The Styx box grasp is the
                      case of two contacts at (-r, 0) and (r, 0).
+    point_contacts:  the same in space: fingertips (3 coordinates each) at body-frame
+                     points of a spatial payload, x = its (x, y, z, roll, pitch, yaw).
     formulas:        the user's h, h^-1 (optional), J (default I) and G as expressions;
                      y by the robots' coordinate names, x by ``coordinates``.
     """
@@ -57,7 +79,7 @@ class Constraint:
     kind: str
     coordinates: tuple[str, ...] = ()
     output: str = "position"  # frame_change of a chain: "position" (3) or "planar" (x, y)
-    contacts: np.ndarray | None = None  # (k, 2), planar_contacts
+    contacts: np.ndarray | None = None  # (k, 2) planar_contacts, (k, 3) point_contacts
     h: tuple[Expr, ...] | None = None
     h_inverse: tuple[Expr, ...] | None = None
     J: tuple[tuple[Expr, ...], ...] | None = None

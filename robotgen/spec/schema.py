@@ -146,17 +146,25 @@ _DEFS = {
          "inverse_kinematics": _expressions("q = f^-1(x): nq expressions in the outputs and "
                                             "parameters", minItems=1)},
         ("coordinates", "M")),
-    "rigid_body": _object(
-        "a rigid payload body (never actuated): M = diag(m, m, I), C = 0, N = -m (gx, gy, 0)",
-        {"planar": _object("a body moving in a plane",
+    "rigid_body": {**_object(
+        "a rigid payload body (never actuated), planar or spatial",
+        {"planar": _object("a body moving in a plane, coordinates (x, y, psi): M = diag(m, m, I), "
+                           "C = 0, N = -m (gx, gy, 0)",
                            {"mass": _number("mass [kg], >= 0", minimum=0),
                             "inertia": _number("moment of inertia about the centre of mass "
                                                "[kg m^2], >= 0", minimum=0)},
                            ("mass", "inertia")),
-         "gravity": _vector2("in-plane gravitational acceleration [m/s^2], default 0 0"),
-         "coordinates": _names("names of the body's coordinates, default x, y, psi",
-                               minItems=3, maxItems=3)},
-        ("planar",)),
+         "spatial": _object("a body in space, coordinates (x, y, z, roll, pitch, yaw) of its frame at "
+                            "the centre of mass (R = Rz(yaw) Ry(pitch) Rx(roll))",
+                            {"mass": _number("mass [kg], >= 0", minimum=0),
+                             "inertia": {"$ref": "#/$defs/inertia"}},
+                            ("mass", "inertia")),
+         "gravity": {"type": "array", "minItems": 2, "maxItems": 3, "items": {"$ref": "#/$defs/number"},
+                     "description": "gravitational acceleration [m/s^2]: 2 numbers for a planar body "
+                                    "(default 0 0), 3 for a spatial one (default 0 0 -9.81)"},
+         "coordinates": _names("names of the body's coordinates, default x, y, psi (planar) or "
+                               "x, y, z, roll, pitch, yaw (spatial)", minItems=3, maxItems=6)}),
+        "oneOf": _exactly_one_of(("planar", "spatial"))},
     "frame_change": _object(
         "nil payload, G = I: the node's coordinates are the robots' kinematic outputs",
         {"output": {"enum": ["position", "planar"],
@@ -166,6 +174,13 @@ _DEFS = {
         {"points": {"type": "array", "minItems": 2, "items": _vector2("contact point [x, y] in the "
                                                                      "payload's frame [m]"),
                     "description": "contact points in the payload's frame, one per fingertip"}},
+        ("points",)),
+    "point_contacts": _object(
+        "fingertips (robot coordinates x, y, z per contact) held at body-frame points of a spatial payload",
+        {"points": {"type": "array", "minItems": 3, "items": _vector3("contact point [x, y, z] in the "
+                                                                     "payload's frame [m]"),
+                    "description": "contact points in the payload's frame, one per fingertip; the first "
+                                   "three must not be collinear"}},
         ("points",)),
     "constraint_formulas": _object(
         "a constraint J(y) ydot = G(x)^T xdot given by expressions",
@@ -182,11 +197,13 @@ _DEFS = {
          "G": _expression_matrix("grasp map: node coordinates x constraint rows, in the node's and "
                                  "robots' coordinates and parameters")},
         ("coordinates", "h", "G")),
-    "constraint": {**_object("ATTACH's constraint: exactly one of frame_change, planar_contacts, formulas",
+    "constraint": {**_object("ATTACH's constraint: exactly one of frame_change, planar_contacts, "
+                             "point_contacts, formulas",
                              {"frame_change": {"$ref": "#/$defs/frame_change"},
                               "planar_contacts": {"$ref": "#/$defs/planar_contacts"},
+                              "point_contacts": {"$ref": "#/$defs/point_contacts"},
                               "formulas": {"$ref": "#/$defs/constraint_formulas"}}),
-                   "oneOf": _exactly_one_of(("frame_change", "planar_contacts", "formulas"))},
+                   "oneOf": _exactly_one_of(("frame_change", "planar_contacts", "point_contacts", "formulas"))},
     "attach": _object(
         "ATTACH: robots joined to an optional payload through a constraint (Deno et al. 1990, 3.3)",
         {"robots": {"type": "array", "minItems": 1,

@@ -40,13 +40,16 @@ from robotgen.model.system import (
     FEEDFORWARD,
     FRAME_CHANGE,
     PD,
+    PAYLOAD_BODIES,
     PLANAR_CONTACTS,
+    POINT_CONTACTS,
     AttachNode,
     Constraint,
     ControlNode,
     DefineNode,
     Node,
     PlanarBody,
+    SpatialBody,
     RobotSystem,
 )
 from robotgen.model.transforms import xyz_rpy
@@ -56,6 +59,7 @@ from robotgen.spec.urdf import read_urdf
 DEFAULT_GRAVITY = (0.0, 0.0, -9.81)
 DEFAULT_PLANAR_GRAVITY = (0.0, 0.0)
 DEFAULT_BODY_COORDINATES = ("x", "y", "psi")
+DEFAULT_SPATIAL_COORDINATES = ("x", "y", "z", "roll", "pitch", "yaw")
 DEFAULT_COULOMB_SMOOTHING = 1e-2
 # keys a joint needs, and keys it must not have, by convention
 _CONVENTION_KEYS = {
@@ -301,16 +305,32 @@ class _Builder:
             self.at_key(path + ("outputs",), f"expected {n} names (one per kinematics entry), got {len(outputs)}")
         return outputs
 
-    def rigid_body(self, name: str, path: Path, spec: dict) -> PlanarBody:
-        coordinates = tuple(spec.get("coordinates", DEFAULT_BODY_COORDINATES))
+    def rigid_body(self, name: str, path: Path, spec: dict) -> PlanarBody | SpatialBody:
+        spatial = "spatial" in spec
+        default = DEFAULT_SPATIAL_COORDINATES if spatial else DEFAULT_BODY_COORDINATES
+        coordinates = tuple(spec.get("coordinates", default))
+        if len(coordinates) != len(default):
+            self.at_value(path + ("coordinates",), f"a {'spatial' if spatial else 'planar'} body has "
+                                                   f"{len(default)} coordinates, got {len(coordinates)}")
         self.check_names(path, [(c, path + ("coordinates", i) if "coordinates" in spec else path, "coordinate")
                                 for i, c in enumerate(coordinates)])
+        gravity_default = DEFAULT_GRAVITY if spatial else DEFAULT_PLANAR_GRAVITY
+        gravity = self.vector(path + ("gravity",), spec.get("gravity"), gravity_default)
+        if len(gravity) != len(gravity_default):
+            self.at_value(path + ("gravity",), f"a {'spatial' if spatial else 'planar'} body takes "
+                                               f"{len(gravity_default)} gravity components, got {len(gravity)}")
+        if spatial:
+            body = spec["spatial"]
+            return SpatialBody(
+                name=name, coordinates=coordinates,
+                mass=self.constant(path + ("spatial", "mass"), body["mass"], minimum=0.0),
+                inertia=self.inertia(path + ("spatial", "inertia"), body["inertia"]), gravity=gravity)
         planar = spec["planar"]
         return PlanarBody(
             name=name, coordinates=coordinates,
             mass=self.constant(path + ("planar", "mass"), planar["mass"], minimum=0.0),
             inertia=self.constant(path + ("planar", "inertia"), planar["inertia"], minimum=0.0),
-            gravity=self.vector(path + ("gravity",), spec.get("gravity"), DEFAULT_PLANAR_GRAVITY),
+            gravity=gravity,
         )
 
     def urdf(self, name: str, path: Path, spec: dict) -> KinematicTree | None:
@@ -358,6 +378,15 @@ class _Builder:
             contacts = np.array([[self.constant(at + (i, k), v) for k, v in enumerate(point)]
                                  for i, point in enumerate(points)])
             constraint = Constraint(PLANAR_CONTACTS, contacts=contacts)
+        elif "point_contacts" in raw:
+            points = raw["point_contacts"]["points"]
+            at = where + ("point_contacts", "points")
+            contacts = np.array([[self.constant(at + (i, k), v) for k, v in enumerate(point)]
+                                 for i, point in enumerate(points)])
+            if np.linalg.norm(np.cross(contacts[1] - contacts[0], contacts[2] - contacts[0])) < 1e-9:
+                self.at_key(at, "the first three contact points are collinear: they cannot fix the "
+                                "payload's orientation")
+            constraint = Constraint(POINT_CONTACTS, contacts=contacts)
         else:
             formulas = raw["formulas"]
             at = where + ("formulas",)
@@ -509,13 +538,13 @@ class _Builder:
         path: Path = ("nodes", node.name, "attach")
         for i, r in enumerate(node.robots):
             leaf = getattr(nodes[r], "leaf", None)
-            if isinstance(leaf, PlanarBody):
+            if isinstance(leaf, PAYLOAD_BODIES):
                 self.at_value(path + ("robots", i), f"'{r}' is a rigid_body, a payload without actuators; "
                                                     "it cannot be a robot (give it as payload)")
         payload = None
         if node.payload is not None:
             payload = getattr(nodes[node.payload], "leaf", None)
-            if not isinstance(payload, (PlanarBody, FormulaRobot)):
+            if not isinstance(payload, (*PAYLOAD_BODIES, FormulaRobot)):
                 kind = (f"a {nodes[node.payload].primitive} node" if not isinstance(nodes[node.payload], DefineNode)
                         else "a chain")
                 self.at_value(path + ("payload",), f"payload '{node.payload}' must be a define node with "
@@ -532,7 +561,7 @@ class _Builder:
             for i, r in enumerate(node.robots):
                 below = self.leaf_below(nodes, r)
                 leaf = getattr(below, "leaf", None)
-                if isinstance(leaf, PlanarBody):
+                if isinstance(leaf, PAYLOAD_BODIES):
                     continue  # reported above
                 if not isinstance(leaf, (KinematicTree, FormulaRobot)):
                     what = (f"an {below.primitive} node" if below is nodes[r]
@@ -546,6 +575,17 @@ class _Builder:
                     continue
                 self.check_unique(owner, kinematic_outputs(system, r) or (), r, path + ("robots", i), "output",
                                   "rename its outputs")
+        elif c.kind == POINT_CONTACTS:
+            if node.payload is None:
+                self.at_key(kind_path, "point_contacts needs a payload (a spatial body with 6 coordinates)")
+            elif payload is not None and len(leaf_names(payload)) != 6:
+                self.at_value(path + ("payload",), f"payload '{node.payload}' has {len(leaf_names(payload))} "
+                                                   "coordinates; point_contacts needs a spatial body (6)")
+            k = len(c.contacts)
+            if m != 3 * k:
+                self.at_key(kind_path + ("points",), f"{k} contact points need {3 * k} robot coordinates "
+                                                     f"(fingertip x, y, z each); robots {', '.join(node.robots)} "
+                                                     f"have {m}")
         elif c.kind == PLANAR_CONTACTS:
             if node.payload is None:
                 self.at_key(kind_path, "planar_contacts needs a payload (a planar body with coordinates "
@@ -631,7 +671,7 @@ class _Builder:
         if "resolved_rate" in spec:
             self.at_key(path + ("resolved_rate",), f"settings of law resolved_rate; this node's law is {node.law}")
         target = system.nodes[node.robot]
-        if isinstance(getattr(target, "leaf", None), PlanarBody):
+        if isinstance(getattr(target, "leaf", None), PAYLOAD_BODIES):
             self.at_value(path + ("robot",), f"'{node.robot}' is a rigid_body, a payload without actuators; "
                                              "it cannot be controlled")
         n = robot.n_external

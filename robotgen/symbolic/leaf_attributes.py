@@ -10,9 +10,11 @@ import casadi as ca
 from robotgen.model.chain import KinematicTree
 from robotgen.model.expression import evaluate
 from robotgen.model.formula import FormulaRobot
-from robotgen.model.system import PlanarBody
+from robotgen.model.system import PlanarBody, SpatialBody
 from robotgen.symbolic.chain_graphs import ChainGraphs, Symbols
+from robotgen.symbolic.christoffel import coriolis_matrix
 from robotgen.symbolic.formula_graphs import CASADI_LIB, FormulaGraphs
+from robotgen.symbolic.spatial import const
 
 
 @dataclass(frozen=True, eq=False)
@@ -49,4 +51,25 @@ def leaf_attributes(leaf, q: ca.SX, qd: ca.SX) -> LeafAttributes:
         M = ca.SX(ca.DM(ca.diag(ca.DM([leaf.mass, leaf.mass, leaf.inertia]))))
         N = ca.SX(ca.DM([-leaf.mass * leaf.gravity[0], -leaf.mass * leaf.gravity[1], 0.0]))
         return LeafAttributes(M, ca.SX.zeros(3, 3), N, None, None)
+    if isinstance(leaf, SpatialBody):
+        R, E = rpy_rotation(q[3:6]), rpy_rate_map(q[3:6])
+        RE = R.T @ E  # body-frame angular velocity per rpy rate
+        M = ca.diagcat(leaf.mass * ca.SX.eye(3), RE.T @ const(leaf.inertia) @ RE)
+        N = ca.vertcat(const(-leaf.mass * leaf.gravity), ca.SX.zeros(3, 1))
+        return LeafAttributes(M, coriolis_matrix(M, q, qd), N, None, None)
     raise TypeError(f"unknown leaf type {type(leaf).__name__}")
+
+
+def rpy_rotation(rpy: ca.SX) -> ca.SX:
+    """R = Rz(yaw) Ry(pitch) Rx(roll) (URDF's fixed-axis roll, pitch, yaw)."""
+    cr, sr, cp, sp, cy, sy = (f(a) for a in (rpy[0], rpy[1], rpy[2]) for f in (ca.cos, ca.sin))
+    return ca.vertcat(
+        ca.horzcat(cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr),
+        ca.horzcat(sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr),
+        ca.horzcat(-sp, cp * sr, cp * cr))
+
+
+def rpy_rate_map(rpy: ca.SX) -> ca.SX:
+    """E with omega (world) = E (roll, pitch, yaw rates): columns Rz Ry x, Rz y, z."""
+    cp, sp, cy, sy = ca.cos(rpy[1]), ca.sin(rpy[1]), ca.cos(rpy[2]), ca.sin(rpy[2])
+    return ca.vertcat(ca.horzcat(cy * cp, -sy, 0), ca.horzcat(sy * cp, cy, 0), ca.horzcat(-sp, 0, 1))

@@ -3,13 +3,16 @@
 eq 2.4). An SVD has no symbolic form, so:
 - co-dimension one (an (m-1) x m full-rank matrix): the generalised cross product, whose
   entries are the signed (m-1)-minors, normalised;
-- larger: Gram-Schmidt on the projector I - A^+ A applied to coordinate axes, taking the
-  axes in order (smooth wherever those projections stay independent).
+- larger: Gram-Schmidt on the projector I - A^+ A applied to k fixed directions drawn once
+  from a seeded generator (coordinate axes would often lie in the row space of a sparse A,
+  leaving 0/0); smooth wherever those projections stay independent, which for generic
+  directions is everywhere but a set of measure zero.
 Blocks of a block-diagonal matrix are handled one block at a time, so two redundant
 fingers give two orthonormal rows with disjoint support."""
 from __future__ import annotations
 
 import casadi as ca
+import numpy as np
 
 
 def _det(A: ca.SX) -> ca.SX:
@@ -33,11 +36,14 @@ def null_rows(A: ca.SX) -> ca.SX:
         v = generalized_cross(A)
         return v / ca.norm_2(v.T)
     P = ca.SX.eye(m) - A.T @ ca.solve(A @ A.T, A)
+    directions = np.random.default_rng(20260101).normal(size=(k, m))
+    return gram_schmidt([P @ ca.DM(d) for d in directions])
+
+
+def gram_schmidt(vectors: list[ca.SX]) -> ca.SX:
+    """Orthonormal rows spanning the given independent column vectors, in order."""
     rows: list[ca.SX] = []
-    for j in range(m):
-        if len(rows) == k:
-            break
-        v = P[:, j]
+    for v in vectors:
         for u in rows:
             v = v - (u @ v) * u.T
         rows.append((v / ca.norm_2(v)).T)

@@ -19,6 +19,7 @@ from robotgen.model.system import (
     FRAME_CHANGE,
     PD,
     PLANAR_CONTACTS,
+    POINT_CONTACTS,
     AttachNode,
     ControlNode,
     DefineNode,
@@ -26,8 +27,9 @@ from robotgen.model.system import (
 )
 from robotgen.model.signature import Signature, robot_leaves, signature
 from robotgen.symbolic.formula_graphs import CASADI_LIB
-from robotgen.symbolic.leaf_attributes import LeafAttributes, leaf_attributes
-from robotgen.symbolic.nullspace import block_null_rows, null_rows
+from robotgen.symbolic.leaf_attributes import LeafAttributes, leaf_attributes, rpy_rate_map, rpy_rotation
+from robotgen.symbolic.spatial import skew
+from robotgen.symbolic.nullspace import block_null_rows, gram_schmidt, null_rows
 from robotgen.symbolic.rows import rows
 
 
@@ -184,6 +186,44 @@ class TreeGraphs:
         M, C, N = ca.substitute([a.M, a.C, a.N], [q, qd], [x, xd])
         return M, C, N
 
+    @staticmethod
+    def _point_contacts(pts: np.ndarray, y: ca.SX, m: int):
+        """Fingertips held at body points c_k of a spatial payload, x = (p, rpy). The pose
+        comes from the first three contacts: the triad they span in the body frame and the
+        one their fingertips span in the world give R; p = p_1 - R c_1. A fingertip force f_k
+        acts on (p, rpy) as (f_k, E^T (R c_k) x f_k), the columns of G."""
+        def triad(a, b, c, lib):
+            u, w = b - a, c - a
+            e1 = u / lib.norm_2(u)
+            e3 = lib.cross(u, w)
+            e3 = e3 / lib.norm_2(e3)
+            return lib.horzcat(e1, lib.cross(e3, e1), e3)
+
+        body = np.array(ca.DM(triad(*(ca.DM(p) for p in pts[:3]), ca)))
+        P = [y[3 * k:3 * k + 3] for k in range(3)]
+        R = triad(*P, ca) @ body.T
+        p = P[0] - R @ ca.DM(pts[0])
+        rpy = ca.vertcat(ca.atan2(R[2, 1], R[2, 2]), ca.atan2(-R[2, 0], ca.sqrt(R[0, 0] ** 2 + R[1, 0] ** 2)),
+                         ca.atan2(R[1, 0], R[0, 0]))
+        x = ca.vertcat(p, rpy)
+
+        def h_inverse(xe: ca.SX) -> ca.SX:
+            Re = rpy_rotation(rows(xe, 3, 6))
+            return ca.vertcat(*[rows(xe, 0, 3) + Re @ ca.DM(c) for c in pts])
+
+        Rx, E = rpy_rotation(rpy), rpy_rate_map(rpy)
+        G = ca.horzcat(*[ca.vertcat(ca.SX.eye(3), E.T @ skew(Rx @ ca.DM(c))) for c in pts])
+        H = None
+        if len(pts) == 3:  # squeezes along the lines between contact pairs span null(G)
+            squeezes = []
+            for i, j in ((0, 1), (0, 2), (1, 2)):
+                u = Rx @ ca.DM((pts[j] - pts[i]) / np.linalg.norm(pts[j] - pts[i]))
+                parts = [ca.SX.zeros(3, 1)] * 3
+                parts[i], parts[j] = u, -u
+                squeezes.append(ca.vertcat(*parts))
+            H = gram_schmidt(squeezes)
+        return x, ca.SX.eye(m), G, h_inverse, None, H
+
     def _constraint(self, node: AttachNode, kids: list[NodeGraph], y: ca.SX):
         """x = h(y), J, G, h^-1, and where the constraint fixes them, the null bases K of J
         (frame changes: block by block) and H of G (two contacts: the squeeze)."""
@@ -228,6 +268,8 @@ class TreeGraphs:
                 u = R @ ca.DM((pts[1] - pts[0]) / np.linalg.norm(pts[1] - pts[0]))
                 H = ca.horzcat(u.T, -u.T) / np.sqrt(2.0)
             return x, ca.SX.eye(m), ca.horzcat(*cols), h_inverse, None, H
+        if c.kind == POINT_CONTACTS:
+            return self._point_contacts(np.asarray(c.contacts, dtype=float), y, m)
         if c.kind == CONSTRAINT_FORMULAS:
             env: dict[str, object] = dict(c.parameters)
             names = [nm for k in kids for nm in k.sig.external]
