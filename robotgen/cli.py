@@ -83,7 +83,8 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
         raise _Usage("simulate needs a robot tree (attach/control); for one chain see examples/demo.py")
     if system.is_rate_controlled:
         raise _Usage("simulate runs torque trees; a resolved_rate controller outputs joint rates: "
-                     "integrate its rate_step / position_step (see tests/test_rate_control.py)")
+                     "integrate its rate_step / position_step (see tests/test_rate_control.py and "
+                     "tests/test_rate_control_tree.py)")
     settings = system.simulation or SimulationSettings()
     overrides = {k: getattr(args, k) for k in ("duration", "dt") if getattr(args, k) is not None}
     settings = dataclasses.replace(settings, **overrides)

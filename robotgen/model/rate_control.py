@@ -1,4 +1,4 @@
-"""Resolved motion rate control (Whitney 1972) of one chain, as plain settings.
+"""Resolved motion rate control (Whitney 1972) of a chain or a composite robot, as plain settings.
 
 A `control` node with ``law: resolved_rate`` is a kinematic controller: it turns hand rates
 commanded along six axes of a chosen coordinate system into joint rates (eqs 2-10), and a
@@ -9,6 +9,10 @@ The six command axes are ordered (v1 v2 v3 w1 w2 w3): three translation rates, t
 rotation rates, in the frame's coordinates. Each axis is either *active* (follows the
 command, times its weight), *held* (rate zero: e.g. orientation held fixed while reaching)
 or *free* (left out of the task; its rows leave the Jacobian, adding redundancy).
+
+Over a composite robot (an ATTACH tree, Deno et al. 1990) the command coordinates are the
+robot node's own (its rd) and the joint rates come from the tree's velocity map; only
+damping, rate limits and the horizon apply (``CompositeRateSettings``).
 """
 from __future__ import annotations
 
@@ -138,3 +142,40 @@ class RateControlSettings:
         if self.frame.tool is not None:
             out["tool"] = [[float(v) for v in row] for row in self.frame.tool]
         return out
+
+
+# the settings a resolved_rate controller of a composite robot takes (the others are a chain's)
+COMPOSITE_KEYS = ("damping", "rate_limits", "horizon")
+
+
+@dataclass(frozen=True, eq=False)
+class CompositeRateSettings:
+    """Resolved rate control of a composite robot R (an ATTACH node, possibly under control
+    nodes). The command is a velocity of R in R's coordinates (R's rd: the external rates,
+    then the internal-motion rates R exposes, a null-space command); the leaves' joint rates
+    are the tree's velocity map A(theta) (every ATTACH's A composed down to the leaves)
+    applied to it. A target position is reached through rates (x_target - x) / horizon,
+    with the internal-motion rates zero; ``angles`` marks the external coordinates whose
+    error is wrapped to (-pi, pi] (a rigid payload's psi, or roll, pitch, yaw)."""
+
+    robot_names: tuple[str, ...]  # R's velocity coordinates, the command's entries
+    n_external: int
+    angles: tuple[bool, ...]  # (n_external,)
+    damping: Damping | None
+    rate_limits: np.ndarray | None  # (nq,) over the sensed leaf coordinates
+    horizon: float
+
+    def summary(self) -> dict:
+        """Plain data for info() and the manifest."""
+        external = self.robot_names[:self.n_external]
+        return {
+            "frame": "node",
+            "command": list(self.robot_names),
+            "target": list(external),
+            "internal_motions": list(self.robot_names[self.n_external:]),
+            "wrapped": [n for n, a in zip(external, self.angles) if a],
+            "damping": None if self.damping is None else
+            {"lambda_max": self.damping.lambda_max, "threshold": self.damping.threshold},
+            "rate_limits": None if self.rate_limits is None else [float(v) for v in self.rate_limits],
+            "horizon": self.horizon,
+        }

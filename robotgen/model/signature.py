@@ -149,3 +149,23 @@ def robot_leaves(system: RobotSystem, name: str | None = None) -> list[str]:
         return [node.name]
     robots = node.robots if isinstance(node, AttachNode) else (node.robot,)
     return [leaf for r in robots for leaf in robot_leaves(system, r)]
+
+
+def angle_coordinates(system: RobotSystem, name: str) -> tuple[bool, ...]:
+    """Which external coordinates of a node are known to be angles (a position error in them
+    wraps to (-pi, pi]). Only a rigid pose is known: the node coordinates a planar_contacts or
+    point_contacts attach computes from the contact geometry (psi; roll, pitch, yaw), or those
+    of a rigid_body payload, which are the node's. A frame change's outputs, formula
+    constraints with other payloads and leaf coordinates are not classified: no wrapping."""
+    node = system.nodes[name]
+    while isinstance(node, ControlNode):
+        node = system.nodes[node.robot]
+    n = signature(system, node.name).n_external
+    if not isinstance(node, AttachNode):
+        return (False,) * n
+    payload = system.nodes[node.payload].leaf if node.payload else None
+    if node.constraint.kind == PLANAR_CONTACTS or isinstance(payload, PlanarBody):
+        return (False, False, True) if n == 3 else (False,) * n
+    if node.constraint.kind == POINT_CONTACTS or isinstance(payload, SpatialBody):
+        return (False,) * 3 + (True,) * 3 if n == 6 else (False,) * n
+    return (False,) * n

@@ -12,7 +12,7 @@ import numpy as np
 from robotgen.model.chain import KinematicTree
 from robotgen.model.expression import Expr
 from robotgen.model.formula import FormulaRobot
-from robotgen.model.rate_control import RESOLVED_RATE, RateControlSettings
+from robotgen.model.rate_control import RESOLVED_RATE, CompositeRateSettings, RateControlSettings
 from robotgen.model.simulation import SimulationSettings
 
 
@@ -135,8 +135,9 @@ class ControlNode:
     internal motion rates to zero (§5.2). What a controller resolves is masked from the
     levels above; what it leaves is passed up.
 
-    ``law: resolved_rate`` (Whitney 1972) is a kinematic controller of a chain leaf: it has
-    ``rate`` settings and no gains (kp, kv are zero)."""
+    ``law: resolved_rate`` (Whitney 1972) is a kinematic controller of a chain leaf or of a
+    composite robot (an ATTACH node, possibly under control nodes): it has ``rate``
+    settings and no gains (kp, kv are zero)."""
 
     name: str
     robot: str
@@ -146,7 +147,7 @@ class ControlNode:
     kv_internal: float = 0.0
     internal_forces: np.ndarray | None = None
     resolve_internal_motion: bool = False
-    rate: RateControlSettings | None = None  # law resolved_rate only
+    rate: RateControlSettings | CompositeRateSettings | None = None  # law resolved_rate only
 
     primitive = "control"
 
@@ -179,10 +180,15 @@ class RobotSystem:
 
     @property
     def is_rate_controlled(self) -> bool:
-        """The root is a kinematic (resolved-rate) controller of a chain leaf: the module is
-        the chain's functions plus the controller's steps, not a torque tree."""
+        """The root is a kinematic (resolved-rate) controller: the module is the chain's (or
+        the controlled robot tree's) functions plus the controller's steps, not a torque tree."""
         root = self.root_node
         return isinstance(root, ControlNode) and root.law in KINEMATIC_LAWS
+
+    @property
+    def rate_controls_composite(self) -> bool:
+        """The root is a resolved-rate controller of a composite robot (an ATTACH tree)."""
+        return self.is_rate_controlled and isinstance(self.root_node.rate, CompositeRateSettings)
 
     def walk(self, name: str | None = None):
         """Nodes below ``name`` (default the root), children before parents."""

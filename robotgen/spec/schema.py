@@ -221,7 +221,8 @@ _DEFS = {
                        "items": {"$ref": "#/$defs/number"}}},
     "resolved_rate": _object(
         "settings of law resolved_rate: resolved motion rate and position control of a chain "
-        "(Whitney 1972)",
+        "(Whitney 1972), or of a composite robot in its own coordinates (then only damping, "
+        "rate_limits and horizon apply)",
         {"frame": {"enum": ["base", "hand", "tool", "line_of_sight", "spherical"],
                    "description": "command coordinates: base, hand (eq 7), tool (axes of a held "
                                   "tool), line_of_sight (eq 10), spherical; default hand"},
@@ -248,8 +249,9 @@ _DEFS = {
               "threshold": _number("manipulability below which damping rises, > 0", exclusiveMinimum=0)},
              ("lambda_max", "threshold")),
          "rate_limits": {"type": ["number", "string", "array"], "items": {"$ref": "#/$defs/number"},
-                         "description": "joint-rate bounds: a number or one per joint (default the "
-                                        "joints' velocity limits); the whole rate vector is scaled"},
+                         "description": "joint-rate bounds: a number or one per joint (of every leaf, "
+                                        "in tree order, for a composite robot; default the joints' "
+                                        "velocity limits); the whole rate vector is scaled"},
          "horizon": _number("T of eqs 11-18: position control time constant [s], > 0, default 0.1",
                             exclusiveMinimum=0),
          "lqr": _object(

@@ -18,6 +18,7 @@ from robotgen.model.dh import DH_MODIFIED, DH_STANDARD, JOINT_LIST, DHParameters
 from robotgen.model.expression import CONSTANTS, FUNCTIONS, Expr, parse_constant, parse_expression
 from robotgen.model.formula import FormulaRobot
 from robotgen.model.rate_control import (
+    COMPOSITE_KEYS,
     EXTENDED_JACOBIAN,
     GENERIC_AXES,
     HAND,
@@ -28,13 +29,21 @@ from robotgen.model.rate_control import (
     SPHERICAL,
     TOOL,
     CommandFrame,
+    CompositeRateSettings,
     Damping,
     LQRSettings,
     RateControlSettings,
     Redundancy,
 )
 from robotgen.model.simulation import SimulationSettings
-from robotgen.model.signature import Signature, SignatureError, kinematic_outputs, signature
+from robotgen.model.signature import (
+    Signature,
+    SignatureError,
+    angle_coordinates,
+    kinematic_outputs,
+    robot_leaves,
+    signature,
+)
 from robotgen.model.system import (
     CONSTRAINT_FORMULAS,
     FEEDFORWARD,
@@ -667,7 +676,7 @@ class _Builder:
         path: Path = ("nodes", node.name, "control")
         spec = self.doc.data["nodes"][node.name]["control"]
         if node.law == RESOLVED_RATE:
-            return self.check_rate_control(system, node, spec)
+            return self.check_rate_control(system, node, spec, robot)
         if "resolved_rate" in spec:
             self.at_key(path + ("resolved_rate",), f"settings of law resolved_rate; this node's law is {node.law}")
         target = system.nodes[node.robot]
@@ -706,8 +715,9 @@ class _Builder:
         return dataclasses.replace(node, kp=gains["kp"], kv=gains["kv"])
 
     # -- resolved motion rate control (Whitney 1972) ------------------------------------
-    def check_rate_control(self, system: RobotSystem, node: ControlNode, spec: dict) -> ControlNode:
-        """A resolved_rate controller: for now the root, over a chain or urdf leaf."""
+    def check_rate_control(self, system: RobotSystem, node: ControlNode, spec: dict, robot: Signature) -> ControlNode:
+        """A resolved_rate controller: the root, over a chain or urdf leaf or over a composite
+        robot (an attach node, possibly under control nodes)."""
         path: Path = ("nodes", node.name, "control")
         for key in ("kp", "kv", "kv_internal", "internal_forces", "resolve_internal_motion"):
             if key in spec:
@@ -715,19 +725,58 @@ class _Builder:
                                            "its settings go under resolved_rate)")
         target = system.nodes[node.robot]
         chain = getattr(target, "leaf", None)
-        if not isinstance(chain, KinematicTree):
-            what = (f"a {target.primitive} node" if not isinstance(target, DefineNode)
-                    else f"a {type(chain).__name__} leaf")
-            self.at_value(path + ("robot",), f"law resolved_rate controls a chain or urdf leaf; '{node.robot}' is "
-                                             f"{what} (composite robots are not supported yet)")
+        below = self.leaf_below(system.nodes, node.robot)
+        composite = isinstance(below, AttachNode)
+        if not isinstance(chain, KinematicTree) and not composite:
+            leaf = type(getattr(below, "leaf", None)).__name__
+            what = (f"a {leaf} leaf" if below is target else f"a control node over the {leaf} leaf '{below.name}'")
+            self.at_value(path + ("robot",), f"law resolved_rate controls a chain or urdf leaf, or a composite robot "
+                                             f"(an attach node, possibly under control nodes); '{node.robot}' is {what}")
             return node
         if node.name != system.root:
             self.at_key(("nodes", node.name), f"a resolved_rate controller must be the root (it outputs joint "
                                               f"rates, which no node above can use); the root is '{system.root}'")
             return node
-        rate = self.rate_settings(path + ("resolved_rate",), spec.get("resolved_rate", {}), chain)
-        n = chain.nq
+        settings = spec.get("resolved_rate", {})
+        if composite:
+            rate = self.composite_rate_settings(path + ("resolved_rate",), settings, system, node.robot, robot)
+        else:
+            rate = self.rate_settings(path + ("resolved_rate",), settings, chain)
+        n = robot.n_external
         return dataclasses.replace(node, kp=np.zeros((n, n)), kv=np.zeros((n, n)), rate=rate)
+
+    def composite_rate_settings(self, path: Path, spec: dict, system: RobotSystem, name: str,
+                                robot: Signature) -> CompositeRateSettings:
+        """Over a composite robot the command coordinates are the robot's own: only damping,
+        rate limits (one per sensed leaf coordinate) and the horizon apply."""
+        for key in spec:
+            if key not in COMPOSITE_KEYS:
+                self.at_key(path + (key,), f"'{key}' applies to a chain leaf; over the composite robot '{name}' the "
+                                           f"command is its velocity in its own coordinates "
+                                           f"({', '.join(robot.velocity_names)}) and the leaves' rates come from the "
+                                           f"tree's velocity map (settings here: {', '.join(COMPOSITE_KEYS)})")
+        leaves = [system.nodes[leaf].leaf for leaf in robot_leaves(system, name)]
+        n = sum(leaf.nq for leaf in leaves)
+        if "rate_limits" in spec:
+            rate_limits = self.per_joint(path + ("rate_limits",), spec["rate_limits"], n, "rate limit", positive=True)
+        else:
+            # the joints' velocity limits, when every leaf is a chain and every joint has one
+            chains = all(isinstance(leaf, KinematicTree) for leaf in leaves)
+            velocities = [j.limits.velocity for leaf in leaves for j in leaf.joints] if chains else []
+            limited = chains and all(v is not None and v > 0 for v in velocities)
+            rate_limits = np.array(velocities, dtype=float) if limited else None
+        return CompositeRateSettings(
+            robot_names=robot.velocity_names, n_external=robot.n_external,
+            angles=angle_coordinates(system, name), damping=self.damping(path, spec), rate_limits=rate_limits,
+            horizon=self.optional(spec, path, "horizon", 0.1, minimum=0.0, exclusive=True))
+
+    def damping(self, path: Path, spec: dict) -> Damping | None:
+        if "damping" not in spec:
+            return None
+        d = spec["damping"]
+        dpath = path + ("damping",)
+        return Damping(self.constant(dpath + ("lambda_max",), d["lambda_max"], minimum=0.0, exclusive=True),
+                       self.constant(dpath + ("threshold",), d["threshold"], minimum=0.0, exclusive=True))
 
     def rate_settings(self, path: Path, spec: dict, chain: KinematicTree) -> RateControlSettings:
         n = chain.nq
@@ -797,12 +846,7 @@ class _Builder:
                 self.at_value(rpath + ("objective",), f"objective joint_limits needs position limits; no joint of "
                                                       f"'{chain.name}' has both lower and upper")
 
-        damping = None
-        if "damping" in spec:
-            d = spec["damping"]
-            dpath = path + ("damping",)
-            damping = Damping(self.constant(dpath + ("lambda_max",), d["lambda_max"], minimum=0.0, exclusive=True),
-                              self.constant(dpath + ("threshold",), d["threshold"], minimum=0.0, exclusive=True))
+        damping = self.damping(path, spec)
         rate_limits = self.rate_limits(path + ("rate_limits",), spec, chain)
         horizon = self.optional(spec, path, "horizon", 0.1, minimum=0.0, exclusive=True)
         lqr = self.lqr_settings(path + ("lqr",), spec["lqr"], n) if "lqr" in spec else None

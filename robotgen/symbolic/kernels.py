@@ -89,11 +89,16 @@ def _servo_terms(graphs: ChainGraphs, sym: Symbols, n: int, prefix: str) -> Kern
 
 def kernels_for(system: RobotSystem) -> list[Kernel]:
     """A single leaf: its kernels under the contract's names. A resolved-rate controller of a
-    chain: the chain's kernels plus the controller's steps (robotgen.symbolic.rate_control).
-    A tree: every node's attributes, rd and wr, the fused servo step and the plant
-    (robotgen.symbolic.tree_kernels)."""
+    chain: the chain's kernels plus the controller's steps (robotgen.symbolic.rate_control);
+    of a composite robot: the robot tree's kernels plus the controller's steps
+    (robotgen.symbolic.tree_rate_control). A tree: every node's attributes, rd and wr, the
+    fused servo step and the plant (robotgen.symbolic.tree_kernels)."""
     if system.is_single_leaf:
         return leaf_kernels(system.root_node.leaf)
+    if system.rate_controls_composite:
+        from robotgen.symbolic.tree_rate_control import tree_rate_kernels
+
+        return tree_rate_kernels(system)
     if system.is_rate_controlled:
         from robotgen.symbolic.rate_control import rate_control_kernels
 
@@ -106,6 +111,10 @@ def kernels_for(system: RobotSystem) -> list[Kernel]:
 def module_extras(system: RobotSystem) -> tuple[dict, dict]:
     """(extra info() and manifest keys, module attributes) worked out in the symbolic layer:
     a resolved-rate controller's settings and its regulator's gains and reports."""
+    if system.rate_controls_composite:
+        from robotgen.symbolic.tree_rate_control import tree_rate_report
+
+        return tree_rate_report(system)
     if system.is_rate_controlled:
         from robotgen.symbolic.rate_control import rate_control_report
 

@@ -38,7 +38,7 @@ class Plant:
         root = g.graph(g.system.root)
         self.n_v = root.sig.n_velocity
         self.v = ca.SX.sym("v", self.n_v)
-        leaf_v = self._leaf_velocities(g, self.v)  # Theta_dot = A_total(Theta) v
+        leaf_v = leaf_velocities(g, self.v)  # Theta_dot = A_total(Theta) v
         self.theta_dot = leaf_v
         A_total = ca.jacobian(leaf_v, self.v)
         self.tau = ca.SX.sym("tau", g.n)
@@ -76,24 +76,25 @@ class Plant:
             return None
         return ca.vertcat(*[out[leaf] for leaf in g.leaves])
 
-    @staticmethod
-    def _leaf_velocities(g: TreeGraphs, v: ca.SX) -> ca.SX:
-        """Leaf joint rates for root velocity v: w = A v at each ATTACH, down to the leaves."""
-        out: dict[str, ca.SX] = {}
 
-        def down(name: str, vel: ca.SX) -> None:
-            node = g.system.nodes[name]
-            graph = g.graph(name)
-            if graph.attach is None:
-                out[name] = vel
-                return
-            w = graph.attach.A @ vel
-            row = 0
-            for r in node.robots:
-                nv = g.graph(r).sig.n_velocity
-                down(r, rows(w, row, row + nv))
-                row += nv
+def leaf_velocities(g: TreeGraphs, v: ca.SX) -> ca.SX:
+    """Leaf joint rates for root velocity v: w = A v at each ATTACH, down to the leaves (the
+    tree's velocity map, linear in v; also what a resolved-rate controller of a composite
+    robot resolves its command through, robotgen.symbolic.tree_rate_control)."""
+    out: dict[str, ca.SX] = {}
 
-        down(g.system.root, v)
-        return ca.vertcat(*[out[leaf] for leaf in g.leaves])
+    def down(name: str, vel: ca.SX) -> None:
+        node = g.system.nodes[name]
+        graph = g.graph(name)
+        if graph.attach is None:
+            out[name] = vel
+            return
+        w = graph.attach.A @ vel
+        row = 0
+        for r in node.robots:
+            nv = g.graph(r).sig.n_velocity
+            down(r, rows(w, row, row + nv))
+            row += nv
 
+    down(g.system.root, v)
+    return ca.vertcat(*[out[leaf] for leaf in g.leaves])
