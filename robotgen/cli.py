@@ -1,4 +1,4 @@
-"""The command line (../shared/CONTRACT.md): build, check, schema, info.
+"""The command line (../shared/CONTRACT.md): build, check, schema, info, simulate.
 
 Exit status: 0 success, 1 the user's input is wrong, 2 usage error, 3 a bug in robotgen."""
 from __future__ import annotations
