@@ -13,9 +13,9 @@ from robotgen.symbolic.christoffel import coriolis_matrix
 from robotgen.symbolic.coriolis_spatial import coriolis_spatial, op_count
 from robotgen.symbolic.crba import crba
 from robotgen.symbolic.friction import friction_torque
-from robotgen.symbolic.jacobian import geometric_jacobian, hand_jacobian, jacobian_dot_qd
-from robotgen.symbolic.kinematics import forward_kinematics, joint_motions
-from robotgen.symbolic.rnea import rnea
+from robotgen.symbolic.jacobian import geometric_jacobian, hand_jacobian, tip_bias_acceleration
+from robotgen.symbolic.kinematics import forward_kinematics, joint_motions, joint_poses
+from robotgen.symbolic.rnea import forward_pass, rnea
 
 
 @dataclass(frozen=True, eq=False)
@@ -59,7 +59,13 @@ class ChainGraphs:
         return self._get("jacobian_hand", lambda: hand_jacobian(self.tree, self.sym.q))
 
     def jacobian_dot_qd(self) -> ca.SX:
-        return self._get("jdqd", lambda: jacobian_dot_qd(self.jacobian(), self.sym.q, self.sym.qd))
+        """From the forward pass that nonlinear() uses too (one pass in a fused kernel)."""
+        return self._get("jdqd", lambda: tip_bias_acceleration(
+            self.tree, joint_poses(self.tree, self.motions), *self.bias_pass()))
+
+    def bias_pass(self):
+        """RNEA's forward pass at qdd = 0 with gravity, shared by nonlinear and Jdot qd."""
+        return self._get("bias_pass", lambda: forward_pass(self.tree, self.motions, self.sym.qd, None))
 
     def mass(self) -> ca.SX:
         return self._get("mass", lambda: crba(self.tree, self.motions))
@@ -84,8 +90,8 @@ class ChainGraphs:
 
     def nonlinear(self) -> ca.SX:
         """C(q, qd) qd + N(q, qd): Newton-Euler with qdd = 0, plus friction."""
-        return self._get("nonlinear",
-                         lambda: rnea(self.tree, self.motions, self.sym.qd, None) + self.friction())
+        return self._get("nonlinear", lambda: rnea(self.tree, self.motions, self.sym.qd, None,
+                                                   passes=self.bias_pass()) + self.friction())
 
     def inverse_dynamics(self) -> ca.SX:
         def build():

@@ -36,5 +36,17 @@ def hand_jacobian(tree: KinematicTree, q: ca.SX) -> ca.SX:
 
 def jacobian_dot_qd(J: ca.SX, q: ca.SX, qd: ca.SX) -> ca.SX:
     """Jdot(q, qd) qd = d/dq (J(q) qd) . qd, by forward-mode AD (the tip's acceleration
-    at qdd = 0)."""
+    at qdd = 0). Kept as the reference for tip_bias_acceleration."""
     return ca.jtimes(J @ qd, q, qd)
+
+
+def tip_bias_acceleration(tree: KinematicTree, poses: list[tuple[ca.SX, ca.SX]], vel, acc) -> ca.SX:
+    """Jdot qd from RNEA's forward pass at qdd = 0 (with the base accelerating at -g):
+    the classical acceleration of the tip origin p (in the frame of joint ``tip``) is
+    a = a_v + a_w x p + w x (v + w x p); rotated to the base, with g added back."""
+    w, v = vel[tree.tip]
+    aw, av = acc[tree.tip]
+    p = const(tree.tool[:3, 3])
+    a = av + ca.cross(aw, p) + ca.cross(w, v + ca.cross(w, p))
+    R, _ = poses[tree.tip]
+    return ca.vertcat(R @ a + const(tree.gravity), R @ aw)

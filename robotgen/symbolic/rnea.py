@@ -17,16 +17,17 @@ from robotgen.symbolic.spatial import (
 )
 
 
-def rnea(tree: KinematicTree, motions: list[JointMotion], qd: ca.SX | None, qdd: ca.SX | None,
-         gravity: bool = True) -> ca.SX:
-    """Rigid-body joint torques M qdd + C qd + g (no armature, no friction). ``qd`` or
-    ``qdd`` None means zero, so that gravity alone and C qd + g stay small graphs."""
-    n = tree.nq
+Motion = tuple[ca.SX, ca.SX]  # (angular; linear) in a body frame
+
+
+def forward_pass(tree: KinematicTree, motions: list[JointMotion], qd: ca.SX | None, qdd: ca.SX | None,
+                 gravity: bool = True) -> tuple[list[Motion], list[Motion]]:
+    """Spatial velocity and acceleration of every body in its own frame (the first pass of
+    RNEA). With gravity, the base accelerates at -g, so every acceleration carries it."""
     zero = ca.SX.zeros(3, 1)
     a_base = (zero, -const(tree.gravity)) if gravity else (zero, zero)
-    vel: list[tuple[ca.SX, ca.SX]] = []
-    acc: list[tuple[ca.SX, ca.SX]] = []
-    force: list[list[ca.SX]] = []
+    vel: list[Motion] = []
+    acc: list[Motion] = []
     for i, (joint, m) in enumerate(zip(tree.joints, motions)):
         vp, ap = ((zero, zero), a_base) if joint.parent < 0 else (vel[joint.parent], acc[joint.parent])
         w, v = motion_transform(m, *vp)
@@ -39,6 +40,18 @@ def rnea(tree: KinematicTree, motions: list[JointMotion], qd: ca.SX | None, qdd:
             aw, av = aw + m.S_w * qdd[i], av + m.S_v * qdd[i]
         vel.append((w, v))
         acc.append((aw, av))
+    return vel, acc
+
+
+def rnea(tree: KinematicTree, motions: list[JointMotion], qd: ca.SX | None, qdd: ca.SX | None,
+         gravity: bool = True, passes: tuple[list[Motion], list[Motion]] | None = None) -> ca.SX:
+    """Rigid-body joint torques M qdd + C qd + g (no armature, no friction). ``qd`` or
+    ``qdd`` None means zero, so that gravity alone and C qd + g stay small graphs.
+    ``passes``: the forward pass if already built (shared with the tip acceleration)."""
+    n = tree.nq
+    vel, acc = passes or forward_pass(tree, motions, qd, qdd, gravity)
+    force: list[list[ca.SX]] = []
+    for joint, (w, v), (aw, av) in zip(tree.joints, vel, acc):
         body = OriginInertia.of_body(joint.body)
         n_i, f_i = body.apply(aw, av)
         if qd is not None:
