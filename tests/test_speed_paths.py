@@ -90,3 +90,17 @@ def test_build_refuses_to_replace_a_foreign_directory(tmp_path, capsys):
     assert main(["build", str(TWO_LINK), "-o", str(out)]) == 1
     assert "refusing to replace" in capsys.readouterr().err
     assert (out / "notes.txt").read_text() == "keep me"
+
+
+def test_module_takes_arrays_of_any_layout(build_module):
+    """Contiguous float64 arrays are used in place (the servo-loop fast path); anything else
+    (read-only, strided, float32, lists, big-endian) is converted and gives the same numbers."""
+    mod = build_module(TWO_LINK)
+    q = np.array([0.3, -0.7])
+    expected = mod.mass(q)
+    ro = q.copy()
+    ro.flags.writeable = False
+    strided = np.array([0.3, 9.0, -0.7, 9.0])[::2]
+    for variant in (ro, strided, q.astype(np.float32).astype(np.float64), list(q), q.astype(">f8")):
+        np.testing.assert_array_equal(mod.mass(variant), expected)
+    np.testing.assert_allclose(mod.mass(q.astype(np.float32)), expected, rtol=1e-6)

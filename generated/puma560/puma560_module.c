@@ -44,7 +44,14 @@ static int rg_convert_args(const char *fn, PyObject *const *args, Py_ssize_t nar
     }
     *batch = -1;
     for (i = 0; i < n; ++i) {
-        arrays[i] = (PyArrayObject *)PyArray_FROM_OTF(args[i], NPY_DOUBLE, NPY_ARRAY_IN_ARRAY);
+        if (PyArray_CheckExact(args[i]) && PyArray_TYPE((PyArrayObject *)args[i]) == NPY_DOUBLE
+            && PyArray_ISCARRAY_RO((PyArrayObject *)args[i]) && PyArray_ISNOTSWAPPED((PyArrayObject *)args[i])) {
+            /* already what the kernel reads: use it as it is (the common servo-loop case) */
+            Py_INCREF(args[i]);
+            arrays[i] = (PyArrayObject *)args[i];
+        } else {
+            arrays[i] = (PyArrayObject *)PyArray_FROM_OTF(args[i], NPY_DOUBLE, NPY_ARRAY_IN_ARRAY);
+        }
         if (arrays[i] == NULL) {
             return -1;
         }
