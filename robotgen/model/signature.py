@@ -15,6 +15,7 @@ from robotgen.model.chain import KinematicTree
 from robotgen.model.formula import FormulaRobot
 from robotgen.model.system import (
     CONSTRAINT_FORMULAS,
+    CONTACT_GRASPS,
     FRAME_CHANGE,
     PLANAR_CONTACTS,
     POINT_CONTACTS,
@@ -103,26 +104,18 @@ def _attach_signature(system: RobotSystem, node: AttachNode) -> Signature:
             external += outputs or chain_outputs(r, c.output)
         rows = len(external)  # J is (outputs x m), G = I
         n_forces = 0
-    elif c.kind == PLANAR_CONTACTS:
+    elif c.kind in CONTACT_GRASPS:
+        grasp = CONTACT_GRASPS[c.kind]
         payload = system.nodes[node.payload].leaf if node.payload else None
-        if not isinstance(payload, (PlanarBody, FormulaRobot)) or len(leaf_coordinates(payload)) != 3:
-            raise SignatureError(f"planar_contacts on '{node.name}' needs a planar payload (x, y, psi)")
+        if payload is None or len(leaf_coordinates(payload)) != grasp.pose_dim:
+            raise SignatureError(f"{c.kind} on '{node.name}' needs a payload: {grasp.payload}")
         external = leaf_coordinates(payload)
-        if m != 2 * len(c.contacts):
-            raise SignatureError(f"attach '{node.name}': {len(c.contacts)} planar contacts need "
-                                 f"{2 * len(c.contacts)} robot coordinates (fingertip x, y each), got {m}")
+        if m != grasp.tip_dim * len(c.contacts):
+            raise SignatureError(f"attach '{node.name}': {len(c.contacts)} contacts need "
+                                 f"{grasp.tip_dim * len(c.contacts)} robot coordinates (fingertip "
+                                 f"{grasp.axes} each), got {m}")
         rows = m  # J = I
-        n_forces = m - 3
-    elif c.kind == POINT_CONTACTS:
-        payload = system.nodes[node.payload].leaf if node.payload else None
-        if not isinstance(payload, (SpatialBody, FormulaRobot)) or len(leaf_coordinates(payload)) != 6:
-            raise SignatureError(f"point_contacts on '{node.name}' needs a spatial payload (6 coordinates)")
-        external = leaf_coordinates(payload)
-        if m != 3 * len(c.contacts):
-            raise SignatureError(f"attach '{node.name}': {len(c.contacts)} point contacts need "
-                                 f"{3 * len(c.contacts)} robot coordinates (fingertip x, y, z each), got {m}")
-        rows = m  # J = I
-        n_forces = m - 6
+        n_forces = m - grasp.pose_dim
     elif c.kind == CONSTRAINT_FORMULAS:
         external = c.coordinates
         rows = len(c.J) if c.J is not None else m

@@ -56,6 +56,22 @@ Leaf = KinematicTree | FormulaRobot | PlanarBody | SpatialBody
 FRAME_CHANGE = "frame_change"
 PLANAR_CONTACTS = "planar_contacts"
 POINT_CONTACTS = "point_contacts"
+
+
+@dataclass(frozen=True)
+class ContactGrasp:
+    """What a contact constraint needs: fingertip coordinates per contact and the payload."""
+
+    tip_dim: int  # robot coordinates per contact (x, y or x, y, z)
+    pose_dim: int  # payload coordinates
+    payload: str  # how the payload is described in messages
+    axes: str  # fingertip coordinates, for messages
+
+
+CONTACT_GRASPS = {
+    PLANAR_CONTACTS: ContactGrasp(2, 3, "a planar body (x, y, psi)", "x, y"),
+    POINT_CONTACTS: ContactGrasp(3, 6, "a spatial body (6 coordinates)", "x, y, z"),
+}
 CONSTRAINT_FORMULAS = "formulas"
 
 

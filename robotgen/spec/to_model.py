@@ -49,6 +49,7 @@ from robotgen.model.system import (
     FEEDFORWARD,
     FRAME_CHANGE,
     PD,
+    CONTACT_GRASPS,
     PAYLOAD_BODIES,
     PLANAR_CONTACTS,
     POINT_CONTACTS,
@@ -584,29 +585,18 @@ class _Builder:
                     continue
                 self.check_unique(owner, kinematic_outputs(system, r) or (), r, path + ("robots", i), "output",
                                   "rename its outputs")
-        elif c.kind == POINT_CONTACTS:
+        elif c.kind in CONTACT_GRASPS:
+            grasp = CONTACT_GRASPS[c.kind]
             if node.payload is None:
-                self.at_key(kind_path, "point_contacts needs a payload (a spatial body with 6 coordinates)")
-            elif payload is not None and len(leaf_names(payload)) != 6:
+                self.at_key(kind_path, f"{c.kind} needs a payload: {grasp.payload}")
+            elif payload is not None and len(leaf_names(payload)) != grasp.pose_dim:
                 self.at_value(path + ("payload",), f"payload '{node.payload}' has {len(leaf_names(payload))} "
-                                                   "coordinates; point_contacts needs a spatial body (6)")
+                                                   f"coordinates; {c.kind} needs {grasp.payload}")
             k = len(c.contacts)
-            if m != 3 * k:
-                self.at_key(kind_path + ("points",), f"{k} contact points need {3 * k} robot coordinates "
-                                                     f"(fingertip x, y, z each); robots {', '.join(node.robots)} "
-                                                     f"have {m}")
-        elif c.kind == PLANAR_CONTACTS:
-            if node.payload is None:
-                self.at_key(kind_path, "planar_contacts needs a payload (a planar body with coordinates "
-                                       "x, y, psi)")
-            elif payload is not None and len(leaf_names(payload)) != 3:
-                self.at_value(path + ("payload",), f"payload '{node.payload}' has {len(leaf_names(payload))} "
-                                                   "coordinates; planar_contacts needs a planar body (x, y, psi)")
-            k = len(c.contacts)
-            if m != 2 * k:
-                self.at_key(kind_path + ("points",), f"{k} contact points need {2 * k} robot coordinates "
-                                                     f"(fingertip x, y each); robots {', '.join(node.robots)} "
-                                                     f"have {m}")
+            if m != grasp.tip_dim * k:
+                self.at_key(kind_path + ("points",), f"{k} contact points need {grasp.tip_dim * k} robot "
+                                                     f"coordinates (fingertip {grasp.axes} each); robots "
+                                                     f"{', '.join(node.robots)} have {m}")
         else:
             if payload is not None and len(leaf_names(payload)) != len(c.coordinates):
                 self.at_value(path + ("payload",), f"payload '{node.payload}' has {len(leaf_names(payload))} "

@@ -189,11 +189,7 @@ def read_urdf(path: str, tip: str, base: str | None = None, name: str | None = N
     actuated = [j for j in path_joints if j.attrib["type"] != "fixed"]
     if not actuated:
         raise UserError(r.loc(links[tip]), f"no movable joint between '{base}' and '{tip}'")
-    for j in actuated:
-        mimic = j.find("mimic")
-        if mimic is not None:
-            raise r.fail(mimic, f"joint '{j.attrib.get('name')}' is a mimic joint, which robotgen "
-                                "does not support on the chain")
+    _reject_mimic(r, actuated, "on the chain")
     canonical, frames, locked = _normalise(r, links, joints, parent_of, base, actuated)
     tip_owner, tool = frames[tip]
     robot_name = name or root.attrib.get("name", Path(path).stem)
@@ -250,11 +246,7 @@ def read_urdf_tree(path: str, base: str | None = None, tip: str | None = None,
     actuated = [joints[l] for l in order[1:] if joints[l].attrib["type"] != "fixed"]
     if not actuated:
         raise UserError(r.loc(links[base]), f"no movable joint below base link '{base}'")
-    for j in actuated:
-        mimic = j.find("mimic")
-        if mimic is not None:
-            raise r.fail(mimic, f"joint '{j.attrib.get('name')}' is a mimic joint, which robotgen does "
-                                "not support in a tree (it couples two coordinates)")
+    _reject_mimic(r, actuated, "in a tree (it couples two coordinates)")
     canonical, frames, locked = _normalise(r, links, joints, parent_of, base, actuated)
     assert not locked
     if tip is None:
@@ -317,6 +309,14 @@ def _read_links_and_joints(path: str, floating_ok: bool):
         joints[child] = el
     parent_of = {c: j.find("parent").attrib["link"] for c, j in joints.items()}
     return r, links, joints, parent_of, floating
+
+
+def _reject_mimic(r: _Reader, actuated: list[Element], where: str) -> None:
+    for j in actuated:
+        mimic = j.find("mimic")
+        if mimic is not None:
+            raise r.fail(mimic, f"joint '{j.attrib.get('name')}' is a mimic joint, which robotgen "
+                                f"does not support {where}")
 
 
 def _single_root(r: _Reader, links: dict, joints: dict) -> str:
