@@ -17,6 +17,25 @@ CASADI_LIB = {
 }
 
 
+def expression_column(exprs, env) -> ca.SX:
+    """The expressions as a CasADi column, names bound by ``env``."""
+    return ca.vertcat(*[ca.SX(evaluate(e, env, CASADI_LIB)) for e in exprs])
+
+
+def expression_matrix(rows, env) -> ca.SX:
+    return ca.vertcat(*[expression_column(row, env).T for row in rows])
+
+
+def expression_map(exprs, names, parameters):
+    """x -> the expressions with ``names`` bound to the entries of x (an inverse map given
+    as formulas: StyxDefinitions.m's RobotInverse, an attach's h^-1)."""
+    def apply(x: ca.SX) -> ca.SX:
+        env = dict(parameters)
+        env.update({name: x[i] for i, name in enumerate(names)})
+        return expression_column(exprs, env)
+    return apply
+
+
 class FormulaGraphs:
     def __init__(self, robot: FormulaRobot, sym: Symbols):
         self.robot = robot
@@ -26,11 +45,8 @@ class FormulaGraphs:
         env.update({name: sym.qd[i] for i, name in enumerate(robot.velocities)})
         self._env = env
 
-    def _eval(self, expr) -> ca.SX:
-        return ca.SX(evaluate(expr, self._env, CASADI_LIB))
-
     def _matrix(self, rows) -> ca.SX:
-        return ca.vertcat(*[ca.horzcat(*[self._eval(e) for e in row]) for row in rows])
+        return expression_matrix(rows, self._env)
 
     def mass(self) -> ca.SX:
         return self._matrix(self.robot.mass)
@@ -43,7 +59,7 @@ class FormulaGraphs:
     def n_term(self, qd: ca.SX) -> ca.SX:
         if self.robot.nonlinear is None:
             return ca.SX.zeros(self.robot.nq, 1)
-        N = ca.vertcat(*[self._eval(e) for e in self.robot.nonlinear])
+        N = expression_column(self.robot.nonlinear, self._env)
         return ca.substitute(N, self.sym.qd, qd)
 
     def gravity(self) -> ca.SX:
@@ -59,7 +75,7 @@ class FormulaGraphs:
         return cholesky_solve(self.mass(), self.sym.tau - self.nonlinear())
 
     def kinematics(self) -> ca.SX:
-        return ca.vertcat(*[self._eval(e) for e in self.robot.kinematics])
+        return expression_column(self.robot.kinematics, self._env)
 
     def kinematics_jacobian(self) -> ca.SX:
         return ca.jacobian(self.kinematics(), self.sym.q)

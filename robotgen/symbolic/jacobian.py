@@ -34,12 +34,6 @@ def hand_jacobian(tree: KinematicTree, q: ca.SX) -> ca.SX:
     return ca.vertcat(R.T @ J[:3, :], R.T @ J[3:, :])
 
 
-def jacobian_dot_qd(J: ca.SX, q: ca.SX, qd: ca.SX) -> ca.SX:
-    """Jdot(q, qd) qd = d/dq (J(q) qd) . qd, by forward-mode AD (the tip's acceleration
-    at qdd = 0). Kept as the reference for tip_bias_acceleration."""
-    return ca.jtimes(J @ qd, q, qd)
-
-
 def tip_bias_acceleration(tree: KinematicTree, poses: list[tuple[ca.SX, ca.SX]], vel, acc) -> ca.SX:
     """Jdot qd from RNEA's forward pass at qdd = 0 (with the base accelerating at -g):
     the classical acceleration of the tip origin p (in the frame of joint ``tip``) is

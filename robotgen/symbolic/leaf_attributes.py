@@ -8,12 +8,11 @@ from dataclasses import dataclass
 import casadi as ca
 
 from robotgen.model.chain import KinematicTree
-from robotgen.model.expression import evaluate
 from robotgen.model.formula import FormulaRobot
 from robotgen.model.system import PlanarBody, SpatialBody
 from robotgen.symbolic.chain_graphs import ChainGraphs, Symbols
 from robotgen.symbolic.christoffel import coriolis_matrix
-from robotgen.symbolic.formula_graphs import CASADI_LIB, FormulaGraphs
+from robotgen.symbolic.formula_graphs import FormulaGraphs, expression_map
 from robotgen.symbolic.spatial import const
 
 
@@ -40,12 +39,8 @@ def leaf_attributes(leaf, q: ca.SX, qd: ca.SX) -> LeafAttributes:
     if isinstance(leaf, FormulaRobot):
         g = FormulaGraphs(leaf, sym)
         kin = (lambda output: g.kinematics()) if leaf.kinematics else None
-        ik = None
-        if leaf.inverse_kinematics:
-            def ik(x: ca.SX) -> ca.SX:
-                env = dict(leaf.parameters)
-                env.update({name: x[i] for i, name in enumerate(leaf.outputs)})
-                return ca.vertcat(*[ca.SX(evaluate(e, env, CASADI_LIB)) for e in leaf.inverse_kinematics])
+        ik = (expression_map(leaf.inverse_kinematics, leaf.outputs, leaf.parameters)
+              if leaf.inverse_kinematics else None)
         return LeafAttributes(g.mass(), g.coriolis(), g.n_term(qd), kin, ik)
     if isinstance(leaf, PlanarBody):
         M = ca.SX(ca.DM(ca.diag(ca.DM([leaf.mass, leaf.mass, leaf.inertia]))))

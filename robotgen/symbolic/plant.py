@@ -48,53 +48,42 @@ class Plant:
         self.read_v = root.v  # v from a sensed (Theta, Theta_dot)
         self.x = root.x
         self.x_sym = ca.SX.sym("x", root.sig.n_external)
-        self.inverse = self._positions_down(g, self.x_sym)  # Theta from root positions, or None
+        self.inverse = leaf_positions(g, self.x_sym)  # Theta from root positions, or None
 
-    @staticmethod
-    def _positions_down(g: TreeGraphs, x: ca.SX) -> ca.SX | None:
-        """Leaf positions from root positions through every ATTACH's h^-1, if all have one."""
-        out: dict[str, ca.SX] = {}
 
-        def down(name: str, pos: ca.SX) -> bool:
-            node = g.system.nodes[name]
-            graph = g.graph(name)
-            if graph.attach is None:
-                out[name] = pos
-                return True
-            if graph.attach.h_inverse is None:
-                return False
-            y = graph.attach.h_inverse(pos)
-            row = 0
-            for r in node.robots:
-                ne = g.graph(r).sig.n_external
-                if not down(r, rows(y, row, row + ne)):
-                    return False
-                row += ne
+def _to_leaves(g: TreeGraphs, value: ca.SX, step, share) -> ca.SX | None:
+    """Carry a root quantity down through every ATTACH to the leaves and stack it in leaf
+    order. ``step(attach_maps, value)`` gives the robots' stacked values (None where it
+    cannot), ``share(signature)`` each robot's length in them."""
+    out: dict[str, ca.SX] = {}
+
+    def down(name: str, val: ca.SX) -> bool:
+        graph = g.graph(name)
+        if graph.attach is None:
+            out[name] = val
             return True
+        stacked = step(graph.attach, val)
+        if stacked is None:
+            return False
+        row = 0
+        for r in g.system.nodes[name].robots:
+            n = share(g.graph(r).sig)
+            if not down(r, rows(stacked, row, row + n)):
+                return False
+            row += n
+        return True
 
-        if not down(g.system.root, x):
-            return None
-        return ca.vertcat(*[out[leaf] for leaf in g.leaves])
+    return ca.vertcat(*[out[leaf] for leaf in g.leaves]) if down(g.system.root, value) else None
 
 
 def leaf_velocities(g: TreeGraphs, v: ca.SX) -> ca.SX:
     """Leaf joint rates for root velocity v: w = A v at each ATTACH, down to the leaves (the
     tree's velocity map, linear in v; also what a resolved-rate controller of a composite
     robot resolves its command through, robotgen.symbolic.tree_rate_control)."""
-    out: dict[str, ca.SX] = {}
+    return _to_leaves(g, v, lambda maps, vel: maps.A @ vel, lambda sig: sig.n_velocity)
 
-    def down(name: str, vel: ca.SX) -> None:
-        node = g.system.nodes[name]
-        graph = g.graph(name)
-        if graph.attach is None:
-            out[name] = vel
-            return
-        w = graph.attach.A @ vel
-        row = 0
-        for r in node.robots:
-            nv = g.graph(r).sig.n_velocity
-            down(r, rows(w, row, row + nv))
-            row += nv
 
-    down(g.system.root, v)
-    return ca.vertcat(*[out[leaf] for leaf in g.leaves])
+def leaf_positions(g: TreeGraphs, x: ca.SX) -> ca.SX | None:
+    """Leaf positions from root positions through every ATTACH's h^-1, if all have one."""
+    return _to_leaves(g, x, lambda maps, pos: maps.h_inverse(pos) if maps.h_inverse else None,
+                      lambda sig: sig.n_external)

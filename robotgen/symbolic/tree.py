@@ -13,7 +13,6 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
-from robotgen.model.expression import evaluate
 from robotgen.model.system import (
     CONSTRAINT_FORMULAS,
     FRAME_CHANGE,
@@ -26,7 +25,7 @@ from robotgen.model.system import (
     RobotSystem,
 )
 from robotgen.model.signature import Signature, robot_leaves, signature
-from robotgen.symbolic.formula_graphs import CASADI_LIB
+from robotgen.symbolic.formula_graphs import expression_column, expression_map, expression_matrix
 from robotgen.symbolic.leaf_attributes import LeafAttributes, leaf_attributes, rpy_rate_map, rpy_rotation
 from robotgen.symbolic.spatial import skew
 from robotgen.symbolic.nullspace import block_null_rows, gram_schmidt, null_rows
@@ -70,6 +69,12 @@ def _pad(X: ca.SX, n: int) -> ca.SX:
     if X.shape[1] == 1:
         return ca.vertcat(X, ca.SX.zeros(n - k, 1))
     return ca.blockcat([[X, ca.SX.zeros(k, n - k)], [ca.SX.zeros(n - k, k), ca.SX.zeros(n - k, n - k)]])
+
+
+def _stacked_map(maps: list[Callable[[ca.SX], ca.SX]], sizes: list[int]) -> Callable[[ca.SX], ca.SX]:
+    """Apply each map to its own consecutive slice of the input and stack the results."""
+    offsets = np.cumsum([0] + sizes).tolist()
+    return lambda x: ca.vertcat(*[f(rows(x, a, b)) for f, a, b in zip(maps, offsets, offsets[1:])])
 
 
 def _rot2(psi: ca.SX) -> ca.SX:
@@ -144,8 +149,9 @@ class TreeGraphs:
         if H is None:
             H = null_rows(G) if G.shape[1] > n else ca.SX(0, G.shape[1])
         GGt = G @ G.T
-        G_pinv = G.T @ ca.solve(GGt, ca.SX.eye(n))  # G^+ (rows x n)
-        J_pinv = J.T @ ca.solve(J @ J.T, ca.SX.eye(n_rows)) if m > n_rows else ca.solve(J, ca.SX.eye(m))
+        G_pinv = ca.solve(GGt, G).T  # G^+ = G^T (G G^T)^-1, by a solve (rows x n)
+        # J^-1 G^T (J square) or J^+ G^T = J^T (J J^T)^-1 G^T (eq 5.9), by solves
+        J_pinv_Gt = J.T @ ca.solve(J @ J.T, G.T) if m > n_rows else ca.solve(J, G.T)
         n_m1, n_m2 = K.shape[0], w_i.shape[0]
 
         # rd: velocities in node coordinates (eqs 3.7, 5.11-5.12)
@@ -154,7 +160,7 @@ class TreeGraphs:
         n_vel = v.shape[0]
 
         # A: children velocities from node velocity (eqs 3.3, 5.8-5.9), rows in children order
-        A_ext = ca.horzcat(J_pinv @ G.T, K.T, ca.SX.zeros(m, n_m2))
+        A_ext = ca.horzcat(J_pinv_Gt, K.T, ca.SX.zeros(m, n_m2))
         A_int = ca.horzcat(ca.SX.zeros(n_m2, n + n_m1), ca.SX.eye(n_m2))
         blocks, e0, i0 = [], 0, 0
         for k in kids:
@@ -235,16 +241,8 @@ class TreeGraphs:
             x = ca.vertcat(*outs)
             J = ca.jacobian(x, y)
             K = block_null_rows(J, [o.shape[0] for o in outs], [k.sig.n_external for k in kids])
-            h_inverse = None
-            if all(lf.leaf.inverse_kinematics for lf in leaves):
-                sizes = [o.shape[0] for o in outs]
-
-                def h_inverse(xe: ca.SX) -> ca.SX:
-                    parts, o = [], 0
-                    for lf, s in zip(leaves, sizes):
-                        parts.append(lf.leaf.inverse_kinematics(rows(xe, o, o + s)))
-                        o += s
-                    return ca.vertcat(*parts)
+            inverses = [lf.leaf.inverse_kinematics for lf in leaves]
+            h_inverse = _stacked_map(inverses, [o.shape[0] for o in outs]) if all(inverses) else None
             return x, J, ca.SX.eye(x.shape[0]), h_inverse, K, None
         if c.kind == PLANAR_CONTACTS:
             pts = np.asarray(c.contacts, dtype=float)
@@ -274,16 +272,10 @@ class TreeGraphs:
             env: dict[str, object] = dict(c.parameters)
             names = [nm for k in kids for nm in k.sig.external]
             env.update({nm: y[i] for i, nm in enumerate(names)})
-            x = ca.vertcat(*[ca.SX(evaluate(e, env, CASADI_LIB)) for e in c.h])
+            x = expression_column(c.h, env)
             env.update({nm: x[i] for i, nm in enumerate(c.coordinates)})
-            J = (ca.vertcat(*[ca.horzcat(*[ca.SX(evaluate(e, env, CASADI_LIB)) for e in row]) for row in c.J])
-                 if c.J is not None else ca.SX.eye(m))
-            G = ca.vertcat(*[ca.horzcat(*[ca.SX(evaluate(e, env, CASADI_LIB)) for e in row]) for row in c.G])
-            h_inverse = None
-            if c.h_inverse:
-                def h_inverse(xe: ca.SX) -> ca.SX:
-                    e2 = dict(c.parameters)
-                    e2.update({nm: xe[i] for i, nm in enumerate(c.coordinates)})
-                    return ca.vertcat(*[ca.SX(evaluate(e, e2, CASADI_LIB)) for e in c.h_inverse])
+            J = expression_matrix(c.J, env) if c.J is not None else ca.SX.eye(m)
+            G = expression_matrix(c.G, env)
+            h_inverse = expression_map(c.h_inverse, c.coordinates, c.parameters) if c.h_inverse else None
             return x, J, G, h_inverse, None, None
         raise ValueError(f"unknown constraint kind {c.kind}")
