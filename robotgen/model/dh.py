@@ -22,6 +22,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from robotgen.model import exact
 from robotgen.model.chain import Body, Joint, Limits
 from robotgen.model.transforms import rot_x, rot_z, trans
 
@@ -66,10 +67,9 @@ class JointRow:
 def unit_axis(axis) -> np.ndarray:
     """``axis`` scaled to unit length; ValueError if it is (numerically) zero."""
     v = np.asarray(axis, dtype=float)
-    norm = float(np.linalg.norm(v))
-    if norm < 1e-12:
+    if exact.norm(v) < 1e-12:
         raise ValueError("joint axis must not be the zero vector")
-    return v / norm
+    return exact.unit(v)
 
 
 def armature(motor_inertia: float, gear_ratio: float) -> float:
@@ -80,18 +80,18 @@ def armature(motor_inertia: float, gear_ratio: float) -> float:
 def body_in_frame(body: Body, T: np.ndarray) -> Body:
     """``body`` given in frame B, expressed in frame A, where T = A -> B."""
     R, p = T[:3, :3], T[:3, 3]
-    inertia = R @ body.inertia @ R.T
-    return Body(body.mass, R @ body.com + p, 0.5 * (inertia + inertia.T))
+    inertia = exact.matmul(R, body.inertia, R.T)
+    return Body(body.mass, exact.add(exact.matmul(R, body.com), p), exact.add((0.5, inertia), (0.5, inertia.T)))
 
 
 def dh_standard_fixed(row: DHParameters) -> np.ndarray:
     """P = Rz(theta) Tz(d) Tx(a) Rx(alpha): the part of a standard DH row after the motion."""
-    return rot_z(row.theta) @ trans(0, 0, row.d) @ trans(row.a, 0, 0) @ rot_x(row.alpha)
+    return exact.matmul(rot_z(row.theta), trans(0, 0, row.d), trans(row.a, 0, 0), rot_x(row.alpha))
 
 
 def dh_modified_origin(row: DHParameters) -> np.ndarray:
     """Rx(alpha_{i-1}) Tx(a_{i-1}) Rz(theta_i) Tz(d_i)."""
-    return rot_x(row.alpha) @ trans(row.a, 0, 0) @ rot_z(row.theta) @ trans(0, 0, row.d)
+    return exact.matmul(rot_x(row.alpha), trans(row.a, 0, 0), rot_z(row.theta), trans(0, 0, row.d))
 
 
 def _joint(row: JointRow, index: int, origin: np.ndarray, axis: np.ndarray, body: Body) -> Joint:
@@ -110,13 +110,14 @@ def dh_standard_chain(rows: Sequence[JointRow], base: np.ndarray,
         fixed = dh_standard_fixed(row.dh)
         joints.append(_joint(row, i, before, Z_AXIS.copy(), body_in_frame(row.body, fixed)))
         before = fixed
-    return tuple(joints), before @ tool
+    return tuple(joints), exact.matmul(before, tool)
 
 
 def dh_modified_chain(rows: Sequence[JointRow], base: np.ndarray,
                       tool: np.ndarray) -> tuple[tuple[Joint, ...], np.ndarray]:
     joints = tuple(
-        _joint(row, i, (base if i == 0 else np.eye(4)) @ dh_modified_origin(row.dh), Z_AXIS.copy(), row.body)
+        _joint(row, i, exact.matmul(base if i == 0 else np.eye(4), dh_modified_origin(row.dh)), Z_AXIS.copy(),
+               row.body)
         for i, row in enumerate(rows))
     return joints, tool.copy()
 
@@ -124,7 +125,7 @@ def dh_modified_chain(rows: Sequence[JointRow], base: np.ndarray,
 def joint_list_chain(rows: Sequence[JointRow], base: np.ndarray,
                      tool: np.ndarray) -> tuple[tuple[Joint, ...], np.ndarray]:
     joints = tuple(
-        _joint(row, i, (base if i == 0 else np.eye(4)) @ row.origin, unit_axis(row.axis), row.body)
+        _joint(row, i, exact.matmul(base if i == 0 else np.eye(4), row.origin), unit_axis(row.axis), row.body)
         for i, row in enumerate(rows))
     return joints, tool.copy()
 

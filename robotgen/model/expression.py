@@ -14,6 +14,7 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass, replace
 
 from robotgen.errors import Location, UserError
+from robotgen.model import exact
 
 # name -> number of arguments
 FUNCTIONS: dict[str, int] = {
@@ -46,12 +47,14 @@ def _sign(x: float) -> float:
     return float((x > 0) - (x < 0))
 
 
-# Float implementations of every whitelisted function, plus "pow" for ** and ^.
+# Float implementations of every whitelisted function, plus "pow" for ** and ^: correctly
+# rounded (robotgen.model.exact), so a constant such as "pi/3" or "0.1^2" is the same double
+# on every machine.
 MATH_LIB: dict[str, Callable[..., float]] = {
-    "sin": math.sin, "cos": math.cos, "tan": math.tan, "asin": math.asin, "acos": math.acos,
-    "atan": math.atan, "atan2": math.atan2, "exp": math.exp, "log": math.log, "sqrt": math.sqrt,
-    "abs": math.fabs, "tanh": math.tanh, "sinh": math.sinh, "cosh": math.cosh, "sign": _sign,
-    "min": min, "max": max, "pow": math.pow,
+    "sin": exact.sin, "cos": exact.cos, "tan": exact.tan, "asin": exact.asin, "acos": exact.acos,
+    "atan": exact.atan, "atan2": exact.atan2, "exp": exact.exp, "log": exact.log, "sqrt": exact.sqrt,
+    "abs": math.fabs, "tanh": exact.tanh, "sinh": exact.sinh, "cosh": exact.cosh, "sign": _sign,
+    "min": min, "max": max, "pow": exact.power,
 }
 
 

@@ -7,7 +7,7 @@ carries their products. Entries of joint and tool rotations and of joint axes wi
 SNAP_TOLERANCE of 0 or +-1 are snapped, and only when the snapped rotation is still
 orthonormal to 1e-15 (so nothing but noise is ever removed). The snapped model differs
 from the unsnapped one by at most the tolerance in any rotation entry;
-tests/test_snap.py checks every quantity of both against each other.
+tests check every quantity of both against each other (test_speed_paths.py).
 """
 from __future__ import annotations
 
@@ -15,6 +15,7 @@ import dataclasses
 
 import numpy as np
 
+from robotgen.model import exact
 from robotgen.model.chain import KinematicTree
 
 SNAP_TOLERANCE = 1e-9
@@ -29,7 +30,7 @@ def _snap_values(a: np.ndarray, tol: float) -> np.ndarray:
 
 def snap_rotation(T: np.ndarray, tol: float = SNAP_TOLERANCE) -> np.ndarray:
     R = _snap_values(T[:3, :3], tol)
-    if np.abs(R @ R.T - np.eye(3)).max() > 1e-15:
+    if np.abs(exact.add(exact.matmul(R, R.T), (-1.0, np.eye(3)))).max() > 1e-15:
         return T
     out = T.copy()
     out[:3, :3] = R
@@ -39,7 +40,7 @@ def snap_rotation(T: np.ndarray, tol: float = SNAP_TOLERANCE) -> np.ndarray:
 
 def snap_axis(axis: np.ndarray, tol: float = SNAP_TOLERANCE) -> np.ndarray:
     a = _snap_values(axis, tol)
-    return a / np.linalg.norm(a)
+    return exact.unit(a)
 
 
 def snap_tree(tree: KinematicTree, tol: float = SNAP_TOLERANCE) -> KinematicTree:

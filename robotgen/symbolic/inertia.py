@@ -7,6 +7,7 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
+from robotgen.model import exact
 from robotgen.model.chain import Body
 from robotgen.symbolic.spatial import const
 
@@ -20,7 +21,7 @@ class OriginInertia:
     @staticmethod
     def of_body(body: Body) -> "OriginInertia":
         c = np.asarray(body.com, dtype=float)
-        Ibar = np.asarray(body.inertia, dtype=float) + body.mass * (np.dot(c, c) * np.eye(3) - np.outer(c, c))
+        Ibar = exact.parallel_axis(body.inertia, body.mass, c)
         return OriginInertia(ca.SX(body.mass), const(body.mass * c), const(Ibar))
 
     def apply(self, w: ca.SX, v: ca.SX) -> tuple[ca.SX, ca.SX]:

@@ -10,11 +10,13 @@ qdd = M^-1 (tau - C qd - N), differentiated (CasADi AD) at the nominal:
 K = dN/dtheta (gravity stiffness, and springs if the model had any), B = dN/dtheta_dot
 (viscous and linearised Coulomb friction); the Coriolis terms vanish at zero rate.
 
-The regulator dtau = -K_lqr s minimises the integral of s^T Q s + dtau^T R dtau (scipy's
-continuous algebraic Riccati solver). Controllability of (A, B) and observability of
+The regulator dtau = -K_lqr s minimises the integral of s^T Q s + dtau^T R dtau; the
+continuous algebraic Riccati equation is solved by robotgen.symbolic.riccati, whose result is
+the same on every machine (the gains are printed into the C). Controllability of (A, B) and observability of
 (A, [I 0]) -- from dtheta alone, as the paper claims -- are checked by the
 Popov-Belevitch-Hautus test (rank [A - lambda I, B] at every eigenvalue lambda of A), which
-stays reliable where the Kalman matrix [B AB ... A^(2n-1) B] is badly scaled.
+stays reliable where the Kalman matrix [B AB ... A^(2n-1) B] is badly scaled. The report's
+eigenvalue figures come from LAPACK and are printed to 4 significant digits.
 """
 from __future__ import annotations
 
@@ -27,8 +29,7 @@ import numpy as np
 from robotgen.model.chain import KinematicTree
 from robotgen.model.rate_control import LQRSettings
 from robotgen.symbolic.chain_graphs import ChainGraphs, Symbols
-
-SIGNIFICANT = 12  # emitted gains are rounded so that builds agree across LAPACK builds
+from robotgen.symbolic.riccati import gain, solve_care
 
 
 @dataclass(frozen=True, eq=False)
@@ -73,19 +74,12 @@ def pbh_rank(A: np.ndarray, M: np.ndarray, *, rows: bool) -> int:
     return int(min(ranks))
 
 
-def _round(x: np.ndarray) -> np.ndarray:
-    return np.array([float(f"{v:.{SIGNIFICANT}g}") for v in np.asarray(x, float).ravel()]).reshape(np.shape(x))
-
-
 @functools.lru_cache(maxsize=8)
 def regulator(tree: KinematicTree, settings: LQRSettings) -> RegulatorDesign:
-    from scipy.linalg import solve_continuous_are
-
     n = tree.nq
     model = linearise(tree, settings.nominal)
     Q, R = np.diag(settings.q_weights), np.diag(settings.r_weights)
-    P = solve_continuous_are(model.A, model.B, Q, R)
-    K = _round(np.linalg.solve(R, model.B.T @ P))
+    K = gain(model.B, R, solve_care(model.A, model.B, Q, R))
     closed = np.linalg.eigvals(model.A - model.B @ K)
     C = np.hstack([np.eye(n), np.zeros((n, n))])
     report = {
@@ -93,11 +87,10 @@ def regulator(tree: KinematicTree, settings: LQRSettings) -> RegulatorDesign:
         "state_dimension": 2 * n,
         "controllability_rank": pbh_rank(model.A, model.B, rows=False),
         "observability_rank_from_positions": pbh_rank(model.A, C, rows=True),
-        "closed_loop_max_real_part": float(f"{closed.real.max():.6g}"),
-        "open_loop_max_real_part": float(f"{np.linalg.eigvals(model.A).real.max():.6g}"),
+        "closed_loop_max_real_part": float(f"{closed.real.max():.4g}"),
+        "open_loop_max_real_part": float(f"{np.linalg.eigvals(model.A).real.max():.4g}"),
     }
     report["controllable"] = report["controllability_rank"] == 2 * n
     report["observable_from_positions"] = report["observability_rank_from_positions"] == 2 * n
     report["stable"] = report["closed_loop_max_real_part"] < 0
-    linear = Linearisation(_round(model.A), _round(model.B), model.nominal, _round(model.tau0))
-    return RegulatorDesign(linear, K, Q, R, report)
+    return RegulatorDesign(model, K, Q, R, report)

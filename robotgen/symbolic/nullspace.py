@@ -4,15 +4,16 @@ eq 2.4). An SVD has no symbolic form, so:
 - co-dimension one (an (m-1) x m full-rank matrix): the generalised cross product, whose
   entries are the signed (m-1)-minors, normalised;
 - larger: Gram-Schmidt on the projector I - A^+ A applied to k fixed directions drawn once
-  from a seeded generator (coordinate axes would often lie in the row space of a sparse A,
+  from a seeded generator (the same on every machine) (coordinate axes would often lie in the row space of a sparse A,
   leaving 0/0); smooth wherever those projections stay independent, which for generic
   directions is everywhere but a set of measure zero.
 Blocks of a block-diagonal matrix are handled one block at a time, so two redundant
 fingers give two orthonormal rows with disjoint support."""
 from __future__ import annotations
 
+import random
+
 import casadi as ca
-import numpy as np
 
 
 def _det(A: ca.SX) -> ca.SX:
@@ -36,7 +37,8 @@ def null_rows(A: ca.SX) -> ca.SX:
         v = generalized_cross(A)
         return v / ca.norm_2(v.T)
     P = ca.SX.eye(m) - A.T @ ca.solve(A @ A.T, A)
-    directions = np.random.default_rng(20260101).normal(size=(k, m))
+    generator = random.Random(20260101)  # Mersenne Twister: the same directions on every machine
+    directions = [[generator.uniform(-1.0, 1.0) for _ in range(m)] for _ in range(k)]
     return gram_schmidt([P @ ca.DM(d) for d in directions])
 
 

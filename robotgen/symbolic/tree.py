@@ -13,6 +13,7 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
+from robotgen.model import exact
 from robotgen.model.system import (
     CONSTRAINT_FORMULAS,
     FRAME_CHANGE,
@@ -44,6 +45,8 @@ class AttachMaps:
     h_inverse: Callable[[ca.SX], ca.SX] | None
     n_created_motions: int
     n_created_forces: int
+    J: ca.SX  # constraint rows x robot coordinates (eq 3.2)
+    H: ca.SX  # internal-force rows, orthonormal, spanning null(G) (eq 2.4)
 
 
 @dataclass(eq=False)
@@ -180,7 +183,7 @@ class TreeGraphs:
         N = _pad(Np, n_vel) + A.T @ N_R
 
         D = ca.horzcat(J.T @ G_pinv, K.T, J.T @ H.T)
-        maps = AttachMaps(A, Adot, D, h_inverse, n_m1, H.shape[0])
+        maps = AttachMaps(A, Adot, D, h_inverse, n_m1, H.shape[0], J, H)
         return NodeGraph(node.name, sig, x, v, M, C, N, attach=maps)
 
     def _payload(self, node: AttachNode, x: ca.SX, xd: ca.SX) -> tuple[ca.SX, ca.SX, ca.SX]:
@@ -223,7 +226,7 @@ class TreeGraphs:
         if len(pts) == 3:  # squeezes along the lines between contact pairs span null(G)
             squeezes = []
             for i, j in ((0, 1), (0, 2), (1, 2)):
-                u = Rx @ ca.DM((pts[j] - pts[i]) / np.linalg.norm(pts[j] - pts[i]))
+                u = Rx @ ca.DM(exact.unit(pts[j] - pts[i]))
                 parts = [ca.SX.zeros(3, 1)] * 3
                 parts[i], parts[j] = u, -u
                 squeezes.append(ca.vertcat(*parts))
@@ -248,7 +251,7 @@ class TreeGraphs:
             pts = np.asarray(c.contacts, dtype=float)
             p1, p2 = y[0:2], y[2:4]
             d = p2 - p1
-            psi = ca.atan2(d[1], d[0]) - float(np.arctan2(*(pts[1] - pts[0])[::-1]))
+            psi = ca.atan2(d[1], d[0]) - exact.atan2(pts[1][1] - pts[0][1], pts[1][0] - pts[0][0])
             pos = p1 - _rot2(psi) @ ca.DM(pts[0])
             x = ca.vertcat(pos, psi)
 
@@ -263,8 +266,8 @@ class TreeGraphs:
                 cols += [ca.vertcat(1, 0, -r[1]), ca.vertcat(0, 1, r[0])]
             H = None
             if len(pts) == 2:  # positive internal force = squeeze: tip 1 pushes toward tip 2
-                u = R @ ca.DM((pts[1] - pts[0]) / np.linalg.norm(pts[1] - pts[0]))
-                H = ca.horzcat(u.T, -u.T) / np.sqrt(2.0)
+                u = R @ ca.DM(exact.unit(pts[1] - pts[0]))
+                H = ca.horzcat(u.T, -u.T) / exact.sqrt(2.0)
             return x, ca.SX.eye(m), ca.horzcat(*cols), h_inverse, None, H
         if c.kind == POINT_CONTACTS:
             return self._point_contacts(np.asarray(c.contacts, dtype=float), y, m)
