@@ -2,9 +2,15 @@
 no output directory."""
 from __future__ import annotations
 
+import numpy as np
 import pytest
 
 from robotgen.cli import main
+
+def messages(err: str) -> str:
+    """stderr without the build's progress lines ("robotgen: [  1.2 s] ..."), which -q silences."""
+    return "".join(l for l in err.splitlines(True) if not l.startswith("robotgen: ["))
+
 
 LINK = '<link name="{0}"><inertial><mass value="1"/><inertia ixx="0.1" iyy="0.1" izz="0.1" ixy="0" ixz="0" iyz="0"/></inertial></link>'
 
@@ -23,13 +29,17 @@ OK1 = joint("j1", "revolute", "base", "l1", '<limit lower="-1" upper="1" effort=
 CASES = {
     "floating": ([OK1, joint("j2", "floating", "l1", "l2")], "l2", "j2' is a floating joint"),
     "planar": ([OK1, joint("j2", "planar", "l1", "l2")], "l2", "j2' is a planar joint"),
-    "mimic": ([OK1, joint("j2", "revolute", "l1", "l2", '<mimic joint="j1"/>')], "l2", "mimic joint"),
+    "mimic": ([OK1, joint("j2", "revolute", "l1", "l2", '<mimic joint="j1"/>')], "l2",
+              "joint 'j2' is a mimic joint (it follows 'j1'), which robotgen does not support on the chain: "
+              "choose a tip at or above link 'l1'"),
     "closed_loop": ([OK1, joint("j2", "revolute", "l1", "l2"), joint("j3", "revolute", "base", "l2")],
                     "l2", "closed loops are not supported"),
     "tip_not_below_base": ([OK1, joint("j2", "revolute", "base", "l2")], "l2", "is not below base link"),
     "unknown_type": ([OK1, joint("j2", "spherical", "l1", "l2")], "l2", "unknown type 'spherical'"),
     "unknown_element": ([OK1, joint("j2", "revolute", "l1", "l2", "<spring k='1'/>")], "l2",
                         "<spring> is not supported inside <joint>"),
+    "non_finite_origin": ([OK1, joint("j2", "revolute", "l1", "l2", '<origin xyz="nan 0 0"/>')], "l2",
+                          "<origin> attribute 'xyz' must hold finite numbers, got 'nan 0 0'"),
     "unknown_link": ([OK1, joint("j2", "revolute", "l1", "nowhere")], "l1", "unknown link 'nowhere'"),
 }
 
@@ -43,7 +53,7 @@ def test_unsupported_construct(case, tmp_path, capsys):
     out = tmp_path / "out"
     argv = ["build", str(path), "--tip", tip, "-o", str(out)] + (["--base", base] if base else [])
     assert main(argv) == 1
-    err = capsys.readouterr().err
+    err = messages(capsys.readouterr().err)
     assert expected in err, err
     assert err.startswith(f"{path}:"), err
     line = int(err.split(":")[1])
@@ -57,7 +67,7 @@ def test_malformed_xml(tmp_path, capsys):
     path = tmp_path / "bad.urdf"
     path.write_text('<robot name="r">\n<link name="a">\n</robot>\n')
     assert main(["build", str(path), "--tip", "a", "-o", str(tmp_path / "out")]) == 1
-    err = capsys.readouterr().err
+    err = messages(capsys.readouterr().err)
     assert err.startswith(f"{path}:3:") and "not well-formed" in err, err
 
 
@@ -65,3 +75,35 @@ def test_urdf_without_tip_is_a_usage_error(tmp_path, capsys):
     path = tmp_path / "r.urdf"
     path.write_text(urdf(OK1))
     assert main(["build", str(path)]) == 2
+
+
+def test_unknown_element_inside_a_joint_fails_beside_ignored_ones_under_robot(tmp_path, capsys):
+    """Elements under <robot> robotgen does not know are ignored; one inside <joint> (it could
+    change the dynamics) stays an error."""
+    text = urdf(OK1, joint("j2", "revolute", "l1", "l2", "<spring k='1'/>"))
+    text = text.replace('<robot name="r">\n', '<robot name="r">\n<ros2_control name="hw"/>\n<vendor_tag/>\n')
+    path = tmp_path / "r.urdf"
+    path.write_text(text)
+    out = tmp_path / "out"
+    assert main(["build", str(path), "--tip", "l2", "-o", str(out)]) == 1
+    err = messages(capsys.readouterr().err)
+    # lines: 3-4 the ignored elements, 5-7 links, 8 j1, 9 j2
+    assert err == f"{path}:9:90: <spring> is not supported inside <joint>\n", err
+    assert not out.exists()
+
+
+def test_mimic_joint_off_the_chain_is_locked(tmp_path):
+    """A chain locks every movable joint off its path at q = 0, a mimic joint like any other:
+    its link's inertia joins the body of the joint carrying it."""
+    from robotgen.spec.urdf import read_urdf
+
+    off = joint("j3", "revolute", "l1", "l3", '<origin xyz="0 0.5 0"/><mimic joint="j1"/>')
+    path = tmp_path / "r.urdf"
+    path.write_text(urdf(OK1, joint("j2", "revolute", "l1", "l2"), off, links=("base", "l1", "l2", "l3")))
+    tree = read_urdf(str(path), "l2").tree
+    assert [j.name for j in tree.joints] == ["j1", "j2"]
+    assert tree.locked_joints == ("j3",)
+    body = tree.joints[0].body  # l1 and l3, 0.5 apart along y
+    assert body.mass == 2.0
+    np.testing.assert_array_equal(body.com, [0.0, 0.25, 0.0])
+    np.testing.assert_allclose(body.inertia, np.diag([0.325, 0.2, 0.325]), rtol=0, atol=1e-15)

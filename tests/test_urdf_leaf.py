@@ -12,6 +12,11 @@ from robotgen.symbolic import kernels_for
 from robots import UR5, robots_dir
 from robotgen.spec.urdf import load_urdf_system
 
+def messages(err: str) -> str:
+    """stderr without the build's progress lines ("robotgen: [  1.2 s] ..."), which -q silences."""
+    return "".join(l for l in err.splitlines(True) if not l.startswith("robotgen: ["))
+
+
 SPEC = """robotgen: 1
 name: ur5_leaf
 root: arm
@@ -49,7 +54,24 @@ def test_error_inside_the_urdf_points_into_the_urdf(tmp_path, capsys):
     spec = tmp_path / "r.yaml"
     spec.write_text(SPEC.format(file="ur5.urdf", base="ee_link"))
     assert main(["build", str(spec), "-o", str(tmp_path / "out")]) == 1
-    err = capsys.readouterr().err
+    err = messages(capsys.readouterr().err)
     assert err.startswith(f"{tmp_path / 'ur5.urdf'}:"), err
     assert "tip link 'tool0' is not below base link 'ee_link'" in err, err
     assert not (tmp_path / "out").exists()
+
+
+def test_urdf_leaf_notes_reach_the_spec_warnings(tmp_path, capsys):
+    """The URDF reader's note about elements it ignores under <robot> reaches the spec's
+    warnings (printed by the CLI); the module is named by the spec, so no module-name note."""
+    text = (robots_dir() / UR5[0]).read_text()
+    end = text.index(">", text.index("<robot ")) + 1
+    line = text[:end].count("\n") + 2  # <ros2_control> goes on the line after <robot ...>
+    text = text[:end] + '\n<ros2_control name="hw" type="system"><joint name="x"/></ros2_control>' + text[end:]
+    (tmp_path / "ur5.urdf").write_text(text)
+    spec = tmp_path / "ur5.yaml"
+    spec.write_text(SPEC.format(file="ur5.urdf", base="base_link"))
+    system = load_system(str(spec))
+    assert system.warnings == (f"{tmp_path / 'ur5.urdf'}:{line}:1: note: ignored 1 element robotgen does not "
+                               f"use under <robot>: <ros2_control> (line {line})",), system.warnings
+    assert main(["check", str(spec)]) == 0
+    assert capsys.readouterr().err.count("note: ignored 1 element") == 1
