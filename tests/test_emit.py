@@ -2,12 +2,15 @@
 CasADi's own evaluation of kernels built directly with casadi (no specs involved)."""
 from __future__ import annotations
 
+import ast
 import importlib.util
 import inspect
 import json
+import os
 import re
 import shutil
 import subprocess
+import sys
 from pathlib import Path
 
 import casadi as ca
@@ -22,7 +25,8 @@ from robotgen.symbolic.kernel import Kernel, Port
 GCC = shutil.which("gcc")
 CLANG = shutil.which("clang")
 STRICT = ["-std=c99", "-Wall", "-Wextra", "-Werror"]
-SOURCES = ["{name}.h", "{name}.c", "{name}_module.c", "Makefile", "manifest.json"]
+SOURCES = ["{name}.h", "{name}.c", "{name}_module.c", "{name}.pyi", "Makefile", "{name}.pc.in",
+           "{name}Config.cmake.in", "manifest.json"]
 pytestmark = pytest.mark.skipif(GCC is None, reason="gcc is required")
 
 
@@ -335,8 +339,175 @@ def test_wrong_shapes_raise_value_error(module, args, message):
 
 
 def test_wrong_argument_count_raises_type_error(module):
-    with pytest.raises(TypeError, match=r"rand_a\(\) takes 2 positional arguments but 1"):
+    with pytest.raises(TypeError, match=r"rand_a\(\) missing 1 required positional argument: 'qd'"):
         module.rand_a(np.zeros(3))
+
+
+# ------------------------------------------------- keyword arguments and argument errors
+
+def test_keyword_calls_equal_positional_calls(module):
+    rng = np.random.default_rng(21)
+    for kernel in KERNELS:
+        fn = getattr(module, kernel.name)
+        names = [p.name for p in kernel.inputs]
+        for batch in (None, 3):
+            args = random_args(kernel, rng, batch)
+            positional = fn(*args)
+            positional = positional if isinstance(positional, tuple) else (positional,)
+            if batch is None:
+                for value, expected in zip(positional, reference(kernel, args)):
+                    assert_close(value, expected, 1e-12)
+            by_name = dict(zip(names, args))
+            calls = [fn(**by_name), fn(**dict(reversed(by_name.items()))),
+                     fn(args[0], **dict(list(by_name.items())[1:]))]
+            for got in calls:
+                got = got if isinstance(got, tuple) else (got,)
+                assert len(got) == len(positional)
+                for g, e in zip(got, positional):
+                    np.testing.assert_array_equal(g, e)
+
+
+def test_signature_is_positional_or_keyword(module):
+    for kernel in KERNELS:
+        parameters = inspect.signature(getattr(module, kernel.name)).parameters
+        assert list(parameters) == [p.name for p in kernel.inputs]
+        assert {p.kind for p in parameters.values()} == {inspect.Parameter.POSITIONAL_OR_KEYWORD}
+
+
+_Q, _QD = np.zeros(3), np.zeros(2)
+
+
+@pytest.mark.parametrize("call, message", [
+    (lambda m: m.rand_a(), "rand_a() missing 2 required positional arguments: 'q' and 'qd'"),
+    (lambda m: m.rand_a(qd=_QD), "rand_a() missing 1 required positional argument: 'q'"),
+    (lambda m: m.rand_a(_Q), "rand_a() missing 1 required positional argument: 'qd'"),
+    (lambda m: m.rand_a(_Q, _QD, _QD), "rand_a() takes 2 positional arguments but 3 were given"),
+    (lambda m: m.rand_c(_Q, _Q), "rand_c() takes 1 positional argument but 2 were given"),
+    (lambda m: m.rand_a(_Q, _QD, x=_Q), "rand_a() got an unexpected keyword argument 'x'"),
+    (lambda m: m.rand_a(q=_Q, qd=_QD, Q=_Q), "rand_a() got an unexpected keyword argument 'Q'"),
+    (lambda m: m.rand_a(_Q, _QD, q=_Q), "rand_a() got multiple values for argument 'q'"),
+    (lambda m: m.rand_a(_Q, qd=_QD, q=_Q), "rand_a() got multiple values for argument 'q'"),
+    (lambda m: m.rand_c(_Q, _Q, u=_Q), "rand_c() takes 1 positional argument but 2 were given"),
+    (lambda m: m.rand_a(None, _QD),
+     "rand_a(): argument 'q' must be a float64 array of shape (3,) or (B, 3), got None"),
+    (lambda m: m.rand_a(_Q, qd=None),
+     "rand_a(): argument 'qd' must be a float64 array of shape (2,) or (B, 2), got None"),
+    (lambda m: m.rand_b("1.5", _QD),
+     "rand_b(): argument 'q' must be a float64 array of shape (3,) or (B, 3), got str"),
+    (lambda m: m.rand_c(u=b"1234"),
+     "rand_c(): argument 'u' must be a float64 array of shape (4,) or (B, 4), got bytes"),
+    (lambda m: m.rand_a(_Q, {"a": 1}),
+     "rand_a(): argument 'qd' must be a float64 array of shape (2,) or (B, 2), got dict: "
+     "float() argument must be a string or a real number, not 'dict'"),
+    (lambda m: m.rand_a(_Q, np.zeros(2, complex)), "rand_a(): argument 'qd' must be a float64 "
+     "array of shape (2,) or (B, 2), got numpy.ndarray: Cannot cast array data"),
+])
+def test_argument_errors_raise_type_error(module, call, message):
+    with pytest.raises(TypeError) as caught:
+        call(module)
+    assert str(caught.value).startswith(message)
+
+
+def test_unconvertible_values_raise_value_error_naming_the_argument(module):
+    with pytest.raises(ValueError) as caught:
+        module.rand_a(["a", "b", "c"], _QD)
+    assert str(caught.value) == ("rand_a(): argument 'q' must be a float64 array of shape (3,) or "
+                                 "(B, 3), got list: could not convert string to float: 'a'")
+    assert isinstance(caught.value.__cause__, ValueError)
+    with pytest.raises(ValueError, match=r"argument 'qd' must be a float64 array .* got list: "):
+        module.rand_a(_Q, [[1.0, 2.0], [3.0]])
+
+
+def test_argument_errors_leak_no_references(module):
+    q, qd = np.zeros(3), np.zeros(2)
+    before = sys.getrefcount(q), sys.getrefcount(qd)
+    for _ in range(200):
+        for call in (lambda: module.rand_a(q, qd=qd, x=q), lambda: module.rand_a(q, qd, q=q),
+                     lambda: module.rand_a(q), lambda: module.rand_a(q, qd=None),
+                     lambda: module.rand_a(q, ["x", "y"])):
+            with pytest.raises((TypeError, ValueError)):
+                call()
+        module.rand_a(q=q, qd=qd)
+    assert (sys.getrefcount(q), sys.getrefcount(qd)) == before
+
+
+# ------------------------------------------------------------------------- the .pyi stub
+
+def test_stub_declares_every_function_attribute_and_signature(built, module):
+    tree = ast.parse((built / "randbot.pyi").read_text())
+    assert ast.get_docstring(tree).startswith("randbot: robot functions generated by robotgen")
+    functions = {node.name: node for node in tree.body if isinstance(node, ast.FunctionDef)}
+    assert sorted(functions) == sorted([k.name for k in KERNELS] + ["info"])
+    variables = {node.target.id: ast.unparse(node.annotation) for node in tree.body
+                 if isinstance(node, ast.AnnAssign)}
+    assert variables == {"nq": "int", "dt": "Any", "tool": "Any"}
+    assert ast.unparse(functions["info"].returns) == "dict[str, Any]"
+    array = "npt.NDArray[np.float64]"
+    for kernel in KERNELS:
+        node = functions[kernel.name]
+        arguments = node.args
+        assert not (arguments.posonlyargs or arguments.kwonlyargs or arguments.vararg
+                    or arguments.kwarg or arguments.defaults)
+        assert [a.arg for a in arguments.args] == [p.name for p in kernel.inputs]
+        assert list(inspect.signature(getattr(module, kernel.name)).parameters) == \
+            [a.arg for a in arguments.args]
+        assert {ast.unparse(a.annotation) for a in arguments.args} == {"npt.ArrayLike"}
+        expected = (array if len(kernel.outputs) == 1
+                    else f"tuple[{', '.join([array] * len(kernel.outputs))}]")
+        assert ast.unparse(node.returns) == expected
+        assert ast.get_docstring(node) == kernel.doc.strip()
+
+
+def test_stub_docstrings_are_escaped(tmp_path):
+    x = ca.SX.sym("x")
+    kernel = Kernel("odd", 'Says "hi" \\ with \u00e9 and """ quotes\tand tabs.\n\nSecond paragraph.',
+                    (Port("x", 1),), (Port("y", 1),), ca.Function("f", [x], [2 * x]))
+    build.emit(tmp_path / "odd", "odd", [kernel], nq=1, compile=False)
+    tree = ast.parse((tmp_path / "odd" / "odd.pyi").read_text(encoding="ascii"))
+    assert ast.get_docstring(tree.body[-1], clean=False) == \
+        'Says "hi" \\ with \u00e9 and """ quotes and tabs.'  # one line, whitespace collapsed
+
+
+def test_stub_names_are_reserved(tmp_path):
+    x = ca.SX.sym("x")
+    kernel = Kernel("np", "", (Port("x", 1),), (Port("y", 1),), ca.Function("f", [x], [x]))
+    with pytest.raises(KernelError, match="reserved"):
+        build.emit(tmp_path / "bad", "bad", [kernel], nq=1, compile=False)
+
+
+@pytest.mark.skipif(importlib.util.find_spec("mypy") is None, reason="mypy not installed")
+def test_mypy_checks_calls_against_the_stub(built, tmp_path):
+    (tmp_path / "good.py").write_text(
+        "import numpy as np\nimport randbot\n\n"
+        "y, M = randbot.rand_a(q=np.zeros(3), qd=[1.0, 2.0])\n"
+        "m: float = float(randbot.rand_b(np.zeros(3), qd=np.zeros(2))[0, 0])\n"
+        "n: int = randbot.nq + len(randbot.info())\n"
+        "print(randbot.dt, y.shape, M.shape)\n")
+    (tmp_path / "bad.py").write_text(
+        "import numpy as np\nimport randbot\n\n"
+        "randbot.rand_a(np.zeros(3), qdd=np.zeros(2))\n"
+        "randbot.rand_c()\n"
+        "y: int = randbot.rand_c(np.zeros(4))\n")
+    env = {**os.environ, "MYPYPATH": str(built)}
+    result = subprocess.run([sys.executable, "-m", "mypy", "--strict", "--no-incremental",
+                             "--cache-dir", os.devnull, "good.py", "bad.py"],
+                            cwd=tmp_path, env=env, capture_output=True, text=True)
+    errors = [line for line in result.stdout.splitlines() if ": error:" in line]
+    assert not [e for e in errors if e.startswith("good.py")], result.stdout
+    bad = "\n".join(e for e in errors if e.startswith("bad.py"))
+    assert 'bad.py:4: error: Unexpected keyword argument "qdd" for "rand_a"' in bad, result.stdout
+    assert 'bad.py:5: error: Missing positional argument "u" in call to "rand_c"' in bad
+    assert "bad.py:6: error: Incompatible types in assignment" in bad
+    assert len(errors) == 3, result.stdout
+
+
+@pytest.mark.skipif(importlib.util.find_spec("mypy") is None, reason="mypy not installed")
+def test_stub_agrees_with_the_runtime_module(built, tmp_path):
+    """mypy's stubtest imports the extension and compares every name and signature."""
+    env = {**os.environ, "MYPYPATH": str(built), "PYTHONPATH": str(built)}
+    result = subprocess.run([sys.executable, "-m", "mypy.stubtest", "randbot"], cwd=tmp_path,
+                            env=env, capture_output=True, text=True)
+    assert result.returncode == 0, result.stdout + result.stderr
 
 
 def test_module_attributes_and_info(module):
@@ -348,7 +519,7 @@ def test_module_attributes_and_info(module):
     module.info()["nq"] = 99
     assert module.info()["nq"] == 3 == module.nq
     assert (module.dt, module.tool) == (0.001, "gripper")
-    assert str(inspect.signature(module.rand_a)) == "(q, qd, /)"
+    assert str(inspect.signature(module.rand_a)) == "(q, qd)"
     assert module.rand_a.__doc__.startswith("Random kernel rand_a")
 
 
@@ -441,6 +612,7 @@ def test_float_precision_agrees_to_single_precision(tmp_path):
             q = rng.uniform(-np.pi, np.pi, 3)
             got = getattr(module, kernel.name)(q)
             assert got.dtype == np.float64
+            np.testing.assert_array_equal(getattr(module, kernel.name)(q=q), got)
             assert_close(got, reference(kernel, [q])[0], 1e-5)
         batch = rng.uniform(-np.pi, np.pi, (4, 3))
         np.testing.assert_array_equal(getattr(module, kernel.name)(batch)[2],

@@ -10,6 +10,7 @@ import robotgen
 from robotgen.emit import c_kernel
 from robotgen.emit.c_kernel import PRECISIONS, KernelError, check_identifier
 from robotgen.emit.sx_program import Program, read_program
+from robotgen.progress import QUIET, Progress
 from robotgen.symbolic.kernel import Kernel, Port
 
 # Module attributes the extension defines itself.
@@ -17,6 +18,10 @@ MODULE_NAMES = frozenset({"nq", "info"})
 # info() keys the emitter owns; extra_info may add others (such as "nodes").
 INFO_KEYS = frozenset({"name", "nq", "functions", "robotgen_version", "spec_sha256",
                        "precision"})
+# Names the .pyi stub imports (numpy, numpy.typing, typing.Any) at module level.
+STUB_NAMES = frozenset({"np", "npt", "Any"})
+INFO_DOC = ("A new dict describing this module: name, nq, nodes, functions, robotgen_version, "
+            "spec_sha256, precision.")
 _SIN_COS = frozenset({ca.OP_SIN, ca.OP_COS})
 _NOT_ARITHMETIC = frozenset({ca.OP_INPUT, ca.OP_OUTPUT, ca.OP_CONST, ca.OP_ASSIGN})
 
@@ -44,6 +49,7 @@ class FunctionView:
     inputs: tuple[PortView, ...]
     outputs: tuple[PortView, ...]
     py_doc: str  # C string literal: the Python docstring with its text signature
+    stub_doc: str  # Python string literal: the doc's first paragraph on one line (for the .pyi)
     arithmetic_ops: int  # SX instructions other than input, output, constant, copy
     sin_cos_ops: int
 
@@ -63,10 +69,15 @@ class ModuleView:
     module_doc: str  # C string literal
     info_json: str  # C string literal holding json of ``info``
     attributes_json: str  # C string literal holding json of the extra module attributes
+    keyword_names: tuple[str, ...]  # the distinct input port names, sorted
+    attribute_names: tuple[str, ...]  # the extra module attributes, sorted
+    stub_doc: str  # Python string literal: the module docstring
+    stub_info_doc: str  # Python string literal: info()'s docstring
 
 
 def module_view(name: str, kernels: list[Kernel], *, nq: int, precision: str,
-                spec_sha256: str, extra_info: dict | None, attributes: dict | None) -> ModuleView:
+                spec_sha256: str, extra_info: dict | None, attributes: dict | None,
+                progress: Progress = QUIET) -> ModuleView:
     if precision not in PRECISIONS:
         raise ValueError(f"precision must be one of {sorted(PRECISIONS)}, got {precision!r}")
     check_identifier(name, "module name")
@@ -79,10 +90,17 @@ def module_view(name: str, kernels: list[Kernel], *, nq: int, precision: str,
     taken = [*MODULE_NAMES, *names, *attributes]
     if len(set(taken)) != len(taken):
         raise KernelError(f"module {name!r}: names repeat among {sorted(taken)}")
+    if STUB_NAMES & set(taken):
+        raise KernelError(f"module {name!r}: {sorted(STUB_NAMES & set(taken))} are reserved "
+                          "(the module's .pyi stub imports them)")
     extra_info = dict(extra_info or {})
     if INFO_KEYS & extra_info.keys():
         raise KernelError(f"extra_info may not set {sorted(INFO_KEYS & extra_info.keys())}")
-    functions = tuple(_function_view(name, k, PRECISIONS[precision]) for k in kernels)
+    functions = []
+    for i, k in enumerate(kernels):
+        progress.step(i + 1, len(kernels), f"printing C: {k.name}")
+        functions.append(_function_view(name, k, PRECISIONS[precision]))
+    functions = tuple(functions)
     _check_macros_unique(name, functions)
     info = {"nodes": [], **extra_info, "name": name, "nq": nq, "functions": names,
             "robotgen_version": robotgen.__version__, "spec_sha256": spec_sha256,
@@ -95,7 +113,10 @@ def module_view(name: str, kernels: list[Kernel], *, nq: int, precision: str,
         real=PRECISIONS[precision].real, nq=nq, robotgen_version=robotgen.__version__,
         casadi_version=ca.__version__, spec_sha256=spec_sha256, functions=functions,
         info=info, module_doc=c_string(module_doc), info_json=c_string(to_json(info, None)),
-        attributes_json=c_string(to_json(attributes, None)))
+        attributes_json=c_string(to_json(attributes, None)),
+        keyword_names=tuple(sorted({p.name for f in functions for p in f.inputs})),
+        attribute_names=tuple(sorted(attributes)), stub_doc=py_string(module_doc),
+        stub_info_doc=py_string(INFO_DOC))
 
 
 def to_json(value, indent: int | None = 2) -> str:
@@ -111,6 +132,27 @@ def c_string(text: str) -> str:
         escaped = "".join(_c_char(c) for c in line.encode("utf-8"))
         pieces.append(f'"{escaped}"')
     return "\n    ".join(pieces)
+
+
+def py_string(text: str) -> str:
+    """``text`` as a triple-quoted Python string literal (a docstring); ASCII only."""
+    return '"""' + "".join(_py_char(c) for c in text) + '"""'
+
+
+def _py_char(char: str) -> str:
+    if char == "\n":
+        return char
+    if char in '"\\':
+        return "\\" + char
+    if 32 <= ord(char) < 127:
+        return char
+    return f"\\x{ord(char):02x}" if ord(char) < 256 else char.encode("unicode_escape").decode()
+
+
+def _summary(doc: str, fallback: str) -> str:
+    """The first paragraph of ``doc`` on one line."""
+    paragraph = doc.strip().split("\n\n")[0]
+    return " ".join(paragraph.split()) or fallback
 
 
 def _c_char(byte: int) -> str:
@@ -139,6 +181,7 @@ def _function_view(prefix: str, kernel: Kernel, precision: c_kernel.Precision) -
         prototype=c_kernel.prototype(prefix, kernel, precision),
         definition=c_kernel.kernel_source(prefix, kernel, precision, program),
         inputs=inputs, outputs=outputs, py_doc=c_string(_py_doc(kernel, inputs, outputs)),
+        stub_doc=py_string(_summary(kernel.doc, kernel.name)),
         arithmetic_ops=arithmetic, sin_cos_ops=sin_cos)
 
 
@@ -154,7 +197,7 @@ def _port_view(port: Port, macro: str) -> PortView:
 
 
 def _py_doc(kernel: Kernel, inputs: tuple[PortView, ...], outputs: tuple[PortView, ...]) -> str:
-    signature = ", ".join(["$module", *(p.name for p in inputs), "/"])
+    signature = ", ".join(["$module", *(p.name for p in inputs)])
     lines = [f"{kernel.name}({signature})", "--", "", kernel.doc.strip() or kernel.name, ""]
     lines += [f"{p.name}: float64 array {p.shape_text} or {p.batch_shape_text}" for p in inputs]
     returned = ", ".join(f"{p.name} {p.shape_text}" for p in outputs)

@@ -17,7 +17,10 @@ TEMPLATES = {
     "{name}.h": "header.h.jinja",
     "{name}.c": "source.c.jinja",
     "{name}_module.c": "pymodule.c.jinja",
+    "{name}.pyi": "stub.pyi.jinja",
     "Makefile": "Makefile.jinja",
+    "{name}.pc.in": "pkgconfig.pc.in.jinja",
+    "{name}Config.cmake.in": "cmake_config.cmake.in.jinja",
 }
 
 
