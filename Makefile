@@ -1,8 +1,10 @@
-# robotgen: developer entry points. `make install test` is what CI runs.
+# robotgen: developer entry points. `make install test` is what CI runs (.ci/run adds the
+# reproducibility variants).
 PYTHON ?= python3
-SPECS := $(wildcard specs/*.yaml)
+# OpenBLAS kernels to build under (test-reproducible): those this CPU can run
+CORETYPES ?= $(shell $(PYTHON) -c "from tests.test_reproducible import coretypes; print(' '.join(coretypes()))" 2>/dev/null)
 
-.PHONY: install test demo bench generated clean
+.PHONY: install test test-reproducible demo bench golden clean
 
 install:
 	$(PYTHON) -m pip install --quiet --upgrade pip
@@ -10,6 +12,14 @@ install:
 
 test:
 	$(PYTHON) -m pytest -q
+
+# The golden outputs, rebuilt under every OpenBLAS kernel this CPU runs: the emitted C and
+# manifests must not change by a bit.
+test-reproducible:
+	@for kind in $(CORETYPES); do \
+	  echo "OPENBLAS_CORETYPE=$$kind"; \
+	  OPENBLAS_CORETYPE=$$kind $(PYTHON) -m pytest -q -p no:cacheprovider tests/test_golden.py || exit 1; \
+	done
 
 demo:
 	$(PYTHON) examples/demo.py
@@ -19,10 +29,10 @@ bench:
 	$(PYTHON) bench/run.py
 	$(PYTHON) bench/scaling.py  # build s and ns per call vs dof: chains of 2..30 links, a humanoid tree (~5 min)
 
-# Rebuild the committed generated/ tree (sources and manifests; the compiled module is
-# built too but not committed). tests/test_generated.py checks it is never stale.
-generated:
-	@for spec in $(SPECS); do $(PYTHON) -m robotgen build $$spec || exit 1; done
+# Refresh tests/golden/ (every spec's manifest, the small specs whole); tests/test_golden.py
+# checks that a fresh build equals it.
+golden:
+	$(PYTHON) tests/golden/refresh.py
 
 clean:
-	rm -rf build *.egg-info bench/out .pytest_cache
+	rm -rf build *.egg-info bench/out .pytest_cache generated

@@ -1,15 +1,19 @@
 """manifest.json: what was built, from what, and how big each function is."""
 from __future__ import annotations
 
+import hashlib
+
 from robotgen.emit.context import ModuleView, PortView, to_json
 
 
-def manifest_json(view: ModuleView) -> str:
+def manifest_json(view: ModuleView, sources: dict[str, str]) -> str:
     """Deterministic text (sorted keys, no timestamps or paths): the module's info()
-    plus the CasADi version and each function's ports and operation counts."""
+    plus the CasADi version, each function's ports and operation counts, and the sha256
+    of every other emitted file (so a manifest alone pins a build byte for byte)."""
     manifest = {
         **view.info,
         "casadi_version": view.casadi_version,
+        "files": {file: hashlib.sha256(text.encode("utf-8")).hexdigest() for file, text in sorted(sources.items())},
         "functions": [
             {
                 "name": f.name,
