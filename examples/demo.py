@@ -3,6 +3,10 @@ and close a computed-torque loop around the arm's own forward dynamics.
 
     python examples/demo.py [SPEC.yaml]
 
+SPEC is a spec whose root is one chain (puma560, stanford, two_link, a urdf leaf) or one
+formulas leaf (styx_finger): robot trees run with `robotgen simulate SPEC.yaml` instead.
+Every joint follows a sine about the middle of its limits, within them.
+
 The plant is the generated `forward_dynamics` integrated by RK4 at 1 kHz; the controller
 is computed torque, tau = M(q) (qdd_d + Kv (qd_d - qd) + Kp (q_d - q)) + C(q, qd) qd + N(q, qd),
 from the generated `mass` and `nonlinear`. With exact models the error obeys
@@ -32,14 +36,58 @@ def build(spec: Path, out: Path):
     return importlib.import_module(name)
 
 
-def desired(t: float, q0: np.ndarray):
-    """A smooth joint trajectory: q0 + 0.3 sin(w t) on every joint."""
-    w, ones = 2.0, np.ones_like(q0)
-    return q0 + 0.3 * np.sin(w * t), 0.3 * w * np.cos(w * t) * ones, -0.3 * w * w * np.sin(w * t) * ones
+OFFSET = 0.05  # the plant starts this far off the trajectory on every joint [rad or m]
+
+
+def desired(t: float, q0: np.ndarray, amplitude: np.ndarray):
+    """A smooth joint trajectory: q0 + amplitude sin(w t) on every joint."""
+    w = 2.0
+    return q0 + amplitude * np.sin(w * t), amplitude * w * np.cos(w * t), -amplitude * w * w * np.sin(w * t)
+
+
+def trajectory(joints: list[dict], n: int) -> tuple[np.ndarray, np.ndarray]:
+    """(centre, amplitude) per joint: the middle of its limits and at most 0.3 rad (0.1 m
+    for a prismatic joint), so that the motion and the starting offset stay inside them."""
+    centre, amplitude = np.zeros(n), np.zeros(n)
+    for i, j in enumerate(joints[:n]):
+        lim = j["limits"]
+        a = 0.3 if j["type"] == "revolute" else 0.1
+        if lim["lower"] is not None and lim["upper"] is not None:
+            centre[i] = 0.5 * (lim["lower"] + lim["upper"])
+            a = min(a, 0.5 * (lim["upper"] - lim["lower"]) - 2 * OFFSET)
+        amplitude[i] = max(a, 0.0)
+    return centre, amplitude
+
+
+def check_spec(spec: Path) -> None:
+    """Only a spec whose root is one leaf robot has the chain functions this demo uses."""
+    from robotgen.errors import UserErrors
+    from robotgen.spec import load_system
+
+    try:
+        system = load_system(str(spec))
+    except UserErrors as errors:
+        for error in errors.errors:
+            print(error, file=sys.stderr)
+        raise SystemExit(1) from None
+    if system.is_rate_controlled:
+        print(f"demo: {spec}'s root '{system.root}' is a resolved_rate controller, which outputs joint rates; "
+              "build it and integrate its rate_step or position_step (docs/python-api.md)", file=sys.stderr)
+        raise SystemExit(2)
+    if not system.is_single_leaf:
+        print(f"demo: {spec} is a robot tree (root '{system.root}' is a {system.root_node.primitive} node); "
+              f"the demo closes a loop around one chain. Run `robotgen simulate {spec}` for trees.",
+              file=sys.stderr)
+        raise SystemExit(2)
+    leaf = system.root_node.leaf
+    if not hasattr(leaf, "nq") or type(leaf).__name__ in ("PlanarBody", "SpatialBody"):
+        print(f"demo: {spec}'s root is a payload body, which has no actuators", file=sys.stderr)
+        raise SystemExit(2)
 
 
 def main() -> None:
     spec = Path(sys.argv[1]) if len(sys.argv) > 1 else ROOT / "specs" / "puma560.yaml"
+    check_spec(spec)
     with tempfile.TemporaryDirectory() as tmp:
         arm = build(spec, Path(tmp) / "out")
         n = arm.nq
@@ -48,11 +96,15 @@ def main() -> None:
         wn = 20.0  # closed-loop natural frequency [rad/s], critically damped
         Kp, Kv = wn * wn, 2 * wn
         dt, T = 1e-3, 2.0
-        q0 = np.array([0.0, np.pi / 4, np.pi, 0.0, np.pi / 4, 0.0])[:n]
-        q, qd = q0 + 0.05, desired(0.0, q0)[1]  # start 0.05 rad off the trajectory
+        info = arm.info()
+        joints = info["nodes"][info["root"]].get("joints", [])
+        if not joints:  # a formulas leaf: its coordinates, no limits known
+            joints = [{"type": "revolute", "limits": {"lower": None, "upper": None}}] * n
+        q0, amplitude = trajectory(joints, n)
+        q, qd = q0 + OFFSET, desired(0.0, q0, amplitude)[1]  # start OFFSET off the trajectory
 
         def control(t, q, qd):
-            q_d, qd_d, qdd_d = desired(t, q0)
+            q_d, qd_d, qdd_d = desired(t, q0, amplitude)
             a = qdd_d + Kv * (qd_d - qd) + Kp * (q_d - q)
             return arm.mass(q) @ a + arm.nonlinear(q, qd)
 
@@ -62,7 +114,7 @@ def main() -> None:
         steps = int(T / dt)
         t_ctrl = 0.0
         print(f"closed loop: computed torque, Kp = {Kp:g}, Kv = {Kv:g}, RK4 at {1/dt:g} Hz for {T:g} s")
-        print(f"{'t [s]':>6} {'|e| [rad]':>12} {'predicted':>12} {'|tau| [Nm]':>11}")
+        print(f"{'t [s]':>6} {'|e|':>12} {'predicted':>12} {'|tau|':>11}   (rad or m; N m or N)")
         e0 = np.linalg.norm(q - q0)
         for k in range(steps + 1):
             t = k * dt
@@ -70,7 +122,7 @@ def main() -> None:
             tau = control(t, q, qd)
             t_ctrl += time.perf_counter() - c0
             if k % 250 == 0:
-                e = np.linalg.norm(q - desired(t, q0)[0])
+                e = np.linalg.norm(q - desired(t, q0, amplitude)[0])
                 print(f"{t:6.2f} {e:12.3e} {e0 * (1 + wn * t) * np.exp(-wn * t):12.3e} {np.linalg.norm(tau):11.2f}")
             if k == steps:
                 break
@@ -80,9 +132,13 @@ def main() -> None:
             k4q, k4v = f(q + dt * k3q, qd + dt * k3v, tau)
             q = q + dt / 6 * (k1q + 2 * k2q + 2 * k3q + k4q)
             qd = qd + dt / 6 * (k1v + 2 * k2v + 2 * k3v + k4v)
-        print("(the measured error levels off near 1e-5 rad: tau is held constant over each 1 ms "
+        print("(the measured error levels off near 1e-5: tau is held constant over each 1 ms "
               "step, as a servo loop holds it; the prediction is for a continuous controller)")
-        print(f"tip position at the end: {np.round(arm.fk(q)[:3, 3], 4)} m")
+        inside = all(lo is None or lo - 1e-9 <= v <= hi + 1e-9 for v, lo, hi in
+                     ((q[i], j["limits"]["lower"], j["limits"]["upper"]) for i, j in enumerate(joints[:n])))
+        print(f"final joint positions {np.round(q, 4)}: {'inside' if inside else 'OUTSIDE'} the joint limits")
+        if hasattr(arm, "fk"):
+            print(f"tip position at the end: {np.round(arm.fk(q)[:3, 3], 4)} m")
         print(f"controller (M, C qd + N from the module, plus numpy): {t_ctrl / (steps + 1) * 1e6:.1f} us per step")
 
 

@@ -1,22 +1,36 @@
-"""The command line (../shared/CONTRACT.md): build, check, schema, info, simulate.
+"""The command line: build, check, schema, info, simulate (docs/cli.md).
 
 Exit status: 0 success, 1 the user's input is wrong, 2 usage error, 3 a bug in robotgen."""
 from __future__ import annotations
 
 import argparse
+import os
+import re
 import sys
 import traceback
 from pathlib import Path
 
+import robotgen
 from robotgen.errors import Location, UserError, UserErrors
 from robotgen.model.describe import system_info, system_nq
+from robotgen.progress import Progress
+from robotgen.progress import for_terminal as progress_for_terminal
 
 EXIT_OK, EXIT_USER, EXIT_USAGE, EXIT_BUG = 0, 1, 2, 3
+
+
+MODULE_NAME = re.compile(r"[a-z_][a-z0-9_]*\Z")
 
 
 def _load(args: argparse.Namespace):
     """A RobotSystem from a YAML spec or, with --tip, a URDF file."""
     path = args.spec
+    name = getattr(args, "name", None)
+    if name is not None and not MODULE_NAME.match(name):
+        suggestion = re.sub(r"[^a-z0-9_]", "_", name.lower())
+        suggestion = suggestion if MODULE_NAME.match(suggestion) else "_" + suggestion
+        raise _Usage(f"--name {name!r} is not a module name ([a-z_][a-z0-9_]*: it names the Python module "
+                     f"and prefixes every C function); try --name {suggestion}")
     if path.lower().endswith(".urdf"):
         from robotgen.spec.urdf import load_urdf_system
 
@@ -41,7 +55,13 @@ class _Usage(Exception):
     pass
 
 
+def _progress(args: argparse.Namespace) -> Progress:
+    return progress_for_terminal(getattr(args, "quiet", False))
+
+
 def _cmd_build(args: argparse.Namespace) -> int:
+    progress = _progress(args)
+    progress.stage(f"reading {args.spec}")
     system = _load(args)
     from robotgen.emit import cache
 
@@ -55,12 +75,14 @@ def _cmd_build(args: argparse.Namespace) -> int:
     from robotgen.emit.build import emit
     from robotgen.symbolic import kernels_for, module_extras
 
+    progress.stage(f"building the CasADi graphs of {system.name} ({len(system.nodes)} node(s))")
     kernels = kernels_for(system)
     extra_info, attributes = module_extras(system)
+    progress.stage(f"printing {len(kernels)} C functions")
     try:
         emit(out, system.name, kernels, nq=system_nq(system), precision=args.precision,
              compile=not args.no_compile, extra_info={**system_info(system), **extra_info},
-             spec_sha256=system.source_sha256, attributes=attributes)
+             spec_sha256=system.source_sha256, attributes=attributes, progress=progress)
     except FileExistsError as e:
         print(f"robotgen: error: {e}", file=sys.stderr)
         return EXIT_USER
@@ -75,34 +97,47 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
 
     from robotgen import simulate
     from robotgen.emit.build import emit
-    from robotgen.model.simulation import SimulationSettings
+    from robotgen.model.signature import robot_leaves
+    from robotgen.model.simulation import SimulationSettings, rest_posture
     from robotgen.symbolic import kernels_for
 
+    progress = _progress(args)
     system = _load(args)
     if system.is_single_leaf:
         raise _Usage("simulate needs a robot tree (attach/control); for one chain see examples/demo.py")
     if system.is_rate_controlled:
         raise _Usage("simulate runs torque trees; a resolved_rate controller outputs joint rates: "
-                     "integrate its rate_step / position_step (see tests/test_rate_control.py and "
-                     "tests/test_rate_control_tree.py)")
+                     "integrate its rate_step / position_step (docs/python-api.md shows how)")
     settings = system.simulation or SimulationSettings()
     overrides = {k: getattr(args, k) for k in ("duration", "dt") if getattr(args, k) is not None}
+    for k, value in overrides.items():
+        if not value > 0:
+            raise _Usage(f"--{k} must be positive, got {value:g}")
     settings = dataclasses.replace(settings, **overrides)
     out = Path(args.output) if args.output else Path(f"{system.name}_simulation")
+    rest = rest_posture([system.nodes[leaf].leaf for leaf in robot_leaves(system)])
     with tempfile.TemporaryDirectory(prefix="robotgen-sim-") as tmp:
         build = Path(tmp) / system.name
+        progress.stage(f"compiling {system.name}'s servo step and plant")
         emit(build, system.name, kernels_for(system), nq=system_nq(system), extra_info=system_info(system),
              spec_sha256=system.source_sha256)
         module = simulate.load_module(build, system.name)
+        progress.stage(f"simulating {settings.duration:g} s at dt = {settings.dt:g} s")
         try:
-            result = simulate.run(module, settings)
-        except ValueError as e:
-            raise UserError(Location(system.source), f"simulation: {e}") from None
+            result = simulate.run(module, settings, rest)
+        except simulate.SimulationError as e:
+            in_spec = e.field is not None and e.field in settings.locations
+            where = settings.locations[e.field] if in_spec else system.location_of(system.root)
+            raise UserError(where, f"simulation.{e.field}: {e}" if in_spec else str(e)) from None
     out.mkdir(parents=True, exist_ok=True)
     simulate.write_csv(result, out / f"{system.name}.csv")
-    simulate.plot(result, out / f"{system.name}.png", f"{system.name}: {system.root}")
+    try:
+        simulate.plot(result, out / f"{system.name}.png", f"{system.name}: {system.root}")
+        plotted = f" and {out / (system.name + '.png')}"
+    except ImportError:
+        plotted = " (no PNG: matplotlib is missing; pip install matplotlib)"
     print(simulate.summary(result))
-    print(f"robotgen: wrote {out / (system.name + '.csv')} and {out / (system.name + '.png')}")
+    print(f"robotgen: wrote {out / (system.name + '.csv')}{plotted}")
     return EXIT_OK
 
 
@@ -126,7 +161,8 @@ def _cmd_info(args: argparse.Namespace) -> int:
           f"{', '.join(info['leaves'])})")
     for name, node in info["nodes"].items():
         print(f"  {name}: {node['primitive']} {node['kind']}, nq = {node['nq']}")
-        print(f"    coordinates: {', '.join(node['coordinates'])}")
+        coordinates = [f"{c} [{u}]" if u else c for c, u in zip(node["coordinates"], node["units"])]
+        print(f"    coordinates: {', '.join(coordinates)}")
         for label in ("internal_motions", "internal_forces"):
             if node[label]:
                 print(f"    {label.replace('_', ' ')}: {', '.join(node[label])}")
@@ -138,13 +174,23 @@ def _cmd_info(args: argparse.Namespace) -> int:
             lim = j["limits"]
             rng = "" if lim["lower"] is None else f" [{lim['lower']:g}, {lim['upper']:g}]"
             print(f"    - {j['name']}: {j['type']}, parent {j['parent']}{rng}")
+        if node.get("locked_joints"):
+            print(f"    locked at q = 0: {', '.join(node['locked_joints'])}")
     return EXIT_OK
 
 
 def _parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="robotgen", description="Compile robot systems to C and Python.")
+    p = argparse.ArgumentParser(prog="robotgen", description="Compile robot systems to C and Python.",
+                                epilog="Exit status: 0 success, 1 your input is wrong (FILE:LINE:COL: message), "
+                                       "2 usage error, 3 a bug in robotgen. Documentation: docs/ in the "
+                                       "repository.")
+    p.add_argument("--version", action="version",
+                   version=f"robotgen {robotgen.__version__} (casadi {_casadi_version()}, Python "
+                           f"{sys.version.split()[0]})")
+    quiet = argparse.ArgumentParser(add_help=False)
+    quiet.add_argument("-q", "--quiet", action="store_true", help="no progress messages on stderr")
     sub = p.add_subparsers(dest="command", required=True)
-    b = sub.add_parser("build", help="compile a spec (or a URDF chain) to C and a Python module")
+    b = sub.add_parser("build", parents=[quiet], help="compile a spec (or a URDF chain) to C and a Python module")
     b.add_argument("spec", help="SPEC.yaml or ROBOT.urdf")
     b.add_argument("-o", "--output", help="output directory (default generated/<name>/)")
     b.add_argument("--precision", choices=["double", "float"], default="double")
@@ -164,7 +210,7 @@ def _parser() -> argparse.ArgumentParser:
         c.add_argument("--name")
         c.add_argument("--tree", action="store_true")
         c.set_defaults(run=run)
-    sim = sub.add_parser("simulate", help="run a tree's servo step against its true constrained plant")
+    sim = sub.add_parser("simulate", parents=[quiet], help="run a tree's servo step against its true constrained plant")
     sim.add_argument("spec")
     sim.add_argument("-o", "--output", help="directory for the CSV and PNG (default <name>_simulation/)")
     sim.add_argument("--duration", type=float, help="seconds (default: the spec's simulation section)")
@@ -173,6 +219,15 @@ def _parser() -> argparse.ArgumentParser:
     s = sub.add_parser("schema", help="print the JSON Schema of the spec format")
     s.set_defaults(run=_cmd_schema)
     return p
+
+
+def _casadi_version() -> str:
+    from importlib import metadata
+
+    try:
+        return metadata.version("casadi")
+    except metadata.PackageNotFoundError:
+        return "missing"
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -193,6 +248,11 @@ def main(argv: list[str] | None = None) -> int:
     except _Usage as e:
         print(f"robotgen: error: {e}", file=sys.stderr)
         return EXIT_USAGE
+    except BrokenPipeError:
+        # the reader closed the pipe (`robotgen schema | head -1`): it has what it wanted
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        return EXIT_OK
     except Exception:  # noqa: BLE001 - a bug in robotgen, not the user's fault
         traceback.print_exc()
         print("robotgen: internal error (a bug in robotgen, not in your input); please report it",

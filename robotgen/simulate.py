@@ -15,7 +15,22 @@ from pathlib import Path
 
 import numpy as np
 
+from robotgen.model.signature import FORCE_UNITS
 from robotgen.model.simulation import SimulationSettings as Settings
+
+# a state entry beyond this is taken as divergence before it overflows
+DIVERGED = 1e8
+# largest constraint residual |y - h^-1(h(y))| accepted at the start [m or rad]
+RESIDUAL_TOLERANCE = 1e-6
+
+
+class SimulationError(ValueError):
+    """The settings or the closed loop cannot be simulated: the user's to fix. ``field`` is
+    the key of the simulation section the message is about (None: the spec as a whole)."""
+
+    def __init__(self, message: str, field: str | None = None):
+        super().__init__(message)
+        self.field = field
 
 
 @dataclass
@@ -25,7 +40,13 @@ class Result:
     x_d: np.ndarray
     tau: np.ndarray
     theta: np.ndarray
-    names: list[str] = field(default_factory=list)
+    names: list[str] = field(default_factory=list)  # root coordinates
+    units: list[str] = field(default_factory=list)  # of the root coordinates ('' unknown)
+    joints: list[str] = field(default_factory=list)  # leaf joint coordinates, in tau's order
+    joint_units: list[str] = field(default_factory=list)
+    internal_forces: list[str] = field(default_factory=list)  # every grasp's, as the plant reports
+    f_actual: np.ndarray | None = None  # (steps, k) the internal forces the plant carries
+    f_commanded: np.ndarray | None = None  # (k,) their commands, NaN where none is known
 
     @property
     def error(self) -> np.ndarray:
@@ -47,20 +68,56 @@ def desired(s: Settings, x0: np.ndarray, t: float):
     return x0 + a * np.sin(w * t), a * w * np.cos(w * t), -a * w * w * np.sin(w * t)
 
 
-def run(module, s: Settings) -> Result:
+def _format(values) -> str:
+    return "[" + ", ".join(f"{v:.4g}" for v in np.asarray(values, float).ravel()) + "]"
+
+
+def _start(module, s: Settings, rest: np.ndarray, n_ext: int) -> tuple[np.ndarray, np.ndarray, str | None]:
+    """(theta at t = 0, x_d(0), the field that chose theta or None for the rest posture)."""
+    if s.theta0 is not None:
+        theta = np.asarray(s.theta0, float)
+        x0 = module.plant_position(theta)[:n_ext] if s.start is None else np.asarray(s.start, float)
+        return theta, x0, "theta0"
+    if s.start is not None:
+        if not hasattr(module, "plant_inverse"):
+            raise SimulationError("start needs inverse kinematics in every attach (formulas leaves with "
+                                  "inverse_kinematics, or h_inverse); give theta0 (the leaf joint "
+                                  "positions) instead", "start")
+        x0 = np.asarray(s.start, float)
+        err = np.zeros(n_ext) if not s.initial_error else np.asarray(s.initial_error, float)
+        return module.plant_inverse(x0 + err), x0, "start"
+    theta = np.asarray(rest, float)
+    return theta, module.plant_position(theta)[:n_ext], None
+
+
+def _check_constraints(module, theta: np.ndarray, source: str | None) -> None:
+    info = module.info()
+    if not hasattr(module, "constraint_residual"):
+        return
+    r = module.constraint_residual(theta)
+    worst = int(np.argmax(np.abs(r)))
+    if abs(r[worst]) <= RESIDUAL_TOLERANCE:
+        return
+    name = info["constraint_residual"][worst]
+    attach, coordinate = name.split(".", 1)
+    what = {"theta0": "theta0 violates", "start": "the plant's start (start + initial_error) violates",
+            None: "with no simulation section (neither theta0 nor start), the simulation starts at the "
+                  "joints' mid-range (or zero) posture, which violates"}[source]
+    advice = "" if source else "; give simulation.start (root positions) or theta0"
+    raise SimulationError(f"{what} the constraint of attach '{attach}': residual {r[worst]:.3g} in "
+                          f"'{coordinate}' (y - h^-1(h(y)), largest of {_format(r)}){advice}", source)
+
+
+def run(module, s: Settings, rest: np.ndarray | None = None) -> Result:
+    """The closed loop from the settings; ``rest`` is the leaf posture used when the
+    settings give neither theta0 nor start. Raises SimulationError for settings the plant
+    cannot start from and for a loop that diverges."""
     info = module.info()
     root = info["nodes"][info["root"]]
     n_ext, n_v = len(root["coordinates"]), root["nq"]
     n_fi = len(root["internal_forces"])
-    if s.theta0 is not None:
-        theta = np.asarray(s.theta0, float)
-        x0 = module.plant_position(theta)[:n_ext] if s.start is None else np.asarray(s.start, float)
-    else:
-        if s.start is None or not hasattr(module, "plant_inverse"):
-            raise ValueError("the simulation needs theta0, or start with inverse kinematics in every attach")
-        x0 = np.asarray(s.start, float)
-        err = np.zeros(n_ext) if not s.initial_error else np.asarray(s.initial_error, float)
-        theta = module.plant_inverse(x0 + err)
+    theta, x0, source = _start(module, s, np.zeros(module.nq) if rest is None else rest, n_ext)
+    _check_constraints(module, theta, source)
     _, v_d0, _ = desired(s, x0, 0.0)
     v = np.zeros(module.plant_velocity(theta, np.zeros(module.nq)).shape[0])
     v[:n_ext] = v_d0
@@ -72,7 +129,8 @@ def run(module, s: Settings) -> Result:
 
     state = module.servo_init(theta, theta_dot(theta, v)) if stateful else None
     steps = int(round(s.duration / s.dt))
-    T, X, XD, TAU, TH = [], [], [], [], []
+    T, X, XD, TAU, TH, FI = [], [], [], [], [], []
+    reads_forces = hasattr(module, "plant_internal_forces")
     for k in range(steps + 1):
         t = k * s.dt
         x_d, v_d, a_d = desired(s, x0, t)
@@ -88,12 +146,28 @@ def run(module, s: Settings) -> Result:
         XD.append(x_d)
         TAU.append(tau)
         TH.append(theta)
+        if reads_forces:
+            FI.append(module.plant_internal_forces(theta, v, tau))
         if k == steps:
             break
-        theta, v = _rk4(module, theta, v, tau, s.dt)
-        if not (np.all(np.isfinite(theta)) and np.all(np.isfinite(v))):
-            raise FloatingPointError(f"the simulation diverged at t = {t:.4f} s")
-    return Result(np.array(T), np.array(X), np.array(XD), np.array(TAU), np.array(TH), list(root["coordinates"]))
+        theta_next, v_next = _rk4(module, theta, v, tau, s.dt)
+        if not (np.all(np.abs(theta_next) < DIVERGED) and np.all(np.abs(v_next) < DIVERGED)):
+            raise SimulationError(
+                f"the closed loop diverged at t = {t + s.dt:.4f} s (step {k + 1} of {steps}): the state "
+                f"before the blow-up was theta = {_format(theta)}, root velocity = {_format(v)}, "
+                f"torque = {_format(tau)}; the gains are too high for dt = {s.dt:g} s or the loop is "
+                "unstable: lower kp and kv, or dt")
+        theta, v = theta_next, v_next
+    joints = [c for leaf in info["leaves"] for c in info["nodes"][leaf]["coordinates"]]
+    joint_units = [u for leaf in info["leaves"] for u in info["nodes"][leaf]["units"]]
+    names = info.get("internal_forces", [])
+    commands = dict(zip(root["internal_forces"], f_i))  # left to the root: the simulation's values
+    for node in info["nodes"].values():
+        commands.update(node.get("internal_force_setpoints", {}))
+    return Result(np.array(T), np.array(X), np.array(XD), np.array(TAU), np.array(TH),
+                  list(root["coordinates"]), list(root["units"][:n_ext]), joints, joint_units, names,
+                  np.array(FI) if reads_forces else None,
+                  np.array([commands.get(n, np.nan) for n in names]) if reads_forces else None)
 
 
 def _pad(a: np.ndarray, n: int) -> np.ndarray:
@@ -106,55 +180,104 @@ def _rk4(module, theta, v, tau, dt):
     def f(th, vel):
         return module.plant_dynamics(th, vel, tau)
 
-    k1 = f(theta, v)
-    k2 = f(theta + dt / 2 * k1[0], v + dt / 2 * k1[1])
-    k3 = f(theta + dt / 2 * k2[0], v + dt / 2 * k2[1])
-    k4 = f(theta + dt * k3[0], v + dt * k3[1])
-    return (theta + dt / 6 * (k1[0] + 2 * k2[0] + 2 * k3[0] + k4[0]),
-            v + dt / 6 * (k1[1] + 2 * k2[1] + 2 * k3[1] + k4[1]))
+    with np.errstate(all="ignore"):  # a diverging loop overflows; run() reports it
+        k1 = f(theta, v)
+        k2 = f(theta + dt / 2 * k1[0], v + dt / 2 * k1[1])
+        k3 = f(theta + dt / 2 * k2[0], v + dt / 2 * k2[1])
+        k4 = f(theta + dt * k3[0], v + dt * k3[1])
+        return (theta + dt / 6 * (k1[0] + 2 * k2[0] + 2 * k3[0] + k4[0]),
+                v + dt / 6 * (k1[1] + 2 * k2[1] + 2 * k3[1] + k4[1]))
 
 
 def write_csv(result: Result, path: Path) -> None:
+    """t, the root coordinates (x_<name>), their reference (xref_<name>), the actuator
+    torques by joint (tau_<joint>) and the internal forces the grasps carry (f_<name>)."""
+    fi = result.internal_forces if result.f_actual is not None else []
     with open(path, "w", newline="") as f:
         w = csv.writer(f)
-        n_tau = result.tau.shape[1]
         w.writerow(["t"] + [f"x_{c}" for c in result.names] + [f"xref_{c}" for c in result.names]
-                   + [f"tau_{k + 1}" for k in range(n_tau)])
+                   + [f"tau_{j}" for j in result.joints] + [f"f_{c}" for c in fi])
         for k in range(len(result.t)):
             w.writerow([f"{result.t[k]:.6f}"] + [f"{v:.10g}" for v in result.x[k]]
-                       + [f"{v:.10g}" for v in result.x_d[k]] + [f"{v:.10g}" for v in result.tau[k]])
+                       + [f"{v:.10g}" for v in result.x_d[k]] + [f"{v:.10g}" for v in result.tau[k]]
+                       + [f"{v:.10g}" for v in (result.f_actual[k] if fi else [])])
+
+
+def _unit(unit: str) -> str:
+    return f" [{unit}]" if unit else ""
 
 
 def plot(result: Result, path: Path, title: str) -> None:
+    """Per root coordinate: actual and desired trajectory, then the tracking error; the
+    actuator torques (forces) by joint; the commanded internal forces, if any. Panels are
+    grouped by unit, so metres and radians never share an axis."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(8, 6), sharex=True)
-    for i, c in enumerate(result.names):
-        ax1.semilogy(result.t, np.abs(result.error[:, i]) + 1e-16, label=c)
-    ax1.set_ylabel("|x - x_d|")
-    ax1.legend(loc="upper right", fontsize=8)
-    ax1.grid(True, which="both", alpha=0.3)
-    for k in range(result.tau.shape[1]):
-        ax2.plot(result.t, result.tau[:, k], label=f"tau {k + 1}")
-    ax2.set_ylabel("torque [N m]")
-    ax2.set_xlabel("t [s]")
-    ax2.legend(loc="upper right", fontsize=8, ncol=2)
-    ax2.grid(True, alpha=0.3)
+    groups = _by_unit(result.names, result.units)
+    force_groups = _by_unit(result.joints, [FORCE_UNITS[u] for u in result.joint_units])
+    n_rows = 2 * len(groups) + len(force_groups) + (result.f_actual is not None)
+    fig, axes = plt.subplots(n_rows, 1, figsize=(9, 2.3 * n_rows), sharex=True, squeeze=False)
+    axes = list(axes[:, 0])
+    colors = plt.rcParams["axes.prop_cycle"].by_key()["color"]
+    for unit, indices in groups.items():
+        ax = axes.pop(0)
+        for n, i in enumerate(indices):
+            c = colors[n % len(colors)]
+            ax.plot(result.t, result.x[:, i], color=c, label=f"{result.names[i]}")
+            ax.plot(result.t, result.x_d[:, i], color=c, linestyle="--", linewidth=1, label=f"{result.names[i]} desired")
+        ax.set_ylabel(f"position{_unit(unit)}")
+        ax.legend(loc="upper right", fontsize=7, ncol=2)
+        ax.grid(True, alpha=0.3)
+        ax = axes.pop(0)
+        for n, i in enumerate(indices):
+            ax.plot(result.t, result.error[:, i], color=colors[n % len(colors)], label=result.names[i])
+        ax.set_ylabel(f"error x - x_d{_unit(unit)}")
+        ax.legend(loc="upper right", fontsize=7, ncol=3)
+        ax.grid(True, alpha=0.3)
+    for unit, indices in force_groups.items():
+        ax = axes.pop(0)
+        for n, i in enumerate(indices):
+            ax.plot(result.t, result.tau[:, i], color=colors[n % len(colors)], label=result.joints[i])
+        label = {"N": "force", "N m": "torque"}.get(unit, "actuator effort")
+        ax.set_ylabel(f"{label}{_unit(unit)}")
+        ax.legend(loc="upper right", fontsize=7, ncol=3)
+        ax.grid(True, alpha=0.3)
+    if result.f_actual is not None:
+        ax = axes.pop(0)
+        for n, name in enumerate(result.internal_forces):
+            c = colors[n % len(colors)]
+            ax.plot(result.t, result.f_actual[:, n], color=c, label=name)
+            if np.isfinite(result.f_commanded[n]):
+                ax.plot(result.t, np.full_like(result.t, result.f_commanded[n]), color=c, linestyle="--",
+                        linewidth=1, label=f"{name} commanded")
+        ax.set_ylabel("internal force")
+        ax.legend(loc="upper right", fontsize=7, ncol=3)
+        ax.grid(True, alpha=0.3)
+    fig.axes[-1].set_xlabel("t [s]")
     fig.suptitle(title)
     fig.tight_layout()
     fig.savefig(path, dpi=100)
     plt.close(fig)
 
 
+def _by_unit(names: list[str], units: list[str]) -> dict[str, list[int]]:
+    groups: dict[str, list[int]] = {}
+    for i, _ in enumerate(names):
+        groups.setdefault(units[i] if i < len(units) else "", []).append(i)
+    return groups
+
+
 def summary(result: Result) -> str:
-    e = np.linalg.norm(result.error, axis=1)
     lines = [f"simulated {result.t[-1]:.3f} s in {len(result.t) - 1} steps",
-             f"tracking error |x - x_d|: start {e[0]:.3e}, max {e.max():.3e}, final {e[-1]:.3e}"]
-    for frac in (0.25, 0.5):
-        k = int(frac * (len(result.t) - 1))
-        lines.append(f"  at t = {result.t[k]:.3f} s: {e[k]:.3e}")
-    lines.append(f"max |tau|: {np.abs(result.tau).max():.4g} N m")
+             "tracking error x - x_d (largest over the run, and at the end):"]
+    for i, name in enumerate(result.names):
+        unit = result.units[i] if i < len(result.units) else ""
+        e = result.error[:, i]
+        lines.append(f"  {name:>12}: max {np.abs(e).max():.3e}, final {e[-1]:+.3e}{_unit(unit)}")
+    for i, name in enumerate(result.joints):
+        unit = FORCE_UNITS[result.joint_units[i]] if i < len(result.joint_units) else ""
+        lines.append(f"  {'tau ' + name:>12}: max |.| {np.abs(result.tau[:, i]).max():.4g}{_unit(unit)}")
     return "\n".join(lines)

@@ -34,11 +34,11 @@ def test_simulate_writes_csv_and_png(tmp_path):
     header, rows = table[0], np.array(table[1:], dtype=float)
     coords = ["x", "y", "psi"]
     assert header == (["t"] + [f"x_{c}" for c in coords] + [f"xref_{c}" for c in coords]
-                      + [f"tau_{k}" for k in range(1, 5)])
+                      + [f"tau_{j}" for j in ("lth1", "lth2", "rth1", "rth2")] + ["f_hand_f1"])
     with open(HIGH) as f:
         sim = yaml.safe_load(f)["simulation"]
     dt = const(sim["dt"])
-    assert rows.shape == (501, 11)  # t = 0, dt, ..., 0.5 with the spec's dt = 1e-3
+    assert rows.shape == (501, 12)  # t = 0, dt, ..., 0.5 with the spec's dt = 1e-3
     np.testing.assert_allclose(rows[:, 0], np.arange(501) * dt, atol=1e-9)
     start = np.array([const(c) for c in sim["start"]])
     e0 = np.array([const(c) for c in sim["initial_error"]])
@@ -47,7 +47,7 @@ def test_simulate_writes_csv_and_png(tmp_path):
     a = np.array([const(c) for c in sim["amplitude"]])
     w = 2 * math.pi * np.array([const(c) for c in sim["frequency"]])
     np.testing.assert_allclose(rows[:, 4:7], start + a * np.sin(np.outer(rows[:, 0], w)), atol=1e-9)
-    assert np.all(np.isfinite(rows[:, 7:])) and np.abs(rows[:, 7:]).max() > 1e-3
+    assert np.all(np.isfinite(rows[:, 7:11])) and np.abs(rows[:, 7:11]).max() > 1e-3
     # critically damped computed torque (kp = 100, kv = 20): e(t) = e0 (1 + 10 t) exp(-10 t), up to
     # the zero-order hold's 1.9e-3 |e0| at dt = 1e-3 (test_primitives measures it)
     for k in (100, 250, 500):
@@ -65,3 +65,120 @@ def test_simulate_rejects_a_single_chain(tmp_path):
     assert r.returncode == 2
     assert "simulate needs a robot tree" in r.stderr and "Traceback" not in r.stderr
     assert not out.exists()
+
+
+def spec_with(tmp_path, base: Path, change) -> Path:
+    data = yaml.safe_load(base.read_text())
+    change(data)
+    path = tmp_path / base.name
+    path.write_text(yaml.safe_dump(data, sort_keys=False))
+    return path
+
+
+def test_a_diverging_loop_is_the_users_gains(tmp_path):
+    """PD gains far too high for the step: exit 1 at the controller's line, with the time
+    and the state that blew up; no output directory."""
+    def stiff(data):
+        data["nodes"]["ct_hand"]["control"].update(law="pd", kp=1e6, kv=1e3)
+    spec = spec_with(tmp_path, HIGH, stiff)
+    out = tmp_path / "sim"
+    r = run_cli("simulate", str(spec), "-o", str(out), "--dt", "0.01", "--duration", "0.5")
+    assert r.returncode == 1, r.stderr
+    line = spec.read_text().splitlines().index("  ct_hand:") + 1
+    assert r.stderr.startswith(f"{spec}:{line}:3: the closed loop diverged at t = "), r.stderr
+    assert "theta = [" in r.stderr and "lower kp and kv, or dt" in r.stderr and "Traceback" not in r.stderr
+    assert not out.exists()
+
+
+def test_initial_error_needs_start_not_theta0(tmp_path):
+    spec = spec_with(tmp_path, HIGH, lambda d: d["simulation"].update(theta0=[2.0, 0.3, 1.1, 2.8]))
+    r = run_cli("check", str(spec))
+    assert r.returncode == 1
+    assert "simulation.initial_error: initial_error offsets the plant from start" in r.stderr
+
+
+def test_simulation_lists_are_checked_at_their_lines(tmp_path):
+    def wrong(data):
+        data["simulation"].update(start=[0.0, 0.12], amplitude=[0.01, 0.01, 0.2, 0.0], theta0=[1.0, 2.0])
+        del data["simulation"]["initial_error"]
+    spec = spec_with(tmp_path, HIGH, wrong)
+    r = run_cli("check", str(spec))
+    assert r.returncode == 1
+    lines = spec.read_text().splitlines()
+    found = {}
+    for message in r.stderr.strip().splitlines():
+        where, text = message.split(": ", 1)
+        found[text.split(":")[0]] = int(where.split(":")[1])
+    for key in ("start", "amplitude", "theta0"):
+        assert lines[found[f"simulation.{key}"] - 1].strip().startswith(f"{key}:"), (key, r.stderr)
+    assert "simulation.start: expected 3 entries (one per root coordinate of 'ct_hand': x, y, psi), got 2" in r.stderr
+    assert "simulation.theta0: expected 4 entries (one per joint of the leaves (left, right)" in r.stderr
+
+
+def test_a_theta0_off_the_grasp_reports_the_residual(tmp_path, build_module):
+    """The right fingertip moved off its contact point: the constraint residual, at theta0."""
+    module = build_module(HIGH)
+    theta = module.plant_inverse(np.array([0.0, 0.12, 0.0]))
+    assert np.abs(module.constraint_residual(theta)).max() < 1e-12
+    theta_off = theta.copy()
+    theta_off[2] += 0.01  # the right finger's first joint turned by 10 mrad
+
+    def at(data):
+        del data["simulation"]["initial_error"]
+        data["simulation"]["theta0"] = [float(v) for v in theta_off]
+    spec = spec_with(tmp_path, HIGH, at)
+    r = run_cli("simulate", str(spec), "-o", str(tmp_path / "sim"))
+    assert r.returncode == 1
+    residual = module.constraint_residual(theta_off)
+    worst = int(np.argmax(np.abs(residual)))
+    name = module.info()["constraint_residual"][worst]
+    assert name.startswith("hand.")
+    line = spec.read_text().splitlines().index("  theta0:") + 1
+    assert r.stderr.startswith(f"{spec}:{line}:3: simulation.theta0: theta0 violates the constraint of attach "
+                               f"'hand': residual {residual[worst]:.3g} in '{name[5:]}'"), r.stderr
+    assert abs(residual[worst]) > 1e-4
+
+
+def test_a_chain_under_computed_torque_starts_mid_range(tmp_path):
+    """No simulation section: the chain starts at its joints' mid-range posture (zero where
+    a joint has no limits) and the loop holds it."""
+    spec = tmp_path / "arm_ct.yaml"
+    spec.write_text("""robotgen: 1
+name: arm_ct
+root: ct
+nodes:
+  arm:
+    define:
+      chain:
+        convention: dh_standard
+        joints:
+          - {type: revolute, dh: {a: 0.5, alpha: "pi/2"}, link: {mass: 1, com: [-0.25, 0, 0]}, limits: {lower: -1, upper: 2}}
+          - {type: revolute, dh: {a: 0.5}, link: {mass: 1, com: [-0.25, 0, 0]}}
+  ct:
+    control: {robot: arm, law: computed_torque, kp: 100, kv: 20}
+""")
+    out = tmp_path / "sim"
+    r = run_cli("simulate", str(spec), "-o", str(out), "--duration", "0.2")
+    assert r.returncode == 0, r.stderr
+    with open(out / "arm_ct.csv", newline="") as f:
+        table = list(csv.reader(f))
+    assert table[0] == ["t", "x_q1", "x_q2", "xref_q1", "xref_q2", "tau_q1", "tau_q2"]
+    rows = np.array(table[1:], dtype=float)
+    np.testing.assert_allclose(rows[0, 1:3], [0.5, 0.0], atol=1e-12)
+    assert np.abs(rows[:, 1:3] - rows[:, 3:5]).max() < 1e-9  # held against gravity
+    assert np.abs(rows[:, 6]).max() > 1.0  # it takes torque on q2 to hold the arm against gravity
+
+
+def test_internal_forces_carried_by_the_grasp(tmp_path):
+    """styx_redundant resolves the squeeze to 1 N: the plant's readback of the force the
+    grasp carries stays within 1 % of it (the fingers' own inertia makes the difference),
+    and the CSV and PNG show it."""
+    out = tmp_path / "sim"
+    r = run_cli("simulate", "specs/styx_redundant.yaml", "-o", str(out), "--duration", "1.0")
+    assert r.returncode == 0, r.stderr
+    with open(out / "styx_redundant.csv", newline="") as f:
+        table = list(csv.reader(f))
+    assert table[0][-1] == "f_hand_f1"
+    f = np.array([row[-1] for row in table[1:]], dtype=float)
+    print(f"\n  styx_redundant squeeze over 1 s: min {f.min():.4f}, max {f.max():.4f} N (commanded 1)")
+    assert np.abs(f - 1.0).max() < 0.01 and np.abs(f - 1.0).max() > 1e-5

@@ -9,6 +9,7 @@ from robotgen.emit import compile as compiler
 from robotgen.emit.context import module_view
 from robotgen.emit.manifest import manifest_json
 from robotgen.emit.render import render_all
+from robotgen.progress import QUIET, Progress
 from robotgen.symbolic.kernel import Kernel
 
 MANIFEST = "manifest.json"
@@ -16,16 +17,19 @@ MANIFEST = "manifest.json"
 
 def emit(out_dir: Path, name: str, kernels: list[Kernel], *, nq: int,
          precision: str = "double", compile: bool = True, extra_info: dict | None = None,
-         spec_sha256: str = "", attributes: dict | None = None) -> Path:
-    """Writes ``<name>.h``, ``<name>.c``, ``<name>_module.c``, ``Makefile``, ``manifest.json``
-    and (if ``compile``) the extension ``<name><EXT_SUFFIX>`` to ``out_dir``, replacing a
+         spec_sha256: str = "", attributes: dict | None = None, progress: Progress = QUIET) -> Path:
+    """Writes ``<name>.h``, ``<name>.c``, ``<name>_module.c``, the stub ``<name>.pyi``,
+    ``Makefile`` (with ``<name>.pc.in`` and ``<name>Config.cmake.in``, which its ``install``
+    target fills in), ``manifest.json`` and (if ``compile``) the extension
+    ``<name><EXT_SUFFIX>`` to ``out_dir``, replacing a
     previous build there. ``extra_info`` adds keys to info() and the manifest (e.g.
     ``nodes``); ``attributes`` adds json-valued module attributes. Everything is made in a
     temporary sibling directory first, so a failure leaves ``out_dir`` as it was."""
     out_dir = Path(out_dir)
     view = module_view(name, kernels, nq=nq, precision=precision, spec_sha256=spec_sha256,
-                       extra_info=extra_info, attributes=attributes)
-    files = {**render_all(view), MANIFEST: manifest_json(view)}
+                       extra_info=extra_info, attributes=attributes, progress=progress)
+    sources = render_all(view)
+    files = {**sources, MANIFEST: manifest_json(view, sources)}
     _check_replaceable(out_dir)
     out_dir.parent.mkdir(parents=True, exist_ok=True)
     staging = out_dir.parent / f".{out_dir.name}.tmp-{os.getpid()}"
@@ -35,6 +39,7 @@ def emit(out_dir: Path, name: str, kernels: list[Kernel], *, nq: int,
         for file_name, text in files.items():
             (staging / file_name).write_bytes(text.encode("utf-8"))
         if compile:
+            progress.stage(f"compiling the extension ({' '.join(compiler.compiler())})")
             compiler.compile_extension(staging, name, [f"{name}_module.c", f"{name}.c"])
         _swap_in(staging, out_dir)
     except BaseException:

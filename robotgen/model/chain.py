@@ -17,6 +17,10 @@ import numpy as np
 
 REVOLUTE = "revolute"
 PRISMATIC = "prismatic"
+# deviations from physical consistency that a spec may keep on purpose (published parameter
+# sets carry them), acknowledged per inertia with ``accept``
+TRIANGLE_INEQUALITY = "triangle_inequality"
+ACCEPTABLE_DEVIATIONS = (TRIANGLE_INEQUALITY,)
 
 
 @dataclass(frozen=True, eq=False)

@@ -3,7 +3,7 @@ from __future__ import annotations
 
 from robotgen.model.chain import KinematicTree
 from robotgen.model.system import AttachNode, ControlNode, DefineNode, RobotSystem
-from robotgen.model.signature import robot_leaves, signature
+from robotgen.model.signature import constraint_residual_names, coordinate_units, internal_force_names, robot_leaves, signature
 
 
 def system_nq(system: RobotSystem) -> int:
@@ -17,7 +17,8 @@ def system_info(system: RobotSystem) -> dict:
         sig = signature(system, node.name)
         entry = {"primitive": node.primitive, "coordinates": list(sig.external),
                  "internal_motions": list(sig.internal_motions),
-                 "internal_forces": list(sig.internal_forces), "nq": sig.n_velocity}
+                 "internal_forces": list(sig.internal_forces), "nq": sig.n_velocity,
+                 "units": list(coordinate_units(system, node.name))}
         if isinstance(node, DefineNode):
             leaf = node.leaf
             entry["kind"] = type(leaf).__name__
@@ -34,8 +35,18 @@ def system_info(system: RobotSystem) -> dict:
             entry.update(kind=node.constraint.kind, robots=list(node.robots), payload=node.payload)
         elif isinstance(node, ControlNode):
             entry.update(kind=node.law, robot=node.robot)
+            if node.internal_forces is not None:  # resolved here, to these values
+                resolved = signature(system, node.robot).internal_forces
+                entry["internal_force_setpoints"] = dict(zip(resolved, map(float, node.internal_forces)))
         nodes[node.name] = entry
-    return {"root": system.root, "leaves": robot_leaves(system), "nodes": nodes}
+    info = {"root": system.root, "leaves": robot_leaves(system), "nodes": nodes}
+    residual = constraint_residual_names(system)
+    if residual:
+        info["constraint_residual"] = residual
+    forces = internal_force_names(system)
+    if forces:
+        info["internal_forces"] = forces
+    return info
 
 
 def _joint_info(joint) -> dict:

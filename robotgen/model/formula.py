@@ -3,7 +3,7 @@ and M, C, N written as expressions. The expressions are parsed and checked by
 robotgen.model.expression; they become CasADi graphs in robotgen.symbolic.formulas."""
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 from robotgen.model.expression import Expr
 
@@ -20,6 +20,8 @@ class FormulaRobot:
     outputs:    names of the kinematics outputs (used by ATTACH formulas and inverse_kinematics).
     inverse_kinematics: optional q = f^-1(x), expressions in the outputs and parameters
                 (StyxDefinitions.m's RobotInverse); lets positions flow down through ATTACH.
+    units:      optional unit ("m" or "rad") of coordinates and outputs, by name: labels
+                plots and reports (forces in N on "m" coordinates, torques in N m on "rad").
     """
 
     name: str
@@ -32,6 +34,7 @@ class FormulaRobot:
     kinematics: tuple[Expr, ...] | None
     outputs: tuple[str, ...] = ()
     inverse_kinematics: tuple[Expr, ...] | None = None
+    units: dict[str, str] = field(default_factory=dict)
 
     @property
     def nq(self) -> int:

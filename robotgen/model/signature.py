@@ -11,7 +11,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from robotgen.model.chain import KinematicTree
+from robotgen.model.chain import REVOLUTE, KinematicTree
 from robotgen.model.formula import FormulaRobot
 from robotgen.model.system import (
     CONSTRAINT_FORMULAS,
@@ -62,6 +62,55 @@ def leaf_coordinates(leaf) -> tuple[str, ...]:
     return tuple(leaf.coordinates)
 
 
+METRE, RADIAN = "m", "rad"
+UNITS = (METRE, RADIAN)
+FORCE_UNITS = {METRE: "N", RADIAN: "N m", "": ""}
+
+
+def leaf_units(leaf) -> tuple[str, ...]:
+    """Unit of each coordinate of a leaf: a chain's revolute joints rad, prismatic m; a
+    payload's pose m then rad; a formulas leaf's as its spec gives (else unknown, '')."""
+    if isinstance(leaf, KinematicTree):
+        return tuple(RADIAN if j.type == REVOLUTE else METRE for j in leaf.joints)
+    if isinstance(leaf, PlanarBody):
+        return (METRE, METRE, RADIAN)
+    if isinstance(leaf, SpatialBody):
+        return (METRE,) * 3 + (RADIAN,) * 3
+    return tuple(leaf.units.get(c, "") for c in leaf.coordinates)
+
+
+def coordinate_units(system: RobotSystem, name: str) -> tuple[str, ...]:
+    """Unit of each velocity coordinate of a node (external, then internal motions, which
+    are unitless rates of a null space): '' where robotgen cannot know it."""
+    node = system.nodes[name]
+    sig = signature(system, name)
+    internal = ("",) * len(sig.internal_motions)
+    if isinstance(node, DefineNode):
+        return leaf_units(node.leaf)
+    if isinstance(node, ControlNode):
+        return coordinate_units(system, node.robot)[:sig.n_external] + internal
+    c = node.constraint
+    payload = system.nodes[node.payload].leaf if node.payload else None
+    if isinstance(payload, (PlanarBody, SpatialBody)):
+        external = leaf_units(payload)
+    elif c.kind == FRAME_CHANGE:
+        external = ()
+        for r in node.robots:
+            below = system.nodes[r]
+            while isinstance(below, ControlNode):
+                below = system.nodes[below.robot]
+            leaf = below.leaf
+            if isinstance(leaf, FormulaRobot):
+                external += tuple(leaf.units.get(o, "") for o in leaf.outputs)
+            else:
+                external += (METRE,) * len(chain_outputs(r, c.output))
+    elif isinstance(payload, FormulaRobot):
+        external = leaf_units(payload)
+    else:
+        external = ("",) * sig.n_external
+    return external + internal
+
+
 def kinematic_outputs(system: RobotSystem, name: str) -> tuple[str, ...]:
     """Names of a robot's kinematic outputs, the coordinates a frame_change ATTACH gives it."""
     node = system.nodes[name]
@@ -93,7 +142,8 @@ def signature(system: RobotSystem, name: str) -> Signature:
     return _attach_signature(system, node)
 
 
-def _attach_signature(system: RobotSystem, node: AttachNode) -> Signature:
+def _attach_structure(system: RobotSystem, node: AttachNode) -> tuple[tuple[str, ...], int, int]:
+    """(the node's coordinates, how many internal motions and internal forces it creates)."""
     children = [signature(system, r) for r in node.robots]
     m = sum(c.n_external for c in children)
     c = node.constraint
@@ -126,12 +176,22 @@ def _attach_signature(system: RobotSystem, node: AttachNode) -> Signature:
     if n_motions < 0 or n_forces < 0:
         raise SignatureError(f"attach '{node.name}': {m} robot coordinates, {rows} constraint rows and "
                              f"{len(external)} node coordinates do not fit (need m >= rows >= n)")
-    motions = tuple(f"{node.name}_m{k + 1}" for k in range(n_motions))
-    forces = tuple(f"{node.name}_f{k + 1}" for k in range(n_forces))
-    for ch in children:
+    return external, n_motions, n_forces
+
+
+def _attach_signature(system: RobotSystem, node: AttachNode) -> Signature:
+    external, n_motions, n_forces = _attach_structure(system, node)
+    motions, forces = created_names(node, n_motions, n_forces)
+    for ch in (signature(system, r) for r in node.robots):
         motions += ch.internal_motions
         forces += ch.internal_forces
     return Signature(external, motions, forces)
+
+
+def created_names(node: AttachNode, n_motions: int, n_forces: int) -> tuple[tuple[str, ...], tuple[str, ...]]:
+    """Names of the internal motions and forces an ATTACH creates: <node>_m1.., <node>_f1.."""
+    return (tuple(f"{node.name}_m{k + 1}" for k in range(n_motions)),
+            tuple(f"{node.name}_f{k + 1}" for k in range(n_forces)))
 
 
 def robot_leaves(system: RobotSystem, name: str | None = None) -> list[str]:
@@ -162,3 +222,42 @@ def angle_coordinates(system: RobotSystem, name: str) -> tuple[bool, ...]:
     if node.constraint.kind == POINT_CONTACTS or isinstance(payload, SpatialBody):
         return (False,) * 3 + (True,) * 3 if n == 6 else (False,) * n
     return (False,) * n
+
+
+def has_position_inverse(system: RobotSystem, node: AttachNode) -> bool:
+    """Whether an ATTACH knows h^-1 (robot positions from its own): contact grasps always,
+    formula constraints when they give h_inverse, frame changes when every robot is a
+    formulas leaf with inverse_kinematics."""
+    c = node.constraint
+    if c.kind in CONTACT_GRASPS:
+        return True
+    if c.kind == CONSTRAINT_FORMULAS:
+        return c.h_inverse is not None
+    leaves = []
+    for r in node.robots:
+        below = system.nodes[r]
+        while isinstance(below, ControlNode):
+            below = system.nodes[below.robot]
+        leaves.append(getattr(below, "leaf", None))
+    return all(isinstance(leaf, FormulaRobot) and leaf.inverse_kinematics for leaf in leaves)
+
+
+def constraint_residual_names(system: RobotSystem) -> list[str]:
+    """Entries of the position-level constraint residual y - h^-1(h(y)): for every ATTACH
+    with h^-1 (in walk order), its robots' external coordinates, as <attach>.<coordinate>."""
+    names = []
+    for node in system.walk():
+        if isinstance(node, AttachNode) and has_position_inverse(system, node):
+            names += [f"{node.name}.{c}" for r in node.robots for c in signature(system, r).external]
+    return names
+
+
+def internal_force_names(system: RobotSystem) -> list[str]:
+    """The internal forces every ATTACH creates (whether or not a controller resolves
+    them), in walk order: what the plant's internal-force readback reports."""
+    names: list[str] = []
+    for node in system.walk():
+        if isinstance(node, AttachNode):
+            _, n_motions, n_forces = _attach_structure(system, node)
+            names += created_names(node, n_motions, n_forces)[1]
+    return names

@@ -1,7 +1,10 @@
 """A spec's `simulation` section: how `robotgen simulate` runs the closed loop."""
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+
+from robotgen.errors import Location
+from robotgen.model.chain import KinematicTree
 
 
 @dataclass(frozen=True)
@@ -14,3 +17,20 @@ class SimulationSettings:
     amplitude: tuple[float, ...] = ()  # x_d(t) = start + amplitude sin(2 pi frequency t)
     frequency: tuple[float, ...] = ()
     internal_forces: tuple[float, ...] = ()  # root f_i, if the root leaves some unresolved
+    # where each field stands in the spec (for messages about values that only the running
+    # simulation can judge, such as a theta0 that breaks a grasp)
+    locations: dict[str, Location] = field(default_factory=dict, compare=False, repr=False)
+
+
+def rest_posture(leaves) -> tuple[float, ...]:
+    """Where a simulation starts when its spec says nothing: every chain joint at the middle
+    of its position limits (0 without them), every other leaf coordinate at 0."""
+    posture: list[float] = []
+    for leaf in leaves:
+        if isinstance(leaf, KinematicTree):
+            for j in leaf.joints:
+                lo, hi = j.limits.lower, j.limits.upper
+                posture.append(0.5 * (lo + hi) if lo is not None and hi is not None else 0.0)
+        else:
+            posture += [0.0] * leaf.nq
+    return tuple(posture)

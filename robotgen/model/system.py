@@ -9,6 +9,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from robotgen.errors import Location
 from robotgen.model.chain import KinematicTree
 from robotgen.model.expression import Expr
 from robotgen.model.formula import FormulaRobot
@@ -185,6 +186,11 @@ class RobotSystem:
     warnings: tuple[str, ...] = ()  # located, printed by the CLI; the system is still valid
     simulation: SimulationSettings | None = None  # the spec's `simulation` section
     dependencies: tuple[str, ...] = ()  # other files the spec reads (URDF leaves)
+    node_locations: dict[str, Location] = field(default_factory=dict)  # node name -> where the spec defines it
+
+    def location_of(self, name: str) -> Location:
+        """Where node ``name`` stands in the spec (for messages found after loading)."""
+        return self.node_locations.get(name, Location(self.source))
 
     @property
     def root_node(self) -> Node:

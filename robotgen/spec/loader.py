@@ -49,8 +49,17 @@ def describe(value: object) -> str:
     if isinstance(value, list):
         return "a list"
     if isinstance(value, str):
-        return f"the string {value!r}"
+        return f"the string {_quoted(value)}"
     return repr(value)
+
+
+def _quoted(text: str, limit: int = 60) -> str:
+    """At most one line of ``text``, cut to ``limit`` characters: a message never echoes a
+    whole file back (`robotgen check /etc/passwd`)."""
+    lines = text.splitlines() or [""]
+    first = lines[0]
+    cut = len(first) > limit or len(lines) > 1
+    return repr(first[:limit]) + (" ..." if cut else "")
 
 
 class SourceMap:

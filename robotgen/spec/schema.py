@@ -11,6 +11,9 @@ from __future__ import annotations
 
 import json
 
+from robotgen.model.chain import ACCEPTABLE_DEVIATIONS
+from robotgen.model.signature import UNITS
+
 IDENTIFIER = "^[A-Za-z_][A-Za-z0-9_]*$"
 MODULE_NAME = "^[a-z_][a-z0-9_]*$"
 PRIMITIVES = ("define", "attach", "control")
@@ -78,7 +81,12 @@ _DEFS = {
                        "semi-definite, principal moments satisfy the triangle inequalities",
                        {"ixx": _number("I_xx"), "iyy": _number("I_yy"), "izz": _number("I_zz"),
                         "ixy": _number("I_xy, default 0"), "ixz": _number("I_xz, default 0"),
-                        "iyz": _number("I_yz, default 0")},
+                        "iyz": _number("I_yz, default 0"),
+                        "accept": {"type": "array", "uniqueItems": True,
+                                   "items": {"enum": list(ACCEPTABLE_DEVIATIONS)},
+                                   "description": "known deviations of published data to keep without a "
+                                                  "warning: triangle_inequality (principal moments "
+                                                  "I1 + I2 < I3)"}},
                        ("ixx", "iyy", "izz")),
     "link": _object("the body this joint moves (default: massless)",
                     {"mass": _number("mass [kg], >= 0", minimum=0),
@@ -144,7 +152,11 @@ _DEFS = {
          "outputs": _names("names of the kinematics outputs, default <node>_x1, <node>_x2, ...",
                            minItems=1),
          "inverse_kinematics": _expressions("q = f^-1(x): nq expressions in the outputs and "
-                                            "parameters", minItems=1)},
+                                            "parameters", minItems=1),
+         "units": {"type": "object", "propertyNames": {"pattern": IDENTIFIER},
+                   "additionalProperties": {"enum": list(UNITS)},
+                   "description": "unit of coordinates and outputs by name (m or rad), for plots "
+                                  "and reports; forces are in N on m, torques in N m on rad"}},
         ("coordinates", "M")),
     "rigid_body": {**_object(
         "a rigid payload body (never actuated), planar or spatial",

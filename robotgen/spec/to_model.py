@@ -13,7 +13,7 @@ import pathlib
 import numpy as np
 
 from robotgen.errors import Location, UserError, UserErrors
-from robotgen.model.chain import Body, KinematicTree, Limits
+from robotgen.model.chain import TRIANGLE_INEQUALITY, Body, KinematicTree, Limits
 from robotgen.model.dh import DH_MODIFIED, DH_STANDARD, JOINT_LIST, DHParameters, JointRow, canonical_chain, unit_axis
 from robotgen.model.expression import CONSTANTS, FUNCTIONS, Expr, parse_constant, parse_expression
 from robotgen.model.formula import FormulaRobot
@@ -145,10 +145,17 @@ class _Builder:
             self.at_key(path, f"inertia is not positive semi-definite (principal moments {shown})")
         elif moments[0] + moments[1] < moments[2] - tolerance:
             # A warning, not an error: published parameter sets (the PUMA 560's among them)
-            # carry such estimates, and M stays positive definite with them.
-            self.warnings.append(f"{self.doc.source.key(path)}: warning: {format_path(self.doc.data, path)}: "
-                                 f"principal moments {shown} violate the triangle inequality I1 + I2 >= I3 "
-                                 "(no rigid body has this inertia)")
+            # carry such estimates, and M stays positive definite with them. `accept` keeps
+            # a known one quiet.
+            if TRIANGLE_INEQUALITY not in tensor.get("accept", ()):
+                self.warnings.append(f"{self.doc.source.key(path)}: warning: {format_path(self.doc.data, path)}: "
+                                     f"principal moments {shown} violate the triangle inequality I1 + I2 >= I3 "
+                                     "(no rigid body has this inertia; if the data are published as such, "
+                                     "add 'accept: [triangle_inequality]' to this inertia)")
+        elif TRIANGLE_INEQUALITY in tensor.get("accept", ()):
+            self.warnings.append(f"{self.doc.source.key(path + ('accept',))}: warning: "
+                                 f"{format_path(self.doc.data, path + ('accept',))}: the principal moments "
+                                 f"{shown} satisfy the triangle inequality; 'triangle_inequality' is not needed")
         return inertia
 
     def body(self, path: Path, link: dict | None) -> Body:
@@ -293,8 +300,14 @@ class _Builder:
                 self.at_key(path + ("inverse_kinematics",), "needs kinematics (it inverts them)")
             inverse = self.vector_of_expressions(path + ("inverse_kinematics",), spec["inverse_kinematics"],
                                                  nq, set(outputs) | set(parameters))
+        units = spec.get("units", {})
+        for key in units:
+            if key not in coordinates and key not in outputs:
+                self.at_key(path + ("units", key), f"'{key}' is not a coordinate or output of '{name}' "
+                                                   f"(coordinates: {', '.join(coordinates)}"
+                                                   f"{'; outputs: ' + ', '.join(outputs) if outputs else ''})")
         return FormulaRobot(
-            name=name, coordinates=coordinates, velocities=velocities, parameters=parameters,
+            name=name, coordinates=coordinates, velocities=velocities, parameters=parameters, units=dict(units),
             mass=self.matrix(path + ("M",), spec["M"], nq, in_q),
             coriolis=self.matrix(path + ("C",), spec["C"], nq, in_q_qd) if "C" in spec else None,
             nonlinear=self.vector_of_expressions(path + ("N",), spec["N"], nq, in_q_qd) if "N" in spec else None,
@@ -355,7 +368,7 @@ class _Builder:
         except UserError as e:
             self.errors.append(e)
             return None
-        self.warnings.extend(chain.ignored_attributes)
+        self.warnings.extend(chain.notes)
         gravity = self.vector(path + ("gravity",), spec.get("gravity"), DEFAULT_GRAVITY)
         return dataclasses.replace(chain.tree, gravity=gravity)
 
@@ -932,18 +945,53 @@ class _Builder:
             self.at_value(("root",), f"'{root}' is not a node (nodes: {', '.join(nodes)})")
         whole = self.check_tree(nodes, root)
         nodes = self.signatures(nodes, root, whole)
-        simulation = self.simulation(data["simulation"]) if "simulation" in data else None
+        simulation = self.simulation(data["simulation"], nodes, root) if "simulation" in data else None
         return RobotSystem(name=data["name"], source=self.doc.path, source_sha256=self.doc.sha256,
                            nodes=nodes, root=root, warnings=tuple(self.warnings), simulation=simulation,
-                           dependencies=tuple(self.dependencies))
+                           dependencies=tuple(self.dependencies),
+                           node_locations={name: self.doc.source.key(("nodes", name)) for name in nodes})
 
-    def simulation(self, spec: dict) -> SimulationSettings:
+    def simulation(self, spec: dict, nodes: dict[str, Node], root: str) -> SimulationSettings:
+        """The settings, each list checked against the dimensions it must have: the root's
+        coordinates (start, initial_error, amplitude, frequency), the leaves' joints (theta0),
+        the root's unresolved internal forces (internal_forces)."""
         path: Path = ("simulation",)
         values = {k: self.constant(path + (k,), spec[k]) for k in ("duration", "dt") if k in spec}
         for k in ("start", "theta0", "initial_error", "amplitude", "frequency", "internal_forces"):
             if k in spec:
                 values[k] = tuple(self.constant(path + (k, i), v) for i, v in enumerate(spec[k]))
-        return SimulationSettings(**values)
+        if "initial_error" in spec and "theta0" in spec:
+            self.at_key(path + ("initial_error",), "initial_error offsets the plant from start through inverse "
+                                                   "kinematics; with theta0 the plant starts at theta0 (give the "
+                                                   "perturbed joint positions there, or drop theta0)")
+        if "initial_error" in spec and "start" not in spec and "theta0" not in spec:
+            self.at_key(path + ("initial_error",), "initial_error offsets the plant from start: give start too")
+        system = RobotSystem(name=self.doc.data["name"], source=self.doc.path, source_sha256=self.doc.sha256,
+                             nodes=nodes, root=root)
+        try:
+            sig = signature(system, root)
+            leaves = [nodes[leaf].leaf for leaf in robot_leaves(system)]
+        except (SignatureError, KeyError, AttributeError):
+            sig = None  # the tree has errors of its own, reported elsewhere
+        if sig is not None and all(leaf is not None for leaf in leaves):
+            n_theta = sum(leaf.nq for leaf in leaves)
+            coords = ", ".join(sig.external)
+            expected = {
+                "start": (sig.n_external, f"one per root coordinate of '{root}': {coords}"),
+                "initial_error": (sig.n_external, f"one per root coordinate of '{root}': {coords}"),
+                "amplitude": (sig.n_external, f"one per root coordinate of '{root}': {coords}"),
+                "frequency": (sig.n_external, f"one per root coordinate of '{root}': {coords}"),
+                "theta0": (n_theta, "one per joint of the leaves "
+                                    f"({', '.join(robot_leaves(system))}), in tree order"),
+                "internal_forces": (sig.n_internal_forces,
+                                    f"one per internal force the root leaves unresolved: "
+                                    f"{', '.join(sig.internal_forces) or 'none'}"),
+            }
+            for key, (n, what) in expected.items():
+                if key in spec and len(spec[key]) != n:
+                    self.at_key(path + (key,), f"expected {n} entries ({what}), got {len(spec[key])}")
+        locations = {k: self.doc.source.key(path + (k,)) for k in spec}
+        return SimulationSettings(**values, locations=locations)
 
 
 def leaf_names(leaf) -> tuple[str, ...]:

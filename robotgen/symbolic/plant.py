@@ -7,6 +7,7 @@ import dataclasses
 
 import casadi as ca
 
+from robotgen.model.signature import constraint_residual_names, has_position_inverse, robot_leaves
 from robotgen.model.system import AttachNode, ControlNode, RobotSystem
 from robotgen.symbolic.cholesky import cholesky_solve
 from robotgen.symbolic.rows import rows
@@ -49,6 +50,86 @@ class Plant:
         self.x = root.x
         self.x_sym = ca.SX.sym("x", root.sig.n_external)
         self.inverse = leaf_positions(g, self.x_sym)  # Theta from root positions, or None
+        self.residual = constraint_residual(g)
+        self.residual_names = constraint_residual_names(g.system)
+        self.internal_forces = internal_forces(g, self.v, self.v_dot, leaf_v, self.tau)
+
+
+def constraint_residual(g: TreeGraphs) -> ca.SX:
+    """y - h^-1(h(y)) at every ATTACH that has h^-1, y its robots' stacked positions: zero
+    exactly when the sensed leaf positions satisfy every position-level constraint (a
+    grasp's fingertips at the contact points). Entries: constraint_residual_names."""
+    parts = []
+    for node in g.system.walk():
+        if isinstance(node, AttachNode) and has_position_inverse(g.system, node):
+            graph = g.graph(node.name)
+            y = ca.vertcat(*[g.graph(r).x for r in node.robots])
+            parts.append(y - graph.attach.h_inverse(graph.x))
+    return ca.vertcat(*parts) if parts else ca.SX(0, 1)
+
+
+def internal_forces(g: TreeGraphs, v: ca.SX, v_dot: ca.SX, leaf_v: ca.SX, tau: ca.SX) -> ca.SX:
+    """The internal forces the grasps actually carry (eq 2.4): at every ATTACH that creates
+    internal forces (walk order), f = H lambda, lambda the force its robots exert on the
+    constraint, from their own dynamics: J^T lambda = F_c - (M_c wdot + C_c w + N_c) on their
+    external coordinates, F_c = A_c^T tau the actuators' force on them (A_c: the robot's
+    velocity to its leaves' rates). w, wdot flow down from the root: w = A v, wdot = A vdot
+    + Adot v (eq 3.8). Functions of (theta, v, tau), with vdot the plant's."""
+    def on_plant(x: ca.SX) -> ca.SX:  # sensed rates are the plant's
+        return ca.substitute(x, g.theta_dot, leaf_v) if ca.depends_on(x, g.theta_dot) else x
+
+    parts: list[ca.SX] = []
+
+    def down(name: str, vel: ca.SX, acc: ca.SX) -> None:
+        graph = g.graph(name)
+        maps = graph.attach
+        if maps is None:
+            return
+        w = maps.A @ vel
+        wdot = maps.A @ acc + on_plant(maps.Adot) @ vel
+        row, rho = 0, []
+        for r in g.system.nodes[name].robots:
+            child = g.graph(r)
+            n = child.sig.n_velocity
+            w_c, wdot_c = rows(w, row, row + n), rows(wdot, row, row + n)
+            u = ca.SX.sym(f"u_{r}", n)
+            leaves = robot_leaves(g.system, r)
+            all_rates = _down_from(g, r, u)
+            A_c = ca.jacobian(ca.vertcat(*[all_rates[g.leaf_slice(leaf)] for leaf in leaves]), u)
+            tau_c = ca.vertcat(*[tau[g.leaf_slice(leaf)] for leaf in leaves])
+            F_c = A_c.T @ tau_c
+            own = on_plant(child.M) @ wdot_c + on_plant(child.C) @ w_c + on_plant(child.N)
+            rho.append(rows(F_c - own, 0, child.sig.n_external))
+            down(r, w_c, wdot_c)
+            row += n
+        if maps.n_created_forces:
+            J, rho = maps.J, ca.vertcat(*rho)
+            lam = ca.solve(J @ J.T, J @ rho)  # J^T lambda = rho (J has full row rank)
+            parts.append(maps.H @ lam)
+
+    down(g.system.root, v, v_dot)
+    return ca.vertcat(*parts) if parts else ca.SX(0, 1)
+
+
+def _down_from(g: TreeGraphs, name: str, vel: ca.SX) -> ca.SX:
+    """Leaf rates (all leaves, in leaf order; zero outside ``name``'s subtree) for velocity
+    ``vel`` of node ``name``."""
+    out = {leaf: ca.SX.zeros(g.sizes[leaf]) for leaf in g.leaves}
+
+    def down(node: str, val: ca.SX) -> None:
+        graph = g.graph(node)
+        if graph.attach is None:
+            out[node] = val
+            return
+        w = graph.attach.A @ val
+        row = 0
+        for r in g.system.nodes[node].robots:
+            n = g.graph(r).sig.n_velocity
+            down(r, rows(w, row, row + n))
+            row += n
+
+    down(name, vel)
+    return ca.vertcat(*[out[leaf] for leaf in g.leaves])
 
 
 def _to_leaves(g: TreeGraphs, value: ca.SX, step, share) -> ca.SX | None:

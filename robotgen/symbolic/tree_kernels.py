@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import casadi as ca
 
+from robotgen.model.signature import internal_force_names
 from robotgen.model.system import DefineNode, RobotSystem
 from robotgen.symbolic.kernel import Kernel, Port
 from robotgen.symbolic.plant import Plant
@@ -83,6 +84,19 @@ def tree_kernels(system: RobotSystem) -> list[Kernel]:
         _kernel("plant_position", "Root positions of the uncontrolled tree.", [("theta", pg.theta)],
                 [("x", plant.x, (plant.x.shape[0], 1))]),
     ]
+    if plant.internal_forces.shape[0]:
+        names = ", ".join(internal_force_names(system))
+        kernels.append(_kernel("plant_internal_forces", "The internal forces the grasps carry in the plant "
+                               f"({names}): H lambda at every attach that creates them, lambda the force its "
+                               "robots exert on the constraint, for torques tau at (theta, v).",
+                               [("theta", pg.theta), ("v", plant.v), ("tau", plant.tau)],
+                               [("f", plant.internal_forces, (plant.internal_forces.shape[0], 1))]))
+    if plant.residual.shape[0]:
+        kernels.append(_kernel("constraint_residual", "Position-level constraint residual y - h^-1(h(y)) at "
+                               "every attach with an inverse map, y its robots' stacked positions "
+                               f"({', '.join(plant.residual_names)}): zero when the leaf positions "
+                               "satisfy every grasp.", [("theta", pg.theta)],
+                               [("residual", plant.residual, (plant.residual.shape[0], 1))]))
     if plant.inverse is not None:
         kernels.append(_kernel("plant_inverse", "Leaf joint positions for root positions x, through "
                                "every attach's inverse kinematics.", [("x", plant.x_sym)],
