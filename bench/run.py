@@ -452,7 +452,7 @@ def main(argv=None) -> int:
             except ToolchainError as e:
                 versus, harness = {"error": str(e)}, None
 
-        from robotgen.spec import load_system
+        from robotgen.frontend import load_system
         from robotgen.symbolic import kernels_for
 
         kernels = {k.name: k for k in kernels_for(load_system(str(spec)))}

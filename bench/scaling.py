@@ -8,7 +8,7 @@ fixed seed; chain n is the first n links of chain 30: joint frames turned by exa
 rotations or none, so consecutive axes alternate between perpendicular and parallel; link
 offsets ~0.1 m, masses ~1 kg, box inertias turned by a random rotation) and a humanoid tree,
 iCub's 32 revolute joints below its root link (example-robot-data's icub.urdf read with
-robotgen.spec.urdf.read_urdf_tree; fk/jacobian at the right hand). --quick: chains n = 2, 6 only.
+robotgen.frontend.urdf.read_urdf_tree; fk/jacobian at the right hand). --quick: chains n = 2, 6 only.
 
 For each model, what `robotgen build` does, timed in three parts:
   graph    robotgen.symbolic.kernels_for(system) (the CasADi SX graphs, CSE included);
@@ -104,7 +104,7 @@ def synthetic_chain(n: int, seed: int = SEED):
 
 
 def humanoid():
-    from robotgen.spec.urdf import read_urdf_tree
+    from robotgen.frontend.urdf import read_urdf_tree
 
     name, rel = HUMANOID
     path = bench_run.robots_dir() / rel
@@ -346,7 +346,7 @@ def main(argv=None) -> int:
         "notes": ["build_s = graph_s + emit_s + compile_s: kernels_for(system), then emit(compile=True) "
                   "with its compile step (one compiler process) timed apart",
                   "chains: synthetic revolute chains, fixed seed, chain n = first n links of the longest",
-                  f"humanoid: {HUMANOID[1]} read with robotgen.spec.urdf.read_urdf_tree (fixed base)"],
+                  f"humanoid: {HUMANOID[1]} read with robotgen.frontend.urdf.read_urdf_tree (fixed base)"],
         "over_budget": [{"model": r["model"], "dof": r["dof"], "build_s": r["build_s"],
                          "over_s": r["over_budget_s"]} for r in over],
         "models": rows,

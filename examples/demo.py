@@ -62,7 +62,7 @@ def trajectory(joints: list[dict], n: int) -> tuple[np.ndarray, np.ndarray]:
 def check_spec(spec: Path) -> None:
     """Only a spec whose root is one leaf robot has the chain functions this demo uses."""
     from robotgen.errors import UserErrors
-    from robotgen.spec import load_system
+    from robotgen.frontend import load_system
 
     try:
         system = load_system(str(spec))

@@ -11,7 +11,7 @@ import traceback
 from pathlib import Path
 
 import robotgen
-from robotgen.errors import Location, UserError, UserErrors
+from robotgen.errors import UserError, UserErrors
 from robotgen.model.describe import system_info, system_nq
 from robotgen.progress import Progress
 from robotgen.progress import for_terminal as progress_for_terminal
@@ -32,10 +32,10 @@ def _load(args: argparse.Namespace):
         raise _Usage(f"--name {name!r} is not a module name ([a-z_][a-z0-9_]*: it names the Python module "
                      f"and prefixes every C function); try --name {suggestion}")
     if path.lower().endswith(".urdf"):
-        from robotgen.spec.urdf import load_urdf_system
+        from robotgen.frontend.urdf import load_urdf_system
 
         if getattr(args, "tree", False):
-            from robotgen.spec.urdf import load_urdf_tree_system
+            from robotgen.frontend.urdf import load_urdf_tree_system
 
             system = load_urdf_tree_system(path, base=args.base, tip=args.tip, name=args.name)
         elif not getattr(args, "tip", None):
@@ -43,7 +43,7 @@ def _load(args: argparse.Namespace):
         else:
             system = load_urdf_system(path, tip=args.tip, base=args.base, name=args.name)
     else:
-        from robotgen.spec import load_system
+        from robotgen.frontend import load_system
 
         system = load_system(path)
     for warning in system.warnings:
@@ -148,7 +148,7 @@ def _cmd_check(args: argparse.Namespace) -> int:
 
 
 def _cmd_schema(args: argparse.Namespace) -> int:
-    from robotgen.spec.schema import schema_json
+    from robotgen.frontend.schema import schema_json
 
     print(schema_json())
     return EXIT_OK

@@ -25,7 +25,7 @@ class Case:
     """One spec: compiled module, CasADi kernels, random states."""
 
     def __init__(self, spec, module):
-        from robotgen.spec import load_system
+        from robotgen.frontend import load_system
         from robotgen.symbolic import kernels_for
 
         self.spec = spec

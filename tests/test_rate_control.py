@@ -18,7 +18,7 @@ from scipy.spatial.transform import Rotation
 
 from robotgen.cli import main
 from robotgen.errors import UserErrors
-from robotgen.spec import load_system
+from robotgen.frontend import load_system
 from robotgen.symbolic import kernels_for
 from robots import PANDA, UR5, robots_dir
 
@@ -173,7 +173,7 @@ def test_position_control_reaches_targets_from_random_starts(puma):
 def test_axis_angle_of_eqs_15_to_18_handles_every_angle():
     """The rotation vector of C_if (eqs 14-18) against scipy, with Omega along the hand x axis
     (eq 18's special case), tiny angles, and angles at and next to pi."""
-    from robotgen.symbolic.axis_angle import rotation_vector
+    from robotgen.symbolic.rigid_body.axis_angle import rotation_vector
 
     C = ca.SX.sym("C", 3, 3)
     f = ca.Function("rv", [C], [rotation_vector(C)])

@@ -18,7 +18,7 @@ import pytest
 import yaml
 
 from robotgen.errors import UserErrors
-from robotgen.spec import load_system
+from robotgen.frontend import load_system
 from test_rate_control import Graphs, rk4
 
 ROOT = Path(__file__).resolve().parent.parent

@@ -1,5 +1,5 @@
 """Builds are the same on every machine: the constants robotgen prints into C are computed
-without BLAS, LAPACK or libm (robotgen.model.exact, robotgen.symbolic.riccati), and are
+without BLAS, LAPACK or libm (robotgen.numeric.exact, robotgen.numeric.riccati), and are
 correctly rounded. The generated-output test (test_golden.py) is run by CI under several
 OPENBLAS_CORETYPE values and with the lowest numpy/scipy allowed; here the pieces are
 checked against independent references."""
@@ -18,10 +18,10 @@ import numpy as np
 import pytest
 from scipy.linalg import solve_continuous_are
 
-from robotgen.model import exact
-from robotgen.spec import load_system
-from robotgen.symbolic.linearise import linearise
-from robotgen.symbolic.riccati import RiccatiError, gain, solve_care
+from robotgen.numeric import exact
+from robotgen.frontend import load_system
+from robotgen.symbolic.control.resolved_rate.regulator import linearise
+from robotgen.numeric.riccati import RiccatiError, gain, solve_care
 
 ROOT = Path(__file__).resolve().parent.parent
 

@@ -12,19 +12,17 @@ from robotgen.errors import UserError, UserErrors
 from robotgen.model.expression import MATH_LIB, evaluate
 from robotgen.model.formula import FormulaRobot
 from robotgen.model.signature import signature
+from robotgen.model.laws import COMPUTED_TORQUE, FEEDFORWARD, PD
 from robotgen.model.system import (
-    COMPUTED_TORQUE,
     CONSTRAINT_FORMULAS,
-    FEEDFORWARD,
     FRAME_CHANGE,
-    PD,
     PLANAR_CONTACTS,
     AttachNode,
     ControlNode,
     DefineNode,
     PlanarBody,
 )
-from robotgen.spec import load_system
+from robotgen.frontend import load_system
 
 SPECS = Path(__file__).resolve().parent.parent / "specs"
 

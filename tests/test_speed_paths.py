@@ -10,11 +10,11 @@ import pinocchio as pin
 
 from robotgen.cli import main
 from robotgen.model.snap import SNAP_TOLERANCE, snap_tree
-from robotgen.spec.urdf import read_urdf
-from robotgen.symbolic.chain_graphs import ChainGraphs, Symbols
-from robotgen.symbolic.christoffel import coriolis_matrix
-from robotgen.symbolic.coriolis_spatial import coriolis_spatial, op_count
-from robotgen.symbolic.kernels import leaf_kernels
+from robotgen.frontend.urdf import read_urdf
+from robotgen.symbolic.rigid_body.chain import ChainGraphs, Symbols
+from robotgen.symbolic.rigid_body.christoffel import coriolis_matrix
+from robotgen.symbolic.rigid_body.coriolis import coriolis_spatial, op_count
+from robotgen.symbolic.leaf_kernels import leaf_kernels
 from robots import PANDA, robots_dir
 from test_tree_pinocchio import pinocchio_model, random_tree
 

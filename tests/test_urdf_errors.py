@@ -95,7 +95,7 @@ def test_unknown_element_inside_a_joint_fails_beside_ignored_ones_under_robot(tm
 def test_mimic_joint_off_the_chain_is_locked(tmp_path):
     """A chain locks every movable joint off its path at q = 0, a mimic joint like any other:
     its link's inertia joins the body of the joint carrying it."""
-    from robotgen.spec.urdf import read_urdf
+    from robotgen.frontend.urdf import read_urdf
 
     off = joint("j3", "revolute", "l1", "l3", '<origin xyz="0 0.5 0"/><mimic joint="j1"/>')
     path = tmp_path / "r.urdf"

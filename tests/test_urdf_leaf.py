@@ -7,10 +7,10 @@ import shutil
 import numpy as np
 
 from robotgen.cli import main
-from robotgen.spec import load_system
+from robotgen.frontend import load_system
 from robotgen.symbolic import kernels_for
 from robots import UR5, robots_dir
-from robotgen.spec.urdf import load_urdf_system
+from robotgen.frontend.urdf import load_urdf_system
 
 def messages(err: str) -> str:
     """stderr without the build's progress lines ("robotgen: [  1.2 s] ..."), which -q silences."""

@@ -1,4 +1,4 @@
-"""A humanoid URDF read as a whole tree (robotgen.spec.urdf.read_urdf_tree): iCub's 32
+"""A humanoid URDF read as a whole tree (robotgen.frontend.urdf.read_urdf_tree): iCub's 32
 revolute joints below its root link against Pinocchio's fixed-base model of the same file
 (buildModelFromUrdf without a root joint). M, gravity, inverse dynamics and C at 20 random
 states, evaluated through CasADi (leaf_kernels -> Kernel.function), no compile. Plus the
@@ -10,7 +10,7 @@ import pinocchio as pin
 import pytest
 
 from robotgen.errors import UserError
-from robotgen.spec.urdf import read_urdf, read_urdf_tree
+from robotgen.frontend.urdf import read_urdf, read_urdf_tree
 from robotgen.symbolic import leaf_kernels
 from robots import robots_dir
 

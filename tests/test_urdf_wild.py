@@ -2,7 +2,7 @@
 ignored with one located note, mimic joints are locked in a tree, the module name derived
 from <robot name> is reported when it differs. Real files (example-robot-data's xArm7 and
 Panda) are built with the CLI and checked against Pinocchio; the rules themselves on small
-files. Plus: merged inertias are correctly rounded (robotgen.model.exact, not BLAS)."""
+files. Plus: merged inertias are correctly rounded (robotgen.numeric.exact, not BLAS)."""
 from __future__ import annotations
 
 import contextlib
@@ -18,7 +18,7 @@ import pytest
 
 from robotgen.cli import main
 from robotgen.model.chain import Body, KinematicTree
-from robotgen.spec.urdf import load_urdf_system, merge_bodies, read_urdf
+from robotgen.frontend.urdf import load_urdf_system, merge_bodies, read_urdf
 from robots import robots_dir
 
 XARM7 = ("xarm_description/urdf/xarm7.urdf", "link7")
@@ -55,7 +55,7 @@ def compare_with_pinocchio(module, model, seed: int) -> dict[str, float]:
     """Worst relative error of the module's mass, gravity and inverse dynamics against
     Pinocchio's CRBA / gravity / RNEA at random states, plus robotgen's joint friction (URDF
     damping as viscous friction, URDF friction as smoothed Coulomb friction, see
-    robotgen.symbolic.friction); robotgen's coordinates are matched to Pinocchio's by name."""
+    robotgen.symbolic.rigid_body.friction); robotgen's coordinates are matched to Pinocchio's by name."""
     node = next(iter(module.info()["nodes"].values()))
     names = [j["name"] for j in node["joints"]]
     perm = np.array([model.joints[model.getJointId(n)].idx_q for n in names])

@@ -22,7 +22,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from robotgen.model import exact
+from robotgen.numeric import exact
 from robotgen.model.chain import Body, Joint, Limits
 from robotgen.model.transforms import rot_x, rot_z, trans
 

@@ -14,7 +14,7 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass, replace
 
 from robotgen.errors import Location, UserError
-from robotgen.model import exact
+from robotgen.numeric import exact
 
 # name -> number of arguments
 FUNCTIONS: dict[str, int] = {
@@ -48,7 +48,7 @@ def _sign(x: float) -> float:
 
 
 # Float implementations of every whitelisted function, plus "pow" for ** and ^: correctly
-# rounded (robotgen.model.exact), so a constant such as "pi/3" or "0.1^2" is the same double
+# rounded (robotgen.numeric.exact), so a constant such as "pi/3" or "0.1^2" is the same double
 # on every machine.
 MATH_LIB: dict[str, Callable[..., float]] = {
     "sin": exact.sin, "cos": exact.cos, "tan": exact.tan, "asin": exact.asin, "acos": exact.acos,

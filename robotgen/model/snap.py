@@ -15,7 +15,7 @@ import dataclasses
 
 import numpy as np
 
-from robotgen.model import exact
+from robotgen.numeric import exact
 from robotgen.model.chain import KinematicTree
 
 SNAP_TOLERANCE = 1e-9

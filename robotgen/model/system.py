@@ -13,7 +13,8 @@ from robotgen.errors import Location
 from robotgen.model.chain import KinematicTree
 from robotgen.model.expression import Expr
 from robotgen.model.formula import FormulaRobot
-from robotgen.model.rate_control import RESOLVED_RATE, CompositeRateSettings, RateControlSettings
+from robotgen.model.laws import RESOLVED_RATE, ROOT_LAWS
+from robotgen.model.laws.resolved_rate import CompositeRateSettings, RateControlSettings
 from robotgen.model.simulation import SimulationSettings
 
 
@@ -135,15 +136,6 @@ class AttachNode:
         return self.robots + ((self.payload,) if self.payload else ())
 
 
-COMPUTED_TORQUE = "computed_torque"
-FEEDFORWARD = "feedforward"
-PD_FEEDFORWARD = "pd_feedforward"
-PD = "pd"
-CONTROL_LAWS = (COMPUTED_TORQUE, FEEDFORWARD, PD_FEEDFORWARD, PD)
-# Kinematic controllers: joint rates out, not torques (robotgen.model.rate_control).
-KINEMATIC_LAWS = (RESOLVED_RATE,)
-
-
 @dataclass(frozen=True, eq=False)
 class ControlNode:
     """CONTROL(robot, controller) (§3.4). Gains act on the robot's external coordinates;
@@ -201,11 +193,16 @@ class RobotSystem:
         return isinstance(self.root_node, DefineNode)
 
     @property
-    def is_rate_controlled(self) -> bool:
-        """The root is a kinematic (resolved-rate) controller: the module is the chain's (or
-        the controlled robot tree's) functions plus the controller's steps, not a torque tree."""
+    def root_law(self) -> str | None:
+        """The law of a root controller that makes the module's functions itself (a root law,
+        robotgen.model.laws), else None (a leaf, or a tree of tree laws)."""
         root = self.root_node
-        return isinstance(root, ControlNode) and root.law in KINEMATIC_LAWS
+        return root.law if isinstance(root, ControlNode) and root.law in ROOT_LAWS else None
+
+    @property
+    def is_rate_controlled(self) -> bool:
+        """The root is a resolved-rate controller: joint rates out, not torques."""
+        return self.root_law == RESOLVED_RATE
 
     @property
     def rate_controls_composite(self) -> bool:

@@ -1,10 +1,10 @@
 """4x4 homogeneous transforms of constant geometry (DH rows, origins, tools), computed with
-robotgen.model.exact so that every entry is the same on every machine."""
+robotgen.numeric.exact so that every entry is the same on every machine."""
 from __future__ import annotations
 
 import numpy as np
 
-from robotgen.model import exact
+from robotgen.numeric import exact
 
 
 def _rotation(c: float, s: float, axis: int) -> np.ndarray:

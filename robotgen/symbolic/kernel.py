@@ -34,3 +34,23 @@ class Kernel:
     inputs: tuple[Port, ...]
     outputs: tuple[Port, ...]
     function: ca.Function
+
+
+def row_major(X: ca.SX) -> ca.SX:
+    """X as a dense column holding it row by row (how every matrix leaves a kernel)."""
+    return ca.densify(ca.reshape(X.T, X.numel(), 1))
+
+
+Shape = tuple[int, int]
+
+
+def make_kernel(name: str, doc: str, inputs: list[tuple], outputs: list[tuple[str, ca.SX, Shape]]) -> Kernel:
+    """The one way a kernel is built: ``inputs`` are (port name, SX column[, (rows, cols)
+    the port shows, default a column]), ``outputs`` (port name, SX, (rows, cols)); matrices
+    leave row-major, and CasADi's common-subexpression elimination is on."""
+    ports_in = tuple(Port(i[0], *(i[2] if len(i) > 2 else (i[1].shape[0], 1))) for i in inputs)
+    for port, expr, shape in outputs:
+        assert expr.shape == shape, (name, port, expr.shape, shape)
+    f = ca.Function(name, [i[1] for i in inputs], [row_major(e) for _, e, _ in outputs],
+                    [i[0] for i in inputs], [o[0] for o in outputs], {"cse": True})
+    return Kernel(name, doc, ports_in, tuple(Port(o[0], *o[2]) for o in outputs), f)

@@ -4,9 +4,9 @@ eq 2.4). An SVD has no symbolic form, so:
 - co-dimension one (an (m-1) x m full-rank matrix): the generalised cross product, whose
   entries are the signed (m-1)-minors, normalised;
 - larger: Gram-Schmidt on the projector I - A^+ A applied to k fixed directions drawn once
-  from a seeded generator (the same on every machine) (coordinate axes would often lie in the row space of a sparse A,
-  leaving 0/0); smooth wherever those projections stay independent, which for generic
-  directions is everywhere but a set of measure zero.
+  from a seeded generator, the same on every machine (coordinate axes would often lie in
+  the row space of a sparse A, leaving 0/0); smooth wherever those projections stay
+  independent, which for generic directions is everywhere but a set of measure zero.
 Blocks of a block-diagonal matrix are handled one block at a time, so two redundant
 fingers give two orthonormal rows with disjoint support."""
 from __future__ import annotations

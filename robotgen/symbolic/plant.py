@@ -9,9 +9,9 @@ import casadi as ca
 
 from robotgen.model.signature import constraint_residual_names, has_position_inverse, robot_leaves
 from robotgen.model.system import AttachNode, ControlNode, RobotSystem
-from robotgen.symbolic.cholesky import cholesky_solve
+from robotgen.symbolic.rigid_body.cholesky import cholesky_solve
 from robotgen.symbolic.rows import rows
-from robotgen.symbolic.tree import TreeGraphs
+from robotgen.symbolic.system import SystemGraphs
 
 
 def strip_controls(system: RobotSystem) -> RobotSystem:
@@ -34,7 +34,7 @@ def strip_controls(system: RobotSystem) -> RobotSystem:
 
 class Plant:
     def __init__(self, system: RobotSystem):
-        self.graphs = TreeGraphs(strip_controls(system))
+        self.graphs = SystemGraphs(strip_controls(system))
         g = self.graphs
         root = g.graph(g.system.root)
         self.n_v = root.sig.n_velocity
@@ -55,7 +55,7 @@ class Plant:
         self.internal_forces = internal_forces(g, self.v, self.v_dot, leaf_v, self.tau)
 
 
-def constraint_residual(g: TreeGraphs) -> ca.SX:
+def constraint_residual(g: SystemGraphs) -> ca.SX:
     """y - h^-1(h(y)) at every ATTACH that has h^-1, y its robots' stacked positions: zero
     exactly when the sensed leaf positions satisfy every position-level constraint (a
     grasp's fingertips at the contact points). Entries: constraint_residual_names."""
@@ -68,7 +68,7 @@ def constraint_residual(g: TreeGraphs) -> ca.SX:
     return ca.vertcat(*parts) if parts else ca.SX(0, 1)
 
 
-def internal_forces(g: TreeGraphs, v: ca.SX, v_dot: ca.SX, leaf_v: ca.SX, tau: ca.SX) -> ca.SX:
+def internal_forces(g: SystemGraphs, v: ca.SX, v_dot: ca.SX, leaf_v: ca.SX, tau: ca.SX) -> ca.SX:
     """The internal forces the grasps actually carry (eq 2.4): at every ATTACH that creates
     internal forces (walk order), f = H lambda, lambda the force its robots exert on the
     constraint, from their own dynamics: J^T lambda = F_c - (M_c wdot + C_c w + N_c) on their
@@ -111,7 +111,7 @@ def internal_forces(g: TreeGraphs, v: ca.SX, v_dot: ca.SX, leaf_v: ca.SX, tau: c
     return ca.vertcat(*parts) if parts else ca.SX(0, 1)
 
 
-def _down_from(g: TreeGraphs, name: str, vel: ca.SX) -> ca.SX:
+def _down_from(g: SystemGraphs, name: str, vel: ca.SX) -> ca.SX:
     """Leaf rates (all leaves, in leaf order; zero outside ``name``'s subtree) for velocity
     ``vel`` of node ``name``."""
     out = {leaf: ca.SX.zeros(g.sizes[leaf]) for leaf in g.leaves}
@@ -132,7 +132,7 @@ def _down_from(g: TreeGraphs, name: str, vel: ca.SX) -> ca.SX:
     return ca.vertcat(*[out[leaf] for leaf in g.leaves])
 
 
-def _to_leaves(g: TreeGraphs, value: ca.SX, step, share) -> ca.SX | None:
+def _to_leaves(g: SystemGraphs, value: ca.SX, step, share) -> ca.SX | None:
     """Carry a root quantity down through every ATTACH to the leaves and stack it in leaf
     order. ``step(attach_maps, value)`` gives the robots' stacked values (None where it
     cannot), ``share(signature)`` each robot's length in them."""
@@ -157,14 +157,14 @@ def _to_leaves(g: TreeGraphs, value: ca.SX, step, share) -> ca.SX | None:
     return ca.vertcat(*[out[leaf] for leaf in g.leaves]) if down(g.system.root, value) else None
 
 
-def leaf_velocities(g: TreeGraphs, v: ca.SX) -> ca.SX:
+def leaf_velocities(g: SystemGraphs, v: ca.SX) -> ca.SX:
     """Leaf joint rates for root velocity v: w = A v at each ATTACH, down to the leaves (the
     tree's velocity map, linear in v; also what a resolved-rate controller of a composite
-    robot resolves its command through, robotgen.symbolic.tree_rate_control)."""
+    robot resolves its command through, robotgen.symbolic.control.resolved_rate.composite)."""
     return _to_leaves(g, v, lambda maps, vel: maps.A @ vel, lambda sig: sig.n_velocity)
 
 
-def leaf_positions(g: TreeGraphs, x: ca.SX) -> ca.SX | None:
+def leaf_positions(g: SystemGraphs, x: ca.SX) -> ca.SX | None:
     """Leaf positions from root positions through every ATTACH's h^-1, if all have one."""
     return _to_leaves(g, x, lambda maps, pos: maps.h_inverse(pos) if maps.h_inverse else None,
                       lambda sig: sig.n_external)

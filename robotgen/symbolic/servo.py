@@ -3,32 +3,21 @@ a desired trajectory written at a node flows down through CONTROL (§3.4, eq 2.1
 ATTACH (eqs 3.8, 5.3, 5.9) to the leaves, whose wr drives the actuators with the torque
 that reaches them. Every controller in the tree is evaluated on the way, in order.
 
-Computed-torque and feedforward controllers integrate their expected trajectory
-(x_e, xd_e) from xdd_e (§3.4); that is their state, passed in and out of the step (the
-emitted C keeps no state of its own)."""
+Each CONTROL node's law (robotgen.symbolic.control) turns what is written at it into the
+force on its robot. Stateful laws (computed torque, feedforward) integrate an expected
+trajectory (x_e, xd_e) from xdd_e (§3.4); that is their state, passed in and out of the
+step (the emitted C keeps no state of its own)."""
 from __future__ import annotations
 
 from dataclasses import dataclass
 
 import casadi as ca
 
-from robotgen.model.system import (
-    COMPUTED_TORQUE,
-    FEEDFORWARD,
-    PD,
-    PD_FEEDFORWARD,
-    AttachNode,
-    ControlNode,
-    DefineNode,
-)
+from robotgen.model.system import AttachNode, ControlNode, DefineNode
+from robotgen.symbolic.control.law import Command, PositionsUnavailable
+from robotgen.symbolic.control.tree_laws import TREE_LAWS
 from robotgen.symbolic.rows import rows
-from robotgen.symbolic.tree import TreeGraphs
-
-STATEFUL = (COMPUTED_TORQUE, FEEDFORWARD)
-
-
-class PositionsUnavailable(ValueError):
-    """A controller needs desired positions, but an ATTACH above it has no h^-1."""
+from robotgen.symbolic.system import SystemGraphs
 
 
 @dataclass(frozen=True, eq=False)
@@ -42,15 +31,15 @@ class Trajectory:
     Fi: ca.SX  # internal forces
 
 
-def stateful_controllers(graphs: TreeGraphs, name: str) -> list[ControlNode]:
+def stateful_controllers(graphs: SystemGraphs, name: str) -> list[ControlNode]:
     """Controllers with an integrated expected trajectory below ``name``, in walk order."""
-    return [n for n in graphs.system.walk(name) if isinstance(n, ControlNode) and n.law in STATEFUL]
+    return [n for n in graphs.system.walk(name) if isinstance(n, ControlNode) and TREE_LAWS[n.law].stateful]
 
 
 class Servo:
     """Builds the write of one node: the leaf torques and next controller states."""
 
-    def __init__(self, graphs: TreeGraphs, top: str):
+    def __init__(self, graphs: SystemGraphs, top: str):
         self.g = graphs
         self.controllers = stateful_controllers(graphs, top)
         self.layout: dict[str, tuple[int, int, int]] = {}  # name -> (offset, n_x, n_v)
@@ -91,6 +80,7 @@ class Servo:
 
     # -- CONTROL ---------------------------------------------------------------------
     def _control(self, node: ControlNode, t: Trajectory) -> None:
+        """The law's write (robotgen.symbolic.control) on the controlled robot's coordinates."""
         child = self.g.graph(node.robot)
         sc = child.sig
         ne, nvc = sc.n_external, sc.n_velocity
@@ -114,23 +104,15 @@ class Servo:
                     "inverse kinematics (give the robots inverse_kinematics or the constraint h_inverse)")
             return t.x - child.x
 
-        if node.law in STATEFUL:
-            e = position_error() if node.law == COMPUTED_TORQUE else None
-            a_e = a_d + feedback(e)  # §3.4: xdd_e = xdd_d + Kv (xd_d - xd) + Kp (x_d - x)
+        law = TREE_LAWS[node.law]
+        expected = None
+        if law.stateful:
             o, nx, nv = self.layout[node.name]
-            x_s, v_s = rows(self.state, o, o + nx), rows(self.state, o + nx, o + nx + nv)
-            F = child.M @ a_e + child.C @ child.v + child.N + F_d  # F_e = M xdd_e + C xd + N + F_d
-            self.next_state[node.name] = ca.vertcat(
-                x_s + self.dt * rows(v_s, 0, nx) + 0.5 * self.dt ** 2 * rows(a_e, 0, nx), v_s + self.dt * a_e)
-            self.write(node.robot, Trajectory(x_s, v_s, a_e, F, Fi))
-        elif node.law == PD_FEEDFORWARD:  # eq 2.10
-            F = child.M @ a_d + child.C @ v_d + child.N + feedback(position_error()) + F_d
-            self.write(node.robot, Trajectory(t.x, v_d, a_d, F, Fi))
-        elif node.law == PD:
-            F = F_d + feedback(position_error())
-            self.write(node.robot, Trajectory(t.x, v_d, a_d, F, Fi))
-        else:
-            raise ValueError(f"unknown control law {node.law}")
+            expected = (rows(self.state, o, o + nx), rows(self.state, o + nx, o + nx + nv))
+        out = law.write(Command(child, v_d, a_d, F_d, feedback, position_error, t.x, expected, self.dt))
+        if law.stateful:
+            self.next_state[node.name] = out.next_expected
+        self.write(node.robot, Trajectory(out.x, out.v, out.a, out.F, Fi))
 
     # -- ATTACH ----------------------------------------------------------------------
     def _attach(self, node: AttachNode, t: Trajectory) -> None:

@@ -1,0 +1,15 @@
+"""The spec layer: a YAML spec file -> a validated RobotSystem, or located UserErrors."""
+from __future__ import annotations
+
+from robotgen.model.system import RobotSystem
+from robotgen.frontend.document import load_document
+from robotgen.frontend.schema import SCHEMA, schema_json
+from robotgen.frontend.system import to_system
+
+__all__ = ["SCHEMA", "load_system", "schema_json"]
+
+
+def load_system(path: str) -> RobotSystem:
+    """Read, validate and convert the spec at ``path``; raises robotgen.errors.UserErrors
+    listing every problem (file, line, column) and never returns a half-valid system."""
+    return to_system(load_document(path))

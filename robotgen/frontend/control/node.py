@@ -1,0 +1,114 @@
+"""CONTROL nodes from a spec (Deno et al. 1990, §3.4): the node, its gains (scalar, per axis or
+symmetric positive definite on the robot's external coordinates) and what it resolves; a
+law's own settings are read by its module in this package."""
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from robotgen.model.laws import FEEDFORWARD, PD, RESOLVED_RATE
+from robotgen.model.signature import (
+    Signature,
+)
+from robotgen.model.system import (
+    PAYLOAD_BODIES,
+    ControlNode,
+    RobotSystem,
+)
+from robotgen.frontend.document import Path
+from robotgen.frontend.collector import Collector
+
+
+class ControlReader(Collector):
+    """CONTROL nodes and their gains."""
+
+    def control(self, name: str, path: Path, spec: dict) -> ControlNode:
+        """The node without its gains (they need the robot's dimension: ``control_gains``)."""
+        forces = spec.get("internal_forces")
+        return ControlNode(
+            name=name, robot=spec["robot"], law=spec["law"], kp=None, kv=None,
+            kv_internal=self.optional(spec, path, "kv_internal", 0.0, minimum=0.0),
+            internal_forces=None if forces is None else
+            np.array([self.constant(path + ("internal_forces", i), f) for i, f in enumerate(forces)]),
+            resolve_internal_motion=bool(spec.get("resolve_internal_motion", False)),
+        )
+
+    def check_control(self, system: RobotSystem, node: ControlNode, robot: Signature) -> ControlNode:
+        path: Path = ("nodes", node.name, "control")
+        spec = self.doc.data["nodes"][node.name]["control"]
+        if node.law == RESOLVED_RATE:
+            return self.check_rate_control(system, node, spec, robot)
+        if "resolved_rate" in spec:
+            self.at_key(path + ("resolved_rate",), f"settings of law resolved_rate; this node's law is {node.law}")
+        target = system.nodes[node.robot]
+        if isinstance(getattr(target, "leaf", None), PAYLOAD_BODIES):
+            self.at_value(path + ("robot",), f"'{node.robot}' is a rigid_body, a payload without actuators; "
+                                             "it cannot be controlled")
+        n = robot.n_external
+        gains = {}
+        for key in ("kp", "kv"):
+            if node.law == FEEDFORWARD:
+                if key in spec:
+                    self.at_key(path + (key,), f"law feedforward takes no {key} (it is computed torque with "
+                                               "Kp = Kv = 0)")
+                gains[key] = np.zeros((n, n))
+            elif key not in spec:
+                self.at_key(path, f"missing required key '{key}' (law {node.law})")
+                gains[key] = np.zeros((n, n))
+            else:
+                gains[key] = self.gain(path + (key,), spec[key], robot, node.robot)
+        if node.internal_forces is not None:
+            have = robot.n_internal_forces
+            if node.law == PD:
+                self.at_key(path + ("internal_forces",), "law pd cannot resolve internal forces (it passes the "
+                                                         "robot's attributes up unchanged)")
+            elif len(node.internal_forces) != have:
+                listed = f" ({', '.join(robot.internal_forces)})" if have else ""
+                self.at_key(path + ("internal_forces",), f"expected {have} values, one per internal force of "
+                                                         f"'{node.robot}'{listed}, got {len(node.internal_forces)}")
+        if node.resolve_internal_motion:
+            if node.law == PD:
+                self.at_key(path + ("resolve_internal_motion",), "law pd cannot resolve internal motion (it passes "
+                                                                 "the robot's attributes up unchanged)")
+            elif not robot.internal_motions:
+                self.at_key(path + ("resolve_internal_motion",), f"robot '{node.robot}' has no internal motions "
+                                                                 "to resolve")
+        return dataclasses.replace(node, kp=gains["kp"], kv=gains["kv"])
+
+    def gain(self, path: Path, value: object, robot: Signature, name: str) -> np.ndarray:
+        """A scalar (times I), a per-axis list (diagonal) or a symmetric positive definite
+        matrix, on the robot's n external coordinates."""
+        n = robot.n_external
+        axes = f"'{name}' has {n} external coordinate{'' if n == 1 else 's'}: {', '.join(robot.external)}"
+        if not isinstance(value, list):
+            s = self.constant(path, value)
+            if s <= 0:
+                self.at_value(path, f"gain {s:g} must be positive (the gain matrix must be positive definite)")
+            return s * np.eye(n)
+        if all(not isinstance(v, list) for v in value):
+            if len(value) != n:
+                self.at_key(path, f"expected {n} entries ({axes}), got {len(value)}")
+            diagonal = [self.constant(path + (i,), v) for i, v in enumerate(value)]
+            for i, d in enumerate(diagonal):
+                if d <= 0:
+                    self.at_value(path + (i,), f"gain {d:g} must be positive (the gain matrix must be "
+                                               "positive definite)")
+            return np.diag(diagonal) if len(diagonal) == n else np.zeros((n, n))
+        if not all(isinstance(v, list) for v in value):
+            self.at_value(path, "mixes numbers and rows: give a number, a list of numbers or a matrix")
+            return np.zeros((n, n))
+        if len(value) != n or any(len(row) != n for row in value):
+            self.at_key(path, f"expected a {n} x {n} matrix ({axes}), got "
+                              f"{len(value)} rows of {', '.join(sorted({str(len(r)) for r in value}))}")
+            return np.zeros((n, n))
+        matrix = np.array([[self.constant(path + (i, k), v) for k, v in enumerate(row)]
+                           for i, row in enumerate(value)])
+        scale = max(1.0, float(np.abs(matrix).max()))
+        if not np.allclose(matrix, matrix.T, rtol=0, atol=1e-12 * scale):
+            self.at_key(path, "gain matrix is not symmetric")
+        elif np.linalg.eigvalsh(matrix)[0] <= 1e-12 * scale:
+            shown = ", ".join(f"{e:.6g}" for e in np.linalg.eigvalsh(matrix))
+            self.at_key(path, f"gain matrix is not positive definite (eigenvalues {shown})")
+        return matrix
+

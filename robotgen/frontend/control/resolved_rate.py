@@ -1,0 +1,210 @@
+"""Settings of law resolved_rate (Whitney 1972) from a spec: command frames, axes, weights,
+redundancy, damping, rate limits, the horizon and the regulator, over a chain; over a
+composite robot only damping, rate limits and the horizon."""
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from robotgen.model.chain import KinematicTree
+from robotgen.model.laws.resolved_rate import (
+    COMPOSITE_KEYS,
+    EXTENDED_JACOBIAN,
+    GENERIC_AXES,
+    HAND,
+    JOINT_LIMITS,
+    LINE_OF_SIGHT,
+    PSEUDO_INVERSE,
+    SPHERICAL,
+    TOOL,
+    CommandFrame,
+    CompositeRateSettings,
+    Damping,
+    LQRSettings,
+    RateControlSettings,
+    Redundancy,
+)
+from robotgen.model.signature import (
+    Signature,
+    angle_coordinates,
+    robot_leaves,
+)
+from robotgen.model.system import (
+    AttachNode,
+    ControlNode,
+    RobotSystem,
+)
+from robotgen.frontend.document import Path, format_path
+from robotgen.frontend.collector import Collector
+
+
+class ResolvedRateReader(Collector):
+    """Law resolved_rate's settings."""
+
+    def check_rate_control(self, system: RobotSystem, node: ControlNode, spec: dict, robot: Signature) -> ControlNode:
+        """A resolved_rate controller: the root, over a chain or urdf leaf or over a composite
+        robot (an attach node, possibly under control nodes)."""
+        path: Path = ("nodes", node.name, "control")
+        for key in ("kp", "kv", "kv_internal", "internal_forces", "resolve_internal_motion"):
+            if key in spec:
+                self.at_key(path + (key,), f"law resolved_rate takes no {key} (it outputs joint rates; "
+                                           "its settings go under resolved_rate)")
+        target = system.nodes[node.robot]
+        chain = getattr(target, "leaf", None)
+        below = self.leaf_below(system.nodes, node.robot)
+        composite = isinstance(below, AttachNode)
+        if not isinstance(chain, KinematicTree) and not composite:
+            leaf = type(getattr(below, "leaf", None)).__name__
+            what = (f"a {leaf} leaf" if below is target else f"a control node over the {leaf} leaf '{below.name}'")
+            self.at_value(path + ("robot",), f"law resolved_rate controls a chain or urdf leaf, or a composite robot "
+                                             f"(an attach node, possibly under control nodes); '{node.robot}' is {what}")
+            return node
+        if node.name != system.root:
+            self.at_key(("nodes", node.name), f"a resolved_rate controller must be the root (it outputs joint "
+                                              f"rates, which no node above can use); the root is '{system.root}'")
+            return node
+        settings = spec.get("resolved_rate", {})
+        if composite:
+            rate = self.composite_rate_settings(path + ("resolved_rate",), settings, system, node.robot, robot)
+        else:
+            rate = self.rate_settings(path + ("resolved_rate",), settings, chain)
+        n = robot.n_external
+        return dataclasses.replace(node, kp=np.zeros((n, n)), kv=np.zeros((n, n)), rate=rate)
+
+    def composite_rate_settings(self, path: Path, spec: dict, system: RobotSystem, name: str,
+                                robot: Signature) -> CompositeRateSettings:
+        """Over a composite robot the command coordinates are the robot's own: only damping,
+        rate limits (one per sensed leaf coordinate) and the horizon apply."""
+        for key in spec:
+            if key not in COMPOSITE_KEYS:
+                self.at_key(path + (key,), f"'{key}' applies to a chain leaf; over the composite robot '{name}' the "
+                                           f"command is its velocity in its own coordinates "
+                                           f"({', '.join(robot.velocity_names)}) and the leaves' rates come from the "
+                                           f"tree's velocity map (settings here: {', '.join(COMPOSITE_KEYS)})")
+        leaves = [system.nodes[leaf].leaf for leaf in robot_leaves(system, name)]
+        n = sum(leaf.nq for leaf in leaves)
+        if "rate_limits" in spec:
+            rate_limits = self.per_joint(path + ("rate_limits",), spec["rate_limits"], n, "rate limit", positive=True)
+        else:
+            # the joints' velocity limits, when every leaf is a chain and every joint has one
+            chains = all(isinstance(leaf, KinematicTree) for leaf in leaves)
+            velocities = [j.limits.velocity for leaf in leaves for j in leaf.joints] if chains else []
+            limited = chains and all(v is not None and v > 0 for v in velocities)
+            rate_limits = np.array(velocities, dtype=float) if limited else None
+        return CompositeRateSettings(
+            robot_names=robot.velocity_names, n_external=robot.n_external,
+            angles=angle_coordinates(system, name), damping=self.damping(path, spec), rate_limits=rate_limits,
+            horizon=self.optional(spec, path, "horizon", 0.1, minimum=0.0, exclusive=True))
+
+    def damping(self, path: Path, spec: dict) -> Damping | None:
+        if "damping" not in spec:
+            return None
+        d = spec["damping"]
+        dpath = path + ("damping",)
+        return Damping(self.constant(dpath + ("lambda_max",), d["lambda_max"], minimum=0.0, exclusive=True),
+                       self.constant(dpath + ("threshold",), d["threshold"], minimum=0.0, exclusive=True))
+
+    def rate_settings(self, path: Path, spec: dict, chain: KinematicTree) -> RateControlSettings:
+        n = chain.nq
+        kind = spec.get("frame", HAND)
+        needs = {LINE_OF_SIGHT: "eye", SPHERICAL: "centre", TOOL: "tool"}
+        for key in ("eye", "centre", "tool"):
+            if key in spec and needs.get(kind) != key:
+                self.at_key(path + (key,), f"'{key}' belongs to frame {next(f for f, k in needs.items() if k == key)}, "
+                                           f"not {kind}")
+        if kind in needs and needs[kind] not in spec:
+            self.at_key(path, f"frame {kind} needs '{needs[kind]}'")
+        point = tool = None
+        if kind in (LINE_OF_SIGHT, SPHERICAL) and needs[kind] in spec:
+            point = self.vector(path + (needs[kind],), spec[needs[kind]], (0, 0, 0))
+        if kind == TOOL:
+            tool = self.pose(path + ("tool",), spec.get("tool"))
+        frame = CommandFrame(kind, point, tool)
+        names = frame.axis_names
+
+        def axes(key: str) -> tuple[bool, ...]:
+            chosen = [False] * 6
+            for i, name in enumerate(spec.get(key, ())):
+                if name in names:
+                    chosen[names.index(name)] = True
+                elif name in GENERIC_AXES:
+                    chosen[GENERIC_AXES.index(name)] = True
+                else:
+                    self.at_value(path + (key, i), f"'{name}' is not a command axis of frame {kind} "
+                                                   f"({', '.join(names)}; or {', '.join(GENERIC_AXES)})")
+            return tuple(chosen)
+
+        active = axes("active") if "active" in spec else (True,) * 6
+        free = axes("free")
+        for i, name in enumerate(spec.get("free", ())):
+            k = names.index(name) if name in names else GENERIC_AXES.index(name) if name in GENERIC_AXES else -1
+            if k >= 0 and "active" in spec and active[k]:
+                self.at_value(path + ("free", i), f"axis '{names[k]}' is both active and free")
+        if "active" not in spec:
+            active = tuple(not f for f in free)
+        m = 6 - sum(free)
+        if m == 0:
+            self.at_key(path + ("free",), "every command axis is free: there is no task")
+        elif m > n:
+            self.at_key(path, f"the task has {m} command axes but '{chain.name}' has {n} joints; free "
+                              f"{m - n} of them (key 'free')")
+        weights = self.vector(path + ("weights",), spec.get("weights"), (1.0,) * 6)
+
+        raw = spec.get("redundancy", {})
+        rpath = path + ("redundancy",)
+        objective = raw.get("objective", "none")
+        redundancy = Redundancy(raw.get("method", PSEUDO_INVERSE), None if objective == "none" else objective,
+                                self.optional(raw, rpath, "gain", 1.0, minimum=0.0, exclusive=True))
+        if redundancy.method == EXTENDED_JACOBIAN:
+            if n != m + 1:
+                self.at_value(rpath + ("method",), f"extended_jacobian needs exactly one degree of redundancy: "
+                                                   f"{n} joints, {m} task axes")
+            if redundancy.objective != JOINT_LIMITS:
+                self.at_key(rpath, "extended_jacobian needs objective joint_limits (the optimality condition "
+                                   "z^T grad H = 0 is differentiated once more)")
+        elif redundancy.objective is not None and n == m:
+            self.warnings.append(f"{self.doc.source.key(rpath)}: warning: {format_path(self.doc.data, rpath)}: "
+                                 f"'{chain.name}' has no redundancy ({n} joints, {m} task axes); the objective "
+                                 "has no effect")
+        if redundancy.objective == JOINT_LIMITS:
+            if not any(j.limits.lower is not None and j.limits.upper is not None and j.limits.upper > j.limits.lower
+                       for j in chain.joints):
+                self.at_value(rpath + ("objective",), f"objective joint_limits needs position limits; no joint of "
+                                                      f"'{chain.name}' has both lower and upper")
+
+        damping = self.damping(path, spec)
+        rate_limits = self.rate_limits(path + ("rate_limits",), spec, chain)
+        horizon = self.optional(spec, path, "horizon", 0.1, minimum=0.0, exclusive=True)
+        lqr = self.lqr_settings(path + ("lqr",), spec["lqr"], n) if "lqr" in spec else None
+        return RateControlSettings(frame=frame, active=active, free=free, weights=weights, redundancy=redundancy,
+                                   damping=damping, rate_limits=rate_limits, horizon=horizon, lqr=lqr)
+
+    def rate_limits(self, path: Path, spec: dict, chain: KinematicTree) -> np.ndarray | None:
+        if "rate_limits" in spec:
+            return self.per_joint(path, spec["rate_limits"], chain.nq, "rate limit", positive=True)
+        velocities = [j.limits.velocity for j in chain.joints]
+        if all(v is not None and v > 0 for v in velocities):
+            return np.array(velocities, dtype=float)
+        return None
+
+    def lqr_settings(self, path: Path, spec: dict, n: int) -> LQRSettings:
+        nominal = spec["nominal"]
+        if len(nominal) != n:
+            self.at_key(path + ("nominal",), f"expected {n} joint positions, got {len(nominal)}")
+        nominal = np.array([self.constant(path + ("nominal", i), v) for i, v in enumerate(nominal)])
+        q = spec.get("q", [100, 1])
+        if len(q) not in (2, 2 * n):
+            self.at_key(path + ("q",), f"expected 2 entries (position, rate) or {2 * n} (one per state), "
+                                       f"got {len(q)}")
+        weights = np.array([self.constant(path + ("q", i), v) for i, v in enumerate(q)])
+        for i, w in enumerate(weights):
+            if w <= 0:
+                self.at_value(path + ("q", i), f"weight {w:g} must be positive")
+        if len(weights) == 2:
+            weights = np.repeat(weights, n)
+        r = self.per_joint(path + ("r",), spec.get("r", 1), n, "weight", positive=True)
+        if len(nominal) != n or len(weights) != 2 * n:
+            nominal, weights = np.zeros(n), np.ones(2 * n)
+        return LQRSettings(nominal, weights, r)
+

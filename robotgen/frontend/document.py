@@ -1,0 +1,247 @@
+"""Read a spec file, keep where every key and value stands, and check it against the schema.
+
+ruamel.yaml's round-trip loader records the line and column of every mapping key, mapping
+value and sequence item; ``SourceMap`` turns a path into the document (("nodes", "arm",
+"define", "chain", "joints", 2)) into a ``Location``. Schema errors are reported at the
+offending value, at the unknown key, or at the key holding a mapping that lacks a key.
+"""
+from __future__ import annotations
+
+import hashlib
+from dataclasses import dataclass, replace
+
+from jsonschema import Draft202012Validator, ValidationError
+from ruamel.yaml import YAML
+from ruamel.yaml.error import MarkedYAMLError, YAMLError
+
+from robotgen.errors import Location, UserError, UserErrors
+from robotgen.frontend.schema import SCHEMA
+
+Path = tuple[str | int, ...]
+
+_VALIDATOR = Draft202012Validator(SCHEMA)
+_TYPE_NAMES = {"object": "a mapping", "array": "a list", "string": "a string", "number": "a number",
+               "integer": "an integer", "boolean": "true or false", "null": "nothing"}
+
+
+def format_path(data: object, path: Path) -> str:
+    """``nodes.arm.define.chain.joints[2].link.mass``: sequence indices in brackets."""
+    text = ""
+    node = data
+    for part in path:
+        if isinstance(node, list):
+            text += f"[{part}]"
+        else:
+            text += f".{part}" if text else str(part)
+        try:
+            node = node[part]
+        except (KeyError, IndexError, TypeError):
+            node = None
+    return text
+
+
+def describe(value: object) -> str:
+    """A value as a message shows it."""
+    if value is None:
+        return "nothing"
+    if isinstance(value, dict):
+        return "a mapping"
+    if isinstance(value, list):
+        return "a list"
+    if isinstance(value, str):
+        return f"the string {_quoted(value)}"
+    return repr(value)
+
+
+def _quoted(text: str, limit: int = 60) -> str:
+    """At most one line of ``text``, cut to ``limit`` characters: a message never echoes a
+    whole file back (`robotgen check /etc/passwd`)."""
+    lines = text.splitlines() or [""]
+    first = lines[0]
+    cut = len(first) > limit or len(lines) > 1
+    return repr(first[:limit]) + (" ..." if cut else "")
+
+
+class SourceMap:
+    """Locations of the keys and values of a round-trip-loaded YAML document."""
+
+    def __init__(self, file: str, root: object, lines: list[str]):
+        self.file = file
+        self.root = root
+        self.lines = lines
+
+    def _walk(self, path: Path) -> tuple[Location, Location]:
+        """(key, value) locations of the node at ``path``; for a sequence item both are the
+        item. Falls back to the closest located ancestor (e.g. keys from YAML merges)."""
+        key = value = self._location(getattr(getattr(self.root, "lc", None), "line", 0),
+                                     getattr(getattr(self.root, "lc", None), "col", 0))
+        node = self.root
+        for part in path:
+            try:
+                if isinstance(node, list):
+                    key = value = self._location(*node.lc.item(part))
+                else:
+                    key = self._location(*node.lc.key(part))
+                    value = self._location(*node.lc.value(part))
+                node = node[part]
+            except (KeyError, IndexError, TypeError, AttributeError):
+                break
+        return key, value
+
+    def _location(self, line: int, col: int) -> Location:
+        return Location(self.file, line + 1, col + 1)
+
+    def key(self, path: Path) -> Location:
+        """The key (or sequence item) that holds ``path``: where a field is named."""
+        return self._walk(path)[0]
+
+    def value(self, path: Path) -> Location:
+        """The first character of the value at ``path`` (a quote for quoted scalars)."""
+        return self._walk(path)[1]
+
+    def text_start(self, path: Path, text: str) -> tuple[Location, bool]:
+        """Where the string ``text`` at ``path`` starts in the file, and whether it stands
+        there verbatim on one line (so columns inside it are columns in the file)."""
+        at = self.value(path)
+        line = self.lines[at.line - 1] if at.line <= len(self.lines) else ""
+        col = at.col - 1
+        if line[col:col + len(text)] == text:
+            return at, True
+        if line[col:col + 1] in ("'", '"') and line[col + 1:col + 1 + len(text)] == text:
+            return replace(at, col=at.col + 1), True
+        return at, False
+
+
+@dataclass(frozen=True, eq=False)
+class Document:
+    """A spec file read and schema-checked: plain data (dicts, lists, str, int, float, bool,
+    None) plus where each part of it stands."""
+
+    path: str
+    data: dict
+    source: SourceMap
+    sha256: str
+
+
+def _read(path: str) -> tuple[bytes, str]:
+    try:
+        with open(path, "rb") as f:
+            raw = f.read()
+    except OSError as error:
+        raise UserErrors([UserError(Location(path), f"cannot read spec: {error.strerror or error}")]) from None
+    try:
+        return raw, raw.decode("utf-8")
+    except UnicodeDecodeError as error:
+        line = raw[: error.start].count(b"\n") + 1
+        raise UserErrors([UserError(Location(path, line), "spec is not UTF-8 text")]) from None
+
+
+def _parse_yaml(path: str, text: str) -> object:
+    try:
+        return YAML(typ="rt").load(text)
+    except MarkedYAMLError as error:
+        mark = error.problem_mark or error.context_mark
+        message = error.problem or error.context or "invalid YAML"
+        if error.context and error.problem and error.context_mark:
+            message += f" ({error.context} at line {error.context_mark.line + 1})"
+        location = Location(path, mark.line + 1, mark.column + 1) if mark else Location(path)
+        raise UserErrors([UserError(location, f"YAML: {message}")]) from None
+    except YAMLError as error:
+        position = getattr(error, "position", None)
+        location = Location(path)
+        if isinstance(position, int):
+            before = text[:position]
+            location = Location(path, before.count("\n") + 1, position - (before.rfind("\n") + 1) + 1)
+        reason = getattr(error, "reason", None) or str(error).splitlines()[0]
+        raise UserErrors([UserError(location, f"YAML: {reason}")]) from None
+
+
+def _plain(node: object, path: Path, source: SourceMap, errors: list[UserError]) -> object:
+    """ruamel's node types as plain Python; non-string mapping keys are errors."""
+    if isinstance(node, dict):
+        plain = {}
+        for key, value in node.items():
+            if not isinstance(key, str):
+                where = format_path(source.root, path)
+                errors.append(UserError(source.key(path + (key,)),
+                                        f"{where + ': ' if where else ''}key {key!r} must be a string"))
+                continue
+            plain[str(key)] = _plain(value, path + (key,), source, errors)
+        return plain
+    if isinstance(node, list):
+        return [_plain(item, path + (i,), source, errors) for i, item in enumerate(node)]
+    if isinstance(node, bool) or node is None:
+        return node
+    for kind in (str, int, float):
+        if isinstance(node, kind):
+            return kind(node)
+    return node
+
+
+def _schema_errors(error: ValidationError, data: object, source: SourceMap) -> list[UserError]:
+    """One schema violation as located, human messages."""
+    path: Path = tuple(error.absolute_path)
+    instance, schema, kind = error.instance, error.schema, error.validator
+
+    def at(location: Location, where: Path, message: str) -> UserError:
+        field = format_path(data, where)
+        return UserError(location, f"{field}: {message}" if field else message)
+
+    if kind == "additionalProperties" and schema.get("additionalProperties") is False:
+        allowed = ", ".join(schema.get("properties", {}))
+        return [at(source.key(path + (k,)), path + (k,), f"unknown key (allowed: {allowed})")
+                for k in instance if k not in schema.get("properties", {})]
+    if kind == "required":
+        missing = [k for k in error.validator_value if k not in instance]
+        return [at(source.key(path), path, f"missing required key '{k}'") for k in missing]
+    if kind == "oneOf" and all(set(branch) == {"required"} for branch in error.validator_value):
+        keys = [branch["required"][0] for branch in error.validator_value]
+        present = [k for k in keys if k in instance]
+        if not present:
+            return [at(source.key(path), path, f"needs one of: {', '.join(keys)}")]
+        return [at(source.key(path + (present[1],)), path,
+                   f"{' and '.join(present)} exclude each other; give exactly one")]
+    if "propertyNames" in error.schema_path:
+        return [at(source.key(path + (instance,)), path,
+                   f"name {instance!r} is not an identifier ([A-Za-z_][A-Za-z0-9_]*)")]
+    if kind == "type":
+        expected = error.validator_value if isinstance(error.validator_value, list) else [error.validator_value]
+        message = f"expected {' or '.join(_TYPE_NAMES[t] for t in expected)}, got {describe(instance)}"
+    elif kind == "enum":
+        message = f"{instance!r} is not one of: {', '.join(map(str, error.validator_value))}"
+    elif kind == "const":
+        message = f"must be {error.validator_value!r}, got {describe(instance)}"
+    elif kind in ("minItems", "maxItems"):
+        low, high = schema.get("minItems"), schema.get("maxItems")
+        bound = "exactly" if low == high else ("at least" if kind == "minItems" else "at most")
+        n = low if kind == "minItems" else high
+        message = f"expected {bound} {n} item{'' if n == 1 else 's'}, got {len(instance)}"
+    elif kind == "minProperties":
+        message = "must not be empty"
+    elif kind == "pattern":
+        message = f"{instance!r} must match {error.validator_value}"
+    else:
+        message = error.message
+    return [at(source.value(path), path, message)]
+
+
+def sort_errors(errors: list[UserError]) -> list[UserError]:
+    """By position in the file, each distinct error once."""
+    unique = {str(e): e for e in errors}
+    return sorted(unique.values(), key=lambda e: (e.location.line, e.location.col))
+
+
+def load_document(path: str) -> Document:
+    """Read ``path`` and check it against the schema; raises UserErrors with every problem."""
+    raw, text = _read(path)
+    root = _parse_yaml(path, text)
+    if not isinstance(root, dict):
+        raise UserErrors([UserError(Location(path), f"a spec must be a YAML mapping, got {describe(root)}")])
+    source = SourceMap(path, root, text.splitlines())
+    errors: list[UserError] = []
+    data = _plain(root, (), source, errors)
+    for error in _VALIDATOR.iter_errors(data):
+        errors += _schema_errors(error, data, source)
+    if errors:
+        raise UserErrors(sort_errors(errors))
+    return Document(path, data, source, hashlib.sha256(raw).hexdigest())

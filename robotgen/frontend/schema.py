@@ -1,0 +1,345 @@
+"""JSON Schema (draft 2020-12) of spec format 1; docs/spec-format.md is the prose version.
+
+The schema checks shape only (types, keys, ranges of plain numbers). What needs the whole
+document or arithmetic (root exists, inertia positive semi-definite, formula names,
+constant expressions given as strings) is checked in robotgen.frontend.system.
+
+A node holds exactly one primitive key; ``PRIMITIVES`` lists them, so a new primitive is
+one more entry there and in ``$defs``.
+"""
+from __future__ import annotations
+
+import json
+
+from robotgen.model.chain import ACCEPTABLE_DEVIATIONS
+from robotgen.model.signature import UNITS
+
+IDENTIFIER = "^[A-Za-z_][A-Za-z0-9_]*$"
+MODULE_NAME = "^[a-z_][a-z0-9_]*$"
+PRIMITIVES = ("define", "attach", "control")
+
+
+def _number(description: str, **bounds: float) -> dict:
+    """A YAML number or a string holding a constant expression; bounds apply to numbers."""
+    return {"type": ["number", "string"], "description": description, **bounds}
+
+
+def _vector3(description: str) -> dict:
+    return {"type": "array", "description": description, "minItems": 3, "maxItems": 3,
+            "items": {"$ref": "#/$defs/number"}}
+
+
+def _vector2(description: str) -> dict:
+    return {"type": "array", "description": description, "minItems": 2, "maxItems": 2,
+            "items": {"$ref": "#/$defs/number"}}
+
+
+def _names(description: str, **bounds: int) -> dict:
+    return {"type": "array", "description": description,
+            "items": {"type": "string", "pattern": IDENTIFIER}, **bounds}
+
+
+def _expressions(description: str, **bounds: int) -> dict:
+    return {"type": "array", "description": description, "items": {"$ref": "#/$defs/expression"}, **bounds}
+
+
+def _expression_matrix(description: str) -> dict:
+    return {"type": "array", "description": description, "minItems": 1,
+            "items": {"type": "array", "items": {"$ref": "#/$defs/expression"}}}
+
+
+def _object(description: str, properties: dict, required: tuple[str, ...] = ()) -> dict:
+    schema = {"type": "object", "description": description, "additionalProperties": False,
+              "properties": properties}
+    if required:
+        schema["required"] = list(required)
+    return schema
+
+
+def _exactly_one_of(keys: tuple[str, ...]) -> list[dict]:
+    return [{"required": [key]} for key in keys]
+
+
+_EXPRESSION = {"type": ["string", "number"],
+               "description": "expression: numbers, names, + - * / ** ^, unary -, "
+                              "sin cos tan asin acos atan atan2 exp log sqrt abs tanh sinh cosh sign min max"}
+
+_DEFS = {
+    "number": _number("a number, or a constant expression such as \"pi/2\" (names: pi, e)"),
+    "expression": _EXPRESSION,
+    "pose": _object("rigid transform: translation xyz [m], then fixed-axis roll-pitch-yaw [rad], "
+                    "R = Rz(yaw) Ry(pitch) Rx(roll)",
+                    {"xyz": _vector3("translation [m], default 0 0 0"),
+                     "rpy": _vector3("roll pitch yaw [rad], default 0 0 0")}),
+    "dh": _object("DH row (missing parameters are 0); the joint variable adds to theta "
+                  "(revolute) or d (prismatic)",
+                  {"a": _number("link length [m] (dh_modified: a_{i-1})"),
+                   "alpha": _number("link twist [rad] (dh_modified: alpha_{i-1})"),
+                   "d": _number("link offset [m]"),
+                   "theta": _number("joint angle offset [rad]")}),
+    "inertia": _object("inertia tensor about the COM in the link frame [kg m^2]; positive "
+                       "semi-definite, principal moments satisfy the triangle inequalities",
+                       {"ixx": _number("I_xx"), "iyy": _number("I_yy"), "izz": _number("I_zz"),
+                        "ixy": _number("I_xy, default 0"), "ixz": _number("I_xz, default 0"),
+                        "iyz": _number("I_yz, default 0"),
+                        "accept": {"type": "array", "uniqueItems": True,
+                                   "items": {"enum": list(ACCEPTABLE_DEVIATIONS)},
+                                   "description": "known deviations of published data to keep without a "
+                                                  "warning: triangle_inequality (principal moments "
+                                                  "I1 + I2 < I3)"}},
+                       ("ixx", "iyy", "izz")),
+    "link": _object("the body this joint moves (default: massless)",
+                    {"mass": _number("mass [kg], >= 0", minimum=0),
+                     "com": _vector3("centre of mass in the link frame [m], default 0 0 0"),
+                     "inertia": {"$ref": "#/$defs/inertia"}},
+                    ("mass",)),
+    "motor": _object("motor on the joint: armature inertia * gear_ratio^2 is added to M's diagonal",
+                     {"inertia": _number("rotor inertia [kg m^2], >= 0", minimum=0),
+                      "gear_ratio": _number("gear ratio (motor/joint), default 1")},
+                     ("inertia",)),
+    "friction": _object("joint-side friction: viscous * qd + coulomb * tanh(qd / coulomb_smoothing)",
+                        {"viscous": _number("viscous coefficient, >= 0, default 0", minimum=0),
+                         "coulomb": _number("Coulomb friction force/torque, >= 0, default 0", minimum=0)}),
+    "limits": _object("joint limits (all optional)",
+                      {"lower": _number("lower position limit"), "upper": _number("upper position limit"),
+                       "velocity": _number("velocity limit, >= 0", minimum=0),
+                       "effort": _number("effort limit, >= 0", minimum=0)}),
+    "joint": _object(
+        "one joint and the link it moves; dh for dh_standard/dh_modified, origin and axis for joints",
+        {"name": {"type": "string", "pattern": IDENTIFIER, "description": "joint name, default q1, q2, ..."},
+         "type": {"enum": ["revolute", "prismatic"], "description": "revolute or prismatic"},
+         "dh": {"$ref": "#/$defs/dh"},
+         "origin": {"$ref": "#/$defs/pose", "description": "parent link frame -> joint frame at q = 0"},
+         "axis": _vector3("joint axis in the joint frame (normalised)"),
+         "link": {"$ref": "#/$defs/link"},
+         "motor": {"$ref": "#/$defs/motor"},
+         "friction": {"$ref": "#/$defs/friction"},
+         "limits": {"$ref": "#/$defs/limits"}},
+        ("type",)),
+    "chain": _object(
+        "a serial chain of rigid links",
+        {"convention": {"enum": ["dh_standard", "dh_modified", "joints"],
+                        "description": "how joints are written: dh_standard, dh_modified (Craig) "
+                                       "or joints (URDF-like); no default"},
+         "gravity": _vector3("gravitational acceleration in the base frame [m/s^2], default 0 0 -9.81"),
+         "base": {"$ref": "#/$defs/pose", "description": "base frame -> frame before joint 1"},
+         "tool": {"$ref": "#/$defs/pose", "description": "last link frame -> tip frame"},
+         "coulomb_smoothing": _number("velocity scale of tanh in Coulomb friction, > 0, default 0.01",
+                                      exclusiveMinimum=0),
+         "joints": {"type": "array", "minItems": 1, "items": {"$ref": "#/$defs/joint"},
+                    "description": "joints from the base to the tip"}},
+        ("convention", "joints")),
+    "formulas": _object(
+        "a leaf robot given by M(q), C(q, qd), N(q, qd) as expressions (Deno et al. 1990, eq 3.1)",
+        {"coordinates": {"type": "array", "minItems": 1,
+                         "items": {"type": "string", "pattern": IDENTIFIER},
+                         "description": "names of the joint coordinates q"},
+         "velocities": {"type": "array", "minItems": 1,
+                        "items": {"type": "string", "pattern": IDENTIFIER},
+                        "description": "names of qd, default \"d\" + coordinate name"},
+         "parameters": {"type": "object", "propertyNames": {"pattern": IDENTIFIER},
+                        "additionalProperties": {"$ref": "#/$defs/number"},
+                        "description": "named constants usable in every expression"},
+         "M": {"type": "array", "items": {"type": "array", "items": {"$ref": "#/$defs/expression"}},
+               "description": "nq x nq inertia matrix in coordinates and parameters"},
+         "C": {"type": "array", "items": {"type": "array", "items": {"$ref": "#/$defs/expression"}},
+               "description": "nq x nq Coriolis matrix in q, qd, parameters; default: from M by "
+                              "Christoffel symbols"},
+         "N": {"type": "array", "items": {"$ref": "#/$defs/expression"},
+               "description": "nq vector N(q, qd): gravity, friction; default zero"},
+         "kinematics": {"type": "array", "minItems": 1, "items": {"$ref": "#/$defs/expression"},
+                        "description": "output map x = f(q) in coordinates and parameters"},
+         "outputs": _names("names of the kinematics outputs, default <node>_x1, <node>_x2, ...",
+                           minItems=1),
+         "inverse_kinematics": _expressions("q = f^-1(x): nq expressions in the outputs and "
+                                            "parameters", minItems=1),
+         "units": {"type": "object", "propertyNames": {"pattern": IDENTIFIER},
+                   "additionalProperties": {"enum": list(UNITS)},
+                   "description": "unit of coordinates and outputs by name (m or rad), for plots "
+                                  "and reports; forces are in N on m, torques in N m on rad"}},
+        ("coordinates", "M")),
+    "rigid_body": {**_object(
+        "a rigid payload body (never actuated), planar or spatial",
+        {"planar": _object("a body moving in a plane, coordinates (x, y, psi): M = diag(m, m, I), "
+                           "C = 0, N = -m (gx, gy, 0)",
+                           {"mass": _number("mass [kg], >= 0", minimum=0),
+                            "inertia": _number("moment of inertia about the centre of mass "
+                                               "[kg m^2], >= 0", minimum=0)},
+                           ("mass", "inertia")),
+         "spatial": _object("a body in space, coordinates (x, y, z, roll, pitch, yaw) of its frame at "
+                            "the centre of mass (R = Rz(yaw) Ry(pitch) Rx(roll))",
+                            {"mass": _number("mass [kg], >= 0", minimum=0),
+                             "inertia": {"$ref": "#/$defs/inertia"}},
+                            ("mass", "inertia")),
+         "gravity": {"type": "array", "minItems": 2, "maxItems": 3, "items": {"$ref": "#/$defs/number"},
+                     "description": "gravitational acceleration [m/s^2]: 2 numbers for a planar body "
+                                    "(default 0 0), 3 for a spatial one (default 0 0 -9.81)"},
+         "coordinates": _names("names of the body's coordinates, default x, y, psi (planar) or "
+                               "x, y, z, roll, pitch, yaw (spatial)", minItems=3, maxItems=6)}),
+        "oneOf": _exactly_one_of(("planar", "spatial"))},
+    "frame_change": _object(
+        "nil payload, G = I: the node's coordinates are the robots' kinematic outputs",
+        {"output": {"enum": ["position", "planar"],
+                    "description": "a chain's output: tip position x y z (default) or planar x y"}}),
+    "planar_contacts": _object(
+        "fingertips (robot coordinates x, y per contact) held at body-frame points of a planar payload",
+        {"points": {"type": "array", "minItems": 2, "items": _vector2("contact point [x, y] in the "
+                                                                     "payload's frame [m]"),
+                    "description": "contact points in the payload's frame, one per fingertip"}},
+        ("points",)),
+    "point_contacts": _object(
+        "fingertips (robot coordinates x, y, z per contact) held at body-frame points of a spatial payload",
+        {"points": {"type": "array", "minItems": 3, "items": _vector3("contact point [x, y, z] in the "
+                                                                     "payload's frame [m]"),
+                    "description": "contact points in the payload's frame, one per fingertip; the first "
+                                   "three must not be collinear"}},
+        ("points",)),
+    "constraint_formulas": _object(
+        "a constraint J(y) ydot = G(x)^T xdot given by expressions",
+        {"coordinates": _names("names of the node's coordinates x", minItems=1),
+         "parameters": {"type": "object", "propertyNames": {"pattern": IDENTIFIER},
+                        "additionalProperties": {"$ref": "#/$defs/number"},
+                        "description": "named constants usable in every expression"},
+         "h": _expressions("x = h(y): one expression per node coordinate, in the robots' "
+                           "coordinates and parameters", minItems=1),
+         "h_inverse": _expressions("y = h^-1(x): one expression per robot coordinate, in the node's "
+                                   "coordinates and parameters", minItems=1),
+         "J": _expression_matrix("constraint rows x robot coordinates, in the robots' coordinates "
+                                 "and parameters; default identity"),
+         "G": _expression_matrix("grasp map: node coordinates x constraint rows, in the node's and "
+                                 "robots' coordinates and parameters")},
+        ("coordinates", "h", "G")),
+    "constraint": {**_object("ATTACH's constraint: exactly one of frame_change, planar_contacts, "
+                             "point_contacts, formulas",
+                             {"frame_change": {"$ref": "#/$defs/frame_change"},
+                              "planar_contacts": {"$ref": "#/$defs/planar_contacts"},
+                              "point_contacts": {"$ref": "#/$defs/point_contacts"},
+                              "formulas": {"$ref": "#/$defs/constraint_formulas"}}),
+                   "oneOf": _exactly_one_of(("frame_change", "planar_contacts", "point_contacts", "formulas"))},
+    "attach": _object(
+        "ATTACH: robots joined to an optional payload through a constraint (Deno et al. 1990, 3.3)",
+        {"robots": {"type": "array", "minItems": 1,
+                    "items": {"type": "string", "pattern": IDENTIFIER},
+                    "description": "child robot nodes, in order; their coordinates are stacked"},
+         "payload": {"type": "string", "pattern": IDENTIFIER,
+                     "description": "a define node (rigid_body or formulas); default nil"},
+         "constraint": {"$ref": "#/$defs/constraint"}},
+        ("robots", "constraint")),
+    "gain": {"type": ["number", "string", "array"],
+             "description": "scalar (times I), per-axis list (diagonal) or matrix (symmetric "
+                            "positive definite), on the robot's external coordinates",
+             "minItems": 1,
+             "items": {"type": ["number", "string", "array"], "minItems": 1,
+                       "items": {"$ref": "#/$defs/number"}}},
+    "resolved_rate": _object(
+        "settings of law resolved_rate: resolved motion rate and position control of a chain "
+        "(Whitney 1972), or of a composite robot in its own coordinates (then only damping, "
+        "rate_limits and horizon apply)",
+        {"frame": {"enum": ["base", "hand", "tool", "line_of_sight", "spherical"],
+                   "description": "command coordinates: base, hand (eq 7), tool (axes of a held "
+                                  "tool), line_of_sight (eq 10), spherical; default hand"},
+         "eye": _vector3("line_of_sight: the eye point in base coordinates [m]"),
+         "centre": _vector3("spherical: the centre in base coordinates [m]"),
+         "tool": {"$ref": "#/$defs/pose", "description": "tool: the tool frame in the hand frame"},
+         "active": {"type": "array", "items": {"type": "string"}, "uniqueItems": True,
+                    "description": "command axes that follow the command (default all); the "
+                                   "others are held at rate zero"},
+         "free": {"type": "array", "items": {"type": "string"}, "uniqueItems": True,
+                  "description": "command axes left out of the task (neither commanded nor held)"},
+         "weights": {"type": "array", "minItems": 6, "maxItems": 6, "items": {"$ref": "#/$defs/number"},
+                     "description": "proportion of each command axis, default 1"},
+         "redundancy": _object(
+             "joint rates of a redundant arm",
+             {"method": {"enum": ["pseudo_inverse", "extended_jacobian"],
+                         "description": "pseudo_inverse (default) or extended_jacobian"},
+              "objective": {"enum": ["none", "joint_limits", "manipulability"],
+                            "description": "secondary objective H to increase (default none)"},
+              "gain": _number("gain on grad H, > 0, default 1", exclusiveMinimum=0)}),
+         "damping": _object(
+             "damped least squares near singularities",
+             {"lambda_max": _number("damping at a singularity, > 0", exclusiveMinimum=0),
+              "threshold": _number("manipulability below which damping rises, > 0", exclusiveMinimum=0)},
+             ("lambda_max", "threshold")),
+         "rate_limits": {"type": ["number", "string", "array"], "items": {"$ref": "#/$defs/number"},
+                         "description": "joint-rate bounds: a number or one per joint (of every leaf, "
+                                        "in tree order, for a composite robot; default the joints' "
+                                        "velocity limits); the whole rate vector is scaled"},
+         "horizon": _number("T of eqs 11-18: position control time constant [s], > 0, default 0.1",
+                            exclusiveMinimum=0),
+         "lqr": _object(
+             "optimal regulator about a nominal posture from the linearised dynamics (eq 19)",
+             {"nominal": {"type": "array", "minItems": 1, "items": {"$ref": "#/$defs/number"},
+                          "description": "nominal joint positions (rates zero)"},
+              "q": {"type": "array", "minItems": 2, "items": {"$ref": "#/$defs/number"},
+                    "description": "state weights: [position, rate] or one per state (2n), default [100, 1]"},
+              "r": {"type": ["number", "string", "array"], "items": {"$ref": "#/$defs/number"},
+                    "description": "torque weights: a number or one per joint, default 1"}},
+             ("nominal",))}),
+    "control": _object(
+        "CONTROL: a controller on a robot (Deno et al. 1990, 3.4)",
+        {"robot": {"type": "string", "pattern": IDENTIFIER, "description": "the controlled node"},
+         "law": {"enum": ["computed_torque", "feedforward", "pd_feedforward", "pd", "resolved_rate"],
+                 "description": "control law"},
+         "resolved_rate": {"$ref": "#/$defs/resolved_rate"},
+         "kp": {"$ref": "#/$defs/gain"},
+         "kv": {"$ref": "#/$defs/gain"},
+         "kv_internal": _number("damping of internal motion rates, >= 0, default 0", minimum=0),
+         "internal_forces": {"type": "array", "minItems": 1, "items": {"$ref": "#/$defs/number"},
+                             "description": "resolve all of the robot's internal forces to these values"},
+         "resolve_internal_motion": {"type": "boolean",
+                                     "description": "drive internal motion rates to zero and mask them"}},
+        ("robot", "law")),
+    "urdf": _object(
+        "a serial chain read from a URDF file, from a base link to a tip link",
+        {"file": {"type": "string", "minLength": 1, "description": "URDF path, relative to the spec"},
+         "tip": {"type": "string", "minLength": 1, "description": "tip link"},
+         "base": {"type": "string", "minLength": 1, "description": "base link, default the root link"},
+         "gravity": _vector3("gravitational acceleration in the base frame [m/s^2], default 0 0 -9.81")},
+        ("file", "tip")),
+    "define": {**_object("DEFINE: a leaf robot, by exactly one of chain, urdf, formulas or rigid_body",
+                         {"chain": {"$ref": "#/$defs/chain"}, "urdf": {"$ref": "#/$defs/urdf"},
+                          "formulas": {"$ref": "#/$defs/formulas"},
+                          "rigid_body": {"$ref": "#/$defs/rigid_body"}}),
+               "oneOf": _exactly_one_of(("chain", "urdf", "formulas", "rigid_body"))},
+    "simulation": _object(
+        "how `robotgen simulate` runs the closed loop (robot trees)",
+        {"duration": _number("simulated time [s], default 2", exclusiveMinimum=0),
+         "dt": _number("servo period and RK4 step [s], default 0.001", exclusiveMinimum=0),
+         "start": {"type": "array", "items": {"$ref": "#/$defs/number"},
+                   "description": "root positions at t = 0 (needs inverse kinematics in every attach)"},
+         "theta0": {"type": "array", "items": {"$ref": "#/$defs/number"},
+                    "description": "or the leaf joint positions at t = 0"},
+         "initial_error": {"type": "array", "items": {"$ref": "#/$defs/number"},
+                           "description": "the plant starts at start + initial_error"},
+         "amplitude": {"type": "array", "items": {"$ref": "#/$defs/number"},
+                       "description": "x_d(t) = start + amplitude sin(2 pi frequency t)"},
+         "frequency": {"type": "array", "items": {"$ref": "#/$defs/number"},
+                       "description": "[Hz] per root coordinate"},
+         "internal_forces": {"type": "array", "items": {"$ref": "#/$defs/number"},
+                             "description": "internal forces commanded at the root"}}),
+    "node": {**_object("a node of the robot tree: exactly one primitive key",
+                       {key: {"$ref": f"#/$defs/{key}"} for key in PRIMITIVES}),
+             "oneOf": _exactly_one_of(PRIMITIVES)},
+}
+
+SCHEMA: dict = {
+    "$schema": "https://json-schema.org/draft/2020-12/schema",
+    "$id": "https://robotgen.dev/schema/spec-1.json",
+    "title": "robotgen spec, format 1",
+    **_object("a robot system: named nodes and the root whose functions the module exposes",
+              {"robotgen": {"const": 1, "description": "spec format version, must be 1"},
+               "name": {"type": "string", "pattern": MODULE_NAME,
+                        "description": "module name and C prefix: [a-z_][a-z0-9_]*"},
+               "root": {"type": "string", "description": "name of the root node"},
+               "nodes": {"type": "object", "minProperties": 1, "propertyNames": {"pattern": IDENTIFIER},
+                         "additionalProperties": {"$ref": "#/$defs/node"},
+                         "description": "the nodes by name (C identifiers)"},
+               "simulation": {"$ref": "#/$defs/simulation"}},
+              ("robotgen", "name", "root", "nodes")),
+    "$defs": _DEFS,
+}
+
+
+def schema_json() -> str:
+    """The schema as deterministic JSON (sorted keys, indent 2)."""
+    return json.dumps(SCHEMA, sort_keys=True, indent=2) + "\n"

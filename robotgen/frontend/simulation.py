@@ -1,0 +1,64 @@
+"""A spec's `simulation` section, each list checked against the dimension it must have."""
+from __future__ import annotations
+
+
+
+from robotgen.model.simulation import SimulationSettings
+from robotgen.model.signature import (
+    SignatureError,
+    robot_leaves,
+    signature,
+)
+from robotgen.model.system import (
+    Node,
+    RobotSystem,
+)
+from robotgen.frontend.document import Path
+from robotgen.frontend.collector import Collector
+
+
+class SimulationReader(Collector):
+    """The simulation section."""
+
+    def simulation(self, spec: dict, nodes: dict[str, Node], root: str) -> SimulationSettings:
+        """The settings, each list checked against the dimensions it must have: the root's
+        coordinates (start, initial_error, amplitude, frequency), the leaves' joints (theta0),
+        the root's unresolved internal forces (internal_forces)."""
+        path: Path = ("simulation",)
+        values = {k: self.constant(path + (k,), spec[k]) for k in ("duration", "dt") if k in spec}
+        for k in ("start", "theta0", "initial_error", "amplitude", "frequency", "internal_forces"):
+            if k in spec:
+                values[k] = tuple(self.constant(path + (k, i), v) for i, v in enumerate(spec[k]))
+        if "initial_error" in spec and "theta0" in spec:
+            self.at_key(path + ("initial_error",), "initial_error offsets the plant from start through inverse "
+                                                   "kinematics; with theta0 the plant starts at theta0 (give the "
+                                                   "perturbed joint positions there, or drop theta0)")
+        if "initial_error" in spec and "start" not in spec and "theta0" not in spec:
+            self.at_key(path + ("initial_error",), "initial_error offsets the plant from start: give start too")
+        system = RobotSystem(name=self.doc.data["name"], source=self.doc.path, source_sha256=self.doc.sha256,
+                             nodes=nodes, root=root)
+        try:
+            sig = signature(system, root)
+            leaves = [nodes[leaf].leaf for leaf in robot_leaves(system)]
+        except (SignatureError, KeyError, AttributeError):
+            sig = None  # the tree has errors of its own, reported elsewhere
+        if sig is not None and all(leaf is not None for leaf in leaves):
+            n_theta = sum(leaf.nq for leaf in leaves)
+            coords = ", ".join(sig.external)
+            expected = {
+                "start": (sig.n_external, f"one per root coordinate of '{root}': {coords}"),
+                "initial_error": (sig.n_external, f"one per root coordinate of '{root}': {coords}"),
+                "amplitude": (sig.n_external, f"one per root coordinate of '{root}': {coords}"),
+                "frequency": (sig.n_external, f"one per root coordinate of '{root}': {coords}"),
+                "theta0": (n_theta, "one per joint of the leaves "
+                                    f"({', '.join(robot_leaves(system))}), in tree order"),
+                "internal_forces": (sig.n_internal_forces,
+                                    f"one per internal force the root leaves unresolved: "
+                                    f"{', '.join(sig.internal_forces) or 'none'}"),
+            }
+            for key, (n, what) in expected.items():
+                if key in spec and len(spec[key]) != n:
+                    self.at_key(path + (key,), f"expected {n} entries ({what}), got {len(spec[key])}")
+        locations = {k: self.doc.source.key(path + (k,)) for k in spec}
+        return SimulationSettings(**values, locations=locations)
+

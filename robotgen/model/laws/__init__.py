@@ -1,0 +1,18 @@
+"""The control laws a CONTROL node can carry (Deno et al. 1990, §3.4), by name: the one list
+the spec schema, the spec front end and the symbolic layer read.
+
+Tree laws compose anywhere in a robot tree: they have attributes (what the node above sees)
+and a write (the force sent down to the controlled robot), and their gains kp, kv act on
+the robot's external coordinates. Root laws are the root of their spec and make the
+module's own functions (resolved rate control: joint rates from hand rates)."""
+from __future__ import annotations
+
+COMPUTED_TORQUE = "computed_torque"
+FEEDFORWARD = "feedforward"
+PD_FEEDFORWARD = "pd_feedforward"
+PD = "pd"
+RESOLVED_RATE = "resolved_rate"
+
+TREE_LAWS = (COMPUTED_TORQUE, FEEDFORWARD, PD_FEEDFORWARD, PD)
+ROOT_LAWS = (RESOLVED_RATE,)
+LAWS = TREE_LAWS + ROOT_LAWS

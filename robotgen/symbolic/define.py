@@ -1,0 +1,70 @@
+"""DEFINE's attributes (Deno et al. 1990, §3.2) for every kind of leaf, in one shape:
+M(q), C(q, qd), N(q, qd), and the kinematic output map an ATTACH frame change uses."""
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import casadi as ca
+
+from robotgen.model.chain import KinematicTree
+from robotgen.model.formula import FormulaRobot
+from robotgen.model.system import PlanarBody, SpatialBody
+from robotgen.symbolic.rigid_body.chain import ChainGraphs, Symbols
+from robotgen.symbolic.rigid_body.christoffel import coriolis_matrix
+from robotgen.symbolic.formulas import FormulaGraphs, expression_map
+from robotgen.symbolic.rigid_body.spatial import const
+
+
+@dataclass(frozen=True, eq=False)
+class LeafAttributes:
+    M: ca.SX
+    C: ca.SX
+    N: ca.SX
+    kinematics: Callable[[str], ca.SX] | None  # output kind -> x = f(q)
+    inverse_kinematics: Callable[[ca.SX], ca.SX] | None  # x -> q
+
+
+def leaf_attributes(leaf, q: ca.SX, qd: ca.SX) -> LeafAttributes:
+    n = q.shape[0]
+    sym = Symbols(q, qd, ca.SX.zeros(n), ca.SX.zeros(n))
+    if isinstance(leaf, KinematicTree):
+        g = ChainGraphs(leaf, sym)
+
+        def tip(output: str) -> ca.SX:
+            p = g.fk()[:3, 3]
+            return p[:2] if output == "planar" else p
+
+        return LeafAttributes(g.mass(), g.coriolis(), g.gravity() + g.friction(), tip, None)
+    if isinstance(leaf, FormulaRobot):
+        g = FormulaGraphs(leaf, sym)
+        kin = (lambda output: g.kinematics()) if leaf.kinematics else None
+        ik = (expression_map(leaf.inverse_kinematics, leaf.outputs, leaf.parameters)
+              if leaf.inverse_kinematics else None)
+        return LeafAttributes(g.mass(), g.coriolis(), g.n_term(qd), kin, ik)
+    if isinstance(leaf, PlanarBody):
+        M = ca.SX(ca.DM(ca.diag(ca.DM([leaf.mass, leaf.mass, leaf.inertia]))))
+        N = ca.SX(ca.DM([-leaf.mass * leaf.gravity[0], -leaf.mass * leaf.gravity[1], 0.0]))
+        return LeafAttributes(M, ca.SX.zeros(3, 3), N, None, None)
+    if isinstance(leaf, SpatialBody):
+        R, E = rpy_rotation(q[3:6]), rpy_rate_map(q[3:6])
+        RE = R.T @ E  # body-frame angular velocity per rpy rate
+        M = ca.diagcat(leaf.mass * ca.SX.eye(3), RE.T @ const(leaf.inertia) @ RE)
+        N = ca.vertcat(const(-leaf.mass * leaf.gravity), ca.SX.zeros(3, 1))
+        return LeafAttributes(M, coriolis_matrix(M, q, qd), N, None, None)
+    raise TypeError(f"unknown leaf type {type(leaf).__name__}")
+
+
+def rpy_rotation(rpy: ca.SX) -> ca.SX:
+    """R = Rz(yaw) Ry(pitch) Rx(roll) (URDF's fixed-axis roll, pitch, yaw)."""
+    cr, sr, cp, sp, cy, sy = (f(a) for a in (rpy[0], rpy[1], rpy[2]) for f in (ca.cos, ca.sin))
+    return ca.vertcat(
+        ca.horzcat(cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr),
+        ca.horzcat(sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr),
+        ca.horzcat(-sp, cp * sr, cp * cr))
+
+
+def rpy_rate_map(rpy: ca.SX) -> ca.SX:
+    """E with omega (world) = E (roll, pitch, yaw rates): columns Rz Ry x, Rz y, z."""
+    cp, sp, cy, sy = ca.cos(rpy[1]), ca.sin(rpy[1]), ca.cos(rpy[2]), ca.sin(rpy[2])
+    return ca.vertcat(ca.horzcat(cy * cp, -sy, 0), ca.horzcat(sy * cp, cy, 0), ca.horzcat(-sp, 0, 1))

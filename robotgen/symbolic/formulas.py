@@ -1,0 +1,81 @@
+"""A formula-defined leaf robot (Deno et al. 1990, eq 3.1) as CasADi SX expressions."""
+from __future__ import annotations
+
+import casadi as ca
+
+from robotgen.model.expression import evaluate
+from robotgen.model.formula import FormulaRobot
+from robotgen.symbolic.rigid_body.chain import Symbols
+from robotgen.symbolic.rigid_body.cholesky import cholesky_solve
+from robotgen.symbolic.rigid_body.christoffel import coriolis_matrix
+
+CASADI_LIB = {
+    "sin": ca.sin, "cos": ca.cos, "tan": ca.tan, "asin": ca.asin, "acos": ca.acos,
+    "atan": ca.atan, "atan2": ca.atan2, "exp": ca.exp, "log": ca.log, "sqrt": ca.sqrt,
+    "abs": ca.fabs, "tanh": ca.tanh, "sinh": ca.sinh, "cosh": ca.cosh, "sign": ca.sign,
+    "min": ca.fmin, "max": ca.fmax,
+}
+
+
+def expression_column(exprs, env) -> ca.SX:
+    """The expressions as a CasADi column, names bound by ``env``."""
+    return ca.vertcat(*[ca.SX(evaluate(e, env, CASADI_LIB)) for e in exprs])
+
+
+def expression_matrix(rows, env) -> ca.SX:
+    return ca.vertcat(*[expression_column(row, env).T for row in rows])
+
+
+def expression_map(exprs, names, parameters):
+    """x -> the expressions with ``names`` bound to the entries of x (an inverse map given
+    as formulas: StyxDefinitions.m's RobotInverse, an attach's h^-1)."""
+    def apply(x: ca.SX) -> ca.SX:
+        env = dict(parameters)
+        env.update({name: x[i] for i, name in enumerate(names)})
+        return expression_column(exprs, env)
+    return apply
+
+
+class FormulaGraphs:
+    def __init__(self, robot: FormulaRobot, sym: Symbols):
+        self.robot = robot
+        self.sym = sym
+        env: dict[str, object] = dict(robot.parameters)
+        env.update({name: sym.q[i] for i, name in enumerate(robot.coordinates)})
+        env.update({name: sym.qd[i] for i, name in enumerate(robot.velocities)})
+        self._env = env
+
+    def _matrix(self, rows) -> ca.SX:
+        return expression_matrix(rows, self._env)
+
+    def mass(self) -> ca.SX:
+        return self._matrix(self.robot.mass)
+
+    def coriolis(self) -> ca.SX:
+        if self.robot.coriolis is None:
+            return coriolis_matrix(self.mass(), self.sym.q, self.sym.qd)
+        return self._matrix(self.robot.coriolis)
+
+    def n_term(self, qd: ca.SX) -> ca.SX:
+        if self.robot.nonlinear is None:
+            return ca.SX.zeros(self.robot.nq, 1)
+        N = expression_column(self.robot.nonlinear, self._env)
+        return ca.substitute(N, self.sym.qd, qd)
+
+    def gravity(self) -> ca.SX:
+        return self.n_term(ca.SX.zeros(self.robot.nq, 1))
+
+    def nonlinear(self) -> ca.SX:
+        return self.coriolis() @ self.sym.qd + self.n_term(self.sym.qd)
+
+    def inverse_dynamics(self) -> ca.SX:
+        return self.mass() @ self.sym.qdd + self.nonlinear()
+
+    def forward_dynamics(self) -> ca.SX:
+        return cholesky_solve(self.mass(), self.sym.tau - self.nonlinear())
+
+    def kinematics(self) -> ca.SX:
+        return expression_column(self.robot.kinematics, self._env)
+
+    def kinematics_jacobian(self) -> ca.SX:
+        return ca.jacobian(self.kinematics(), self.sym.q)

@@ -1,0 +1,76 @@
+"""The functions of a module whose root is one leaf robot (DEFINE): a chain's fk, Jacobians,
+M, C, N, inverse and forward dynamics and the fused servo terms, or a formulas leaf's M, C,
+N and kinematics, each a CasADi Function with named ports."""
+from __future__ import annotations
+
+import casadi as ca
+
+from robotgen.model.chain import KinematicTree
+from robotgen.model.formula import FormulaRobot
+from robotgen.symbolic.formulas import FormulaGraphs
+from robotgen.symbolic.kernel import Kernel, make_kernel
+from robotgen.symbolic.rigid_body.chain import ChainGraphs, Symbols
+
+# name: (inputs, output shape as a function of nq, doc)
+_CHAIN = {
+    "fk": ("q", (4, 4), "Homogeneous transform of the tip frame in the base frame."),
+    "jacobian": ("q", (6, "n"), "Geometric Jacobian [v; omega] of the tip frame origin, base "
+                 "coordinates (Whitney 1972, eqs 8-9)."),
+    "jacobian_hand": ("q", (6, "n"), "Geometric Jacobian in tip-frame coordinates (Whitney 1972, eq 7)."),
+    "jacobian_dot_qd": ("q qd", (6, 1), "Jdot(q, qd) qd: tip acceleration at qdd = 0."),
+    "mass": ("q", ("n", "n"), "Joint-space inertia matrix M(q) (composite rigid bodies + armature)."),
+    "coriolis": ("q qd", ("n", "n"), "Coriolis matrix C(q, qd) from Christoffel symbols; "
+                 "Mdot - 2C is skew-symmetric."),
+    "gravity": ("q", ("n", 1), "Gravity torques g(q)."),
+    "nonlinear": ("q qd", ("n", 1), "C(q, qd) qd + N(q, qd): Coriolis, centrifugal, gravity, friction."),
+    "inverse_dynamics": ("q qd qdd", ("n", 1), "Joint torques M qdd + C qd + N (recursive Newton-Euler)."),
+    "forward_dynamics": ("q qd tau", ("n", 1), "Joint accelerations M^-1 (tau - C qd - N) by Cholesky solve."),
+}
+
+_FORMULA = {
+    "mass": ("q", ("n", "n"), "Inertia matrix M(q) as given in the spec."),
+    "coriolis": ("q qd", ("n", "n"), "Coriolis matrix C(q, qd) (given, or Christoffel symbols of M)."),
+    "gravity": ("q", ("n", 1), "N(q, 0)."),
+    "nonlinear": ("q qd", ("n", 1), "C(q, qd) qd + N(q, qd)."),
+    "inverse_dynamics": ("q qd qdd", ("n", 1), "M qdd + C qd + N."),
+    "forward_dynamics": ("q qd tau", ("n", 1), "M^-1 (tau - C qd - N) by Cholesky solve."),
+    "kinematics": ("q", ("k", 1), "Output map x = f(q) as given in the spec."),
+    "kinematics_jacobian": ("q", ("k", "n"), "df/dq."),
+}
+
+
+def _kernel(name: str, doc: str, inputs: str, shape: tuple[int, int], expr: ca.SX,
+            sym: Symbols, prefix: str = "") -> Kernel:
+    return make_kernel(prefix + name, doc, [(s, getattr(sym, s)) for s in inputs.split()], [(name, expr, shape)])
+
+
+def _resolve(shape, n: int, k: int) -> tuple[int, int]:
+    return tuple({"n": n, "k": k}.get(d, d) for d in shape)
+
+
+def leaf_kernels(leaf: KinematicTree | FormulaRobot, prefix: str = "") -> list[Kernel]:
+    n = leaf.nq
+    sym = Symbols.make(n)
+    if isinstance(leaf, KinematicTree):
+        graphs, table, k = ChainGraphs(leaf, sym), _CHAIN, 0
+    else:
+        graphs, table = FormulaGraphs(leaf, sym), dict(_FORMULA)
+        k = len(leaf.kinematics or ())
+        if not k:
+            del table["kinematics"], table["kinematics_jacobian"]
+    kernels = [
+        _kernel(name, doc, inputs, _resolve(shape, n, k), getattr(graphs, name)(), sym, prefix)
+        for name, (inputs, shape, doc) in table.items()
+    ]
+    if isinstance(leaf, KinematicTree):
+        kernels.append(_servo_terms(graphs, sym, n, prefix))
+    return kernels
+
+
+def _servo_terms(graphs: ChainGraphs, sym: Symbols, n: int, prefix: str) -> Kernel:
+    """What one computed-torque cycle needs, in one call sharing sin/cos and kinematics."""
+    outputs = [("mass", graphs.mass(), (n, n)), ("nonlinear", graphs.nonlinear(), (n, 1)),
+               ("jacobian", graphs.jacobian(), (6, n)), ("jacobian_dot_qd", graphs.jacobian_dot_qd(), (6, 1))]
+    return make_kernel(prefix + "servo_terms", "M(q), C(q, qd) qd + N, the tip Jacobian J and Jdot qd in one "
+                       "call: a computed-torque servo cycle's terms, sharing sin/cos and kinematics.",
+                       [("q", sym.q), ("qd", sym.qd)], outputs)

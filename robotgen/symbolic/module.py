@@ -1,0 +1,27 @@
+"""What a system's module holds, by its root: one leaf robot's functions
+(robotgen.symbolic.leaf_kernels), a root law's (robotgen.symbolic.control.root_laws), or a
+robot tree's (robotgen.symbolic.system_kernels)."""
+from __future__ import annotations
+
+from robotgen.model.system import RobotSystem
+from robotgen.symbolic.control.root_laws import ROOT_LAWS
+from robotgen.symbolic.kernel import Kernel
+from robotgen.symbolic.leaf_kernels import leaf_kernels
+from robotgen.symbolic.system_kernels import system_kernels
+
+
+def kernels_for(system: RobotSystem) -> list[Kernel]:
+    """Every function the module of ``system`` emits, as CasADi Functions with ports."""
+    if system.is_single_leaf:
+        return leaf_kernels(system.root_node.leaf)
+    if system.root_law is not None:
+        return ROOT_LAWS[system.root_law].kernels(system)
+    return system_kernels(system)
+
+
+def module_extras(system: RobotSystem) -> tuple[dict, dict]:
+    """(extra info() and manifest keys, module attributes) worked out in the symbolic layer:
+    a root law's settings and reports (a resolved-rate controller's regulator gains)."""
+    if system.root_law is not None:
+        return ROOT_LAWS[system.root_law].report(system)
+    return {}, {}

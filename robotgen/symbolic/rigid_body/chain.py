@@ -1,0 +1,104 @@
+"""Every dynamic and kinematic quantity of a KinematicTree as CasADi SX expressions of
+shared symbols q, qd, qdd, tau."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import casadi as ca
+
+from robotgen.model.chain import KinematicTree
+from robotgen.model.snap import snap_tree
+from robotgen.symbolic.rigid_body.cholesky import cholesky_solve
+from robotgen.symbolic.rigid_body.christoffel import coriolis_matrix
+from robotgen.symbolic.rigid_body.coriolis import coriolis_spatial, op_count
+from robotgen.symbolic.rigid_body.crba import crba
+from robotgen.symbolic.rigid_body.friction import friction_torque
+from robotgen.symbolic.rigid_body.jacobian import geometric_jacobian, hand_jacobian, tip_bias_acceleration
+from robotgen.symbolic.rigid_body.kinematics import forward_kinematics, joint_motions, joint_poses
+from robotgen.symbolic.rigid_body.rnea import forward_pass, rnea
+
+
+@dataclass(frozen=True, eq=False)
+class Symbols:
+    q: ca.SX
+    qd: ca.SX
+    qdd: ca.SX
+    tau: ca.SX
+
+    @staticmethod
+    def make(n: int) -> "Symbols":
+        return Symbols(ca.SX.sym("q", n), ca.SX.sym("qd", n), ca.SX.sym("qdd", n), ca.SX.sym("tau", n))
+
+
+# Above this many joints the AD Christoffel form (O(n^3) terms) is not even tried: at 12 it
+# is already twice the spatial algorithm's size, at 30 seven times.
+AD_CORIOLIS_MAX_DOF = 12
+
+
+class ChainGraphs:
+    """Lazily built expressions; each is built once and shared by the kernels using it."""
+
+    def __init__(self, tree: KinematicTree, sym: Symbols, snap: bool = True):
+        self.tree = tree = snap_tree(tree) if snap else tree
+        self.sym = sym
+        self.motions = joint_motions(tree, sym.q)
+        self._cache: dict[str, ca.SX] = {}
+
+    def _get(self, key: str, build) -> ca.SX:
+        if key not in self._cache:
+            self._cache[key] = build()
+        return self._cache[key]
+
+    def fk(self) -> ca.SX:
+        return self._get("fk", lambda: forward_kinematics(self.tree, self.sym.q))
+
+    def jacobian(self) -> ca.SX:
+        return self._get("jacobian", lambda: geometric_jacobian(self.tree, self.sym.q))
+
+    def jacobian_hand(self) -> ca.SX:
+        return self._get("jacobian_hand", lambda: hand_jacobian(self.tree, self.sym.q))
+
+    def jacobian_dot_qd(self) -> ca.SX:
+        """From the forward pass that nonlinear() uses too (one pass in a fused kernel)."""
+        return self._get("jdqd", lambda: tip_bias_acceleration(
+            self.tree, joint_poses(self.tree, self.motions), *self.bias_pass()))
+
+    def bias_pass(self):
+        """RNEA's forward pass at qdd = 0 with gravity, shared by nonlinear and Jdot qd."""
+        return self._get("bias_pass", lambda: forward_pass(self.tree, self.motions, self.sym.qd, None))
+
+    def mass(self) -> ca.SX:
+        return self._get("mass", lambda: crba(self.tree, self.motions))
+
+    def coriolis(self) -> ca.SX:
+        """Christoffel symbols of M by AD (O(n^3) terms, compact for small arms) or the
+        spatial O(n^2) algorithm, whichever CasADi's CSE leaves with fewer operations."""
+        def build():
+            q, qd = self.sym.q, self.sym.qd
+            spatial = coriolis_spatial(self.tree, self.motions, qd)
+            if self.tree.nq > AD_CORIOLIS_MAX_DOF:
+                return spatial
+            candidates = [coriolis_matrix(self.mass(), q, qd), spatial]
+            return min(candidates, key=lambda C: op_count(C, q, qd))
+        return self._get("coriolis", build)
+
+    def friction(self) -> ca.SX:
+        return self._get("friction", lambda: friction_torque(self.tree, self.sym.qd))
+
+    def gravity(self) -> ca.SX:
+        return self._get("gravity", lambda: rnea(self.tree, self.motions, None, None))
+
+    def nonlinear(self) -> ca.SX:
+        """C(q, qd) qd + N(q, qd): Newton-Euler with qdd = 0, plus friction."""
+        return self._get("nonlinear", lambda: rnea(self.tree, self.motions, self.sym.qd, None,
+                                                   passes=self.bias_pass()) + self.friction())
+
+    def inverse_dynamics(self) -> ca.SX:
+        def build():
+            armature = ca.vertcat(*[j.armature * self.sym.qdd[i] for i, j in enumerate(self.tree.joints)])
+            return rnea(self.tree, self.motions, self.sym.qd, self.sym.qdd) + armature + self.friction()
+        return self._get("inverse_dynamics", build)
+
+    def forward_dynamics(self) -> ca.SX:
+        return self._get("forward_dynamics",
+                         lambda: cholesky_solve(self.mass(), self.sym.tau - self.nonlinear()))

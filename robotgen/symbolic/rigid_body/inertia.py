@@ -1,0 +1,44 @@
+"""Rigid-body inertia about a frame origin, as (m, h = m c, Ibar = Ic + m(|c|^2 I - c c^T)),
+the form in which bodies are combined by the composite rigid body algorithm."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import casadi as ca
+import numpy as np
+
+from robotgen.numeric import exact
+from robotgen.model.chain import Body
+from robotgen.symbolic.rigid_body.spatial import const
+
+
+@dataclass(frozen=True, eq=False)
+class OriginInertia:
+    m: ca.SX
+    h: ca.SX  # (3,) first mass moment m c
+    Ibar: ca.SX  # (3, 3) rotational inertia about the frame origin
+
+    @staticmethod
+    def of_body(body: Body) -> "OriginInertia":
+        c = np.asarray(body.com, dtype=float)
+        Ibar = exact.parallel_axis(body.inertia, body.mass, c)
+        return OriginInertia(ca.SX(body.mass), const(body.mass * c), const(Ibar))
+
+    def apply(self, w: ca.SX, v: ca.SX) -> tuple[ca.SX, ca.SX]:
+        """Spatial momentum of the motion (w, v): (Ibar w + h x v, m v - h x w)."""
+        return self.Ibar @ w + ca.cross(self.h, v), self.m * v - ca.cross(self.h, w)
+
+    def to_parent(self, m) -> "OriginInertia":
+        """Express about the parent origin of joint motion ``m``: X^T I X with
+        X = [E 0; -E skew(r) E]."""
+        r = m.r
+        h_rot = m.to_parent(self.h)
+        I_rot = m.matrix_to_parent(self.Ibar)
+        eye = ca.SX.eye(3)
+        rr = ca.dot(r, r)
+        rh = ca.dot(r, h_rot)
+        Ibar = I_rot + self.m * (rr * eye - r @ r.T) + (2 * rh * eye - r @ h_rot.T - h_rot @ r.T)
+        return OriginInertia(self.m, h_rot + self.m * r, Ibar)
+
+    def __add__(self, other: "OriginInertia") -> "OriginInertia":
+        return OriginInertia(self.m + other.m, self.h + other.h, self.Ibar + other.Ibar)

@@ -1,0 +1,75 @@
+"""Every node of a robot system as CasADi graphs of the sensed leaf state (Theta, Theta_dot):
+its position x and velocity v in its own coordinates (rd, eqs 3.7, 5.10-5.12) and its
+attributes M, C, N, built once each, children first: DEFINE by robotgen.symbolic.define
+(§3.2), ATTACH by robotgen.symbolic.attach (eqs 3.4-3.8), CONTROL by its law
+(robotgen.symbolic.control, §3.4).
+
+The attributes are evaluated at the current configuration, as the paper does for all its
+control laws (§5.2, last paragraph)."""
+from __future__ import annotations
+
+import casadi as ca
+import numpy as np
+
+from robotgen.model.signature import robot_leaves, signature
+from robotgen.model.system import AttachNode, ControlNode, DefineNode, RobotSystem
+from robotgen.symbolic.attach import attach_graph
+from robotgen.symbolic.control.tree_laws import TREE_LAWS
+from robotgen.symbolic.define import leaf_attributes
+from robotgen.symbolic.node import NodeGraph
+from robotgen.symbolic.rows import rows
+
+
+class SystemGraphs:
+    """Graphs of every node below the root, from shared symbols theta, theta_dot (the
+    actuated leaves' joint states, stacked in tree order)."""
+
+    def __init__(self, system: RobotSystem):
+        self.system = system
+        self.leaves = robot_leaves(system)
+        sizes = [system.nodes[n].leaf.nq for n in self.leaves]
+        self.offsets = dict(zip(self.leaves, np.cumsum([0] + sizes[:-1]).tolist()))
+        self.sizes = dict(zip(self.leaves, sizes))
+        self.n = int(sum(sizes))
+        self.theta = ca.SX.sym("theta", self.n)
+        self.theta_dot = ca.SX.sym("theta_dot", self.n)
+        self._graphs: dict[str, NodeGraph] = {}
+
+    def leaf_slice(self, name: str) -> slice:
+        o = self.offsets[name]
+        return slice(o, o + self.sizes[name])
+
+    def graph(self, name: str) -> NodeGraph:
+        if name not in self._graphs:
+            node = self.system.nodes[name]
+            if isinstance(node, DefineNode):
+                self._graphs[name] = self._define(node)
+            elif isinstance(node, ControlNode):
+                self._graphs[name] = self._control(node)
+            else:
+                self._graphs[name] = self._attach(node)
+        return self._graphs[name]
+
+    def underlying_leaf(self, name: str) -> NodeGraph:
+        node = self.system.nodes[name]
+        while isinstance(node, ControlNode):
+            node = self.system.nodes[node.robot]
+        return self.graph(node.name)
+
+    def _define(self, node: DefineNode) -> NodeGraph:
+        s = self.leaf_slice(node.name)
+        q, qd = self.theta[s], self.theta_dot[s]
+        attrs = leaf_attributes(node.leaf, q, qd)
+        return NodeGraph(node.name, signature(self.system, node.name), q, qd, attrs.M, attrs.C, attrs.N, leaf=attrs)
+
+    def _control(self, node: ControlNode) -> NodeGraph:
+        child = self.graph(node.robot)
+        sig = signature(self.system, node.name)
+        v = rows(child.v, 0, sig.n_velocity)  # resolved internal motions are the trailing ones
+        M, C, N = TREE_LAWS[node.law].attributes(child, sig.n_velocity)
+        return NodeGraph(node.name, sig, child.x, v, M, C, N)
+
+    def _attach(self, node: AttachNode) -> NodeGraph:
+        payload = self.system.nodes[node.payload].leaf if node.payload else None
+        return attach_graph(node, signature(self.system, node.name), [self.graph(r) for r in node.robots],
+                            [self.underlying_leaf(r) for r in node.robots], payload, self.theta, self.theta_dot)

@@ -1,0 +1,96 @@
+"""Kernels of a robot tree (ATTACH / CONTROL): every node's M, C, N, rd and wr in that
+node's coordinates, the fused servo step of the whole tree, and the true plant."""
+from __future__ import annotations
+
+import casadi as ca
+
+from robotgen.model.signature import internal_force_names
+from robotgen.model.system import DefineNode, RobotSystem
+from robotgen.symbolic.kernel import Kernel, make_kernel
+from robotgen.symbolic.plant import Plant
+from robotgen.symbolic.servo import Servo, Trajectory
+from robotgen.symbolic.system import SystemGraphs
+
+
+
+
+
+def _write_kernel(g: SystemGraphs, name: str, kernel_name: str, doc: str) -> Kernel:
+    sig = g.graph(name).sig
+    servo = Servo(g, name)
+    x_e = ca.SX.sym("x_e", sig.n_external)
+    xd_e, xdd_e, f_e = (ca.SX.sym(s, sig.n_velocity) for s in ("xd_e", "xdd_e", "f_e"))
+    f_i = ca.SX.sym("f_i", sig.n_internal_forces)
+    servo.write(name, Trajectory(x_e, xd_e, xdd_e, f_e, f_i))
+    inputs = [("theta", g.theta), ("theta_dot", g.theta_dot), ("x_e", x_e), ("xd_e", xd_e),
+              ("xdd_e", xdd_e), ("f_e", f_e)]
+    if sig.n_internal_forces:
+        inputs.append(("f_i", f_i))
+    outputs = [("tau", servo.tau(), (g.n, 1))]
+    if servo.n_state:
+        inputs += [("state", servo.state), ("dt", servo.dt)]
+        outputs.append(("state_next", servo.state_next(), (servo.n_state, 1)))
+    return make_kernel(kernel_name, doc, inputs, outputs)
+
+
+def system_kernels(system: RobotSystem) -> list[Kernel]:
+    g = SystemGraphs(system)
+    th, thd = ("theta", g.theta), ("theta_dot", g.theta_dot)
+    kernels: list[Kernel] = []
+    for node in system.walk():
+        if isinstance(node, DefineNode) and node.name not in g.offsets:
+            continue  # a payload: no actuators, no sensors of its own
+        ng = g.graph(node.name)
+        n, ne = ng.sig.n_velocity, ng.sig.n_external
+        p = node.name
+        kernels += [
+            make_kernel(f"{p}_mass", f"M of node '{p}' ({node.primitive}) in its coordinates.",
+                    [th], [("mass", ng.M, (n, n))]),
+            make_kernel(f"{p}_coriolis", f"C of node '{p}' in its coordinates.", [th, thd],
+                    [("coriolis", ng.C, (n, n))]),
+            make_kernel(f"{p}_n", f"N (gravity, friction) of node '{p}' in its coordinates.", [th, thd],
+                    [("n", ng.N, (n, 1))]),
+            make_kernel(f"{p}_read", f"rd of node '{p}': its positions x and velocity xd.", [th, thd],
+                    [("x", ng.x, (ne, 1)), ("xd", ng.v, (n, 1))]),
+            _write_kernel(g, p, f"{p}_write", f"wr of node '{p}': the leaf torques that writing "
+                          "(x_e, xd_e, xdd_e, f_e[, f_i]) at this node produces, every controller below "
+                          "evaluated."),
+        ]
+    root = system.root
+    step = _write_kernel(g, root, "servo_step", "One servo step of the whole tree: sensed leaf "
+                         "states and the desired root trajectory in, actuator torques (and the next "
+                         "controller state) out.")
+    kernels.append(step)
+    servo = Servo(g, root)
+    if servo.n_state:
+        kernels.append(make_kernel("servo_init", "Controller state that starts every expected trajectory "
+                               "at the current state.", [th, thd], [("state", servo.initial_state(), (servo.n_state, 1))]))
+    plant = Plant(system)
+    pg = plant.graphs
+    kernels += [
+        make_kernel("plant_dynamics", "The uncontrolled tree's constrained dynamics in root velocity "
+                "coordinates v: (theta_dot, v_dot) for torques tau.", [("theta", pg.theta), ("v", plant.v),
+                ("tau", plant.tau)], [("theta_dot", plant.theta_dot, (pg.n, 1)), ("v_dot", plant.v_dot, (plant.n_v, 1))]),
+        make_kernel("plant_velocity", "Root velocity v of the uncontrolled tree from sensed leaf rates.",
+                [("theta", pg.theta), ("theta_dot", pg.theta_dot)], [("v", plant.read_v, (plant.n_v, 1))]),
+        make_kernel("plant_position", "Root positions of the uncontrolled tree.", [("theta", pg.theta)],
+                [("x", plant.x, (plant.x.shape[0], 1))]),
+    ]
+    if plant.internal_forces.shape[0]:
+        names = ", ".join(internal_force_names(system))
+        kernels.append(make_kernel("plant_internal_forces", "The internal forces the grasps carry in the plant "
+                               f"({names}): H lambda at every attach that creates them, lambda the force its "
+                               "robots exert on the constraint, for torques tau at (theta, v).",
+                               [("theta", pg.theta), ("v", plant.v), ("tau", plant.tau)],
+                               [("f", plant.internal_forces, (plant.internal_forces.shape[0], 1))]))
+    if plant.residual.shape[0]:
+        kernels.append(make_kernel("constraint_residual", "Position-level constraint residual y - h^-1(h(y)) at "
+                               "every attach with an inverse map, y its robots' stacked positions "
+                               f"({', '.join(plant.residual_names)}): zero when the leaf positions "
+                               "satisfy every grasp.", [("theta", pg.theta)],
+                               [("residual", plant.residual, (plant.residual.shape[0], 1))]))
+    if plant.inverse is not None:
+        kernels.append(make_kernel("plant_inverse", "Leaf joint positions for root positions x, through "
+                               "every attach's inverse kinematics.", [("x", plant.x_sym)],
+                               [("theta", plant.inverse, (pg.n, 1))]))
+    return kernels
