@@ -4,14 +4,17 @@ PYTHON ?= python3
 # OpenBLAS kernels to build under (test-reproducible): those this CPU can run
 CORETYPES ?= $(shell $(PYTHON) -c "from tests.test_reproducible import coretypes; print(' '.join(coretypes()))" 2>/dev/null)
 
-.PHONY: install test test-reproducible demo bench golden clean
+.PHONY: install test lint test-reproducible demo bench golden clean
 
 install:
 	$(PYTHON) -m pip install --quiet --upgrade pip
 	$(PYTHON) -m pip install --quiet -e '.[test]'
 
-test:
+test: lint
 	$(PYTHON) -m pytest -q
+
+lint:
+	$(PYTHON) -m ruff check .
 
 # The golden outputs, rebuilt under every OpenBLAS kernel this CPU runs: the emitted C and
 # manifests must not change by a bit.

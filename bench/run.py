@@ -497,7 +497,7 @@ def main(argv=None) -> int:
 
         result = {
             "robot": name, "spec": os.path.relpath(spec, ROOT), "nq": nq,
-            "date": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
+            "date": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
             "machine": {"platform": platform.platform(), "processor": platform.processor() or platform.machine(),
                         "cpus": os.cpu_count(), "python": platform.python_version()},
             "casadi": __import__("casadi").__version__, "numpy": np.__version__,

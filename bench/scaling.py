@@ -337,7 +337,7 @@ def main(argv=None) -> int:
     print(f"bench: scaling run took {total:.0f} s")
 
     result = {
-        "date": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
+        "date": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
         "machine": {"platform": platform.platform(), "processor": platform.processor() or platform.machine(),
                     "cpus": os.cpu_count(), "python": platform.python_version()},
         "casadi": __import__("casadi").__version__, "quick": args.quick, "seed": SEED,

@@ -11,6 +11,7 @@ import traceback
 from pathlib import Path
 
 import robotgen
+from robotgen.emit.compile import NoCompiler
 from robotgen.errors import UserError, UserErrors
 from robotgen.model.describe import system_info, system_nq
 from robotgen.progress import Progress
@@ -45,6 +46,11 @@ def _load(args: argparse.Namespace):
     else:
         from robotgen.frontend import load_system
 
+        given = [f"--{k}" for k in ("tip", "base", "name") if getattr(args, k, None)]
+        given += ["--tree"] if getattr(args, "tree", False) else []
+        if given:
+            raise _Usage(f"{', '.join(given)} appl{'ies' if len(given) == 1 else 'y'} to a URDF file; a spec "
+                         "names its module with its name: key and its chains in its nodes")
         system = load_system(path)
     for warning in system.warnings:
         print(warning, file=sys.stderr)
@@ -204,11 +210,11 @@ def _parser() -> argparse.ArgumentParser:
     b.set_defaults(run=_cmd_build)
     for name, run, text in (("check", _cmd_check, "validate only"), ("info", _cmd_info, "print the robot tree")):
         c = sub.add_parser(name, help=text)
-        c.add_argument("spec")
-        c.add_argument("--tip")
-        c.add_argument("--base")
-        c.add_argument("--name")
-        c.add_argument("--tree", action="store_true")
+        c.add_argument("spec", help="SPEC.yaml or ROBOT.urdf")
+        c.add_argument("--tip", help="URDF: the tip link")
+        c.add_argument("--base", help="URDF: the base link (default: the root link)")
+        c.add_argument("--name", help="URDF: module name (default: the robot's name)")
+        c.add_argument("--tree", action="store_true", help="URDF: every movable joint below the base")
         c.set_defaults(run=run)
     sim = sub.add_parser("simulate", parents=[quiet], help="run a tree's servo step against its true constrained plant")
     sim.add_argument("spec")
@@ -248,6 +254,9 @@ def main(argv: list[str] | None = None) -> int:
     except _Usage as e:
         print(f"robotgen: error: {e}", file=sys.stderr)
         return EXIT_USAGE
+    except NoCompiler as e:
+        print(f"robotgen: error: {e}", file=sys.stderr)
+        return EXIT_USER
     except BrokenPipeError:
         # the reader closed the pipe (`robotgen schema | head -1`): it has what it wanted
         devnull = os.open(os.devnull, os.O_WRONLY)

@@ -95,6 +95,10 @@ def _check_constraints(module, theta: np.ndarray, source: str | None) -> None:
     if not hasattr(module, "constraint_residual"):
         return
     r = module.constraint_residual(theta)
+    if not np.all(np.isfinite(r)):
+        raise SimulationError("the start posture is outside the reach of the inverse kinematics (the "
+                              f"constraint residual is {_format(r)}); give simulation.start inside the "
+                              "workspace, or theta0", source)
     worst = int(np.argmax(np.abs(r)))
     if abs(r[worst]) <= RESIDUAL_TOLERANCE:
         return
@@ -227,7 +231,8 @@ def plot(result: Result, path: Path, title: str) -> None:
         for n, i in enumerate(indices):
             c = colors[n % len(colors)]
             ax.plot(result.t, result.x[:, i], color=c, label=f"{result.names[i]}")
-            ax.plot(result.t, result.x_d[:, i], color=c, linestyle="--", linewidth=1, label=f"{result.names[i]} desired")
+            ax.plot(result.t, result.x_d[:, i], color=c, linestyle="--", linewidth=1,
+                    label=f"{result.names[i]} desired")
         ax.set_ylabel(f"position{_unit(unit)}")
         ax.legend(loc="upper right", fontsize=7, ncol=2)
         ax.grid(True, alpha=0.3)

@@ -25,7 +25,7 @@ def _is_rate_controlled(spec: Path) -> bool:
     return data["nodes"][data["root"]].get("control", {}).get("law") == "resolved_rate"
 
 
-# Specs whose root is one leaf robot: their module has the contract's chain/formula API.
+# Specs whose root is one leaf robot: their module has the chain or formulas API (docs/python-api.md).
 EXAMPLE_SPECS = [s for s in ALL_SPECS if _is_single_leaf(s)]
 # Resolved-rate controllers of a chain (Whitney 1972): the chain's API plus rate_step etc.
 RATE_SPECS = [s for s in ALL_SPECS if _is_rate_controlled(s)]

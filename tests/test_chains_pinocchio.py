@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
 from conftest import SPECS
 from reference import PinRef, dh_chain, random_q
 

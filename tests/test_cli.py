@@ -186,3 +186,19 @@ def test_info_shows_units_and_locked_joints():
     assert "coordinates: x1 [m], y1 [m], z1 [m]" in result.stdout
     result = run_cli("info", str(PUMA))
     assert "coordinates: q1 [rad]," in result.stdout
+
+
+def test_a_missing_compiler_is_the_machines_not_a_bug(tmp_path):
+    import os
+
+    out = tmp_path / "out"
+    result = subprocess.run([sys.executable, "-m", "robotgen", "build", str(PUMA), "-o", str(out)],
+                            capture_output=True, text=True, cwd=ROOT, env=dict(os.environ, CC="no-such-cc"))
+    assert result.returncode == 1
+    assert "no C compiler: cannot run 'no-such-cc'" in result.stderr and "Traceback" not in result.stderr
+    assert not out.exists()
+
+
+def test_urdf_options_on_a_spec_are_refused():
+    result = run_cli("build", str(PUMA), "--tip", "tool0")
+    assert result.returncode == 2 and "--tip applies to a URDF file" in result.stderr

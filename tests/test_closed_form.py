@@ -20,7 +20,6 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
 from conftest import SPECS
 from reference import dh_chain, load_doc, root_define
 

@@ -17,7 +17,8 @@ import casadi as ca
 import numpy as np
 import pytest
 
-from robotgen.emit import build, compile as emit_compile
+from robotgen.emit import build
+from robotgen.emit import compile as emit_compile
 from robotgen.emit.c_kernel import OPERATIONS
 from robotgen.emit.sx_program import KernelError
 from robotgen.symbolic.kernel import Kernel, Port

@@ -9,8 +9,8 @@ import json
 from pathlib import Path
 
 import pytest
-
 from golden.refresh import GOLDEN, emitted, golden_files
+
 from robotgen.cli import main
 
 ROOT = Path(__file__).resolve().parent.parent

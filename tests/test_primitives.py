@@ -16,7 +16,6 @@ import casadi as ca
 import numpy as np
 import pytest
 import yaml
-
 from reference import const
 
 SPECS = Path(__file__).resolve().parent.parent / "specs"

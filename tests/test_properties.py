@@ -14,7 +14,6 @@ import zlib
 import casadi as ca
 import numpy as np
 import pytest
-
 from conftest import EXAMPLE_SPECS
 from reference import dh_chain, dh_fk, friction_torque, load_doc, random_q, root_define
 
@@ -101,7 +100,7 @@ def test_mdot_minus_2c_skew(case):
 
 
 def test_coriolis_is_christoffel(case):
-    """C_ij = sum_k (dM_ij/dq_k + dM_ik/dq_j - dM_jk/dq_i) qd_k / 2 (the contract's C)."""
+    """C_ij = sum_k (dM_ij/dq_k + dM_ik/dq_j - dM_jk/dq_i) qd_k / 2 (Christoffel symbols of M)."""
     dM = _mass_derivatives(case)  # [b, i, j, k] = dM_ij / dq_k
     c = 0.5 * (dM + np.swapaxes(dM, 2, 3) - np.transpose(dM, (0, 3, 2, 1)))
     # c[b,i,j,k] = (dM_ij/dq_k + dM_ik/dq_j - dM_jk/dq_i) / 2

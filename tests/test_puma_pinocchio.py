@@ -13,7 +13,6 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import yaml
-
 from conftest import SPECS
 from reference import PinRef, dh_chain, load_doc, random_q, root_define
 

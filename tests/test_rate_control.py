@@ -13,6 +13,7 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 import pytest
+from robots import PANDA, UR5, robots_dir
 from scipy.linalg import expm
 from scipy.spatial.transform import Rotation
 
@@ -20,7 +21,6 @@ from robotgen.cli import main
 from robotgen.errors import UserErrors
 from robotgen.frontend import load_system
 from robotgen.symbolic import kernels_for
-from robots import PANDA, UR5, robots_dir
 
 ROOT = Path(__file__).resolve().parent.parent
 PUMA_RMRC = ROOT / "specs" / "puma560_rmrc.yaml"

@@ -16,10 +16,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
+from test_rate_control import Graphs, rk4
 
 from robotgen.errors import UserErrors
 from robotgen.frontend import load_system
-from test_rate_control import Graphs, rk4
 
 ROOT = Path(__file__).resolve().parent.parent
 SPECS = ROOT / "specs"

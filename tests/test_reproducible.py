@@ -18,10 +18,10 @@ import numpy as np
 import pytest
 from scipy.linalg import solve_continuous_are
 
-from robotgen.numeric import exact
 from robotgen.frontend import load_system
-from robotgen.symbolic.control.resolved_rate.regulator import linearise
+from robotgen.numeric import exact
 from robotgen.numeric.riccati import RiccatiError, gain, solve_care
+from robotgen.symbolic.control.resolved_rate.regulator import linearise
 
 ROOT = Path(__file__).resolve().parent.parent
 

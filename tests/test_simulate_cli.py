@@ -10,7 +10,6 @@ from pathlib import Path
 
 import numpy as np
 import yaml
-
 from reference import const
 
 ROOT = Path(__file__).resolve().parent.parent

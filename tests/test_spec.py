@@ -10,10 +10,10 @@ import pytest
 from jsonschema import Draft202012Validator
 
 from robotgen.errors import Location, UserError, UserErrors
+from robotgen.frontend import SCHEMA, load_system, schema_json
 from robotgen.model.chain import PRISMATIC
 from robotgen.model.expression import MATH_LIB, evaluate, parse_constant, parse_expression
 from robotgen.model.formula import FormulaRobot
-from robotgen.frontend import SCHEMA, load_system, schema_json
 
 
 def write(tmp_path, text: str) -> str:

@@ -9,10 +9,11 @@ import numpy as np
 import pytest
 
 from robotgen.errors import UserError, UserErrors
+from robotgen.frontend import load_system
 from robotgen.model.expression import MATH_LIB, evaluate
 from robotgen.model.formula import FormulaRobot
-from robotgen.model.signature import signature
 from robotgen.model.laws import COMPUTED_TORQUE, FEEDFORWARD, PD
+from robotgen.model.signature import signature
 from robotgen.model.system import (
     CONSTRAINT_FORMULAS,
     FRAME_CHANGE,
@@ -22,7 +23,6 @@ from robotgen.model.system import (
     DefineNode,
     PlanarBody,
 )
-from robotgen.frontend import load_system
 
 SPECS = Path(__file__).resolve().parent.parent / "specs"
 

@@ -7,16 +7,16 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 import pinocchio as pin
+from robots import PANDA, robots_dir
+from test_tree_pinocchio import pinocchio_model, random_tree
 
 from robotgen.cli import main
-from robotgen.model.snap import SNAP_TOLERANCE, snap_tree
 from robotgen.frontend.urdf import read_urdf
+from robotgen.model.snap import SNAP_TOLERANCE, snap_tree
+from robotgen.symbolic.leaf_kernels import leaf_kernels
 from robotgen.symbolic.rigid_body.chain import ChainGraphs, Symbols
 from robotgen.symbolic.rigid_body.christoffel import coriolis_matrix
 from robotgen.symbolic.rigid_body.coriolis import coriolis_spatial, op_count
-from robotgen.symbolic.leaf_kernels import leaf_kernels
-from robots import PANDA, robots_dir
-from test_tree_pinocchio import pinocchio_model, random_tree
 
 TWO_LINK = Path(__file__).resolve().parent.parent / "specs" / "two_link.yaml"
 

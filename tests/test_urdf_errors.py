@@ -7,6 +7,7 @@ import pytest
 
 from robotgen.cli import main
 
+
 def messages(err: str) -> str:
     """stderr without the build's progress lines ("robotgen: [  1.2 s] ..."), which -q silences."""
     return "".join(l for l in err.splitlines(True) if not l.startswith("robotgen: ["))

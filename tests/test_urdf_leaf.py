@@ -5,12 +5,13 @@ from __future__ import annotations
 import shutil
 
 import numpy as np
+from robots import UR5, robots_dir
 
 from robotgen.cli import main
 from robotgen.frontend import load_system
-from robotgen.symbolic import kernels_for
-from robots import UR5, robots_dir
 from robotgen.frontend.urdf import load_urdf_system
+from robotgen.symbolic import kernels_for
+
 
 def messages(err: str) -> str:
     """stderr without the build's progress lines ("robotgen: [  1.2 s] ..."), which -q silences."""

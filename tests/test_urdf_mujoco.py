@@ -11,7 +11,6 @@ import re
 import mujoco
 import numpy as np
 import pytest
-
 from robots import UR5, build_urdf, robots_dir
 
 

@@ -6,7 +6,6 @@ from __future__ import annotations
 import numpy as np
 import pinocchio as pin
 import pytest
-
 from robots import PANDA, UR5, build_urdf, robots_dir
 
 N_STATES = 1000

@@ -8,11 +8,11 @@ from __future__ import annotations
 import numpy as np
 import pinocchio as pin
 import pytest
+from robots import robots_dir
 
 from robotgen.errors import UserError
 from robotgen.frontend.urdf import read_urdf, read_urdf_tree
 from robotgen.symbolic import leaf_kernels
-from robots import robots_dir
 
 ICUB = "icub_description/robots/icub.urdf"
 N_STATES = 20

@@ -15,11 +15,11 @@ from fractions import Fraction
 import numpy as np
 import pinocchio as pin
 import pytest
+from robots import robots_dir
 
 from robotgen.cli import main
-from robotgen.model.chain import Body, KinematicTree
 from robotgen.frontend.urdf import load_urdf_system, merge_bodies, read_urdf
-from robots import robots_dir
+from robotgen.model.chain import Body, KinematicTree
 
 XARM7 = ("xarm_description/urdf/xarm7.urdf", "link7")
 PANDA = "panda_description/urdf/panda.urdf"

@@ -167,7 +167,7 @@ def _literal(value: float, precision: Precision) -> str:
     if math.isinf(value):
         return "INFINITY" if value > 0 else "-INFINITY"
     if precision.real == "float":
-        text = next(t for t in ("%.*g" % (digits, value) for digits in range(1, 10))
+        text = next(t for t in (f"{value:.{digits}g}" for digits in range(1, 10))
                     if float(np.float32(float(t))) == value)
         text += "" if any(c in text for c in ".e") else ".0"
     else:

@@ -11,13 +11,14 @@ import sysconfig
 from importlib import metadata
 from pathlib import Path
 
+from robotgen.emit.compile import compiler
+from robotgen.emit.render import template_dir
+
 BUILD_KEY = ".robotgen-build"
 _PACKAGE = Path(__file__).resolve().parent.parent
 
 
 def _code_files() -> list[Path]:
-    from robotgen.emit.render import template_dir
-
     return sorted(_PACKAGE.rglob("*.py")) + sorted(Path(template_dir()).glob("*.jinja"))
 
 
@@ -27,7 +28,7 @@ def build_key(inputs: list[Path], options: dict) -> str:
         h.update(str(path.name).encode() + b"\0" + path.read_bytes() + b"\0")
     h.update(repr(sorted(options.items())).encode())
     h.update(metadata.version("casadi").encode())
-    h.update(str(sysconfig.get_config_var("CC")).encode())
+    h.update(" ".join(compiler()).encode())  # $CC or Python's
     return h.hexdigest()
 
 

@@ -17,6 +17,11 @@ class CompileError(RuntimeError):
     """The compiler rejected generated code: a robotgen bug (message holds its output)."""
 
 
+class NoCompiler(OSError):
+    """The C compiler named by $CC (or Python's build configuration) is not there: the
+    machine's setup, not a robotgen bug."""
+
+
 def extension_suffix() -> str:
     return sysconfig.get_config_var("EXT_SUFFIX") or ".so"
 
@@ -38,7 +43,8 @@ def compile_extension(build_dir: Path, name: str, sources: list[str]) -> Path:
     try:
         result = subprocess.run(command, cwd=build_dir, capture_output=True, text=True)
     except FileNotFoundError as error:
-        raise CompileError(f"no C compiler: {error}; set CC to one") from error
+        raise NoCompiler(f"no C compiler: cannot run {command[0]!r} ({error.strerror}); install one (gcc or clang) "
+                         "or set CC to it, or build with --no-compile") from None
     if result.returncode != 0:
         raise CompileError(
             f"compiling the generated extension {name!r} failed (a robotgen bug):\n"

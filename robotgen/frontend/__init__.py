@@ -1,10 +1,10 @@
 """The spec layer: a YAML spec file -> a validated RobotSystem, or located UserErrors."""
 from __future__ import annotations
 
-from robotgen.model.system import RobotSystem
 from robotgen.frontend.document import load_document
 from robotgen.frontend.schema import SCHEMA, schema_json
 from robotgen.frontend.system import to_system
+from robotgen.model.system import RobotSystem
 
 __all__ = ["SCHEMA", "load_system", "schema_json"]
 

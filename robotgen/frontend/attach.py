@@ -7,6 +7,8 @@ import dataclasses
 
 import numpy as np
 
+from robotgen.frontend.collector import Collector
+from robotgen.frontend.document import Path
 from robotgen.model.chain import KinematicTree
 from robotgen.model.formula import FormulaRobot
 from robotgen.model.signature import (
@@ -28,8 +30,6 @@ from robotgen.model.system import (
     Node,
     RobotSystem,
 )
-from robotgen.frontend.document import Path
-from robotgen.frontend.collector import Collector
 
 
 class AttachReader(Collector):

@@ -8,10 +8,9 @@ import keyword
 import numpy as np
 
 from robotgen.errors import Location, UserError
+from robotgen.frontend.document import Document, Path, format_path
 from robotgen.model.expression import CONSTANTS, FUNCTIONS, Expr, parse_constant, parse_expression
 from robotgen.model.transforms import xyz_rpy
-from robotgen.frontend.document import Document, Path, format_path
-
 
 
 class Collector:

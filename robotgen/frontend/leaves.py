@@ -10,6 +10,9 @@ import pathlib
 import numpy as np
 
 from robotgen.errors import UserError
+from robotgen.frontend.collector import Collector
+from robotgen.frontend.document import Path, format_path
+from robotgen.frontend.urdf import read_urdf
 from robotgen.model.chain import TRIANGLE_INEQUALITY, Body, KinematicTree, Limits
 from robotgen.model.dh import DH_MODIFIED, DH_STANDARD, JOINT_LIST, DHParameters, JointRow, canonical_chain, unit_axis
 from robotgen.model.expression import Expr
@@ -18,9 +21,6 @@ from robotgen.model.system import (
     PlanarBody,
     SpatialBody,
 )
-from robotgen.frontend.document import Path, format_path
-from robotgen.frontend.urdf import read_urdf
-from robotgen.frontend.collector import Collector
 
 DEFAULT_GRAVITY = (0.0, 0.0, -9.81)
 DEFAULT_PLANAR_GRAVITY = (0.0, 0.0)
@@ -75,7 +75,8 @@ class LeafReader(Collector):
         values = {k: self.constant(path + (k,), limits[k], minimum=0.0 if k in ("velocity", "effort") else None)
                   for k in ("lower", "upper", "velocity", "effort") if k in limits}
         if "lower" in values and "upper" in values and values["lower"] > values["upper"]:
-            self.at_value(path + ("upper",), f"upper limit {values['upper']:g} is below lower limit {values['lower']:g}")
+            self.at_value(path + ("upper",),
+                          f"upper limit {values['upper']:g} is below lower limit {values['lower']:g}")
         return Limits(**values)
 
     def check_convention_keys(self, path: Path, joint: dict, convention: str) -> None:

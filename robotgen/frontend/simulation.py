@@ -1,20 +1,18 @@
 """A spec's `simulation` section, each list checked against the dimension it must have."""
 from __future__ import annotations
 
-
-
-from robotgen.model.simulation import SimulationSettings
+from robotgen.frontend.collector import Collector
+from robotgen.frontend.document import Path
 from robotgen.model.signature import (
     SignatureError,
     robot_leaves,
     signature,
 )
+from robotgen.model.simulation import SimulationSettings
 from robotgen.model.system import (
     Node,
     RobotSystem,
 )
-from robotgen.frontend.document import Path
-from robotgen.frontend.collector import Collector
 
 
 class SimulationReader(Collector):

@@ -4,9 +4,13 @@ dimensions of its children (robotgen.model.signature), and the simulation sectio
 Every problem is collected; nothing is returned unless there are none."""
 from __future__ import annotations
 
-
-
 from robotgen.errors import UserErrors
+from robotgen.frontend.attach import AttachReader
+from robotgen.frontend.control.node import ControlReader
+from robotgen.frontend.control.resolved_rate import ResolvedRateReader
+from robotgen.frontend.document import Document, Path, format_path, sort_errors
+from robotgen.frontend.leaves import LeafReader
+from robotgen.frontend.simulation import SimulationReader
 from robotgen.model.signature import (
     Signature,
     SignatureError,
@@ -19,12 +23,6 @@ from robotgen.model.system import (
     Node,
     RobotSystem,
 )
-from robotgen.frontend.document import Document, Path, format_path, sort_errors
-from robotgen.frontend.attach import AttachReader
-from robotgen.frontend.control.node import ControlReader
-from robotgen.frontend.control.resolved_rate import ResolvedRateReader
-from robotgen.frontend.leaves import LeafReader
-from robotgen.frontend.simulation import SimulationReader
 
 
 class SpecReader(LeafReader, AttachReader, ControlReader, ResolvedRateReader, SimulationReader):
@@ -66,7 +64,7 @@ class SpecReader(LeafReader, AttachReader, ControlReader, ResolvedRateReader, Si
         used_by: dict[str, Path] = {}
         reported: set[str] = set()  # nodes whose misuse is reported: not also "unreachable"
         for name, node_refs in refs.items():
-            for child, path, role in node_refs:
+            for child, path, _ in node_refs:
                 if child not in nodes:
                     self.at_value(path, f"'{child}' is not a node (nodes: {', '.join(nodes)})")
                 elif child == root:

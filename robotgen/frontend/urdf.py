@@ -43,10 +43,10 @@ from pathlib import Path
 import numpy as np
 
 from robotgen.errors import Location, UserError
-from robotgen.numeric import exact
 from robotgen.model.chain import PRISMATIC, REVOLUTE, Body, Joint, KinematicTree, Limits
 from robotgen.model.system import DefineNode, RobotSystem
 from robotgen.model.transforms import xyz_rpy
+from robotgen.numeric import exact
 
 # Known URDF elements without dynamic meaning: accepted silently, their content not checked.
 _IGNORED = {"visual", "collision", "material", "transmission", "gazebo", "calibration",
@@ -68,9 +68,9 @@ class Element:
     attrib: dict[str, str]
     line: int
     col: int
-    children: list["Element"] = field(default_factory=list)
+    children: list[Element] = field(default_factory=list)
 
-    def find(self, tag: str) -> "Element | None":
+    def find(self, tag: str) -> Element | None:
         return next((c for c in self.children if c.tag == tag), None)
 
 

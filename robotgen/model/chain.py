@@ -33,7 +33,7 @@ class Body:
     inertia: np.ndarray  # (3, 3) symmetric, about the COM
 
     @staticmethod
-    def zero() -> "Body":
+    def zero() -> Body:
         return Body(0.0, np.zeros(3), np.zeros((3, 3)))
 
 

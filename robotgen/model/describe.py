@@ -2,8 +2,14 @@
 from __future__ import annotations
 
 from robotgen.model.chain import KinematicTree
+from robotgen.model.signature import (
+    constraint_residual_names,
+    coordinate_units,
+    internal_force_names,
+    robot_leaves,
+    signature,
+)
 from robotgen.model.system import AttachNode, ControlNode, DefineNode, RobotSystem
-from robotgen.model.signature import constraint_residual_names, coordinate_units, internal_force_names, robot_leaves, signature
 
 
 def system_nq(system: RobotSystem) -> int:

@@ -22,9 +22,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from robotgen.numeric import exact
 from robotgen.model.chain import Body, Joint, Limits
 from robotgen.model.transforms import rot_x, rot_z, trans
+from robotgen.numeric import exact
 
 DH_STANDARD = "dh_standard"
 DH_MODIFIED = "dh_modified"

@@ -15,8 +15,8 @@ import dataclasses
 
 import numpy as np
 
-from robotgen.numeric import exact
 from robotgen.model.chain import KinematicTree
+from robotgen.numeric import exact
 
 SNAP_TOLERANCE = 1e-9
 

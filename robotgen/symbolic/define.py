@@ -10,9 +10,9 @@ import casadi as ca
 from robotgen.model.chain import KinematicTree
 from robotgen.model.formula import FormulaRobot
 from robotgen.model.system import PlanarBody, SpatialBody
+from robotgen.symbolic.formulas import FormulaGraphs, expression_map
 from robotgen.symbolic.rigid_body.chain import ChainGraphs, Symbols
 from robotgen.symbolic.rigid_body.christoffel import coriolis_matrix
-from robotgen.symbolic.formulas import FormulaGraphs, expression_map
 from robotgen.symbolic.rigid_body.spatial import const
 
 

@@ -12,9 +12,6 @@ from robotgen.symbolic.servo import Servo, Trajectory
 from robotgen.symbolic.system import SystemGraphs
 
 
-
-
-
 def _write_kernel(g: SystemGraphs, name: str, kernel_name: str, doc: str) -> Kernel:
     sig = g.graph(name).sig
     servo = Servo(g, name)
@@ -45,7 +42,7 @@ def system_kernels(system: RobotSystem) -> list[Kernel]:
         p = node.name
         kernels += [
             make_kernel(f"{p}_mass", f"M of node '{p}' ({node.primitive}) in its coordinates.",
-                    [th], [("mass", ng.M, (n, n))]),
+                        [th], [("mass", ng.M, (n, n))]),
             make_kernel(f"{p}_coriolis", f"C of node '{p}' in its coordinates.", [th, thd],
                     [("coriolis", ng.C, (n, n))]),
             make_kernel(f"{p}_n", f"N (gravity, friction) of node '{p}' in its coordinates.", [th, thd],
@@ -53,8 +50,8 @@ def system_kernels(system: RobotSystem) -> list[Kernel]:
             make_kernel(f"{p}_read", f"rd of node '{p}': its positions x and velocity xd.", [th, thd],
                     [("x", ng.x, (ne, 1)), ("xd", ng.v, (n, 1))]),
             _write_kernel(g, p, f"{p}_write", f"wr of node '{p}': the leaf torques that writing "
-                          "(x_e, xd_e, xdd_e, f_e[, f_i]) at this node produces, every controller below "
-                          "evaluated."),
+                          f"(x_e, xd_e, xdd_e, f_e{', f_i' if ng.sig.n_internal_forces else ''}) at this node "
+                          "produces, every controller below evaluated."),
         ]
     root = system.root
     step = _write_kernel(g, root, "servo_step", "One servo step of the whole tree: sensed leaf "
@@ -63,32 +60,32 @@ def system_kernels(system: RobotSystem) -> list[Kernel]:
     kernels.append(step)
     servo = Servo(g, root)
     if servo.n_state:
-        kernels.append(make_kernel("servo_init", "Controller state that starts every expected trajectory "
-                               "at the current state.", [th, thd], [("state", servo.initial_state(), (servo.n_state, 1))]))
+        kernels.append(make_kernel(
+            "servo_init", "Controller state that starts every expected trajectory at the current state.",
+            [th, thd], [("state", servo.initial_state(), (servo.n_state, 1))]))
     plant = Plant(system)
     pg = plant.graphs
+    theta, v, tau = ("theta", pg.theta), ("v", plant.v), ("tau", plant.tau)
     kernels += [
         make_kernel("plant_dynamics", "The uncontrolled tree's constrained dynamics in root velocity "
-                "coordinates v: (theta_dot, v_dot) for torques tau.", [("theta", pg.theta), ("v", plant.v),
-                ("tau", plant.tau)], [("theta_dot", plant.theta_dot, (pg.n, 1)), ("v_dot", plant.v_dot, (plant.n_v, 1))]),
+                    "coordinates v: (theta_dot, v_dot) for torques tau.", [theta, v, tau],
+                    [("theta_dot", plant.theta_dot, (pg.n, 1)), ("v_dot", plant.v_dot, (plant.n_v, 1))]),
         make_kernel("plant_velocity", "Root velocity v of the uncontrolled tree from sensed leaf rates.",
-                [("theta", pg.theta), ("theta_dot", pg.theta_dot)], [("v", plant.read_v, (plant.n_v, 1))]),
-        make_kernel("plant_position", "Root positions of the uncontrolled tree.", [("theta", pg.theta)],
-                [("x", plant.x, (plant.x.shape[0], 1))]),
+                    [theta, ("theta_dot", pg.theta_dot)], [("v", plant.read_v, (plant.n_v, 1))]),
+        make_kernel("plant_position", "Root positions of the uncontrolled tree.", [theta],
+                    [("x", plant.x, (plant.x.shape[0], 1))]),
     ]
     if plant.internal_forces.shape[0]:
         names = ", ".join(internal_force_names(system))
-        kernels.append(make_kernel("plant_internal_forces", "The internal forces the grasps carry in the plant "
-                               f"({names}): H lambda at every attach that creates them, lambda the force its "
-                               "robots exert on the constraint, for torques tau at (theta, v).",
-                               [("theta", pg.theta), ("v", plant.v), ("tau", plant.tau)],
-                               [("f", plant.internal_forces, (plant.internal_forces.shape[0], 1))]))
+        kernels.append(make_kernel(
+            "plant_internal_forces", f"The internal forces the grasps carry in the plant ({names}): H lambda at "
+            "every attach that creates them, lambda the force its robots exert on the constraint, for torques "
+            "tau at (theta, v).", [theta, v, tau], [("f", plant.internal_forces, (plant.internal_forces.shape[0], 1))]))
     if plant.residual.shape[0]:
-        kernels.append(make_kernel("constraint_residual", "Position-level constraint residual y - h^-1(h(y)) at "
-                               "every attach with an inverse map, y its robots' stacked positions "
-                               f"({', '.join(plant.residual_names)}): zero when the leaf positions "
-                               "satisfy every grasp.", [("theta", pg.theta)],
-                               [("residual", plant.residual, (plant.residual.shape[0], 1))]))
+        kernels.append(make_kernel(
+            "constraint_residual", "Position-level constraint residual y - h^-1(h(y)) at every attach with an "
+            f"inverse map, y its robots' stacked positions ({', '.join(plant.residual_names)}): zero when the leaf "
+            "positions satisfy every grasp.", [theta], [("residual", plant.residual, (plant.residual.shape[0], 1))]))
     if plant.inverse is not None:
         kernels.append(make_kernel("plant_inverse", "Leaf joint positions for root positions x, through "
                                "every attach's inverse kinematics.", [("x", plant.x_sym)],

@@ -7,6 +7,8 @@ import dataclasses
 
 import numpy as np
 
+from robotgen.frontend.collector import Collector
+from robotgen.frontend.document import Path
 from robotgen.model.laws import FEEDFORWARD, PD, RESOLVED_RATE
 from robotgen.model.signature import (
     Signature,
@@ -16,8 +18,6 @@ from robotgen.model.system import (
     ControlNode,
     RobotSystem,
 )
-from robotgen.frontend.document import Path
-from robotgen.frontend.collector import Collector
 
 
 class ControlReader(Collector):

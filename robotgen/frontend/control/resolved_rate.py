@@ -7,6 +7,8 @@ import dataclasses
 
 import numpy as np
 
+from robotgen.frontend.collector import Collector
+from robotgen.frontend.document import Path, format_path
 from robotgen.model.chain import KinematicTree
 from robotgen.model.laws.resolved_rate import (
     COMPOSITE_KEYS,
@@ -35,8 +37,6 @@ from robotgen.model.system import (
     ControlNode,
     RobotSystem,
 )
-from robotgen.frontend.document import Path, format_path
-from robotgen.frontend.collector import Collector
 
 
 class ResolvedRateReader(Collector):
@@ -57,8 +57,9 @@ class ResolvedRateReader(Collector):
         if not isinstance(chain, KinematicTree) and not composite:
             leaf = type(getattr(below, "leaf", None)).__name__
             what = (f"a {leaf} leaf" if below is target else f"a control node over the {leaf} leaf '{below.name}'")
-            self.at_value(path + ("robot",), f"law resolved_rate controls a chain or urdf leaf, or a composite robot "
-                                             f"(an attach node, possibly under control nodes); '{node.robot}' is {what}")
+            self.at_value(path + ("robot",), f"law resolved_rate controls a chain or urdf leaf, or a composite "
+                                             f"robot (an attach node, possibly under control nodes); "
+                                             f"'{node.robot}' is {what}")
             return node
         if node.name != system.root:
             self.at_key(("nodes", node.name), f"a resolved_rate controller must be the root (it outputs joint "

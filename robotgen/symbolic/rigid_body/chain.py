@@ -26,7 +26,7 @@ class Symbols:
     tau: ca.SX
 
     @staticmethod
-    def make(n: int) -> "Symbols":
+    def make(n: int) -> Symbols:
         return Symbols(ca.SX.sym("q", n), ca.SX.sym("qd", n), ca.SX.sym("qdd", n), ca.SX.sym("tau", n))
 
 

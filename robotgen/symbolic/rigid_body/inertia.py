@@ -7,8 +7,8 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
-from robotgen.numeric import exact
 from robotgen.model.chain import Body
+from robotgen.numeric import exact
 from robotgen.symbolic.rigid_body.spatial import const
 
 
@@ -19,7 +19,7 @@ class OriginInertia:
     Ibar: ca.SX  # (3, 3) rotational inertia about the frame origin
 
     @staticmethod
-    def of_body(body: Body) -> "OriginInertia":
+    def of_body(body: Body) -> OriginInertia:
         c = np.asarray(body.com, dtype=float)
         Ibar = exact.parallel_axis(body.inertia, body.mass, c)
         return OriginInertia(ca.SX(body.mass), const(body.mass * c), const(Ibar))
@@ -28,7 +28,7 @@ class OriginInertia:
         """Spatial momentum of the motion (w, v): (Ibar w + h x v, m v - h x w)."""
         return self.Ibar @ w + ca.cross(self.h, v), self.m * v - ca.cross(self.h, w)
 
-    def to_parent(self, m) -> "OriginInertia":
+    def to_parent(self, m) -> OriginInertia:
         """Express about the parent origin of joint motion ``m``: X^T I X with
         X = [E 0; -E skew(r) E]."""
         r = m.r
@@ -40,5 +40,5 @@ class OriginInertia:
         Ibar = I_rot + self.m * (rr * eye - r @ r.T) + (2 * rh * eye - r @ h_rot.T - h_rot @ r.T)
         return OriginInertia(self.m, h_rot + self.m * r, Ibar)
 
-    def __add__(self, other: "OriginInertia") -> "OriginInertia":
+    def __add__(self, other: OriginInertia) -> OriginInertia:
         return OriginInertia(self.m + other.m, self.h + other.h, self.Ibar + other.Ibar)

@@ -16,7 +16,6 @@ from robotgen.symbolic.rigid_body.spatial import (
     motion_transform,
 )
 
-
 Motion = tuple[ca.SX, ca.SX]  # (angular; linear) in a body frame
 
 

@@ -22,10 +22,7 @@ import numpy as np
 from robotgen.model.chain import KinematicTree
 from robotgen.model.laws.resolved_rate import EXTENDED_JACOBIAN, JOINT_LIMITS, MANIPULABILITY, RateControlSettings
 from robotgen.model.system import RobotSystem
-from robotgen.symbolic.leaf_kernels import leaf_kernels
-from robotgen.symbolic.rigid_body.axis_angle import rotation_vector
 from robotgen.symbolic.control.resolved_rate.command_frames import command_jacobian, hand, twist_map
-from robotgen.symbolic.kernel import Kernel, make_kernel
 from robotgen.symbolic.control.resolved_rate.regulator import regulator
 from robotgen.symbolic.control.resolved_rate.resolution import (
     DampedResolver,
@@ -34,6 +31,9 @@ from robotgen.symbolic.control.resolved_rate.resolution import (
     null_vector,
     scale_to_limits,
 )
+from robotgen.symbolic.kernel import Kernel, make_kernel
+from robotgen.symbolic.leaf_kernels import leaf_kernels
+from robotgen.symbolic.rigid_body.axis_angle import rotation_vector
 
 
 def chain_and_settings(system: RobotSystem) -> tuple[KinematicTree, RateControlSettings]:

@@ -31,12 +31,12 @@ import casadi as ca
 
 from robotgen.model.laws.resolved_rate import CompositeRateSettings
 from robotgen.model.system import RobotSystem
-from robotgen.symbolic.rigid_body.cholesky import cholesky_solve
-from robotgen.symbolic.kernel import Kernel, make_kernel
-from robotgen.symbolic.system_kernels import system_kernels
-from robotgen.symbolic.plant import leaf_velocities, strip_controls
 from robotgen.symbolic.control.resolved_rate.resolution import conditioning, damping_squared, scale_to_limits
+from robotgen.symbolic.kernel import Kernel, make_kernel
+from robotgen.symbolic.plant import leaf_velocities, strip_controls
+from robotgen.symbolic.rigid_body.cholesky import cholesky_solve
 from robotgen.symbolic.system import SystemGraphs
+from robotgen.symbolic.system_kernels import system_kernels
 
 # The torque tree's fused step is the controlled robot's write: a rate-controlled module
 # leaves it out (`<robot>_write` is the same function).

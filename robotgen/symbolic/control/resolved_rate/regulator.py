@@ -28,8 +28,8 @@ import numpy as np
 
 from robotgen.model.chain import KinematicTree
 from robotgen.model.laws.resolved_rate import LQRSettings
-from robotgen.symbolic.rigid_body.chain import ChainGraphs, Symbols
 from robotgen.numeric.riccati import gain, solve_care
+from robotgen.symbolic.rigid_body.chain import ChainGraphs, Symbols
 
 
 @dataclass(frozen=True, eq=False)

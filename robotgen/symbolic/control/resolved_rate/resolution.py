@@ -37,7 +37,7 @@ class Householder:
     beta: list[ca.SX]
 
     @staticmethod
-    def factor(A: ca.SX) -> "Householder":
+    def factor(A: ca.SX) -> Householder:
         r, c = A.shape
         assert r >= c, (r, c)
         a = _entries(A)
