@@ -23,6 +23,7 @@ from robotgen.model.system import (
     PAYLOAD_BODIES,
     PLANAR_CONTACTS,
     POINT_CONTACTS,
+    POSITION_OUTPUT,
     AttachNode,
     Constraint,
     ControlNode,
@@ -41,7 +42,7 @@ class AttachReader(Collector):
         raw = spec["constraint"]
         where = path + ("constraint",)
         if "frame_change" in raw:
-            constraint = Constraint(FRAME_CHANGE, output=raw["frame_change"].get("output", "position"))
+            constraint = Constraint(FRAME_CHANGE, output=raw["frame_change"].get("output", POSITION_OUTPUT))
         elif "planar_contacts" in raw:
             points = raw["planar_contacts"]["points"]
             at = where + ("planar_contacts", "points")

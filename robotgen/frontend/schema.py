@@ -11,8 +11,12 @@ from __future__ import annotations
 
 import json
 
-from robotgen.model.chain import ACCEPTABLE_DEVIATIONS
+from robotgen.model.chain import ACCEPTABLE_DEVIATIONS, JOINT_TYPES
+from robotgen.model.dh import CONVENTIONS
+from robotgen.model.laws import LAWS
+from robotgen.model.laws.resolved_rate import FRAMES, OBJECTIVES, REDUNDANCY_METHODS
 from robotgen.model.signature import UNITS
+from robotgen.model.system import CHAIN_OUTPUTS
 
 IDENTIFIER = "^[A-Za-z_][A-Za-z0-9_]*$"
 MODULE_NAME = "^[a-z_][a-z0-9_]*$"
@@ -107,7 +111,7 @@ _DEFS = {
     "joint": _object(
         "one joint and the link it moves; dh for dh_standard/dh_modified, origin and axis for joints",
         {"name": {"type": "string", "pattern": IDENTIFIER, "description": "joint name, default q1, q2, ..."},
-         "type": {"enum": ["revolute", "prismatic"], "description": "revolute or prismatic"},
+         "type": {"enum": list(JOINT_TYPES), "description": "revolute or prismatic"},
          "dh": {"$ref": "#/$defs/dh"},
          "origin": {"$ref": "#/$defs/pose", "description": "parent link frame -> joint frame at q = 0"},
          "axis": _vector3("joint axis in the joint frame (normalised)"),
@@ -118,7 +122,7 @@ _DEFS = {
         ("type",)),
     "chain": _object(
         "a serial chain of rigid links",
-        {"convention": {"enum": ["dh_standard", "dh_modified", "joints"],
+        {"convention": {"enum": list(CONVENTIONS),
                         "description": "how joints are written: dh_standard, dh_modified (Craig) "
                                        "or joints (URDF-like); no default"},
          "gravity": _vector3("gravitational acceleration in the base frame [m/s^2], default 0 0 -9.81"),
@@ -179,7 +183,7 @@ _DEFS = {
         "oneOf": _exactly_one_of(("planar", "spatial"))},
     "frame_change": _object(
         "nil payload, G = I: the node's coordinates are the robots' kinematic outputs",
-        {"output": {"enum": ["position", "planar"],
+        {"output": {"enum": list(CHAIN_OUTPUTS),
                     "description": "a chain's output: tip position x y z (default) or planar x y"}}),
     "planar_contacts": _object(
         "fingertips (robot coordinates x, y per contact) held at body-frame points of a planar payload",
@@ -235,7 +239,7 @@ _DEFS = {
         "settings of law resolved_rate: resolved motion rate and position control of a chain "
         "(Whitney 1972), or of a composite robot in its own coordinates (then only damping, "
         "rate_limits and horizon apply)",
-        {"frame": {"enum": ["base", "hand", "tool", "line_of_sight", "spherical"],
+        {"frame": {"enum": list(FRAMES),
                    "description": "command coordinates: base, hand (eq 7), tool (axes of a held "
                                   "tool), line_of_sight (eq 10), spherical; default hand"},
          "eye": _vector3("line_of_sight: the eye point in base coordinates [m]"),
@@ -250,9 +254,9 @@ _DEFS = {
                      "description": "proportion of each command axis, default 1"},
          "redundancy": _object(
              "joint rates of a redundant arm",
-             {"method": {"enum": ["pseudo_inverse", "extended_jacobian"],
+             {"method": {"enum": list(REDUNDANCY_METHODS),
                          "description": "pseudo_inverse (default) or extended_jacobian"},
-              "objective": {"enum": ["none", "joint_limits", "manipulability"],
+              "objective": {"enum": list(OBJECTIVES),
                             "description": "secondary objective H to increase (default none)"},
               "gain": _number("gain on grad H, > 0, default 1", exclusiveMinimum=0)}),
          "damping": _object(
@@ -278,7 +282,7 @@ _DEFS = {
     "control": _object(
         "CONTROL: a controller on a robot (Deno et al. 1990, 3.4)",
         {"robot": {"type": "string", "pattern": IDENTIFIER, "description": "the controlled node"},
-         "law": {"enum": ["computed_torque", "feedforward", "pd_feedforward", "pd", "resolved_rate"],
+         "law": {"enum": list(LAWS),
                  "description": "control law"},
          "resolved_rate": {"$ref": "#/$defs/resolved_rate"},
          "kp": {"$ref": "#/$defs/gain"},

@@ -17,6 +17,7 @@ import numpy as np
 
 REVOLUTE = "revolute"
 PRISMATIC = "prismatic"
+JOINT_TYPES = (REVOLUTE, PRISMATIC)
 # deviations from physical consistency that a spec may keep on purpose (published parameter
 # sets carry them), acknowledged per inertia with ``accept``
 TRIANGLE_INEQUALITY = "triangle_inequality"

@@ -18,6 +18,7 @@ from robotgen.model.system import (
     CONTACT_GRASPS,
     FRAME_CHANGE,
     PLANAR_CONTACTS,
+    PLANAR_OUTPUT,
     POINT_CONTACTS,
     AttachNode,
     ControlNode,
@@ -126,7 +127,7 @@ def kinematic_outputs(system: RobotSystem, name: str) -> tuple[str, ...]:
 
 
 def chain_outputs(name: str, output: str) -> tuple[str, ...]:
-    axes = ("x", "y") if output == "planar" else ("x", "y", "z")
+    axes = ("x", "y") if output == PLANAR_OUTPUT else ("x", "y", "z")
     return tuple(f"{name}_{a}" for a in axes)
 
 

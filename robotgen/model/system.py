@@ -58,6 +58,9 @@ Leaf = KinematicTree | FormulaRobot | PlanarBody | SpatialBody
 FRAME_CHANGE = "frame_change"
 PLANAR_CONTACTS = "planar_contacts"
 POINT_CONTACTS = "point_contacts"
+# a chain's frame_change output: its tip position (x, y, z) or its planar part (x, y)
+POSITION_OUTPUT, PLANAR_OUTPUT = "position", "planar"
+CHAIN_OUTPUTS = (POSITION_OUTPUT, PLANAR_OUTPUT)
 
 
 @dataclass(frozen=True)
@@ -96,7 +99,7 @@ class Constraint:
 
     kind: str
     coordinates: tuple[str, ...] = ()
-    output: str = "position"  # frame_change of a chain: "position" (3) or "planar" (x, y)
+    output: str = POSITION_OUTPUT  # frame_change of a chain: "position" (3) or "planar" (x, y)
     contacts: np.ndarray | None = None  # (k, 2) planar_contacts, (k, 3) point_contacts
     h: tuple[Expr, ...] | None = None
     h_inverse: tuple[Expr, ...] | None = None

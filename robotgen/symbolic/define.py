@@ -9,7 +9,7 @@ import casadi as ca
 
 from robotgen.model.chain import KinematicTree
 from robotgen.model.formula import FormulaRobot
-from robotgen.model.system import PlanarBody, SpatialBody
+from robotgen.model.system import PLANAR_OUTPUT, PlanarBody, SpatialBody
 from robotgen.symbolic.formulas import FormulaGraphs, expression_map
 from robotgen.symbolic.rigid_body.chain import ChainGraphs, Symbols
 from robotgen.symbolic.rigid_body.christoffel import coriolis_matrix
@@ -33,7 +33,7 @@ def leaf_attributes(leaf, q: ca.SX, qd: ca.SX) -> LeafAttributes:
 
         def tip(output: str) -> ca.SX:
             p = g.fk()[:3, 3]
-            return p[:2] if output == "planar" else p
+            return p[:2] if output == PLANAR_OUTPUT else p
 
         return LeafAttributes(g.mass(), g.coriolis(), g.gravity() + g.friction(), tip, None)
     if isinstance(leaf, FormulaRobot):

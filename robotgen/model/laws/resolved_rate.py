@@ -44,6 +44,8 @@ PSEUDO_INVERSE = "pseudo_inverse"
 EXTENDED_JACOBIAN = "extended_jacobian"
 JOINT_LIMITS = "joint_limits"
 MANIPULABILITY = "manipulability"
+REDUNDANCY_METHODS = (PSEUDO_INVERSE, EXTENDED_JACOBIAN)
+OBJECTIVES = ("none", JOINT_LIMITS, MANIPULABILITY)
 
 
 @dataclass(frozen=True, eq=False)

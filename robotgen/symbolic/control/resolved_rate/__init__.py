@@ -6,17 +6,17 @@ from __future__ import annotations
 from robotgen.model.laws import RESOLVED_RATE
 from robotgen.model.system import RobotSystem
 from robotgen.symbolic.control.law import RootLaw
-from robotgen.symbolic.control.resolved_rate.chain import rate_control_kernels, rate_control_report
-from robotgen.symbolic.control.resolved_rate.composite import tree_rate_kernels, tree_rate_report
+from robotgen.symbolic.control.resolved_rate.chain import chain_kernels, chain_report
+from robotgen.symbolic.control.resolved_rate.composite import composite_kernels, composite_report
 from robotgen.symbolic.kernel import Kernel
 
 
 def kernels(system: RobotSystem) -> list[Kernel]:
-    return tree_rate_kernels(system) if system.rate_controls_composite else rate_control_kernels(system)
+    return composite_kernels(system) if system.rate_controls_composite else chain_kernels(system)
 
 
 def report(system: RobotSystem) -> tuple[dict, dict]:
-    return tree_rate_report(system) if system.rate_controls_composite else rate_control_report(system)
+    return composite_report(system) if system.rate_controls_composite else chain_report(system)
 
 
 LAW = RootLaw(RESOLVED_RATE, kernels, report)

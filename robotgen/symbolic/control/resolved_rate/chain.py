@@ -127,7 +127,7 @@ def _has_range(joint) -> bool:
     return lim.lower is not None and lim.upper is not None and lim.upper > lim.lower
 
 
-def rate_control_kernels(system: RobotSystem) -> list[Kernel]:
+def chain_kernels(system: RobotSystem) -> list[Kernel]:
     tree, s = chain_and_settings(system)
     law = RateLaw(tree, s)
     n, q = law.n, law.q
@@ -176,7 +176,7 @@ def _lqr_kernel(tree: KinematicTree, s: RateControlSettings) -> Kernel:
                        [("q", q, (n, 1)), ("qd", qd, (n, 1))], [("tau", tau, (n, 1))])
 
 
-def rate_control_report(system: RobotSystem) -> tuple[dict, dict]:
+def chain_report(system: RobotSystem) -> tuple[dict, dict]:
     """(extra info() keys, module attributes) of a rate-controlled system."""
     tree, s = chain_and_settings(system)
     info = {"controller": system.root, "robot": system.root_node.robot, **s.summary()}

@@ -50,7 +50,7 @@ def robot_subsystem(system: RobotSystem) -> RobotSystem:
     return dataclasses.replace(system, nodes=nodes, root=root.robot)
 
 
-class TreeRateLaw:
+class CompositeRateLaw:
     """Rate and position control of the robot below ``system``'s root, as SX of theta."""
 
     def __init__(self, system: RobotSystem):
@@ -98,8 +98,8 @@ class TreeRateLaw:
         return self.resolve(rates), error
 
 
-def tree_rate_kernels(system: RobotSystem) -> list[Kernel]:
-    law = TreeRateLaw(system)
+def composite_kernels(system: RobotSystem) -> list[Kernel]:
+    law = CompositeRateLaw(system)
     robot = system.root_node.robot
     th, n, k, ne = law.theta, law.n, law.k, law.n_external
     names = ", ".join(law.names)
@@ -132,7 +132,7 @@ def tree_rate_kernels(system: RobotSystem) -> list[Kernel]:
     return kernels
 
 
-def tree_rate_report(system: RobotSystem) -> tuple[dict, dict]:
+def composite_report(system: RobotSystem) -> tuple[dict, dict]:
     """(extra info() keys, module attributes) of a rate-controlled composite robot."""
     node = system.root_node
     return {"rate_control": {"controller": system.root, "robot": node.robot, **node.rate.summary()}}, {}
