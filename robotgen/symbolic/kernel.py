@@ -5,14 +5,23 @@ from dataclasses import dataclass
 
 import casadi as ca
 
+from robotgen.model.parameters import RuntimeParameter
+
+PARAMS = "params"  # the port of a module's run-time parameters, always a kernel's last input
+
 
 @dataclass(frozen=True)
 class Port:
-    """A named input or output. Matrices are passed flattened in row-major order."""
+    """A named input or output. Matrices are passed flattened in row-major order.
+
+    The port named PARAMS carries the module's run-time parameters (robotgen.model.parameters):
+    ``parameters`` lists them in struct order, and element k of the port is element k of
+    their defaults concatenated; in C it is a ``const <name>_params *params``."""
 
     name: str
     rows: int
     cols: int = 1
+    parameters: tuple[RuntimeParameter, ...] = ()
 
     @property
     def size(self) -> int:
@@ -44,11 +53,38 @@ def row_major(X: ca.SX) -> ca.SX:
 Shape = tuple[int, int]
 
 
-def make_kernel(name: str, doc: str, inputs: list[tuple], outputs: list[tuple[str, ca.SX, Shape]]) -> Kernel:
+@dataclass(frozen=True, eq=False)
+class ParameterSymbols:
+    """The run-time parameters of one module as SX symbols, one column per parameter."""
+
+    parameters: tuple[RuntimeParameter, ...]
+    symbols: dict[str, ca.SX]
+
+    @staticmethod
+    def of(parameters: list[RuntimeParameter]) -> ParameterSymbols:
+        return ParameterSymbols(tuple(parameters), {p.name: ca.SX.sym(p.name, p.size) for p in parameters})
+
+    @property
+    def vector(self) -> ca.SX:
+        return ca.vertcat(*[self.symbols[p.name] for p in self.parameters]) if self.parameters else ca.SX(0, 1)
+
+    def port(self) -> tuple:
+        """The (name, SX, shape) input of make_kernel for every kernel that reads a parameter."""
+        return (PARAMS, self.vector, (self.vector.shape[0], 1), self.parameters)
+
+
+NO_PARAMETERS = ParameterSymbols((), {})
+
+
+def make_kernel(name: str, doc: str, inputs: list[tuple], outputs: list[tuple[str, ca.SX, Shape]],
+                parameters: ParameterSymbols = NO_PARAMETERS) -> Kernel:
     """The one way a kernel is built: ``inputs`` are (port name, SX column[, (rows, cols)
     the port shows, default a column]), ``outputs`` (port name, SX, (rows, cols)); matrices
-    leave row-major, and CasADi's common-subexpression elimination is on."""
-    ports_in = tuple(Port(i[0], *(i[2] if len(i) > 2 else (i[1].shape[0], 1))) for i in inputs)
+    leave row-major, and CasADi's common-subexpression elimination is on. A kernel whose
+    outputs read a run-time parameter gets the PARAMS port last."""
+    if parameters.parameters and any(ca.depends_on(e, parameters.vector) for _, e, _ in outputs):
+        inputs = [*inputs, parameters.port()]
+    ports_in = tuple(Port(i[0], *(i[2] if len(i) > 2 else (i[1].shape[0], 1)), *i[3:]) for i in inputs)
     for port, expr, shape in outputs:
         assert expr.shape == shape, (name, port, expr.shape, shape)
     f = ca.Function(name, [i[1] for i in inputs], [row_major(e) for _, e, _ in outputs],
