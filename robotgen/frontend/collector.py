@@ -50,6 +50,12 @@ class Collector:
             self.at_value(path, f"{shown} is {relation} the minimum of {minimum:g}")
         return number
 
+    def parameter(self, path: Path, value: object, **bounds) -> tuple[float, bool]:
+        """A number, or ``{runtime: number}``: (its value, whether it is a run-time parameter)."""
+        if isinstance(value, dict):
+            return self.constant(path + ("runtime",), value["runtime"], **bounds), True
+        return self.constant(path, value, **bounds), False
+
     def optional(self, mapping: dict, path: Path, key: str, default: float, **bounds) -> float:
         if key not in mapping:
             return default

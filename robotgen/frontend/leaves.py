@@ -168,7 +168,9 @@ class LeafReader(Collector):
         else:
             entries += [(o, path + ("kinematics", i), "output") for i, o in enumerate(outputs)]
         self.check_names(path, entries)
-        parameters = {p: self.constant(path + ("parameters", p), v) for p, v in raw_parameters.items()}
+        read = {p: self.parameter(path + ("parameters", p), v) for p, v in raw_parameters.items()}
+        parameters = {p: value for p, (value, _) in read.items()}
+        runtime = frozenset(p for p, (_, is_runtime) in read.items() if is_runtime)
         in_q = set(coordinates) | set(parameters)
         in_q_qd = in_q | set(velocities)
         inverse = None
@@ -185,6 +187,7 @@ class LeafReader(Collector):
                                                    f"{'; outputs: ' + ', '.join(outputs) if outputs else ''})")
         return FormulaRobot(
             name=name, coordinates=coordinates, velocities=velocities, parameters=parameters, units=dict(units),
+            runtime=runtime,
             mass=self.matrix(path + ("M",), spec["M"], nq, in_q),
             coriolis=self.matrix(path + ("C",), spec["C"], nq, in_q_qd) if "C" in spec else None,
             nonlinear=self.vector_of_expressions(path + ("N",), spec["N"], nq, in_q_qd) if "N" in spec else None,
@@ -219,16 +222,18 @@ class LeafReader(Collector):
         if len(gravity) != len(gravity_default):
             self.at_value(path + ("gravity",), f"a {'spatial' if spatial else 'planar'} body takes "
                                                f"{len(gravity_default)} gravity components, got {len(gravity)}")
+        kind = "spatial" if spatial else "planar"
+        mass, runtime = self.parameter(path + (kind, "mass"), spec[kind]["mass"], minimum=0.0)
+        runtime = frozenset({"mass"} if runtime else ())
         if spatial:
             body = spec["spatial"]
             return SpatialBody(
-                name=name, coordinates=coordinates,
-                mass=self.constant(path + ("spatial", "mass"), body["mass"], minimum=0.0),
+                name=name, coordinates=coordinates, mass=mass, runtime=runtime,
                 inertia=self.inertia(path + ("spatial", "inertia"), body["inertia"]), gravity=gravity)
         planar = spec["planar"]
         return PlanarBody(
             name=name, coordinates=coordinates,
-            mass=self.constant(path + ("planar", "mass"), planar["mass"], minimum=0.0),
+            mass=mass, runtime=runtime,
             inertia=self.constant(path + ("planar", "inertia"), planar["inertia"], minimum=0.0),
             gravity=gravity,
         )

@@ -16,7 +16,7 @@ from robotgen.model.dh import CONVENTIONS
 from robotgen.model.laws import LAWS
 from robotgen.model.laws.resolved_rate import FRAMES, OBJECTIVES, REDUNDANCY_METHODS
 from robotgen.model.signature import UNITS
-from robotgen.model.system import CHAIN_OUTPUTS
+from robotgen.model.system import CHAIN_OUTPUTS, GAIN_MODES
 
 IDENTIFIER = "^[A-Za-z_][A-Za-z0-9_]*$"
 MODULE_NAME = "^[a-z_][a-z0-9_]*$"
@@ -26,6 +26,14 @@ PRIMITIVES = ("define", "attach", "control")
 def _number(description: str, **bounds: float) -> dict:
     """A YAML number or a string holding a constant expression; bounds apply to numbers."""
     return {"type": ["number", "string"], "description": description, **bounds}
+
+
+def _parameter(description: str, **bounds: float) -> dict:
+    """A number, or {runtime: number}: a run-time parameter with that default."""
+    return {"type": ["number", "string", "object"],
+            "description": f"{description}; {{runtime: value}} makes it a run-time parameter",
+            "properties": {"runtime": {"$ref": "#/$defs/number"}}, "required": ["runtime"],
+            "additionalProperties": False, **bounds}
 
 
 def _vector3(description: str) -> dict:
@@ -71,6 +79,7 @@ _EXPRESSION = {"type": ["string", "number"],
 _DEFS = {
     "number": _number("a number, or a constant expression such as \"pi/2\" (names: pi, e)"),
     "expression": _EXPRESSION,
+    "parameter": _parameter("a number or constant expression"),
     "pose": _object("rigid transform: translation xyz [m], then fixed-axis roll-pitch-yaw [rad], "
                     "R = Rz(yaw) Ry(pitch) Rx(roll)",
                     {"xyz": _vector3("translation [m], default 0 0 0"),
@@ -142,7 +151,7 @@ _DEFS = {
                         "items": {"type": "string", "pattern": IDENTIFIER},
                         "description": "names of qd, default \"d\" + coordinate name"},
          "parameters": {"type": "object", "propertyNames": {"pattern": IDENTIFIER},
-                        "additionalProperties": {"$ref": "#/$defs/number"},
+                        "additionalProperties": {"$ref": "#/$defs/parameter"},
                         "description": "named constants usable in every expression"},
          "M": {"type": "array", "items": {"type": "array", "items": {"$ref": "#/$defs/expression"}},
                "description": "nq x nq inertia matrix in coordinates and parameters"},
@@ -172,7 +181,7 @@ _DEFS = {
                            ("mass", "inertia")),
          "spatial": _object("a body in space, coordinates (x, y, z, roll, pitch, yaw) of its frame at "
                             "the centre of mass (R = Rz(yaw) Ry(pitch) Rx(roll))",
-                            {"mass": _number("mass [kg], >= 0", minimum=0),
+                            {"mass": _parameter("mass [kg], >= 0", minimum=0),
                              "inertia": {"$ref": "#/$defs/inertia"}},
                             ("mass", "inertia")),
          "gravity": {"type": "array", "minItems": 2, "maxItems": 3, "items": {"$ref": "#/$defs/number"},
@@ -290,6 +299,11 @@ _DEFS = {
          "kv_internal": _number("damping of internal motion rates, >= 0, default 0", minimum=0),
          "internal_forces": {"type": "array", "minItems": 1, "items": {"$ref": "#/$defs/number"},
                              "description": "resolve all of the robot's internal forces to these values"},
+         "gains": {"enum": list(GAIN_MODES),
+                   "description": "runtime (default): kp, kv, kv_internal are inputs of the emitted code "
+                                  "(a parameter struct in C, keyword arguments in Python) with the spec's "
+                                  "values as defaults; folded: compiled in as constants (faster, retuning "
+                                  "needs a rebuild)"},
          "resolve_internal_motion": {"type": "boolean",
                                      "description": "drive internal motion rates to zero and mask them"}},
         ("robot", "law")),

@@ -35,6 +35,7 @@ class FormulaRobot:
     outputs: tuple[str, ...] = ()
     inverse_kinematics: tuple[Expr, ...] | None = None
     units: dict[str, str] = field(default_factory=dict)
+    runtime: frozenset[str] = frozenset()  # parameters read at run time (robotgen.model.parameters)
 
     @property
     def nq(self) -> int:

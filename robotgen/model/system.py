@@ -28,6 +28,7 @@ class PlanarBody:
     mass: float
     inertia: float
     gravity: np.ndarray  # (2,)
+    runtime: frozenset[str] = frozenset()  # {"mass"} when the mass is a run-time parameter
 
     @property
     def nq(self) -> int:
@@ -46,6 +47,7 @@ class SpatialBody:
     mass: float
     inertia: np.ndarray  # (3, 3) about the centre of mass, body frame
     gravity: np.ndarray  # (3,)
+    runtime: frozenset[str] = frozenset()  # {"mass"} when the mass is a run-time parameter
 
     @property
     def nq(self) -> int:
@@ -139,6 +141,13 @@ class AttachNode:
         return self.robots + ((self.payload,) if self.payload else ())
 
 
+# How a spec writes a gain (robotgen.model.parameters shapes its run-time parameter so)
+SCALAR_GAIN, DIAGONAL_GAIN, MATRIX_GAIN = "scalar", "diagonal", "matrix"
+# a control node's `gains`: read at run time (the default) or folded into the code
+RUNTIME_GAINS, FOLDED_GAINS = "runtime", "folded"
+GAIN_MODES = (RUNTIME_GAINS, FOLDED_GAINS)
+
+
 @dataclass(frozen=True, eq=False)
 class ControlNode:
     """CONTROL(robot, controller) (§3.4). Gains act on the robot's external coordinates;
@@ -160,6 +169,8 @@ class ControlNode:
     internal_forces: np.ndarray | None = None
     resolve_internal_motion: bool = False
     rate: RateControlSettings | CompositeRateSettings | None = None  # law resolved_rate only
+    runtime_gains: bool = True  # kp, kv, kv_internal are run-time parameters (spec: gains: folded)
+    gain_forms: tuple[str, str] = (MATRIX_GAIN, MATRIX_GAIN)  # how the spec wrote kp, kv
 
     primitive = "control"
 

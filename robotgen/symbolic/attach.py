@@ -38,7 +38,8 @@ from robotgen.symbolic.rows import rows
 
 
 def attach_graph(node: AttachNode, sig: Signature, kids: list[NodeGraph], leaves: list[NodeGraph],
-                 payload: Leaf | None, theta: ca.SX, theta_dot: ca.SX) -> NodeGraph:
+                 payload: Leaf | None, theta: ca.SX, theta_dot: ca.SX,
+                 payload_values: dict[str, ca.SX] | None = None) -> NodeGraph:
     """ATTACH's graphs from its robots' (``kids``, in order; ``leaves``: the leaf under each,
     through control nodes, for a frame change) and its payload's leaf; every graph a
     function of the sensed (theta, theta_dot)."""
@@ -78,7 +79,7 @@ def attach_graph(node: AttachNode, sig: Signature, kids: list[NodeGraph], leaves
     M_R = _blockdiag([k.M for k in kids])
     C_R = _blockdiag([k.C for k in kids])
     N_R = ca.vertcat(*[k.N for k in kids])
-    Mp, Cp, Np = _payload(payload, x, xd_e)
+    Mp, Cp, Np = _payload(payload, x, xd_e, payload_values)
     M = _pad(Mp, n_vel) + A.T @ M_R @ A
     C = _pad(Cp, n_vel) + A.T @ C_R @ A + A.T @ M_R @ Adot
     N = _pad(Np, n_vel) + A.T @ N_R
@@ -89,13 +90,14 @@ def attach_graph(node: AttachNode, sig: Signature, kids: list[NodeGraph], leaves
 
 
 
-def _payload(payload: Leaf | None, x: ca.SX, xd: ca.SX) -> tuple[ca.SX, ca.SX, ca.SX]:
+def _payload(payload: Leaf | None, x: ca.SX, xd: ca.SX,
+             values: dict[str, ca.SX] | None) -> tuple[ca.SX, ca.SX, ca.SX]:
     """The payload's DEFINE attributes at the node's positions and rates (nil: zero)."""
     n = x.shape[0]
     if payload is None:
         return ca.SX.zeros(n, n), ca.SX.zeros(n, n), ca.SX.zeros(n, 1)
     q, qd = ca.SX.sym("xp", n), ca.SX.sym("xdp", n)
-    a = leaf_attributes(payload, q, qd)
+    a = leaf_attributes(payload, q, qd, values)
     M, C, N = ca.substitute([a.M, a.C, a.N], [q, qd], [x, xd])
     return M, C, N
 

@@ -2,7 +2,7 @@
 M(q), C(q, qd), N(q, qd), and the kinematic output map an ATTACH frame change uses."""
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 
 import casadi as ca
@@ -25,7 +25,11 @@ class LeafAttributes:
     inverse_kinematics: Callable[[ca.SX], ca.SX] | None  # x -> q
 
 
-def leaf_attributes(leaf, q: ca.SX, qd: ca.SX) -> LeafAttributes:
+def leaf_attributes(leaf, q: ca.SX, qd: ca.SX, values: Mapping[str, ca.SX] | None = None) -> LeafAttributes:
+    """M, C, N (and kinematics) of a leaf at (q, qd). ``values``: the leaf's run-time
+    parameters as symbols, by their name in the leaf (a formulas parameter, a payload's
+    "mass"); the others are folded."""
+    values = dict(values or {})
     n = q.shape[0]
     sym = Symbols(q, qd, ca.SX.zeros(n), ca.SX.zeros(n))
     if isinstance(leaf, KinematicTree):
@@ -37,20 +41,27 @@ def leaf_attributes(leaf, q: ca.SX, qd: ca.SX) -> LeafAttributes:
 
         return LeafAttributes(g.mass(), g.coriolis(), g.gravity() + g.friction(), tip, None)
     if isinstance(leaf, FormulaRobot):
-        g = FormulaGraphs(leaf, sym)
+        g = FormulaGraphs(leaf, sym, values)
         kin = (lambda output: g.kinematics()) if leaf.kinematics else None
-        ik = (expression_map(leaf.inverse_kinematics, leaf.outputs, leaf.parameters)
+        ik = (expression_map(leaf.inverse_kinematics, leaf.outputs, {**leaf.parameters, **values})
               if leaf.inverse_kinematics else None)
         return LeafAttributes(g.mass(), g.coriolis(), g.n_term(qd), kin, ik)
     if isinstance(leaf, PlanarBody):
-        M = ca.SX(ca.DM(ca.diag(ca.DM([leaf.mass, leaf.mass, leaf.inertia]))))
-        N = ca.SX(ca.DM([-leaf.mass * leaf.gravity[0], -leaf.mass * leaf.gravity[1], 0.0]))
+        if "mass" in values:
+            m = values["mass"]
+            M = ca.diag(ca.vertcat(m, m, leaf.inertia))
+            N = ca.vertcat(-m * leaf.gravity[0], -m * leaf.gravity[1], 0)
+        else:
+            M = ca.SX(ca.DM(ca.diag(ca.DM([leaf.mass, leaf.mass, leaf.inertia]))))
+            N = ca.SX(ca.DM([-leaf.mass * leaf.gravity[0], -leaf.mass * leaf.gravity[1], 0.0]))
         return LeafAttributes(M, ca.SX.zeros(3, 3), N, None, None)
     if isinstance(leaf, SpatialBody):
         R, E = rpy_rotation(q[3:6]), rpy_rate_map(q[3:6])
         RE = R.T @ E  # body-frame angular velocity per rpy rate
-        M = ca.diagcat(leaf.mass * ca.SX.eye(3), RE.T @ const(leaf.inertia) @ RE)
-        N = ca.vertcat(const(-leaf.mass * leaf.gravity), ca.SX.zeros(3, 1))
+        m = values.get("mass", leaf.mass)
+        M = ca.diagcat(m * ca.SX.eye(3), RE.T @ const(leaf.inertia) @ RE)
+        N = ca.vertcat(-m * const(leaf.gravity) if "mass" in values else const(-leaf.mass * leaf.gravity),
+                       ca.SX.zeros(3, 1))
         return LeafAttributes(M, coriolis_matrix(M, q, qd), N, None, None)
     raise TypeError(f"unknown leaf type {type(leaf).__name__}")
 

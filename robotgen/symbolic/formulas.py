@@ -37,10 +37,11 @@ def expression_map(exprs, names, parameters):
 
 
 class FormulaGraphs:
-    def __init__(self, robot: FormulaRobot, sym: Symbols):
+    def __init__(self, robot: FormulaRobot, sym: Symbols, values: dict[str, ca.SX] | None = None):
+        """``values``: run-time parameters as symbols, by name (the others are numbers)."""
         self.robot = robot
         self.sym = sym
-        env: dict[str, object] = dict(robot.parameters)
+        env: dict[str, object] = {**robot.parameters, **(values or {})}
         env.update({name: sym.q[i] for i, name in enumerate(robot.coordinates)})
         env.update({name: sym.qd[i] for i, name in enumerate(robot.velocities)})
         self._env = env

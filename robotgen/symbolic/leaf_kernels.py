@@ -8,7 +8,7 @@ import casadi as ca
 from robotgen.model.chain import KinematicTree
 from robotgen.model.formula import FormulaRobot
 from robotgen.symbolic.formulas import FormulaGraphs
-from robotgen.symbolic.kernel import Kernel, make_kernel
+from robotgen.symbolic.kernel import NO_PARAMETERS, Kernel, ParameterSymbols, make_kernel
 from robotgen.symbolic.rigid_body.chain import ChainGraphs, Symbols
 
 # name: (inputs, output shape as a function of nq, doc)
@@ -40,26 +40,29 @@ _FORMULA = {
 
 
 def _kernel(name: str, doc: str, inputs: str, shape: tuple[int, int], expr: ca.SX,
-            sym: Symbols, prefix: str = "") -> Kernel:
-    return make_kernel(prefix + name, doc, [(s, getattr(sym, s)) for s in inputs.split()], [(name, expr, shape)])
+            sym: Symbols, prefix: str, parameters: ParameterSymbols) -> Kernel:
+    return make_kernel(prefix + name, doc, [(s, getattr(sym, s)) for s in inputs.split()], [(name, expr, shape)],
+                       parameters)
 
 
 def _resolve(shape, n: int, k: int) -> tuple[int, int]:
     return tuple({"n": n, "k": k}.get(d, d) for d in shape)
 
 
-def leaf_kernels(leaf: KinematicTree | FormulaRobot, prefix: str = "") -> list[Kernel]:
+def leaf_kernels(leaf: KinematicTree | FormulaRobot, prefix: str = "",
+                 parameters: ParameterSymbols = NO_PARAMETERS, values: dict[str, ca.SX] | None = None) -> list[Kernel]:
+    """``values``: a formulas leaf's run-time parameters as symbols (of ``parameters``)."""
     n = leaf.nq
     sym = Symbols.make(n)
     if isinstance(leaf, KinematicTree):
         graphs, table, k = ChainGraphs(leaf, sym), _CHAIN, 0
     else:
-        graphs, table = FormulaGraphs(leaf, sym), dict(_FORMULA)
+        graphs, table = FormulaGraphs(leaf, sym, values), dict(_FORMULA)
         k = len(leaf.kinematics or ())
         if not k:
             del table["kinematics"], table["kinematics_jacobian"]
     kernels = [
-        _kernel(name, doc, inputs, _resolve(shape, n, k), getattr(graphs, name)(), sym, prefix)
+        _kernel(name, doc, inputs, _resolve(shape, n, k), getattr(graphs, name)(), sym, prefix, parameters)
         for name, (inputs, shape, doc) in table.items()
     ]
     if isinstance(leaf, KinematicTree):

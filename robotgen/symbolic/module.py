@@ -3,17 +3,21 @@
 robot tree's (robotgen.symbolic.system_kernels)."""
 from __future__ import annotations
 
+from robotgen.model.parameters import runtime_parameters
 from robotgen.model.system import RobotSystem
 from robotgen.symbolic.control.root_laws import ROOT_LAWS
-from robotgen.symbolic.kernel import Kernel
+from robotgen.symbolic.kernel import Kernel, ParameterSymbols
 from robotgen.symbolic.leaf_kernels import leaf_kernels
+from robotgen.symbolic.system import leaf_values
 from robotgen.symbolic.system_kernels import system_kernels
 
 
 def kernels_for(system: RobotSystem) -> list[Kernel]:
     """Every function the module of ``system`` emits, as CasADi Functions with ports."""
     if system.is_single_leaf:
-        return leaf_kernels(system.root_node.leaf)
+        parameters = ParameterSymbols.of(runtime_parameters(system))
+        return leaf_kernels(system.root_node.leaf, parameters=parameters,
+                            values=leaf_values(parameters, system.root_node))
     if system.root_law is not None:
         return ROOT_LAWS[system.root_law].kernels(system)
     return system_kernels(system)

@@ -9,6 +9,7 @@ import casadi as ca
 
 from robotgen.model.signature import constraint_residual_names, has_position_inverse, robot_leaves
 from robotgen.model.system import AttachNode, ControlNode, RobotSystem
+from robotgen.symbolic.kernel import NO_PARAMETERS, ParameterSymbols
 from robotgen.symbolic.rigid_body.cholesky import cholesky_solve
 from robotgen.symbolic.rows import rows
 from robotgen.symbolic.system import SystemGraphs
@@ -33,8 +34,10 @@ def strip_controls(system: RobotSystem) -> RobotSystem:
 
 
 class Plant:
-    def __init__(self, system: RobotSystem):
-        self.graphs = SystemGraphs(strip_controls(system))
+    def __init__(self, system: RobotSystem, parameters: ParameterSymbols = NO_PARAMETERS):
+        """``parameters``: the module's run-time parameters (a payload's mass, if run-time,
+        is read from them as the controller's graphs read it)."""
+        self.graphs = SystemGraphs(strip_controls(system), parameters)
         g = self.graphs
         root = g.graph(g.system.root)
         self.n_v = root.sig.n_velocity

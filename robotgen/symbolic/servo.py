@@ -14,6 +14,7 @@ from dataclasses import dataclass
 import casadi as ca
 
 from robotgen.model.system import AttachNode, ControlNode, DefineNode
+from robotgen.symbolic.control.gains import gain, kv_internal
 from robotgen.symbolic.control.law import Command, PositionsUnavailable
 from robotgen.symbolic.control.tree_laws import TREE_LAWS
 from robotgen.symbolic.rows import rows
@@ -89,13 +90,14 @@ class Servo:
         a_d = ca.vertcat(t.a, ca.SX.zeros(pad))
         F_d = ca.vertcat(t.F, ca.SX.zeros(pad))
         Fi = ca.SX(ca.DM(node.internal_forces)) if node.internal_forces is not None else t.Fi
-        Kp, Kv = ca.DM(node.kp), ca.DM(node.kv)
+        parameters = self.g.parameters
+        Kp, Kv, kvi = gain(node, "kp", parameters), gain(node, "kv", parameters), kv_internal(node, parameters)
         e_dot = v_d - child.v
 
         def feedback(e: ca.SX | None) -> ca.SX:
             """Kv e' + Kp e on external coordinates, kv_internal e' on internal ones (eq 5.13)."""
             ext = Kv @ rows(e_dot, 0, ne) + (Kp @ e if e is not None else 0)
-            return ca.vertcat(ext, node.kv_internal * rows(e_dot, ne))
+            return ca.vertcat(ext, kvi * rows(e_dot, ne))
 
         def position_error() -> ca.SX:
             if t.x is None:

@@ -16,6 +16,7 @@ from robotgen.model.system import AttachNode, ControlNode, DefineNode, RobotSyst
 from robotgen.symbolic.attach import attach_graph
 from robotgen.symbolic.control.tree_laws import TREE_LAWS
 from robotgen.symbolic.define import leaf_attributes
+from robotgen.symbolic.kernel import NO_PARAMETERS, ParameterSymbols
 from robotgen.symbolic.node import NodeGraph
 from robotgen.symbolic.rows import rows
 
@@ -24,8 +25,9 @@ class SystemGraphs:
     """Graphs of every node below the root, from shared symbols theta, theta_dot (the
     actuated leaves' joint states, stacked in tree order)."""
 
-    def __init__(self, system: RobotSystem):
+    def __init__(self, system: RobotSystem, parameters: ParameterSymbols = NO_PARAMETERS):
         self.system = system
+        self.parameters = parameters
         self.leaves = robot_leaves(system)
         sizes = [system.nodes[n].leaf.nq for n in self.leaves]
         self.offsets = dict(zip(self.leaves, np.cumsum([0] + sizes[:-1]).tolist()))
@@ -59,7 +61,7 @@ class SystemGraphs:
     def _define(self, node: DefineNode) -> NodeGraph:
         s = self.leaf_slice(node.name)
         q, qd = self.theta[s], self.theta_dot[s]
-        attrs = leaf_attributes(node.leaf, q, qd)
+        attrs = leaf_attributes(node.leaf, q, qd, leaf_values(self.parameters, node))
         return NodeGraph(node.name, signature(self.system, node.name), q, qd, attrs.M, attrs.C, attrs.N, leaf=attrs)
 
     def _control(self, node: ControlNode) -> NodeGraph:
@@ -70,6 +72,12 @@ class SystemGraphs:
         return NodeGraph(node.name, sig, child.x, v, M, C, N)
 
     def _attach(self, node: AttachNode) -> NodeGraph:
-        payload = self.system.nodes[node.payload].leaf if node.payload else None
+        payload = self.system.nodes[node.payload] if node.payload else None
         return attach_graph(node, signature(self.system, node.name), [self.graph(r) for r in node.robots],
-                            [self.underlying_leaf(r) for r in node.robots], payload, self.theta, self.theta_dot)
+                            [self.underlying_leaf(r) for r in node.robots], payload and payload.leaf,
+                            self.theta, self.theta_dot, leaf_values(self.parameters, payload) if payload else {})
+
+
+def leaf_values(parameters: ParameterSymbols, node: DefineNode) -> dict[str, ca.SX]:
+    """A leaf's run-time parameters as symbols, by their name in the leaf."""
+    return {key: parameters.symbols[f"{node.name}_{key}"] for key in getattr(node.leaf, "runtime", ())}

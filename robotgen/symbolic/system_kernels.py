@@ -2,11 +2,14 @@
 node's coordinates, the fused servo step of the whole tree, and the true plant."""
 from __future__ import annotations
 
+import functools
+
 import casadi as ca
 
+from robotgen.model.parameters import runtime_parameters
 from robotgen.model.signature import internal_force_names
 from robotgen.model.system import DefineNode, RobotSystem
-from robotgen.symbolic.kernel import Kernel, make_kernel
+from robotgen.symbolic.kernel import Kernel, ParameterSymbols, make_kernel
 from robotgen.symbolic.plant import Plant
 from robotgen.symbolic.servo import Servo, Trajectory
 from robotgen.symbolic.system import SystemGraphs
@@ -27,11 +30,15 @@ def _write_kernel(g: SystemGraphs, name: str, kernel_name: str, doc: str) -> Ker
     if servo.n_state:
         inputs += [("state", servo.state), ("dt", servo.dt)]
         outputs.append(("state_next", servo.state_next(), (servo.n_state, 1)))
-    return make_kernel(kernel_name, doc, inputs, outputs)
+    return make_kernel(kernel_name, doc, inputs, outputs, g.parameters)
 
 
 def system_kernels(system: RobotSystem) -> list[Kernel]:
-    g = SystemGraphs(system)
+    """Every node's functions, the servo step and the plant; a kernel that reads a run-time
+    parameter (a gain, a payload mass) takes the module's parameter struct."""
+    parameters = ParameterSymbols.of(runtime_parameters(system))
+    kernel = functools.partial(make_kernel, parameters=parameters)
+    g = SystemGraphs(system, parameters)
     th, thd = ("theta", g.theta), ("theta_dot", g.theta_dot)
     kernels: list[Kernel] = []
     for node in system.walk():
@@ -41,13 +48,13 @@ def system_kernels(system: RobotSystem) -> list[Kernel]:
         n, ne = ng.sig.n_velocity, ng.sig.n_external
         p = node.name
         kernels += [
-            make_kernel(f"{p}_mass", f"M of node '{p}' ({node.primitive}) in its coordinates.",
+            kernel(f"{p}_mass", f"M of node '{p}' ({node.primitive}) in its coordinates.",
                         [th], [("mass", ng.M, (n, n))]),
-            make_kernel(f"{p}_coriolis", f"C of node '{p}' in its coordinates.", [th, thd],
+            kernel(f"{p}_coriolis", f"C of node '{p}' in its coordinates.", [th, thd],
                     [("coriolis", ng.C, (n, n))]),
-            make_kernel(f"{p}_n", f"N (gravity, friction) of node '{p}' in its coordinates.", [th, thd],
+            kernel(f"{p}_n", f"N (gravity, friction) of node '{p}' in its coordinates.", [th, thd],
                     [("n", ng.N, (n, 1))]),
-            make_kernel(f"{p}_read", f"rd of node '{p}': its positions x and velocity xd.", [th, thd],
+            kernel(f"{p}_read", f"rd of node '{p}': its positions x and velocity xd.", [th, thd],
                     [("x", ng.x, (ne, 1)), ("xd", ng.v, (n, 1))]),
             _write_kernel(g, p, f"{p}_write", f"wr of node '{p}': the leaf torques that writing "
                           f"(x_e, xd_e, xdd_e, f_e{', f_i' if ng.sig.n_internal_forces else ''}) at this node "
@@ -60,34 +67,34 @@ def system_kernels(system: RobotSystem) -> list[Kernel]:
     kernels.append(step)
     servo = Servo(g, root)
     if servo.n_state:
-        kernels.append(make_kernel(
+        kernels.append(kernel(
             "servo_init", "Controller state that starts every expected trajectory at the current state.",
             [th, thd], [("state", servo.initial_state(), (servo.n_state, 1))]))
-    plant = Plant(system)
+    plant = Plant(system, parameters)
     pg = plant.graphs
     theta, v, tau = ("theta", pg.theta), ("v", plant.v), ("tau", plant.tau)
     kernels += [
-        make_kernel("plant_dynamics", "The uncontrolled tree's constrained dynamics in root velocity "
+        kernel("plant_dynamics", "The uncontrolled tree's constrained dynamics in root velocity "
                     "coordinates v: (theta_dot, v_dot) for torques tau.", [theta, v, tau],
                     [("theta_dot", plant.theta_dot, (pg.n, 1)), ("v_dot", plant.v_dot, (plant.n_v, 1))]),
-        make_kernel("plant_velocity", "Root velocity v of the uncontrolled tree from sensed leaf rates.",
+        kernel("plant_velocity", "Root velocity v of the uncontrolled tree from sensed leaf rates.",
                     [theta, ("theta_dot", pg.theta_dot)], [("v", plant.read_v, (plant.n_v, 1))]),
-        make_kernel("plant_position", "Root positions of the uncontrolled tree.", [theta],
+        kernel("plant_position", "Root positions of the uncontrolled tree.", [theta],
                     [("x", plant.x, (plant.x.shape[0], 1))]),
     ]
     if plant.internal_forces.shape[0]:
         names = ", ".join(internal_force_names(system))
-        kernels.append(make_kernel(
+        kernels.append(kernel(
             "plant_internal_forces", f"The internal forces the grasps carry in the plant ({names}): H lambda at "
             "every attach that creates them, lambda the force its robots exert on the constraint, for torques "
             "tau at (theta, v).", [theta, v, tau], [("f", plant.internal_forces, (plant.internal_forces.shape[0], 1))]))
     if plant.residual.shape[0]:
-        kernels.append(make_kernel(
+        kernels.append(kernel(
             "constraint_residual", "Position-level constraint residual y - h^-1(h(y)) at every attach with an "
             f"inverse map, y its robots' stacked positions ({', '.join(plant.residual_names)}): zero when the leaf "
             "positions satisfy every grasp.", [theta], [("residual", plant.residual, (plant.residual.shape[0], 1))]))
     if plant.inverse is not None:
-        kernels.append(make_kernel("plant_inverse", "Leaf joint positions for root positions x, through "
+        kernels.append(kernel("plant_inverse", "Leaf joint positions for root positions x, through "
                                "every attach's inverse kinematics.", [("x", plant.x_sym)],
                                [("theta", plant.inverse, (pg.n, 1))]))
     return kernels

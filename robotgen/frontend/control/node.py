@@ -10,11 +10,13 @@ import numpy as np
 from robotgen.frontend.collector import Collector
 from robotgen.frontend.document import Path
 from robotgen.model.laws import FEEDFORWARD, PD, RESOLVED_RATE
-from robotgen.model.signature import (
-    Signature,
-)
+from robotgen.model.signature import Signature
 from robotgen.model.system import (
+    DIAGONAL_GAIN,
+    MATRIX_GAIN,
     PAYLOAD_BODIES,
+    RUNTIME_GAINS,
+    SCALAR_GAIN,
     ControlNode,
     RobotSystem,
 )
@@ -32,6 +34,7 @@ class ControlReader(Collector):
             internal_forces=None if forces is None else
             np.array([self.constant(path + ("internal_forces", i), f) for i, f in enumerate(forces)]),
             resolve_internal_motion=bool(spec.get("resolve_internal_motion", False)),
+            runtime_gains=spec.get("gains", RUNTIME_GAINS) == RUNTIME_GAINS,
         )
 
     def check_control(self, system: RobotSystem, node: ControlNode, robot: Signature) -> ControlNode:
@@ -74,7 +77,8 @@ class ControlReader(Collector):
             elif not robot.internal_motions:
                 self.at_key(path + ("resolve_internal_motion",), f"robot '{node.robot}' has no internal motions "
                                                                  "to resolve")
-        return dataclasses.replace(node, kp=gains["kp"], kv=gains["kv"])
+        forms = tuple(gain_form(spec.get(key, 0)) for key in ("kp", "kv"))
+        return dataclasses.replace(node, kp=gains["kp"], kv=gains["kv"], gain_forms=forms)
 
     def gain(self, path: Path, value: object, robot: Signature, name: str) -> np.ndarray:
         """A scalar (times I), a per-axis list (diagonal) or a symmetric positive definite
@@ -112,3 +116,10 @@ class ControlReader(Collector):
             self.at_key(path, f"gain matrix is not positive definite (eigenvalues {shown})")
         return matrix
 
+
+
+def gain_form(value: object) -> str:
+    """How a gain is written: a number (times I), a list (the diagonal) or a matrix."""
+    if not isinstance(value, list):
+        return SCALAR_GAIN
+    return MATRIX_GAIN if value and all(isinstance(v, list) for v in value) else DIAGONAL_GAIN
