@@ -36,6 +36,10 @@ def _parameter(description: str, **bounds: float) -> dict:
             "additionalProperties": False, **bounds}
 
 
+def _weights(description: str) -> dict:
+    return {"type": ["number", "string", "array"], "items": {"$ref": "#/$defs/number"}, "description": description}
+
+
 def _vector3(description: str) -> dict:
     return {"type": "array", "description": description, "minItems": 3, "maxItems": 3,
             "items": {"$ref": "#/$defs/number"}}
@@ -288,12 +292,36 @@ _DEFS = {
               "r": {"type": ["number", "string", "array"], "items": {"$ref": "#/$defs/number"},
                     "description": "torque weights: a number or one per joint, default 1"}},
              ("nominal",))}),
+    "resolved_acceleration": _object(
+        "settings of law resolved_acceleration (Luh, Walker, Paul 1980) on a 6-joint chain: "
+        "xdd* = xdd_d + Kv (xd_d - xd) + Kp e, qdd = J^-1 (xdd* - Jdot qd), Newton-Euler torques",
+        {"period": _number("sampling period T [s], > 0, default 0.001", exclusiveMinimum=0),
+         "tool": {"$ref": "#/$defs/pose", "description": "the hand frame in the tip frame, default identity"},
+         "kp": _weights("hand position gains on x, y, z, roll, pitch, yaw: a number or 6, default 400"),
+         "kv": _weights("hand velocity gains: a number or 6, default 40"),
+         "gains": {"enum": list(GAIN_MODES), "description": "runtime (default) or folded kp, kv"}}),
+    "resolved_adaptive": _object(
+        "settings of law resolved_adaptive (Lee and Lee 1983) on a 6-joint chain: Newton-Euler "
+        "feedforward and the one-step optimal control (eq 39) of an RLS-identified perturbation model",
+        {"period": _number("sampling period T [s], > 0, default 0.001", exclusiveMinimum=0),
+         "tool": {"$ref": "#/$defs/pose", "description": "the hand frame in the tip frame, default identity"},
+         "q": _weights("Q of eq 38: 4 numbers (position, orientation, velocity, angular velocity), 12, "
+                       "or one number; default [1e6, 1e6, 1e4, 1e4]"),
+         "r": _weights("R of eq 38 on the torques: a number or 6, default 1e-5"),
+         "forgetting": _number("forgetting factor r of eq 37, 0 < r <= 1, default 0.97", exclusiveMinimum=0),
+         "initial_covariance": _number("P_0 = p0 I, > 0, default 100", exclusiveMinimum=0),
+         "covariance_limit": _number("largest trace of P, default 1e6", exclusiveMinimum=0),
+         "ik_iterations": {"type": "integer", "minimum": 1, "maximum": 10,
+                           "description": "Newton steps of the inverse kinematics per cycle, default 2"},
+         "gains": {"enum": list(GAIN_MODES), "description": "runtime (default) or folded q, r, forgetting"}}),
     "control": _object(
         "CONTROL: a controller on a robot (Deno et al. 1990, 3.4)",
         {"robot": {"type": "string", "pattern": IDENTIFIER, "description": "the controlled node"},
          "law": {"enum": list(LAWS),
                  "description": "control law"},
          "resolved_rate": {"$ref": "#/$defs/resolved_rate"},
+         "resolved_acceleration": {"$ref": "#/$defs/resolved_acceleration"},
+         "resolved_adaptive": {"$ref": "#/$defs/resolved_adaptive"},
          "kp": {"$ref": "#/$defs/gain"},
          "kv": {"$ref": "#/$defs/gain"},
          "kv_internal": _number("damping of internal motion rates, >= 0, default 0", minimum=0),
@@ -334,7 +362,11 @@ _DEFS = {
          "frequency": {"type": "array", "items": {"$ref": "#/$defs/number"},
                        "description": "[Hz] per root coordinate"},
          "internal_forces": {"type": "array", "items": {"$ref": "#/$defs/number"},
-                             "description": "internal forces commanded at the root"}}),
+                             "description": "internal forces commanded at the root"},
+         "payload_change": _object("a hand controller's run: the plant's hand picks up a point mass",
+                                   {"at": _number("time of the change [s], >= 0", minimum=0),
+                                    "mass": _number("the payload's mass [kg], >= 0", minimum=0)},
+                                   ("at", "mass"))}),
     "node": {**_object("a node of the robot tree: exactly one primitive key",
                        {key: {"$ref": f"#/$defs/{key}"} for key in PRIMITIVES}),
              "oneOf": _exactly_one_of(PRIMITIVES)},

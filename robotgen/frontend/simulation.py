@@ -3,16 +3,15 @@ from __future__ import annotations
 
 from robotgen.frontend.collector import Collector
 from robotgen.frontend.document import Path
+from robotgen.model.laws import HAND_LAWS
+from robotgen.model.laws.hand import HAND_AXES, HAND_DOF
 from robotgen.model.signature import (
     SignatureError,
     robot_leaves,
     signature,
 )
-from robotgen.model.simulation import SimulationSettings
-from robotgen.model.system import (
-    Node,
-    RobotSystem,
-)
+from robotgen.model.simulation import PayloadChange, SimulationSettings
+from robotgen.model.system import ControlNode, Node, RobotSystem
 
 
 class SimulationReader(Collector):
@@ -33,6 +32,17 @@ class SimulationReader(Collector):
                                                    "perturbed joint positions there, or drop theta0)")
         if "initial_error" in spec and "start" not in spec and "theta0" not in spec:
             self.at_key(path + ("initial_error",), "initial_error offsets the plant from start: give start too")
+        if "payload_change" in spec:
+            change = spec["payload_change"]
+            at = path + ("payload_change",)
+            values["payload_change"] = PayloadChange(self.constant(at + ("at",), change["at"], minimum=0.0),
+                                                     self.constant(at + ("mass",), change["mass"], minimum=0.0))
+        root_node = nodes.get(root)
+        if isinstance(root_node, ControlNode) and root_node.law in HAND_LAWS:
+            return self.hand_simulation(spec, values, nodes, root_node)
+        if "payload_change" in spec:
+            self.at_key(path + ("payload_change",), "payload_change applies to a hand controller's simulation "
+                                                    "(law resolved_acceleration or resolved_adaptive at the root)")
         system = RobotSystem(name=self.doc.data["name"], source=self.doc.path, source_sha256=self.doc.sha256,
                              nodes=nodes, root=root)
         try:
@@ -60,3 +70,22 @@ class SimulationReader(Collector):
         locations = {k: self.doc.source.key(path + (k,)) for k in spec}
         return SimulationSettings(**values, locations=locations)
 
+
+    def hand_simulation(self, spec: dict, values: dict, nodes: dict[str, Node],
+                        root: ControlNode) -> SimulationSettings:
+        """A hand controller's run: theta0 (the chain's joints), amplitude and frequency on the
+        hand's x, y, z, roll, pitch, yaw about its start pose, payload_change."""
+        path: Path = ("simulation",)
+        for key in ("start", "initial_error", "internal_forces"):
+            if key in spec:
+                self.at_key(path + (key,), f"'{key}' applies to robot trees; a hand controller starts at theta0 "
+                                           "and follows its start pose plus amplitude sin(2 pi frequency t)")
+        chain = getattr(nodes.get(root.robot), "leaf", None)
+        expected = {"theta0": (getattr(chain, "nq", HAND_DOF), f"one per joint of '{root.robot}'"),
+                    "amplitude": (HAND_DOF, f"one per hand axis: {', '.join(HAND_AXES)}"),
+                    "frequency": (HAND_DOF, f"one per hand axis: {', '.join(HAND_AXES)}")}
+        for key, (n, what) in expected.items():
+            if key in spec and len(spec[key]) != n:
+                self.at_key(path + (key,), f"expected {n} entries ({what}), got {len(spec[key])}")
+        locations = {k: self.doc.source.key(path + (k,)) for k in spec}
+        return SimulationSettings(**values, locations=locations)

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 from robotgen.errors import UserErrors
 from robotgen.frontend.attach import AttachReader
+from robotgen.frontend.control.hand import HandLawReader
 from robotgen.frontend.control.node import ControlReader
 from robotgen.frontend.control.resolved_rate import ResolvedRateReader
 from robotgen.frontend.document import Document, Path, format_path, sort_errors
@@ -25,7 +26,7 @@ from robotgen.model.system import (
 )
 
 
-class SpecReader(LeafReader, AttachReader, ControlReader, ResolvedRateReader, SimulationReader):
+class SpecReader(LeafReader, AttachReader, ControlReader, ResolvedRateReader, HandLawReader, SimulationReader):
     """The whole spec: every part's reader over one collector."""
 
     def node(self, name: str, node: dict) -> Node:

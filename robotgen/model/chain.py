@@ -11,9 +11,11 @@ inertial data is expressed in frame(i). The base frame is frame(-1) = identity.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
+
+from robotgen.numeric import exact
 
 REVOLUTE = "revolute"
 PRISMATIC = "prismatic"
@@ -97,3 +99,19 @@ class KinematicTree:
     @property
     def has_friction(self) -> bool:
         return any(j.viscous or j.coulomb for j in self.joints)
+
+
+def with_payload(tree: KinematicTree, mass: float, point: np.ndarray) -> KinematicTree:
+    """The same tree with a point mass added to the body of joint ``tree.tip`` at ``point``
+    (in that joint's frame): a payload held at the hand."""
+    joints = list(tree.joints)
+    j = joints[tree.tip]
+    b = j.body
+    total = b.mass + mass
+    if total == 0:
+        return tree
+    com = exact.add((b.mass / total, b.com), (mass / total, np.asarray(point, dtype=float)))
+    inertia = exact.add(exact.parallel_axis(b.inertia, b.mass, exact.add(b.com, (-1.0, com))),
+                        exact.parallel_axis(np.zeros((3, 3)), mass, exact.add(point, (-1.0, com))))
+    joints[tree.tip] = replace(j, body=Body(total, com, inertia))
+    return replace(tree, joints=tuple(joints))

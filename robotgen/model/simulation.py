@@ -8,6 +8,15 @@ from robotgen.model.chain import KinematicTree
 
 
 @dataclass(frozen=True)
+class PayloadChange:
+    """At time ``at`` the plant's hand picks up ``mass`` (a point mass at the hand's origin);
+    the controller is not told."""
+
+    at: float
+    mass: float
+
+
+@dataclass(frozen=True)
 class SimulationSettings:
     duration: float = 2.0
     dt: float = 1e-3
@@ -17,6 +26,7 @@ class SimulationSettings:
     amplitude: tuple[float, ...] = ()  # x_d(t) = start + amplitude sin(2 pi frequency t)
     frequency: tuple[float, ...] = ()
     internal_forces: tuple[float, ...] = ()  # root f_i, if the root leaves some unresolved
+    payload_change: PayloadChange | None = None  # hand laws: the plant's payload changes mid-run
     # where each field stands in the spec (for messages about values that only the running
     # simulation can judge, such as a theta0 that breaks a grasp)
     locations: dict[str, Location] = field(default_factory=dict, compare=False, repr=False)

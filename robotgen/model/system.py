@@ -14,6 +14,7 @@ from robotgen.model.chain import KinematicTree
 from robotgen.model.expression import Expr
 from robotgen.model.formula import FormulaRobot
 from robotgen.model.laws import RESOLVED_RATE, ROOT_LAWS
+from robotgen.model.laws.hand import AdaptiveSettings, ResolvedAccelerationSettings
 from robotgen.model.laws.resolved_rate import CompositeRateSettings, RateControlSettings
 from robotgen.model.simulation import SimulationSettings
 
@@ -169,6 +170,7 @@ class ControlNode:
     internal_forces: np.ndarray | None = None
     resolve_internal_motion: bool = False
     rate: RateControlSettings | CompositeRateSettings | None = None  # law resolved_rate only
+    hand: ResolvedAccelerationSettings | AdaptiveSettings | None = None  # the hand laws only
     runtime_gains: bool = True  # kp, kv, kv_internal are run-time parameters (spec: gains: folded)
     gain_forms: tuple[str, str] = (MATRIX_GAIN, MATRIX_GAIN)  # how the spec wrote kp, kv
 

@@ -29,10 +29,11 @@ from robotgen.model.system import (
     Leaf,
 )
 from robotgen.numeric import exact
-from robotgen.symbolic.define import leaf_attributes, rpy_rate_map, rpy_rotation
+from robotgen.symbolic.define import leaf_attributes
 from robotgen.symbolic.formulas import expression_column, expression_map, expression_matrix
 from robotgen.symbolic.node import AttachMaps, NodeGraph
 from robotgen.symbolic.nullspace import block_null_rows, gram_schmidt, null_rows
+from robotgen.symbolic.rigid_body.rpy import rpy_of, rpy_rate_map, rpy_rotation
 from robotgen.symbolic.rigid_body.spatial import skew
 from robotgen.symbolic.rows import rows
 
@@ -117,8 +118,7 @@ def _point_contacts(pts: np.ndarray, y: ca.SX, m: int):
     P = [y[3 * k:3 * k + 3] for k in range(3)]
     R = triad(*P, ca) @ body.T
     p = P[0] - R @ ca.DM(pts[0])
-    rpy = ca.vertcat(ca.atan2(R[2, 1], R[2, 2]), ca.atan2(-R[2, 0], ca.sqrt(R[0, 0] ** 2 + R[1, 0] ** 2)),
-                     ca.atan2(R[1, 0], R[0, 0]))
+    rpy = rpy_of(R)
     x = ca.vertcat(p, rpy)
 
     def h_inverse(xe: ca.SX) -> ca.SX:

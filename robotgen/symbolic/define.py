@@ -13,6 +13,7 @@ from robotgen.model.system import PLANAR_OUTPUT, PlanarBody, SpatialBody
 from robotgen.symbolic.formulas import FormulaGraphs, expression_map
 from robotgen.symbolic.rigid_body.chain import ChainGraphs, Symbols
 from robotgen.symbolic.rigid_body.christoffel import coriolis_matrix
+from robotgen.symbolic.rigid_body.rpy import rpy_rate_map, rpy_rotation
 from robotgen.symbolic.rigid_body.spatial import const
 
 
@@ -64,18 +65,3 @@ def leaf_attributes(leaf, q: ca.SX, qd: ca.SX, values: Mapping[str, ca.SX] | Non
                        ca.SX.zeros(3, 1))
         return LeafAttributes(M, coriolis_matrix(M, q, qd), N, None, None)
     raise TypeError(f"unknown leaf type {type(leaf).__name__}")
-
-
-def rpy_rotation(rpy: ca.SX) -> ca.SX:
-    """R = Rz(yaw) Ry(pitch) Rx(roll) (URDF's fixed-axis roll, pitch, yaw)."""
-    cr, sr, cp, sp, cy, sy = (f(a) for a in (rpy[0], rpy[1], rpy[2]) for f in (ca.cos, ca.sin))
-    return ca.vertcat(
-        ca.horzcat(cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr),
-        ca.horzcat(sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr),
-        ca.horzcat(-sp, cp * sr, cp * cr))
-
-
-def rpy_rate_map(rpy: ca.SX) -> ca.SX:
-    """E with omega (world) = E (roll, pitch, yaw rates): columns Rz Ry x, Rz y, z."""
-    cp, sp, cy, sy = ca.cos(rpy[1]), ca.sin(rpy[1]), ca.cos(rpy[2]), ca.sin(rpy[2])
-    return ca.vertcat(ca.horzcat(cy * cp, -sy, 0), ca.horzcat(sy * cp, cy, 0), ca.horzcat(-sp, 0, 1))

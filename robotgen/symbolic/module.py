@@ -3,7 +3,7 @@
 robot tree's (robotgen.symbolic.system_kernels)."""
 from __future__ import annotations
 
-from robotgen.model.parameters import runtime_parameters
+from robotgen.model.parameter_struct import runtime_parameters
 from robotgen.model.system import RobotSystem
 from robotgen.symbolic.control.root_laws import ROOT_LAWS
 from robotgen.symbolic.kernel import Kernel, ParameterSymbols

@@ -6,7 +6,7 @@ import functools
 
 import casadi as ca
 
-from robotgen.model.parameters import runtime_parameters
+from robotgen.model.parameter_struct import runtime_parameters
 from robotgen.model.signature import internal_force_names
 from robotgen.model.system import DefineNode, RobotSystem
 from robotgen.symbolic.kernel import Kernel, ParameterSymbols, make_kernel

@@ -9,7 +9,7 @@ import numpy as np
 
 from robotgen.frontend.collector import Collector
 from robotgen.frontend.document import Path
-from robotgen.model.laws import FEEDFORWARD, PD, RESOLVED_RATE
+from robotgen.model.laws import FEEDFORWARD, HAND_LAWS, PD, RESOLVED_RATE
 from robotgen.model.signature import Signature
 from robotgen.model.system import (
     DIAGONAL_GAIN,
@@ -40,6 +40,11 @@ class ControlReader(Collector):
     def check_control(self, system: RobotSystem, node: ControlNode, robot: Signature) -> ControlNode:
         path: Path = ("nodes", node.name, "control")
         spec = self.doc.data["nodes"][node.name]["control"]
+        if node.law in HAND_LAWS:
+            return self.check_hand_control(system, node, spec, robot)
+        for law in HAND_LAWS:
+            if law in spec:
+                self.at_key(path + (law,), f"settings of law {law}; this node's law is {node.law}")
         if node.law == RESOLVED_RATE:
             return self.check_rate_control(system, node, spec, robot)
         if "resolved_rate" in spec:

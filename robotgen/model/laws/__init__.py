@@ -12,7 +12,11 @@ FEEDFORWARD = "feedforward"
 PD_FEEDFORWARD = "pd_feedforward"
 PD = "pd"
 RESOLVED_RATE = "resolved_rate"
+RESOLVED_ACCELERATION = "resolved_acceleration"
+RESOLVED_ADAPTIVE = "resolved_adaptive"
 
 TREE_LAWS = (COMPUTED_TORQUE, FEEDFORWARD, PD_FEEDFORWARD, PD)
-ROOT_LAWS = (RESOLVED_RATE,)
+ROOT_LAWS = (RESOLVED_RATE, RESOLVED_ACCELERATION, RESOLVED_ADAPTIVE)
+# root laws that output joint torques for a hand trajectory (robotgen.model.laws.hand)
+HAND_LAWS = (RESOLVED_ACCELERATION, RESOLVED_ADAPTIVE)
 LAWS = TREE_LAWS + ROOT_LAWS

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import casadi as ca
 
-from robotgen.model.parameters import gain_parameter_name
+from robotgen.model.parameter_struct import gain_parameter_name
 from robotgen.model.system import DIAGONAL_GAIN, SCALAR_GAIN, ControlNode
 from robotgen.symbolic.kernel import ParameterSymbols
 

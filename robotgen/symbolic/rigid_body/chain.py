@@ -8,9 +8,10 @@ import casadi as ca
 
 from robotgen.model.chain import KinematicTree
 from robotgen.model.snap import snap_tree
+from robotgen.symbolic.op_count import count_operations
 from robotgen.symbolic.rigid_body.cholesky import cholesky_solve
 from robotgen.symbolic.rigid_body.christoffel import coriolis_matrix
-from robotgen.symbolic.rigid_body.coriolis import coriolis_spatial, op_count
+from robotgen.symbolic.rigid_body.coriolis import coriolis_spatial
 from robotgen.symbolic.rigid_body.crba import crba
 from robotgen.symbolic.rigid_body.friction import friction_torque
 from robotgen.symbolic.rigid_body.jacobian import geometric_jacobian, hand_jacobian, tip_bias_acceleration
@@ -79,7 +80,7 @@ class ChainGraphs:
             if self.tree.nq > AD_CORIOLIS_MAX_DOF:
                 return spatial
             candidates = [coriolis_matrix(self.mass(), q, qd), spatial]
-            return min(candidates, key=lambda C: op_count(C, q, qd))
+            return min(candidates, key=lambda C: count_operations([q, qd], [C])["total"])
         return self._get("coriolis", build)
 
     def friction(self) -> ca.SX:

@@ -14,7 +14,6 @@ The armature has no velocity dependence and adds nothing."""
 from __future__ import annotations
 
 import casadi as ca
-import numpy as np
 
 from robotgen.model.chain import PRISMATIC, KinematicTree
 from robotgen.symbolic.rigid_body.kinematics import JointMotion, joint_poses
@@ -76,10 +75,3 @@ def coriolis_spatial(tree: KinematicTree, motions: list[JointMotion], qd: ca.SX)
                 C[j, i] = ca.dot(S[j], f_i)
             j = tree.joints[j].parent
     return C
-
-
-def op_count(expr: ca.SX, *symbols: ca.SX) -> int:
-    """Arithmetic operations CasADi would emit for ``expr`` (after its CSE)."""
-    f = ca.Function("count", list(symbols), [ca.densify(expr)], {"cse": True})
-    skip = {ca.OP_INPUT, ca.OP_OUTPUT, ca.OP_CONST}
-    return int(np.sum([f.instruction_id(k) not in skip for k in range(f.n_instructions())]))

@@ -1,0 +1,132 @@
+"""The hand of a 6-joint chain in Lee and Lee's terms (1983, §2), as CasADi graphs: its pose
+(eq 1), roll-pitch-yaw (eq 2), twist (eq 8), the Euler-rate map (eqs 6-7), the resolved
+motion maps from hand to joint rates and accelerations (eqs 11, 13), inverse kinematics, and
+the Newton-Euler torques (Luh, Walker, Paul 1980).
+
+Every quantity is a CasADi Function of the chain's joint state, built once from the chain's
+graphs (robotgen.symbolic.rigid_body.chain) and called on whatever joint values a law needs
+(measured or resolved): a call on SX arguments inlines the graph."""
+from __future__ import annotations
+
+import dataclasses
+
+import casadi as ca
+import numpy as np
+
+from robotgen.model.chain import KinematicTree
+from robotgen.numeric import exact
+from robotgen.symbolic.rigid_body.chain import ChainGraphs, Symbols
+from robotgen.symbolic.rigid_body.rpy import rpy_of, rpy_rates
+
+N = 6
+
+
+def pose_rows(pose: ca.SX) -> tuple[ca.SX, ca.SX]:
+    """(R, p) of a 4x4 homogeneous transform given as 16 entries, row-major."""
+    R = ca.vertcat(*[ca.horzcat(*[pose[4 * i + k] for k in range(3)]) for i in range(3)])
+    return R, ca.vertcat(*[pose[4 * i + 3] for i in range(3)])
+
+
+def orientation_error(R_d: ca.SX, R: ca.SX) -> ca.SX:
+    """(n x n_d + s x s_d + a x a_d) / 2 (Luh, Walker, Paul 1980): the vector part of
+    R_d R^T, sin(angle) times the axis that turns R into R_d (base coordinates)."""
+    E = R_d @ R.T
+    return 0.5 * ca.vertcat(E[2, 1] - E[1, 2], E[0, 2] - E[2, 0], E[1, 0] - E[0, 1])
+
+
+def wrap(angle: ca.SX) -> ca.SX:
+    """An angle difference in (-pi, pi]."""
+    return ca.atan2(ca.sin(angle), ca.cos(angle))
+
+
+class Hand:
+    """The hand frame of ``tree`` (its tip frame times ``tool``) and what the laws need."""
+
+    def __init__(self, tree: KinematicTree, tool: np.ndarray):
+        tree = dataclasses.replace(tree, tool=exact.matmul(tree.tool, tool))
+        self.tree = tree
+        s = Symbols.make(tree.nq)
+        self.sym = s
+        g = ChainGraphs(tree, s)
+        fk = g.fk()
+        self._pose = ca.Function("hand_pose", [s.q], [fk[:3, :3], fk[:3, 3]])
+        self._jacobian = ca.Function("hand_jacobian", [s.q], [g.jacobian()])
+        self._bias = ca.Function("hand_bias", [s.q, s.qd], [g.jacobian_dot_qd()])
+        self._torque = ca.Function("newton_euler", [s.q, s.qd, s.qdd], [g.inverse_dynamics()])
+        self._accel = ca.Function("joint_accelerations", [s.q, s.qd, s.tau], [g.forward_dynamics()])
+
+    # -- kinematics (§2) ---------------------------------------------------------------
+    def pose(self, q: ca.SX) -> tuple[ca.SX, ca.SX]:
+        """(R, p) of the hand in the base frame (eq 1)."""
+        R, p = self._pose(q)
+        return R, p
+
+    def jacobian(self, q: ca.SX) -> ca.SX:
+        """6 x 6: [v; Omega] = J qd (eqs 8-9)."""
+        return self._jacobian(q)
+
+    def bias(self, q: ca.SX, qd: ca.SX) -> ca.SX:
+        """Jdot qd: the hand acceleration at qdd = 0 (eq 10), from Newton-Euler's forward pass."""
+        return self._bias(q, qd)
+
+    def state(self, q: ca.SX, qd: ca.SX) -> ca.SX:
+        """x = (p, Phi, v, Omega) (eq 20)."""
+        R, p = self.pose(q)
+        return ca.vertcat(p, rpy_of(R), self.jacobian(q) @ qd)
+
+    # -- resolved motion (eqs 11, 13) --------------------------------------------------
+    def joint_rates(self, q: ca.SX, twist: ca.SX) -> ca.SX:
+        """qd = J^-1 [v; Omega] (eq 11), by a solve."""
+        return ca.solve(self.jacobian(q), twist)
+
+    def joint_accelerations(self, q: ca.SX, qd: ca.SX, accel: ca.SX) -> ca.SX:
+        """qdd = J^-1 ([vdot; Omegadot] - Jdot qd) (eq 13), by a solve."""
+        return ca.solve(self.jacobian(q), accel - self.bias(q, qd))
+
+    def inverse_kinematics(self, R_d: ca.SX, p_d: ca.SX, q0: ca.SX, iterations: int) -> ca.SX:
+        """q with the hand at (R_d, p_d): Newton steps q <- q + J^-1 [p_d - p; e_o] from q0 (a
+        prediction close to the answer: the fixed count is then enough, and the graph stays
+        straight-line code)."""
+        q = q0
+        for _ in range(iterations):
+            R, p = self.pose(q)
+            q = q + ca.solve(self.jacobian(q), ca.vertcat(p_d - p, orientation_error(R_d, R)))
+        return q
+
+    # -- dynamics -----------------------------------------------------------------------
+    def torques(self, q: ca.SX, qd: ca.SX, qdd: ca.SX) -> ca.SX:
+        """Newton-Euler joint torques (with the chain's armature and friction)."""
+        return self._torque(q, qd, qdd)
+
+    def hand_dynamics(self, q: ca.SX, qd: ca.SX, u: ca.SX) -> ca.SX:
+        """xdot = f(x, u) of eq 19 at the joint state (q, qd) that x stands for:
+        (v, Phidot = M(Phi) Omega (eq 7), [vdot; Omegadot] = Jdot qd + J D^-1 (u - H - G))."""
+        R, _ = self.pose(q)
+        twist = self.jacobian(q) @ qd
+        accel = self.bias(q, qd) + self.jacobian(q) @ self._accel(q, qd, u)
+        return ca.vertcat(twist[:3], rpy_rates(rpy_of(R), twist[3:]), accel)
+
+    def linearisation(self, q: ca.SX, qd: ca.SX, u: ca.SX) -> tuple[ca.SX, ca.SX]:
+        """F = df/dx and L = df/du at the nominal (eqs 24-28), by AD. x = x(q, qd) is a local
+        change of coordinates wherever J is invertible, so df/dx = d f / d(q, qd) (d x / d(q,
+        qd))^-1."""
+        zq, zqd, zu = ca.SX.sym("zq", N), ca.SX.sym("zqd", N), ca.SX.sym("zu", N)
+        f = self.hand_dynamics(zq, zqd, zu)
+        x = self.state(zq, zqd)
+        joint = ca.vertcat(zq, zqd)
+        F_joint = ca.Function("F", [zq, zqd, zu], [ca.jacobian(f, joint), ca.jacobian(x, joint), ca.jacobian(f, zu)])
+        dfdz, dxdz, L = F_joint(q, qd, u)
+        F = ca.solve(dxdz.T, dfdz.T).T  # dfdz dxdz^-1
+        return F, L
+
+
+def discretise(F: ca.SX, L: ca.SX, T: float, terms: int = 4) -> tuple[ca.SX, ca.SX]:
+    """A = exp(F T) and B = int_0^T exp(F s) ds L (eqs 29-32, F and L held over the period),
+    by their series to ``terms`` terms (F T is small at servo rates)."""
+    n = F.shape[0]
+    A, S, term = ca.SX.eye(n), ca.SX.eye(n) * T, ca.SX.eye(n)
+    for k in range(1, terms):
+        term = term @ F * (T / k)
+        A = A + term
+        S = S + term * (T / (k + 1))
+    return A, S @ L

@@ -1,0 +1,71 @@
+"""Resolved acceleration control (Luh, Walker and Paul 1980), the hand-space computed torque
+that Lee and Lee 1983 set beside their adaptive law: a root law on a 6-joint chain.
+
+    e = (p_d - p, orientation error of R_d R^T),  e' = twist_d - J qd,
+    xdd* = accel_d + Kv e' + Kp e,
+    qdd  = J^-1 (xdd* - Jdot qd)          (eq 13 with the commanded hand acceleration),
+    tau  = Newton-Euler(q, qd, qdd).
+
+With an exact model the hand error obeys e'' + Kv e' + Kp e = 0 (to first order in the
+orientation error). The module is the chain's functions plus resolved_acceleration_step."""
+from __future__ import annotations
+
+import casadi as ca
+
+from robotgen.model.laws import RESOLVED_ACCELERATION
+from robotgen.model.parameter_struct import runtime_parameters
+from robotgen.model.system import RobotSystem
+from robotgen.symbolic.control.hand import Hand, orientation_error, pose_rows
+from robotgen.symbolic.control.law import Controller, RootLaw
+from robotgen.symbolic.kernel import Kernel, ParameterSymbols, make_kernel
+from robotgen.symbolic.leaf_kernels import leaf_kernels
+
+STEP = "resolved_acceleration_step"
+
+
+def gains(node, parameters: ParameterSymbols) -> tuple[ca.SX, ca.SX]:
+    s = node.hand
+    if f"{node.name}_kp" in parameters.symbols:
+        return parameters.symbols[f"{node.name}_kp"], parameters.symbols[f"{node.name}_kv"]
+    return ca.SX(ca.DM(s.kp)), ca.SX(ca.DM(s.kv))
+
+
+def kernels(system: RobotSystem) -> list[Kernel]:
+    node = system.root_node
+    tree = system.nodes[node.robot].leaf
+    parameters = ParameterSymbols.of(runtime_parameters(system))
+    hand = Hand(tree, node.hand.tool)
+    q, qd = ca.SX.sym("q", 6), ca.SX.sym("qd", 6)
+    pose_d, twist_d, accel_d = ca.SX.sym("pose_d", 16), ca.SX.sym("twist_d", 6), ca.SX.sym("accel_d", 6)
+    R_d, p_d = pose_rows(pose_d)
+    R, p = hand.pose(q)
+    J = hand.jacobian(q)
+    Kp, Kv = gains(node, parameters)
+    e = ca.vertcat(p_d - p, orientation_error(R_d, R))
+    command = accel_d + Kv * (twist_d - J @ qd) + Kp * e
+    qdd = ca.solve(J, command - hand.bias(q, qd))
+    tau = hand.torques(q, qd, qdd)
+    step = make_kernel(
+        STEP, "Resolved acceleration control (Luh, Walker, Paul 1980), one sampling period: joint torques "
+        "for the desired hand pose (4x4, base frame), twist [v; omega] and its derivative, from the "
+        "measured joint state: Newton-Euler at qdd = J^-1 (accel_d + Kv e' + Kp e - Jdot qd). Also the "
+        "hand error e (position, then the orientation error's vector part).",
+        [("q", q), ("qd", qd), ("pose_d", pose_d, (4, 4)), ("twist_d", twist_d), ("accel_d", accel_d)],
+        [("tau", tau, (6, 1)), ("error", e, (6, 1))], parameters)
+    return leaf_kernels(tree) + [step]
+
+
+def report(system: RobotSystem) -> tuple[dict, dict]:
+    node = system.root_node
+    s = node.hand
+    info = {"controller": system.root, "robot": node.robot, "law": RESOLVED_ACCELERATION, "period": s.period,
+            "kp": [float(v) for v in s.kp], "kv": [float(v) for v in s.kv],
+            "tool": [[float(v) for v in row] for row in s.tool]}
+    return {"hand_control": info}, {}
+
+
+def controller(system: RobotSystem) -> Controller:
+    return Controller("ResolvedAccelerationController", STEP, system.root_node.hand.period)
+
+
+LAW = RootLaw(RESOLVED_ACCELERATION, kernels, report, controller)
