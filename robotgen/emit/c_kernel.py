@@ -4,6 +4,10 @@ Signature: ``int <prefix>_<kernel>(const real *<in>..., real *<out>...)``, retur
 Every pointer is required (never NULL) and must hold its port's size; outputs must not
 overlap inputs, because inputs are read while outputs are being written. The body uses
 only local scalars ``w0, w1, ...`` (CasADi's work registers): no statics, no heap, no I/O.
+
+A kernel's run-time parameter port (``Port.parameters``, robotgen.symbolic.kernel.PARAMS)
+is ``const <prefix>_params *params`` instead: element k of the port is read as the field
+(or field element) that holds element k of the parameters' values concatenated.
 """
 from __future__ import annotations
 
@@ -16,7 +20,7 @@ import casadi as ca
 import numpy as np
 
 from robotgen.emit.sx_program import Instruction, KernelError, Program, read_program
-from robotgen.symbolic.kernel import Kernel
+from robotgen.symbolic.kernel import PARAMS, Kernel, Port
 
 
 @dataclass(frozen=True)
@@ -83,8 +87,8 @@ C_KEYWORDS = frozenset(
     "auto break case char const continue default do double else enum extern float for goto "
     "if inline int long register restrict return short signed sizeof static struct switch "
     "typedef union unsigned void volatile while _Bool _Complex _Imaginary".split())
-_RESERVED = (C_KEYWORDS | _MATH_FUNCTIONS | {f + "f" for f in _MATH_FUNCTIONS}
-             | {"INFINITY", "NAN"})
+RESERVED = (C_KEYWORDS | _MATH_FUNCTIONS | {f + "f" for f in _MATH_FUNCTIONS}
+            | {"INFINITY", "NAN"})
 _IDENTIFIER = re.compile(r"[A-Za-z_][A-Za-z0-9_]*\Z")
 _REGISTER = re.compile(r"w[0-9]+\Z")
 
@@ -99,8 +103,30 @@ def function_name(prefix: str, kernel: Kernel) -> str:
     return f"{prefix}_{kernel.name}"
 
 
+def is_parameter_port(port: Port) -> bool:
+    """Whether ``port`` carries the module's run-time parameters (a struct, not an array)."""
+    return port.name == PARAMS and bool(port.parameters)
+
+
+def params_type(prefix: str) -> str:
+    """The C struct of a module's run-time parameters."""
+    return f"{prefix}_params"
+
+
+def parameter_elements(port: Port) -> list[str]:
+    """The C expression reading each element of a parameter port, in port order."""
+    elements = []
+    for parameter in port.parameters:
+        if parameter.shape:
+            elements += [f"{port.name}->{parameter.name}[{j}]" for j in range(parameter.size)]
+        else:
+            elements.append(f"{port.name}->{parameter.name}")
+    return elements
+
+
 def prototype(prefix: str, kernel: Kernel, precision: Precision) -> str:
-    params = [f"const {precision.real} *{p.name}" for p in kernel.inputs]
+    params = [f"const {params_type(prefix)} *{p.name}" if is_parameter_port(p)
+              else f"const {precision.real} *{p.name}" for p in kernel.inputs]
     params += [f"{precision.real} *{p.name}" for p in kernel.outputs]
     return f"int {function_name(prefix, kernel)}({', '.join(params) or 'void'})"
 
@@ -110,8 +136,9 @@ def kernel_source(prefix: str, kernel: Kernel, precision: Precision,
     """The C definition of ``kernel``; ``program`` may be passed if already read."""
     _check_ports(kernel)
     program = program or read_program(kernel)
-    body = [_statement(step, kernel, precision) for step in program.instructions]
-    zero = _literal(0.0, precision)
+    fields = {i: parameter_elements(p) for i, p in enumerate(kernel.inputs) if is_parameter_port(p)}
+    body = [_statement(step, kernel, precision, fields) for step in program.instructions]
+    zero = literal(0.0, precision)
     for port_index, elements in program.unwritten_outputs:
         name = kernel.outputs[port_index].name
         body += [f"{name}[{e}] = {zero};" for e in elements]
@@ -132,19 +159,22 @@ def _check_ports(kernel: Kernel) -> None:
     names = [p.name for p in (*kernel.inputs, *kernel.outputs)]
     for name in names:
         check_identifier(name, f"kernel {kernel.name!r}: port")
-        if name in _RESERVED or _REGISTER.match(name):
+        if name in RESERVED or _REGISTER.match(name):
             raise KernelError(f"kernel {kernel.name!r}: port name {name!r} is reserved in C")
     if len(set(names)) != len(names):
         raise KernelError(f"kernel {kernel.name!r}: port names repeat: {names}")
 
 
-def _statement(step: Instruction, kernel: Kernel, precision: Precision) -> str:
+def _statement(step: Instruction, kernel: Kernel, precision: Precision,
+               fields: dict[int, list[str]]) -> str:
+    if step.op == ca.OP_INPUT and step.port in fields:
+        return f"w{step.target} = {fields[step.port][step.element]};"
     if step.op == ca.OP_INPUT:
         return f"w{step.target} = {kernel.inputs[step.port].name}[{step.element}];"
     if step.op == ca.OP_OUTPUT:
         return f"{kernel.outputs[step.port].name}[{step.element}] = w{step.args[0]};"
     if step.op == ca.OP_CONST:
-        return f"w{step.target} = {_literal(step.constant, precision)};"
+        return f"w{step.target} = {literal(step.constant, precision)};"
     if step.op not in OPERATIONS:
         raise KernelError(f"kernel {kernel.name!r}: CasADi operation {step.op_name} "
                           "has no C translation")
@@ -153,11 +183,11 @@ def _statement(step: Instruction, kernel: Kernel, precision: Precision) -> str:
         raise KernelError(f"kernel {kernel.name!r}: {step.op_name} with {len(step.args)} "
                           f"operands, expected {arity}")
     expression = pattern.format(*(f"w{r}" for r in step.args), fs=precision.math_suffix,
-                                one=_literal(1.0, precision), zero=_literal(0.0, precision))
+                                one=literal(1.0, precision), zero=literal(0.0, precision))
     return f"w{step.target} = {expression};"
 
 
-def _literal(value: float, precision: Precision) -> str:
+def literal(value: float, precision: Precision) -> str:
     """A C literal that reads back as exactly ``value`` (rounded to float for float)."""
     if precision.real == "float":
         with np.errstate(over="ignore"):

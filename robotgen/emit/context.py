@@ -2,16 +2,18 @@
 from __future__ import annotations
 
 import json
+import math
 from dataclasses import dataclass
 
 import casadi as ca
 
 import robotgen
 from robotgen.emit import c_kernel
-from robotgen.emit.c_kernel import PRECISIONS, KernelError, check_identifier
+from robotgen.emit.c_kernel import PRECISIONS, KernelError, check_identifier, is_parameter_port
 from robotgen.emit.sx_program import Program, read_program
+from robotgen.model.parameters import RuntimeParameter
 from robotgen.progress import QUIET, Progress
-from robotgen.symbolic.kernel import Kernel, Port
+from robotgen.symbolic.kernel import PARAMS, Kernel, Port
 
 # Module attributes the extension defines itself.
 MODULE_NAMES = frozenset({"nq", "info"})
@@ -22,6 +24,15 @@ INFO_KEYS = frozenset({"name", "nq", "functions", "robotgen_version", "spec_sha2
 STUB_NAMES = frozenset({"np", "npt", "Any"})
 INFO_DOC = ("A new dict describing this module: name, nq, nodes, functions, robotgen_version, "
             "spec_sha256, precision.")
+# A module with run-time parameters also has these attributes and info() key.
+PARAMETER_MODULE_NAMES = frozenset({"parameters"})
+PARAMETERS_INFO_DOC = INFO_DOC[:-1] + ", parameters."
+PARAMETERS_ATTRIBUTE_DOC = (
+    "Run-time parameters: {names}. Every function that reads them takes each as a "
+    "keyword-only argument whose default is the spec's value; `parameters` maps each name "
+    "to that default (a float, or a new float64 array at each import). Changing "
+    "`parameters` does not change the defaults; pass the keyword instead. They are not "
+    "batched: one value applies to every point of a batch.")
 _SIN_COS = frozenset({ca.OP_SIN, ca.OP_COS})
 _NOT_ARITHMETIC = frozenset({ca.OP_INPUT, ca.OP_OUTPUT, ca.OP_CONST, ca.OP_ASSIGN})
 
@@ -39,6 +50,28 @@ class PortView:
 
 
 @dataclass(frozen=True)
+class ParameterView:
+    """One field of the module's ``<name>_params`` struct and keyword-only Python argument."""
+
+    name: str
+    shape: tuple[int, ...]  # () a number, (n,), (r, c) row-major
+    ndim: int
+    dims: tuple[int, int]  # the shape padded with zeros to two entries
+    size: int
+    offset: int  # index of its first element in the parameters' values concatenated
+    shape_text: str  # "()" / "(3,)" / "(3, 3)"
+    expected: str  # what a value must be, for error messages
+    declaration: str  # the C field: "double kp" / "double kd[3]" / "double K[9]"
+    doc: str
+    doc_lines: tuple[str, ...]  # the doc, safe inside a C comment
+    c_default: tuple[str, ...]  # C initializer of the field, in the module's precision: a line per row
+    default_values: tuple[str, ...]  # exact double literals of the default, row-major
+    default: float | list  # the default shaped (json and info())
+    py_default: str  # Python literal of the default (the text signature)
+    stub_type: str  # "float" / "npt.ArrayLike"
+
+
+@dataclass(frozen=True)
 class FunctionView:
     name: str  # Python name and kernel name
     c_name: str  # <module>_<name>
@@ -52,6 +85,7 @@ class FunctionView:
     stub_doc: str  # Python string literal: the doc's first paragraph on one line (for the .pyi)
     arithmetic_ops: int  # SX instructions other than input, output, constant, copy
     sin_cos_ops: int
+    reads_parameters: bool  # the kernel has the PARAMS port: every parameter is a keyword
 
 
 @dataclass(frozen=True)
@@ -73,6 +107,11 @@ class ModuleView:
     attribute_names: tuple[str, ...]  # the extra module attributes, sorted
     stub_doc: str  # Python string literal: the module docstring
     stub_info_doc: str  # Python string literal: info()'s docstring
+    # Run-time parameters (empty when no kernel has the PARAMS port; then nothing emitted
+    # differs from a module built before parameters existed).
+    parameters: tuple[ParameterView, ...] = ()
+    params_type: str = ""  # <name>_params
+    params_default_macro: str = ""  # <NAME>_PARAMS_DEFAULT
 
 
 def module_view(name: str, kernels: list[Kernel], *, nq: int, precision: str,
@@ -84,39 +123,124 @@ def module_view(name: str, kernels: list[Kernel], *, nq: int, precision: str,
     names = [k.name for k in kernels]
     for kernel_name in names:
         check_identifier(kernel_name, "kernel name")
+    parameters = _module_parameters(name, kernels, PRECISIONS[precision])
     attributes = dict(attributes or {})
     for attribute in attributes:
         check_identifier(attribute, "module attribute")
-    taken = [*MODULE_NAMES, *names, *attributes]
+    taken = [*MODULE_NAMES, *(PARAMETER_MODULE_NAMES if parameters else ()), *names, *attributes]
     if len(set(taken)) != len(taken):
         raise KernelError(f"module {name!r}: names repeat among {sorted(taken)}")
     if STUB_NAMES & set(taken):
         raise KernelError(f"module {name!r}: {sorted(STUB_NAMES & set(taken))} are reserved "
                           "(the module's .pyi stub imports them)")
+    if parameters and PARAMS in names:
+        raise KernelError(f"module {name!r}: a function named {PARAMS!r} would clash with the "
+                          f"C type {c_kernel.params_type(name)}")
     extra_info = dict(extra_info or {})
-    if INFO_KEYS & extra_info.keys():
-        raise KernelError(f"extra_info may not set {sorted(INFO_KEYS & extra_info.keys())}")
+    info_keys = INFO_KEYS | ({"parameters"} if parameters else set())
+    if info_keys & extra_info.keys():
+        raise KernelError(f"extra_info may not set {sorted(info_keys & extra_info.keys())}")
     functions = []
     for i, k in enumerate(kernels):
         progress.step(i + 1, len(kernels), f"printing C: {k.name}")
-        functions.append(_function_view(name, k, PRECISIONS[precision]))
+        functions.append(_function_view(name, k, PRECISIONS[precision], parameters))
     functions = tuple(functions)
     _check_macros_unique(name, functions)
     info = {"nodes": [], **extra_info, "name": name, "nq": nq, "functions": names,
             "robotgen_version": robotgen.__version__, "spec_sha256": spec_sha256,
             "precision": precision}
+    if parameters:
+        info["parameters"] = [{"name": p.name, "shape": list(p.shape), "default": p.default,
+                               "doc": p.doc} for p in parameters]
     module_doc = (f"{name}: robot functions generated by robotgen {robotgen.__version__}.\n\n"
                   f"Functions: {', '.join(names)}. Arrays are float64, matrices row-major; "
                   "a leading batch axis B on every argument gives results with that axis.")
+    if parameters:
+        module_doc += "\n\n" + PARAMETERS_ATTRIBUTE_DOC.format(
+            names=", ".join(p.name for p in parameters))
+    keyword_names = {p.name for f in functions for p in f.inputs} | {p.name for p in parameters}
     return ModuleView(
         name=name, macro_prefix=name.upper(), precision=precision,
         real=PRECISIONS[precision].real, nq=nq, robotgen_version=robotgen.__version__,
         casadi_version=ca.__version__, spec_sha256=spec_sha256, functions=functions,
         info=info, module_doc=c_string(module_doc), info_json=c_string(to_json(info, None)),
         attributes_json=c_string(to_json(attributes, None)),
-        keyword_names=tuple(sorted({p.name for f in functions for p in f.inputs})),
+        keyword_names=tuple(sorted(keyword_names)),
         attribute_names=tuple(sorted(attributes)), stub_doc=py_string(module_doc),
-        stub_info_doc=py_string(INFO_DOC))
+        stub_info_doc=py_string(PARAMETERS_INFO_DOC if parameters else INFO_DOC),
+        parameters=parameters, params_type=c_kernel.params_type(name) if parameters else "",
+        params_default_macro=f"{name.upper()}_PARAMS_DEFAULT" if parameters else "")
+
+
+def _module_parameters(name: str, kernels: list[Kernel],
+                       precision: c_kernel.Precision) -> tuple[ParameterView, ...]:
+    """The module's parameter struct: the one ``parameters`` tuple that every PARAMS port
+    shares (checked, as is the port's place and size), as views; () without such ports."""
+    found: tuple[RuntimeParameter, ...] | None = None
+    for kernel in kernels:
+        for i, port in enumerate(kernel.inputs):
+            if not port.parameters:
+                continue
+            if port.name != PARAMS or i != len(kernel.inputs) - 1:
+                raise KernelError(f"kernel {kernel.name!r}: run-time parameters ride only on the "
+                                  f"last input, named {PARAMS!r}; got {port.name!r} at {i}")
+            if found is not None and port.parameters != found:
+                raise KernelError(f"module {name!r}: kernel {kernel.name!r} lists other run-time "
+                                  "parameters than an earlier kernel; a module has one struct")
+            found = port.parameters
+            total = sum(p.size for p in found)
+            if port.cols != 1 or port.rows != total:
+                raise KernelError(f"kernel {kernel.name!r}: port {PARAMS!r} is "
+                                  f"{port.rows}x{port.cols}, its parameters hold {total}")
+    if found is None:
+        return ()
+    views, offset = [], 0
+    for parameter in found:
+        views.append(_parameter_view(parameter, offset, precision))
+        offset += parameter.size
+    names = [p.name for p in views]
+    if len(set(names)) != len(names):
+        raise KernelError(f"module {name!r}: run-time parameter names repeat: {names}")
+    for kernel in kernels:
+        if kernel.inputs and is_parameter_port(kernel.inputs[-1]):
+            clash = sorted({p.name for p in kernel.inputs[:-1]} & set(names))
+            if clash:
+                raise KernelError(f"kernel {kernel.name!r}: inputs {clash} have the names of "
+                                  "run-time parameters (its keyword arguments)")
+    return tuple(views)
+
+
+def _parameter_view(parameter: RuntimeParameter, offset: int,
+                    precision: c_kernel.Precision) -> ParameterView:
+    what = f"run-time parameter {parameter.name!r}"
+    check_identifier(parameter.name, what)
+    if parameter.name in c_kernel.RESERVED:
+        raise KernelError(f"{what}: the name is reserved in C")
+    shape = tuple(int(d) for d in parameter.shape)
+    if len(shape) > 2 or any(d < 1 for d in shape):
+        raise KernelError(f"{what}: shape {shape} is not (), (n,) or (rows, cols)")
+    values = [float(v) for v in parameter.default]
+    if len(values) != parameter.size or not all(math.isfinite(v) for v in values):
+        raise KernelError(f"{what}: default {parameter.default} is not {parameter.size} finite numbers")
+    dims = ", ".join(str(d) for d in shape)
+    shape_text = f"({dims},)" if len(shape) == 1 else f"({dims})"
+    literals = [c_kernel.literal(v, precision) for v in values]
+    if shape:
+        default: float | list = (values if len(shape) == 1 else
+                                 [values[r * shape[1]:(r + 1) * shape[1]] for r in range(shape[0])])
+    else:
+        default = values[0]
+    doc = parameter.doc.strip()
+    return ParameterView(
+        name=parameter.name, shape=shape, ndim=len(shape), dims=(*shape, 0, 0)[:2],
+        size=parameter.size, offset=offset, shape_text=shape_text,
+        expected=f"a float64 array of shape {shape_text}" if shape else "a number (float64 of shape ())",
+        declaration=f"{precision.real} {parameter.name}" + (f"[{parameter.size}]" if shape else ""),
+        doc=doc,
+        doc_lines=tuple(line.replace("*/", "* /").rstrip() for line in (doc or parameter.name).splitlines()),
+        c_default=_initializer(literals, shape),
+        default_values=tuple(repr(v) for v in values), default=default, py_default=repr(default),
+        stub_type="npt.ArrayLike" if shape else "float")
 
 
 def to_json(value, indent: int | None = 2) -> str:
@@ -166,23 +290,27 @@ def _c_char(byte: int) -> str:
     return f"\\{byte:03o}"
 
 
-def _function_view(prefix: str, kernel: Kernel, precision: c_kernel.Precision) -> FunctionView:
+def _function_view(prefix: str, kernel: Kernel, precision: c_kernel.Precision,
+                   parameters: tuple[ParameterView, ...]) -> FunctionView:
     if not kernel.outputs:
         raise KernelError(f"kernel {kernel.name!r} has no outputs")
     program = read_program(kernel)
     macro = f"{prefix}_{kernel.name}".upper()
-    inputs = tuple(_port_view(p, macro) for p in kernel.inputs)
+    reads_parameters = bool(kernel.inputs) and is_parameter_port(kernel.inputs[-1])
+    arrays = kernel.inputs[:-1] if reads_parameters else kernel.inputs
+    inputs = tuple(_port_view(p, macro) for p in arrays)
     outputs = tuple(_port_view(p, macro) for p in kernel.outputs)
     arithmetic, sin_cos = _count_operations(program)
+    keywords = parameters if reads_parameters else ()
     return FunctionView(
         name=kernel.name, c_name=c_kernel.function_name(prefix, kernel), doc=kernel.doc.strip(),
         doc_lines=tuple(line.replace("*/", "* /").rstrip()
                         for line in (kernel.doc.strip() or kernel.name).splitlines()),
         prototype=c_kernel.prototype(prefix, kernel, precision),
         definition=c_kernel.kernel_source(prefix, kernel, precision, program),
-        inputs=inputs, outputs=outputs, py_doc=c_string(_py_doc(kernel, inputs, outputs)),
+        inputs=inputs, outputs=outputs, py_doc=c_string(_py_doc(kernel, inputs, outputs, keywords)),
         stub_doc=py_string(_summary(kernel.doc, kernel.name)),
-        arithmetic_ops=arithmetic, sin_cos_ops=sin_cos)
+        arithmetic_ops=arithmetic, sin_cos_ops=sin_cos, reads_parameters=reads_parameters)
 
 
 def _port_view(port: Port, macro: str) -> PortView:
@@ -196,13 +324,32 @@ def _port_view(port: Port, macro: str) -> PortView:
         batch_shape_text=f"(B, {dims})", size_macro=f"{macro}_{port.name.upper()}_SIZE")
 
 
-def _py_doc(kernel: Kernel, inputs: tuple[PortView, ...], outputs: tuple[PortView, ...]) -> str:
-    signature = ", ".join(["$module", *(p.name for p in inputs)])
+def _initializer(literals: list[str], shape: tuple[int, ...]) -> tuple[str, ...]:
+    """A field's C initializer: ``2.5``, ``{1.0, 2.0}``, or a matrix's rows on lines of
+    their own (``{1.0, 0.0,`` / `` 0.0, 1.0}``)."""
+    if not shape:
+        return (literals[0],)
+    cols = shape[-1] if len(shape) == 2 else len(literals)
+    rows = [", ".join(literals[r:r + cols]) for r in range(0, len(literals), cols)]
+    return tuple(("{" if r == 0 else " ") + row + ("}" if r == len(rows) - 1 else ",")
+                 for r, row in enumerate(rows))
+
+
+def _py_doc(kernel: Kernel, inputs: tuple[PortView, ...], outputs: tuple[PortView, ...],
+            parameters: tuple[ParameterView, ...]) -> str:
+    keywords = ["*", *(f"{p.name}={p.py_default}" for p in parameters)] if parameters else []
+    signature = ", ".join(["$module", *(p.name for p in inputs), *keywords])
     lines = [f"{kernel.name}({signature})", "--", "", kernel.doc.strip() or kernel.name, ""]
     lines += [f"{p.name}: float64 array {p.shape_text} or {p.batch_shape_text}" for p in inputs]
+    for p in parameters:
+        kind = "float64 array " + p.shape_text if p.shape else "number"
+        lines.append(f"{p.name}: {kind}, keyword-only, default {p.py_default}"
+                     + (f". {_summary(p.doc, '')}" if p.doc else ""))
     returned = ", ".join(f"{p.name} {p.shape_text}" for p in outputs)
     lines.append(f"Returns {returned}" + (" as a tuple" if len(outputs) > 1 else "")
                  + "; batched inputs give a leading B axis.")
+    if parameters:
+        lines.append("The run-time parameters are not batched: one value applies to every point.")
     return "\n".join(lines)
 
 

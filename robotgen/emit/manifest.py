@@ -8,8 +8,10 @@ from robotgen.emit.context import ModuleView, PortView, to_json
 
 def manifest_json(view: ModuleView, sources: dict[str, str]) -> str:
     """Deterministic text (sorted keys, no timestamps or paths): the module's info()
-    plus the CasADi version, each function's ports and operation counts, and the sha256
-    of every other emitted file (so a manifest alone pins a build byte for byte)."""
+    (with its "parameters" list, name, shape, default and doc, when it has run-time
+    parameters) plus the CasADi version, each function's ports (the parameter struct is not
+    a port: "reads_parameters" says which functions take it) and operation counts, and the
+    sha256 of every other emitted file (so a manifest alone pins a build byte for byte)."""
     manifest = {
         **view.info,
         "casadi_version": view.casadi_version,
@@ -23,6 +25,8 @@ def manifest_json(view: ModuleView, sources: dict[str, str]) -> str:
                 "outputs": [_port(p) for p in f.outputs],
                 "arithmetic_ops": f.arithmetic_ops,
                 "sin_cos_ops": f.sin_cos_ops,
+                # only in a module with run-time parameters (info()["parameters"] lists them)
+                **({"reads_parameters": f.reads_parameters} if view.parameters else {}),
             }
             for f in view.functions
         ],
