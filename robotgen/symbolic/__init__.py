@@ -5,6 +5,6 @@ Coriolis, Cholesky); define, attach and control/ the three primitives of Deno et
 system composes them over a robot tree, servo into one servo step, plant into the true
 constrained dynamics; module says what a system's module emits."""
 from robotgen.symbolic.leaf_kernels import leaf_kernels
-from robotgen.symbolic.module import kernels_for, module_extras
+from robotgen.symbolic.module import controllers_for, kernels_for, module_extras
 
-__all__ = ["kernels_for", "leaf_kernels", "module_extras"]
+__all__ = ["controllers_for", "kernels_for", "leaf_kernels", "module_extras"]

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from robotgen.model.parameter_struct import runtime_parameters
 from robotgen.model.system import RobotSystem
+from robotgen.symbolic.control.law import Controller
 from robotgen.symbolic.control.root_laws import ROOT_LAWS
 from robotgen.symbolic.kernel import Kernel, ParameterSymbols
 from robotgen.symbolic.leaf_kernels import leaf_kernels
@@ -29,3 +30,10 @@ def module_extras(system: RobotSystem) -> tuple[dict, dict]:
     if system.root_law is not None:
         return ROOT_LAWS[system.root_law].report(system)
     return {}, {}
+
+
+def controllers_for(system: RobotSystem) -> list[Controller]:
+    """The controller classes the module offers (a hand law's), each around one of the
+    kernels."""
+    law = ROOT_LAWS.get(system.root_law) if system.root_law else None
+    return [law.controller(system)] if law is not None and law.controller is not None else []
