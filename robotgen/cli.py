@@ -14,6 +14,7 @@ import robotgen
 from robotgen.emit.compile import NoCompiler
 from robotgen.errors import UserError, UserErrors
 from robotgen.model.describe import system_info, system_nq
+from robotgen.model.laws import RESOLVED_ADAPTIVE
 from robotgen.progress import Progress
 from robotgen.progress import for_terminal as progress_for_terminal
 
@@ -182,7 +183,42 @@ def _cmd_info(args: argparse.Namespace) -> int:
             print(f"    - {j['name']}: {j['type']}, parent {j['parent']}{rng}")
         if node.get("locked_joints"):
             print(f"    locked at q = 0: {', '.join(node['locked_joints'])}")
+    if system.root_law == RESOLVED_ADAPTIVE:
+        from robotgen.symbolic import module_extras  # lazy: CasADi only where it is needed
+
+        print(operation_table(module_extras(system)[0]["hand_control"]))
     return EXIT_OK
+
+
+def operation_table(hand: dict) -> str:
+    """One period of the adaptive controller, stage by stage, beside Lee and Lee's Table 1."""
+    counts, table = hand["operation_counts"], hand["table_1"]
+    lines = ["  operations per sampling period, each stage's graph alone (Lee and Lee 1983, Table 1 beside):",
+             f"    {'stage':44} {'mul':>6} {'add':>6} {'trig':>5} {'other':>6}   {'Table 1 mul':>11} {'add':>5}"]
+    totals = [0, 0]
+    for part in ("feedforward", "feedback"):
+        lines.append(f"    {part}")
+        for name, c in counts[part].items():
+            if name == "total":
+                continue
+            ref = table[part][name]
+            lines.append(f"      {name:42} {c['mul']:6d} {c['add']:6d} {c['trig']:5d} {c['other']:6d}   "
+                         f"{ref['mul']:11d} {ref['add']:5d}")
+        c = counts[part]["total"]
+        ref_mul, ref_add = (sum(r[k] for r in table[part].values()) for k in ("mul", "add"))
+        totals[0] += ref_mul
+        totals[1] += ref_add
+        lines.append(f"      {'total ' + part:42} {c['mul']:6d} {c['add']:6d} {c['trig']:5d} {c['other']:6d}   "
+                     f"{ref_mul:11d} {ref_add:5d}")
+    both = {k: counts["feedforward"]["total"][k] + counts["feedback"]["total"][k]
+            for k in ("mul", "add", "trig", "other")}
+    lines.append(f"    {'both':44} {both['mul']:6d} {both['add']:6d} {both['trig']:5d} {both['other']:6d}   "
+                 f"{totals[0]:11d} {totals[1]:5d}")
+    step = counts.get("step")
+    if step:
+        lines.append(f"    {'emitted step (stages fused, terms shared)':44} {step['mul']:6d} {step['add']:6d} "
+                     f"{step['trig']:5d} {step['other']:6d}")
+    return "\n".join(lines)
 
 
 def _parser() -> argparse.ArgumentParser:

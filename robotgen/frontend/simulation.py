@@ -76,6 +76,9 @@ class SimulationReader(Collector):
         """A hand controller's run: theta0 (the chain's joints), amplitude and frequency on the
         hand's x, y, z, roll, pitch, yaw about its start pose, payload_change."""
         path: Path = ("simulation",)
+        if "dt" in spec:
+            self.at_key(path + ("dt",), "a hand controller runs at its own period (its settings' period); "
+                                        "the simulation steps with it")
         for key in ("start", "initial_error", "internal_forces"):
             if key in spec:
                 self.at_key(path + (key,), f"'{key}' applies to robot trees; a hand controller starts at theta0 "

@@ -131,16 +131,14 @@ def one_step_control(A: ca.SX, B: ca.SX, dx: ca.SX, q, r) -> ca.SX:
     return -cholesky_solve(H, QB.T @ (A @ dx))
 
 
-def kernels(system: RobotSystem) -> list[Kernel]:
+def step_graph(system: RobotSystem) -> tuple[list[tuple], list[tuple], ParameterSymbols]:
+    """The step kernel's inputs and outputs (make_kernel's form) and the parameters."""
     node = system.root_node
     s: AdaptiveSettings = node.hand
-    tree = system.nodes[node.robot].leaf
     parameters = ParameterSymbols.of(runtime_parameters(system))
-    hand = Hand(tree, s.tool)
+    hand = Hand(system.nodes[node.robot].leaf, s.tool)
     w = Weights(node.name, s, parameters)
     T = s.period
-
-    # the step
     i = Inputs()
     state = ca.SX.sym("state", STATE_SIZE)
     adapt = ca.SX.sym("adapt")
@@ -153,14 +151,24 @@ def kernels(system: RobotSystem) -> list[Kernel]:
     tau = ff["u_n"] + du
     new = {"A": A, "B": B, "P": P, "phi": ca.vertcat(dx, du), "q_d": ff["q_d"], "qd_d": ff["qd_d"],
            "qdd_d": ff["qdd_d"]}
+    inputs = [*i.ports(), ("state", state), ("adapt", adapt)]
+    outputs = [("tau", tau, (NU, 1)), ("dx", dx, (NX, 1)), ("state_next", pack(new), (STATE_SIZE, 1))]
+    return inputs, outputs, parameters
+
+
+def kernels(system: RobotSystem) -> list[Kernel]:
+    node = system.root_node
+    s: AdaptiveSettings = node.hand
+    tree = system.nodes[node.robot].leaf
+    hand = Hand(tree, s.tool)
+    T = s.period
+    inputs, outputs, parameters = step_graph(system)
     step = make_kernel(
         STEP, "Resolved motion adaptive control (Lee and Lee 1983), one sampling period: Newton-Euler "
         "feedforward along the resolved desired trajectory plus the one-step optimal feedback (eq 39) of "
         "the RLS-identified perturbation model (eq 37); adapt = 0 freezes the identification. The state "
         "(A, B, P, the last phi, the resolved joint trajectory) comes from adaptive_init or the previous "
-        "step. Also the hand perturbation dx (eq 20).",
-        [*i.ports(), ("state", state), ("adapt", adapt)],
-        [("tau", tau, (NU, 1)), ("dx", dx, (NX, 1)), ("state_next", pack(new), (STATE_SIZE, 1))], parameters)
+        "step. Also the hand perturbation dx (eq 20).", inputs, outputs, parameters)
 
     # the first state after a reset: the linearised model at the nominal
     j = Inputs()
@@ -222,10 +230,13 @@ def stage_counts(system: RobotSystem) -> dict:
                                                  [one_step_control(A, B, dx, sym["Q"], sym["R"])]),
         },
     }
-    out = {part: {name: count_operations(*graph) for name, graph in parts.items()} for part, parts in stages.items()}
+    out: dict = {part: {name: count_operations(*graph) for name, graph in parts.items()}
+                 for part, parts in stages.items()}
     for part in stages:
         out[part]["total"] = {k: sum(c[k] for c in out[part].values())
                               for k in ("mul", "add", "trig", "other", "total")}
+    inputs, outputs, parameters = step_graph(system)
+    out["step"] = count_operations([i[1] for i in inputs] + [parameters.vector], [o[1] for o in outputs])
     return out
 
 
