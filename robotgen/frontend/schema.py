@@ -179,7 +179,7 @@ _DEFS = {
         "a rigid payload body (never actuated), planar or spatial",
         {"planar": _object("a body moving in a plane, coordinates (x, y, psi): M = diag(m, m, I), "
                            "C = 0, N = -m (gx, gy, 0)",
-                           {"mass": _number("mass [kg], >= 0", minimum=0),
+                           {"mass": _parameter("mass [kg], >= 0", minimum=0),
                             "inertia": _number("moment of inertia about the centre of mass "
                                                "[kg m^2], >= 0", minimum=0)},
                            ("mass", "inertia")),
