@@ -80,7 +80,7 @@ def _cmd_build(args: argparse.Namespace) -> int:
         print(f"robotgen: {out} is up to date")
         return EXIT_OK
     from robotgen.emit.build import emit
-    from robotgen.symbolic import kernels_for, module_extras
+    from robotgen.symbolic import controllers_for, kernels_for, module_extras
 
     progress.stage(f"building the CasADi graphs of {system.name} ({len(system.nodes)} node(s))")
     kernels = kernels_for(system)
@@ -89,7 +89,8 @@ def _cmd_build(args: argparse.Namespace) -> int:
     try:
         emit(out, system.name, kernels, nq=system_nq(system), precision=args.precision,
              compile=not args.no_compile, extra_info={**system_info(system), **extra_info},
-             spec_sha256=system.source_sha256, attributes=attributes, progress=progress)
+             spec_sha256=system.source_sha256, attributes=attributes, progress=progress,
+             controllers=controllers_for(system))
     except FileExistsError as e:
         print(f"robotgen: error: {e}", file=sys.stderr)
         return EXIT_USER
@@ -106,7 +107,7 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     from robotgen.emit.build import emit
     from robotgen.model.signature import robot_leaves
     from robotgen.model.simulation import SimulationSettings, rest_posture
-    from robotgen.symbolic import kernels_for
+    from robotgen.symbolic import controllers_for, kernels_for
 
     progress = _progress(args)
     system = _load(args)
@@ -127,7 +128,7 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
         build = Path(tmp) / system.name
         progress.stage(f"compiling {system.name}'s servo step and plant")
         emit(build, system.name, kernels_for(system), nq=system_nq(system), extra_info=system_info(system),
-             spec_sha256=system.source_sha256)
+             spec_sha256=system.source_sha256, controllers=controllers_for(system))
         module = simulate.load_module(build, system.name)
         progress.stage(f"simulating {settings.duration:g} s at dt = {settings.dt:g} s")
         try:

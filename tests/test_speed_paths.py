@@ -14,9 +14,9 @@ from robotgen.cli import main
 from robotgen.frontend.urdf import read_urdf
 from robotgen.model.snap import SNAP_TOLERANCE, snap_tree
 from robotgen.symbolic.leaf_kernels import leaf_kernels
+from robotgen.symbolic.op_count import count_operations
 from robotgen.symbolic.rigid_body.chain import ChainGraphs, Symbols
 from robotgen.symbolic.rigid_body.christoffel import coriolis_matrix
-from robotgen.symbolic.op_count import count_operations
 from robotgen.symbolic.rigid_body.coriolis import coriolis_spatial
 
 TWO_LINK = Path(__file__).resolve().parent.parent / "specs" / "two_link.yaml"

@@ -10,6 +10,7 @@ from robotgen.emit.context import module_view
 from robotgen.emit.manifest import manifest_json
 from robotgen.emit.render import render_all
 from robotgen.progress import QUIET, Progress
+from robotgen.symbolic.control.law import Controller
 from robotgen.symbolic.kernel import Kernel
 
 MANIFEST = "manifest.json"
@@ -17,17 +18,21 @@ MANIFEST = "manifest.json"
 
 def emit(out_dir: Path, name: str, kernels: list[Kernel], *, nq: int,
          precision: str = "double", compile: bool = True, extra_info: dict | None = None,
-         spec_sha256: str = "", attributes: dict | None = None, progress: Progress = QUIET) -> Path:
+         spec_sha256: str = "", attributes: dict | None = None, progress: Progress = QUIET,
+         controllers: list[Controller] | None = None) -> Path:
     """Writes ``<name>.h``, ``<name>.c``, ``<name>_module.c``, the stub ``<name>.pyi``,
     ``Makefile`` (with ``<name>.pc.in`` and ``<name>Config.cmake.in``, which its ``install``
     target fills in), ``manifest.json`` and (if ``compile``) the extension
     ``<name><EXT_SUFFIX>`` to ``out_dir``, replacing a
     previous build there. ``extra_info`` adds keys to info() and the manifest (e.g.
-    ``nodes``); ``attributes`` adds json-valued module attributes. Everything is made in a
+    ``nodes``); ``attributes`` adds json-valued module attributes; ``controllers`` (each
+    around kernels of ``kernels``) adds a state struct with reset and step functions to the C
+    and a class to the extension (robotgen.emit.controllers). Everything is made in a
     temporary sibling directory first, so a failure leaves ``out_dir`` as it was."""
     out_dir = Path(out_dir)
     view = module_view(name, kernels, nq=nq, precision=precision, spec_sha256=spec_sha256,
-                       extra_info=extra_info, attributes=attributes, progress=progress)
+                       extra_info=extra_info, attributes=attributes, progress=progress,
+                       controllers=tuple(controllers or ()))
     sources = render_all(view)
     files = {**sources, MANIFEST: manifest_json(view, sources)}
     _check_replaceable(out_dir)

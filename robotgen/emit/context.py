@@ -10,9 +10,12 @@ import casadi as ca
 import robotgen
 from robotgen.emit import c_kernel
 from robotgen.emit.c_kernel import PRECISIONS, KernelError, check_identifier, is_parameter_port
+from robotgen.emit.controllers import PARAMETERS_CLASS, ControllerView, controller_view, controllers_note
+from robotgen.emit.literals import c_string, py_string
 from robotgen.emit.sx_program import Program, read_program
 from robotgen.model.parameters import RuntimeParameter
 from robotgen.progress import QUIET, Progress
+from robotgen.symbolic.control.law import Controller
 from robotgen.symbolic.kernel import PARAMS, Kernel, Port
 
 # Module attributes the extension defines itself.
@@ -33,6 +36,12 @@ PARAMETERS_ATTRIBUTE_DOC = (
     "to that default (a float, or a new float64 array at each import). Changing "
     "`parameters` does not change the defaults; pass the keyword instead. They are not "
     "batched: one value applies to every point of a batch.")
+# A module with controller classes also has the info() key "controllers" (and the stub imports
+# these names).
+CONTROLLER_STUB_NAMES = frozenset({"Iterator", "Mapping", "final"})
+CONTROLLERS_DOC = ("Controllers: {names}. Each is a class holding one arm's controller state: "
+                   "construct it, call step(q, qd, pose_d, twist_d, accel_d) once per period "
+                   "for the torques, reset() to restart; help() on the class tells more.")
 _SIN_COS = frozenset({ca.OP_SIN, ca.OP_COS})
 _NOT_ARITHMETIC = frozenset({ca.OP_INPUT, ca.OP_OUTPUT, ca.OP_CONST, ca.OP_ASSIGN})
 
@@ -112,11 +121,18 @@ class ModuleView:
     parameters: tuple[ParameterView, ...] = ()
     params_type: str = ""  # <name>_params
     params_default_macro: str = ""  # <NAME>_PARAMS_DEFAULT
+    # Controller classes (empty: nothing emitted differs from a module built before them).
+    controllers: tuple[ControllerView, ...] = ()
+    parameters_class: str = ""  # the type of a controller's `parameters`, when one reads them
+    controllers_note: tuple[str, ...] = ()  # the header's first comment on them
+    zero: str = "0.0"  # C literals of the module's precision
+    one: str = "1.0"
 
 
 def module_view(name: str, kernels: list[Kernel], *, nq: int, precision: str,
                 spec_sha256: str, extra_info: dict | None, attributes: dict | None,
-                progress: Progress = QUIET) -> ModuleView:
+                progress: Progress = QUIET, controllers: list[Controller] | tuple[Controller, ...] = ()
+                ) -> ModuleView:
     if precision not in PRECISIONS:
         raise ValueError(f"precision must be one of {sorted(PRECISIONS)}, got {precision!r}")
     check_identifier(name, "module name")
@@ -127,17 +143,21 @@ def module_view(name: str, kernels: list[Kernel], *, nq: int, precision: str,
     attributes = dict(attributes or {})
     for attribute in attributes:
         check_identifier(attribute, "module attribute")
-    taken = [*MODULE_NAMES, *(PARAMETER_MODULE_NAMES if parameters else ()), *names, *attributes]
+    classes = [c.class_name for c in controllers]
+    parameters_class = PARAMETERS_CLASS if parameters and controllers else ""
+    taken = [*MODULE_NAMES, *(PARAMETER_MODULE_NAMES if parameters else ()), *names, *attributes, *classes,
+             *([parameters_class] if parameters_class else [])]
     if len(set(taken)) != len(taken):
         raise KernelError(f"module {name!r}: names repeat among {sorted(taken)}")
-    if STUB_NAMES & set(taken):
-        raise KernelError(f"module {name!r}: {sorted(STUB_NAMES & set(taken))} are reserved "
+    stub_names = STUB_NAMES | (CONTROLLER_STUB_NAMES if controllers else set())
+    if stub_names & set(taken):
+        raise KernelError(f"module {name!r}: {sorted(stub_names & set(taken))} are reserved "
                           "(the module's .pyi stub imports them)")
     if parameters and PARAMS in names:
         raise KernelError(f"module {name!r}: a function named {PARAMS!r} would clash with the "
                           f"C type {c_kernel.params_type(name)}")
     extra_info = dict(extra_info or {})
-    info_keys = INFO_KEYS | ({"parameters"} if parameters else set())
+    info_keys = INFO_KEYS | ({"parameters"} if parameters else set()) | ({"controllers"} if controllers else set())
     if info_keys & extra_info.keys():
         raise KernelError(f"extra_info may not set {sorted(info_keys & extra_info.keys())}")
     functions = []
@@ -145,19 +165,29 @@ def module_view(name: str, kernels: list[Kernel], *, nq: int, precision: str,
         progress.step(i + 1, len(kernels), f"printing C: {k.name}")
         functions.append(_function_view(name, k, PRECISIONS[precision], parameters))
     functions = tuple(functions)
-    _check_macros_unique(name, functions)
+    by_name = {f.name: f for f in functions}
+    views = tuple(controller_view(name, c, by_name, PRECISIONS[precision], parameters) for c in controllers)
+    _check_controller_names(name, functions, views)
+    _check_macros_unique(name, functions, views)
     info = {"nodes": [], **extra_info, "name": name, "nq": nq, "functions": names,
             "robotgen_version": robotgen.__version__, "spec_sha256": spec_sha256,
             "precision": precision}
     if parameters:
         info["parameters"] = [{"name": p.name, "shape": list(p.shape), "default": p.default,
                                "doc": p.doc} for p in parameters]
+    if views:
+        info["controllers"] = [v.info for v in views]
     module_doc = (f"{name}: robot functions generated by robotgen {robotgen.__version__}.\n\n"
                   f"Functions: {', '.join(names)}. Arrays are float64, matrices row-major; "
                   "a leading batch axis B on every argument gives results with that axis.")
     if parameters:
         module_doc += "\n\n" + PARAMETERS_ATTRIBUTE_DOC.format(
             names=", ".join(p.name for p in parameters))
+    if views:
+        module_doc += "\n\n" + CONTROLLERS_DOC.format(names=", ".join(v.class_name for v in views))
+    info_doc = PARAMETERS_INFO_DOC if parameters else INFO_DOC
+    if views:
+        info_doc = info_doc[:-1] + ", controllers."
     keyword_names = {p.name for f in functions for p in f.inputs} | {p.name for p in parameters}
     return ModuleView(
         name=name, macro_prefix=name.upper(), precision=precision,
@@ -167,9 +197,12 @@ def module_view(name: str, kernels: list[Kernel], *, nq: int, precision: str,
         attributes_json=c_string(to_json(attributes, None)),
         keyword_names=tuple(sorted(keyword_names)),
         attribute_names=tuple(sorted(attributes)), stub_doc=py_string(module_doc),
-        stub_info_doc=py_string(PARAMETERS_INFO_DOC if parameters else INFO_DOC),
+        stub_info_doc=py_string(info_doc),
         parameters=parameters, params_type=c_kernel.params_type(name) if parameters else "",
-        params_default_macro=f"{name.upper()}_PARAMS_DEFAULT" if parameters else "")
+        params_default_macro=f"{name.upper()}_PARAMS_DEFAULT" if parameters else "",
+        controllers=views, parameters_class=parameters_class if any(v.reads_parameters for v in views) else "",
+        controllers_note=controllers_note(views),
+        zero=c_kernel.literal(0.0, PRECISIONS[precision]), one=c_kernel.literal(1.0, PRECISIONS[precision]))
 
 
 def _module_parameters(name: str, kernels: list[Kernel],
@@ -249,45 +282,10 @@ def to_json(value, indent: int | None = 2) -> str:
                       allow_nan=False, separators=None if indent else (",", ":"))
 
 
-def c_string(text: str) -> str:
-    """``text`` as adjacent C string literals, one per line of text; ASCII only."""
-    pieces = []
-    for line in text.splitlines(keepends=True) or [""]:
-        escaped = "".join(_c_char(c) for c in line.encode("utf-8"))
-        pieces.append(f'"{escaped}"')
-    return "\n    ".join(pieces)
-
-
-def py_string(text: str) -> str:
-    """``text`` as a triple-quoted Python string literal (a docstring); ASCII only."""
-    return '"""' + "".join(_py_char(c) for c in text) + '"""'
-
-
-def _py_char(char: str) -> str:
-    if char == "\n":
-        return char
-    if char in '"\\':
-        return "\\" + char
-    if 32 <= ord(char) < 127:
-        return char
-    return f"\\x{ord(char):02x}" if ord(char) < 256 else char.encode("unicode_escape").decode()
-
-
 def _summary(doc: str, fallback: str) -> str:
     """The first paragraph of ``doc`` on one line."""
     paragraph = doc.strip().split("\n\n")[0]
     return " ".join(paragraph.split()) or fallback
-
-
-def _c_char(byte: int) -> str:
-    char = chr(byte)
-    if char == "\n":
-        return "\\n"
-    if char in '"\\?':  # '?' escaped so no trigraph forms under -std=c99
-        return "\\" + char
-    if 32 <= byte < 127:
-        return char
-    return f"\\{byte:03o}"
 
 
 def _function_view(prefix: str, kernel: Kernel, precision: c_kernel.Precision,
@@ -358,8 +356,22 @@ def _count_operations(program: Program) -> tuple[int, int]:
     return (sum(op not in _NOT_ARITHMETIC for op in ops), sum(op in _SIN_COS for op in ops))
 
 
-def _check_macros_unique(name: str, functions: tuple[FunctionView, ...]) -> None:
+def _check_controller_names(name: str, functions: tuple[FunctionView, ...],
+                            controllers: tuple[ControllerView, ...]) -> None:
+    """The controllers' C names (struct types, reset and step) clash neither with each other
+    nor with the kernels and the parameter struct."""
+    c_names = [f.c_name for f in functions] + [c_kernel.params_type(name)]
+    for c in controllers:
+        c_names += [c.c_type, c.c_reset, c.c_step]
+    if len(set(c_names)) != len(c_names):
+        raise KernelError(f"module {name!r}: C names of the controllers clash: {sorted(c_names)}")
+
+
+def _check_macros_unique(name: str, functions: tuple[FunctionView, ...],
+                         controllers: tuple[ControllerView, ...] = ()) -> None:
     macros = [p.size_macro for f in functions for p in (*f.inputs, *f.outputs)]
     macros.append(f"{name.upper()}_NQ")
+    for c in controllers:
+        macros += [f"{c.macro}_PERIOD", f"{c.macro}_STATE_SIZE", *(v.offset_macro for v in c.views)]
     if len(set(macros)) != len(macros):
         raise KernelError(f"module {name!r}: size macros clash: {sorted(macros)}")
