@@ -30,6 +30,7 @@ demo:
 bench:
 	$(PYTHON) -m pip install --quiet cmeel-eigen==3.4.1 cmeel-urdfdom-headers==3.0.0  # headers for bench/pinocchio_harness.cpp (the pin wheel has neither)
 	$(PYTHON) bench/run.py
+	$(PYTHON) bench/controllers.py  # servo step with run-time vs folded gains; hand controllers in C vs CasADi
 	$(PYTHON) bench/scaling.py  # build s and ns per call vs dof: chains of 2..30 links, a humanoid tree (~5 min)
 
 # Refresh tests/golden/ (every spec's manifest, the small specs whole); tests/test_golden.py

@@ -14,7 +14,7 @@ import robotgen
 from robotgen.emit.compile import NoCompiler
 from robotgen.errors import UserError, UserErrors
 from robotgen.model.describe import system_info, system_nq
-from robotgen.model.laws import RESOLVED_ADAPTIVE
+from robotgen.model.laws import HAND_LAWS, RESOLVED_ADAPTIVE
 from robotgen.progress import Progress
 from robotgen.progress import for_terminal as progress_for_terminal
 
@@ -103,7 +103,7 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     import dataclasses
     import tempfile
 
-    from robotgen import simulate
+    from robotgen import hand_simulation, simulate
     from robotgen.emit.build import emit
     from robotgen.model.signature import robot_leaves
     from robotgen.model.simulation import SimulationSettings, rest_posture
@@ -114,8 +114,12 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     if system.is_single_leaf:
         raise _Usage("simulate needs a robot tree (attach/control); for one chain see examples/demo.py")
     if system.is_rate_controlled:
-        raise _Usage("simulate runs torque trees; a resolved_rate controller outputs joint rates: "
+        raise _Usage("simulate runs torque controllers; a resolved_rate controller outputs joint rates: "
                      "integrate its rate_step / position_step (docs/python-api.md shows how)")
+    hand = system.root_law in HAND_LAWS
+    if hand and args.dt is not None:
+        raise _Usage(f"a {system.root_law} controller runs at its own period "
+                     f"({system.root_node.hand.period:g} s); --dt applies to robot trees")
     settings = system.simulation or SimulationSettings()
     overrides = {k: getattr(args, k) for k in ("duration", "dt") if getattr(args, k) is not None}
     for k, value in overrides.items():
@@ -130,21 +134,24 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
         emit(build, system.name, kernels_for(system), nq=system_nq(system), extra_info=system_info(system),
              spec_sha256=system.source_sha256, controllers=controllers_for(system))
         module = simulate.load_module(build, system.name)
-        progress.stage(f"simulating {settings.duration:g} s at dt = {settings.dt:g} s")
+        step = system.root_node.hand.period if hand else settings.dt
+        progress.stage(f"simulating {settings.duration:g} s at dt = {step:g} s")
         try:
-            result = simulate.run(module, settings, rest)
+            result = (hand_simulation.run(module, system, settings) if hand
+                      else simulate.run(module, settings, rest))
         except simulate.SimulationError as e:
             in_spec = e.field is not None and e.field in settings.locations
             where = settings.locations[e.field] if in_spec else system.location_of(system.root)
             raise UserError(where, f"simulation.{e.field}: {e}" if in_spec else str(e)) from None
     out.mkdir(parents=True, exist_ok=True)
-    simulate.write_csv(result, out / f"{system.name}.csv")
+    kind = hand_simulation if hand else simulate
+    kind.write_csv(result, out / f"{system.name}.csv")
     try:
-        simulate.plot(result, out / f"{system.name}.png", f"{system.name}: {system.root}")
+        kind.plot(result, out / f"{system.name}.png", f"{system.name}: {system.root} ({system.root_node.primitive})")
         plotted = f" and {out / (system.name + '.png')}"
     except ImportError:
         plotted = " (no PNG: matplotlib is missing; pip install matplotlib)"
-    print(simulate.summary(result))
+    print(kind.summary(result))
     print(f"robotgen: wrote {out / (system.name + '.csv')}{plotted}")
     return EXIT_OK
 

@@ -4,10 +4,10 @@ start pose plus amplitude sin(2 pi frequency t) on x, y, z, roll, pitch, yaw, an
 changing mid-run (the plant's hand picks up a point mass the controller is not told about).
 
 The plant is the chain's forward dynamics (the spec's model, and the same with the payload
-added to the last link at the hand), integrated by RK4; the controller runs once per
-sampling period on the sensed joint state and its torques are held over the period. An
-adaptive controller is run twice, adapting and with its identification frozen (adapt =
-False), so that the plot compares them."""
+added to the last link at the hand), integrated by RK4 from theta0 with the joint rates of
+the path's start (eq 11); the controller runs once per sampling period on the sensed joint
+state and its torques are held over the period. An adaptive controller is run twice, adapting
+and with its identification frozen (adapt = False), so that the plot compares them."""
 from __future__ import annotations
 
 import csv
@@ -90,6 +90,7 @@ def run(module, system: RobotSystem, s: SimulationSettings) -> HandResult:
     q_sym = hand.sym.q
     R_sym, p_sym = hand.pose(q_sym)
     pose_f = ca.Function("pose", [q_sym], [R_sym, p_sym, rpy_of(R_sym)])
+    rates_f = ca.Function("rates", [q_sym, hand.sym.qd], [hand.joint_rates(q_sym, hand.sym.qd)])
     q0 = np.asarray(s.theta0 if s.theta0 is not None else np.zeros(tree.nq), float)
     hand_point = exact.matmul(tree.tool, node.hand.tool)[:3, 3]  # the hand origin in the last joint's frame
     change = s.payload_change
@@ -110,12 +111,13 @@ def run(module, system: RobotSystem, s: SimulationSettings) -> HandResult:
         controller = cls()
         if adapt is not None:
             controller.adapt = adapt
-        result.runs.append(_closed_loop(controller, trajectory, plants, change, pose_f, q0, t, key, label))
+        qd0 = np.array(rates_f(q0, trajectory.at(0.0)[1])).ravel()  # the plant starts on the path (eq 11)
+        result.runs.append(_closed_loop(controller, trajectory, plants, change, pose_f, q0, qd0, t, key, label))
     return result
 
 
-def _closed_loop(controller, trajectory: Trajectory, plants, change, pose_f, q0, t, key, label) -> HandRun:
-    q, qd = q0.copy(), np.zeros(len(q0))
+def _closed_loop(controller, trajectory: Trajectory, plants, change, pose_f, q0, qd0, t, key, label) -> HandRun:
+    q, qd = q0.copy(), qd0.copy()
     T = t[1] - t[0] if len(t) > 1 else 1e-3
     P, EP, EO, TAU = [], [], [], []
     for k, tk in enumerate(t):

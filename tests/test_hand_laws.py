@@ -86,7 +86,8 @@ def test_linearised_hand_dynamics_match_finite_differences():
     equations (eq 19) along joint-space perturbations mapped through x(q, qd)."""
     hand, cases = states(np.random.default_rng(3), n=3)
     q, qd, u = (ca.SX.sym(s, 6) for s in ("q", "qd", "u"))
-    F, L = hand.linearisation(q, qd, u)
+    qdd = ca.Function("fd", [hand.sym.q, hand.sym.qd, hand.sym.tau], [hand._accel(hand.sym.q, hand.sym.qd, hand.sym.tau)])(q, qd, u)
+    F, L = hand.linearisation(q, qd, qdd)  # at the acceleration the torques u give
     f = function("f", [q, qd, u], [hand.hand_dynamics(q, qd, u), hand.state(q, qd), F, L])
     h = 1e-6
     for qv, qdv, uv in cases:

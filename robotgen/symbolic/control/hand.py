@@ -16,7 +16,8 @@ import numpy as np
 from robotgen.model.chain import KinematicTree
 from robotgen.numeric import exact
 from robotgen.symbolic.rigid_body.chain import ChainGraphs, Symbols
-from robotgen.symbolic.rigid_body.rpy import rpy_of, rpy_rates
+from robotgen.symbolic.rigid_body.cholesky import cholesky_solve_matrix
+from robotgen.symbolic.rigid_body.rpy import rpy_of, rpy_rate_map, rpy_rates
 
 N = 6
 
@@ -54,6 +55,7 @@ class Hand:
         self._bias = ca.Function("hand_bias", [s.q, s.qd], [g.jacobian_dot_qd()])
         self._torque = ca.Function("newton_euler", [s.q, s.qd, s.qdd], [g.inverse_dynamics()])
         self._accel = ca.Function("joint_accelerations", [s.q, s.qd, s.tau], [g.forward_dynamics()])
+        self._mass = ca.Function("mass", [s.q], [g.mass()])
 
     # -- kinematics (§2) ---------------------------------------------------------------
     def pose(self, q: ca.SX) -> tuple[ca.SX, ca.SX]:
@@ -106,18 +108,49 @@ class Hand:
         accel = self.bias(q, qd) + self.jacobian(q) @ self._accel(q, qd, u)
         return ca.vertcat(twist[:3], rpy_rates(rpy_of(R), twist[3:]), accel)
 
-    def linearisation(self, q: ca.SX, qd: ca.SX, u: ca.SX) -> tuple[ca.SX, ca.SX]:
-        """F = df/dx and L = df/du at the nominal (eqs 24-28), by AD. x = x(q, qd) is a local
-        change of coordinates wherever J is invertible, so df/dx = d f / d(q, qd) (d x / d(q,
-        qd))^-1."""
-        zq, zqd, zu = ca.SX.sym("zq", N), ca.SX.sym("zqd", N), ca.SX.sym("zu", N)
-        f = self.hand_dynamics(zq, zqd, zu)
-        x = self.state(zq, zqd)
-        joint = ca.vertcat(zq, zqd)
-        F_joint = ca.Function("F", [zq, zqd, zu], [ca.jacobian(f, joint), ca.jacobian(x, joint), ca.jacobian(f, zu)])
-        dfdz, dxdz, L = F_joint(q, qd, u)
-        F = ca.solve(dxdz.T, dfdz.T).T  # dfdz dxdz^-1
-        return F, L
+    def linearisation(self, q: ca.SX, qd: ca.SX, qdd: ca.SX) -> tuple[ca.SX, ca.SX]:
+        """F = df/dx and L = df/du (eqs 24-28) at the nominal (q, qd) with u the Newton-Euler
+        torque of the nominal acceleration qdd, by AD.
+
+        f depends on u through qdd = D^-1 (u - H - G) (eq 15); rather than differentiate that
+        solve, the derivatives of qdd come from Newton-Euler's: dqdd/dz = -D^-1 dtau/dz at
+        the nominal, dqdd/du = D^-1 (D is M). The rows of p and Phi are functions of x itself
+        (pdot = v, Phidot = E^-1(Phi) Omega), so their structural zeros stay zeros; for the
+        acceleration rows x = x(q, qd) is a local change of coordinates wherever J is
+        invertible, so df/dx = df/dz (dx/dz)^-1, z = (q, qd); dx/dz is block lower
+        triangular, [T J, 0; W, J] with T = blockdiag(I, E^-1) (eq 7) and W = d(J qd)/dq, so
+        (dx/dz)^-1 = [J^-1 T^-1, 0; -J^-1 W J^-1 T^-1, J^-1]: one 6 x 6 solve."""
+        zq, zqd, zqdd = ca.SX.sym("zq", N), ca.SX.sym("zqd", N), ca.SX.sym("zqdd", N)
+        R, _ = self.pose(zq)
+        J = self.jacobian(zq)
+        twist = J @ zqd
+        rpy = rpy_of(R)
+        z = ca.vertcat(zq, zqd)
+        accel = self.bias(zq, zqd) + J @ zqdd  # [vdot; Omegadot] at qdd (eq 10)
+        # the rows of (p, Phi) are functions of x alone: pdot = v, Phidot = E^-1(Phi) Omega
+        phi, omega = ca.SX.sym("phi", 3), ca.SX.sym("omega", 3)
+        rates = rpy_rates(phi, omega)
+        angular = ca.Function("angular", [phi, omega], [ca.jacobian(rates, phi), ca.jacobian(rates, omega)])
+        parts = ca.Function("parts", [zq, zqd, zqdd], [
+            ca.jacobian(accel, z), J, reverse_jacobian(self.torques(zq, zqd, zqdd), z), ca.jacobian(twist, zq),
+            self._mass(zq), rpy_rate_map(rpy), rpy, twist[3:]])
+        dadz, J, dtaudz, W, M, E, rpy, omega_n = parts(q, qd, qdd)
+        D, Einv = angular(rpy, omega_n)
+        Minv_dtau = cholesky_solve_matrix(M, dtaudz)
+        L = ca.vertcat(ca.SX(6, N), cholesky_solve_matrix(M, J.T).T)  # J D^-1 (M symmetric)
+        dfdz = dadz - J @ Minv_dtau  # the acceleration rows
+        Jinv = ca.solve(J, ca.SX.eye(N))
+        A1, A2 = dfdz[:, :N], dfdz[:, N:]
+        right = A2 @ Jinv
+        left = (A1 - right @ W) @ Jinv @ ca.diagcat(ca.SX.eye(3), E)
+        top = ca.blockcat([[ca.SX(3, 6), ca.SX.eye(3), ca.SX(3, 3)], [ca.SX(3, 3), D, ca.SX(3, 3), Einv]])
+        return ca.vertcat(top, ca.horzcat(left, right)), L
+
+
+def reverse_jacobian(e: ca.SX, x: ca.SX) -> ca.SX:
+    """de/dx by one reverse sweep per entry of e (cheaper than forward sweeps when x is longer)."""
+    n = e.shape[0]
+    return ca.vertcat(*[ca.jtimes(e, x, ca.DM.eye(n)[:, k], True).T for k in range(n)])
 
 
 def discretise(F: ca.SX, L: ca.SX, T: float, terms: int = 4) -> tuple[ca.SX, ca.SX]:
@@ -130,3 +163,4 @@ def discretise(F: ca.SX, L: ca.SX, T: float, terms: int = 4) -> tuple[ca.SX, ca.
         A = A + term
         S = S + term * (T / (k + 1))
     return A, S @ L
+

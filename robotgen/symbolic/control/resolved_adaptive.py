@@ -172,8 +172,8 @@ def kernels(system: RobotSystem) -> list[Kernel]:
 
     # the first state after a reset: the linearised model at the nominal
     j = Inputs()
-    ff0 = feedforward(hand, s, j, j.q, max(3 * s.ik_iterations, 6))
-    F, L = hand.linearisation(ff0["q_d"], ff0["qd_d"], ff0["u_n"])
+    ff0 = feedforward(hand, s, j, j.q, max(2 * s.ik_iterations, 4))
+    F, L = hand.linearisation(ff0["q_d"], ff0["qd_d"], ff0["qdd_d"])
     A0, B0 = discretise(F, L, T)
     first = {"A": A0, "B": B0, "P": s.initial_covariance * ca.SX.eye(NPHI), "phi": ca.SX.zeros(NPHI),
              "q_d": ff0["q_d"], "qd_d": ff0["qd_d"], "qdd_d": ff0["qdd_d"]}
@@ -182,11 +182,7 @@ def kernels(system: RobotSystem) -> list[Kernel]:
         "(inverse kinematics from the measured q) and the perturbation model linearised there (eqs 24-28) "
         "and discretised at T (eqs 29-32); P = p0 I.",
         j.ports(), [("state", pack(first), (STATE_SIZE, 1))], parameters)
-    model = make_kernel(
-        "perturbation_model", "F = df/dx and L = df/du of the hand-space state equations (eq 19) at the "
-        "nominal (q_d, qd_d, u_n) (eqs 24-28), and A, B discretised at T (eqs 29-32).",
-        j.ports(), [("F", F, (NX, NX)), ("L", L, (NX, NU)), ("A", A0, (NX, NX)), ("B", B0, (NX, NU))], parameters)
-    return leaf_kernels(tree) + [step, init, model]
+    return leaf_kernels(tree) + [step, init]
 
 
 # Lee and Lee 1983, Table 1: (multiplications, additions) per stage of one period
