@@ -38,12 +38,6 @@ pytestmark = pytest.mark.skipif(GCC is None, reason="gcc is required")
 
 # ------------------------------------------------------------------------------ helpers
 
-def robotgen_build(spec: Path, out: Path, *options: str) -> Path:
-    subprocess.run([sys.executable, "-m", "robotgen", "build", str(spec), "-o", str(out), "-q", *options],
-                   cwd=ROOT, check=True, capture_output=True, text=True)
-    return out
-
-
 def load_module(directory: Path, name: str):
     path = directory / (name + emit_compile.extension_suffix())
     spec = importlib.util.spec_from_file_location(name, path)
@@ -134,11 +128,13 @@ def rac_spec_text() -> str:
 
 
 class Built:
-    def __init__(self, spec: Path, out: Path):
+    def __init__(self, spec: Path, build_module):
+        """The spec built once per test session (conftest's build_module), so that every
+        test file sees the same module under its name."""
         self.system = load_system(str(spec))
         self.name = self.system.name
-        self.dir = robotgen_build(spec, out)
-        self.module = load_module(out, self.name)
+        self.module = build_module(spec)
+        self.dir = Path(self.module.__file__).parent
         self.kernels = {k.name: k for k in kernels_for(self.system)}
         (self.controller,) = controllers_for(self.system)
         self.cls = getattr(self.module, self.controller.class_name)
@@ -149,15 +145,20 @@ class Built:
 
 
 @pytest.fixture(scope="module")
-def rmac(tmp_path_factory) -> Built:
-    return Built(RMAC_SPEC, tmp_path_factory.mktemp("rmac") / "puma560_rmac")
+def rmac(build_module) -> Built:
+    return Built(RMAC_SPEC, build_module)
+
+
+@pytest.fixture(scope="session")
+def rac_spec_path(tmp_path_factory) -> Path:
+    spec = tmp_path_factory.mktemp("rac_spec") / "puma560_rac.yaml"
+    spec.write_text(rac_spec_text())
+    return spec
 
 
 @pytest.fixture(scope="module")
-def rac(tmp_path_factory) -> Built:
-    spec = tmp_path_factory.mktemp("rac_spec") / "puma560_rac.yaml"
-    spec.write_text(rac_spec_text())
-    return Built(spec, tmp_path_factory.mktemp("rac") / "puma560_rac")
+def rac(build_module, rac_spec_path) -> Built:
+    return Built(rac_spec_path, build_module)
 
 
 # ------------------------------------------------------------------ the adaptive controller

@@ -28,16 +28,16 @@ def rac_spec(tmp_path: Path) -> Path:
     control["law"] = "resolved_acceleration"
     control["resolved_acceleration"] = {"period": control["resolved_adaptive"]["period"],
                                         "tool": control.pop("resolved_adaptive")["tool"]}
-    data["name"] = "puma560_rac"
-    path = tmp_path / "puma560_rac.yaml"
+    data["name"] = "puma560_rac_nominal"  # another module than test_emit_controllers' puma560_rac
+    path = tmp_path / "puma560_rac_nominal.yaml"
     path.write_text(yaml.safe_dump(data, sort_keys=False))
     return path
 
 
-def test_adaptive_control_beats_frozen_and_resolved_acceleration(build_module, tmp_path):
+def test_adaptive_control_beats_frozen_and_resolved_acceleration(build_module, tmp_path_factory):
     rmac_system = load_system(str(RMAC))
     adaptive = run(build_module(RMAC), rmac_system, rmac_system.simulation)
-    rac_path = rac_spec(tmp_path)
+    rac_path = rac_spec(tmp_path_factory.mktemp("hand_control"))
     rac_system = load_system(str(rac_path))
     rac = run(build_module(rac_path), rac_system, rac_system.simulation)
     after = adaptive.t >= rmac_system.simulation.payload_change.at
