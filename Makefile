@@ -2,7 +2,7 @@
 # reproducibility variants).
 PYTHON ?= python3
 # OpenBLAS kernels to build under (test-reproducible): those this CPU can run
-CORETYPES ?= $(shell $(PYTHON) -c "from tests.test_reproducible import coretypes; print(' '.join(coretypes()))" 2>/dev/null)
+CORETYPES ?= $(shell $(PYTHON) -c "from tests.emit.test_reproducible import coretypes; print(' '.join(coretypes()))" 2>/dev/null)
 
 .PHONY: install test lint test-reproducible demo bench golden clean
 
@@ -21,7 +21,7 @@ lint:
 test-reproducible:
 	@for kind in $(CORETYPES); do \
 	  echo "OPENBLAS_CORETYPE=$$kind"; \
-	  OPENBLAS_CORETYPE=$$kind $(PYTHON) -m pytest -q -p no:cacheprovider tests/test_golden.py || exit 1; \
+	  OPENBLAS_CORETYPE=$$kind $(PYTHON) -m pytest -q -p no:cacheprovider tests/emit/test_golden.py || exit 1; \
 	done
 
 demo:
@@ -33,7 +33,7 @@ bench:
 	$(PYTHON) bench/controllers.py  # servo step with run-time vs folded gains; hand controllers in C vs CasADi
 	$(PYTHON) bench/scaling.py  # build s and ns per call vs dof: chains of 2..30 links, a humanoid tree (~5 min)
 
-# Refresh tests/golden/ (every spec's manifest, the small specs whole); tests/test_golden.py
+# Refresh tests/golden/ (every spec's manifest, the small specs whole); tests/emit/test_golden.py
 # checks that a fresh build equals it.
 golden:
 	$(PYTHON) tests/golden/refresh.py

@@ -7,7 +7,7 @@ carries their products. Entries of joint and tool rotations and of joint axes wi
 SNAP_TOLERANCE of 0 or +-1 are snapped, and only when the snapped rotation is still
 orthonormal to 1e-15 (so nothing but noise is ever removed). The snapped model differs
 from the unsnapped one by at most the tolerance in any rotation entry;
-tests check every quantity of both against each other (test_speed_paths.py).
+tests check every quantity of both against each other (tests/dynamics/test_speed_paths.py).
 """
 from __future__ import annotations
 

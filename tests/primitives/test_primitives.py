@@ -18,7 +18,7 @@ import pytest
 import yaml
 from reference import const
 
-SPECS = Path(__file__).resolve().parent.parent / "specs"
+SPECS = Path(__file__).resolve().parents[2] / "specs"
 HIGH, LOW, REDUNDANT = SPECS / "styx_high_ct.yaml", SPECS / "styx_low_ct.yaml", SPECS / "styx_redundant.yaml"
 NOMINAL = np.array([0.0, 0.12, 0.0])
 SCI = {"float_kind": lambda v: f"{v:.1e}"}

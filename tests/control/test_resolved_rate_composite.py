@@ -16,12 +16,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
-from test_rate_control import Graphs, rk4
+from test_resolved_rate_chain import Graphs, rk4
 
 from robotgen.errors import UserErrors
 from robotgen.frontend import load_system
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 SPECS = ROOT / "specs"
 CONTACTS = np.array([[-0.05, 0.0], [0.05, 0.0]])  # the box's contact points, box frame
 START = np.array([0.0, 0.12, 0.0])  # the box pose of the Styx examples

@@ -23,7 +23,7 @@ from robotgen.numeric import exact
 from robotgen.numeric.riccati import RiccatiError, gain, solve_care
 from robotgen.symbolic.control.resolved_rate.regulator import linearise
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def correctly_rounded(f, *args: float) -> float:

@@ -13,7 +13,7 @@ import yaml
 
 from robotgen.cli import main
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 HIGH = ROOT / "specs" / "styx_high_ct.yaml"
 
 

@@ -24,7 +24,7 @@ from robotgen.model.system import (
     PlanarBody,
 )
 
-SPECS = Path(__file__).resolve().parent.parent / "specs"
+SPECS = Path(__file__).resolve().parents[2] / "specs"
 
 
 def write(tmp_path, text: str) -> str:

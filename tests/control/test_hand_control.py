@@ -16,7 +16,7 @@ import yaml
 from robotgen.frontend import load_system
 from robotgen.hand_simulation import run
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 RMAC = ROOT / "specs" / "puma560_rmac.yaml"
 
 

@@ -15,7 +15,7 @@ import pytest
 from robotgen.cli import main
 from robotgen.emit.compile import extension_suffix
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 NAME = "two_link"
 GCC = shutil.which("gcc")
 PKG_CONFIG = shutil.which("pkg-config")

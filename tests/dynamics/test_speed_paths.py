@@ -19,7 +19,7 @@ from robotgen.symbolic.rigid_body.chain import ChainGraphs, Symbols
 from robotgen.symbolic.rigid_body.christoffel import coriolis_matrix
 from robotgen.symbolic.rigid_body.coriolis import coriolis_spatial
 
-TWO_LINK = Path(__file__).resolve().parent.parent / "specs" / "two_link.yaml"
+TWO_LINK = Path(__file__).resolve().parents[2] / "specs" / "two_link.yaml"
 
 
 def test_snapping_removes_only_noise():

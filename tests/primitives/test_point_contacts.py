@@ -13,7 +13,7 @@ import yaml
 from robotgen.model.simulation import SimulationSettings
 from robotgen.simulate import run
 
-SPEC = Path(__file__).resolve().parent.parent / "specs" / "tripod_grasp.yaml"
+SPEC = Path(__file__).resolve().parents[2] / "specs" / "tripod_grasp.yaml"
 
 
 def rot(rpy):

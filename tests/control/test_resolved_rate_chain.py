@@ -22,7 +22,7 @@ from robotgen.errors import UserErrors
 from robotgen.frontend import load_system
 from robotgen.symbolic import kernels_for
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 PUMA_RMRC = ROOT / "specs" / "puma560_rmrc.yaml"
 QN = np.array([0, np.pi / 4, np.pi, 0, np.pi / 4, 0])  # the PUMA's nominal pose
 

@@ -28,7 +28,7 @@ from robotgen.symbolic.control.hand import Hand
 from robotgen.symbolic.control.law import Controller, StateView
 from robotgen.symbolic.kernel import PARAMS, make_kernel
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 RMAC_SPEC = ROOT / "specs" / "puma560_rmac.yaml"
 GCC, CLANG = shutil.which("gcc"), shutil.which("clang")
 STRICT = ["-std=c99", "-Wall", "-Wextra", "-Werror", "-pedantic"]

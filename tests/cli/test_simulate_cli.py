@@ -12,7 +12,7 @@ import numpy as np
 import yaml
 from reference import const
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 HIGH = ROOT / "specs" / "styx_high_ct.yaml"
 
 

@@ -16,7 +16,7 @@ from robotgen.symbolic.control.resolved_adaptive import identify, one_step_contr
 from robotgen.symbolic.rigid_body.rpy import rpy_of, rpy_rates, rpy_rotation
 from robotgen.symbolic.rigid_body.spatial import skew
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 RMAC = ROOT / "specs" / "puma560_rmac.yaml"
 
 

@@ -12,7 +12,7 @@ from ruamel.yaml import YAML
 
 from robotgen.cli import main
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 PUMA = ROOT / "specs" / "puma560.yaml"
 
 BAD = """robotgen: 1

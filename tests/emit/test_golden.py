@@ -13,7 +13,7 @@ from golden.refresh import GOLDEN, emitted, golden_files
 
 from robotgen.cli import main
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 SPECS = sorted((ROOT / "specs").glob("*.yaml"))
 REFRESH = "run `make golden` (tests/golden/refresh.py) and review the diff"
 
