@@ -25,10 +25,12 @@
 // a volatile sink; the loop is calibrated to >= 50 ms and repeated REPEATS times; min and
 // median ns per call. Only the algorithm call is timed (crba fills the upper triangle of
 // data.M, as Pinocchio users get it; symmetrising is not part of the call).
+#include <pinocchio/algorithm/aba-derivatives.hpp>
 #include <pinocchio/algorithm/aba.hpp>
 #include <pinocchio/algorithm/crba.hpp>
 #include <pinocchio/algorithm/frames.hpp>
 #include <pinocchio/algorithm/model.hpp>
+#include <pinocchio/algorithm/rnea-derivatives.hpp>
 #include <pinocchio/algorithm/rnea.hpp>
 #include <pinocchio/multibody.hpp>
 #include <pinocchio/parsers/urdf.hpp>
@@ -238,6 +240,16 @@ int main(int argc, char **argv) {
       });
     else if (fn == "forward_dynamics")
       t = bench([&](int s, long it) { return pinocchio::aba(model, data, CRef(Q[s]), CRef(V[s]), CRef(A[s]))[it % n]; });
+    else if (fn == "inverse_dynamics_derivatives")
+      t = bench([&](int s, long it) {
+        pinocchio::computeRNEADerivatives(model, data, Q[s], V[s], A[s]);
+        return data.dtau_dq(it % n, (it / n) % n) + data.dtau_dv(it % n, (it / n) % n);
+      });
+    else if (fn == "forward_dynamics_derivatives")
+      t = bench([&](int s, long it) {
+        pinocchio::computeABADerivatives(model, data, Q[s], V[s], A[s]);
+        return data.ddq_dq(it % n, (it / n) % n) + data.ddq_dv(it % n, (it / n) % n) + data.Minv(0, it % n);
+      });
     else {
       std::fprintf(stderr, "pinocchio_harness: unknown function '%s'\n", fn.c_str());
       return 2;
