@@ -38,7 +38,7 @@
 #define MIN_NS 5.0e7
 
 static double Q[NSETS][NQ], QD[NSETS][NQ], QDD[NSETS][NQ];
-static double OUT[7 * NQ + NQ * NQ + 16];
+static double OUT[8 * NQ * NQ + 8 * NQ + 16];
 static volatile double sink;
 
 static double now_ns(void) {
@@ -125,5 +125,22 @@ int main(int argc, char **argv) {
               (FN(mass)(Q[s], OUT), FN(nonlinear)(Q[s], QD[s], OUT + NQ * NQ),
                FN(jacobian)(Q[s], OUT + NQ * NQ + NQ),
                FN(jacobian_dot_qd)(Q[s], QD[s], OUT + NQ * NQ + 7 * NQ)));
+#ifdef RG_DERIVATIVES /* the module has the derivative functions */
+    if (selected(argc, argv, "inverse_dynamics_derivatives"))
+        BENCH("inverse_dynamics_derivatives", 2 * NQ * NQ,
+              FN(inverse_dynamics_derivatives)(Q[s], QD[s], QDD[s], OUT, OUT + NQ * NQ));
+    if (selected(argc, argv, "forward_dynamics_derivatives"))
+        BENCH("forward_dynamics_derivatives", 3 * NQ * NQ,
+              FN(forward_dynamics_derivatives)(Q[s], QD[s], QDD[s], OUT, OUT + NQ * NQ, OUT + 2 * NQ * NQ));
+    if (selected(argc, argv, "mass_inverse")) BENCH("mass_inverse", NQ * NQ, FN(mass_inverse)(Q[s], OUT));
+    if (selected(argc, argv, "discrete_dynamics_derivatives")) {
+        static const double dt = 1e-3;
+        BENCH("discrete_dynamics_derivatives", 6 * NQ * NQ + 2 * NQ,
+              FN(discrete_dynamics_derivatives)(Q[s], QD[s], QDD[s], &dt, OUT, OUT + NQ, OUT + 2 * NQ,
+                                                OUT + 2 * NQ + 4 * NQ * NQ));
+    }
+    if (selected(argc, argv, "jacobian_derivative"))
+        BENCH("jacobian_derivative", 6 * NQ, FN(jacobian_derivative)(Q[s], QD[s], OUT));
+#endif
     return sink == 12345.678 ? 1 : 0; /* use sink so it is observable */
 }

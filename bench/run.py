@@ -21,7 +21,9 @@ Then, for each URDF arm (default UR5 and Panda; none when --spec is given, unles
 6. times bench/harness.c on the generated C and bench/pinocchio_harness.cpp (g++ -O2, linked
    against the pin wheel's libpinocchio_default/_parsers, headers from the cmeel packages) on
    the same input states, in alternating rounds, and prints ns per call, the ratio
-   Pinocchio / robotgen (> 1: the generated C is faster) and the generated kernels' op counts.
+   Pinocchio / robotgen (> 1: the generated C is faster) and the generated kernels' op counts,
+   the derivatives of inverse and forward dynamics included (computeRNEADerivatives,
+   computeABADerivatives).
 The compiled Pinocchio harness is cached in bench/out/ (its compile takes ~35 s).
 
 Inputs are random states (angles in [-pi, pi], rates in [-2, 2]); every number is the
@@ -81,7 +83,10 @@ def kernel_sources(out: Path) -> list[Path]:
 def run_c(out: Path, name: str, nq: int, functions: list[str], work: Path) -> dict:
     cc = os.environ.get("CC", "cc")
     exe = work / "harness"
+    derivatives = any(f["name"] == "inverse_dynamics_derivatives"
+                      for f in json.loads((out / "manifest.json").read_text())["functions"])
     cmd = [cc, *CFLAGS, f'-DRG_HEADER="{name}.h"', f"-DRG_PREFIX={name}", f"-DRG_NQ={nq}",
+           *(["-DRG_DERIVATIVES"] if derivatives else []),
            f"-I{out}", str(HERE / "harness.c"), *map(str, kernel_sources(out)), "-lm", "-o", str(exe)]
     if not exe.exists():  # a work directory holds one build (run again in later rounds)
         work.mkdir(parents=True, exist_ok=True)
@@ -158,8 +163,11 @@ PIN_CALLS = {  # robotgen function -> the Pinocchio call timed by bench/pinocchi
     "jacobian": "computeFrameJacobian LOCAL_WORLD_ALIGNED (with its forward kinematics)",
     "coriolis": "computeCoriolisMatrix",
     "forward_dynamics": "aba",
+    "inverse_dynamics_derivatives": "computeRNEADerivatives (dtau_dq, dtau_dv)",
+    "forward_dynamics_derivatives": "computeABADerivatives (ddq_dq, ddq_dv, Minv upper triangle)",
 }
-PIN_FUNCTIONS = ["mass", "inverse_dynamics", "gravity", "jacobian", "coriolis", "forward_dynamics"]
+PIN_FUNCTIONS = ["mass", "inverse_dynamics", "gravity", "jacobian", "coriolis", "forward_dynamics",
+                 "inverse_dynamics_derivatives", "forward_dynamics_derivatives"]
 CXX_FLAGS = ["-std=c++17", "-O2", "-DNDEBUG"]
 CHECK_TOL = 1e-9
 

@@ -112,9 +112,13 @@ def humanoid():
 
 
 def single_leaf_system(tree, source: str = "", sha: str = ""):
+    """Without the derivative functions, so that every size builds the same kernels (the
+    derivatives are timed by bench/run.py against Pinocchio's)."""
+    from robotgen.model.derivatives import DerivativeSettings
     from robotgen.model.system import DefineNode, RobotSystem
 
-    return RobotSystem(tree.name, source, sha, {tree.name: DefineNode(tree.name, tree)}, tree.name)
+    return RobotSystem(tree.name, source, sha, {tree.name: DefineNode(tree.name, tree)}, tree.name,
+                       derivatives=DerivativeSettings(include=False))
 
 
 # --- one model ----------------------------------------------------------------------------

@@ -8,11 +8,13 @@ import os
 import re
 import sys
 import traceback
+from dataclasses import replace
 from pathlib import Path
 
 import robotgen
 from robotgen.emit.compile import NoCompiler
 from robotgen.errors import UserError, UserErrors
+from robotgen.model.derivatives import INTEGRATORS, SEMI_IMPLICIT_EULER, DerivativeSettings
 from robotgen.model.describe import system_info, system_nq
 from robotgen.model.laws import HAND_LAWS, RESOLVED_ADAPTIVE
 from robotgen.progress import Progress
@@ -44,14 +46,20 @@ def _load(args: argparse.Namespace):
             raise _Usage("a URDF needs --tip LINK (or --tree for every joint below the base)")
         else:
             system = load_urdf_system(path, tip=args.tip, base=args.base, name=args.name)
+        if getattr(args, "no_derivatives", False) or getattr(args, "integrator", None):
+            settings = DerivativeSettings(False if args.no_derivatives else None,
+                                          args.integrator or SEMI_IMPLICIT_EULER)
+            system = replace(system, derivatives=settings)
     else:
         from robotgen.frontend import load_system
 
         given = [f"--{k}" for k in ("tip", "base", "name") if getattr(args, k, None)]
         given += ["--tree"] if getattr(args, "tree", False) else []
+        given += ["--no-derivatives"] if getattr(args, "no_derivatives", False) else []
+        given += ["--integrator"] if getattr(args, "integrator", None) else []
         if given:
             raise _Usage(f"{', '.join(given)} appl{'ies' if len(given) == 1 else 'y'} to a URDF file; a spec "
-                         "names its module with its name: key and its chains in its nodes")
+                         "says the same with its name:, nodes: and derivatives: keys")
         system = load_system(path)
     for warning in system.warnings:
         print(warning, file=sys.stderr)
@@ -251,6 +259,10 @@ def _parser() -> argparse.ArgumentParser:
     b.add_argument("--tree", action="store_true",
                    help="URDF: keep every movable joint below the base (a branched tree); --tip then "
                         "only names the frame of fk and jacobian")
+    b.add_argument("--no-derivatives", action="store_true",
+                   help="URDF: leave out the derivative functions (a spec says so in its derivatives section)")
+    b.add_argument("--integrator", choices=list(INTEGRATORS),
+                   help="URDF: the step of discrete_dynamics (default semi_implicit_euler)")
     b.set_defaults(run=_cmd_build)
     for name, run, text in (("check", _cmd_check, "validate only"), ("info", _cmd_info, "print the robot tree")):
         c = sub.add_parser(name, help=text)

@@ -73,7 +73,7 @@ def read_program(kernel: Kernel) -> Program:
         for j, port in enumerate(kernel.outputs)
         if len(out_elements[j]) < port.size
     )
-    return Program(_drop_dead_writes(steps), unwritten)
+    return Program(_shared_reciprocals(_drop_dead_writes(steps)), unwritten)
 
 
 def _check_signature(kernel: Kernel) -> None:
@@ -111,3 +111,46 @@ def _drop_dead_writes(steps: list[Instruction]) -> tuple[Instruction, ...]:
         if len(kept) == len(steps):
             return tuple(steps)
         steps = kept
+
+
+def _shared_reciprocals(steps: tuple[Instruction, ...]) -> tuple[Instruction, ...]:
+    """Divisions by one value (a register between two writes) that occurs more than once
+    become multiplications by its reciprocal, formed once right after the value: a triangular
+    solve with many right-hand sides (M^-1 B) would otherwise divide by L's diagonal in every
+    column, and a division costs several multiplications. New registers are numbered above
+    CasADi's, each written once."""
+    version: dict[int, int] = {}  # register -> index of the step that last wrote it
+    uses: dict[tuple[int, int], int] = {}
+    for k, step in enumerate(steps):
+        if step.op == ca.OP_DIV:
+            key = (step.args[1], version.get(step.args[1], -1))
+            uses[key] = uses.get(key, 0) + 1
+        if step.target >= 0:
+            version[step.target] = k
+    shared = {key for key, count in uses.items() if count > 1}
+    if not shared:
+        return steps
+    fresh = max((s.target for s in steps), default=-1) + 1
+    reciprocal: dict[tuple[int, int], int] = {}
+    out: list[Instruction] = []
+    version = {}
+
+    def add_reciprocal(register: int, defined_at: int) -> None:
+        nonlocal fresh
+        reciprocal[(register, defined_at)] = fresh
+        out.append(Instruction(ca.OP_INV, fresh, (register,)))
+        fresh += 1
+
+    for register, defined_at in sorted(key for key in shared if key[1] < 0):  # registers never written here
+        add_reciprocal(register, defined_at)
+    for k, step in enumerate(steps):
+        if step.op == ca.OP_DIV:
+            key = (step.args[1], version.get(step.args[1], -1))
+            if key in reciprocal:
+                step = Instruction(ca.OP_MUL, step.target, (step.args[0], reciprocal[key]))
+        out.append(step)
+        if step.target >= 0:
+            version[step.target] = k
+            if (step.target, k) in shared:
+                add_reciprocal(step.target, k)
+    return tuple(out)

@@ -12,6 +12,7 @@ from __future__ import annotations
 import json
 
 from robotgen.model.chain import ACCEPTABLE_DEVIATIONS, JOINT_TYPES
+from robotgen.model.derivatives import DEFAULT_MAX_DOF, INTEGRATORS
 from robotgen.model.dh import CONVENTIONS
 from robotgen.model.laws import LAWS
 from robotgen.model.laws.resolved_rate import FRAMES, OBJECTIVES, REDUNDANCY_METHODS
@@ -367,6 +368,17 @@ _DEFS = {
                                    {"at": _number("time of the change [s], >= 0", minimum=0),
                                     "mass": _number("the payload's mass [kg], >= 0", minimum=0)},
                                    ("at", "mass"))}),
+    "derivatives": _object(
+        "the derivative functions of a module whose root is a define leaf (or a hand or "
+        "resolved-rate law on a chain): inverse_dynamics_derivatives, "
+        "forward_dynamics_derivatives, mass_inverse, discrete_dynamics, "
+        "discrete_dynamics_derivatives and, for a chain, jacobian_derivative",
+        {"include": {"type": "boolean",
+                     "description": f"emit them; default true for a define leaf of at most {DEFAULT_MAX_DOF} "
+                                    "coordinates, false otherwise (they grow build time)"},
+         "integrator": {"enum": list(INTEGRATORS),
+                        "description": "the discrete model's step, tau held over it: semi_implicit_euler "
+                                       "(qd+ = qd + dt qdd, q+ = q + dt qd+; default) or rk4"}}),
     "node": {**_object("a node of the robot tree: exactly one primitive key",
                        {key: {"$ref": f"#/$defs/{key}"} for key in PRIMITIVES}),
              "oneOf": _exactly_one_of(PRIMITIVES)},
@@ -384,7 +396,8 @@ SCHEMA: dict = {
                "nodes": {"type": "object", "minProperties": 1, "propertyNames": {"pattern": IDENTIFIER},
                          "additionalProperties": {"$ref": "#/$defs/node"},
                          "description": "the nodes by name (C identifiers)"},
-               "simulation": {"$ref": "#/$defs/simulation"}},
+               "simulation": {"$ref": "#/$defs/simulation"},
+               "derivatives": {"$ref": "#/$defs/derivatives"}},
               ("robotgen", "name", "root", "nodes")),
     "$defs": _DEFS,
 }

@@ -12,6 +12,8 @@ from robotgen.frontend.control.resolved_rate import ResolvedRateReader
 from robotgen.frontend.document import Document, Path, format_path, sort_errors
 from robotgen.frontend.leaves import LeafReader
 from robotgen.frontend.simulation import SimulationReader
+from robotgen.model.derivatives import SEMI_IMPLICIT_EULER, DerivativeSettings
+from robotgen.model.laws import ROOT_LAWS
 from robotgen.model.signature import (
     Signature,
     SignatureError,
@@ -158,6 +160,18 @@ class SpecReader(LeafReader, AttachReader, ControlReader, ResolvedRateReader, Ha
             sig(name)
         return nodes
 
+    def derivatives(self, spec: dict, root: Node | None) -> DerivativeSettings:
+        """The `derivatives` section: asking for them needs a root whose module has a leaf's
+        dynamics (a define leaf, or a chain under a root law)."""
+        settings = DerivativeSettings(spec.get("include"), spec.get("integrator", SEMI_IMPLICIT_EULER))
+        has_dynamics = isinstance(root, DefineNode) or (isinstance(root, ControlNode) and root.law in ROOT_LAWS)
+        if settings.include and root is not None and not has_dynamics:
+            self.at_value(("derivatives", "include"), "derivatives are emitted for a module whose root is a "
+                          "define leaf, or a chain under a root law (resolved_rate, resolved_acceleration, "
+                          f"resolved_adaptive); this root is a{'n' if root.primitive == 'attach' else ''} "
+                          f"{root.primitive} node")
+        return settings
+
     def system(self) -> RobotSystem:
         data = self.doc.data
         nodes = {name: self.node(name, node) for name, node in data["nodes"].items()}
@@ -167,8 +181,10 @@ class SpecReader(LeafReader, AttachReader, ControlReader, ResolvedRateReader, Ha
         whole = self.check_tree(nodes, root)
         nodes = self.signatures(nodes, root, whole)
         simulation = self.simulation(data["simulation"], nodes, root) if "simulation" in data else None
+        derivatives = self.derivatives(data.get("derivatives", {}), nodes.get(root))
         return RobotSystem(name=data["name"], source=self.doc.path, source_sha256=self.doc.sha256,
                            nodes=nodes, root=root, warnings=tuple(self.warnings), simulation=simulation,
+                           derivatives=derivatives,
                            dependencies=tuple(self.dependencies),
                            node_locations={name: self.doc.source.key(("nodes", name)) for name in nodes})
 

@@ -11,6 +11,7 @@ import numpy as np
 
 from robotgen.errors import Location
 from robotgen.model.chain import KinematicTree
+from robotgen.model.derivatives import DerivativeSettings
 from robotgen.model.expression import Expr
 from robotgen.model.formula import FormulaRobot
 from robotgen.model.laws import RESOLVED_RATE, ROOT_LAWS
@@ -193,6 +194,7 @@ class RobotSystem:
     root: str
     warnings: tuple[str, ...] = ()  # located, printed by the CLI; the system is still valid
     simulation: SimulationSettings | None = None  # the spec's `simulation` section
+    derivatives: DerivativeSettings = DerivativeSettings()  # the spec's `derivatives` section
     dependencies: tuple[str, ...] = ()  # other files the spec reads (URDF leaves)
     node_locations: dict[str, Location] = field(default_factory=dict)  # node name -> where the spec defines it
 

@@ -6,7 +6,9 @@ from __future__ import annotations
 import casadi as ca
 
 from robotgen.model.chain import KinematicTree
+from robotgen.model.derivatives import SEMI_IMPLICIT_EULER, DerivativeSettings
 from robotgen.model.formula import FormulaRobot
+from robotgen.symbolic.dynamics_derivatives import DynamicsDerivatives
 from robotgen.symbolic.formulas import FormulaGraphs
 from robotgen.symbolic.kernel import NO_PARAMETERS, Kernel, ParameterSymbols, make_kernel
 from robotgen.symbolic.rigid_body.chain import ChainGraphs, Symbols
@@ -50,8 +52,10 @@ def _resolve(shape, n: int, k: int) -> tuple[int, int]:
 
 
 def leaf_kernels(leaf: KinematicTree | FormulaRobot, prefix: str = "",
-                 parameters: ParameterSymbols = NO_PARAMETERS, values: dict[str, ca.SX] | None = None) -> list[Kernel]:
-    """``values``: a formulas leaf's run-time parameters as symbols (of ``parameters``)."""
+                 parameters: ParameterSymbols = NO_PARAMETERS, values: dict[str, ca.SX] | None = None,
+                 derivatives: DerivativeSettings | None = None) -> list[Kernel]:
+    """``values``: a formulas leaf's run-time parameters as symbols (of ``parameters``);
+    ``derivatives``: the spec's derivatives section (None: no derivative functions)."""
     n = leaf.nq
     sym = Symbols.make(n)
     if isinstance(leaf, KinematicTree):
@@ -67,6 +71,49 @@ def leaf_kernels(leaf: KinematicTree | FormulaRobot, prefix: str = "",
     ]
     if isinstance(leaf, KinematicTree):
         kernels.append(_servo_terms(graphs, sym, n, prefix))
+    if derivatives is not None and derivatives.included(n):
+        kernels += _derivative_kernels(graphs, derivatives.integrator, n, prefix, parameters)
+    return kernels
+
+
+def _derivative_kernels(graphs, integrator: str, n: int, prefix: str, parameters: ParameterSymbols) -> list[Kernel]:
+    """The derivatives of the dynamics and the discrete model (robotgen.model.derivatives)."""
+    d = DynamicsDerivatives(graphs)
+    s = d.sym
+    dt = ca.SX.sym("dt")
+    state = [("q", s.q), ("qd", s.qd), ("tau", s.tau), ("dt", dt)]
+    square = (n, n)
+    dq, dqd = d.inverse_dynamics_derivatives()
+    _, fq, fqd, minv = d.forward_dynamics_derivatives()
+    step = "semi-implicit Euler (qd+ = qd + dt qdd, q+ = q + dt qd+)" if integrator == SEMI_IMPLICIT_EULER \
+        else "classical Runge-Kutta (RK4) on (qd, qdd)"
+    kernels = [
+        make_kernel(prefix + "inverse_dynamics_derivatives",
+                    "Partial derivatives of inverse dynamics: d tau/dq and d tau/dqd (d tau/dqdd is M).",
+                    [("q", s.q), ("qd", s.qd), ("qdd", s.qdd)],
+                    [("dtau_dq", dq, square), ("dtau_dqd", dqd, square)], parameters),
+        make_kernel(prefix + "forward_dynamics_derivatives",
+                    "Partial derivatives of forward dynamics: d qdd/dq, d qdd/dqd and d qdd/d tau = M^-1.",
+                    [("q", s.q), ("qd", s.qd), ("tau", s.tau)],
+                    [("dqdd_dq", fq, square), ("dqdd_dqd", fqd, square), ("dqdd_dtau", minv, square)], parameters),
+        make_kernel(prefix + "mass_inverse", "M(q)^-1 (Cholesky factorisation, then solves).",
+                    [("q", s.q)], [("mass_inverse", d.mass_inverse(), square)], parameters),
+    ]
+    q_next, qd_next = d.discrete_dynamics(integrator, dt)
+    kernels.append(make_kernel(
+        prefix + "discrete_dynamics", f"One step of length dt, tau held: {step}. Returns q+, qd+.",
+        state, [("q_next", q_next, (n, 1)), ("qd_next", qd_next, (n, 1))], parameters))
+    q_next, qd_next, A, B = d.discrete_dynamics_derivatives(integrator, dt)
+    kernels.append(make_kernel(
+        prefix + "discrete_dynamics_derivatives",
+        f"One step ({step}) and its Jacobians: q+, qd+, A = d(q+, qd+)/d(q, qd), B = d(q+, qd+)/d tau.",
+        state, [("q_next", q_next, (n, 1)), ("qd_next", qd_next, (n, 1)), ("A", A, (2 * n, 2 * n)),
+                ("B", B, (2 * n, n))], parameters))
+    if isinstance(graphs, ChainGraphs):
+        kernels.append(make_kernel(
+            prefix + "jacobian_derivative",
+            "dJ/dt (6 x n): the time derivative of the tip Jacobian; jacobian_derivative qd = jacobian_dot_qd.",
+            [("q", s.q), ("qd", s.qd)], [("jacobian_derivative", graphs.jacobian_derivative(), (6, n))], parameters))
     return kernels
 
 

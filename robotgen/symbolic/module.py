@@ -18,7 +18,7 @@ def kernels_for(system: RobotSystem) -> list[Kernel]:
     if system.is_single_leaf:
         parameters = ParameterSymbols.of(runtime_parameters(system))
         return leaf_kernels(system.root_node.leaf, parameters=parameters,
-                            values=leaf_values(parameters, system.root_node))
+                            values=leaf_values(parameters, system.root_node), derivatives=system.derivatives)
     if system.root_law is not None:
         return ROOT_LAWS[system.root_law].kernels(system)
     return system_kernels(system)

@@ -149,8 +149,8 @@ def test_progress_on_request_and_quiet(tmp_path):
     stages = [line.split("] ", 1)[1] for line in shown.stderr.splitlines() if line.startswith("robotgen: [")]
     assert len(stages) == len(shown.stderr.splitlines())  # nothing but progress on stderr
     assert [s.split(" ", 1)[0] for s in stages[:3]] == ["reading", "building", "printing"]
-    assert "printing 11 C functions" in stages[2] and stages[3] == "printing C: fk (1/11)"
-    assert stages[-2] == "printing C: servo_terms (11/11)" and stages[-1].startswith("compiling the extension")
+    assert "printing 17 C functions" in stages[2] and stages[3] == "printing C: fk (1/17)"
+    assert stages[-2] == "printing C: jacobian_derivative (17/17)" and stages[-1].startswith("compiling the extension")
     quiet = subprocess.run([sys.executable, "-m", "robotgen", "build", "-q", str(spec), "-o", str(tmp_path / "b")],
                            capture_output=True, text=True, cwd=ROOT, env=env)
     assert quiet.returncode == 0 and quiet.stderr == ""

@@ -211,7 +211,7 @@ def test_compiled_equals_casadi_graph(case):
     for name, f in case.kernels.items():
         fn = getattr(case.mod, name)
         nin = f.n_in()
-        args = [case.q, case.qd, case.qdd][:nin]
+        args = [case.q, case.qd, case.qdd, np.full((N_STATES, 1), 1e-3)][:nin]  # the 4th: a step dt
         got = fn(*args)
         got = got if isinstance(got, tuple) else (got,)
         want = f.map(N_STATES)(*[a.T for a in args])

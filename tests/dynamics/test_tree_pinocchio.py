@@ -8,6 +8,7 @@ import pinocchio as pin
 import pytest
 
 from robotgen.model.chain import Body, Joint, KinematicTree
+from robotgen.model.derivatives import DerivativeSettings
 from robotgen.symbolic import leaf_kernels
 
 PARENTS = [-1, 0, 1, 2, 1, 4, 5, 6]
@@ -78,3 +79,59 @@ def test_branched_tree_matches_pinocchio(seed):
         pin.forwardKinematics(model, data, q, qd, np.zeros(n))
         acc = pin.getFrameClassicalAcceleration(model, data, fid, pin.LOCAL_WORLD_ALIGNED).vector
         np.testing.assert_allclose(np.array(f["jacobian_dot_qd"](q, qd)).ravel(), acc, atol=1e-12)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_branched_tree_derivatives_match_pinocchio(seed):
+    """The derivative functions on a branched tree with a prismatic joint: the recursion of
+    rnea_derivatives (and the reverse sweeps, whichever is chosen) against
+    computeRNEADerivatives and computeABADerivatives, 1e-9 relative."""
+    tree = random_tree(seed)
+    f = {k.name: k.function for k in leaf_kernels(tree, derivatives=DerivativeSettings(include=True))}
+    model, fid = pinocchio_model(tree)
+    data = model.createData()
+    n = tree.nq
+    rng = np.random.default_rng(200 + seed)
+
+    def close(a, b):
+        assert np.abs(np.array(a).reshape(b.shape) - b).max() <= 1e-9 * max(1.0, np.abs(b).max())
+
+    for _ in range(20):
+        q, qd, x = rng.normal(size=n), rng.normal(size=n), rng.normal(size=n)
+        dq, dqd = f["inverse_dynamics_derivatives"](q, qd, x)
+        pin.computeRNEADerivatives(model, data, q, qd, x)
+        close(dq, data.dtau_dq)
+        close(dqd, data.dtau_dv)
+        fq, fqd, ftau = f["forward_dynamics_derivatives"](q, qd, x)
+        pin.computeABADerivatives(model, data, q, qd, x)
+        Minv = np.triu(data.Minv) + np.triu(data.Minv, 1).T
+        close(fq, data.ddq_dq)
+        close(fqd, data.ddq_dv)
+        close(ftau, Minv)
+        close(f["mass_inverse"](q), Minv)
+        pin.computeJointJacobiansTimeVariation(model, data, q, qd)
+        pin.updateFramePlacements(model, data)
+        close(f["jacobian_derivative"](q, qd), pin.getFrameJacobianTimeVariation(model, data, fid, pin.LOCAL_WORLD_ALIGNED))
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_derivative_algorithms_agree(seed):
+    """Both candidates for d tau/d(q, qd), the recursion and the reverse sweeps of
+    Newton-Euler, whichever the op count picks for the module."""
+    import casadi as ca
+
+    from robotgen.symbolic.differentiation import reverse_jacobian
+    from robotgen.symbolic.rigid_body.chain import ChainGraphs, Symbols
+    from robotgen.symbolic.rigid_body.rnea_derivatives import rnea_derivatives
+
+    tree = random_tree(seed)
+    g = ChainGraphs(tree, Symbols.make(tree.nq))
+    s = g.sym
+    tau = g.inverse_dynamics()
+    f = ca.Function("f", [s.q, s.qd, s.qdd], [*rnea_derivatives(g.tree, g.motions, s.qd, s.qdd),
+                                               reverse_jacobian(tau, s.q), reverse_jacobian(tau, s.qd)])
+    rng = np.random.default_rng(seed)
+    for _ in range(10):
+        a, b, c, d = (np.array(m) for m in f(*(rng.normal(size=tree.nq) for _ in range(3))))
+        np.testing.assert_allclose(a, c, atol=1e-10 * max(1, np.abs(c).max()))
+        np.testing.assert_allclose(b, d, atol=1e-10 * max(1, np.abs(d).max()))

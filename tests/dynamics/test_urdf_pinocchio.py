@@ -81,3 +81,36 @@ def test_against_pinocchio(robot):
         worst["forward_dynamics"] = max(worst.get("forward_dynamics", 0.0), rel_err(qdd_rg[k], qdd_p))
     print({k: f"{v:.1e}" for k, v in worst.items()})
     assert max(worst.values()) <= TOL, worst
+
+
+def test_derivatives_against_pinocchio(robot):
+    """d tau/dq, d tau/dqd (computeRNEADerivatives), d qdd/dq, d qdd/dqd, M^-1
+    (computeABADerivatives), mass_inverse and the Jacobian's time derivative
+    (getFrameJacobianTimeVariation) on 1000 random states, <= 1e-9 relative. Pinocchio has
+    no joint damping: it adds diag(damping) to d tau/dqd, and -M^-1 diag(damping) to
+    d qdd/dqd with tau - damping qd as Pinocchio's torque."""
+    module, model, tip = robot
+    data = model.createData()
+    fid = model.getFrameId(tip)
+    name = next(iter(module.info()["nodes"]))
+    D = np.diag([j["damping"] for j in module.info()["nodes"][name]["joints"]])
+    q, qd, x = states(model, N_STATES, 11)
+    dtau_dq, dtau_dqd = module.inverse_dynamics_derivatives(q, qd, x)
+    dqdd_dq, dqdd_dqd, dqdd_dtau = module.forward_dynamics_derivatives(q, qd, x)
+    Minv, Jdot = module.mass_inverse(q), module.jacobian_derivative(q, qd)
+    worst: dict[str, float] = {}
+    for k in range(N_STATES):
+        pin.computeRNEADerivatives(model, data, q[k], qd[k], x[k])
+        errs = {"dtau_dq": rel_err(dtau_dq[k], data.dtau_dq), "dtau_dqd": rel_err(dtau_dqd[k], data.dtau_dv + D)}
+        pin.computeABADerivatives(model, data, q[k], qd[k], x[k] - D @ qd[k])
+        Minv_p = np.triu(data.Minv) + np.triu(data.Minv, 1).T
+        errs |= {"dqdd_dq": rel_err(dqdd_dq[k], data.ddq_dq), "dqdd_dqd": rel_err(dqdd_dqd[k], data.ddq_dv - Minv_p @ D),
+                 "dqdd_dtau": rel_err(dqdd_dtau[k], Minv_p), "mass_inverse": rel_err(Minv[k], Minv_p)}
+        pin.computeJointJacobiansTimeVariation(model, data, q[k], qd[k])
+        pin.updateFramePlacements(model, data)
+        errs["jacobian_derivative"] = rel_err(
+            Jdot[k], pin.getFrameJacobianTimeVariation(model, data, fid, pin.LOCAL_WORLD_ALIGNED))
+        for key, e in errs.items():
+            worst[key] = max(worst.get(key, 0.0), e)
+    print({k: f"{v:.1e}" for k, v in worst.items()})
+    assert max(worst.values()) <= TOL, worst

@@ -329,7 +329,6 @@ def test_empty_batch_and_argument_conversion(module):
 
 @pytest.mark.parametrize("args, message", [
     ((np.zeros(4), np.zeros(2)), r"rand_a\(\): argument 'q' must have shape \(3,\) or \(B, 3\), got \(4,\)"),
-    ((np.zeros((2, 3)), np.zeros(2)), r"'qd' lacks a batch axis"),
     ((np.zeros((2, 3)), np.zeros((3, 2))), r"batch lengths differ: 'q' has 2, 'qd' has 3"),
     ((np.zeros((1, 2, 3)), np.zeros(2)), r"argument 'q' must have shape"),
     ((np.zeros(()), np.zeros(2)), r"argument 'q' must have shape"),
@@ -337,6 +336,17 @@ def test_empty_batch_and_argument_conversion(module):
 def test_wrong_shapes_raise_value_error(module, args, message):
     with pytest.raises(ValueError, match=message):
         module.rand_a(*args)
+
+
+def test_an_argument_without_batch_axis_applies_to_every_point(module):
+    rng = np.random.default_rng(5)
+    Q, qd = rng.normal(size=(4, 3)), rng.normal(size=2)
+    batched = module.rand_a(Q, qd)
+    for k in range(4):
+        for got, one in zip(batched, module.rand_a(Q[k], qd)):
+            np.testing.assert_array_equal(got[k], one)
+    for got, expected in zip(module.rand_a(Q[1], np.tile(qd, (3, 1))), module.rand_a(np.tile(Q[1], (3, 1)), qd)):
+        np.testing.assert_array_equal(got, expected)
 
 
 def test_wrong_argument_count_raises_type_error(module):

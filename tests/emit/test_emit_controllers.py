@@ -46,7 +46,14 @@ def load_module(directory: Path, name: str):
     return module
 
 
-def assert_close(actual, expected, rtol=1e-12):
+# The emitted C multiplies by shared reciprocals where CasADi's evaluator divides
+# (robotgen.emit.sx_program), so the two differ in the last bits; the adaptive step's solves
+# and its RLS update, carried from period to period, amplify that to ~1e-10 of the torques
+# after a few periods (a wrong term would differ in the leading digits).
+DOUBLE_RTOL = 1e-8
+
+
+def assert_close(actual, expected, rtol=DOUBLE_RTOL):
     actual, expected = np.asarray(actual, float), np.asarray(expected, float)
     assert actual.shape == expected.shape
     scale = np.abs(expected).max(initial=1.0)
@@ -204,8 +211,8 @@ def test_adapt_false_keeps_the_model_from_init(rmac):
             A, B, P = controller.A, controller.B, controller.P
             init = rmac.kernels["adaptive_init"]
             start = np.array(init.function(point[0], point[1], point[2].ravel(), point[3], point[4])).ravel()
-            np.testing.assert_array_equal(A, start[:144].reshape(12, 12))
-            np.testing.assert_array_equal(B, start[144:216].reshape(12, 6))
+            assert_close(A, start[:144].reshape(12, 12))  # the C of adaptive_init vs CasADi's evaluation
+            assert_close(B, start[144:216].reshape(12, 6))
             np.testing.assert_array_equal(P, start[216:540].reshape(18, 18))
     np.testing.assert_array_equal(controller.A, A)
     np.testing.assert_array_equal(controller.B, B)

@@ -56,6 +56,9 @@ class Hand:
         self._torque = ca.Function("newton_euler", [s.q, s.qd, s.qdd], [g.inverse_dynamics()])
         self._accel = ca.Function("joint_accelerations", [s.q, s.qd, s.tau], [g.forward_dynamics()])
         self._mass = ca.Function("mass", [s.q], [g.mass()])
+        # d tau/d(q, qd): the chain's derivative algorithm (robotgen.symbolic.rigid_body.chain)
+        self._torque_derivatives = ca.Function("newton_euler_derivatives", [s.q, s.qd, s.qdd],
+                                               [ca.horzcat(*g.inverse_dynamics_derivatives())])
 
     # -- kinematics (§2) ---------------------------------------------------------------
     def pose(self, q: ca.SX) -> tuple[ca.SX, ca.SX]:
@@ -132,7 +135,7 @@ class Hand:
         rates = rpy_rates(phi, omega)
         angular = ca.Function("angular", [phi, omega], [ca.jacobian(rates, phi), ca.jacobian(rates, omega)])
         parts = ca.Function("parts", [zq, zqd, zqdd], [
-            ca.jacobian(accel, z), J, reverse_jacobian(self.torques(zq, zqd, zqdd), z), ca.jacobian(twist, zq),
+            ca.jacobian(accel, z), J, self._torque_derivatives(zq, zqd, zqdd), ca.jacobian(twist, zq),
             self._mass(zq), rpy_rate_map(rpy), rpy, twist[3:]])
         dadz, J, dtaudz, W, M, E, rpy, omega_n = parts(q, qd, qdd)
         D, Einv = angular(rpy, omega_n)
@@ -145,12 +148,6 @@ class Hand:
         left = (A1 - right @ W) @ Jinv @ ca.diagcat(ca.SX.eye(3), E)
         top = ca.blockcat([[ca.SX(3, 6), ca.SX.eye(3), ca.SX(3, 3)], [ca.SX(3, 3), D, ca.SX(3, 3), Einv]])
         return ca.vertcat(top, ca.horzcat(left, right)), L
-
-
-def reverse_jacobian(e: ca.SX, x: ca.SX) -> ca.SX:
-    """de/dx by one reverse sweep per entry of e (cheaper than forward sweeps when x is longer)."""
-    n = e.shape[0]
-    return ca.vertcat(*[ca.jtimes(e, x, ca.DM.eye(n)[:, k], True).T for k in range(n)])
 
 
 def discretise(F: ca.SX, L: ca.SX, T: float, terms: int = 4) -> tuple[ca.SX, ca.SX]:

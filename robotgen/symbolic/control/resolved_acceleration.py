@@ -52,7 +52,7 @@ def kernels(system: RobotSystem) -> list[Kernel]:
         "hand error e (position, then the orientation error's vector part).",
         [("q", q), ("qd", qd), ("pose_d", pose_d, (4, 4)), ("twist_d", twist_d), ("accel_d", accel_d)],
         [("tau", tau, (6, 1)), ("error", e, (6, 1))], parameters)
-    return leaf_kernels(tree) + [step]
+    return leaf_kernels(tree, derivatives=system.derivatives.when_asked()) + [step]
 
 
 def report(system: RobotSystem) -> tuple[dict, dict]:

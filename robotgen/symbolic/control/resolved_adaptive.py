@@ -182,7 +182,7 @@ def kernels(system: RobotSystem) -> list[Kernel]:
         "(inverse kinematics from the measured q) and the perturbation model linearised there (eqs 24-28) "
         "and discretised at T (eqs 29-32); P = p0 I.",
         j.ports(), [("state", pack(first), (STATE_SIZE, 1))], parameters)
-    return leaf_kernels(tree) + [step, init]
+    return leaf_kernels(tree, derivatives=system.derivatives.when_asked()) + [step, init]
 
 
 # Lee and Lee 1983, Table 1: (multiplications, additions) per stage of one period

@@ -106,6 +106,90 @@ int styx_finger_kinematics(const double *q, double *kinematics);
 #define STYX_FINGER_KINEMATICS_JACOBIAN_KINEMATICS_JACOBIAN_SIZE 4
 int styx_finger_kinematics_jacobian(const double *q, double *kinematics_jacobian);
 
+/* styx_finger_inverse_dynamics_derivatives:
+ * Partial derivatives of inverse dynamics: d tau/dq and d tau/dqd (d tau/dqdd is M).
+ *
+ *   in  q (2,)
+ *   in  qd (2,)
+ *   in  qdd (2,)
+ *   out dtau_dq (2, 2) row-major
+ *   out dtau_dqd (2, 2) row-major
+ */
+#define STYX_FINGER_INVERSE_DYNAMICS_DERIVATIVES_Q_SIZE 2
+#define STYX_FINGER_INVERSE_DYNAMICS_DERIVATIVES_QD_SIZE 2
+#define STYX_FINGER_INVERSE_DYNAMICS_DERIVATIVES_QDD_SIZE 2
+#define STYX_FINGER_INVERSE_DYNAMICS_DERIVATIVES_DTAU_DQ_SIZE 4
+#define STYX_FINGER_INVERSE_DYNAMICS_DERIVATIVES_DTAU_DQD_SIZE 4
+int styx_finger_inverse_dynamics_derivatives(const double *q, const double *qd, const double *qdd, double *dtau_dq, double *dtau_dqd);
+
+/* styx_finger_forward_dynamics_derivatives:
+ * Partial derivatives of forward dynamics: d qdd/dq, d qdd/dqd and d qdd/d tau = M^-1.
+ *
+ *   in  q (2,)
+ *   in  qd (2,)
+ *   in  tau (2,)
+ *   out dqdd_dq (2, 2) row-major
+ *   out dqdd_dqd (2, 2) row-major
+ *   out dqdd_dtau (2, 2) row-major
+ */
+#define STYX_FINGER_FORWARD_DYNAMICS_DERIVATIVES_Q_SIZE 2
+#define STYX_FINGER_FORWARD_DYNAMICS_DERIVATIVES_QD_SIZE 2
+#define STYX_FINGER_FORWARD_DYNAMICS_DERIVATIVES_TAU_SIZE 2
+#define STYX_FINGER_FORWARD_DYNAMICS_DERIVATIVES_DQDD_DQ_SIZE 4
+#define STYX_FINGER_FORWARD_DYNAMICS_DERIVATIVES_DQDD_DQD_SIZE 4
+#define STYX_FINGER_FORWARD_DYNAMICS_DERIVATIVES_DQDD_DTAU_SIZE 4
+int styx_finger_forward_dynamics_derivatives(const double *q, const double *qd, const double *tau, double *dqdd_dq, double *dqdd_dqd, double *dqdd_dtau);
+
+/* styx_finger_mass_inverse:
+ * M(q)^-1 (Cholesky factorisation, then solves).
+ *
+ *   in  q (2,)
+ *   out mass_inverse (2, 2) row-major
+ */
+#define STYX_FINGER_MASS_INVERSE_Q_SIZE 2
+#define STYX_FINGER_MASS_INVERSE_MASS_INVERSE_SIZE 4
+int styx_finger_mass_inverse(const double *q, double *mass_inverse);
+
+/* styx_finger_discrete_dynamics:
+ * One step of length dt, tau held: semi-implicit Euler (qd+ = qd + dt qdd, q+ = q + dt qd+). Returns q+, qd+.
+ *
+ *   in  q (2,)
+ *   in  qd (2,)
+ *   in  tau (2,)
+ *   in  dt (1,)
+ *   out q_next (2,)
+ *   out qd_next (2,)
+ */
+#define STYX_FINGER_DISCRETE_DYNAMICS_Q_SIZE 2
+#define STYX_FINGER_DISCRETE_DYNAMICS_QD_SIZE 2
+#define STYX_FINGER_DISCRETE_DYNAMICS_TAU_SIZE 2
+#define STYX_FINGER_DISCRETE_DYNAMICS_DT_SIZE 1
+#define STYX_FINGER_DISCRETE_DYNAMICS_Q_NEXT_SIZE 2
+#define STYX_FINGER_DISCRETE_DYNAMICS_QD_NEXT_SIZE 2
+int styx_finger_discrete_dynamics(const double *q, const double *qd, const double *tau, const double *dt, double *q_next, double *qd_next);
+
+/* styx_finger_discrete_dynamics_derivatives:
+ * One step (semi-implicit Euler (qd+ = qd + dt qdd, q+ = q + dt qd+)) and its Jacobians: q+, qd+, A = d(q+, qd+)/d(q, qd), B = d(q+, qd+)/d tau.
+ *
+ *   in  q (2,)
+ *   in  qd (2,)
+ *   in  tau (2,)
+ *   in  dt (1,)
+ *   out q_next (2,)
+ *   out qd_next (2,)
+ *   out A (4, 4) row-major
+ *   out B (4, 2) row-major
+ */
+#define STYX_FINGER_DISCRETE_DYNAMICS_DERIVATIVES_Q_SIZE 2
+#define STYX_FINGER_DISCRETE_DYNAMICS_DERIVATIVES_QD_SIZE 2
+#define STYX_FINGER_DISCRETE_DYNAMICS_DERIVATIVES_TAU_SIZE 2
+#define STYX_FINGER_DISCRETE_DYNAMICS_DERIVATIVES_DT_SIZE 1
+#define STYX_FINGER_DISCRETE_DYNAMICS_DERIVATIVES_Q_NEXT_SIZE 2
+#define STYX_FINGER_DISCRETE_DYNAMICS_DERIVATIVES_QD_NEXT_SIZE 2
+#define STYX_FINGER_DISCRETE_DYNAMICS_DERIVATIVES_A_SIZE 16
+#define STYX_FINGER_DISCRETE_DYNAMICS_DERIVATIVES_B_SIZE 8
+int styx_finger_discrete_dynamics_derivatives(const double *q, const double *qd, const double *tau, const double *dt, double *q_next, double *qd_next, double *A, double *B);
+
 #ifdef __cplusplus
 }
 #endif

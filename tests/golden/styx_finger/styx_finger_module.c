@@ -20,12 +20,13 @@ typedef struct {
 /* The input names as interned str, made at import: keywords are matched by identity first
  * (CPython interns the names written in a call), by value otherwise. */
 static const char *const rg_key_names[] = {
+    "dt",
     "q",
     "qd",
     "qdd",
     "tau",
 };
-static PyObject *rg_keys[4];
+static PyObject *rg_keys[5];
 
 static void rg_release(PyArrayObject **arrays, int n)
 {
@@ -173,13 +174,13 @@ static void rg_conversion_failed(const char *fn, const rg_port *port, PyObject *
 }
 
 /* Converts the n arguments (in port order) to C-contiguous float64 arrays and checks their
- * shapes. *batch is the leading length B shared by all arguments, or -1 when none has a
- * batch axis. Returns 0, or -1 with an exception set (arrays already made are left for the
- * caller). */
+ * shapes. *batch is the leading length B shared by the arguments that have a batch axis, or
+ * -1 when none has one; an argument without one applies to every point of the batch.
+ * Returns 0, or -1 with an exception set (arrays already made are left for the caller). */
 static int rg_convert_args(const char *fn, PyObject *const *args, const rg_port *ports, int n,
                            PyArrayObject **arrays, npy_intp *batch)
 {
-    int i, k, extra;
+    int i, k, extra, first = 0;
     npy_intp length;
     *batch = -1;
     for (i = 0; i < n; ++i) {
@@ -224,21 +225,19 @@ static int rg_convert_args(const char *fn, PyObject *const *args, const rg_port 
             }
             return -1;
         }
-        length = extra == 1 ? PyArray_DIM(arrays[i], 0) : -1;
-        if (i > 0 && length != *batch) {
-            if (length < 0 || *batch < 0) {
-                PyErr_Format(PyExc_ValueError,
-                             "%s(): argument '%s' %s a batch axis but '%s' %s; batch all arguments or none",
-                             fn, ports[i].name, length < 0 ? "lacks" : "has",
-                             ports[0].name, length < 0 ? "has one" : "does not");
-            } else {
+        if (extra == 1) {
+            length = PyArray_DIM(arrays[i], 0);
+            if (*batch >= 0 && length != *batch) {
                 PyErr_Format(PyExc_ValueError,
                              "%s(): batch lengths differ: '%s' has %zd, '%s' has %zd",
-                             fn, ports[0].name, (Py_ssize_t)*batch, ports[i].name, (Py_ssize_t)length);
+                             fn, ports[first].name, (Py_ssize_t)*batch, ports[i].name, (Py_ssize_t)length);
+                return -1;
             }
-            return -1;
+            if (*batch < 0) {
+                first = i;
+            }
+            *batch = length;
         }
-        *batch = length;
     }
     return 0;
 }
@@ -299,7 +298,7 @@ static PyObject *rg_from_json(const char *text)
 
 /* mass */
 static const rg_port k_mass_inputs[] = {
-    {"q", 1, {2, 1}, "(2,)", "(B, 2)", 0},
+    {"q", 1, {2, 1}, "(2,)", "(B, 2)", 1},
 };
 static const rg_port k_mass_outputs[] = {
     {"mass", 2, {2, 2}, "(2, 2)", "(B, 2, 2)", -1},
@@ -320,7 +319,7 @@ static PyObject *k_mass(PyObject *self, PyObject *const *args, Py_ssize_t nargs,
     PyArrayObject *in[1] = {NULL};
     PyArrayObject *out[1] = {NULL};
     PyThreadState *unlocked;
-    npy_intp batch, count, b;
+    npy_intp batch, count, b, step[1];
     int status = 0;
     (void)self;
     if (kwnames != NULL || nargs != 1) {
@@ -336,11 +335,12 @@ static PyObject *k_mass(PyObject *self, PyObject *const *args, Py_ssize_t nargs,
         rg_release(out, 1);
         return NULL;
     }
+    step[0] = PyArray_NDIM(in[0]) > 1 ? 2 : 0;
     count = batch < 0 ? 1 : batch;
     unlocked = count > 1 ? PyEval_SaveThread() : NULL;
     for (b = 0; b < count && status == 0; ++b) {
         status = styx_finger_mass(
-            rg_data(in[0]) + b * 2,
+            rg_data(in[0]) + b * step[0],
             rg_data(out[0]) + b * 4);
     }
     if (unlocked != NULL) {
@@ -352,8 +352,8 @@ static PyObject *k_mass(PyObject *self, PyObject *const *args, Py_ssize_t nargs,
 
 /* coriolis */
 static const rg_port k_coriolis_inputs[] = {
-    {"q", 1, {2, 1}, "(2,)", "(B, 2)", 0},
-    {"qd", 1, {2, 1}, "(2,)", "(B, 2)", 1},
+    {"q", 1, {2, 1}, "(2,)", "(B, 2)", 1},
+    {"qd", 1, {2, 1}, "(2,)", "(B, 2)", 2},
 };
 static const rg_port k_coriolis_outputs[] = {
     {"coriolis", 2, {2, 2}, "(2, 2)", "(B, 2, 2)", -1},
@@ -375,7 +375,7 @@ static PyObject *k_coriolis(PyObject *self, PyObject *const *args, Py_ssize_t na
     PyArrayObject *in[2] = {NULL};
     PyArrayObject *out[1] = {NULL};
     PyThreadState *unlocked;
-    npy_intp batch, count, b;
+    npy_intp batch, count, b, step[2];
     int status = 0;
     (void)self;
     if (kwnames != NULL || nargs != 2) {
@@ -391,12 +391,14 @@ static PyObject *k_coriolis(PyObject *self, PyObject *const *args, Py_ssize_t na
         rg_release(out, 1);
         return NULL;
     }
+    step[0] = PyArray_NDIM(in[0]) > 1 ? 2 : 0;
+    step[1] = PyArray_NDIM(in[1]) > 1 ? 2 : 0;
     count = batch < 0 ? 1 : batch;
     unlocked = count > 1 ? PyEval_SaveThread() : NULL;
     for (b = 0; b < count && status == 0; ++b) {
         status = styx_finger_coriolis(
-            rg_data(in[0]) + b * 2,
-            rg_data(in[1]) + b * 2,
+            rg_data(in[0]) + b * step[0],
+            rg_data(in[1]) + b * step[1],
             rg_data(out[0]) + b * 4);
     }
     if (unlocked != NULL) {
@@ -408,7 +410,7 @@ static PyObject *k_coriolis(PyObject *self, PyObject *const *args, Py_ssize_t na
 
 /* gravity */
 static const rg_port k_gravity_inputs[] = {
-    {"q", 1, {2, 1}, "(2,)", "(B, 2)", 0},
+    {"q", 1, {2, 1}, "(2,)", "(B, 2)", 1},
 };
 static const rg_port k_gravity_outputs[] = {
     {"gravity", 1, {2, 1}, "(2,)", "(B, 2)", -1},
@@ -429,7 +431,7 @@ static PyObject *k_gravity(PyObject *self, PyObject *const *args, Py_ssize_t nar
     PyArrayObject *in[1] = {NULL};
     PyArrayObject *out[1] = {NULL};
     PyThreadState *unlocked;
-    npy_intp batch, count, b;
+    npy_intp batch, count, b, step[1];
     int status = 0;
     (void)self;
     if (kwnames != NULL || nargs != 1) {
@@ -445,11 +447,12 @@ static PyObject *k_gravity(PyObject *self, PyObject *const *args, Py_ssize_t nar
         rg_release(out, 1);
         return NULL;
     }
+    step[0] = PyArray_NDIM(in[0]) > 1 ? 2 : 0;
     count = batch < 0 ? 1 : batch;
     unlocked = count > 1 ? PyEval_SaveThread() : NULL;
     for (b = 0; b < count && status == 0; ++b) {
         status = styx_finger_gravity(
-            rg_data(in[0]) + b * 2,
+            rg_data(in[0]) + b * step[0],
             rg_data(out[0]) + b * 2);
     }
     if (unlocked != NULL) {
@@ -461,8 +464,8 @@ static PyObject *k_gravity(PyObject *self, PyObject *const *args, Py_ssize_t nar
 
 /* nonlinear */
 static const rg_port k_nonlinear_inputs[] = {
-    {"q", 1, {2, 1}, "(2,)", "(B, 2)", 0},
-    {"qd", 1, {2, 1}, "(2,)", "(B, 2)", 1},
+    {"q", 1, {2, 1}, "(2,)", "(B, 2)", 1},
+    {"qd", 1, {2, 1}, "(2,)", "(B, 2)", 2},
 };
 static const rg_port k_nonlinear_outputs[] = {
     {"nonlinear", 1, {2, 1}, "(2,)", "(B, 2)", -1},
@@ -484,7 +487,7 @@ static PyObject *k_nonlinear(PyObject *self, PyObject *const *args, Py_ssize_t n
     PyArrayObject *in[2] = {NULL};
     PyArrayObject *out[1] = {NULL};
     PyThreadState *unlocked;
-    npy_intp batch, count, b;
+    npy_intp batch, count, b, step[2];
     int status = 0;
     (void)self;
     if (kwnames != NULL || nargs != 2) {
@@ -500,12 +503,14 @@ static PyObject *k_nonlinear(PyObject *self, PyObject *const *args, Py_ssize_t n
         rg_release(out, 1);
         return NULL;
     }
+    step[0] = PyArray_NDIM(in[0]) > 1 ? 2 : 0;
+    step[1] = PyArray_NDIM(in[1]) > 1 ? 2 : 0;
     count = batch < 0 ? 1 : batch;
     unlocked = count > 1 ? PyEval_SaveThread() : NULL;
     for (b = 0; b < count && status == 0; ++b) {
         status = styx_finger_nonlinear(
-            rg_data(in[0]) + b * 2,
-            rg_data(in[1]) + b * 2,
+            rg_data(in[0]) + b * step[0],
+            rg_data(in[1]) + b * step[1],
             rg_data(out[0]) + b * 2);
     }
     if (unlocked != NULL) {
@@ -517,9 +522,9 @@ static PyObject *k_nonlinear(PyObject *self, PyObject *const *args, Py_ssize_t n
 
 /* inverse_dynamics */
 static const rg_port k_inverse_dynamics_inputs[] = {
-    {"q", 1, {2, 1}, "(2,)", "(B, 2)", 0},
-    {"qd", 1, {2, 1}, "(2,)", "(B, 2)", 1},
-    {"qdd", 1, {2, 1}, "(2,)", "(B, 2)", 2},
+    {"q", 1, {2, 1}, "(2,)", "(B, 2)", 1},
+    {"qd", 1, {2, 1}, "(2,)", "(B, 2)", 2},
+    {"qdd", 1, {2, 1}, "(2,)", "(B, 2)", 3},
 };
 static const rg_port k_inverse_dynamics_outputs[] = {
     {"inverse_dynamics", 1, {2, 1}, "(2,)", "(B, 2)", -1},
@@ -542,7 +547,7 @@ static PyObject *k_inverse_dynamics(PyObject *self, PyObject *const *args, Py_ss
     PyArrayObject *in[3] = {NULL};
     PyArrayObject *out[1] = {NULL};
     PyThreadState *unlocked;
-    npy_intp batch, count, b;
+    npy_intp batch, count, b, step[3];
     int status = 0;
     (void)self;
     if (kwnames != NULL || nargs != 3) {
@@ -558,13 +563,16 @@ static PyObject *k_inverse_dynamics(PyObject *self, PyObject *const *args, Py_ss
         rg_release(out, 1);
         return NULL;
     }
+    step[0] = PyArray_NDIM(in[0]) > 1 ? 2 : 0;
+    step[1] = PyArray_NDIM(in[1]) > 1 ? 2 : 0;
+    step[2] = PyArray_NDIM(in[2]) > 1 ? 2 : 0;
     count = batch < 0 ? 1 : batch;
     unlocked = count > 1 ? PyEval_SaveThread() : NULL;
     for (b = 0; b < count && status == 0; ++b) {
         status = styx_finger_inverse_dynamics(
-            rg_data(in[0]) + b * 2,
-            rg_data(in[1]) + b * 2,
-            rg_data(in[2]) + b * 2,
+            rg_data(in[0]) + b * step[0],
+            rg_data(in[1]) + b * step[1],
+            rg_data(in[2]) + b * step[2],
             rg_data(out[0]) + b * 2);
     }
     if (unlocked != NULL) {
@@ -576,9 +584,9 @@ static PyObject *k_inverse_dynamics(PyObject *self, PyObject *const *args, Py_ss
 
 /* forward_dynamics */
 static const rg_port k_forward_dynamics_inputs[] = {
-    {"q", 1, {2, 1}, "(2,)", "(B, 2)", 0},
-    {"qd", 1, {2, 1}, "(2,)", "(B, 2)", 1},
-    {"tau", 1, {2, 1}, "(2,)", "(B, 2)", 3},
+    {"q", 1, {2, 1}, "(2,)", "(B, 2)", 1},
+    {"qd", 1, {2, 1}, "(2,)", "(B, 2)", 2},
+    {"tau", 1, {2, 1}, "(2,)", "(B, 2)", 4},
 };
 static const rg_port k_forward_dynamics_outputs[] = {
     {"forward_dynamics", 1, {2, 1}, "(2,)", "(B, 2)", -1},
@@ -601,7 +609,7 @@ static PyObject *k_forward_dynamics(PyObject *self, PyObject *const *args, Py_ss
     PyArrayObject *in[3] = {NULL};
     PyArrayObject *out[1] = {NULL};
     PyThreadState *unlocked;
-    npy_intp batch, count, b;
+    npy_intp batch, count, b, step[3];
     int status = 0;
     (void)self;
     if (kwnames != NULL || nargs != 3) {
@@ -617,13 +625,16 @@ static PyObject *k_forward_dynamics(PyObject *self, PyObject *const *args, Py_ss
         rg_release(out, 1);
         return NULL;
     }
+    step[0] = PyArray_NDIM(in[0]) > 1 ? 2 : 0;
+    step[1] = PyArray_NDIM(in[1]) > 1 ? 2 : 0;
+    step[2] = PyArray_NDIM(in[2]) > 1 ? 2 : 0;
     count = batch < 0 ? 1 : batch;
     unlocked = count > 1 ? PyEval_SaveThread() : NULL;
     for (b = 0; b < count && status == 0; ++b) {
         status = styx_finger_forward_dynamics(
-            rg_data(in[0]) + b * 2,
-            rg_data(in[1]) + b * 2,
-            rg_data(in[2]) + b * 2,
+            rg_data(in[0]) + b * step[0],
+            rg_data(in[1]) + b * step[1],
+            rg_data(in[2]) + b * step[2],
             rg_data(out[0]) + b * 2);
     }
     if (unlocked != NULL) {
@@ -635,7 +646,7 @@ static PyObject *k_forward_dynamics(PyObject *self, PyObject *const *args, Py_ss
 
 /* kinematics */
 static const rg_port k_kinematics_inputs[] = {
-    {"q", 1, {2, 1}, "(2,)", "(B, 2)", 0},
+    {"q", 1, {2, 1}, "(2,)", "(B, 2)", 1},
 };
 static const rg_port k_kinematics_outputs[] = {
     {"kinematics", 1, {2, 1}, "(2,)", "(B, 2)", -1},
@@ -656,7 +667,7 @@ static PyObject *k_kinematics(PyObject *self, PyObject *const *args, Py_ssize_t 
     PyArrayObject *in[1] = {NULL};
     PyArrayObject *out[1] = {NULL};
     PyThreadState *unlocked;
-    npy_intp batch, count, b;
+    npy_intp batch, count, b, step[1];
     int status = 0;
     (void)self;
     if (kwnames != NULL || nargs != 1) {
@@ -672,11 +683,12 @@ static PyObject *k_kinematics(PyObject *self, PyObject *const *args, Py_ssize_t 
         rg_release(out, 1);
         return NULL;
     }
+    step[0] = PyArray_NDIM(in[0]) > 1 ? 2 : 0;
     count = batch < 0 ? 1 : batch;
     unlocked = count > 1 ? PyEval_SaveThread() : NULL;
     for (b = 0; b < count && status == 0; ++b) {
         status = styx_finger_kinematics(
-            rg_data(in[0]) + b * 2,
+            rg_data(in[0]) + b * step[0],
             rg_data(out[0]) + b * 2);
     }
     if (unlocked != NULL) {
@@ -688,7 +700,7 @@ static PyObject *k_kinematics(PyObject *self, PyObject *const *args, Py_ssize_t 
 
 /* kinematics_jacobian */
 static const rg_port k_kinematics_jacobian_inputs[] = {
-    {"q", 1, {2, 1}, "(2,)", "(B, 2)", 0},
+    {"q", 1, {2, 1}, "(2,)", "(B, 2)", 1},
 };
 static const rg_port k_kinematics_jacobian_outputs[] = {
     {"kinematics_jacobian", 2, {2, 2}, "(2, 2)", "(B, 2, 2)", -1},
@@ -709,7 +721,7 @@ static PyObject *k_kinematics_jacobian(PyObject *self, PyObject *const *args, Py
     PyArrayObject *in[1] = {NULL};
     PyArrayObject *out[1] = {NULL};
     PyThreadState *unlocked;
-    npy_intp batch, count, b;
+    npy_intp batch, count, b, step[1];
     int status = 0;
     (void)self;
     if (kwnames != NULL || nargs != 1) {
@@ -725,11 +737,12 @@ static PyObject *k_kinematics_jacobian(PyObject *self, PyObject *const *args, Py
         rg_release(out, 1);
         return NULL;
     }
+    step[0] = PyArray_NDIM(in[0]) > 1 ? 2 : 0;
     count = batch < 0 ? 1 : batch;
     unlocked = count > 1 ? PyEval_SaveThread() : NULL;
     for (b = 0; b < count && status == 0; ++b) {
         status = styx_finger_kinematics_jacobian(
-            rg_data(in[0]) + b * 2,
+            rg_data(in[0]) + b * step[0],
             rg_data(out[0]) + b * 4);
     }
     if (unlocked != NULL) {
@@ -739,12 +752,336 @@ static PyObject *k_kinematics_jacobian(PyObject *self, PyObject *const *args, Py
     return rg_finish("kinematics_jacobian", status, out, 1);
 }
 
+/* inverse_dynamics_derivatives */
+static const rg_port k_inverse_dynamics_derivatives_inputs[] = {
+    {"q", 1, {2, 1}, "(2,)", "(B, 2)", 1},
+    {"qd", 1, {2, 1}, "(2,)", "(B, 2)", 2},
+    {"qdd", 1, {2, 1}, "(2,)", "(B, 2)", 3},
+};
+static const rg_port k_inverse_dynamics_derivatives_outputs[] = {
+    {"dtau_dq", 2, {2, 2}, "(2, 2)", "(B, 2, 2)", -1},
+    {"dtau_dqd", 2, {2, 2}, "(2, 2)", "(B, 2, 2)", -1},
+};
+PyDoc_STRVAR(k_inverse_dynamics_derivatives_doc,
+    "inverse_dynamics_derivatives($module, q, qd, qdd)\n"
+    "--\n"
+    "\n"
+    "Partial derivatives of inverse dynamics: d tau/dq and d tau/dqd (d tau/dqdd is M).\n"
+    "\n"
+    "q: float64 array (2,) or (B, 2)\n"
+    "qd: float64 array (2,) or (B, 2)\n"
+    "qdd: float64 array (2,) or (B, 2)\n"
+    "Returns dtau_dq (2, 2), dtau_dqd (2, 2) as a tuple; batched inputs give a leading B axis.");
+
+static PyObject *k_inverse_dynamics_derivatives(PyObject *self, PyObject *const *args, Py_ssize_t nargs,
+                                                PyObject *kwnames)
+{
+    PyObject *bound[3];
+    PyArrayObject *in[3] = {NULL};
+    PyArrayObject *out[2] = {NULL};
+    PyThreadState *unlocked;
+    npy_intp batch, count, b, step[3];
+    int status = 0;
+    (void)self;
+    if (kwnames != NULL || nargs != 3) {
+        /* keywords, or a wrong count: the slow path (positional calls skip it) */
+        if (rg_bind("inverse_dynamics_derivatives", args, nargs, kwnames, k_inverse_dynamics_derivatives_inputs, 3, bound) < 0) {
+            return NULL;
+        }
+        args = bound;
+    }
+    if (rg_convert_args("inverse_dynamics_derivatives", args, k_inverse_dynamics_derivatives_inputs, 3, in, &batch) < 0
+        || rg_new_results(k_inverse_dynamics_derivatives_outputs, 2, batch, out) < 0) {
+        rg_release(in, 3);
+        rg_release(out, 2);
+        return NULL;
+    }
+    step[0] = PyArray_NDIM(in[0]) > 1 ? 2 : 0;
+    step[1] = PyArray_NDIM(in[1]) > 1 ? 2 : 0;
+    step[2] = PyArray_NDIM(in[2]) > 1 ? 2 : 0;
+    count = batch < 0 ? 1 : batch;
+    unlocked = count > 1 ? PyEval_SaveThread() : NULL;
+    for (b = 0; b < count && status == 0; ++b) {
+        status = styx_finger_inverse_dynamics_derivatives(
+            rg_data(in[0]) + b * step[0],
+            rg_data(in[1]) + b * step[1],
+            rg_data(in[2]) + b * step[2],
+            rg_data(out[0]) + b * 4,
+            rg_data(out[1]) + b * 4);
+    }
+    if (unlocked != NULL) {
+        PyEval_RestoreThread(unlocked);
+    }
+    rg_release(in, 3);
+    return rg_finish("inverse_dynamics_derivatives", status, out, 2);
+}
+
+/* forward_dynamics_derivatives */
+static const rg_port k_forward_dynamics_derivatives_inputs[] = {
+    {"q", 1, {2, 1}, "(2,)", "(B, 2)", 1},
+    {"qd", 1, {2, 1}, "(2,)", "(B, 2)", 2},
+    {"tau", 1, {2, 1}, "(2,)", "(B, 2)", 4},
+};
+static const rg_port k_forward_dynamics_derivatives_outputs[] = {
+    {"dqdd_dq", 2, {2, 2}, "(2, 2)", "(B, 2, 2)", -1},
+    {"dqdd_dqd", 2, {2, 2}, "(2, 2)", "(B, 2, 2)", -1},
+    {"dqdd_dtau", 2, {2, 2}, "(2, 2)", "(B, 2, 2)", -1},
+};
+PyDoc_STRVAR(k_forward_dynamics_derivatives_doc,
+    "forward_dynamics_derivatives($module, q, qd, tau)\n"
+    "--\n"
+    "\n"
+    "Partial derivatives of forward dynamics: d qdd/dq, d qdd/dqd and d qdd/d tau = M^-1.\n"
+    "\n"
+    "q: float64 array (2,) or (B, 2)\n"
+    "qd: float64 array (2,) or (B, 2)\n"
+    "tau: float64 array (2,) or (B, 2)\n"
+    "Returns dqdd_dq (2, 2), dqdd_dqd (2, 2), dqdd_dtau (2, 2) as a tuple; batched inputs give a leading B axis.");
+
+static PyObject *k_forward_dynamics_derivatives(PyObject *self, PyObject *const *args, Py_ssize_t nargs,
+                                                PyObject *kwnames)
+{
+    PyObject *bound[3];
+    PyArrayObject *in[3] = {NULL};
+    PyArrayObject *out[3] = {NULL};
+    PyThreadState *unlocked;
+    npy_intp batch, count, b, step[3];
+    int status = 0;
+    (void)self;
+    if (kwnames != NULL || nargs != 3) {
+        /* keywords, or a wrong count: the slow path (positional calls skip it) */
+        if (rg_bind("forward_dynamics_derivatives", args, nargs, kwnames, k_forward_dynamics_derivatives_inputs, 3, bound) < 0) {
+            return NULL;
+        }
+        args = bound;
+    }
+    if (rg_convert_args("forward_dynamics_derivatives", args, k_forward_dynamics_derivatives_inputs, 3, in, &batch) < 0
+        || rg_new_results(k_forward_dynamics_derivatives_outputs, 3, batch, out) < 0) {
+        rg_release(in, 3);
+        rg_release(out, 3);
+        return NULL;
+    }
+    step[0] = PyArray_NDIM(in[0]) > 1 ? 2 : 0;
+    step[1] = PyArray_NDIM(in[1]) > 1 ? 2 : 0;
+    step[2] = PyArray_NDIM(in[2]) > 1 ? 2 : 0;
+    count = batch < 0 ? 1 : batch;
+    unlocked = count > 1 ? PyEval_SaveThread() : NULL;
+    for (b = 0; b < count && status == 0; ++b) {
+        status = styx_finger_forward_dynamics_derivatives(
+            rg_data(in[0]) + b * step[0],
+            rg_data(in[1]) + b * step[1],
+            rg_data(in[2]) + b * step[2],
+            rg_data(out[0]) + b * 4,
+            rg_data(out[1]) + b * 4,
+            rg_data(out[2]) + b * 4);
+    }
+    if (unlocked != NULL) {
+        PyEval_RestoreThread(unlocked);
+    }
+    rg_release(in, 3);
+    return rg_finish("forward_dynamics_derivatives", status, out, 3);
+}
+
+/* mass_inverse */
+static const rg_port k_mass_inverse_inputs[] = {
+    {"q", 1, {2, 1}, "(2,)", "(B, 2)", 1},
+};
+static const rg_port k_mass_inverse_outputs[] = {
+    {"mass_inverse", 2, {2, 2}, "(2, 2)", "(B, 2, 2)", -1},
+};
+PyDoc_STRVAR(k_mass_inverse_doc,
+    "mass_inverse($module, q)\n"
+    "--\n"
+    "\n"
+    "M(q)^-1 (Cholesky factorisation, then solves).\n"
+    "\n"
+    "q: float64 array (2,) or (B, 2)\n"
+    "Returns mass_inverse (2, 2); batched inputs give a leading B axis.");
+
+static PyObject *k_mass_inverse(PyObject *self, PyObject *const *args, Py_ssize_t nargs,
+                                PyObject *kwnames)
+{
+    PyObject *bound[1];
+    PyArrayObject *in[1] = {NULL};
+    PyArrayObject *out[1] = {NULL};
+    PyThreadState *unlocked;
+    npy_intp batch, count, b, step[1];
+    int status = 0;
+    (void)self;
+    if (kwnames != NULL || nargs != 1) {
+        /* keywords, or a wrong count: the slow path (positional calls skip it) */
+        if (rg_bind("mass_inverse", args, nargs, kwnames, k_mass_inverse_inputs, 1, bound) < 0) {
+            return NULL;
+        }
+        args = bound;
+    }
+    if (rg_convert_args("mass_inverse", args, k_mass_inverse_inputs, 1, in, &batch) < 0
+        || rg_new_results(k_mass_inverse_outputs, 1, batch, out) < 0) {
+        rg_release(in, 1);
+        rg_release(out, 1);
+        return NULL;
+    }
+    step[0] = PyArray_NDIM(in[0]) > 1 ? 2 : 0;
+    count = batch < 0 ? 1 : batch;
+    unlocked = count > 1 ? PyEval_SaveThread() : NULL;
+    for (b = 0; b < count && status == 0; ++b) {
+        status = styx_finger_mass_inverse(
+            rg_data(in[0]) + b * step[0],
+            rg_data(out[0]) + b * 4);
+    }
+    if (unlocked != NULL) {
+        PyEval_RestoreThread(unlocked);
+    }
+    rg_release(in, 1);
+    return rg_finish("mass_inverse", status, out, 1);
+}
+
+/* discrete_dynamics */
+static const rg_port k_discrete_dynamics_inputs[] = {
+    {"q", 1, {2, 1}, "(2,)", "(B, 2)", 1},
+    {"qd", 1, {2, 1}, "(2,)", "(B, 2)", 2},
+    {"tau", 1, {2, 1}, "(2,)", "(B, 2)", 4},
+    {"dt", 1, {1, 1}, "(1,)", "(B, 1)", 0},
+};
+static const rg_port k_discrete_dynamics_outputs[] = {
+    {"q_next", 1, {2, 1}, "(2,)", "(B, 2)", -1},
+    {"qd_next", 1, {2, 1}, "(2,)", "(B, 2)", -1},
+};
+PyDoc_STRVAR(k_discrete_dynamics_doc,
+    "discrete_dynamics($module, q, qd, tau, dt)\n"
+    "--\n"
+    "\n"
+    "One step of length dt, tau held: semi-implicit Euler (qd+ = qd + dt qdd, q+ = q + dt qd+). Returns q+, qd+.\n"
+    "\n"
+    "q: float64 array (2,) or (B, 2)\n"
+    "qd: float64 array (2,) or (B, 2)\n"
+    "tau: float64 array (2,) or (B, 2)\n"
+    "dt: float64 array (1,) or (B, 1)\n"
+    "Returns q_next (2,), qd_next (2,) as a tuple; batched inputs give a leading B axis.");
+
+static PyObject *k_discrete_dynamics(PyObject *self, PyObject *const *args, Py_ssize_t nargs,
+                                     PyObject *kwnames)
+{
+    PyObject *bound[4];
+    PyArrayObject *in[4] = {NULL};
+    PyArrayObject *out[2] = {NULL};
+    PyThreadState *unlocked;
+    npy_intp batch, count, b, step[4];
+    int status = 0;
+    (void)self;
+    if (kwnames != NULL || nargs != 4) {
+        /* keywords, or a wrong count: the slow path (positional calls skip it) */
+        if (rg_bind("discrete_dynamics", args, nargs, kwnames, k_discrete_dynamics_inputs, 4, bound) < 0) {
+            return NULL;
+        }
+        args = bound;
+    }
+    if (rg_convert_args("discrete_dynamics", args, k_discrete_dynamics_inputs, 4, in, &batch) < 0
+        || rg_new_results(k_discrete_dynamics_outputs, 2, batch, out) < 0) {
+        rg_release(in, 4);
+        rg_release(out, 2);
+        return NULL;
+    }
+    step[0] = PyArray_NDIM(in[0]) > 1 ? 2 : 0;
+    step[1] = PyArray_NDIM(in[1]) > 1 ? 2 : 0;
+    step[2] = PyArray_NDIM(in[2]) > 1 ? 2 : 0;
+    step[3] = PyArray_NDIM(in[3]) > 1 ? 1 : 0;
+    count = batch < 0 ? 1 : batch;
+    unlocked = count > 1 ? PyEval_SaveThread() : NULL;
+    for (b = 0; b < count && status == 0; ++b) {
+        status = styx_finger_discrete_dynamics(
+            rg_data(in[0]) + b * step[0],
+            rg_data(in[1]) + b * step[1],
+            rg_data(in[2]) + b * step[2],
+            rg_data(in[3]) + b * step[3],
+            rg_data(out[0]) + b * 2,
+            rg_data(out[1]) + b * 2);
+    }
+    if (unlocked != NULL) {
+        PyEval_RestoreThread(unlocked);
+    }
+    rg_release(in, 4);
+    return rg_finish("discrete_dynamics", status, out, 2);
+}
+
+/* discrete_dynamics_derivatives */
+static const rg_port k_discrete_dynamics_derivatives_inputs[] = {
+    {"q", 1, {2, 1}, "(2,)", "(B, 2)", 1},
+    {"qd", 1, {2, 1}, "(2,)", "(B, 2)", 2},
+    {"tau", 1, {2, 1}, "(2,)", "(B, 2)", 4},
+    {"dt", 1, {1, 1}, "(1,)", "(B, 1)", 0},
+};
+static const rg_port k_discrete_dynamics_derivatives_outputs[] = {
+    {"q_next", 1, {2, 1}, "(2,)", "(B, 2)", -1},
+    {"qd_next", 1, {2, 1}, "(2,)", "(B, 2)", -1},
+    {"A", 2, {4, 4}, "(4, 4)", "(B, 4, 4)", -1},
+    {"B", 2, {4, 2}, "(4, 2)", "(B, 4, 2)", -1},
+};
+PyDoc_STRVAR(k_discrete_dynamics_derivatives_doc,
+    "discrete_dynamics_derivatives($module, q, qd, tau, dt)\n"
+    "--\n"
+    "\n"
+    "One step (semi-implicit Euler (qd+ = qd + dt qdd, q+ = q + dt qd+)) and its Jacobians: q+, qd+, A = d(q+, qd+)/d(q, qd), B = d(q+, qd+)/d tau.\n"
+    "\n"
+    "q: float64 array (2,) or (B, 2)\n"
+    "qd: float64 array (2,) or (B, 2)\n"
+    "tau: float64 array (2,) or (B, 2)\n"
+    "dt: float64 array (1,) or (B, 1)\n"
+    "Returns q_next (2,), qd_next (2,), A (4, 4), B (4, 2) as a tuple; batched inputs give a leading B axis.");
+
+static PyObject *k_discrete_dynamics_derivatives(PyObject *self, PyObject *const *args, Py_ssize_t nargs,
+                                                 PyObject *kwnames)
+{
+    PyObject *bound[4];
+    PyArrayObject *in[4] = {NULL};
+    PyArrayObject *out[4] = {NULL};
+    PyThreadState *unlocked;
+    npy_intp batch, count, b, step[4];
+    int status = 0;
+    (void)self;
+    if (kwnames != NULL || nargs != 4) {
+        /* keywords, or a wrong count: the slow path (positional calls skip it) */
+        if (rg_bind("discrete_dynamics_derivatives", args, nargs, kwnames, k_discrete_dynamics_derivatives_inputs, 4, bound) < 0) {
+            return NULL;
+        }
+        args = bound;
+    }
+    if (rg_convert_args("discrete_dynamics_derivatives", args, k_discrete_dynamics_derivatives_inputs, 4, in, &batch) < 0
+        || rg_new_results(k_discrete_dynamics_derivatives_outputs, 4, batch, out) < 0) {
+        rg_release(in, 4);
+        rg_release(out, 4);
+        return NULL;
+    }
+    step[0] = PyArray_NDIM(in[0]) > 1 ? 2 : 0;
+    step[1] = PyArray_NDIM(in[1]) > 1 ? 2 : 0;
+    step[2] = PyArray_NDIM(in[2]) > 1 ? 2 : 0;
+    step[3] = PyArray_NDIM(in[3]) > 1 ? 1 : 0;
+    count = batch < 0 ? 1 : batch;
+    unlocked = count > 1 ? PyEval_SaveThread() : NULL;
+    for (b = 0; b < count && status == 0; ++b) {
+        status = styx_finger_discrete_dynamics_derivatives(
+            rg_data(in[0]) + b * step[0],
+            rg_data(in[1]) + b * step[1],
+            rg_data(in[2]) + b * step[2],
+            rg_data(in[3]) + b * step[3],
+            rg_data(out[0]) + b * 2,
+            rg_data(out[1]) + b * 2,
+            rg_data(out[2]) + b * 16,
+            rg_data(out[3]) + b * 8);
+    }
+    if (unlocked != NULL) {
+        PyEval_RestoreThread(unlocked);
+    }
+    rg_release(in, 4);
+    return rg_finish("discrete_dynamics_derivatives", status, out, 4);
+}
+
 static PyObject *rg_info(PyObject *self, PyObject *unused)
 {
     (void)self;
     (void)unused;
     return rg_from_json(
-    "{\"functions\":[\"mass\",\"coriolis\",\"gravity\",\"nonlinear\",\"inverse_dynamics\",\"forward_dynamics\",\"kinematics\",\"kinematics_jacobian\"],\"leaves\":[\"finger\"],\"name\":\"styx_finger\",\"nodes\":{\"finger\":{\"coordinates\":[\"th1\",\"th2\"],\"internal_forces\":[],\"internal_motions\":[],\"kind\":\"formulas\",\"nq\":2,\"primitive\":\"define\",\"units\":[\"rad\",\"rad\"]}},\"nq\":2,\"precision\":\"double\",\"robotgen_version\":\"0.1.0\",\"root\":\"finger\",\"spec_sha256\":\"f6a793680adbe952dd25a2047bb8963253e01ca9f7b38c266c19e3ea342009a2\"}");
+    "{\"functions\":[\"mass\",\"coriolis\",\"gravity\",\"nonlinear\",\"inverse_dynamics\",\"forward_dynamics\",\"kinematics\",\"kinematics_jacobian\",\"inverse_dynamics_derivatives\",\"forward_dynamics_derivatives\",\"mass_inverse\",\"discrete_dynamics\",\"discrete_dynamics_derivatives\"],\"leaves\":[\"finger\"],\"name\":\"styx_finger\",\"nodes\":{\"finger\":{\"coordinates\":[\"th1\",\"th2\"],\"internal_forces\":[],\"internal_motions\":[],\"kind\":\"formulas\",\"nq\":2,\"primitive\":\"define\",\"units\":[\"rad\",\"rad\"]}},\"nq\":2,\"precision\":\"double\",\"robotgen_version\":\"0.1.0\",\"root\":\"finger\",\"spec_sha256\":\"f6a793680adbe952dd25a2047bb8963253e01ca9f7b38c266c19e3ea342009a2\"}");
 }
 
 static PyMethodDef rg_methods[] = {
@@ -764,6 +1101,16 @@ static PyMethodDef rg_methods[] = {
      k_kinematics_doc},
     {"kinematics_jacobian", (PyCFunction)(void (*)(void))k_kinematics_jacobian, METH_FASTCALL | METH_KEYWORDS,
      k_kinematics_jacobian_doc},
+    {"inverse_dynamics_derivatives", (PyCFunction)(void (*)(void))k_inverse_dynamics_derivatives, METH_FASTCALL | METH_KEYWORDS,
+     k_inverse_dynamics_derivatives_doc},
+    {"forward_dynamics_derivatives", (PyCFunction)(void (*)(void))k_forward_dynamics_derivatives, METH_FASTCALL | METH_KEYWORDS,
+     k_forward_dynamics_derivatives_doc},
+    {"mass_inverse", (PyCFunction)(void (*)(void))k_mass_inverse, METH_FASTCALL | METH_KEYWORDS,
+     k_mass_inverse_doc},
+    {"discrete_dynamics", (PyCFunction)(void (*)(void))k_discrete_dynamics, METH_FASTCALL | METH_KEYWORDS,
+     k_discrete_dynamics_doc},
+    {"discrete_dynamics_derivatives", (PyCFunction)(void (*)(void))k_discrete_dynamics_derivatives, METH_FASTCALL | METH_KEYWORDS,
+     k_discrete_dynamics_derivatives_doc},
     {"info", rg_info, METH_NOARGS,
      "info($module, /)\n--\n\nA new dict describing this module: name, nq, nodes, functions, "
      "robotgen_version, spec_sha256, precision."},
@@ -775,7 +1122,7 @@ static struct PyModuleDef rg_module = {
     .m_name = "styx_finger",
     .m_doc = "styx_finger: robot functions generated by robotgen 0.1.0.\n"
     "\n"
-    "Functions: mass, coriolis, gravity, nonlinear, inverse_dynamics, forward_dynamics, kinematics, kinematics_jacobian. Arrays are float64, matrices row-major; a leading batch axis B on every argument gives results with that axis.",
+    "Functions: mass, coriolis, gravity, nonlinear, inverse_dynamics, forward_dynamics, kinematics, kinematics_jacobian, inverse_dynamics_derivatives, forward_dynamics_derivatives, mass_inverse, discrete_dynamics, discrete_dynamics_derivatives. Arrays are float64, matrices row-major; a leading batch axis B on every argument gives results with that axis.",
     .m_size = -1,
     .m_methods = rg_methods,
 };

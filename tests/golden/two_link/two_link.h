@@ -146,6 +146,102 @@ int two_link_forward_dynamics(const double *q, const double *qd, const double *t
 #define TWO_LINK_SERVO_TERMS_JACOBIAN_DOT_QD_SIZE 6
 int two_link_servo_terms(const double *q, const double *qd, double *mass, double *nonlinear, double *jacobian, double *jacobian_dot_qd);
 
+/* two_link_inverse_dynamics_derivatives:
+ * Partial derivatives of inverse dynamics: d tau/dq and d tau/dqd (d tau/dqdd is M).
+ *
+ *   in  q (2,)
+ *   in  qd (2,)
+ *   in  qdd (2,)
+ *   out dtau_dq (2, 2) row-major
+ *   out dtau_dqd (2, 2) row-major
+ */
+#define TWO_LINK_INVERSE_DYNAMICS_DERIVATIVES_Q_SIZE 2
+#define TWO_LINK_INVERSE_DYNAMICS_DERIVATIVES_QD_SIZE 2
+#define TWO_LINK_INVERSE_DYNAMICS_DERIVATIVES_QDD_SIZE 2
+#define TWO_LINK_INVERSE_DYNAMICS_DERIVATIVES_DTAU_DQ_SIZE 4
+#define TWO_LINK_INVERSE_DYNAMICS_DERIVATIVES_DTAU_DQD_SIZE 4
+int two_link_inverse_dynamics_derivatives(const double *q, const double *qd, const double *qdd, double *dtau_dq, double *dtau_dqd);
+
+/* two_link_forward_dynamics_derivatives:
+ * Partial derivatives of forward dynamics: d qdd/dq, d qdd/dqd and d qdd/d tau = M^-1.
+ *
+ *   in  q (2,)
+ *   in  qd (2,)
+ *   in  tau (2,)
+ *   out dqdd_dq (2, 2) row-major
+ *   out dqdd_dqd (2, 2) row-major
+ *   out dqdd_dtau (2, 2) row-major
+ */
+#define TWO_LINK_FORWARD_DYNAMICS_DERIVATIVES_Q_SIZE 2
+#define TWO_LINK_FORWARD_DYNAMICS_DERIVATIVES_QD_SIZE 2
+#define TWO_LINK_FORWARD_DYNAMICS_DERIVATIVES_TAU_SIZE 2
+#define TWO_LINK_FORWARD_DYNAMICS_DERIVATIVES_DQDD_DQ_SIZE 4
+#define TWO_LINK_FORWARD_DYNAMICS_DERIVATIVES_DQDD_DQD_SIZE 4
+#define TWO_LINK_FORWARD_DYNAMICS_DERIVATIVES_DQDD_DTAU_SIZE 4
+int two_link_forward_dynamics_derivatives(const double *q, const double *qd, const double *tau, double *dqdd_dq, double *dqdd_dqd, double *dqdd_dtau);
+
+/* two_link_mass_inverse:
+ * M(q)^-1 (Cholesky factorisation, then solves).
+ *
+ *   in  q (2,)
+ *   out mass_inverse (2, 2) row-major
+ */
+#define TWO_LINK_MASS_INVERSE_Q_SIZE 2
+#define TWO_LINK_MASS_INVERSE_MASS_INVERSE_SIZE 4
+int two_link_mass_inverse(const double *q, double *mass_inverse);
+
+/* two_link_discrete_dynamics:
+ * One step of length dt, tau held: semi-implicit Euler (qd+ = qd + dt qdd, q+ = q + dt qd+). Returns q+, qd+.
+ *
+ *   in  q (2,)
+ *   in  qd (2,)
+ *   in  tau (2,)
+ *   in  dt (1,)
+ *   out q_next (2,)
+ *   out qd_next (2,)
+ */
+#define TWO_LINK_DISCRETE_DYNAMICS_Q_SIZE 2
+#define TWO_LINK_DISCRETE_DYNAMICS_QD_SIZE 2
+#define TWO_LINK_DISCRETE_DYNAMICS_TAU_SIZE 2
+#define TWO_LINK_DISCRETE_DYNAMICS_DT_SIZE 1
+#define TWO_LINK_DISCRETE_DYNAMICS_Q_NEXT_SIZE 2
+#define TWO_LINK_DISCRETE_DYNAMICS_QD_NEXT_SIZE 2
+int two_link_discrete_dynamics(const double *q, const double *qd, const double *tau, const double *dt, double *q_next, double *qd_next);
+
+/* two_link_discrete_dynamics_derivatives:
+ * One step (semi-implicit Euler (qd+ = qd + dt qdd, q+ = q + dt qd+)) and its Jacobians: q+, qd+, A = d(q+, qd+)/d(q, qd), B = d(q+, qd+)/d tau.
+ *
+ *   in  q (2,)
+ *   in  qd (2,)
+ *   in  tau (2,)
+ *   in  dt (1,)
+ *   out q_next (2,)
+ *   out qd_next (2,)
+ *   out A (4, 4) row-major
+ *   out B (4, 2) row-major
+ */
+#define TWO_LINK_DISCRETE_DYNAMICS_DERIVATIVES_Q_SIZE 2
+#define TWO_LINK_DISCRETE_DYNAMICS_DERIVATIVES_QD_SIZE 2
+#define TWO_LINK_DISCRETE_DYNAMICS_DERIVATIVES_TAU_SIZE 2
+#define TWO_LINK_DISCRETE_DYNAMICS_DERIVATIVES_DT_SIZE 1
+#define TWO_LINK_DISCRETE_DYNAMICS_DERIVATIVES_Q_NEXT_SIZE 2
+#define TWO_LINK_DISCRETE_DYNAMICS_DERIVATIVES_QD_NEXT_SIZE 2
+#define TWO_LINK_DISCRETE_DYNAMICS_DERIVATIVES_A_SIZE 16
+#define TWO_LINK_DISCRETE_DYNAMICS_DERIVATIVES_B_SIZE 8
+int two_link_discrete_dynamics_derivatives(const double *q, const double *qd, const double *tau, const double *dt, double *q_next, double *qd_next, double *A, double *B);
+
+/* two_link_jacobian_derivative:
+ * dJ/dt (6 x n): the time derivative of the tip Jacobian; jacobian_derivative qd = jacobian_dot_qd.
+ *
+ *   in  q (2,)
+ *   in  qd (2,)
+ *   out jacobian_derivative (6, 2) row-major
+ */
+#define TWO_LINK_JACOBIAN_DERIVATIVE_Q_SIZE 2
+#define TWO_LINK_JACOBIAN_DERIVATIVE_QD_SIZE 2
+#define TWO_LINK_JACOBIAN_DERIVATIVE_JACOBIAN_DERIVATIVE_SIZE 12
+int two_link_jacobian_derivative(const double *q, const double *qd, double *jacobian_derivative);
+
 #ifdef __cplusplus
 }
 #endif

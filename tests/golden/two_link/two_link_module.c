@@ -20,12 +20,13 @@ typedef struct {
 /* The input names as interned str, made at import: keywords are matched by identity first
  * (CPython interns the names written in a call), by value otherwise. */
 static const char *const rg_key_names[] = {
+    "dt",
     "q",
     "qd",
     "qdd",
     "tau",
 };
-static PyObject *rg_keys[4];
+static PyObject *rg_keys[5];
 
 static void rg_release(PyArrayObject **arrays, int n)
 {
@@ -173,13 +174,13 @@ static void rg_conversion_failed(const char *fn, const rg_port *port, PyObject *
 }
 
 /* Converts the n arguments (in port order) to C-contiguous float64 arrays and checks their
- * shapes. *batch is the leading length B shared by all arguments, or -1 when none has a
- * batch axis. Returns 0, or -1 with an exception set (arrays already made are left for the
- * caller). */
+ * shapes. *batch is the leading length B shared by the arguments that have a batch axis, or
+ * -1 when none has one; an argument without one applies to every point of the batch.
+ * Returns 0, or -1 with an exception set (arrays already made are left for the caller). */
 static int rg_convert_args(const char *fn, PyObject *const *args, const rg_port *ports, int n,
                            PyArrayObject **arrays, npy_intp *batch)
 {
-    int i, k, extra;
+    int i, k, extra, first = 0;
     npy_intp length;
     *batch = -1;
     for (i = 0; i < n; ++i) {
@@ -224,21 +225,19 @@ static int rg_convert_args(const char *fn, PyObject *const *args, const rg_port 
             }
             return -1;
         }
-        length = extra == 1 ? PyArray_DIM(arrays[i], 0) : -1;
-        if (i > 0 && length != *batch) {
-            if (length < 0 || *batch < 0) {
-                PyErr_Format(PyExc_ValueError,
-                             "%s(): argument '%s' %s a batch axis but '%s' %s; batch all arguments or none",
-                             fn, ports[i].name, length < 0 ? "lacks" : "has",
-                             ports[0].name, length < 0 ? "has one" : "does not");
-            } else {
+        if (extra == 1) {
+            length = PyArray_DIM(arrays[i], 0);
+            if (*batch >= 0 && length != *batch) {
                 PyErr_Format(PyExc_ValueError,
                              "%s(): batch lengths differ: '%s' has %zd, '%s' has %zd",
-                             fn, ports[0].name, (Py_ssize_t)*batch, ports[i].name, (Py_ssize_t)length);
+                             fn, ports[first].name, (Py_ssize_t)*batch, ports[i].name, (Py_ssize_t)length);
+                return -1;
             }
-            return -1;
+            if (*batch < 0) {
+                first = i;
+            }
+            *batch = length;
         }
-        *batch = length;
     }
     return 0;
 }
@@ -299,7 +298,7 @@ static PyObject *rg_from_json(const char *text)
 
 /* fk */
 static const rg_port k_fk_inputs[] = {
-    {"q", 1, {2, 1}, "(2,)", "(B, 2)", 0},
+    {"q", 1, {2, 1}, "(2,)", "(B, 2)", 1},
 };
 static const rg_port k_fk_outputs[] = {
     {"fk", 2, {4, 4}, "(4, 4)", "(B, 4, 4)", -1},
@@ -320,7 +319,7 @@ static PyObject *k_fk(PyObject *self, PyObject *const *args, Py_ssize_t nargs,
     PyArrayObject *in[1] = {NULL};
     PyArrayObject *out[1] = {NULL};
     PyThreadState *unlocked;
-    npy_intp batch, count, b;
+    npy_intp batch, count, b, step[1];
     int status = 0;
     (void)self;
     if (kwnames != NULL || nargs != 1) {
@@ -336,11 +335,12 @@ static PyObject *k_fk(PyObject *self, PyObject *const *args, Py_ssize_t nargs,
         rg_release(out, 1);
         return NULL;
     }
+    step[0] = PyArray_NDIM(in[0]) > 1 ? 2 : 0;
     count = batch < 0 ? 1 : batch;
     unlocked = count > 1 ? PyEval_SaveThread() : NULL;
     for (b = 0; b < count && status == 0; ++b) {
         status = two_link_fk(
-            rg_data(in[0]) + b * 2,
+            rg_data(in[0]) + b * step[0],
             rg_data(out[0]) + b * 16);
     }
     if (unlocked != NULL) {
@@ -352,7 +352,7 @@ static PyObject *k_fk(PyObject *self, PyObject *const *args, Py_ssize_t nargs,
 
 /* jacobian */
 static const rg_port k_jacobian_inputs[] = {
-    {"q", 1, {2, 1}, "(2,)", "(B, 2)", 0},
+    {"q", 1, {2, 1}, "(2,)", "(B, 2)", 1},
 };
 static const rg_port k_jacobian_outputs[] = {
     {"jacobian", 2, {6, 2}, "(6, 2)", "(B, 6, 2)", -1},
@@ -373,7 +373,7 @@ static PyObject *k_jacobian(PyObject *self, PyObject *const *args, Py_ssize_t na
     PyArrayObject *in[1] = {NULL};
     PyArrayObject *out[1] = {NULL};
     PyThreadState *unlocked;
-    npy_intp batch, count, b;
+    npy_intp batch, count, b, step[1];
     int status = 0;
     (void)self;
     if (kwnames != NULL || nargs != 1) {
@@ -389,11 +389,12 @@ static PyObject *k_jacobian(PyObject *self, PyObject *const *args, Py_ssize_t na
         rg_release(out, 1);
         return NULL;
     }
+    step[0] = PyArray_NDIM(in[0]) > 1 ? 2 : 0;
     count = batch < 0 ? 1 : batch;
     unlocked = count > 1 ? PyEval_SaveThread() : NULL;
     for (b = 0; b < count && status == 0; ++b) {
         status = two_link_jacobian(
-            rg_data(in[0]) + b * 2,
+            rg_data(in[0]) + b * step[0],
             rg_data(out[0]) + b * 12);
     }
     if (unlocked != NULL) {
@@ -405,7 +406,7 @@ static PyObject *k_jacobian(PyObject *self, PyObject *const *args, Py_ssize_t na
 
 /* jacobian_hand */
 static const rg_port k_jacobian_hand_inputs[] = {
-    {"q", 1, {2, 1}, "(2,)", "(B, 2)", 0},
+    {"q", 1, {2, 1}, "(2,)", "(B, 2)", 1},
 };
 static const rg_port k_jacobian_hand_outputs[] = {
     {"jacobian_hand", 2, {6, 2}, "(6, 2)", "(B, 6, 2)", -1},
@@ -426,7 +427,7 @@ static PyObject *k_jacobian_hand(PyObject *self, PyObject *const *args, Py_ssize
     PyArrayObject *in[1] = {NULL};
     PyArrayObject *out[1] = {NULL};
     PyThreadState *unlocked;
-    npy_intp batch, count, b;
+    npy_intp batch, count, b, step[1];
     int status = 0;
     (void)self;
     if (kwnames != NULL || nargs != 1) {
@@ -442,11 +443,12 @@ static PyObject *k_jacobian_hand(PyObject *self, PyObject *const *args, Py_ssize
         rg_release(out, 1);
         return NULL;
     }
+    step[0] = PyArray_NDIM(in[0]) > 1 ? 2 : 0;
     count = batch < 0 ? 1 : batch;
     unlocked = count > 1 ? PyEval_SaveThread() : NULL;
     for (b = 0; b < count && status == 0; ++b) {
         status = two_link_jacobian_hand(
-            rg_data(in[0]) + b * 2,
+            rg_data(in[0]) + b * step[0],
             rg_data(out[0]) + b * 12);
     }
     if (unlocked != NULL) {
@@ -458,8 +460,8 @@ static PyObject *k_jacobian_hand(PyObject *self, PyObject *const *args, Py_ssize
 
 /* jacobian_dot_qd */
 static const rg_port k_jacobian_dot_qd_inputs[] = {
-    {"q", 1, {2, 1}, "(2,)", "(B, 2)", 0},
-    {"qd", 1, {2, 1}, "(2,)", "(B, 2)", 1},
+    {"q", 1, {2, 1}, "(2,)", "(B, 2)", 1},
+    {"qd", 1, {2, 1}, "(2,)", "(B, 2)", 2},
 };
 static const rg_port k_jacobian_dot_qd_outputs[] = {
     {"jacobian_dot_qd", 1, {6, 1}, "(6,)", "(B, 6)", -1},
@@ -481,7 +483,7 @@ static PyObject *k_jacobian_dot_qd(PyObject *self, PyObject *const *args, Py_ssi
     PyArrayObject *in[2] = {NULL};
     PyArrayObject *out[1] = {NULL};
     PyThreadState *unlocked;
-    npy_intp batch, count, b;
+    npy_intp batch, count, b, step[2];
     int status = 0;
     (void)self;
     if (kwnames != NULL || nargs != 2) {
@@ -497,12 +499,14 @@ static PyObject *k_jacobian_dot_qd(PyObject *self, PyObject *const *args, Py_ssi
         rg_release(out, 1);
         return NULL;
     }
+    step[0] = PyArray_NDIM(in[0]) > 1 ? 2 : 0;
+    step[1] = PyArray_NDIM(in[1]) > 1 ? 2 : 0;
     count = batch < 0 ? 1 : batch;
     unlocked = count > 1 ? PyEval_SaveThread() : NULL;
     for (b = 0; b < count && status == 0; ++b) {
         status = two_link_jacobian_dot_qd(
-            rg_data(in[0]) + b * 2,
-            rg_data(in[1]) + b * 2,
+            rg_data(in[0]) + b * step[0],
+            rg_data(in[1]) + b * step[1],
             rg_data(out[0]) + b * 6);
     }
     if (unlocked != NULL) {
@@ -514,7 +518,7 @@ static PyObject *k_jacobian_dot_qd(PyObject *self, PyObject *const *args, Py_ssi
 
 /* mass */
 static const rg_port k_mass_inputs[] = {
-    {"q", 1, {2, 1}, "(2,)", "(B, 2)", 0},
+    {"q", 1, {2, 1}, "(2,)", "(B, 2)", 1},
 };
 static const rg_port k_mass_outputs[] = {
     {"mass", 2, {2, 2}, "(2, 2)", "(B, 2, 2)", -1},
@@ -535,7 +539,7 @@ static PyObject *k_mass(PyObject *self, PyObject *const *args, Py_ssize_t nargs,
     PyArrayObject *in[1] = {NULL};
     PyArrayObject *out[1] = {NULL};
     PyThreadState *unlocked;
-    npy_intp batch, count, b;
+    npy_intp batch, count, b, step[1];
     int status = 0;
     (void)self;
     if (kwnames != NULL || nargs != 1) {
@@ -551,11 +555,12 @@ static PyObject *k_mass(PyObject *self, PyObject *const *args, Py_ssize_t nargs,
         rg_release(out, 1);
         return NULL;
     }
+    step[0] = PyArray_NDIM(in[0]) > 1 ? 2 : 0;
     count = batch < 0 ? 1 : batch;
     unlocked = count > 1 ? PyEval_SaveThread() : NULL;
     for (b = 0; b < count && status == 0; ++b) {
         status = two_link_mass(
-            rg_data(in[0]) + b * 2,
+            rg_data(in[0]) + b * step[0],
             rg_data(out[0]) + b * 4);
     }
     if (unlocked != NULL) {
@@ -567,8 +572,8 @@ static PyObject *k_mass(PyObject *self, PyObject *const *args, Py_ssize_t nargs,
 
 /* coriolis */
 static const rg_port k_coriolis_inputs[] = {
-    {"q", 1, {2, 1}, "(2,)", "(B, 2)", 0},
-    {"qd", 1, {2, 1}, "(2,)", "(B, 2)", 1},
+    {"q", 1, {2, 1}, "(2,)", "(B, 2)", 1},
+    {"qd", 1, {2, 1}, "(2,)", "(B, 2)", 2},
 };
 static const rg_port k_coriolis_outputs[] = {
     {"coriolis", 2, {2, 2}, "(2, 2)", "(B, 2, 2)", -1},
@@ -590,7 +595,7 @@ static PyObject *k_coriolis(PyObject *self, PyObject *const *args, Py_ssize_t na
     PyArrayObject *in[2] = {NULL};
     PyArrayObject *out[1] = {NULL};
     PyThreadState *unlocked;
-    npy_intp batch, count, b;
+    npy_intp batch, count, b, step[2];
     int status = 0;
     (void)self;
     if (kwnames != NULL || nargs != 2) {
@@ -606,12 +611,14 @@ static PyObject *k_coriolis(PyObject *self, PyObject *const *args, Py_ssize_t na
         rg_release(out, 1);
         return NULL;
     }
+    step[0] = PyArray_NDIM(in[0]) > 1 ? 2 : 0;
+    step[1] = PyArray_NDIM(in[1]) > 1 ? 2 : 0;
     count = batch < 0 ? 1 : batch;
     unlocked = count > 1 ? PyEval_SaveThread() : NULL;
     for (b = 0; b < count && status == 0; ++b) {
         status = two_link_coriolis(
-            rg_data(in[0]) + b * 2,
-            rg_data(in[1]) + b * 2,
+            rg_data(in[0]) + b * step[0],
+            rg_data(in[1]) + b * step[1],
             rg_data(out[0]) + b * 4);
     }
     if (unlocked != NULL) {
@@ -623,7 +630,7 @@ static PyObject *k_coriolis(PyObject *self, PyObject *const *args, Py_ssize_t na
 
 /* gravity */
 static const rg_port k_gravity_inputs[] = {
-    {"q", 1, {2, 1}, "(2,)", "(B, 2)", 0},
+    {"q", 1, {2, 1}, "(2,)", "(B, 2)", 1},
 };
 static const rg_port k_gravity_outputs[] = {
     {"gravity", 1, {2, 1}, "(2,)", "(B, 2)", -1},
@@ -644,7 +651,7 @@ static PyObject *k_gravity(PyObject *self, PyObject *const *args, Py_ssize_t nar
     PyArrayObject *in[1] = {NULL};
     PyArrayObject *out[1] = {NULL};
     PyThreadState *unlocked;
-    npy_intp batch, count, b;
+    npy_intp batch, count, b, step[1];
     int status = 0;
     (void)self;
     if (kwnames != NULL || nargs != 1) {
@@ -660,11 +667,12 @@ static PyObject *k_gravity(PyObject *self, PyObject *const *args, Py_ssize_t nar
         rg_release(out, 1);
         return NULL;
     }
+    step[0] = PyArray_NDIM(in[0]) > 1 ? 2 : 0;
     count = batch < 0 ? 1 : batch;
     unlocked = count > 1 ? PyEval_SaveThread() : NULL;
     for (b = 0; b < count && status == 0; ++b) {
         status = two_link_gravity(
-            rg_data(in[0]) + b * 2,
+            rg_data(in[0]) + b * step[0],
             rg_data(out[0]) + b * 2);
     }
     if (unlocked != NULL) {
@@ -676,8 +684,8 @@ static PyObject *k_gravity(PyObject *self, PyObject *const *args, Py_ssize_t nar
 
 /* nonlinear */
 static const rg_port k_nonlinear_inputs[] = {
-    {"q", 1, {2, 1}, "(2,)", "(B, 2)", 0},
-    {"qd", 1, {2, 1}, "(2,)", "(B, 2)", 1},
+    {"q", 1, {2, 1}, "(2,)", "(B, 2)", 1},
+    {"qd", 1, {2, 1}, "(2,)", "(B, 2)", 2},
 };
 static const rg_port k_nonlinear_outputs[] = {
     {"nonlinear", 1, {2, 1}, "(2,)", "(B, 2)", -1},
@@ -699,7 +707,7 @@ static PyObject *k_nonlinear(PyObject *self, PyObject *const *args, Py_ssize_t n
     PyArrayObject *in[2] = {NULL};
     PyArrayObject *out[1] = {NULL};
     PyThreadState *unlocked;
-    npy_intp batch, count, b;
+    npy_intp batch, count, b, step[2];
     int status = 0;
     (void)self;
     if (kwnames != NULL || nargs != 2) {
@@ -715,12 +723,14 @@ static PyObject *k_nonlinear(PyObject *self, PyObject *const *args, Py_ssize_t n
         rg_release(out, 1);
         return NULL;
     }
+    step[0] = PyArray_NDIM(in[0]) > 1 ? 2 : 0;
+    step[1] = PyArray_NDIM(in[1]) > 1 ? 2 : 0;
     count = batch < 0 ? 1 : batch;
     unlocked = count > 1 ? PyEval_SaveThread() : NULL;
     for (b = 0; b < count && status == 0; ++b) {
         status = two_link_nonlinear(
-            rg_data(in[0]) + b * 2,
-            rg_data(in[1]) + b * 2,
+            rg_data(in[0]) + b * step[0],
+            rg_data(in[1]) + b * step[1],
             rg_data(out[0]) + b * 2);
     }
     if (unlocked != NULL) {
@@ -732,9 +742,9 @@ static PyObject *k_nonlinear(PyObject *self, PyObject *const *args, Py_ssize_t n
 
 /* inverse_dynamics */
 static const rg_port k_inverse_dynamics_inputs[] = {
-    {"q", 1, {2, 1}, "(2,)", "(B, 2)", 0},
-    {"qd", 1, {2, 1}, "(2,)", "(B, 2)", 1},
-    {"qdd", 1, {2, 1}, "(2,)", "(B, 2)", 2},
+    {"q", 1, {2, 1}, "(2,)", "(B, 2)", 1},
+    {"qd", 1, {2, 1}, "(2,)", "(B, 2)", 2},
+    {"qdd", 1, {2, 1}, "(2,)", "(B, 2)", 3},
 };
 static const rg_port k_inverse_dynamics_outputs[] = {
     {"inverse_dynamics", 1, {2, 1}, "(2,)", "(B, 2)", -1},
@@ -757,7 +767,7 @@ static PyObject *k_inverse_dynamics(PyObject *self, PyObject *const *args, Py_ss
     PyArrayObject *in[3] = {NULL};
     PyArrayObject *out[1] = {NULL};
     PyThreadState *unlocked;
-    npy_intp batch, count, b;
+    npy_intp batch, count, b, step[3];
     int status = 0;
     (void)self;
     if (kwnames != NULL || nargs != 3) {
@@ -773,13 +783,16 @@ static PyObject *k_inverse_dynamics(PyObject *self, PyObject *const *args, Py_ss
         rg_release(out, 1);
         return NULL;
     }
+    step[0] = PyArray_NDIM(in[0]) > 1 ? 2 : 0;
+    step[1] = PyArray_NDIM(in[1]) > 1 ? 2 : 0;
+    step[2] = PyArray_NDIM(in[2]) > 1 ? 2 : 0;
     count = batch < 0 ? 1 : batch;
     unlocked = count > 1 ? PyEval_SaveThread() : NULL;
     for (b = 0; b < count && status == 0; ++b) {
         status = two_link_inverse_dynamics(
-            rg_data(in[0]) + b * 2,
-            rg_data(in[1]) + b * 2,
-            rg_data(in[2]) + b * 2,
+            rg_data(in[0]) + b * step[0],
+            rg_data(in[1]) + b * step[1],
+            rg_data(in[2]) + b * step[2],
             rg_data(out[0]) + b * 2);
     }
     if (unlocked != NULL) {
@@ -791,9 +804,9 @@ static PyObject *k_inverse_dynamics(PyObject *self, PyObject *const *args, Py_ss
 
 /* forward_dynamics */
 static const rg_port k_forward_dynamics_inputs[] = {
-    {"q", 1, {2, 1}, "(2,)", "(B, 2)", 0},
-    {"qd", 1, {2, 1}, "(2,)", "(B, 2)", 1},
-    {"tau", 1, {2, 1}, "(2,)", "(B, 2)", 3},
+    {"q", 1, {2, 1}, "(2,)", "(B, 2)", 1},
+    {"qd", 1, {2, 1}, "(2,)", "(B, 2)", 2},
+    {"tau", 1, {2, 1}, "(2,)", "(B, 2)", 4},
 };
 static const rg_port k_forward_dynamics_outputs[] = {
     {"forward_dynamics", 1, {2, 1}, "(2,)", "(B, 2)", -1},
@@ -816,7 +829,7 @@ static PyObject *k_forward_dynamics(PyObject *self, PyObject *const *args, Py_ss
     PyArrayObject *in[3] = {NULL};
     PyArrayObject *out[1] = {NULL};
     PyThreadState *unlocked;
-    npy_intp batch, count, b;
+    npy_intp batch, count, b, step[3];
     int status = 0;
     (void)self;
     if (kwnames != NULL || nargs != 3) {
@@ -832,13 +845,16 @@ static PyObject *k_forward_dynamics(PyObject *self, PyObject *const *args, Py_ss
         rg_release(out, 1);
         return NULL;
     }
+    step[0] = PyArray_NDIM(in[0]) > 1 ? 2 : 0;
+    step[1] = PyArray_NDIM(in[1]) > 1 ? 2 : 0;
+    step[2] = PyArray_NDIM(in[2]) > 1 ? 2 : 0;
     count = batch < 0 ? 1 : batch;
     unlocked = count > 1 ? PyEval_SaveThread() : NULL;
     for (b = 0; b < count && status == 0; ++b) {
         status = two_link_forward_dynamics(
-            rg_data(in[0]) + b * 2,
-            rg_data(in[1]) + b * 2,
-            rg_data(in[2]) + b * 2,
+            rg_data(in[0]) + b * step[0],
+            rg_data(in[1]) + b * step[1],
+            rg_data(in[2]) + b * step[2],
             rg_data(out[0]) + b * 2);
     }
     if (unlocked != NULL) {
@@ -850,8 +866,8 @@ static PyObject *k_forward_dynamics(PyObject *self, PyObject *const *args, Py_ss
 
 /* servo_terms */
 static const rg_port k_servo_terms_inputs[] = {
-    {"q", 1, {2, 1}, "(2,)", "(B, 2)", 0},
-    {"qd", 1, {2, 1}, "(2,)", "(B, 2)", 1},
+    {"q", 1, {2, 1}, "(2,)", "(B, 2)", 1},
+    {"qd", 1, {2, 1}, "(2,)", "(B, 2)", 2},
 };
 static const rg_port k_servo_terms_outputs[] = {
     {"mass", 2, {2, 2}, "(2, 2)", "(B, 2, 2)", -1},
@@ -876,7 +892,7 @@ static PyObject *k_servo_terms(PyObject *self, PyObject *const *args, Py_ssize_t
     PyArrayObject *in[2] = {NULL};
     PyArrayObject *out[4] = {NULL};
     PyThreadState *unlocked;
-    npy_intp batch, count, b;
+    npy_intp batch, count, b, step[2];
     int status = 0;
     (void)self;
     if (kwnames != NULL || nargs != 2) {
@@ -892,12 +908,14 @@ static PyObject *k_servo_terms(PyObject *self, PyObject *const *args, Py_ssize_t
         rg_release(out, 4);
         return NULL;
     }
+    step[0] = PyArray_NDIM(in[0]) > 1 ? 2 : 0;
+    step[1] = PyArray_NDIM(in[1]) > 1 ? 2 : 0;
     count = batch < 0 ? 1 : batch;
     unlocked = count > 1 ? PyEval_SaveThread() : NULL;
     for (b = 0; b < count && status == 0; ++b) {
         status = two_link_servo_terms(
-            rg_data(in[0]) + b * 2,
-            rg_data(in[1]) + b * 2,
+            rg_data(in[0]) + b * step[0],
+            rg_data(in[1]) + b * step[1],
             rg_data(out[0]) + b * 4,
             rg_data(out[1]) + b * 2,
             rg_data(out[2]) + b * 12,
@@ -910,12 +928,394 @@ static PyObject *k_servo_terms(PyObject *self, PyObject *const *args, Py_ssize_t
     return rg_finish("servo_terms", status, out, 4);
 }
 
+/* inverse_dynamics_derivatives */
+static const rg_port k_inverse_dynamics_derivatives_inputs[] = {
+    {"q", 1, {2, 1}, "(2,)", "(B, 2)", 1},
+    {"qd", 1, {2, 1}, "(2,)", "(B, 2)", 2},
+    {"qdd", 1, {2, 1}, "(2,)", "(B, 2)", 3},
+};
+static const rg_port k_inverse_dynamics_derivatives_outputs[] = {
+    {"dtau_dq", 2, {2, 2}, "(2, 2)", "(B, 2, 2)", -1},
+    {"dtau_dqd", 2, {2, 2}, "(2, 2)", "(B, 2, 2)", -1},
+};
+PyDoc_STRVAR(k_inverse_dynamics_derivatives_doc,
+    "inverse_dynamics_derivatives($module, q, qd, qdd)\n"
+    "--\n"
+    "\n"
+    "Partial derivatives of inverse dynamics: d tau/dq and d tau/dqd (d tau/dqdd is M).\n"
+    "\n"
+    "q: float64 array (2,) or (B, 2)\n"
+    "qd: float64 array (2,) or (B, 2)\n"
+    "qdd: float64 array (2,) or (B, 2)\n"
+    "Returns dtau_dq (2, 2), dtau_dqd (2, 2) as a tuple; batched inputs give a leading B axis.");
+
+static PyObject *k_inverse_dynamics_derivatives(PyObject *self, PyObject *const *args, Py_ssize_t nargs,
+                                                PyObject *kwnames)
+{
+    PyObject *bound[3];
+    PyArrayObject *in[3] = {NULL};
+    PyArrayObject *out[2] = {NULL};
+    PyThreadState *unlocked;
+    npy_intp batch, count, b, step[3];
+    int status = 0;
+    (void)self;
+    if (kwnames != NULL || nargs != 3) {
+        /* keywords, or a wrong count: the slow path (positional calls skip it) */
+        if (rg_bind("inverse_dynamics_derivatives", args, nargs, kwnames, k_inverse_dynamics_derivatives_inputs, 3, bound) < 0) {
+            return NULL;
+        }
+        args = bound;
+    }
+    if (rg_convert_args("inverse_dynamics_derivatives", args, k_inverse_dynamics_derivatives_inputs, 3, in, &batch) < 0
+        || rg_new_results(k_inverse_dynamics_derivatives_outputs, 2, batch, out) < 0) {
+        rg_release(in, 3);
+        rg_release(out, 2);
+        return NULL;
+    }
+    step[0] = PyArray_NDIM(in[0]) > 1 ? 2 : 0;
+    step[1] = PyArray_NDIM(in[1]) > 1 ? 2 : 0;
+    step[2] = PyArray_NDIM(in[2]) > 1 ? 2 : 0;
+    count = batch < 0 ? 1 : batch;
+    unlocked = count > 1 ? PyEval_SaveThread() : NULL;
+    for (b = 0; b < count && status == 0; ++b) {
+        status = two_link_inverse_dynamics_derivatives(
+            rg_data(in[0]) + b * step[0],
+            rg_data(in[1]) + b * step[1],
+            rg_data(in[2]) + b * step[2],
+            rg_data(out[0]) + b * 4,
+            rg_data(out[1]) + b * 4);
+    }
+    if (unlocked != NULL) {
+        PyEval_RestoreThread(unlocked);
+    }
+    rg_release(in, 3);
+    return rg_finish("inverse_dynamics_derivatives", status, out, 2);
+}
+
+/* forward_dynamics_derivatives */
+static const rg_port k_forward_dynamics_derivatives_inputs[] = {
+    {"q", 1, {2, 1}, "(2,)", "(B, 2)", 1},
+    {"qd", 1, {2, 1}, "(2,)", "(B, 2)", 2},
+    {"tau", 1, {2, 1}, "(2,)", "(B, 2)", 4},
+};
+static const rg_port k_forward_dynamics_derivatives_outputs[] = {
+    {"dqdd_dq", 2, {2, 2}, "(2, 2)", "(B, 2, 2)", -1},
+    {"dqdd_dqd", 2, {2, 2}, "(2, 2)", "(B, 2, 2)", -1},
+    {"dqdd_dtau", 2, {2, 2}, "(2, 2)", "(B, 2, 2)", -1},
+};
+PyDoc_STRVAR(k_forward_dynamics_derivatives_doc,
+    "forward_dynamics_derivatives($module, q, qd, tau)\n"
+    "--\n"
+    "\n"
+    "Partial derivatives of forward dynamics: d qdd/dq, d qdd/dqd and d qdd/d tau = M^-1.\n"
+    "\n"
+    "q: float64 array (2,) or (B, 2)\n"
+    "qd: float64 array (2,) or (B, 2)\n"
+    "tau: float64 array (2,) or (B, 2)\n"
+    "Returns dqdd_dq (2, 2), dqdd_dqd (2, 2), dqdd_dtau (2, 2) as a tuple; batched inputs give a leading B axis.");
+
+static PyObject *k_forward_dynamics_derivatives(PyObject *self, PyObject *const *args, Py_ssize_t nargs,
+                                                PyObject *kwnames)
+{
+    PyObject *bound[3];
+    PyArrayObject *in[3] = {NULL};
+    PyArrayObject *out[3] = {NULL};
+    PyThreadState *unlocked;
+    npy_intp batch, count, b, step[3];
+    int status = 0;
+    (void)self;
+    if (kwnames != NULL || nargs != 3) {
+        /* keywords, or a wrong count: the slow path (positional calls skip it) */
+        if (rg_bind("forward_dynamics_derivatives", args, nargs, kwnames, k_forward_dynamics_derivatives_inputs, 3, bound) < 0) {
+            return NULL;
+        }
+        args = bound;
+    }
+    if (rg_convert_args("forward_dynamics_derivatives", args, k_forward_dynamics_derivatives_inputs, 3, in, &batch) < 0
+        || rg_new_results(k_forward_dynamics_derivatives_outputs, 3, batch, out) < 0) {
+        rg_release(in, 3);
+        rg_release(out, 3);
+        return NULL;
+    }
+    step[0] = PyArray_NDIM(in[0]) > 1 ? 2 : 0;
+    step[1] = PyArray_NDIM(in[1]) > 1 ? 2 : 0;
+    step[2] = PyArray_NDIM(in[2]) > 1 ? 2 : 0;
+    count = batch < 0 ? 1 : batch;
+    unlocked = count > 1 ? PyEval_SaveThread() : NULL;
+    for (b = 0; b < count && status == 0; ++b) {
+        status = two_link_forward_dynamics_derivatives(
+            rg_data(in[0]) + b * step[0],
+            rg_data(in[1]) + b * step[1],
+            rg_data(in[2]) + b * step[2],
+            rg_data(out[0]) + b * 4,
+            rg_data(out[1]) + b * 4,
+            rg_data(out[2]) + b * 4);
+    }
+    if (unlocked != NULL) {
+        PyEval_RestoreThread(unlocked);
+    }
+    rg_release(in, 3);
+    return rg_finish("forward_dynamics_derivatives", status, out, 3);
+}
+
+/* mass_inverse */
+static const rg_port k_mass_inverse_inputs[] = {
+    {"q", 1, {2, 1}, "(2,)", "(B, 2)", 1},
+};
+static const rg_port k_mass_inverse_outputs[] = {
+    {"mass_inverse", 2, {2, 2}, "(2, 2)", "(B, 2, 2)", -1},
+};
+PyDoc_STRVAR(k_mass_inverse_doc,
+    "mass_inverse($module, q)\n"
+    "--\n"
+    "\n"
+    "M(q)^-1 (Cholesky factorisation, then solves).\n"
+    "\n"
+    "q: float64 array (2,) or (B, 2)\n"
+    "Returns mass_inverse (2, 2); batched inputs give a leading B axis.");
+
+static PyObject *k_mass_inverse(PyObject *self, PyObject *const *args, Py_ssize_t nargs,
+                                PyObject *kwnames)
+{
+    PyObject *bound[1];
+    PyArrayObject *in[1] = {NULL};
+    PyArrayObject *out[1] = {NULL};
+    PyThreadState *unlocked;
+    npy_intp batch, count, b, step[1];
+    int status = 0;
+    (void)self;
+    if (kwnames != NULL || nargs != 1) {
+        /* keywords, or a wrong count: the slow path (positional calls skip it) */
+        if (rg_bind("mass_inverse", args, nargs, kwnames, k_mass_inverse_inputs, 1, bound) < 0) {
+            return NULL;
+        }
+        args = bound;
+    }
+    if (rg_convert_args("mass_inverse", args, k_mass_inverse_inputs, 1, in, &batch) < 0
+        || rg_new_results(k_mass_inverse_outputs, 1, batch, out) < 0) {
+        rg_release(in, 1);
+        rg_release(out, 1);
+        return NULL;
+    }
+    step[0] = PyArray_NDIM(in[0]) > 1 ? 2 : 0;
+    count = batch < 0 ? 1 : batch;
+    unlocked = count > 1 ? PyEval_SaveThread() : NULL;
+    for (b = 0; b < count && status == 0; ++b) {
+        status = two_link_mass_inverse(
+            rg_data(in[0]) + b * step[0],
+            rg_data(out[0]) + b * 4);
+    }
+    if (unlocked != NULL) {
+        PyEval_RestoreThread(unlocked);
+    }
+    rg_release(in, 1);
+    return rg_finish("mass_inverse", status, out, 1);
+}
+
+/* discrete_dynamics */
+static const rg_port k_discrete_dynamics_inputs[] = {
+    {"q", 1, {2, 1}, "(2,)", "(B, 2)", 1},
+    {"qd", 1, {2, 1}, "(2,)", "(B, 2)", 2},
+    {"tau", 1, {2, 1}, "(2,)", "(B, 2)", 4},
+    {"dt", 1, {1, 1}, "(1,)", "(B, 1)", 0},
+};
+static const rg_port k_discrete_dynamics_outputs[] = {
+    {"q_next", 1, {2, 1}, "(2,)", "(B, 2)", -1},
+    {"qd_next", 1, {2, 1}, "(2,)", "(B, 2)", -1},
+};
+PyDoc_STRVAR(k_discrete_dynamics_doc,
+    "discrete_dynamics($module, q, qd, tau, dt)\n"
+    "--\n"
+    "\n"
+    "One step of length dt, tau held: semi-implicit Euler (qd+ = qd + dt qdd, q+ = q + dt qd+). Returns q+, qd+.\n"
+    "\n"
+    "q: float64 array (2,) or (B, 2)\n"
+    "qd: float64 array (2,) or (B, 2)\n"
+    "tau: float64 array (2,) or (B, 2)\n"
+    "dt: float64 array (1,) or (B, 1)\n"
+    "Returns q_next (2,), qd_next (2,) as a tuple; batched inputs give a leading B axis.");
+
+static PyObject *k_discrete_dynamics(PyObject *self, PyObject *const *args, Py_ssize_t nargs,
+                                     PyObject *kwnames)
+{
+    PyObject *bound[4];
+    PyArrayObject *in[4] = {NULL};
+    PyArrayObject *out[2] = {NULL};
+    PyThreadState *unlocked;
+    npy_intp batch, count, b, step[4];
+    int status = 0;
+    (void)self;
+    if (kwnames != NULL || nargs != 4) {
+        /* keywords, or a wrong count: the slow path (positional calls skip it) */
+        if (rg_bind("discrete_dynamics", args, nargs, kwnames, k_discrete_dynamics_inputs, 4, bound) < 0) {
+            return NULL;
+        }
+        args = bound;
+    }
+    if (rg_convert_args("discrete_dynamics", args, k_discrete_dynamics_inputs, 4, in, &batch) < 0
+        || rg_new_results(k_discrete_dynamics_outputs, 2, batch, out) < 0) {
+        rg_release(in, 4);
+        rg_release(out, 2);
+        return NULL;
+    }
+    step[0] = PyArray_NDIM(in[0]) > 1 ? 2 : 0;
+    step[1] = PyArray_NDIM(in[1]) > 1 ? 2 : 0;
+    step[2] = PyArray_NDIM(in[2]) > 1 ? 2 : 0;
+    step[3] = PyArray_NDIM(in[3]) > 1 ? 1 : 0;
+    count = batch < 0 ? 1 : batch;
+    unlocked = count > 1 ? PyEval_SaveThread() : NULL;
+    for (b = 0; b < count && status == 0; ++b) {
+        status = two_link_discrete_dynamics(
+            rg_data(in[0]) + b * step[0],
+            rg_data(in[1]) + b * step[1],
+            rg_data(in[2]) + b * step[2],
+            rg_data(in[3]) + b * step[3],
+            rg_data(out[0]) + b * 2,
+            rg_data(out[1]) + b * 2);
+    }
+    if (unlocked != NULL) {
+        PyEval_RestoreThread(unlocked);
+    }
+    rg_release(in, 4);
+    return rg_finish("discrete_dynamics", status, out, 2);
+}
+
+/* discrete_dynamics_derivatives */
+static const rg_port k_discrete_dynamics_derivatives_inputs[] = {
+    {"q", 1, {2, 1}, "(2,)", "(B, 2)", 1},
+    {"qd", 1, {2, 1}, "(2,)", "(B, 2)", 2},
+    {"tau", 1, {2, 1}, "(2,)", "(B, 2)", 4},
+    {"dt", 1, {1, 1}, "(1,)", "(B, 1)", 0},
+};
+static const rg_port k_discrete_dynamics_derivatives_outputs[] = {
+    {"q_next", 1, {2, 1}, "(2,)", "(B, 2)", -1},
+    {"qd_next", 1, {2, 1}, "(2,)", "(B, 2)", -1},
+    {"A", 2, {4, 4}, "(4, 4)", "(B, 4, 4)", -1},
+    {"B", 2, {4, 2}, "(4, 2)", "(B, 4, 2)", -1},
+};
+PyDoc_STRVAR(k_discrete_dynamics_derivatives_doc,
+    "discrete_dynamics_derivatives($module, q, qd, tau, dt)\n"
+    "--\n"
+    "\n"
+    "One step (semi-implicit Euler (qd+ = qd + dt qdd, q+ = q + dt qd+)) and its Jacobians: q+, qd+, A = d(q+, qd+)/d(q, qd), B = d(q+, qd+)/d tau.\n"
+    "\n"
+    "q: float64 array (2,) or (B, 2)\n"
+    "qd: float64 array (2,) or (B, 2)\n"
+    "tau: float64 array (2,) or (B, 2)\n"
+    "dt: float64 array (1,) or (B, 1)\n"
+    "Returns q_next (2,), qd_next (2,), A (4, 4), B (4, 2) as a tuple; batched inputs give a leading B axis.");
+
+static PyObject *k_discrete_dynamics_derivatives(PyObject *self, PyObject *const *args, Py_ssize_t nargs,
+                                                 PyObject *kwnames)
+{
+    PyObject *bound[4];
+    PyArrayObject *in[4] = {NULL};
+    PyArrayObject *out[4] = {NULL};
+    PyThreadState *unlocked;
+    npy_intp batch, count, b, step[4];
+    int status = 0;
+    (void)self;
+    if (kwnames != NULL || nargs != 4) {
+        /* keywords, or a wrong count: the slow path (positional calls skip it) */
+        if (rg_bind("discrete_dynamics_derivatives", args, nargs, kwnames, k_discrete_dynamics_derivatives_inputs, 4, bound) < 0) {
+            return NULL;
+        }
+        args = bound;
+    }
+    if (rg_convert_args("discrete_dynamics_derivatives", args, k_discrete_dynamics_derivatives_inputs, 4, in, &batch) < 0
+        || rg_new_results(k_discrete_dynamics_derivatives_outputs, 4, batch, out) < 0) {
+        rg_release(in, 4);
+        rg_release(out, 4);
+        return NULL;
+    }
+    step[0] = PyArray_NDIM(in[0]) > 1 ? 2 : 0;
+    step[1] = PyArray_NDIM(in[1]) > 1 ? 2 : 0;
+    step[2] = PyArray_NDIM(in[2]) > 1 ? 2 : 0;
+    step[3] = PyArray_NDIM(in[3]) > 1 ? 1 : 0;
+    count = batch < 0 ? 1 : batch;
+    unlocked = count > 1 ? PyEval_SaveThread() : NULL;
+    for (b = 0; b < count && status == 0; ++b) {
+        status = two_link_discrete_dynamics_derivatives(
+            rg_data(in[0]) + b * step[0],
+            rg_data(in[1]) + b * step[1],
+            rg_data(in[2]) + b * step[2],
+            rg_data(in[3]) + b * step[3],
+            rg_data(out[0]) + b * 2,
+            rg_data(out[1]) + b * 2,
+            rg_data(out[2]) + b * 16,
+            rg_data(out[3]) + b * 8);
+    }
+    if (unlocked != NULL) {
+        PyEval_RestoreThread(unlocked);
+    }
+    rg_release(in, 4);
+    return rg_finish("discrete_dynamics_derivatives", status, out, 4);
+}
+
+/* jacobian_derivative */
+static const rg_port k_jacobian_derivative_inputs[] = {
+    {"q", 1, {2, 1}, "(2,)", "(B, 2)", 1},
+    {"qd", 1, {2, 1}, "(2,)", "(B, 2)", 2},
+};
+static const rg_port k_jacobian_derivative_outputs[] = {
+    {"jacobian_derivative", 2, {6, 2}, "(6, 2)", "(B, 6, 2)", -1},
+};
+PyDoc_STRVAR(k_jacobian_derivative_doc,
+    "jacobian_derivative($module, q, qd)\n"
+    "--\n"
+    "\n"
+    "dJ/dt (6 x n): the time derivative of the tip Jacobian; jacobian_derivative qd = jacobian_dot_qd.\n"
+    "\n"
+    "q: float64 array (2,) or (B, 2)\n"
+    "qd: float64 array (2,) or (B, 2)\n"
+    "Returns jacobian_derivative (6, 2); batched inputs give a leading B axis.");
+
+static PyObject *k_jacobian_derivative(PyObject *self, PyObject *const *args, Py_ssize_t nargs,
+                                       PyObject *kwnames)
+{
+    PyObject *bound[2];
+    PyArrayObject *in[2] = {NULL};
+    PyArrayObject *out[1] = {NULL};
+    PyThreadState *unlocked;
+    npy_intp batch, count, b, step[2];
+    int status = 0;
+    (void)self;
+    if (kwnames != NULL || nargs != 2) {
+        /* keywords, or a wrong count: the slow path (positional calls skip it) */
+        if (rg_bind("jacobian_derivative", args, nargs, kwnames, k_jacobian_derivative_inputs, 2, bound) < 0) {
+            return NULL;
+        }
+        args = bound;
+    }
+    if (rg_convert_args("jacobian_derivative", args, k_jacobian_derivative_inputs, 2, in, &batch) < 0
+        || rg_new_results(k_jacobian_derivative_outputs, 1, batch, out) < 0) {
+        rg_release(in, 2);
+        rg_release(out, 1);
+        return NULL;
+    }
+    step[0] = PyArray_NDIM(in[0]) > 1 ? 2 : 0;
+    step[1] = PyArray_NDIM(in[1]) > 1 ? 2 : 0;
+    count = batch < 0 ? 1 : batch;
+    unlocked = count > 1 ? PyEval_SaveThread() : NULL;
+    for (b = 0; b < count && status == 0; ++b) {
+        status = two_link_jacobian_derivative(
+            rg_data(in[0]) + b * step[0],
+            rg_data(in[1]) + b * step[1],
+            rg_data(out[0]) + b * 12);
+    }
+    if (unlocked != NULL) {
+        PyEval_RestoreThread(unlocked);
+    }
+    rg_release(in, 2);
+    return rg_finish("jacobian_derivative", status, out, 1);
+}
+
 static PyObject *rg_info(PyObject *self, PyObject *unused)
 {
     (void)self;
     (void)unused;
     return rg_from_json(
-    "{\"functions\":[\"fk\",\"jacobian\",\"jacobian_hand\",\"jacobian_dot_qd\",\"mass\",\"coriolis\",\"gravity\",\"nonlinear\",\"inverse_dynamics\",\"forward_dynamics\",\"servo_terms\"],\"leaves\":[\"arm\"],\"name\":\"two_link\",\"nodes\":{\"arm\":{\"base_link\":\"base\",\"coordinates\":[\"shoulder\",\"elbow\"],\"internal_forces\":[],\"internal_motions\":[],\"joints\":[{\"armature\":0.0,\"coulomb\":0.0,\"damping\":0.0,\"limits\":{\"effort\":null,\"lower\":null,\"upper\":null,\"velocity\":null},\"name\":\"shoulder\",\"parent\":-1,\"type\":\"revolute\",\"viscous\":0.0},{\"armature\":0.0,\"coulomb\":0.0,\"damping\":0.0,\"limits\":{\"effort\":null,\"lower\":null,\"upper\":null,\"velocity\":null},\"name\":\"elbow\",\"parent\":0,\"type\":\"revolute\",\"viscous\":0.0}],\"kind\":\"chain\",\"locked_joints\":[],\"nq\":2,\"primitive\":\"define\",\"tip_link\":\"tool\",\"units\":[\"rad\",\"rad\"]}},\"nq\":2,\"precision\":\"double\",\"robotgen_version\":\"0.1.0\",\"root\":\"arm\",\"spec_sha256\":\"4a39c9365d690561fbb0674bc38d441aa8b8dd4623e06f7c71af6fc24f5b2d0d\"}");
+    "{\"functions\":[\"fk\",\"jacobian\",\"jacobian_hand\",\"jacobian_dot_qd\",\"mass\",\"coriolis\",\"gravity\",\"nonlinear\",\"inverse_dynamics\",\"forward_dynamics\",\"servo_terms\",\"inverse_dynamics_derivatives\",\"forward_dynamics_derivatives\",\"mass_inverse\",\"discrete_dynamics\",\"discrete_dynamics_derivatives\",\"jacobian_derivative\"],\"leaves\":[\"arm\"],\"name\":\"two_link\",\"nodes\":{\"arm\":{\"base_link\":\"base\",\"coordinates\":[\"shoulder\",\"elbow\"],\"internal_forces\":[],\"internal_motions\":[],\"joints\":[{\"armature\":0.0,\"coulomb\":0.0,\"damping\":0.0,\"limits\":{\"effort\":null,\"lower\":null,\"upper\":null,\"velocity\":null},\"name\":\"shoulder\",\"parent\":-1,\"type\":\"revolute\",\"viscous\":0.0},{\"armature\":0.0,\"coulomb\":0.0,\"damping\":0.0,\"limits\":{\"effort\":null,\"lower\":null,\"upper\":null,\"velocity\":null},\"name\":\"elbow\",\"parent\":0,\"type\":\"revolute\",\"viscous\":0.0}],\"kind\":\"chain\",\"locked_joints\":[],\"nq\":2,\"primitive\":\"define\",\"tip_link\":\"tool\",\"units\":[\"rad\",\"rad\"]}},\"nq\":2,\"precision\":\"double\",\"robotgen_version\":\"0.1.0\",\"root\":\"arm\",\"spec_sha256\":\"4a39c9365d690561fbb0674bc38d441aa8b8dd4623e06f7c71af6fc24f5b2d0d\"}");
 }
 
 static PyMethodDef rg_methods[] = {
@@ -941,6 +1341,18 @@ static PyMethodDef rg_methods[] = {
      k_forward_dynamics_doc},
     {"servo_terms", (PyCFunction)(void (*)(void))k_servo_terms, METH_FASTCALL | METH_KEYWORDS,
      k_servo_terms_doc},
+    {"inverse_dynamics_derivatives", (PyCFunction)(void (*)(void))k_inverse_dynamics_derivatives, METH_FASTCALL | METH_KEYWORDS,
+     k_inverse_dynamics_derivatives_doc},
+    {"forward_dynamics_derivatives", (PyCFunction)(void (*)(void))k_forward_dynamics_derivatives, METH_FASTCALL | METH_KEYWORDS,
+     k_forward_dynamics_derivatives_doc},
+    {"mass_inverse", (PyCFunction)(void (*)(void))k_mass_inverse, METH_FASTCALL | METH_KEYWORDS,
+     k_mass_inverse_doc},
+    {"discrete_dynamics", (PyCFunction)(void (*)(void))k_discrete_dynamics, METH_FASTCALL | METH_KEYWORDS,
+     k_discrete_dynamics_doc},
+    {"discrete_dynamics_derivatives", (PyCFunction)(void (*)(void))k_discrete_dynamics_derivatives, METH_FASTCALL | METH_KEYWORDS,
+     k_discrete_dynamics_derivatives_doc},
+    {"jacobian_derivative", (PyCFunction)(void (*)(void))k_jacobian_derivative, METH_FASTCALL | METH_KEYWORDS,
+     k_jacobian_derivative_doc},
     {"info", rg_info, METH_NOARGS,
      "info($module, /)\n--\n\nA new dict describing this module: name, nq, nodes, functions, "
      "robotgen_version, spec_sha256, precision."},
@@ -952,7 +1364,7 @@ static struct PyModuleDef rg_module = {
     .m_name = "two_link",
     .m_doc = "two_link: robot functions generated by robotgen 0.1.0.\n"
     "\n"
-    "Functions: fk, jacobian, jacobian_hand, jacobian_dot_qd, mass, coriolis, gravity, nonlinear, inverse_dynamics, forward_dynamics, servo_terms. Arrays are float64, matrices row-major; a leading batch axis B on every argument gives results with that axis.",
+    "Functions: fk, jacobian, jacobian_hand, jacobian_dot_qd, mass, coriolis, gravity, nonlinear, inverse_dynamics, forward_dynamics, servo_terms, inverse_dynamics_derivatives, forward_dynamics_derivatives, mass_inverse, discrete_dynamics, discrete_dynamics_derivatives, jacobian_derivative. Arrays are float64, matrices row-major; a leading batch axis B on every argument gives results with that axis.",
     .m_size = -1,
     .m_methods = rg_methods,
 };

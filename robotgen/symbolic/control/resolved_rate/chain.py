@@ -136,7 +136,7 @@ def chain_kernels(system: RobotSystem) -> list[Kernel]:
     target = ca.SX.sym("target", 16)
     qd_rate = law.rate_step(command)
     qd_pos, error = law.position_step(target)
-    kernels = leaf_kernels(tree) + [
+    kernels = leaf_kernels(tree, derivatives=system.derivatives.when_asked()) + [
         make_kernel("command_jacobian", f"Command rates per unit joint rate (Whitney 1972, eqs 3, 7-10), "
                 f"frame {s.frame.kind}: rows {names}.", [("q", q, (n, 1))],
                 [("command_jacobian", law.J6, (6, n))]),
