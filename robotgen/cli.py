@@ -17,24 +17,26 @@ from robotgen.errors import UserError, UserErrors
 from robotgen.model.derivatives import INTEGRATORS, SEMI_IMPLICIT_EULER, DerivativeSettings
 from robotgen.model.describe import system_info, system_nq
 from robotgen.model.laws import HAND_LAWS, RESOLVED_ADAPTIVE
+from robotgen.model.names import MAX_LENGTH, PATTERN, name_problem
 from robotgen.progress import Progress
 from robotgen.progress import for_terminal as progress_for_terminal
 
 EXIT_OK, EXIT_USER, EXIT_USAGE, EXIT_BUG = 0, 1, 2, 3
 
 
-MODULE_NAME = re.compile(r"[a-z_][a-z0-9_]*\Z")
+MODULE_NAME = PATTERN
 
 
 def _load(args: argparse.Namespace):
     """A RobotSystem from a YAML spec or, with --tip, a URDF file."""
     path = args.spec
     name = getattr(args, "name", None)
-    if name is not None and not MODULE_NAME.match(name):
-        suggestion = re.sub(r"[^a-z0-9_]", "_", name.lower())
+    if name is not None and name_problem(name):
+        suggestion = re.sub(r"[^a-z0-9_]", "_", name.lower())[:MAX_LENGTH - 6]
         suggestion = suggestion if MODULE_NAME.match(suggestion) else "_" + suggestion
-        raise _Usage(f"--name {name!r} is not a module name ([a-z_][a-z0-9_]*: it names the Python module "
-                     f"and prefixes every C function); try --name {suggestion}")
+        suggestion = suggestion if not name_problem(suggestion) else suggestion + "_robot"
+        raise _Usage(f"--name {name!r} {name_problem(name)} (it names the Python module and prefixes every "
+                     f"C function); try --name {suggestion}")
     if path.lower().endswith(".urdf"):
         from robotgen.frontend.urdf import load_urdf_system
 
@@ -87,7 +89,12 @@ def _cmd_build(args: argparse.Namespace) -> int:
     if cache.is_current(out, key, not args.no_compile, system.name):
         print(f"robotgen: {out} is up to date")
         return EXIT_OK
-    from robotgen.emit.build import emit
+    from robotgen.emit.build import emit, replace_problem
+
+    problem = replace_problem(out)  # before the graphs are built: say it at once
+    if problem:
+        print(f"robotgen: error: {problem}", file=sys.stderr)
+        return EXIT_USER
     from robotgen.symbolic import controllers_for, kernels_for, module_extras
 
     progress.stage(f"building the CasADi graphs of {system.name} ({len(system.nodes)} node(s))")

@@ -1,11 +1,14 @@
 """Writes a generated module's directory atomically: all or nothing."""
 from __future__ import annotations
 
+import json
 import os
 import shutil
+import sysconfig
 from pathlib import Path
 
 from robotgen.emit import compile as compiler
+from robotgen.emit.cache import BUILD_KEY
 from robotgen.emit.context import module_view
 from robotgen.emit.manifest import manifest_json
 from robotgen.emit.render import render_all
@@ -53,13 +56,43 @@ def emit(out_dir: Path, name: str, kernels: list[Kernel], *, nq: int,
     return out_dir
 
 
-def _check_replaceable(out_dir: Path) -> None:
-    """Only an empty directory or an earlier robotgen output is ever replaced."""
+def replace_problem(out_dir: Path) -> str | None:
+    """Why ``out_dir`` may not be replaced by a build, or None. Only a missing or empty
+    directory, or an earlier robotgen output holding nothing but what that build wrote (its
+    manifest lists it) and what its Makefile makes, is ever replaced; never the current
+    directory or one that contains it."""
+    out_dir = Path(out_dir)
     if out_dir.is_symlink() or (out_dir.exists() and not out_dir.is_dir()):
-        raise FileExistsError(f"{out_dir} exists and is not a directory")
-    if out_dir.is_dir() and any(out_dir.iterdir()) and not (out_dir / MANIFEST).is_file():
-        raise FileExistsError(f"{out_dir} is not empty and holds no robotgen {MANIFEST}; "
-                              "refusing to replace it")
+        return f"{out_dir} exists and is not a directory"
+    if not out_dir.exists():
+        return None
+    here = Path.cwd().resolve()
+    if out_dir.resolve() == here or out_dir.resolve() in here.parents:
+        return f"{out_dir} is the current directory or contains it; choose an output directory below it"
+    entries = sorted(p.name for p in out_dir.iterdir())
+    if not entries:
+        return None
+    try:
+        manifest = json.loads((out_dir / MANIFEST).read_text(encoding="utf-8"))
+        name, listed = manifest["name"], set(manifest["files"])
+        assert "robotgen_version" in manifest and isinstance(name, str)
+    except (OSError, ValueError, KeyError, TypeError, AssertionError):
+        return (f"{out_dir} is not empty and is not a robotgen output (no robotgen {MANIFEST}); "
+                "refusing to replace it")
+    ours = listed | {MANIFEST, BUILD_KEY, f"{name}{sysconfig.get_config_var('EXT_SUFFIX')}",
+                     f"{name}.o", f"lib{name}.a", f"{name}.pc", f"{name}Config.cmake"}
+    foreign = [e for e in entries if e not in ours]
+    if foreign:
+        shown = ", ".join(foreign[:5]) + (f" and {len(foreign) - 5} more" if len(foreign) > 5 else "")
+        return (f"{out_dir} holds files that robotgen did not write ({shown}); refusing to replace it "
+                "(move them, or choose another output directory)")
+    return None
+
+
+def _check_replaceable(out_dir: Path) -> None:
+    problem = replace_problem(out_dir)
+    if problem:
+        raise FileExistsError(problem)
 
 
 def _swap_in(staging: Path, out_dir: Path) -> None:

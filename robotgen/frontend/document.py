@@ -129,6 +129,9 @@ def _read(path: str) -> tuple[bytes, str]:
             raw = f.read()
     except OSError as error:
         raise UserErrors([UserError(Location(path), f"cannot read spec: {error.strerror or error}")]) from None
+    if len(raw) > MAX_BYTES:
+        raise UserErrors([UserError(Location(path), f"spec is {len(raw)} bytes; a spec may have at most "
+                                    f"{MAX_BYTES} (robot models that large belong in a URDF leaf)")])
     try:
         return raw, raw.decode("utf-8")
     except UnicodeDecodeError as error:
@@ -136,9 +139,47 @@ def _read(path: str) -> tuple[bytes, str]:
         raise UserErrors([UserError(Location(path, line), "spec is not UTF-8 text")]) from None
 
 
+# Bounds on what a spec may be, checked before anything is built: a real spec nests a dozen
+# levels and holds a few thousand values. Deeper nesting would exhaust the parser's recursion;
+# YAML aliases can make a small file stand for exponentially many values ("billion laughs").
+MAX_DEPTH = 64
+MAX_VALUES = 100_000
+MAX_BYTES = 1_000_000
+
+
+def _check_nesting(path: str, text: str) -> None:
+    """Flow collections ([ {) nested deeper than MAX_DEPTH, or block nesting that deep
+    (indentation of more than 4 * MAX_DEPTH columns): a located error before parsing."""
+    depth, quote = 0, ""
+    for number, line in enumerate(text.splitlines(), 1):
+        indent = len(line) - len(line.lstrip(" "))
+        if indent > 4 * MAX_DEPTH:
+            raise UserErrors([UserError(Location(path, number, 1), f"YAML: indented {indent} columns: nested "
+                                        f"deeper than the {MAX_DEPTH} levels a spec may have")])
+        for column, char in enumerate(line, 1):
+            if quote:
+                quote = "" if char == quote else quote
+            elif char in "'\"":
+                quote = char
+            elif char == "#" and (column == 1 or line[column - 2] in " \t"):
+                break
+            elif char in "[{":
+                depth += 1
+                if depth > MAX_DEPTH:
+                    raise UserErrors([UserError(Location(path, number, column), "YAML: collections nested "
+                                                f"deeper than the {MAX_DEPTH} levels a spec may have")])
+            elif char in "]}":
+                depth = max(depth - 1, 0)
+        quote = ""  # robotgen's values are one-line scalars; a quote never spans lines here
+
+
 def _parse_yaml(path: str, text: str) -> object:
+    _check_nesting(path, text)
     try:
         return YAML(typ="rt").load(text)
+    except RecursionError:
+        raise UserErrors([UserError(Location(path), f"YAML: nested deeper than the {MAX_DEPTH} levels a spec "
+                                    "may have")]) from None
     except MarkedYAMLError as error:
         mark = error.problem_mark or error.context_mark
         message = error.problem or error.context or "invalid YAML"
@@ -156,8 +197,17 @@ def _parse_yaml(path: str, text: str) -> object:
         raise UserErrors([UserError(location, f"YAML: {reason}")]) from None
 
 
-def _plain(node: object, path: Path, source: SourceMap, errors: list[UserError]) -> object:
-    """ruamel's node types as plain Python; non-string mapping keys are errors."""
+def _plain(node: object, path: Path, source: SourceMap, errors: list[UserError],
+           count: list[int] | None = None) -> object:
+    """ruamel's node types as plain Python; non-string mapping keys are errors. Stops with an
+    error past MAX_DEPTH levels or MAX_VALUES values (aliases count as often as they are used)."""
+    count = [0] if count is None else count
+    count[0] += 1
+    if count[0] > MAX_VALUES or len(path) > MAX_DEPTH:
+        where = format_path(source.root, path[:MAX_DEPTH])
+        what = (f"more than {MAX_VALUES} values (each use of a YAML alias counts)" if count[0] > MAX_VALUES
+                else f"nesting deeper than {MAX_DEPTH} levels")
+        raise UserErrors([UserError(source.value(path[:MAX_DEPTH]), f"{where}: the spec holds {what}")])
     if isinstance(node, dict):
         plain = {}
         for key, value in node.items():
@@ -166,10 +216,10 @@ def _plain(node: object, path: Path, source: SourceMap, errors: list[UserError])
                 errors.append(UserError(source.key(path + (key,)),
                                         f"{where + ': ' if where else ''}key {key!r} must be a string"))
                 continue
-            plain[str(key)] = _plain(value, path + (key,), source, errors)
+            plain[str(key)] = _plain(value, path + (key,), source, errors, count)
         return plain
     if isinstance(node, list):
-        return [_plain(item, path + (i,), source, errors) for i, item in enumerate(node)]
+        return [_plain(item, path + (i,), source, errors, count) for i, item in enumerate(node)]
     if isinstance(node, bool) or node is None:
         return node
     for kind in (str, int, float):

@@ -14,6 +14,7 @@ from robotgen.frontend.leaves import LeafReader
 from robotgen.frontend.simulation import SimulationReader
 from robotgen.model.derivatives import SEMI_IMPLICIT_EULER, DerivativeSettings
 from robotgen.model.laws import ROOT_LAWS
+from robotgen.model.names import name_problem
 from robotgen.model.signature import (
     Signature,
     SignatureError,
@@ -174,6 +175,10 @@ class SpecReader(LeafReader, AttachReader, ControlReader, ResolvedRateReader, Ha
 
     def system(self) -> RobotSystem:
         data = self.doc.data
+        problem = name_problem(data["name"])
+        if problem:
+            shown = data["name"] if len(data["name"]) <= 40 else data["name"][:40] + "..."
+            self.at_value(("name",), f"{shown!r} {problem}")
         nodes = {name: self.node(name, node) for name, node in data["nodes"].items()}
         root = data["root"]
         if root not in nodes:

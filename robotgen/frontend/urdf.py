@@ -44,6 +44,7 @@ import numpy as np
 
 from robotgen.errors import Location, UserError
 from robotgen.model.chain import PRISMATIC, REVOLUTE, Body, Joint, KinematicTree, Limits
+from robotgen.model.names import MAX_LENGTH, name_problem
 from robotgen.model.system import DefineNode, RobotSystem
 from robotgen.model.transforms import xyz_rpy
 from robotgen.numeric import exact
@@ -337,9 +338,14 @@ def _read_links_and_joints(path: str, floating_ok: bool):
             links[lname] = el
     joints = {}  # child link -> joint element
     floating = []
+    joint_names: set[str] = set()
     for el in root.children:
         if el.tag != "joint":
             continue
+        jname = r.attr(el, "name")
+        if jname in joint_names:
+            raise r.fail(el, f"duplicate joint '{jname}'")
+        joint_names.add(jname)
         jtype = r.attr(el, "type")
         if jtype == "floating" and floating_ok:
             floating.append(el)
@@ -442,14 +448,22 @@ def _normalise(r: _Reader, links: dict, joints: dict, parent_of: dict, base: str
         limit = j.find("limit")
         is_continuous = j.attrib["type"] == "continuous"
         limits = Limits() if limit is None else Limits(
-            lower=None if is_continuous else r.number(limit, "lower", "0", finite=False),
-            upper=None if is_continuous else r.number(limit, "upper", "0", finite=False),
-            velocity=r.number(limit, "velocity", "0", finite=False) if "velocity" in limit.attrib else None,
-            effort=r.number(limit, "effort", "0", finite=False) if "effort" in limit.attrib else None,
+            lower=None if is_continuous else r.number(limit, "lower", "0"),
+            upper=None if is_continuous else r.number(limit, "upper", "0"),
+            velocity=r.number(limit, "velocity", "0") if "velocity" in limit.attrib else None,
+            effort=r.number(limit, "effort", "0") if "effort" in limit.attrib else None,
         )
+        if limits.lower is not None and limits.upper is not None and limits.lower > limits.upper:
+            raise r.fail(limit, f"joint '{j.attrib.get('name')}': <limit> lower {limits.lower:g} is above "
+                                f"upper {limits.upper:g}")
+        for key in ("velocity", "effort"):
+            if (getattr(limits, key) or 0.0) < 0:
+                raise r.fail(limit, f"joint '{j.attrib.get('name')}': <limit> {key} must be >= 0")
         dyn = j.find("dynamics")
         damping = r.number(dyn, "damping", "0") if dyn is not None else 0.0
         friction = r.number(dyn, "friction", "0") if dyn is not None else 0.0
+        if damping < 0 or friction < 0:
+            raise r.fail(dyn, f"joint '{j.attrib.get('name')}': <dynamics> damping and friction must be >= 0")
         canonical.append(Joint(
             name=r.attr(j, "name"), type=_JOINT_TYPES[j.attrib["type"]], parent=owner,
             origin=exact.matmul(T_parent, r.origin(j)), axis=exact.unit(axis), body=merge_bodies(parts[k]),
@@ -529,5 +543,8 @@ def _single_leaf_system(path: str, chain: UrdfChain, named: bool) -> RobotSystem
 
 
 def _identifier(name: str) -> str:
-    out = "".join(c if c.isalnum() or c == "_" else "_" for c in name.lower())
-    return out if out and not out[0].isdigit() else "_" + out
+    """A module name from a robot's name: ASCII letters, digits and _, and _robot appended
+    where the name would be a keyword or hide a standard name (robotgen.model.names)."""
+    out = "".join(c if c.isascii() and (c.isalnum() or c == "_") else "_" for c in name.lower())[:MAX_LENGTH - 6]
+    out = out if out and not out[0].isdigit() else "_" + out
+    return out + "_robot" if name_problem(out) else out

@@ -172,6 +172,53 @@ class _Checker:
     def text_of(self, node: ast.AST) -> str:
         return ast.get_source_segment(self.prepared, node) or ""
 
+    def check_constants(self, node: ast.AST) -> float | None:
+        """The value of ``node`` if it reads no variable (None otherwise), so that every
+        constant part of a formula, which the build folds into one number, is a finite real
+        number: 1/0, 10^400, exp(1000), sqrt(-1), log(0) are located errors, not NaN or
+        infinite literals in the emitted C."""
+        if isinstance(node, ast.Constant):
+            return float(node.value)
+        if isinstance(node, ast.Name):
+            return CONSTANTS.get(node.id) if node.id not in self.allowed - set(CONSTANTS) else None
+        parts = [node.operand] if isinstance(node, ast.UnaryOp) else \
+            [node.left, node.right] if isinstance(node, ast.BinOp) else list(node.args)
+        values = [self.check_constants(part) for part in parts]
+        if any(v is None for v in values):
+            return None
+        try:
+            if isinstance(node, ast.UnaryOp):
+                value = -values[0] if isinstance(node.op, ast.USub) else values[0]
+            elif isinstance(node, ast.BinOp):
+                value = _FLOAT_BINARY[type(node.op)](*values)
+            else:
+                value = _FLOAT_LIB[node.func.id](*values)
+        except (ArithmeticError, ValueError) as error:
+            reason = "division by zero" if isinstance(error, ZeroDivisionError) else \
+                "too large" if isinstance(error, OverflowError) else "outside the function's domain"
+            raise self.fail(node, f"the constant {self.shown(node)!r} cannot be evaluated ({reason})") from None
+        if not isinstance(value, float) or not math.isfinite(value):
+            raise self.fail(node, f"the constant {self.shown(node)!r} is not a finite real number")
+        return value
+
+    def shown(self, node: ast.AST) -> str:
+        """``node``'s text as the user wrote it (^ for a power where the text has it)."""
+        text = self.text_of(node)
+        return text.replace("**", "^") if "^" in self.text else text
+
+
+# Plain float arithmetic for check_constants (only whether a constant part is finite and real
+# is asked of it; the value the build uses comes from MATH_LIB or CasADi).
+_FLOAT_BINARY: dict[type, Callable[[float, float], object]] = {
+    ast.Add: lambda a, b: a + b, ast.Sub: lambda a, b: a - b, ast.Mult: lambda a, b: a * b,
+    ast.Div: lambda a, b: a / b, ast.Pow: lambda a, b: a ** b,
+}
+_FLOAT_LIB: dict[str, Callable[..., float]] = {
+    "sin": math.sin, "cos": math.cos, "tan": math.tan, "asin": math.asin, "acos": math.acos, "atan": math.atan,
+    "atan2": math.atan2, "exp": math.exp, "log": math.log, "sqrt": math.sqrt, "abs": math.fabs,
+    "tanh": math.tanh, "sinh": math.sinh, "cosh": math.cosh, "sign": _sign, "min": min, "max": max,
+}
+
 
 def _describe(node: ast.AST) -> str:
     kinds = {
@@ -208,6 +255,10 @@ def parse_expression(text: str | int | float, location: Location, names: set[str
     checker = _Checker(text, prepared, origin, location, names, exact_columns)
     if not prepared.strip():
         raise UserError(location, "empty expression")
+    if not prepared.isascii():  # Python would read look-alikes (ｍ2, sⅰn, ℯ) as other names (NFKC)
+        index = next(i for i, c in enumerate(prepared) if not c.isascii())
+        raise UserError(checker.at(index), f"character {prepared[index]!r} (U+{ord(prepared[index]):04X}) "
+                                           "is not allowed in an expression: names and numbers are ASCII")
     try:
         tree = ast.parse(prepared, mode="eval")
     except SyntaxError as error:
@@ -217,6 +268,7 @@ def parse_expression(text: str | int | float, location: Location, names: set[str
         raise UserError(location, f"cannot parse expression: {error}") from None
     try:
         checker.check(tree.body)
+        checker.check_constants(tree.body)
     except RecursionError:
         raise UserError(location, "expression is nested too deeply") from None
     return Expr(text, tree.body, location)

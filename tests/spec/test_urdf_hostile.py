@@ -1,0 +1,52 @@
+"""Malformed URDF numbers and structure: each is a located error (exit 1), never a module that
+returns NaN, never an internal error in the manifest writer."""
+from __future__ import annotations
+
+import pytest
+
+from robotgen.cli import main
+
+JOINT = ('<joint name="j1" type="revolute"><parent link="base"/><child link="l1"/>'
+         '<origin xyz="{origin}"/><axis xyz="{axis}"/>'
+         '<limit lower="{lower}" upper="{upper}" effort="10" velocity="{velocity}"/>'
+         '<dynamics damping="{damping}"/></joint>')
+LINK = ('<link name="l1"><inertial><mass value="{mass}"/><origin xyz="0 0 0.1"/>'
+        '<inertia ixx="{ixx}" iyy="0.01" izz="0.01" ixy="0" ixz="0" iyz="0"/></inertial></link>')
+GOOD = dict(origin="0 0 0.1", axis="0 0 1", lower="-1", upper="1", velocity="2", damping="0.1", mass="1", ixx="0.01")
+
+
+def urdf(**changes) -> str:
+    v = {**GOOD, **changes}
+    return f'<robot name="r"><link name="base"/>{LINK.format(**v)}{JOINT.format(**v)}</robot>\n'
+
+
+@pytest.mark.parametrize("changes, words", [
+    (dict(mass="nan"), "finite numbers"), (dict(mass="inf"), "finite numbers"), (dict(mass="1e999"), "finite"),
+    (dict(ixx="nan"), "finite numbers"), (dict(origin="0 nan 0"), "finite numbers"), (dict(axis="0 0 inf"), "finite"),
+    (dict(velocity="nan"), "finite numbers"), (dict(lower="nan"), "finite numbers"),
+    (dict(lower="1", upper="-1"), "lower 1 is above upper -1"), (dict(velocity="-2"), "velocity must be >= 0"),
+    (dict(damping="-0.1"), "damping and friction must be >= 0"),
+])
+def test_bad_numbers_are_located_errors(tmp_path, capsys, changes, words):
+    path = tmp_path / "r.urdf"
+    path.write_text(urdf(**changes))
+    out = tmp_path / "out"
+    assert main(["build", str(path), "--tip", "l1", "-o", str(out), "--no-compile"]) == 1
+    err = capsys.readouterr().err
+    assert err.startswith(f"{path}:1:") and words in err and "internal error" not in err, err
+    assert not out.exists()
+
+
+def test_duplicate_joint_names(tmp_path, capsys):
+    text = urdf().replace("</robot>", '<link name="l2"/><joint name="j1" type="fixed"><parent link="l1"/>'
+                                        '<child link="l2"/></joint></robot>')
+    path = tmp_path / "r.urdf"
+    path.write_text(text)
+    assert main(["check", str(path), "--tip", "l1"]) == 1
+    assert "duplicate joint 'j1'" in capsys.readouterr().err
+
+
+def test_the_good_one_builds(tmp_path):
+    path = tmp_path / "r.urdf"
+    path.write_text(urdf())
+    assert main(["build", str(path), "--tip", "l1", "-o", str(tmp_path / "out"), "--no-compile"]) == 0
