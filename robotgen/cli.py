@@ -6,6 +6,7 @@ from __future__ import annotations
 import argparse
 import os
 import re
+import signal
 import sys
 import traceback
 from dataclasses import replace
@@ -22,6 +23,15 @@ from robotgen.progress import Progress
 from robotgen.progress import for_terminal as progress_for_terminal
 
 EXIT_OK, EXIT_USER, EXIT_USAGE, EXIT_BUG = 0, 1, 2, 3
+EXIT_INTERRUPTED, EXIT_TERMINATED = 130, 143  # 128 + SIGINT, 128 + SIGTERM, as a shell reports them
+
+
+class _Terminated(BaseException):
+    """SIGTERM, raised where the process is, so that a build cleans up as it does on Ctrl-C."""
+
+
+def _on_sigterm(signum, frame) -> None:
+    raise _Terminated
 
 
 MODULE_NAME = PATTERN
@@ -320,6 +330,12 @@ def main(argv: list[str] | None = None) -> int:
     except NoCompiler as e:
         print(f"robotgen: error: {e}", file=sys.stderr)
         return EXIT_USER
+    except KeyboardInterrupt:  # Ctrl-C: the build's staging directory is already cleaned up
+        print("robotgen: interrupted", file=sys.stderr)
+        return EXIT_INTERRUPTED
+    except _Terminated:
+        print("robotgen: terminated", file=sys.stderr)
+        return EXIT_TERMINATED
     except BrokenPipeError:
         # the reader closed the pipe (`robotgen schema | head -1`): it has what it wanted
         devnull = os.open(os.devnull, os.O_WRONLY)
@@ -333,7 +349,16 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def entry() -> None:
-    sys.exit(main())
+    signal.signal(signal.SIGTERM, _on_sigterm)
+    try:
+        status = main()
+    except KeyboardInterrupt:  # before or after main's own handling (argument parsing, exit)
+        print("robotgen: interrupted", file=sys.stderr)
+        status = EXIT_INTERRUPTED
+    except _Terminated:
+        print("robotgen: terminated", file=sys.stderr)
+        status = EXIT_TERMINATED
+    sys.exit(status)
 
 
 if __name__ == "__main__":

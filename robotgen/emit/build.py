@@ -4,7 +4,10 @@ from __future__ import annotations
 import json
 import os
 import shutil
+import signal
 import sysconfig
+import threading
+from contextlib import contextmanager
 from pathlib import Path
 
 from robotgen.emit import compile as compiler
@@ -95,19 +98,34 @@ def _check_replaceable(out_dir: Path) -> None:
         raise FileExistsError(problem)
 
 
-def _swap_in(staging: Path, out_dir: Path) -> None:
-    if not out_dir.exists():
-        staging.rename(out_dir)
-        return
-    previous = out_dir.parent / f".{out_dir.name}.old-{os.getpid()}"
-    _remove(previous)
-    out_dir.rename(previous)
+@contextmanager
+def _signals_held():
+    """SIGINT and SIGTERM wait until the block is left (POSIX, main thread): the two renames
+    of a swap happen both or neither, so the output is never missing."""
+    held = {signal.SIGINT, signal.SIGTERM}
+    can = hasattr(signal, "pthread_sigmask") and threading.current_thread() is threading.main_thread()
+    before = signal.pthread_sigmask(signal.SIG_BLOCK, held) if can else None
     try:
-        staging.rename(out_dir)
-    except BaseException:
-        previous.rename(out_dir)
-        raise
-    _remove(previous)
+        yield
+    finally:
+        if can:
+            signal.pthread_sigmask(signal.SIG_SETMASK, before)
+
+
+def _swap_in(staging: Path, out_dir: Path) -> None:
+    previous = out_dir.parent / f".{out_dir.name}.old-{os.getpid()}"
+    with _signals_held():
+        if not out_dir.exists():
+            staging.rename(out_dir)
+            return
+        _remove(previous)
+        out_dir.rename(previous)
+        try:
+            staging.rename(out_dir)
+        except BaseException:
+            previous.rename(out_dir)
+            raise
+        _remove(previous)
 
 
 def _remove(path: Path) -> None:

@@ -245,6 +245,8 @@ def _schema_errors(error: ValidationError, data: object, source: SourceMap) -> l
         missing = [k for k in error.validator_value if k not in instance]
         return [at(source.key(path), path, f"missing required key '{k}'") for k in missing]
     if kind == "oneOf" and all(set(branch) == {"required"} for branch in error.validator_value):
+        if not isinstance(instance, dict):
+            return []  # not a mapping at all: its type error says so
         keys = [branch["required"][0] for branch in error.validator_value]
         present = [k for k in keys if k in instance]
         if not present:

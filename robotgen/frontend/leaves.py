@@ -13,9 +13,9 @@ from robotgen.errors import UserError
 from robotgen.frontend.collector import Collector
 from robotgen.frontend.document import Path, format_path
 from robotgen.frontend.urdf import read_urdf
-from robotgen.model.chain import TRIANGLE_INEQUALITY, Body, KinematicTree, Limits
+from robotgen.model.chain import TRIANGLE_INEQUALITY, Body, KinematicTree, Limits, joints_without_inertia
 from robotgen.model.dh import DH_MODIFIED, DH_STANDARD, JOINT_LIST, DHParameters, JointRow, canonical_chain, unit_axis
-from robotgen.model.expression import Expr
+from robotgen.model.expression import MATH_LIB, Expr, evaluate
 from robotgen.model.formula import FormulaRobot
 from robotgen.model.system import (
     PlanarBody,
@@ -132,6 +132,10 @@ class LeafReader(Collector):
         base = self.pose(path + ("base",), chain.get("base"))
         tool = self.pose(path + ("tool",), chain.get("tool"))
         joints, tool = canonical_chain(convention, rows, base, tool)
+        for i in joints_without_inertia(KinematicTree(name, joints, len(joints) - 1, tool, DEFAULT_GRAVITY)):
+            self.warnings.append(f"{self.doc.source.key(path + ('joints', i))}: warning: {name}: joint "
+                                 f"'{joints[i].name}' moves no mass, inertia or motor inertia: M is singular and "
+                                 "forward dynamics returns no finite answer (give its link a mass)")
         return KinematicTree(
             name=name, joints=joints, tip=len(joints) - 1, tool=tool,
             gravity=self.vector(path + ("gravity",), chain.get("gravity"), DEFAULT_GRAVITY),
@@ -185,16 +189,50 @@ class LeafReader(Collector):
                 self.at_key(path + ("units", key), f"'{key}' is not a coordinate or output of '{name}' "
                                                    f"(coordinates: {', '.join(coordinates)}"
                                                    f"{'; outputs: ' + ', '.join(outputs) if outputs else ''})")
+        before = len(self.errors)
+        mass = self.matrix(path + ("M",), spec["M"], nq, in_q)
+        if len(self.errors) == before:
+            self.check_mass_matrix(path + ("M",), mass, coordinates, parameters)
         return FormulaRobot(
             name=name, coordinates=coordinates, velocities=velocities, parameters=parameters, units=dict(units),
             runtime=runtime,
-            mass=self.matrix(path + ("M",), spec["M"], nq, in_q),
+            mass=mass,
             coriolis=self.matrix(path + ("C",), spec["C"], nq, in_q_qd) if "C" in spec else None,
             nonlinear=self.vector_of_expressions(path + ("N",), spec["N"], nq, in_q_qd) if "N" in spec else None,
             kinematics=self.vector_of_expressions(path + ("kinematics",), spec["kinematics"], None, in_q)
             if "kinematics" in spec else None,
             outputs=outputs, inverse_kinematics=inverse,
         )
+
+    def check_mass_matrix(self, path: Path, mass: tuple[tuple[Expr, ...], ...], coordinates: tuple[str, ...],
+                          parameters: dict[str, float]) -> None:
+        """M must be symmetric and positive definite: checked at q = 0 and at 16 random
+        configurations in [-pi, pi] (a fixed seed; run-time parameters at their defaults).
+        Forward dynamics factorises M by Cholesky, which reads one triangle only and fails
+        where M is not positive definite."""
+        n = len(coordinates)
+        rng = np.random.default_rng(0)
+        for q in [np.zeros(n), *rng.uniform(-np.pi, np.pi, size=(16, n))]:
+            env = {**parameters, **dict(zip(coordinates, (float(v) for v in q)))}
+            try:
+                M = np.array([[float(evaluate(e, env, MATH_LIB)) for e in row] for row in mass])
+            except (ArithmeticError, ValueError):
+                continue  # M undefined at this sample (a division by a coordinate, say)
+            if not np.all(np.isfinite(M)):
+                continue
+            at = ", ".join(f"{c} = {v:.3g}" for c, v in zip(coordinates, q))
+            scale = max(np.abs(M).max(), 1e-300)
+            for i in range(n):
+                for j in range(i):
+                    if abs(M[i, j] - M[j, i]) > 1e-12 * scale:
+                        self.at_value(path + (i, j), f"M is not symmetric: M[{i}][{j}] = {M[i, j]:.6g} but "
+                                                     f"M[{j}][{i}] = {M[j, i]:.6g} at {at}")
+                        return
+            smallest = float(np.linalg.eigvalsh(M).min())
+            if smallest <= 1e-12 * scale:
+                self.at_key(path, f"M is not positive definite at {at} (smallest eigenvalue {smallest:.3g}); an "
+                                  "inertia matrix is, at every configuration")
+                return
 
     def outputs(self, name: str, path: Path, spec: dict) -> tuple[str, ...]:
         """Names of the kinematics outputs: given, or <node>_x1, <node>_x2, ..."""

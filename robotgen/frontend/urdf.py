@@ -43,7 +43,8 @@ from pathlib import Path
 import numpy as np
 
 from robotgen.errors import Location, UserError
-from robotgen.model.chain import PRISMATIC, REVOLUTE, Body, Joint, KinematicTree, Limits
+from robotgen.model.chain import PRISMATIC, REVOLUTE, Body, Joint, KinematicTree, Limits, joints_without_inertia
+from robotgen.model.expression import MAX_MAGNITUDE
 from robotgen.model.names import MAX_LENGTH, name_problem
 from robotgen.model.system import DefineNode, RobotSystem
 from robotgen.model.transforms import xyz_rpy
@@ -148,6 +149,9 @@ class _Reader:
             raise self.fail(el, f"<{el.tag}> attribute '{name}' must hold {n} numbers, got '{text}'")
         if finite and not all(math.isfinite(v) for v in values):
             raise self.fail(el, f"<{el.tag}> attribute '{name}' must hold finite numbers, got '{text}'")
+        if finite and any(abs(v) > MAX_MAGNITUDE for v in values):
+            raise self.fail(el, f"<{el.tag}> attribute '{name}' holds a number larger than {MAX_MAGNITUDE:g} "
+                                f"in magnitude: '{text}'")
         return np.array(values)
 
     def number(self, el: Element, name: str, default: str | None = None, finite: bool = True) -> float:
@@ -246,6 +250,9 @@ def read_urdf(path: str, tip: str, base: str | None = None, name: str | None = N
         gravity=np.array([0.0, 0.0, -9.81]), base_link=base, tip_link=tip, locked_joints=tuple(locked),
     )
     notes = _foreign_elements(r, foreign) + _foreign_dynamics_attributes(r, actuated)
+    notes += tuple(f"{r.loc(actuated[i])}: warning: joint '{tree.joints[i].name}' moves no mass or inertia "
+                   "(massless links after it): M is singular and forward dynamics returns no finite answer"
+                   for i in joints_without_inertia(tree))
     return UrdfChain(tree, notes, r.loc(root), root.attrib.get("name"))
 
 

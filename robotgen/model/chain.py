@@ -115,3 +115,16 @@ def with_payload(tree: KinematicTree, mass: float, point: np.ndarray) -> Kinemat
                         exact.parallel_axis(np.zeros((3, 3)), mass, exact.add(point, (-1.0, com))))
     joints[tree.tip] = replace(j, body=Body(total, com, inertia))
     return replace(tree, joints=tuple(joints))
+
+
+def joints_without_inertia(tree: KinematicTree) -> list[int]:
+    """Joints that move no mass and no inertia: their subtree (the joint's body and every body
+    after it) is massless with zero rotational inertia, and they have no armature. Their row of
+    M is zero at every configuration, so M is singular and forward dynamics has no answer."""
+    carried = [0.0] * len(tree.joints)
+    for i in reversed(range(len(tree.joints))):
+        joint = tree.joints[i]
+        carried[i] += joint.body.mass + float(np.abs(joint.body.inertia).sum())
+        if joint.parent >= 0:
+            carried[joint.parent] += carried[i]
+    return [i for i, joint in enumerate(tree.joints) if carried[i] == 0.0 and joint.armature == 0.0]

@@ -23,6 +23,10 @@ FUNCTIONS: dict[str, int] = {
     "sign": 1, "min": 2, "max": 2,
 }
 CONSTANTS: dict[str, float] = {"pi": math.pi, "e": math.e}
+# The largest magnitude of a numeric field: far beyond any robot's lengths, masses, angles or
+# gains in SI units, and small enough that build-time arithmetic (angle reduction to 40
+# digits, products of inertias) stays exact.
+MAX_MAGNITUDE = 1e15
 
 _BINARY = (ast.Add, ast.Sub, ast.Mult, ast.Div, ast.Pow)
 _UNARY = (ast.UAdd, ast.USub)
@@ -330,4 +334,7 @@ def parse_constant(value: object, location: Location, *, exact_columns: bool = T
         raise UserError(location, f"cannot evaluate {expr.text!r}: {error}") from None
     if not math.isfinite(result):
         raise UserError(location, f"{expr.text!r} is not a finite number")
+    if abs(result) > MAX_MAGNITUDE:
+        raise UserError(location, f"{expr.text!r} is too large: a spec's numbers (SI units) are at most "
+                                  f"{MAX_MAGNITUDE:g} in magnitude")
     return result

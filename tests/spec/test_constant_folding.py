@@ -37,6 +37,8 @@ def test_constants_that_are_fine_stay_fine():
         parse_expression(text, loc, {"q"})
     with pytest.raises(UserError, match="division by zero"):
         parse_constant("1/(2 - 2)", loc)
+    with pytest.raises(UserError, match="too large"):  # 1e300 rad would defeat exact angle reduction
+        parse_constant("1e300", loc)
 
 
 @pytest.mark.parametrize("text, index", [("ｍ2 + 1", 0), ("sⅰn(q)", 1), ("2*ℯ", 2), ("q + é", 4)])

@@ -25,7 +25,7 @@ def urdf(**changes) -> str:
     (dict(ixx="nan"), "finite numbers"), (dict(origin="0 nan 0"), "finite numbers"), (dict(axis="0 0 inf"), "finite"),
     (dict(velocity="nan"), "finite numbers"), (dict(lower="nan"), "finite numbers"),
     (dict(lower="1", upper="-1"), "lower 1 is above upper -1"), (dict(velocity="-2"), "velocity must be >= 0"),
-    (dict(damping="-0.1"), "damping and friction must be >= 0"),
+    (dict(damping="-0.1"), "damping and friction must be >= 0"), (dict(origin="0 0 1e300"), "larger than 1e+15"),
 ])
 def test_bad_numbers_are_located_errors(tmp_path, capsys, changes, words):
     path = tmp_path / "r.urdf"
@@ -50,3 +50,18 @@ def test_the_good_one_builds(tmp_path):
     path = tmp_path / "r.urdf"
     path.write_text(urdf())
     assert main(["build", str(path), "--tip", "l1", "-o", str(tmp_path / "out"), "--no-compile"]) == 0
+
+
+def test_a_joint_that_moves_no_mass_is_warned_about(tmp_path, capsys):
+    """A massless tip link (and nothing after it) makes M singular: the build still runs, but
+    the user hears why forward dynamics will have no finite answer, at the joint."""
+    text = urdf().replace("</robot>", '<link name="l2"/><joint name="j2" type="revolute"><parent link="l1"/>'
+                                        '<child link="l2"/><axis xyz="0 0 1"/></joint></robot>')
+    path = tmp_path / "r.urdf"
+    path.write_text(text)
+    assert main(["check", str(path), "--tip", "l2"]) == 0
+    err = capsys.readouterr().err
+    column = text.index('<joint name="j2"') + 1
+    assert f"{path}:1:{column}: warning: joint 'j2' moves no mass" in err, err
+    assert main(["check", str(path), "--tip", "l1"]) == 0
+    assert "moves no mass" not in capsys.readouterr().err

@@ -1,0 +1,78 @@
+"""The emitted C of every example under AddressSanitizer and UndefinedBehaviorSanitizer: every
+function called on random inputs with huge values, zeros, NaN and Inf among them, and on the
+spec's parameter defaults. No finding is allowed (the sanitizers abort the program on the first
+one); a NaN or Inf result is not a finding (the inputs ask for it)."""
+from __future__ import annotations
+
+import json
+import shutil
+import subprocess
+from pathlib import Path
+
+import pytest
+
+from robotgen.cli import main
+
+SPECS = Path(__file__).resolve().parents[2] / "specs"
+CALLS = 3000  # rounds; each calls every function once
+COMPILERS = [c for c in ("gcc", "clang") if shutil.which(c)]
+SANITIZE = ["-fsanitize=address,undefined", "-fno-sanitize-recover=all", "-fno-omit-frame-pointer", "-g", "-O1"]
+
+
+def harness(manifest: dict) -> str:
+    """C that calls every function of the module with inputs from an LCG, one in eight of them
+    a special value."""
+    name = manifest["name"]
+    size = max([1] + [max(1, _size(p)) for f in manifest["functions"] for p in f["inputs"] + f["outputs"]])
+    lines = [f'#include "{name}.h"', "#include <math.h>", "#include <stdio.h>",
+             "static double in[16][%d], out[16][%d];" % (size, size),
+             "static unsigned long long s = 88172645463325252ULL;",
+             "static double next(void) {",
+             "    static const double special[8] = {0.0, -0.0, 1e300, -1e300, 1e-310, 0.0, 0.0, 0.0};",
+             "    unsigned r;",
+             "    s = s * 6364136223846793005ULL + 1442695040888963407ULL;",
+             "    r = (unsigned)(s >> 40);",
+             "    if ((r & 7) == 0) { int k = (int)((r >> 3) & 7); return k == 5 ? NAN : k == 6 ? INFINITY : "
+             "k == 7 ? -INFINITY : special[k]; }",
+             "    return ((double)(s >> 11) / 9007199254740992.0 - 0.5) * 8.0;",
+             "}",
+             "int main(void) {"]
+    if manifest.get("parameters"):
+        lines.append(f"    const {name}_params params = {name.upper()}_PARAMS_DEFAULT;")
+    lines += [f"    int round, i, status = 0;", f"    for (round = 0; round < {CALLS}; ++round) {{",
+              f"        for (i = 0; i < 16 * {size}; ++i) in[i / {size}][i % {size}] = next();"]
+    for f in manifest["functions"]:
+        args = [f"in[{k}]" for k in range(len(f["inputs"]))]
+        args += ["&params"] if f.get("reads_parameters") else []
+        args += [f"out[{k}]" for k in range(len(f["outputs"]))]
+        lines.append(f"        status |= {f['c_name']}({', '.join(args)});")
+    lines += ["    }", '    printf("done %d\\n", status);', "    return 0;", "}"]
+    return "\n".join(lines) + "\n"
+
+
+def _size(port: dict) -> int:
+    n = 1
+    for d in port["shape"]:
+        n *= d
+    return n
+
+
+@pytest.mark.skipif(not COMPILERS, reason="no C compiler")
+@pytest.mark.parametrize("spec", ["two_link", "puma560", "styx_finger", "styx_high_ct", "styx_redundant",
+                                  "puma560_rmrc", "tripod_grasp"])
+def test_emitted_c_is_clean_under_sanitizers(tmp_path, spec):
+    out = tmp_path / spec
+    assert main(["build", str(SPECS / f"{spec}.yaml"), "-o", str(out), "--no-compile", "-q"]) == 0
+    manifest = json.loads((out / "manifest.json").read_text())
+    (tmp_path / "harness.c").write_text(harness(manifest))
+    sources = [str(out / f"{manifest['name']}.c"), str(tmp_path / "harness.c")]
+    for cc in COMPILERS:
+        exe = tmp_path / f"harness-{cc}"
+        build = subprocess.run([cc, *SANITIZE, "-std=c99", f"-I{out}", *sources, "-lm", "-o", str(exe)],
+                               capture_output=True, text=True)
+        if build.returncode != 0 and "sanitize" in build.stderr and "unsupported" in build.stderr.lower():
+            pytest.skip(f"{cc} has no sanitizer runtime here: {build.stderr.strip()[:200]}")
+        assert build.returncode == 0, build.stderr
+        run = subprocess.run([str(exe)], capture_output=True, text=True, timeout=600,
+                             env={"ASAN_OPTIONS": "detect_leaks=1", "UBSAN_OPTIONS": "print_stacktrace=1"})
+        assert run.returncode == 0 and run.stdout.startswith("done"), f"{cc}: {run.stderr[-3000:]}"
