@@ -25,7 +25,7 @@ def harness(manifest: dict) -> str:
     name = manifest["name"]
     size = max([1] + [max(1, _size(p)) for f in manifest["functions"] for p in f["inputs"] + f["outputs"]])
     lines = [f'#include "{name}.h"', "#include <math.h>", "#include <stdio.h>",
-             "static double in[16][%d], out[16][%d];" % (size, size),
+             f"static double in[16][{size}], out[16][{size}];",
              "static unsigned long long s = 88172645463325252ULL;",
              "static double next(void) {",
              "    static const double special[8] = {0.0, -0.0, 1e300, -1e300, 1e-310, 0.0, 0.0, 0.0};",
@@ -39,7 +39,7 @@ def harness(manifest: dict) -> str:
              "int main(void) {"]
     if manifest.get("parameters"):
         lines.append(f"    const {name}_params params = {name.upper()}_PARAMS_DEFAULT;")
-    lines += [f"    int round, i, status = 0;", f"    for (round = 0; round < {CALLS}; ++round) {{",
+    lines += ["    int round, i, status = 0;", f"    for (round = 0; round < {CALLS}; ++round) {{",
               f"        for (i = 0; i < 16 * {size}; ++i) in[i / {size}][i % {size}] = next();"]
     for f in manifest["functions"]:
         args = [f"in[{k}]" for k in range(len(f["inputs"]))]
@@ -76,3 +76,18 @@ def test_emitted_c_is_clean_under_sanitizers(tmp_path, spec):
         run = subprocess.run([str(exe)], capture_output=True, text=True, timeout=600,
                              env={"ASAN_OPTIONS": "detect_leaks=1", "UBSAN_OPTIONS": "print_stacktrace=1"})
         assert run.returncode == 0 and run.stdout.startswith("done"), f"{cc}: {run.stderr[-3000:]}"
+
+
+@pytest.mark.skipif(not COMPILERS, reason="no C compiler")
+def test_the_sanitizers_see_a_planted_bug(tmp_path):
+    """The flags above do catch what they are for: a use after free and a signed overflow."""
+    for cc in COMPILERS:
+        for body, finding in (("double *p = malloc(4 * sizeof *p); free(p); return (int)p[argc];",
+                               "heap-use-after-free"),
+                              ("int x = 2147483647; x += argc; return x;", "overflow")):
+            src = tmp_path / "bug.c"
+            src.write_text(f"#include <stdlib.h>\nint main(int argc, char **argv) {{ (void)argv; {body} }}\n")
+            exe = tmp_path / f"bug-{cc}"
+            subprocess.run([cc, *SANITIZE, str(src), "-o", str(exe)], check=True, capture_output=True)
+            run = subprocess.run([str(exe)], capture_output=True, text=True)
+            assert run.returncode != 0 and finding in run.stderr, (cc, run.stderr[-500:])
