@@ -2,6 +2,8 @@
 returns NaN, never an internal error in the manifest writer."""
 from __future__ import annotations
 
+from pathlib import Path
+
 import pytest
 
 from robotgen.cli import main
@@ -65,3 +67,16 @@ def test_a_joint_that_moves_no_mass_is_warned_about(tmp_path, capsys):
     assert f"{path}:1:{column}: warning: joint 'j2' moves no mass" in err, err
     assert main(["check", str(path), "--tip", "l1"]) == 0
     assert "moves no mass" not in capsys.readouterr().err
+
+
+def test_a_massless_last_link_of_a_spec_chain_is_warned_about(tmp_path, capsys):
+    spec = Path(__file__).resolve().parents[2] / "specs" / "two_link.yaml"
+    text = spec.read_text()
+    start = text.index("          - name: elbow")
+    text = text[:start] + text[start:].replace("mass: 0.9", "mass: 0").replace(
+        "inertia: {ixx: 0.0005, iyy: 0.03, izz: 0.03, ixy: 0, ixz: 0, iyz: 0}", "inertia: {ixx: 0, iyy: 0, izz: 0}")
+    path = tmp_path / "arm.yaml"
+    path.write_text(text)
+    assert main(["check", str(path)]) == 0
+    line = text[:start].count("\n") + 1
+    assert f"{path}:{line}:13: warning: arm: joint 'elbow' moves no mass" in capsys.readouterr().err
