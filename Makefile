@@ -4,7 +4,7 @@ PYTHON ?= python3
 # OpenBLAS kernels to build under (test-reproducible): those this CPU can run
 CORETYPES ?= $(shell $(PYTHON) -c "from tests.emit.test_reproducible import coretypes; print(' '.join(coretypes()))" 2>/dev/null)
 
-.PHONY: install test lint test-reproducible demo bench golden clean
+.PHONY: install test lint test-reproducible demo controller bench golden clean
 
 install:
 	$(PYTHON) -m pip install --quiet --upgrade pip
@@ -27,6 +27,11 @@ test-reproducible:
 demo:
 	$(PYTHON) examples/demo.py
 
+# examples/controller: fixed-rate servo loops in C around the emitted code (PUMA 560 computed
+# torque, the Styx hand tree); run them with --rate HZ --cycles N for jitter and servo times.
+controller:
+	$(MAKE) -C examples/controller ROBOTGEN="$(PYTHON) -m robotgen"
+
 bench:
 	$(PYTHON) -m pip install --quiet cmeel-eigen==3.4.1 cmeel-urdfdom-headers==3.0.0  # headers for bench/pinocchio_harness.cpp (the pin wheel has neither)
 	$(PYTHON) bench/run.py
@@ -40,3 +45,4 @@ golden:
 
 clean:
 	rm -rf build *.egg-info bench/out .pytest_cache generated
+	$(MAKE) -C examples/controller clean

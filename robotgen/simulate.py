@@ -185,10 +185,13 @@ def _rk4(module, theta, v, tau, dt):
         return module.plant_dynamics(th, vel, tau)
 
     with np.errstate(all="ignore"):  # a diverging loop overflows; run() reports it
-        k1 = f(theta, v)
-        k2 = f(theta + dt / 2 * k1[0], v + dt / 2 * k1[1])
-        k3 = f(theta + dt / 2 * k2[0], v + dt / 2 * k2[1])
-        k4 = f(theta + dt * k3[0], v + dt * k3[1])
+        try:
+            k1 = f(theta, v)
+            k2 = f(theta + dt / 2 * k1[0], v + dt / 2 * k1[1])
+            k3 = f(theta + dt / 2 * k2[0], v + dt / 2 * k2[1])
+            k4 = f(theta + dt * k3[0], v + dt * k3[1])
+        except FloatingPointError:  # a stage left the finite numbers: the checked plant refuses it
+            return np.full_like(theta, np.nan), np.full_like(v, np.nan)
         return (theta + dt / 6 * (k1[0] + 2 * k2[0] + 2 * k3[0] + k4[0]),
                 v + dt / 6 * (k1[1] + 2 * k2[1] + 2 * k3[1] + k4[1]))
 

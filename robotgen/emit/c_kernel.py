@@ -150,16 +150,43 @@ def kernel_source(prefix: str, kernel: Kernel, precision: Precision,
         lines.append(f"  {precision.real} " + ", ".join(f"w{r}" for r in chunk) + ";")
     lines += [f"  (void){p.name};" for p in (*kernel.inputs, *kernel.outputs)
               if p.name not in used]
+    if kernel.guarded:
+        lines += _guard_inputs(kernel)
     lines += ["  " + line for line in body]
-    lines += ["  return 0;", "}"]
+    lines += _guard_outputs(kernel, precision) if kernel.guarded else ["  return 0;"]
+    lines += ["}"]
     return "\n".join(lines) + "\n"
+
+
+GUARD_INDEX = "rg_k"  # the guards' loop counter (no port or register is named so)
+
+
+def _guard_inputs(kernel: Kernel) -> list[str]:
+    """Status 1 before anything is written when an input (not a parameter) is NaN or Inf."""
+    lines = [f"  int {GUARD_INDEX};"]
+    for port in kernel.inputs:
+        if not is_parameter_port(port):
+            lines.append(f"  for ({GUARD_INDEX} = 0; {GUARD_INDEX} < {port.size}; ++{GUARD_INDEX}) "
+                         f"if (!isfinite({port.name}[{GUARD_INDEX}])) return 1;")
+    return lines
+
+
+def _guard_outputs(kernel: Kernel, precision: Precision) -> list[str]:
+    """Status 2 with every output zeroed when a result is not finite: no NaN leaves."""
+    checks = [f"  for ({GUARD_INDEX} = 0; {GUARD_INDEX} < {p.size}; ++{GUARD_INDEX}) "
+              f"if (!isfinite({p.name}[{GUARD_INDEX}])) goto not_finite;" for p in kernel.outputs]
+    zero = literal(0.0, precision)
+    # one store per element: a loop of stores would be compiled into a call of memset, which a
+    # freestanding (microcontroller) build may not have
+    clears = [f"  {p.name}[{k}] = {zero};" for p in kernel.outputs for k in range(p.size)]
+    return [*checks, "  return 0;", "not_finite:", *clears, "  return 2;"]
 
 
 def _check_ports(kernel: Kernel) -> None:
     names = [p.name for p in (*kernel.inputs, *kernel.outputs)]
     for name in names:
         check_identifier(name, f"kernel {kernel.name!r}: port")
-        if name in RESERVED or _REGISTER.match(name):
+        if name in RESERVED or _REGISTER.match(name) or name == GUARD_INDEX:
             raise KernelError(f"kernel {kernel.name!r}: port name {name!r} is reserved in C")
     if len(set(names)) != len(names):
         raise KernelError(f"kernel {kernel.name!r}: port names repeat: {names}")

@@ -95,6 +95,7 @@ class FunctionView:
     arithmetic_ops: int  # SX instructions other than input, output, constant, copy
     sin_cos_ops: int
     reads_parameters: bool  # the kernel has the PARAMS port: every parameter is a keyword
+    guarded: bool = False  # the C checks inputs and results (Kernel.guarded)
 
 
 @dataclass(frozen=True)
@@ -308,7 +309,7 @@ def _function_view(prefix: str, kernel: Kernel, precision: c_kernel.Precision,
         definition=c_kernel.kernel_source(prefix, kernel, precision, program),
         inputs=inputs, outputs=outputs, py_doc=c_string(_py_doc(kernel, inputs, outputs, keywords)),
         stub_doc=py_string(_summary(kernel.doc, kernel.name)),
-        arithmetic_ops=arithmetic, sin_cos_ops=sin_cos, reads_parameters=reads_parameters)
+        arithmetic_ops=arithmetic, sin_cos_ops=sin_cos, reads_parameters=reads_parameters, guarded=kernel.guarded)
 
 
 def _port_view(port: Port, macro: str) -> PortView:

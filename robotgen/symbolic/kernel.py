@@ -43,6 +43,11 @@ class Kernel:
     inputs: tuple[Port, ...]
     outputs: tuple[Port, ...]
     function: ca.Function
+    # The emitted C checks its inputs and results: status 1 (nothing written) when an input
+    # is NaN or infinite, 2 (every output set to 0) when a result is not finite, such as
+    # forward dynamics where M is not positive definite. For the functions a controller
+    # calls every cycle on sensed data: servo steps and forward dynamics.
+    guarded: bool = False
 
 
 def row_major(X: ca.SX) -> ca.SX:
@@ -77,7 +82,7 @@ NO_PARAMETERS = ParameterSymbols((), {})
 
 
 def make_kernel(name: str, doc: str, inputs: list[tuple], outputs: list[tuple[str, ca.SX, Shape]],
-                parameters: ParameterSymbols = NO_PARAMETERS) -> Kernel:
+                parameters: ParameterSymbols = NO_PARAMETERS, *, guarded: bool = False) -> Kernel:
     """The one way a kernel is built: ``inputs`` are (port name, SX column[, (rows, cols)
     the port shows, default a column]), ``outputs`` (port name, SX, (rows, cols)); matrices
     leave row-major, and CasADi's common-subexpression elimination is on. A kernel whose
@@ -89,4 +94,4 @@ def make_kernel(name: str, doc: str, inputs: list[tuple], outputs: list[tuple[st
         assert expr.shape == shape, (name, port, expr.shape, shape)
     f = ca.Function(name, [i[1] for i in inputs], [row_major(e) for _, e, _ in outputs],
                     [i[0] for i in inputs], [o[0] for o in outputs], {"cse": True})
-    return Kernel(name, doc, ports_in, tuple(Port(o[0], *o[2]) for o in outputs), f)
+    return Kernel(name, doc, ports_in, tuple(Port(o[0], *o[2]) for o in outputs), f, guarded)

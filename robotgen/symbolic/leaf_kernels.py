@@ -41,10 +41,13 @@ _FORMULA = {
 }
 
 
+GUARDED = frozenset({"forward_dynamics"})  # see Kernel.guarded; the derivative kernels below too
+
+
 def _kernel(name: str, doc: str, inputs: str, shape: tuple[int, int], expr: ca.SX,
             sym: Symbols, prefix: str, parameters: ParameterSymbols) -> Kernel:
     return make_kernel(prefix + name, doc, [(s, getattr(sym, s)) for s in inputs.split()], [(name, expr, shape)],
-                       parameters)
+                       parameters, guarded=name in GUARDED)
 
 
 def _resolve(shape, n: int, k: int) -> tuple[int, int]:
@@ -91,24 +94,25 @@ def _derivative_kernels(graphs, integrator: str, n: int, prefix: str, parameters
         make_kernel(prefix + "inverse_dynamics_derivatives",
                     "Partial derivatives of inverse dynamics: d tau/dq and d tau/dqd (d tau/dqdd is M).",
                     [("q", s.q), ("qd", s.qd), ("qdd", s.qdd)],
-                    [("dtau_dq", dq, square), ("dtau_dqd", dqd, square)], parameters),
+                    [("dtau_dq", dq, square), ("dtau_dqd", dqd, square)], parameters, guarded=True),
         make_kernel(prefix + "forward_dynamics_derivatives",
                     "Partial derivatives of forward dynamics: d qdd/dq, d qdd/dqd and d qdd/d tau = M^-1.",
                     [("q", s.q), ("qd", s.qd), ("tau", s.tau)],
-                    [("dqdd_dq", fq, square), ("dqdd_dqd", fqd, square), ("dqdd_dtau", minv, square)], parameters),
+                    [("dqdd_dq", fq, square), ("dqdd_dqd", fqd, square), ("dqdd_dtau", minv, square)], parameters,
+                    guarded=True),
         make_kernel(prefix + "mass_inverse", "M(q)^-1 (Cholesky factorisation, then solves).",
-                    [("q", s.q)], [("mass_inverse", d.mass_inverse(), square)], parameters),
+                    [("q", s.q)], [("mass_inverse", d.mass_inverse(), square)], parameters, guarded=True),
     ]
     q_next, qd_next = d.discrete_dynamics(integrator, dt)
     kernels.append(make_kernel(
         prefix + "discrete_dynamics", f"One step of length dt, tau held: {step}. Returns q+, qd+.",
-        state, [("q_next", q_next, (n, 1)), ("qd_next", qd_next, (n, 1))], parameters))
+        state, [("q_next", q_next, (n, 1)), ("qd_next", qd_next, (n, 1))], parameters, guarded=True))
     q_next, qd_next, A, B = d.discrete_dynamics_derivatives(integrator, dt)
     kernels.append(make_kernel(
         prefix + "discrete_dynamics_derivatives",
         f"One step ({step}) and its Jacobians: q+, qd+, A = d(q+, qd+)/d(q, qd), B = d(q+, qd+)/d tau.",
         state, [("q_next", q_next, (n, 1)), ("qd_next", qd_next, (n, 1)), ("A", A, (2 * n, 2 * n)),
-                ("B", B, (2 * n, n))], parameters))
+                ("B", B, (2 * n, n))], parameters, guarded=True))
     if isinstance(graphs, ChainGraphs):
         kernels.append(make_kernel(
             prefix + "jacobian_derivative",

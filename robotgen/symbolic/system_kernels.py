@@ -30,7 +30,7 @@ def _write_kernel(g: SystemGraphs, name: str, kernel_name: str, doc: str) -> Ker
     if servo.n_state:
         inputs += [("state", servo.state), ("dt", servo.dt)]
         outputs.append(("state_next", servo.state_next(), (servo.n_state, 1)))
-    return make_kernel(kernel_name, doc, inputs, outputs, g.parameters)
+    return make_kernel(kernel_name, doc, inputs, outputs, g.parameters, guarded=kernel_name == "servo_step")
 
 
 def system_kernels(system: RobotSystem) -> list[Kernel]:
@@ -76,7 +76,8 @@ def system_kernels(system: RobotSystem) -> list[Kernel]:
     kernels += [
         kernel("plant_dynamics", "The uncontrolled tree's constrained dynamics in root velocity "
                     "coordinates v: (theta_dot, v_dot) for torques tau.", [theta, v, tau],
-                    [("theta_dot", plant.theta_dot, (pg.n, 1)), ("v_dot", plant.v_dot, (plant.n_v, 1))]),
+                    [("theta_dot", plant.theta_dot, (pg.n, 1)), ("v_dot", plant.v_dot, (plant.n_v, 1))],
+                    guarded=True),
         kernel("plant_velocity", "Root velocity v of the uncontrolled tree from sensed leaf rates.",
                     [theta, ("theta_dot", pg.theta_dot)], [("v", plant.read_v, (plant.n_v, 1))]),
         kernel("plant_position", "Root positions of the uncontrolled tree.", [theta],

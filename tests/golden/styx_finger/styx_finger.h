@@ -4,6 +4,11 @@
  * stored row-major. Pointers are required (never NULL), must hold the sizes below, and
  * outputs must not overlap inputs. Functions return 0. They use no heap, no global
  * state and no I/O, so they are safe in real-time code and from several threads.
+ * Functions marked "checked" (servo steps, forward dynamics and its derivatives) return 1,
+ * having written nothing, when an input is NaN or infinite, and 2, with every output set to
+ * 0, when a result is not finite (forward dynamics where M is not positive definite, or an
+ * overflow): they never hand a NaN to an actuator. (Compiled with -ffast-math, the checks
+ * may be optimised away.)
  */
 #ifndef STYX_FINGER_H
 #define STYX_FINGER_H
@@ -79,6 +84,8 @@ int styx_finger_inverse_dynamics(const double *q, const double *qd, const double
  *   in  qd (2,)
  *   in  tau (2,)
  *   out forward_dynamics (2,)
+ *   checked: returns 1 on a NaN/Inf input (nothing written), 2 on a result that is not
+ *   finite (outputs set to 0)
  */
 #define STYX_FINGER_FORWARD_DYNAMICS_Q_SIZE 2
 #define STYX_FINGER_FORWARD_DYNAMICS_QD_SIZE 2
@@ -114,6 +121,8 @@ int styx_finger_kinematics_jacobian(const double *q, double *kinematics_jacobian
  *   in  qdd (2,)
  *   out dtau_dq (2, 2) row-major
  *   out dtau_dqd (2, 2) row-major
+ *   checked: returns 1 on a NaN/Inf input (nothing written), 2 on a result that is not
+ *   finite (outputs set to 0)
  */
 #define STYX_FINGER_INVERSE_DYNAMICS_DERIVATIVES_Q_SIZE 2
 #define STYX_FINGER_INVERSE_DYNAMICS_DERIVATIVES_QD_SIZE 2
@@ -131,6 +140,8 @@ int styx_finger_inverse_dynamics_derivatives(const double *q, const double *qd, 
  *   out dqdd_dq (2, 2) row-major
  *   out dqdd_dqd (2, 2) row-major
  *   out dqdd_dtau (2, 2) row-major
+ *   checked: returns 1 on a NaN/Inf input (nothing written), 2 on a result that is not
+ *   finite (outputs set to 0)
  */
 #define STYX_FINGER_FORWARD_DYNAMICS_DERIVATIVES_Q_SIZE 2
 #define STYX_FINGER_FORWARD_DYNAMICS_DERIVATIVES_QD_SIZE 2
@@ -145,6 +156,8 @@ int styx_finger_forward_dynamics_derivatives(const double *q, const double *qd, 
  *
  *   in  q (2,)
  *   out mass_inverse (2, 2) row-major
+ *   checked: returns 1 on a NaN/Inf input (nothing written), 2 on a result that is not
+ *   finite (outputs set to 0)
  */
 #define STYX_FINGER_MASS_INVERSE_Q_SIZE 2
 #define STYX_FINGER_MASS_INVERSE_MASS_INVERSE_SIZE 4
@@ -159,6 +172,8 @@ int styx_finger_mass_inverse(const double *q, double *mass_inverse);
  *   in  dt (1,)
  *   out q_next (2,)
  *   out qd_next (2,)
+ *   checked: returns 1 on a NaN/Inf input (nothing written), 2 on a result that is not
+ *   finite (outputs set to 0)
  */
 #define STYX_FINGER_DISCRETE_DYNAMICS_Q_SIZE 2
 #define STYX_FINGER_DISCRETE_DYNAMICS_QD_SIZE 2
@@ -179,6 +194,8 @@ int styx_finger_discrete_dynamics(const double *q, const double *qd, const doubl
  *   out qd_next (2,)
  *   out A (4, 4) row-major
  *   out B (4, 2) row-major
+ *   checked: returns 1 on a NaN/Inf input (nothing written), 2 on a result that is not
+ *   finite (outputs set to 0)
  */
 #define STYX_FINGER_DISCRETE_DYNAMICS_DERIVATIVES_Q_SIZE 2
 #define STYX_FINGER_DISCRETE_DYNAMICS_DERIVATIVES_QD_SIZE 2

@@ -268,6 +268,16 @@ static PyObject *rg_finish(const char *fn, int status, PyArrayObject **results, 
     int i;
     if (status != 0) {
         rg_release(results, n);
+        if (status == 1) {
+            return PyErr_Format(PyExc_FloatingPointError,
+                                "%s(): an input is NaN or infinite; nothing was computed (status 1)", fn);
+        }
+        if (status == 2) {
+            return PyErr_Format(PyExc_FloatingPointError,
+                                "%s(): the result is not finite (the mass matrix is not positive definite "
+                                "at this state, or the numbers overflow); the outputs were set to 0 (status 2)",
+                                fn);
+        }
         return PyErr_Format(PyExc_RuntimeError, "%s(): kernel returned %d", fn, status);
     }
     if (n == 1) {

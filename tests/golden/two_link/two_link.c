@@ -459,6 +459,10 @@ int two_link_inverse_dynamics(const double *q, const double *qd, const double *q
 int two_link_forward_dynamics(const double *q, const double *qd, const double *tau, double *forward_dynamics) {
   double w0, w1, w2, w3, w4, w5, w6, w7, w8, w9, w10, w11;
   double w12, w13, w14, w15, w16, w17, w18;
+  int rg_k;
+  for (rg_k = 0; rg_k < 2; ++rg_k) if (!isfinite(q[rg_k])) return 1;
+  for (rg_k = 0; rg_k < 2; ++rg_k) if (!isfinite(qd[rg_k])) return 1;
+  for (rg_k = 0; rg_k < 2; ++rg_k) if (!isfinite(tau[rg_k])) return 1;
   w0 = tau[0];
   w1 = 4.1202000000000005;
   w2 = 1.0;
@@ -546,7 +550,12 @@ int two_link_forward_dynamics(const double *q, const double *qd, const double *t
   w0 = w0 * w17;
   forward_dynamics[0] = w0;
   forward_dynamics[1] = w2;
+  for (rg_k = 0; rg_k < 2; ++rg_k) if (!isfinite(forward_dynamics[rg_k])) goto not_finite;
   return 0;
+not_finite:
+  forward_dynamics[0] = 0.0;
+  forward_dynamics[1] = 0.0;
+  return 2;
 }
 
 int two_link_servo_terms(const double *q, const double *qd, double *mass, double *nonlinear, double *jacobian, double *jacobian_dot_qd) {
@@ -679,6 +688,10 @@ int two_link_servo_terms(const double *q, const double *qd, double *mass, double
 int two_link_inverse_dynamics_derivatives(const double *q, const double *qd, const double *qdd, double *dtau_dq, double *dtau_dqd) {
   double w0, w1, w2, w3, w4, w5, w6, w7, w8, w9, w10, w11;
   double w12, w13, w14, w15, w16, w17, w18, w19;
+  int rg_k;
+  for (rg_k = 0; rg_k < 2; ++rg_k) if (!isfinite(q[rg_k])) return 1;
+  for (rg_k = 0; rg_k < 2; ++rg_k) if (!isfinite(qd[rg_k])) return 1;
+  for (rg_k = 0; rg_k < 2; ++rg_k) if (!isfinite(qdd[rg_k])) return 1;
   w0 = 9.81;
   w1 = 0.42000000000000004;
   w2 = q[0];
@@ -798,13 +811,29 @@ int two_link_inverse_dynamics_derivatives(const double *q, const double *qd, con
   w4 = w4 + w4;
   w4 = w4 + w18;
   dtau_dqd[3] = w4;
+  for (rg_k = 0; rg_k < 4; ++rg_k) if (!isfinite(dtau_dq[rg_k])) goto not_finite;
+  for (rg_k = 0; rg_k < 4; ++rg_k) if (!isfinite(dtau_dqd[rg_k])) goto not_finite;
   return 0;
+not_finite:
+  dtau_dq[0] = 0.0;
+  dtau_dq[1] = 0.0;
+  dtau_dq[2] = 0.0;
+  dtau_dq[3] = 0.0;
+  dtau_dqd[0] = 0.0;
+  dtau_dqd[1] = 0.0;
+  dtau_dqd[2] = 0.0;
+  dtau_dqd[3] = 0.0;
+  return 2;
 }
 
 int two_link_forward_dynamics_derivatives(const double *q, const double *qd, const double *tau, double *dqdd_dq, double *dqdd_dqd, double *dqdd_dtau) {
   double w0, w1, w2, w3, w4, w5, w6, w7, w8, w9, w10, w11;
   double w12, w13, w14, w15, w16, w17, w18, w19, w20, w21, w22, w23;
   double w24, w25, w26, w27, w28, w29, w30, w31;
+  int rg_k;
+  for (rg_k = 0; rg_k < 2; ++rg_k) if (!isfinite(q[rg_k])) return 1;
+  for (rg_k = 0; rg_k < 2; ++rg_k) if (!isfinite(qd[rg_k])) return 1;
+  for (rg_k = 0; rg_k < 2; ++rg_k) if (!isfinite(tau[rg_k])) return 1;
   w0 = 9.81;
   w1 = 0.42000000000000004;
   w2 = q[0];
@@ -1043,11 +1072,30 @@ int two_link_forward_dynamics_derivatives(const double *q, const double *qd, con
   w5 = -w5;
   dqdd_dtau[2] = w5;
   dqdd_dtau[3] = w12;
+  for (rg_k = 0; rg_k < 4; ++rg_k) if (!isfinite(dqdd_dq[rg_k])) goto not_finite;
+  for (rg_k = 0; rg_k < 4; ++rg_k) if (!isfinite(dqdd_dqd[rg_k])) goto not_finite;
+  for (rg_k = 0; rg_k < 4; ++rg_k) if (!isfinite(dqdd_dtau[rg_k])) goto not_finite;
   return 0;
+not_finite:
+  dqdd_dq[0] = 0.0;
+  dqdd_dq[1] = 0.0;
+  dqdd_dq[2] = 0.0;
+  dqdd_dq[3] = 0.0;
+  dqdd_dqd[0] = 0.0;
+  dqdd_dqd[1] = 0.0;
+  dqdd_dqd[2] = 0.0;
+  dqdd_dqd[3] = 0.0;
+  dqdd_dtau[0] = 0.0;
+  dqdd_dtau[1] = 0.0;
+  dqdd_dtau[2] = 0.0;
+  dqdd_dtau[3] = 0.0;
+  return 2;
 }
 
 int two_link_mass_inverse(const double *q, double *mass_inverse) {
   double w0, w1, w2, w3, w4, w5, w6, w7;
+  int rg_k;
+  for (rg_k = 0; rg_k < 2; ++rg_k) if (!isfinite(q[rg_k])) return 1;
   w0 = 0.21700000000000003;
   w1 = 0.6765600000000002;
   w2 = 0.4032;
@@ -1087,12 +1135,24 @@ int two_link_mass_inverse(const double *q, double *mass_inverse) {
   w3 = -w3;
   mass_inverse[2] = w3;
   mass_inverse[3] = w2;
+  for (rg_k = 0; rg_k < 4; ++rg_k) if (!isfinite(mass_inverse[rg_k])) goto not_finite;
   return 0;
+not_finite:
+  mass_inverse[0] = 0.0;
+  mass_inverse[1] = 0.0;
+  mass_inverse[2] = 0.0;
+  mass_inverse[3] = 0.0;
+  return 2;
 }
 
 int two_link_discrete_dynamics(const double *q, const double *qd, const double *tau, const double *dt, double *q_next, double *qd_next) {
   double w0, w1, w2, w3, w4, w5, w6, w7, w8, w9, w10, w11;
   double w12, w13, w14, w15, w16, w17, w18, w19, w20, w21, w22;
+  int rg_k;
+  for (rg_k = 0; rg_k < 2; ++rg_k) if (!isfinite(q[rg_k])) return 1;
+  for (rg_k = 0; rg_k < 2; ++rg_k) if (!isfinite(qd[rg_k])) return 1;
+  for (rg_k = 0; rg_k < 2; ++rg_k) if (!isfinite(tau[rg_k])) return 1;
+  for (rg_k = 0; rg_k < 1; ++rg_k) if (!isfinite(dt[rg_k])) return 1;
   w0 = q[0];
   w1 = dt[0];
   w2 = qd[0];
@@ -1191,13 +1251,26 @@ int two_link_discrete_dynamics(const double *q, const double *qd, const double *
   q_next[1] = w8;
   qd_next[0] = w2;
   qd_next[1] = w15;
+  for (rg_k = 0; rg_k < 2; ++rg_k) if (!isfinite(q_next[rg_k])) goto not_finite;
+  for (rg_k = 0; rg_k < 2; ++rg_k) if (!isfinite(qd_next[rg_k])) goto not_finite;
   return 0;
+not_finite:
+  q_next[0] = 0.0;
+  q_next[1] = 0.0;
+  qd_next[0] = 0.0;
+  qd_next[1] = 0.0;
+  return 2;
 }
 
 int two_link_discrete_dynamics_derivatives(const double *q, const double *qd, const double *tau, const double *dt, double *q_next, double *qd_next, double *A, double *B) {
   double w0, w1, w2, w3, w4, w5, w6, w7, w8, w9, w10, w11;
   double w12, w13, w14, w15, w16, w17, w18, w19, w20, w21, w22, w23;
   double w24, w25, w26, w27, w28;
+  int rg_k;
+  for (rg_k = 0; rg_k < 2; ++rg_k) if (!isfinite(q[rg_k])) return 1;
+  for (rg_k = 0; rg_k < 2; ++rg_k) if (!isfinite(qd[rg_k])) return 1;
+  for (rg_k = 0; rg_k < 2; ++rg_k) if (!isfinite(tau[rg_k])) return 1;
+  for (rg_k = 0; rg_k < 1; ++rg_k) if (!isfinite(dt[rg_k])) return 1;
   w0 = q[0];
   w1 = dt[0];
   w2 = qd[0];
@@ -1494,7 +1567,41 @@ int two_link_discrete_dynamics_derivatives(const double *q, const double *qd, co
   B[6] = w21;
   w1 = w1 * w15;
   B[7] = w1;
+  for (rg_k = 0; rg_k < 2; ++rg_k) if (!isfinite(q_next[rg_k])) goto not_finite;
+  for (rg_k = 0; rg_k < 2; ++rg_k) if (!isfinite(qd_next[rg_k])) goto not_finite;
+  for (rg_k = 0; rg_k < 16; ++rg_k) if (!isfinite(A[rg_k])) goto not_finite;
+  for (rg_k = 0; rg_k < 8; ++rg_k) if (!isfinite(B[rg_k])) goto not_finite;
   return 0;
+not_finite:
+  q_next[0] = 0.0;
+  q_next[1] = 0.0;
+  qd_next[0] = 0.0;
+  qd_next[1] = 0.0;
+  A[0] = 0.0;
+  A[1] = 0.0;
+  A[2] = 0.0;
+  A[3] = 0.0;
+  A[4] = 0.0;
+  A[5] = 0.0;
+  A[6] = 0.0;
+  A[7] = 0.0;
+  A[8] = 0.0;
+  A[9] = 0.0;
+  A[10] = 0.0;
+  A[11] = 0.0;
+  A[12] = 0.0;
+  A[13] = 0.0;
+  A[14] = 0.0;
+  A[15] = 0.0;
+  B[0] = 0.0;
+  B[1] = 0.0;
+  B[2] = 0.0;
+  B[3] = 0.0;
+  B[4] = 0.0;
+  B[5] = 0.0;
+  B[6] = 0.0;
+  B[7] = 0.0;
+  return 2;
 }
 
 int two_link_jacobian_derivative(const double *q, const double *qd, double *jacobian_derivative) {

@@ -4,6 +4,11 @@
  * stored row-major. Pointers are required (never NULL), must hold the sizes below, and
  * outputs must not overlap inputs. Functions return 0. They use no heap, no global
  * state and no I/O, so they are safe in real-time code and from several threads.
+ * Functions marked "checked" (servo steps, forward dynamics and its derivatives) return 1,
+ * having written nothing, when an input is NaN or infinite, and 2, with every output set to
+ * 0, when a result is not finite (forward dynamics where M is not positive definite, or an
+ * overflow): they never hand a NaN to an actuator. (Compiled with -ffast-math, the checks
+ * may be optimised away.)
  */
 #ifndef TWO_LINK_H
 #define TWO_LINK_H
@@ -121,6 +126,8 @@ int two_link_inverse_dynamics(const double *q, const double *qd, const double *q
  *   in  qd (2,)
  *   in  tau (2,)
  *   out forward_dynamics (2,)
+ *   checked: returns 1 on a NaN/Inf input (nothing written), 2 on a result that is not
+ *   finite (outputs set to 0)
  */
 #define TWO_LINK_FORWARD_DYNAMICS_Q_SIZE 2
 #define TWO_LINK_FORWARD_DYNAMICS_QD_SIZE 2
@@ -154,6 +161,8 @@ int two_link_servo_terms(const double *q, const double *qd, double *mass, double
  *   in  qdd (2,)
  *   out dtau_dq (2, 2) row-major
  *   out dtau_dqd (2, 2) row-major
+ *   checked: returns 1 on a NaN/Inf input (nothing written), 2 on a result that is not
+ *   finite (outputs set to 0)
  */
 #define TWO_LINK_INVERSE_DYNAMICS_DERIVATIVES_Q_SIZE 2
 #define TWO_LINK_INVERSE_DYNAMICS_DERIVATIVES_QD_SIZE 2
@@ -171,6 +180,8 @@ int two_link_inverse_dynamics_derivatives(const double *q, const double *qd, con
  *   out dqdd_dq (2, 2) row-major
  *   out dqdd_dqd (2, 2) row-major
  *   out dqdd_dtau (2, 2) row-major
+ *   checked: returns 1 on a NaN/Inf input (nothing written), 2 on a result that is not
+ *   finite (outputs set to 0)
  */
 #define TWO_LINK_FORWARD_DYNAMICS_DERIVATIVES_Q_SIZE 2
 #define TWO_LINK_FORWARD_DYNAMICS_DERIVATIVES_QD_SIZE 2
@@ -185,6 +196,8 @@ int two_link_forward_dynamics_derivatives(const double *q, const double *qd, con
  *
  *   in  q (2,)
  *   out mass_inverse (2, 2) row-major
+ *   checked: returns 1 on a NaN/Inf input (nothing written), 2 on a result that is not
+ *   finite (outputs set to 0)
  */
 #define TWO_LINK_MASS_INVERSE_Q_SIZE 2
 #define TWO_LINK_MASS_INVERSE_MASS_INVERSE_SIZE 4
@@ -199,6 +212,8 @@ int two_link_mass_inverse(const double *q, double *mass_inverse);
  *   in  dt (1,)
  *   out q_next (2,)
  *   out qd_next (2,)
+ *   checked: returns 1 on a NaN/Inf input (nothing written), 2 on a result that is not
+ *   finite (outputs set to 0)
  */
 #define TWO_LINK_DISCRETE_DYNAMICS_Q_SIZE 2
 #define TWO_LINK_DISCRETE_DYNAMICS_QD_SIZE 2
@@ -219,6 +234,8 @@ int two_link_discrete_dynamics(const double *q, const double *qd, const double *
  *   out qd_next (2,)
  *   out A (4, 4) row-major
  *   out B (4, 2) row-major
+ *   checked: returns 1 on a NaN/Inf input (nothing written), 2 on a result that is not
+ *   finite (outputs set to 0)
  */
 #define TWO_LINK_DISCRETE_DYNAMICS_DERIVATIVES_Q_SIZE 2
 #define TWO_LINK_DISCRETE_DYNAMICS_DERIVATIVES_QD_SIZE 2

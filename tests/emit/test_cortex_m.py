@@ -1,0 +1,53 @@
+"""The emitted C of the examples, double and float, compiled for a Cortex-M7 with the Arm GNU
+toolchain (Debian's gcc-arm-none-eabi): warning-free under -Wall -Wextra -Werror
+-Wdouble-promotion, no data or bss (no globals), nothing called but <math.h> functions (no
+memset either), every function's stack use static. Prints code size and stack per function."""
+from __future__ import annotations
+
+import re
+import shutil
+import subprocess
+from pathlib import Path
+
+import pytest
+
+from robotgen.cli import main
+
+SPECS = Path(__file__).resolve().parents[2] / "specs"
+CC = shutil.which("arm-none-eabi-gcc")
+FLAGS = ["-mcpu=cortex-m7", "-mfpu=fpv5-d16", "-mfloat-abi=hard", "-mthumb", "-O2", "-std=c99",
+         "-Wall", "-Wextra", "-Werror", "-Wdouble-promotion", "-fstack-usage"]
+MATH = {"sin", "cos", "tan", "asin", "acos", "atan", "atan2", "exp", "log", "sqrt", "tanh", "sinh", "cosh",
+        "pow", "fabs", "fmin", "fmax", "copysign", "floor", "ceil"}
+
+
+@pytest.mark.skipif(CC is None, reason="arm-none-eabi-gcc is not installed (Debian: apt-get install gcc-arm-none-eabi)")
+@pytest.mark.parametrize("precision", ["double", "float"])
+@pytest.mark.parametrize("spec", ["puma560", "styx_high_ct", "puma560_rmrc"])
+def test_cortex_m7_build(tmp_path, spec, precision):
+    out = tmp_path / spec
+    assert main(["build", str(SPECS / f"{spec}.yaml"), "-o", str(out), "--precision", precision, "--no-compile",
+                 "-q"]) == 0
+    obj = tmp_path / f"{spec}.o"
+    result = subprocess.run([CC, *FLAGS, "-c", str(out / f"{spec}.c"), "-o", str(obj)], capture_output=True,
+                            text=True, cwd=tmp_path)
+    assert result.returncode == 0, result.stderr
+    size = subprocess.run(["arm-none-eabi-size", str(obj)], capture_output=True, text=True, check=True).stdout
+    text, data, bss = (int(v) for v in size.splitlines()[1].split()[:3])
+    assert data == 0 and bss == 0, size
+    undefined = set(subprocess.run(["arm-none-eabi-nm", "-u", str(obj)], capture_output=True, text=True,
+                                   check=True).stdout.split()) - {"U"}
+    suffix = "f" if precision == "float" else ""
+    assert undefined <= {f + suffix for f in MATH}, undefined
+    symbols = subprocess.run(["arm-none-eabi-nm", "-S", "--size-sort", str(obj)], capture_output=True, text=True,
+                             check=True).stdout
+    code = {line.split()[3]: int(line.split()[1], 16) for line in symbols.splitlines() if line.split()[2] in "Tt"}
+    stack = {}
+    for line in (tmp_path / f"{spec}.su").read_text().splitlines():
+        match = re.match(r".*:(\w+)\t(\d+)\t(\w+)", line)
+        assert match and match.group(3) == "static", line  # no variable-length stack
+        stack[match.group(1)] = int(match.group(2))
+    print(f"\n{spec} ({precision}) on Cortex-M7: {text} bytes of code")
+    for name in sorted(code):
+        print(f"  {name:50s} {code[name]:7d} B code {stack.get(name, 0):6d} B stack")
+    assert set(code) == set(stack)
