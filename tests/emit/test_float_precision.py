@@ -5,6 +5,7 @@ must stay within FLOAT_BOUND, the bound docs/c-api.md states."""
 from __future__ import annotations
 
 import importlib
+import json
 import sys
 from pathlib import Path
 
@@ -40,25 +41,19 @@ def build(spec: str, precision: str, tmp: Path):
 
 
 def inputs(module, function: str, rng) -> list[np.ndarray]:
-    spec = {p["name"]: p["shape"] for f in MANIFESTS[module.__name__]["functions"] if f["name"] == function
-            for p in f["inputs"]}
+    """Random values of the function's input shapes (manifest.json); dt small and positive."""
+    manifest = json.loads((Path(module.__file__).parent / "manifest.json").read_text())
+    ports = next(f["inputs"] for f in manifest["functions"] if f["name"] == function)
     values = []
-    for name, shape in spec.items():
-        value = rng.normal(size=shape) * 0.5
-        values.append(np.abs(value) * 1e-2 + 1e-3 if name == "dt" else value)
+    for port in ports:
+        value = rng.normal(size=port["shape"]) * 0.5
+        values.append(np.abs(value) * 1e-2 + 1e-3 if port["name"] == "dt" else value)
     return values
-
-
-MANIFESTS: dict[str, dict] = {}
 
 
 @pytest.mark.parametrize("spec", list(CASES))
 def test_float_agrees_with_double(tmp_path, spec):
-    import json
-
     double, single = build(spec, "double", tmp_path), build(spec, "float", tmp_path)
-    for m in (double, single):
-        MANIFESTS[m.__name__] = json.loads((Path(m.__file__).parent / "manifest.json").read_text())
     rng = np.random.default_rng(8)
     worst = {}
     for function in CASES[spec]:
