@@ -19,6 +19,11 @@ from robotgen.progress import QUIET, Progress
 from robotgen.symbolic.control.law import Controller
 from robotgen.symbolic.kernel import Kernel
 
+try:
+    import fcntl
+except ImportError:  # not POSIX
+    fcntl = None
+
 MANIFEST = "manifest.json"
 
 
@@ -112,9 +117,24 @@ def _signals_held():
             signal.pthread_sigmask(signal.SIG_SETMASK, before)
 
 
+@contextmanager
+def _parent_locked(out_dir: Path):
+    """An exclusive lock on the output's parent directory (POSIX flock), so that builds to one
+    output directory running at once swap in one after the other: the last one wins, whole."""
+    if fcntl is None:  # not POSIX: no lock
+        yield
+        return
+    fd = os.open(out_dir.parent, os.O_RDONLY)
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX)
+        yield
+    finally:
+        os.close(fd)  # releases the lock
+
+
 def _swap_in(staging: Path, out_dir: Path) -> None:
     previous = out_dir.parent / f".{out_dir.name}.old-{os.getpid()}"
-    with _signals_held():
+    with _parent_locked(out_dir), _signals_held():
         if not out_dir.exists():
             staging.rename(out_dir)
             return

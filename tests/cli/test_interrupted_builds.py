@@ -51,3 +51,18 @@ def test_interrupts_at_many_moments_never_lose_the_output(tmp_path, signum, stat
         assert not [p for p in tmp_path.iterdir() if p.name.startswith(".gen.")]  # no staging left
         (out / ".robotgen-build").unlink(missing_ok=True)
     assert status in outcomes  # at least one signal landed inside a build
+
+
+def test_concurrent_builds_to_one_directory_both_succeed(tmp_path):
+    """Builds that swap in at once take turns (a lock on the parent directory): each exits 0
+    and the output is one whole build."""
+    out = tmp_path / "gen"
+    assert start(out).wait(timeout=120) == 0
+    reference = {p.name: p.read_bytes() for p in out.iterdir() if p.name != ".robotgen-build"}
+    for _ in range(3):
+        (out / ".robotgen-build").unlink(missing_ok=True)
+        procs = [start(out) for _ in range(6)]
+        results = [p.communicate(timeout=120) for p in procs]
+        assert [p.returncode for p in procs] == [0] * 6, results
+        assert {p.name: p.read_bytes() for p in out.iterdir() if p.name != ".robotgen-build"} == reference
+        assert not [p for p in tmp_path.iterdir() if p.name.startswith(".gen.")]
