@@ -34,7 +34,6 @@ def _on_sigterm(signum, frame) -> None:
     raise _Terminated
 
 
-MODULE_NAME = PATTERN
 
 
 def _load(args: argparse.Namespace):
@@ -43,7 +42,7 @@ def _load(args: argparse.Namespace):
     name = getattr(args, "name", None)
     if name is not None and name_problem(name):
         suggestion = re.sub(r"[^a-z0-9_]", "_", name.lower())[:MAX_LENGTH - 6]
-        suggestion = suggestion if MODULE_NAME.match(suggestion) else "_" + suggestion
+        suggestion = suggestion if PATTERN.match(suggestion) else "_" + suggestion
         suggestion = suggestion if not name_problem(suggestion) else suggestion + "_robot"
         raise _Usage(f"--name {name!r} {name_problem(name)} (it names the Python module and prefixes every "
                      f"C function); try --name {suggestion}")

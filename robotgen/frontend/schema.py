@@ -16,11 +16,12 @@ from robotgen.model.derivatives import DEFAULT_MAX_DOF, INTEGRATORS
 from robotgen.model.dh import CONVENTIONS
 from robotgen.model.laws import LAWS
 from robotgen.model.laws.resolved_rate import FRAMES, OBJECTIVES, REDUNDANCY_METHODS
+from robotgen.model.names import SPELLING
 from robotgen.model.signature import UNITS
 from robotgen.model.system import CHAIN_OUTPUTS, GAIN_MODES
 
 IDENTIFIER = "^[A-Za-z_][A-Za-z0-9_]*$"
-MODULE_NAME = "^[a-z_][a-z0-9_]*$"
+MODULE_NAME = f"^{SPELLING}$"
 PRIMITIVES = ("define", "attach", "control")
 
 

@@ -7,7 +7,8 @@ import keyword
 import re
 import sys
 
-PATTERN = re.compile(r"[a-z_][a-z0-9_]*\Z")
+SPELLING = "[a-z_][a-z0-9_]*"  # also the schema's pattern
+PATTERN = re.compile(SPELLING + r"\Z")
 MAX_LENGTH = 64  # the longest emitted file name, <name>.cpython-3xx-<platform>.so, stays far below 255
 
 C_KEYWORDS = frozenset(

@@ -12,11 +12,7 @@ import casadi as ca
 from robotgen.model.derivatives import RK4, SEMI_IMPLICIT_EULER
 from robotgen.symbolic.differentiation import reverse_jacobian
 from robotgen.symbolic.rigid_body.chain import ChainGraphs, Symbols
-from robotgen.symbolic.rigid_body.cholesky import Cholesky, cholesky_factor, cholesky_substitute
-
-
-def _solve_columns(factor: Cholesky, B: ca.SX) -> ca.SX:
-    return ca.horzcat(*[cholesky_substitute(factor, B[:, k]) for k in range(B.shape[1])])
+from robotgen.symbolic.rigid_body.cholesky import cholesky_factor, cholesky_solve_matrix, cholesky_substitute_columns
 
 
 class DynamicsDerivatives:
@@ -41,16 +37,15 @@ class DynamicsDerivatives:
 
     def mass_inverse(self) -> ca.SX:
         n = self.sym.q.shape[0]
-        return _solve_columns(cholesky_factor(self.graphs.mass()), ca.SX.eye(n))
+        return cholesky_solve_matrix(self.graphs.mass(), ca.SX.eye(n))
 
     def forward_dynamics_derivatives(self) -> tuple[ca.SX, ca.SX, ca.SX, ca.SX]:
         """(qdd, d qdd/dq, d qdd/dqd, d qdd/d tau = M^-1) at (q, qd, tau)."""
         s = self.sym
         n = s.q.shape[0]
-        L = cholesky_factor(self.graphs.mass())
-        qdd = self.graphs.forward_dynamics()
+        qdd = self.graphs.forward_dynamics()  # its factorisation of M and this one are one after CSE
         dq, dqd = self._id(s.q, s.qd, qdd)
-        solved = _solve_columns(L, ca.horzcat(dq, dqd, ca.SX.eye(n)))
+        solved = cholesky_substitute_columns(cholesky_factor(self.graphs.mass()), ca.horzcat(dq, dqd, ca.SX.eye(n)))
         return qdd, -solved[:, :n], -solved[:, n:2 * n], solved[:, 2 * n:]
 
     def _forward(self) -> ca.Function:

@@ -114,10 +114,9 @@ def test_which_modules_offer_derivatives():
     assert set(DERIVATIVES) | {"jacobian_derivative"} <= names(tree, DerivativeSettings())
     assert not set(DERIVATIVES) & names(tree, DerivativeSettings(include=False))
     assert not set(DERIVATIVES) & names(tree, None)
-    long_chain = KinematicTree("long", tuple(
-        Joint(f"j{i}", "revolute", i - 1, np.eye(4), np.array([0.0, 0.0, 1.0]), Body.zero()) for i in range(13)),
-        12, np.eye(4), np.array([0.0, 0.0, -9.81]))
-    assert DerivativeSettings().included(12) and not DerivativeSettings().included(long_chain.nq)
+    assert DerivativeSettings().included(12) and not DerivativeSettings().included(13)
+    assert DerivativeSettings(include=True).included(30) and DerivativeSettings(include=True).when_asked()
+    assert DerivativeSettings().when_asked() is None  # a root law's chain: only on request
 
 
 def test_jacobian_derivative_times_qd_is_jacobian_dot_qd():

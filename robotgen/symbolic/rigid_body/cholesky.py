@@ -46,7 +46,11 @@ def cholesky_solve(M: ca.SX, b: ca.SX) -> ca.SX:
     return cholesky_substitute(cholesky_factor(M), b)
 
 
+def cholesky_substitute_columns(factor: Cholesky, B: ca.SX) -> ca.SX:
+    """M^-1 B for a factorisation of M already made."""
+    return ca.horzcat(*[cholesky_substitute(factor, B[:, k]) for k in range(B.shape[1])])
+
+
 def cholesky_solve_matrix(M: ca.SX, B: ca.SX) -> ca.SX:
     """M^-1 B, one factorisation for every column of B."""
-    factor = cholesky_factor(M)
-    return ca.horzcat(*[cholesky_substitute(factor, B[:, k]) for k in range(B.shape[1])])
+    return cholesky_substitute_columns(cholesky_factor(M), B)

@@ -31,9 +31,14 @@ class OriginInertia:
     def to_parent(self, m) -> OriginInertia:
         """Express about the parent origin of joint motion ``m``: X^T I X with
         X = [E 0; -E skew(r) E]."""
-        r = m.r
-        h_rot = m.to_parent(self.h)
-        I_rot = m.matrix_to_parent(self.Ibar)
+        return self._shifted(m.to_parent(self.h), m.matrix_to_parent(self.Ibar), m.r)
+
+    def in_frame(self, R: ca.SX, p: ca.SX) -> OriginInertia:
+        """Express about the origin of a frame in which this one has orientation R and origin p."""
+        return self._shifted(R @ self.h, R @ self.Ibar @ R.T, p)
+
+    def _shifted(self, h_rot: ca.SX, I_rot: ca.SX, r: ca.SX) -> OriginInertia:
+        """From (h, Ibar) already rotated into the new axes, about an origin displaced by -r."""
         eye = ca.SX.eye(3)
         rr = ca.dot(r, r)
         rh = ca.dot(r, h_rot)

@@ -28,51 +28,26 @@ the angular part of the vector it is applied to. The same quantities are those o
 analytical derivatives of Carpentier and Mansard (RSS 2018), written here in this form."""
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import casadi as ca
-import numpy as np
 
 from robotgen.model.chain import PRISMATIC, KinematicTree
-from robotgen.numeric import exact
 from robotgen.symbolic.rigid_body.friction import friction_torque
+from robotgen.symbolic.rigid_body.inertia import OriginInertia
 from robotgen.symbolic.rigid_body.kinematics import JointMotion, joint_poses
-from robotgen.symbolic.rigid_body.spatial import const, skew
+from robotgen.symbolic.rigid_body.spatial import const, force_cross, motion_cross, skew
 
 
 def _motion_cross(a: ca.SX, b: ca.SX) -> ca.SX:
-    return ca.vertcat(ca.cross(a[:3], b[:3]), ca.cross(a[:3], b[3:]) + ca.cross(a[3:], b[:3]))
+    """spatial.motion_cross on stacked 6-vectors."""
+    return ca.vertcat(*motion_cross(a[:3], a[3:], b[:3], b[3:]))
 
 
 def _force_cross(a: ca.SX, f: ca.SX) -> ca.SX:
-    return ca.vertcat(ca.cross(a[:3], f[:3]) + ca.cross(a[3:], f[3:]), ca.cross(a[:3], f[3:]))
+    return ca.vertcat(*force_cross(a[:3], a[3:], f[:3], f[3:]))
 
 
-@dataclass(frozen=True, eq=False)
-class _Inertia:
-    """Spatial inertia about the base origin in base coordinates: m, h = m c, Ibar."""
-
-    m: ca.SX
-    h: ca.SX
-    Ibar: ca.SX
-
-    def apply(self, x: ca.SX) -> ca.SX:
-        w, v = x[:3], x[3:]
-        return ca.vertcat(self.Ibar @ w + ca.cross(self.h, v), self.m * v - ca.cross(self.h, w))
-
-    def __add__(self, other: _Inertia) -> _Inertia:
-        return _Inertia(self.m + other.m, self.h + other.h, self.Ibar + other.Ibar)
-
-
-def _base_inertia(joint, R: ca.SX, p: ca.SX) -> _Inertia:
-    """The body of ``joint`` about the base origin, from its frame's pose (R, p)."""
-    body = joint.body
-    c = np.asarray(body.com, dtype=float)
-    h = R @ const(body.mass * c)
-    Ibar = R @ const(exact.parallel_axis(body.inertia, body.mass, c)) @ R.T
-    eye = ca.SX.eye(3)
-    Ibar = Ibar + body.mass * (ca.dot(p, p) * eye - p @ p.T) + (2 * ca.dot(p, h) * eye - p @ h.T - h @ p.T)
-    return _Inertia(ca.SX(body.mass), h + body.mass * p, Ibar)
+def _apply(inertia: OriginInertia, x: ca.SX) -> ca.SX:
+    return ca.vertcat(*inertia.apply(x[:3], x[3:]))
 
 
 def rnea_derivatives(tree: KinematicTree, motions: list[JointMotion], qd: ca.SX, qdd: ca.SX
@@ -91,8 +66,8 @@ def rnea_derivatives(tree: KinematicTree, motions: list[JointMotion], qd: ca.SX,
         v_i = v_p + S_i * qd[i]
         Sdot_i = _motion_cross(v_i, S_i)
         a_i = a_p + S_i * qdd[i] + Sdot_i * qd[i]
-        I_i = _base_inertia(joint, R, o)
-        momentum = I_i.apply(v_i)
+        I_i = OriginInertia.of_body(joint.body).in_frame(R, o)  # about the base origin
+        momentum = _apply(I_i, v_i)
         w, nu = v_i[:3], v_i[3:]
         W = skew(w)
         T_i = (W @ I_i.Ibar - I_i.Ibar @ W - (I_i.h @ nu.T + nu @ I_i.h.T - 2 * ca.dot(nu, I_i.h) * ca.SX.eye(3))
@@ -102,7 +77,7 @@ def rnea_derivatives(tree: KinematicTree, motions: list[JointMotion], qd: ca.SX,
         v.append(v_i)
         a.append(a_i)
         alpha.append(-_motion_cross(S_i, a_p) - _motion_cross(Sdot_i, v_p))
-        F.append(I_i.apply(a_i) + _force_cross(v_i, momentum))
+        F.append(_apply(I_i, a_i) + _force_cross(v_i, momentum))
         Ic.append(I_i)
         T.append(T_i)
         p.append(momentum[3:])
@@ -117,7 +92,7 @@ def rnea_derivatives(tree: KinematicTree, motions: list[JointMotion], qd: ca.SX,
     def B(j: int, y: ca.SX) -> ca.SX:  # Bc_j y
         return ca.vertcat(T[j] @ y[:3], -2 * ca.cross(p[j], y[:3]))
 
-    u = [Ic[i].apply(S[i]) for i in range(n)]  # Ic_i S_i
+    u = [_apply(Ic[i], S[i]) for i in range(n)]  # Ic_i S_i
     w_ = [T[i].T @ S[i][:3] + 2 * ca.cross(p[i], S[i][3:]) for i in range(n)]  # angular part of Bc_i^T S_i
     ancestors: list[set[int]] = []
     for joint in tree.joints:
@@ -125,8 +100,8 @@ def rnea_derivatives(tree: KinematicTree, motions: list[JointMotion], qd: ca.SX,
     dq = ca.SX.zeros(n, n)
     dqd = ca.SX.zeros(n, n)
     for j in range(n):
-        gamma = _force_cross(S[j], F[j]) + Ic[j].apply(alpha[j]) + B(j, Sdot[j])
-        lam = 2 * Ic[j].apply(Sdot[j]) + B(j, S[j])
+        gamma = _force_cross(S[j], F[j]) + _apply(Ic[j], alpha[j]) + B(j, Sdot[j])
+        lam = 2 * _apply(Ic[j], Sdot[j]) + B(j, S[j])
         for i in range(n):
             if i == j or j in ancestors[i]:
                 dq[i, j] = ca.dot(u[i], alpha[j]) + ca.dot(w_[i], Sdot[j][:3])
