@@ -19,8 +19,20 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
-from robotgen.emit.sx_program import Instruction, KernelError, Program, read_program
+from robotgen.emit.sx_program import Instruction, KernelError, Program, read_program, reads_first
 from robotgen.symbolic.kernel import PARAMS, Kernel, Port
+from robotgen.symbolic.schedule import (
+    ABOVE,
+    ABOVE_DESCENDING,
+    BELOW,
+    DESCENDING,
+    LOCAL,
+    ONCE,
+    RANGE,
+    ROWS_ABOVE_DESCENDING,
+    ROWS_BELOW,
+    Slice,
+)
 
 
 @dataclass(frozen=True)
@@ -90,7 +102,7 @@ C_KEYWORDS = frozenset(
 RESERVED = (C_KEYWORDS | _MATH_FUNCTIONS | {f + "f" for f in _MATH_FUNCTIONS}
             | {"INFINITY", "NAN"})
 _IDENTIFIER = re.compile(r"[A-Za-z_][A-Za-z0-9_]*\Z")
-_REGISTER = re.compile(r"w[0-9]+\Z")
+_REGISTER = re.compile(r"[wxt][0-9]+\Z")
 
 
 def check_identifier(name: str, what: str) -> None:
@@ -135,19 +147,23 @@ def kernel_source(prefix: str, kernel: Kernel, precision: Precision,
                   program: Program | None = None) -> str:
     """The C definition of ``kernel``; ``program`` may be passed if already read."""
     _check_ports(kernel)
-    program = program or read_program(kernel)
     fields = {i: parameter_elements(p) for i, p in enumerate(kernel.inputs) if is_parameter_port(p)}
-    body = [_statement(step, kernel, precision, fields) for step in program.instructions]
-    zero = literal(0.0, precision)
-    for port_index, elements in program.unwritten_outputs:
-        name = kernel.outputs[port_index].name
-        body += [f"{name}[{e}] = {zero};" for e in elements]
-    used = {name for line in body for name in re.findall(r"[A-Za-z_][A-Za-z0-9_]*", line)}
-    registers = sorted({s.target for s in program.instructions if s.target >= 0})
-    lines = [prototype(prefix, kernel, precision) + " {"]
-    for start in range(0, len(registers), 12):
-        chunk = registers[start:start + 12]
-        lines.append(f"  {precision.real} " + ", ".join(f"w{r}" for r in chunk) + ";")
+
+    def read(port: int, element: int) -> str:
+        return fields[port][element] if port in fields else f"{kernel.inputs[port].name}[{element}]"
+
+    if kernel.schedule is not None:
+        declarations, body = _scheduled_body(kernel, precision, read)
+    else:
+        program = program or read_program(kernel)
+        declarations, body = _straight_line(program, kernel, precision, read,
+                                            lambda port, element: f"{kernel.outputs[port].name}[{element}]")
+        zero = literal(0.0, precision)
+        for port_index, elements in program.unwritten_outputs:
+            name = kernel.outputs[port_index].name
+            body += [f"{name}[{e}] = {zero};" for e in elements]
+    used = {name for line in declarations + body for name in re.findall(r"[A-Za-z_][A-Za-z0-9_]*", line)}
+    lines = [prototype(prefix, kernel, precision) + " {", *("  " + d for d in declarations)]
     lines += [f"  (void){p.name};" for p in (*kernel.inputs, *kernel.outputs)
               if p.name not in used]
     if kernel.guarded:
@@ -158,7 +174,84 @@ def kernel_source(prefix: str, kernel: Kernel, precision: Precision,
     return "\n".join(lines) + "\n"
 
 
+def _straight_line(program: Program, kernel: Kernel, precision: Precision, read, write,
+                   register: str = "w") -> tuple[list[str], list[str]]:
+    """(declarations of the registers, statements) of one SX program; ``read(port, element)``
+    and ``write(port, element)`` spell its inputs and outputs."""
+    body = [_statement(step, kernel, precision, read, write, register) for step in program.instructions]
+    registers = sorted({s.target for s in program.instructions if s.target >= 0})
+    declarations = [f"{precision.real} " + ", ".join(f"{register}{r}" for r in registers[start:start + 12]) + ";"
+                    for start in range(0, len(registers), 12)]
+    return declarations, body
+
+
+LOOP_INDICES = ("rg_i", "rg_j")  # a schedule's loop counters (no port or register is named so)
+_LOOP_HEADERS = {
+    ONCE: ["{{"],
+    RANGE: ["for (rg_i = 0; rg_i < {n}; ++rg_i) {{"],
+    DESCENDING: ["for (rg_i = {n} - 1; rg_i >= 0; --rg_i) {{"],
+    BELOW: ["for (rg_j = 0; rg_j < {n}; ++rg_j)", "  for (rg_i = rg_j + 1; rg_i < {n}; ++rg_i) {{"],
+    ABOVE: ["for (rg_j = 1; rg_j < {n}; ++rg_j)", "  for (rg_i = 0; rg_i < rg_j; ++rg_i) {{"],
+    ABOVE_DESCENDING: ["for (rg_j = {n} - 1; rg_j > 0; --rg_j)", "  for (rg_i = 0; rg_i < rg_j; ++rg_i) {{"],
+    ROWS_BELOW: ["for (rg_i = 1; rg_i < {n}; ++rg_i)", "  for (rg_j = 0; rg_j < rg_i; ++rg_j) {{"],
+    ROWS_ABOVE_DESCENDING: ["for (rg_i = {n} - 2; rg_i >= 0; --rg_i)",
+                            "  for (rg_j = rg_i + 1; rg_j < {n}; ++rg_j) {{"],
+}
+
+
+def _scheduled_body(kernel: Kernel, precision: Precision, read) -> tuple[list[str], list[str]]:
+    """A schedule's C: local arrays t0, t1, ...; the prologue as one straight-line block; each
+    loop as a block whose body reads and writes slices (registers x0, x1, ...)."""
+    schedule = kernel.schedule
+    zero = literal(0.0, precision)
+    declarations = [f"{precision.real} t{k}[{size}];" for k, size in enumerate(schedule.local_sizes)]
+    if schedule.loops:
+        pairs = any(loop.space not in (ONCE, RANGE, DESCENDING) for loop in schedule.loops)
+        declarations.append("int " + ", ".join(LOOP_INDICES if pairs else LOOP_INDICES[:1]) + ";")
+
+    def array(s: Slice) -> str:
+        return f"t{s.index}" if s.kind == LOCAL else kernel.outputs[s.index].name
+
+    def address(s: Slice, element: int) -> str:
+        start = s.offset + element * s.step
+        terms = [str(start)] if start or not (s.i_stride or s.j_stride) else []
+        terms += [f"{stride} * {index}" if stride != 1 else index
+                  for stride, index in ((s.i_stride, "rg_i"), (s.j_stride, "rg_j")) if stride]
+        return f"{array(s)}[{' + '.join(terms)}]"
+
+    prologue = part_kernel(kernel.name + "_prologue", schedule.prologue, kernel.inputs)
+    program = read_program(prologue)
+    writes = schedule.prologue_writes
+    registers, statements = _straight_line(program, prologue, precision, read,
+                                           lambda port, element: address(writes[port], element))
+    statements += [f"{address(writes[port], e)} = {zero};" for port, elements in program.unwritten_outputs
+                   for e in elements]
+    body = ["{", *("  " + line for line in registers + statements), "}"]
+    for loop in schedule.loops:
+        inner = part_kernel(kernel.name + "_" + loop.body.name(), loop.body)
+        program = reads_first(read_program(inner))
+        registers, statements = _straight_line(
+            program, inner, precision, lambda port, element, loop=loop: address(loop.reads[port], element),
+            lambda port, element, loop=loop: address(loop.writes[port], element), register="x")
+        statements += [f"{address(loop.writes[port], e)} = {zero};" for port, elements in program.unwritten_outputs
+                       for e in elements]
+        header = [line.format(n=loop.n) for line in _LOOP_HEADERS[loop.space]]
+        body += [*header, *("    " + line for line in registers + statements), "  }" if len(header) > 1 else "}"]
+    for port, elements in schedule.unwritten:
+        body += [f"{kernel.outputs[port].name}[{e}] = {zero};" for e in elements]
+    return declarations, body
+
+
+def part_kernel(name: str, function: ca.Function, inputs: tuple[Port, ...] | None = None) -> Kernel:
+    """A schedule's prologue or loop body as a kernel, for read_program."""
+    if inputs is None:
+        inputs = tuple(Port(f"in{k}", function.size1_in(k)) for k in range(function.n_in()))
+    outputs = tuple(Port(f"out{k}", function.size1_out(k)) for k in range(function.n_out()))
+    return Kernel(name, "", inputs, outputs, function)
+
+
 GUARD_INDEX = "rg_k"  # the guards' loop counter (no port or register is named so)
+GUARD_SUM = "rg_g"  # the output guard's partial sums rg_g0, rg_g1, ...
 
 
 def _guard_inputs(kernel: Kernel) -> list[str]:
@@ -172,36 +265,49 @@ def _guard_inputs(kernel: Kernel) -> list[str]:
 
 
 def _guard_outputs(kernel: Kernel, precision: Precision) -> list[str]:
-    """Status 2 with every output zeroed when a result is not finite: no NaN leaves."""
-    checks = [f"  for ({GUARD_INDEX} = 0; {GUARD_INDEX} < {p.size}; ++{GUARD_INDEX}) "
-              f"if (!isfinite({p.name}[{GUARD_INDEX}])) goto not_finite;" for p in kernel.outputs]
+    """Status 2 with every output zeroed when a result is not finite: no NaN leaves.
+
+    x - x is 0 for a finite x and NaN for a NaN or an infinity, so a sum of those is 0 exactly
+    when every element is finite: summed as balanced trees (in groups of 8, then the groups),
+    the check is independent operations and one branch, not a branch per element."""
     zero = literal(0.0, precision)
+    elements = [f"{p.name}[{k}]" for p in kernel.outputs for k in range(p.size)]
+    groups = [elements[start:start + 8] for start in range(0, len(elements), 8)]
+    lines = [f"  {precision.real} " + ", ".join(f"{GUARD_SUM}{g}" for g in range(start, min(start + 12, len(groups))))
+             + ";" for start in range(0, len(groups), 12)]
+    lines += [f"  {GUARD_SUM}{g} = {_balanced([f'({e} - {e})' for e in group])};" for g, group in enumerate(groups)]
+    lines.append(f"  if ({_balanced([f'{GUARD_SUM}{g}' for g in range(len(groups))])} != {zero}) goto not_finite;")
     # one store per element: a loop of stores would be compiled into a call of memset, which a
     # freestanding (microcontroller) build may not have
     clears = [f"  {p.name}[{k}] = {zero};" for p in kernel.outputs for k in range(p.size)]
-    return [*checks, "  return 0;", "not_finite:", *clears, "  return 2;"]
+    return [*lines, "  return 0;", "not_finite:", *clears, "  return 2;"]
+
+
+def _balanced(terms: list[str]) -> str:
+    """``terms`` summed as a balanced tree of parenthesised pairs."""
+    while len(terms) > 1:
+        pairs = [f"({terms[k]} + {terms[k + 1]})" for k in range(0, len(terms) - 1, 2)]
+        terms = pairs + terms[len(terms) - len(terms) % 2:]
+    return terms[0]
 
 
 def _check_ports(kernel: Kernel) -> None:
     names = [p.name for p in (*kernel.inputs, *kernel.outputs)]
     for name in names:
         check_identifier(name, f"kernel {kernel.name!r}: port")
-        if name in RESERVED or _REGISTER.match(name) or name == GUARD_INDEX:
+        if name in RESERVED or _REGISTER.match(name) or name.startswith("rg_"):
             raise KernelError(f"kernel {kernel.name!r}: port name {name!r} is reserved in C")
     if len(set(names)) != len(names):
         raise KernelError(f"kernel {kernel.name!r}: port names repeat: {names}")
 
 
-def _statement(step: Instruction, kernel: Kernel, precision: Precision,
-               fields: dict[int, list[str]]) -> str:
-    if step.op == ca.OP_INPUT and step.port in fields:
-        return f"w{step.target} = {fields[step.port][step.element]};"
+def _statement(step: Instruction, kernel: Kernel, precision: Precision, read, write, register: str) -> str:
     if step.op == ca.OP_INPUT:
-        return f"w{step.target} = {kernel.inputs[step.port].name}[{step.element}];"
+        return f"{register}{step.target} = {read(step.port, step.element)};"
     if step.op == ca.OP_OUTPUT:
-        return f"{kernel.outputs[step.port].name}[{step.element}] = w{step.args[0]};"
+        return f"{write(step.port, step.element)} = {register}{step.args[0]};"
     if step.op == ca.OP_CONST:
-        return f"w{step.target} = {literal(step.constant, precision)};"
+        return f"{register}{step.target} = {literal(step.constant, precision)};"
     if step.op not in OPERATIONS:
         raise KernelError(f"kernel {kernel.name!r}: CasADi operation {step.op_name} "
                           "has no C translation")
@@ -209,9 +315,9 @@ def _statement(step: Instruction, kernel: Kernel, precision: Precision,
     if len(step.args) != arity:
         raise KernelError(f"kernel {kernel.name!r}: {step.op_name} with {len(step.args)} "
                           f"operands, expected {arity}")
-    expression = pattern.format(*(f"w{r}" for r in step.args), fs=precision.math_suffix,
+    expression = pattern.format(*(f"{register}{r}" for r in step.args), fs=precision.math_suffix,
                                 one=literal(1.0, precision), zero=literal(0.0, precision))
-    return f"w{step.target} = {expression};"
+    return f"{register}{step.target} = {expression};"
 
 
 def literal(value: float, precision: Precision) -> str:

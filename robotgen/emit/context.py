@@ -293,13 +293,13 @@ def _function_view(prefix: str, kernel: Kernel, precision: c_kernel.Precision,
                    parameters: tuple[ParameterView, ...]) -> FunctionView:
     if not kernel.outputs:
         raise KernelError(f"kernel {kernel.name!r} has no outputs")
-    program = read_program(kernel)
+    program = read_program(kernel) if kernel.schedule is None else None
     macro = f"{prefix}_{kernel.name}".upper()
     reads_parameters = bool(kernel.inputs) and is_parameter_port(kernel.inputs[-1])
     arrays = kernel.inputs[:-1] if reads_parameters else kernel.inputs
     inputs = tuple(_port_view(p, macro) for p in arrays)
     outputs = tuple(_port_view(p, macro) for p in kernel.outputs)
-    arithmetic, sin_cos = _count_operations(program)
+    arithmetic, sin_cos = _count_operations(program) if program is not None else _count_scheduled(kernel)
     keywords = parameters if reads_parameters else ()
     return FunctionView(
         name=kernel.name, c_name=c_kernel.function_name(prefix, kernel), doc=kernel.doc.strip(),
@@ -355,6 +355,18 @@ def _py_doc(kernel: Kernel, inputs: tuple[PortView, ...], outputs: tuple[PortVie
 def _count_operations(program: Program) -> tuple[int, int]:
     ops = [step.op for step in program.instructions]
     return (sum(op not in _NOT_ARITHMETIC for op in ops), sum(op in _SIN_COS for op in ops))
+
+
+def _count_scheduled(kernel: Kernel) -> tuple[int, int]:
+    """Operations a scheduled kernel performs: its prologue's, and each loop body's times the
+    loop's iterations."""
+    schedule = kernel.schedule
+    parts = [(schedule.prologue, 1)] + [(loop.body, len(loop.iterations())) for loop in schedule.loops]
+    arithmetic = sin_cos = 0
+    for function, times in parts:
+        a, s = _count_operations(read_program(c_kernel.part_kernel(function.name(), function)))
+        arithmetic, sin_cos = arithmetic + times * a, sin_cos + times * s
+    return arithmetic, sin_cos
 
 
 def _check_controller_names(name: str, functions: tuple[FunctionView, ...],

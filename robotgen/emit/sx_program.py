@@ -154,3 +154,29 @@ def _shared_reciprocals(steps: tuple[Instruction, ...]) -> tuple[Instruction, ..
             if (step.target, k) in shared:
                 add_reciprocal(step.target, k)
     return tuple(out)
+
+
+def reads_first(program: Program) -> Program:
+    """The same program with every input read at its start and every output written at its end
+    (through registers numbered above the program's): a loop body whose output slice overlaps
+    its input slices then computes what it would as a function, all reads before any write."""
+    fresh = max((s.target for s in program.instructions), default=-1) + 1
+    loaded: dict[tuple[int, int], int] = {}
+    head: list[Instruction] = []
+    middle: list[Instruction] = []
+    tail: list[Instruction] = []
+    for step in program.instructions:
+        if step.op == ca.OP_INPUT:
+            key = (step.port, step.element)
+            if key not in loaded:
+                loaded[key] = fresh
+                head.append(Instruction(ca.OP_INPUT, fresh, port=step.port, element=step.element))
+                fresh += 1
+            middle.append(Instruction(ca.OP_ASSIGN, step.target, (loaded[key],)))
+        elif step.op == ca.OP_OUTPUT:
+            middle.append(Instruction(ca.OP_ASSIGN, fresh, step.args))
+            tail.append(Instruction(ca.OP_OUTPUT, -1, (fresh,), port=step.port, element=step.element))
+            fresh += 1
+        else:
+            middle.append(step)
+    return Program((*head, *middle, *tail), program.unwritten_outputs)

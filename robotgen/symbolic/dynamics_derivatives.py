@@ -4,15 +4,38 @@ them.
 
 Forward dynamics qdd = M^-1 (tau - C qd - N) is differentiated through inverse dynamics: at
 qdd = FD(q, qd, tau), d qdd/dz = -M^-1 d tau/dz for z = q, qd (the implicit function
-theorem), and d qdd/d tau = M^-1; one Cholesky factorisation of M serves every column."""
+theorem), and d qdd/d tau = M^-1; one Cholesky factorisation of M serves every column.
+
+Past LOOPS_ABOVE_OPS the kernels of both are built as schedules (robotgen.symbolic.schedule):
+on a serial chain the recursion's steps and joint pairs are loops (derivative_loops), and the
+solve with M is row-wise loops."""
 from __future__ import annotations
 
 import casadi as ca
 
 from robotgen.model.derivatives import RK4, SEMI_IMPLICIT_EULER
 from robotgen.symbolic.differentiation import reverse_jacobian
+from robotgen.symbolic.kernel import row_major
 from robotgen.symbolic.rigid_body.chain import ChainGraphs, Symbols
-from robotgen.symbolic.rigid_body.cholesky import cholesky_factor, cholesky_solve_matrix, cholesky_substitute_columns
+from robotgen.symbolic.rigid_body.cholesky import (
+    cholesky_factor,
+    cholesky_solve_matrix,
+    cholesky_substitute_columns,
+    row_solve_coefficients,
+    schedule_row_solve,
+)
+from robotgen.symbolic.rigid_body.derivative_loops import (
+    schedule_forward_dynamics_derivatives,
+    schedule_rnea_derivatives,
+)
+from robotgen.symbolic.rigid_body.rnea_derivatives import is_serial
+from robotgen.symbolic.schedule import OUTPUT, ScheduleBuilder, Slice
+
+# Straight-line code takes ~13 bytes per operation: past ~3000 operations of d tau/dq, dqd
+# (forward dynamics' derivatives are ~1.6 times that) the kernels are emitted with loops
+# (robotgen.symbolic.schedule). The UR5 (3398, reverse sweeps) gets the row-wise solve, the
+# Panda (5724) the recursion's loops; small arms stay straight-line, where CSE makes them tiny.
+LOOPS_ABOVE_OPS = 3000
 
 
 class DynamicsDerivatives:
@@ -34,6 +57,57 @@ class DynamicsDerivatives:
         s = self.sym
         dq, dqd = self._id(s.q, s.qd, s.qdd)
         return dq, dqd
+
+    def inverse_dynamics_derivatives_schedule(self) -> ScheduleBuilder | None:
+        """Outputs (d tau/dq, d tau/dqd), row-major, as loops; None: straight-line is better."""
+        if not self._looped():
+            return None
+        s = self.sym
+        n = s.q.shape[0]
+        b = ScheduleBuilder([s.q, s.qd, s.qdd], [n * n, n * n])
+        self._inverse_into(b, s.qdd, (OUTPUT, 0), (OUTPUT, 1))
+        return b
+
+    def forward_dynamics_derivatives_schedule(self) -> ScheduleBuilder | None:
+        """Outputs (d qdd/dq, d qdd/dqd, M^-1), row-major, with loops; None: straight-line is
+        better."""
+        if not self._large():
+            return None
+        s = self.sym
+        n = s.q.shape[0]
+        b = ScheduleBuilder([s.q, s.qd, s.tau], [n * n] * 3)
+        if self._looped():
+            schedule_forward_dynamics_derivatives(b, self.graphs.tree, self.graphs.motions, s.qd, s.tau, (0, 1, 2))
+            return b
+        factor = cholesky_factor(self.graphs.mass())  # forward_dynamics' own, after CSE
+        coefficients = b.local(row_solve_coefficients(factor))
+        b.prologue(Slice(OUTPUT, 2), row_major(cholesky_substitute_columns(factor, ca.SX.eye(n))))
+        dq, dqd = self._id(s.q, s.qd, self.graphs.forward_dynamics())
+        rows = b.local(row_major(ca.horzcat(dq, dqd)))
+        schedule_row_solve(b, n, coefficients, rows, 2 * n, [((OUTPUT, 0), 0, -1.0), ((OUTPUT, 1), n, -1.0)])
+        return b
+
+    def _inverse_into(self, b: ScheduleBuilder, qdd: ca.SX, dq: tuple[str, int], dqd: tuple[str, int]) -> None:
+        """d tau/dq and d tau/dqd at ``qdd`` into two row-major arrays of ``b``: the recursion's
+        pair loops on a serial chain, else straight-line in the prologue."""
+        g, s = self.graphs, self.sym
+        if self._looped():
+            schedule_rnea_derivatives(b, g.tree, g.motions, s.qd, qdd, dq, dqd)
+            return
+        DQ, DQD = self._id(s.q, s.qd, qdd)
+        b.prologue(Slice(*dq), row_major(DQ))
+        b.prologue(Slice(*dqd), row_major(DQD))
+
+    def _large(self) -> bool:
+        """Whether the derivatives are too large for straight-line code (LOOPS_ABOVE_OPS)."""
+        g = self.graphs
+        return isinstance(g, ChainGraphs) and g.id_derivatives_ops() > LOOPS_ABOVE_OPS
+
+    def _looped(self) -> bool:
+        """Whether the recursion's loops are used: a large serial chain on which the recursion
+        has fewer operations than reverse sweeps (derivative_loops)."""
+        g = self.graphs
+        return self._large() and is_serial(g.tree) and g.id_derivatives_by_recursion()
 
     def mass_inverse(self) -> ca.SX:
         n = self.sym.q.shape[0]

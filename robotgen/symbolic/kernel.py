@@ -6,6 +6,7 @@ from dataclasses import dataclass
 import casadi as ca
 
 from robotgen.model.parameters import RuntimeParameter
+from robotgen.symbolic.schedule import Schedule, ScheduleBuilder
 
 PARAMS = "params"  # the port of a module's run-time parameters, always a kernel's last input
 
@@ -48,6 +49,9 @@ class Kernel:
     # forward dynamics where M is not positive definite. For the functions a controller
     # calls every cycle on sensed data: servo steps and forward dynamics.
     guarded: bool = False
+    # How the C evaluates ``function`` when its work repeats (robotgen.symbolic.schedule):
+    # a prologue and loops; None: one straight-line program.
+    schedule: Schedule | None = None
 
 
 def row_major(X: ca.SX) -> ca.SX:
@@ -82,11 +86,13 @@ NO_PARAMETERS = ParameterSymbols((), {})
 
 
 def make_kernel(name: str, doc: str, inputs: list[tuple], outputs: list[tuple[str, ca.SX, Shape]],
-                parameters: ParameterSymbols = NO_PARAMETERS, *, guarded: bool = False) -> Kernel:
+                parameters: ParameterSymbols = NO_PARAMETERS, *, guarded: bool = False,
+                schedule: ScheduleBuilder | None = None) -> Kernel:
     """The one way a kernel is built: ``inputs`` are (port name, SX column[, (rows, cols)
     the port shows, default a column]), ``outputs`` (port name, SX, (rows, cols)); matrices
     leave row-major, and CasADi's common-subexpression elimination is on. A kernel whose
-    outputs read a run-time parameter gets the PARAMS port last."""
+    outputs read a run-time parameter gets the PARAMS port last. ``schedule``: the loops the
+    outputs were built by (their SX must be ``schedule.outputs()``)."""
     if parameters.parameters and any(ca.depends_on(e, parameters.vector) for _, e, _ in outputs):
         inputs = [*inputs, parameters.port()]
     ports_in = tuple(Port(i[0], *(i[2] if len(i) > 2 else (i[1].shape[0], 1)), *i[3:]) for i in inputs)
@@ -94,4 +100,5 @@ def make_kernel(name: str, doc: str, inputs: list[tuple], outputs: list[tuple[st
         assert expr.shape == shape, (name, port, expr.shape, shape)
     f = ca.Function(name, [i[1] for i in inputs], [row_major(e) for _, e, _ in outputs],
                     [i[0] for i in inputs], [o[0] for o in outputs], {"cse": True})
-    return Kernel(name, doc, ports_in, tuple(Port(o[0], *o[2]) for o in outputs), f, guarded)
+    return Kernel(name, doc, ports_in, tuple(Port(o[0], *o[2]) for o in outputs), f, guarded,
+                  schedule.finish([i[1] for i in inputs]) if schedule is not None else None)

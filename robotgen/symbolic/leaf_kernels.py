@@ -86,20 +86,24 @@ def _derivative_kernels(graphs, integrator: str, n: int, prefix: str, parameters
     dt = ca.SX.sym("dt")
     state = [("q", s.q), ("qd", s.qd), ("tau", s.tau), ("dt", dt)]
     square = (n, n)
-    dq, dqd = d.inverse_dynamics_derivatives()
-    _, fq, fqd, minv = d.forward_dynamics_derivatives()
+    id_schedule, fd_schedule = d.inverse_dynamics_derivatives_schedule(), d.forward_dynamics_derivatives_schedule()
+    dq, dqd = ((_matrix(x, n) for x in id_schedule.outputs()) if id_schedule
+               else d.inverse_dynamics_derivatives())
+    fq, fqd, minv = ((_matrix(x, n) for x in fd_schedule.outputs()) if fd_schedule
+                     else d.forward_dynamics_derivatives()[1:])
     step = "semi-implicit Euler (qd+ = qd + dt qdd, q+ = q + dt qd+)" if integrator == SEMI_IMPLICIT_EULER \
         else "classical Runge-Kutta (RK4) on (qd, qdd)"
     kernels = [
         make_kernel(prefix + "inverse_dynamics_derivatives",
                     "Partial derivatives of inverse dynamics: d tau/dq and d tau/dqd (d tau/dqdd is M).",
                     [("q", s.q), ("qd", s.qd), ("qdd", s.qdd)],
-                    [("dtau_dq", dq, square), ("dtau_dqd", dqd, square)], parameters, guarded=True),
+                    [("dtau_dq", dq, square), ("dtau_dqd", dqd, square)], parameters, guarded=True,
+                    schedule=id_schedule),
         make_kernel(prefix + "forward_dynamics_derivatives",
                     "Partial derivatives of forward dynamics: d qdd/dq, d qdd/dqd and d qdd/d tau = M^-1.",
                     [("q", s.q), ("qd", s.qd), ("tau", s.tau)],
                     [("dqdd_dq", fq, square), ("dqdd_dqd", fqd, square), ("dqdd_dtau", minv, square)], parameters,
-                    guarded=True),
+                    guarded=True, schedule=fd_schedule),
         make_kernel(prefix + "mass_inverse", "M(q)^-1 (Cholesky factorisation, then solves).",
                     [("q", s.q)], [("mass_inverse", d.mass_inverse(), square)], parameters, guarded=True),
     ]
@@ -119,6 +123,11 @@ def _derivative_kernels(graphs, integrator: str, n: int, prefix: str, parameters
             "dJ/dt (6 x n): the time derivative of the tip Jacobian; jacobian_derivative qd = jacobian_dot_qd.",
             [("q", s.q), ("qd", s.qd)], [("jacobian_derivative", graphs.jacobian_derivative(), (6, n))], parameters))
     return kernels
+
+
+def _matrix(row_major_column: ca.SX, n: int) -> ca.SX:
+    """The n x n matrix a row-major column holds."""
+    return ca.reshape(row_major_column, n, n).T
 
 
 def _servo_terms(graphs: ChainGraphs, sym: Symbols, n: int, prefix: str) -> Kernel:

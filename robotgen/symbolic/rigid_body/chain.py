@@ -115,8 +115,21 @@ class ChainGraphs:
             recursion = rnea_derivatives(self.tree, self.motions, s.qd, s.qdd)
             tau = self.inverse_dynamics()
             sweeps = (reverse_jacobian(tau, s.q), reverse_jacobian(tau, s.qd))
-            return min([recursion, sweeps], key=lambda d: count_operations([s.q, s.qd, s.qdd], list(d))["total"])
+            count = [count_operations([s.q, s.qd, s.qdd], list(d))["total"] for d in (recursion, sweeps)]
+            self._cache["id_derivatives_by_recursion"] = count[0] <= count[1]
+            self._cache["id_derivatives_ops"] = min(count)
+            return recursion if count[0] <= count[1] else sweeps
         return self._get("id_derivatives", build)
+
+    def id_derivatives_ops(self) -> int:
+        """Operations of inverse_dynamics_derivatives, straight-line."""
+        self.inverse_dynamics_derivatives()
+        return self._cache["id_derivatives_ops"]
+
+    def id_derivatives_by_recursion(self) -> bool:
+        """Whether inverse_dynamics_derivatives is the recursion (not the reverse sweeps)."""
+        self.inverse_dynamics_derivatives()
+        return self._cache["id_derivatives_by_recursion"]
 
     def jacobian_derivative(self) -> ca.SX:
         """dJ/dt = sum_k dJ/dq_k qd_k, by one forward sweep."""

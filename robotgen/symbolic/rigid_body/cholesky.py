@@ -8,6 +8,8 @@ from dataclasses import dataclass
 
 import casadi as ca
 
+from robotgen.symbolic.schedule import LOCAL, RANGE, ROWS_ABOVE_DESCENDING, ROWS_BELOW, ScheduleBuilder, Slice, body
+
 
 @dataclass(frozen=True, eq=False)
 class Cholesky:
@@ -54,3 +56,59 @@ def cholesky_substitute_columns(factor: Cholesky, B: ca.SX) -> ca.SX:
 def cholesky_solve_matrix(M: ca.SX, B: ca.SX) -> ca.SX:
     """M^-1 B, one factorisation for every column of B."""
     return cholesky_substitute_columns(cholesky_factor(M), B)
+
+
+def row_solve_coefficients(factor: Cholesky) -> ca.SX:
+    """What schedule_row_solve reads, as one column: F (n x n, row-major) with
+    F_ij = L_ij / L_jj below the diagonal, B with B_ik = L_ki L_ii / L_kk^2 above it, and
+    d_i = 1 / L_ii^2.
+
+    With them, M X = R for a matrix of right-hand sides R is solved row by row, every update a
+    whole row at once (the columns are independent, so the processor overlaps them; solving
+    column after column is a chain of dependent operations per column): forward, for
+    i = 1, ..., n-1, R_i -= F_ij R_j (j < i); back, for i = n-2, ..., 0, R_i -= B_ik R_k (k > i);
+    then X_i = d_i R_i. (The forward pass leaves R_i = L_ii y_i with L y = R; the back pass
+    R_i = L_ii^2 x_i.)"""
+    L, inverse = factor.L, factor.inverse_diagonal
+    n = len(L)
+    F = ca.SX.zeros(n, n)
+    B = ca.SX.zeros(n, n)
+    for i in range(n):
+        for j in range(i):
+            F[i, j] = L[i][j] * inverse[j]
+            B[j, i] = L[i][j] * L[j][j] * inverse[i] * inverse[i]
+    d = ca.vertcat(*(inverse[i] * inverse[i] for i in range(n)))
+    return ca.vertcat(ca.vec(F.T), ca.vec(B.T), d)
+
+
+def solve_with_coefficients(coefficients: ca.SX, rhs: ca.SX) -> ca.SX:
+    """M^-1 rhs from row_solve_coefficients (a column of n (2 n + 1) values) by the same
+    forward and back passes, for one right-hand side."""
+    n = rhs.shape[0]
+    F = ca.reshape(coefficients[:n * n], n, n).T
+    B = ca.reshape(coefficients[n * n:2 * n * n], n, n).T
+    r = [rhs[i] for i in range(n)]
+    for j in range(n):
+        for i in range(j + 1, n):
+            r[i] = r[i] - F[i, j] * r[j]
+    for k in reversed(range(1, n)):
+        for i in range(k):
+            r[i] = r[i] - B[i, k] * r[k]
+    return ca.vertcat(*(coefficients[2 * n * n + i] * r[i] for i in range(n)))
+
+
+def schedule_row_solve(b: ScheduleBuilder, n: int, coefficients: int, rows: int, width: int,
+                       blocks: list[tuple[tuple[str, int], int, float]]) -> None:
+    """M^-1 R for the local ``rows`` (n x width, row-major; overwritten), with ``coefficients``
+    a local holding row_solve_coefficients; each block (target, first column, scale) writes
+    scale times columns first..first+n-1 of the solution to an n x n row-major array."""
+    r_i, r_j, c, d = ca.SX.sym("r_i", width), ca.SX.sym("r_j", width), ca.SX.sym("c"), ca.SX.sym("d")
+    update = body("row_update", [r_i, c, r_j], [r_i - c * r_j])
+    row = Slice(LOCAL, rows, i_stride=width)
+    b.loop(update, ROWS_BELOW, n, [row, Slice(LOCAL, coefficients, i_stride=n, j_stride=1),
+                              Slice(LOCAL, rows, j_stride=width)], [row])
+    b.loop(update, ROWS_ABOVE_DESCENDING, n, [row, Slice(LOCAL, coefficients, n * n, i_stride=n, j_stride=1),
+                                         Slice(LOCAL, rows, j_stride=width)], [row])
+    scaled = body("row_scale", [r_i, d], [scale * d * r_i[first:first + n] for _, first, scale in blocks])
+    b.loop(scaled, RANGE, n, [row, Slice(LOCAL, coefficients, 2 * n * n, i_stride=1)],
+           [Slice(*target, i_stride=n) for target, _, _ in blocks])

@@ -12,6 +12,16 @@ from robotgen.numeric import exact
 from robotgen.symbolic.rigid_body.spatial import const
 
 
+def rotate_symmetric(R: ca.SX, X: ca.SX) -> ca.SX:
+    """R X R^T for a symmetric X: (R X) R^T formed on its upper triangle only."""
+    RX = R @ X
+    Y = ca.SX.zeros(3, 3)
+    for i in range(3):
+        for j in range(i, 3):
+            Y[i, j] = Y[j, i] = ca.dot(RX[i, :].T, R[j, :].T)
+    return Y
+
+
 @dataclass(frozen=True, eq=False)
 class OriginInertia:
     m: ca.SX
@@ -31,18 +41,23 @@ class OriginInertia:
     def to_parent(self, m) -> OriginInertia:
         """Express about the parent origin of joint motion ``m``: X^T I X with
         X = [E 0; -E skew(r) E]."""
-        return self._shifted(m.to_parent(self.h), m.matrix_to_parent(self.Ibar), m.r)
+        Ibar = self.Ibar if m.Rm is None else rotate_symmetric(m.Rm, self.Ibar)
+        return self._shifted(m.to_parent(self.h), rotate_symmetric(m.R0, Ibar), m.r)
 
     def in_frame(self, R: ca.SX, p: ca.SX) -> OriginInertia:
         """Express about the origin of a frame in which this one has orientation R and origin p."""
-        return self._shifted(R @ self.h, R @ self.Ibar @ R.T, p)
+        return self._shifted(R @ self.h, rotate_symmetric(R, self.Ibar), p)
 
     def _shifted(self, h_rot: ca.SX, I_rot: ca.SX, r: ca.SX) -> OriginInertia:
-        """From (h, Ibar) already rotated into the new axes, about an origin displaced by -r."""
-        eye = ca.SX.eye(3)
+        """From (h, Ibar) already rotated into the new axes, about an origin displaced by -r:
+        Ibar + m (|r|^2 1 - r r^T) + 2 (r . h) 1 - r h^T - h r^T, formed on its upper triangle."""
         rr = ca.dot(r, r)
         rh = ca.dot(r, h_rot)
-        Ibar = I_rot + self.m * (rr * eye - r @ r.T) + (2 * rh * eye - r @ h_rot.T - h_rot @ r.T)
+        Ibar = ca.SX.zeros(3, 3)
+        for i in range(3):
+            for j in range(i, 3):
+                shift = -(self.m * r[i] * r[j]) - (r[i] * h_rot[j] + h_rot[i] * r[j])
+                Ibar[i, j] = Ibar[j, i] = I_rot[i, j] + (shift + self.m * rr + 2 * rh if i == j else shift)
         return OriginInertia(self.m, h_rot + self.m * r, Ibar)
 
     def __add__(self, other: OriginInertia) -> OriginInertia:

@@ -28,6 +28,8 @@ the angular part of the vector it is applied to. The same quantities are those o
 analytical derivatives of Carpentier and Mansard (RSS 2018), written here in this form."""
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import casadi as ca
 
 from robotgen.model.chain import PRISMATIC, KinematicTree
@@ -50,37 +52,84 @@ def _apply(inertia: OriginInertia, x: ca.SX) -> ca.SX:
     return ca.vertcat(*inertia.apply(x[:3], x[3:]))
 
 
-def rnea_derivatives(tree: KinematicTree, motions: list[JointMotion], qd: ca.SX, qdd: ca.SX
-                     ) -> tuple[ca.SX, ca.SX]:
-    """(d tau / dq, d tau / dqd) of inverse dynamics with friction (the armature term
-    depends on qdd only)."""
-    n = tree.nq
-    poses = joint_poses(tree, motions)
+@dataclass(frozen=True, eq=False)
+class JointTerms:
+    """Per joint (6-vectors as SX columns): S, Sdot, alpha, u = Ic S, w = the angular part of
+    Bc^T S, gamma and lam (the ancestor rows' force terms); ``friction`` holds
+    d tau_f,i / dqd_i (friction is diagonal); ``ancestors[i]`` the strict ancestors of i."""
+
+    S: list[ca.SX]
+    Sdot: list[ca.SX]
+    alpha: list[ca.SX]
+    u: list[ca.SX]
+    w: list[ca.SX]
+    gamma: list[ca.SX]
+    lam: list[ca.SX]
+    friction: ca.SX
+    ancestors: list[set[int]]
+
+
+def _axes_and_inertias(tree: KinematicTree, motions: list[JointMotion]) -> tuple[list[ca.SX], list[OriginInertia]]:
+    """Each joint's motion axis S and its body's inertia, about the base origin."""
     zero3 = ca.SX.zeros(3, 1)
-    a_base = ca.vertcat(zero3, -const(tree.gravity))
-    S, Sdot, v, a, alpha, F, Ic, T, p = [], [], [], [], [], [], [], [], []
-    for i, (joint, (R, o)) in enumerate(zip(tree.joints, poses)):
+    S, inertias = [], []
+    for joint, (R, o) in zip(tree.joints, joint_poses(tree, motions)):
         z = R @ const(joint.axis)
-        S_i = ca.vertcat(zero3, z) if joint.type == PRISMATIC else ca.vertcat(z, ca.cross(o, z))
+        S.append(ca.vertcat(zero3, z) if joint.type == PRISMATIC else ca.vertcat(z, ca.cross(o, z)))
+        inertias.append(OriginInertia.of_body(joint.body).in_frame(R, o))
+    return S, inertias
+
+
+def _base_acceleration(tree: KinematicTree) -> ca.SX:
+    return ca.vertcat(ca.SX.zeros(3, 1), -const(tree.gravity))
+
+
+def _forward_step(v_p: ca.SX, a_p: ca.SX, S: ca.SX, qd: ca.SX, qdd: ca.SX) -> tuple[ca.SX, ...]:
+    """(v, a, Sdot, alpha) of a joint from its parent's v and a."""
+    v = v_p + S * qd
+    Sdot = _motion_cross(v, S)
+    a = a_p + S * qdd + Sdot * qd
+    return v, a, Sdot, -_motion_cross(S, a_p) - _motion_cross(Sdot, v_p)
+
+
+def _body_terms(I: OriginInertia, v: ca.SX, a: ca.SX) -> tuple[ca.SX, ca.SX, ca.SX]:
+    """(f = I a + v x* I v, T, p) of one body (T and p define its B, module docstring).
+    [w x] Ibar - Ibar [w x] = X + X^T with X = [w x] Ibar (Ibar symmetric), and h nu^T + nu h^T
+    is symmetric: each is formed from its upper triangle."""
+    momentum = _apply(I, v)
+    w, nu = v[:3], v[3:]
+    X = skew(w) @ I.Ibar
+    nh = ca.dot(nu, I.h)
+    S = ca.SX.zeros(3, 3)
+    for r in range(3):
+        for c in range(r, 3):
+            S[r, c] = X[r, c] + X[c, r] - (I.h[r] * nu[c] + nu[r] * I.h[c]) + (2 * nh if r == c else 0)
+            S[c, r] = S[r, c]
+    return _apply(I, a) + _force_cross(v, momentum), S - skew(momentum[:3]), momentum[3:]
+
+
+def _joint_outputs(Ic: OriginInertia, T: ca.SX, p: ca.SX, S: ca.SX, Sdot: ca.SX, F: ca.SX, alpha: ca.SX
+                   ) -> tuple[ca.SX, ...]:
+    """(u, w, gamma, lam) of a joint from its subtree's composites Ic, T, p, F."""
+    def B(y: ca.SX) -> ca.SX:  # Bc y
+        return ca.vertcat(T @ y[:3], -2 * ca.cross(p, y[:3]))
+
+    return (_apply(Ic, S), T.T @ S[:3] + 2 * ca.cross(p, S[3:]),
+            _force_cross(S, F) + _apply(Ic, alpha) + B(Sdot), 2 * _apply(Ic, Sdot) + B(S))
+
+
+def joint_terms(tree: KinematicTree, motions: list[JointMotion], qd: ca.SX, qdd: ca.SX) -> JointTerms:
+    """The O(n) part of the recursion: everything the joint-pair terms read."""
+    n = tree.nq
+    S, Ic = _axes_and_inertias(tree, motions)
+    a_base = _base_acceleration(tree)
+    Sdot, v, a, alpha, F, T, p = [], [], [], [], [], [], []
+    for i, joint in enumerate(tree.joints):
         v_p, a_p = (ca.SX.zeros(6, 1), a_base) if joint.parent < 0 else (v[joint.parent], a[joint.parent])
-        v_i = v_p + S_i * qd[i]
-        Sdot_i = _motion_cross(v_i, S_i)
-        a_i = a_p + S_i * qdd[i] + Sdot_i * qd[i]
-        I_i = OriginInertia.of_body(joint.body).in_frame(R, o)  # about the base origin
-        momentum = _apply(I_i, v_i)
-        w, nu = v_i[:3], v_i[3:]
-        W = skew(w)
-        T_i = (W @ I_i.Ibar - I_i.Ibar @ W - (I_i.h @ nu.T + nu @ I_i.h.T - 2 * ca.dot(nu, I_i.h) * ca.SX.eye(3))
-               - skew(momentum[:3]))
-        S.append(S_i)
-        Sdot.append(Sdot_i)
-        v.append(v_i)
-        a.append(a_i)
-        alpha.append(-_motion_cross(S_i, a_p) - _motion_cross(Sdot_i, v_p))
-        F.append(_apply(I_i, a_i) + _force_cross(v_i, momentum))
-        Ic.append(I_i)
-        T.append(T_i)
-        p.append(momentum[3:])
+        for lst, x in zip((v, a, Sdot, alpha), _forward_step(v_p, a_p, S[i], qd[i], qdd[i])):
+            lst.append(x)
+        for lst, x in zip((F, T, p), _body_terms(Ic[i], v[i], a[i])):
+            lst.append(x)
     for i in reversed(range(n)):  # composites: subtree sums
         parent = tree.joints[i].parent
         if parent >= 0:
@@ -88,25 +137,43 @@ def rnea_derivatives(tree: KinematicTree, motions: list[JointMotion], qd: ca.SX,
             Ic[parent] = Ic[parent] + Ic[i]
             T[parent] = T[parent] + T[i]
             p[parent] = p[parent] + p[i]
-
-    def B(j: int, y: ca.SX) -> ca.SX:  # Bc_j y
-        return ca.vertcat(T[j] @ y[:3], -2 * ca.cross(p[j], y[:3]))
-
-    u = [_apply(Ic[i], S[i]) for i in range(n)]  # Ic_i S_i
-    w_ = [T[i].T @ S[i][:3] + 2 * ca.cross(p[i], S[i][3:]) for i in range(n)]  # angular part of Bc_i^T S_i
+    u, w, gamma, lam = (list(x) for x in zip(*(_joint_outputs(Ic[i], T[i], p[i], S[i], Sdot[i], F[i], alpha[i])
+                                                for i in range(n))))
     ancestors: list[set[int]] = []
     for joint in tree.joints:
         ancestors.append(set() if joint.parent < 0 else ancestors[joint.parent] | {joint.parent})
+    friction = ca.diag(ca.jacobian(friction_torque(tree, qd), qd))
+    return JointTerms(S, Sdot, alpha, u, w, gamma, lam, friction, ancestors)
+
+
+def subtree_term(u_i: ca.SX, w_i: ca.SX, alpha_j: ca.SX, Sdot_j: ca.SX, S_j: ca.SX) -> tuple[ca.SX, ca.SX]:
+    """(d tau_i/dq_j, d tau_i/dqd_j) for i in the subtree of j."""
+    return (ca.dot(u_i, alpha_j) + ca.dot(w_i, Sdot_j[:3]),
+            2 * ca.dot(u_i, Sdot_j) + ca.dot(w_i, S_j[:3]))
+
+
+def ancestor_term(S_i: ca.SX, gamma_j: ca.SX, lam_j: ca.SX) -> tuple[ca.SX, ca.SX]:
+    """(d tau_i/dq_j, d tau_i/dqd_j) for i a strict ancestor of j."""
+    return ca.dot(S_i, gamma_j), ca.dot(S_i, lam_j)
+
+
+def rnea_derivatives(tree: KinematicTree, motions: list[JointMotion], qd: ca.SX, qdd: ca.SX
+                     ) -> tuple[ca.SX, ca.SX]:
+    """(d tau / dq, d tau / dqd) of inverse dynamics with friction (the armature term
+    depends on qdd only)."""
+    n = tree.nq
+    t = joint_terms(tree, motions, qd, qdd)
     dq = ca.SX.zeros(n, n)
     dqd = ca.SX.zeros(n, n)
     for j in range(n):
-        gamma = _force_cross(S[j], F[j]) + _apply(Ic[j], alpha[j]) + B(j, Sdot[j])
-        lam = 2 * _apply(Ic[j], Sdot[j]) + B(j, S[j])
         for i in range(n):
-            if i == j or j in ancestors[i]:
-                dq[i, j] = ca.dot(u[i], alpha[j]) + ca.dot(w_[i], Sdot[j][:3])
-                dqd[i, j] = 2 * ca.dot(u[i], Sdot[j]) + ca.dot(w_[i], S[j][:3])
-            elif i in ancestors[j]:
-                dq[i, j] = ca.dot(S[i], gamma)
-                dqd[i, j] = ca.dot(S[i], lam)
-    return dq, dqd + ca.jacobian(friction_torque(tree, qd), qd)
+            if i == j or j in t.ancestors[i]:
+                dq[i, j], dqd[i, j] = subtree_term(t.u[i], t.w[i], t.alpha[j], t.Sdot[j], t.S[j])
+            elif i in t.ancestors[j]:
+                dq[i, j], dqd[i, j] = ancestor_term(t.S[i], t.gamma[j], t.lam[j])
+    return dq, dqd + ca.diag(t.friction)
+
+
+def is_serial(tree: KinematicTree) -> bool:
+    """Each joint's parent is the joint before it: the subtree of j is i >= j."""
+    return all(joint.parent == i - 1 for i, joint in enumerate(tree.joints))

@@ -182,7 +182,9 @@ int styx_finger_forward_dynamics(const double *q, const double *qd, const double
   w0 = w0 * w1;
   forward_dynamics[0] = w0;
   forward_dynamics[1] = w5;
-  for (rg_k = 0; rg_k < 2; ++rg_k) if (!isfinite(forward_dynamics[rg_k])) goto not_finite;
+  double rg_g0;
+  rg_g0 = ((forward_dynamics[0] - forward_dynamics[0]) + (forward_dynamics[1] - forward_dynamics[1]));
+  if (rg_g0 != 0.0) goto not_finite;
   return 0;
 not_finite:
   forward_dynamics[0] = 0.0;
@@ -314,8 +316,9 @@ int styx_finger_inverse_dynamics_derivatives(const double *q, const double *qd, 
   dtau_dqd[2] = w4;
   w0 = w0 - w8;
   dtau_dqd[3] = w0;
-  for (rg_k = 0; rg_k < 4; ++rg_k) if (!isfinite(dtau_dq[rg_k])) goto not_finite;
-  for (rg_k = 0; rg_k < 4; ++rg_k) if (!isfinite(dtau_dqd[rg_k])) goto not_finite;
+  double rg_g0;
+  rg_g0 = ((((dtau_dq[0] - dtau_dq[0]) + (dtau_dq[1] - dtau_dq[1])) + ((dtau_dq[2] - dtau_dq[2]) + (dtau_dq[3] - dtau_dq[3]))) + (((dtau_dqd[0] - dtau_dqd[0]) + (dtau_dqd[1] - dtau_dqd[1])) + ((dtau_dqd[2] - dtau_dqd[2]) + (dtau_dqd[3] - dtau_dqd[3]))));
+  if (rg_g0 != 0.0) goto not_finite;
   return 0;
 not_finite:
   dtau_dq[0] = 0.0;
@@ -482,9 +485,10 @@ int styx_finger_forward_dynamics_derivatives(const double *q, const double *qd, 
   w1 = -w1;
   dqdd_dtau[2] = w1;
   dqdd_dtau[3] = w15;
-  for (rg_k = 0; rg_k < 4; ++rg_k) if (!isfinite(dqdd_dq[rg_k])) goto not_finite;
-  for (rg_k = 0; rg_k < 4; ++rg_k) if (!isfinite(dqdd_dqd[rg_k])) goto not_finite;
-  for (rg_k = 0; rg_k < 4; ++rg_k) if (!isfinite(dqdd_dtau[rg_k])) goto not_finite;
+  double rg_g0, rg_g1;
+  rg_g0 = ((((dqdd_dq[0] - dqdd_dq[0]) + (dqdd_dq[1] - dqdd_dq[1])) + ((dqdd_dq[2] - dqdd_dq[2]) + (dqdd_dq[3] - dqdd_dq[3]))) + (((dqdd_dqd[0] - dqdd_dqd[0]) + (dqdd_dqd[1] - dqdd_dqd[1])) + ((dqdd_dqd[2] - dqdd_dqd[2]) + (dqdd_dqd[3] - dqdd_dqd[3]))));
+  rg_g1 = (((dqdd_dtau[0] - dqdd_dtau[0]) + (dqdd_dtau[1] - dqdd_dtau[1])) + ((dqdd_dtau[2] - dqdd_dtau[2]) + (dqdd_dtau[3] - dqdd_dtau[3])));
+  if ((rg_g0 + rg_g1) != 0.0) goto not_finite;
   return 0;
 not_finite:
   dqdd_dq[0] = 0.0;
@@ -535,7 +539,9 @@ int styx_finger_mass_inverse(const double *q, double *mass_inverse) {
   w3 = -w3;
   mass_inverse[2] = w3;
   mass_inverse[3] = w2;
-  for (rg_k = 0; rg_k < 4; ++rg_k) if (!isfinite(mass_inverse[rg_k])) goto not_finite;
+  double rg_g0;
+  rg_g0 = (((mass_inverse[0] - mass_inverse[0]) + (mass_inverse[1] - mass_inverse[1])) + ((mass_inverse[2] - mass_inverse[2]) + (mass_inverse[3] - mass_inverse[3])));
+  if (rg_g0 != 0.0) goto not_finite;
   return 0;
 not_finite:
   mass_inverse[0] = 0.0;
@@ -608,8 +614,9 @@ int styx_finger_discrete_dynamics(const double *q, const double *qd, const doubl
   q_next[1] = w8;
   qd_next[0] = w2;
   qd_next[1] = w6;
-  for (rg_k = 0; rg_k < 2; ++rg_k) if (!isfinite(q_next[rg_k])) goto not_finite;
-  for (rg_k = 0; rg_k < 2; ++rg_k) if (!isfinite(qd_next[rg_k])) goto not_finite;
+  double rg_g0;
+  rg_g0 = (((q_next[0] - q_next[0]) + (q_next[1] - q_next[1])) + ((qd_next[0] - qd_next[0]) + (qd_next[1] - qd_next[1])));
+  if (rg_g0 != 0.0) goto not_finite;
   return 0;
 not_finite:
   q_next[0] = 0.0;
@@ -832,10 +839,12 @@ int styx_finger_discrete_dynamics_derivatives(const double *q, const double *qd,
   B[6] = w14;
   w1 = w1 * w12;
   B[7] = w1;
-  for (rg_k = 0; rg_k < 2; ++rg_k) if (!isfinite(q_next[rg_k])) goto not_finite;
-  for (rg_k = 0; rg_k < 2; ++rg_k) if (!isfinite(qd_next[rg_k])) goto not_finite;
-  for (rg_k = 0; rg_k < 16; ++rg_k) if (!isfinite(A[rg_k])) goto not_finite;
-  for (rg_k = 0; rg_k < 8; ++rg_k) if (!isfinite(B[rg_k])) goto not_finite;
+  double rg_g0, rg_g1, rg_g2, rg_g3;
+  rg_g0 = ((((q_next[0] - q_next[0]) + (q_next[1] - q_next[1])) + ((qd_next[0] - qd_next[0]) + (qd_next[1] - qd_next[1]))) + (((A[0] - A[0]) + (A[1] - A[1])) + ((A[2] - A[2]) + (A[3] - A[3]))));
+  rg_g1 = ((((A[4] - A[4]) + (A[5] - A[5])) + ((A[6] - A[6]) + (A[7] - A[7]))) + (((A[8] - A[8]) + (A[9] - A[9])) + ((A[10] - A[10]) + (A[11] - A[11]))));
+  rg_g2 = ((((A[12] - A[12]) + (A[13] - A[13])) + ((A[14] - A[14]) + (A[15] - A[15]))) + (((B[0] - B[0]) + (B[1] - B[1])) + ((B[2] - B[2]) + (B[3] - B[3]))));
+  rg_g3 = (((B[4] - B[4]) + (B[5] - B[5])) + ((B[6] - B[6]) + (B[7] - B[7])));
+  if (((rg_g0 + rg_g1) + (rg_g2 + rg_g3)) != 0.0) goto not_finite;
   return 0;
 not_finite:
   q_next[0] = 0.0;
