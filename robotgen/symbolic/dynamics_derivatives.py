@@ -29,7 +29,7 @@ from robotgen.symbolic.rigid_body.derivative_loops import (
     schedule_rnea_derivatives,
 )
 from robotgen.symbolic.rigid_body.rnea_derivatives import is_serial
-from robotgen.symbolic.schedule import OUTPUT, ScheduleBuilder, Slice
+from robotgen.symbolic.schedule import LOCAL, OUTPUT, RANGE, ScheduleBuilder, Slice, body
 
 # Straight-line code takes ~13 bytes per operation: past ~3000 operations of d tau/dq, dqd
 # (forward dynamics' derivatives are ~1.6 times that) the kernels are emitted with loops
@@ -77,7 +77,8 @@ class DynamicsDerivatives:
         n = s.q.shape[0]
         b = ScheduleBuilder([s.q, s.qd, s.tau], [n * n] * 3)
         if self._looped():
-            schedule_forward_dynamics_derivatives(b, self.graphs.tree, self.graphs.motions, s.qd, s.tau, (0, 1, 2))
+            schedule_forward_dynamics_derivatives(b, self.graphs.tree, self.graphs.motions, s.qd, s.tau,
+                                                  ((OUTPUT, 0), (OUTPUT, 1), (OUTPUT, 2)))
             return b
         factor = cholesky_factor(self.graphs.mass())  # forward_dynamics' own, after CSE
         coefficients = b.local(row_solve_coefficients(factor))
@@ -85,6 +86,33 @@ class DynamicsDerivatives:
         dq, dqd = self._id(s.q, s.qd, self.graphs.forward_dynamics())
         rows = b.local(row_major(ca.horzcat(dq, dqd)))
         schedule_row_solve(b, n, coefficients, rows, 2 * n, [((OUTPUT, 0), 0, -1.0), ((OUTPUT, 1), n, -1.0)])
+        return b
+
+    def discrete_dynamics_derivatives_schedule(self, integrator: str, dt: ca.SX) -> ScheduleBuilder | None:
+        """Outputs (q+, qd+, A, B) of semi-implicit Euler as loops on a chain where forward
+        dynamics' derivatives are (_looped); None otherwise (RK4 stays straight-line)."""
+        if integrator != SEMI_IMPLICIT_EULER or not self._looped():
+            return None
+        s = self.sym
+        n = s.q.shape[0]
+        b = ScheduleBuilder([s.q, s.qd, s.tau, dt], [n, n, 4 * n * n, 2 * n * n])
+        Q, QD, DT, EYE = b.local(s.q), b.local(s.qd), b.local(dt), b.local(ca.SX.eye(n))
+        FQ, FQD, MINV = (b.local(size=n * n) for _ in range(3))
+        QDD = schedule_forward_dynamics_derivatives(b, self.graphs.tree, self.graphs.motions, s.qd, s.tau,
+                                                    ((LOCAL, FQ), (LOCAL, FQD), (LOCAL, MINV)))
+        # qd+ = qd + dt qdd, q+ = q + dt qd+; row i of A = [[I + dt^2 Fq, dt I + dt^2 Fqd], [dt Fq, I + dt Fqd]]
+        # and of B = [dt^2 M^-1; dt M^-1]
+        q, qd, qdd, h = ca.SX.sym("q"), ca.SX.sym("qd"), ca.SX.sym("qdd"), ca.SX.sym("dt")
+        fq, fqd, minv, e = (ca.SX.sym(name, n) for name in ("fq", "fqd", "minv", "e"))
+        qd_next = qd + h * qdd
+        rows = [ca.vertcat(e + h * h * fq, h * e + h * h * fqd), ca.vertcat(h * fq, e + h * fqd), h * h * minv,
+                h * minv]
+        at = lambda array, width: Slice(LOCAL, array, i_stride=width)  # noqa: E731
+        b.loop(body("step_rows", [q, qd, qdd, h, fq, fqd, minv, e], [q + h * qd_next, qd_next, *rows]), RANGE, n,
+               [at(Q, 1), at(QD, 1), at(QDD, 1), Slice(LOCAL, DT), at(FQ, n), at(FQD, n), at(MINV, n), at(EYE, n)],
+               [Slice(OUTPUT, 0, i_stride=1), Slice(OUTPUT, 1, i_stride=1), Slice(OUTPUT, 2, i_stride=2 * n),
+                Slice(OUTPUT, 2, 2 * n * n, i_stride=2 * n), Slice(OUTPUT, 3, i_stride=n),
+                Slice(OUTPUT, 3, n * n, i_stride=n)])
         return b
 
     def _inverse_into(self, b: ScheduleBuilder, qdd: ca.SX, dq: tuple[str, int], dqd: tuple[str, int]) -> None:

@@ -11,7 +11,11 @@ from robotgen.model.formula import FormulaRobot
 from robotgen.symbolic.dynamics_derivatives import DynamicsDerivatives
 from robotgen.symbolic.formulas import FormulaGraphs
 from robotgen.symbolic.kernel import NO_PARAMETERS, Kernel, ParameterSymbols, make_kernel
+from robotgen.symbolic.op_count import count_operations
 from robotgen.symbolic.rigid_body.chain import ChainGraphs, Symbols
+from robotgen.symbolic.rigid_body.chain_loops import LOOPS_ABOVE_DOF, LOOPS_ABOVE_OPS, ChainLoops
+from robotgen.symbolic.rigid_body.rnea_derivatives import is_serial
+from robotgen.symbolic.schedule import ScheduleBuilder
 
 # name: (inputs, output shape as a function of nq, doc)
 _CHAIN = {
@@ -50,6 +54,38 @@ def _kernel(name: str, doc: str, inputs: str, shape: tuple[int, int], expr: ca.S
                        parameters, guarded=name in GUARDED)
 
 
+LOOPED = {  # the chain kernels ChainLoops builds: name -> how (gravity stays straight-line: O(n) and lean)
+    "mass": lambda loops, b, sym: loops.mass(b),
+    "nonlinear": lambda loops, b, sym: loops.inverse_dynamics(b, sym.qd, None),
+    "inverse_dynamics": lambda loops, b, sym: loops.inverse_dynamics(b, sym.qd, sym.qdd),
+    "coriolis": lambda loops, b, sym: loops.coriolis(b, sym.qd),
+    "forward_dynamics": lambda loops, b, sym: loops.forward_dynamics(b, sym.qd, sym.tau),
+}
+
+
+def _long(symbols: list[ca.SX], outputs, n: int) -> bool:
+    """Whether straight-line code would be long (chain_loops.LOOPS_ABOVE_OPS); past
+    LOOPS_ABOVE_DOF joints it is, without building it to count."""
+    return n > LOOPS_ABOVE_DOF or count_operations(symbols, outputs())["total"] > LOOPS_ABOVE_OPS
+
+
+def _looped(loops: ChainLoops, name: str, doc: str, inputs: str, shape: tuple[int, int], expr,
+            sym: Symbols, prefix: str, parameters: ParameterSymbols) -> Kernel | None:
+    """The kernel as loops when it is one of LOOPED, the chain reads no run-time parameter
+    and the kernel's straight-line form (``expr()``) would be long."""
+    symbols = [getattr(sym, s) for s in inputs.split()]
+    if name not in LOOPED or parameters.parameters or not _long(symbols, lambda: [expr()], loops.n):
+        return None
+    b = ScheduleBuilder(symbols, [shape[0] * shape[1]])
+    LOOPED[name](loops, b, sym)
+    return make_kernel(prefix + name, doc, [(s, getattr(sym, s)) for s in inputs.split()],
+                       [(name, _shaped(b.outputs()[0], shape), shape)], guarded=name in GUARDED, schedule=b)
+
+
+def _shaped(row_major_column: ca.SX, shape: tuple[int, int]) -> ca.SX:
+    return ca.reshape(row_major_column, shape[1], shape[0]).T
+
+
 def _resolve(shape, n: int, k: int) -> tuple[int, int]:
     return tuple({"n": n, "k": k}.get(d, d) for d in shape)
 
@@ -68,12 +104,16 @@ def leaf_kernels(leaf: KinematicTree | FormulaRobot, prefix: str = "",
         k = len(leaf.kinematics or ())
         if not k:
             del table["kinematics"], table["kinematics_jacobian"]
+    loops = ChainLoops(graphs.tree, graphs.motions) if isinstance(leaf, KinematicTree) and is_serial(graphs.tree) \
+        else None
     kernels = [
-        _kernel(name, doc, inputs, _resolve(shape, n, k), getattr(graphs, name)(), sym, prefix, parameters)
+        (loops and _looped(loops, name, doc, inputs, _resolve(shape, n, k), lambda name=name: getattr(graphs, name)(),
+                           sym, prefix, parameters))
+        or _kernel(name, doc, inputs, _resolve(shape, n, k), getattr(graphs, name)(), sym, prefix, parameters)
         for name, (inputs, shape, doc) in table.items()
     ]
     if isinstance(leaf, KinematicTree):
-        kernels.append(_servo_terms(graphs, sym, n, prefix))
+        kernels.append(_servo_terms(graphs, sym, n, prefix, loops))
     if derivatives is not None and derivatives.included(n):
         kernels += _derivative_kernels(graphs, derivatives.integrator, n, prefix, parameters)
     return kernels
@@ -87,9 +127,9 @@ def _derivative_kernels(graphs, integrator: str, n: int, prefix: str, parameters
     state = [("q", s.q), ("qd", s.qd), ("tau", s.tau), ("dt", dt)]
     square = (n, n)
     id_schedule, fd_schedule = d.inverse_dynamics_derivatives_schedule(), d.forward_dynamics_derivatives_schedule()
-    dq, dqd = ((_matrix(x, n) for x in id_schedule.outputs()) if id_schedule
+    dq, dqd = ((_shaped(x, square) for x in id_schedule.outputs()) if id_schedule
                else d.inverse_dynamics_derivatives())
-    fq, fqd, minv = ((_matrix(x, n) for x in fd_schedule.outputs()) if fd_schedule
+    fq, fqd, minv = ((_shaped(x, square) for x in fd_schedule.outputs()) if fd_schedule
                      else d.forward_dynamics_derivatives()[1:])
     step = "semi-implicit Euler (qd+ = qd + dt qdd, q+ = q + dt qd+)" if integrator == SEMI_IMPLICIT_EULER \
         else "classical Runge-Kutta (RK4) on (qd, qdd)"
@@ -111,12 +151,18 @@ def _derivative_kernels(graphs, integrator: str, n: int, prefix: str, parameters
     kernels.append(make_kernel(
         prefix + "discrete_dynamics", f"One step of length dt, tau held: {step}. Returns q+, qd+.",
         state, [("q_next", q_next, (n, 1)), ("qd_next", qd_next, (n, 1))], parameters, guarded=True))
-    q_next, qd_next, A, B = d.discrete_dynamics_derivatives(integrator, dt)
+    step_schedule = d.discrete_dynamics_derivatives_schedule(integrator, dt)
+    shapes = [(n, 1), (n, 1), (2 * n, 2 * n), (2 * n, n)]
+    if step_schedule is not None:
+        q_next, qd_next, A, B = (_shaped(x, shape) for x, shape in zip(step_schedule.outputs(), shapes))
+    else:
+        q_next, qd_next, A, B = d.discrete_dynamics_derivatives(integrator, dt)
     kernels.append(make_kernel(
         prefix + "discrete_dynamics_derivatives",
         f"One step ({step}) and its Jacobians: q+, qd+, A = d(q+, qd+)/d(q, qd), B = d(q+, qd+)/d tau.",
-        state, [("q_next", q_next, (n, 1)), ("qd_next", qd_next, (n, 1)), ("A", A, (2 * n, 2 * n)),
-                ("B", B, (2 * n, n))], parameters, guarded=True))
+        state, [(name, x, shape) for name, x, shape in zip(("q_next", "qd_next", "A", "B"), (q_next, qd_next, A, B),
+                                                           shapes)],
+        parameters, guarded=True, schedule=step_schedule))
     if isinstance(graphs, ChainGraphs):
         kernels.append(make_kernel(
             prefix + "jacobian_derivative",
@@ -125,15 +171,17 @@ def _derivative_kernels(graphs, integrator: str, n: int, prefix: str, parameters
     return kernels
 
 
-def _matrix(row_major_column: ca.SX, n: int) -> ca.SX:
-    """The n x n matrix a row-major column holds."""
-    return ca.reshape(row_major_column, n, n).T
-
-
-def _servo_terms(graphs: ChainGraphs, sym: Symbols, n: int, prefix: str) -> Kernel:
+def _servo_terms(graphs: ChainGraphs, sym: Symbols, n: int, prefix: str, loops: ChainLoops | None) -> Kernel:
     """What one computed-torque cycle needs, in one call sharing sin/cos and kinematics."""
-    outputs = [("mass", graphs.mass(), (n, n)), ("nonlinear", graphs.nonlinear(), (n, 1)),
-               ("jacobian", graphs.jacobian(), (6, n)), ("jacobian_dot_qd", graphs.jacobian_dot_qd(), (6, 1))]
+    outputs = [("mass", graphs.mass, (n, n)), ("nonlinear", graphs.nonlinear, (n, 1)),
+               ("jacobian", graphs.jacobian, (6, n)), ("jacobian_dot_qd", graphs.jacobian_dot_qd, (6, 1))]
+    schedule = None
+    if loops is not None and _long([sym.q, sym.qd], lambda: [o[1]() for o in outputs], n):
+        schedule = ScheduleBuilder([sym.q, sym.qd], [n * n, n, 6 * n, 6])
+        loops.servo_terms(schedule, sym.qd, graphs.jacobian(), graphs.jacobian_dot_qd())
+        outputs = [(name, _shaped(x, shape), shape) for (name, _, shape), x in zip(outputs, schedule.outputs())]
+    else:
+        outputs = [(name, build(), shape) for name, build, shape in outputs]
     return make_kernel(prefix + "servo_terms", "M(q), C(q, qd) qd + N, the tip Jacobian J and Jdot qd in one "
                        "call: a computed-torque servo cycle's terms, sharing sin/cos and kinematics.",
-                       [("q", sym.q), ("qd", sym.qd)], outputs)
+                       [("q", sym.q), ("qd", sym.qd)], outputs, schedule=schedule)

@@ -103,9 +103,11 @@ class ScheduleBuilder:
         return index
 
     def prologue(self, target: Slice, values: ca.SX) -> None:
+        """``values`` (of the kernel's inputs only) into ``target`` before any loop runs. Called
+        after loops, the target must be untouched so far: the write moves ahead of them."""
         values = ca.vec(values)
-        if self._loops:
-            raise ValueError("the prologue precedes every loop")
+        if self._loops and any(v is not None for v in self._load_any(target, values.numel())):
+            raise ValueError("a prologue write after loops must go to elements nothing wrote")
         self._store(target, [values[e] for e in range(values.numel())], 0, 0)
         self._prologue.append((values, target))
 
@@ -131,6 +133,10 @@ class ScheduleBuilder:
         if any(v is None for v in values):
             raise ValueError(f"a loop reads local {s.index} before it is written")
         return values
+
+    def _load_any(self, s: Slice, count: int) -> list:
+        array = self._array(s)
+        return [array[e] for e in s.elements(count, 0, 0)]
 
     def _store(self, s: Slice, values: list[ca.SX], i: int, j: int) -> None:
         array = self._array(s)

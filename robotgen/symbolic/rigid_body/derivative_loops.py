@@ -26,39 +26,30 @@ from robotgen.symbolic.rigid_body.friction import friction_torque
 from robotgen.symbolic.rigid_body.inertia import OriginInertia
 from robotgen.symbolic.rigid_body.kinematics import JointMotion
 from robotgen.symbolic.rigid_body.rnea_derivatives import (
-    _apply,
     _axes_and_inertias,
     _base_acceleration,
     _body_terms,
     _forward_step,
     _joint_outputs,
-    _motion_cross,
     ancestor_term,
     subtree_term,
 )
+from robotgen.symbolic.rigid_body.spatial import motion_cross6
 from robotgen.symbolic.schedule import (
     ABOVE,
     BELOW,
     DESCENDING,
     LOCAL,
     ONCE,
-    OUTPUT,
     RANGE,
     ScheduleBuilder,
     Slice,
     body,
 )
 
-INERTIA = 13
-F, I, T, P, RECORD = 0, 6, 19, 28, 31  # offsets in a joint's record, and its width
-
-
-def _inertia_vector(inertia: OriginInertia) -> ca.SX:
-    return ca.vertcat(inertia.m, inertia.h, ca.vec(inertia.Ibar))
-
-
-def _inertia_of(x: ca.SX) -> OriginInertia:
-    return OriginInertia(x[0], x[1:4], ca.reshape(x[4:13], 3, 3))
+INERTIA = OriginInertia.SIZE
+inertia_of = OriginInertia.of_vector
+F, I, T, P, RECORD = 0, 6, 19, 28, 31  # offsets in a joint's record (f, inertia, T, p), and its width
 
 
 def _syms(names: str, size: int = 6) -> list[ca.SX]:
@@ -74,7 +65,7 @@ class _Chain:
         n = self.n
         axes, inertias = _axes_and_inertias(tree, motions)
         self.S = b.local(ca.horzcat(*axes))
-        self.BODY = b.local(ca.horzcat(*(_inertia_vector(x) for x in inertias)))  # each body's own
+        self.BODY = b.local(ca.horzcat(*(x.vector() for x in inertias)))  # each body's own
         self.REC = b.local(size=RECORD * (n + 1))
         b.prologue(Slice(LOCAL, self.REC, RECORD * n), ca.SX.zeros(RECORD, 1))
         self.V = b.local(size=6 * (n + 1))  # v of joint i at 6 (i + 1); the base's at 0
@@ -96,7 +87,7 @@ class _Chain:
         """Each record: f, I, T, p of the body (from its inertia and the v, a in V, A, written
         at 6 (i + 1)) plus its child's record, from the tip: the subtree sums in one pass."""
         inertia, child, (v, a) = ca.SX.sym("I", INERTIA), ca.SX.sym("child", RECORD), _syms("v a")
-        f, T_, p = _body_terms(_inertia_of(inertia), v, a)
+        f, T_, p = _body_terms(inertia_of(inertia), v, a)
         own = ca.vertcat(f, inertia, ca.vec(T_), p)
         self.b.loop(body("composite_terms", [inertia, v, a, child], [own + child]), DESCENDING, self.n,
                     [self.at(self.BODY, INERTIA), self.at(V, 6, offset=6), self.at(A, 6, offset=6),
@@ -149,7 +140,7 @@ def schedule_rnea_derivatives(b: ScheduleBuilder, tree: KinematicTree, motions: 
            [at(c.V, 6, offset=6), at(c.A, 6, offset=6), at(c.SDOT, 6), at(c.ALPHA, 6)])
     c.composite_terms(c.V, c.A)
     inertia, T_, p = ca.SX.sym("I", INERTIA), ca.SX.sym("T", 9), ca.SX.sym("p", 3)
-    outputs = _joint_outputs(_inertia_of(inertia), ca.reshape(T_, 3, 3), p, s, sdot, f, alpha)
+    outputs = _joint_outputs(inertia_of(inertia), ca.reshape(T_, 3, 3), p, s, sdot, f, alpha)
     b.loop(body("joint_outputs", [f, inertia, T_, p, s, sdot, alpha], list(outputs)), RANGE, n,
            [c.rec(F), c.rec(I), c.rec(T), c.rec(P), at(c.S, 6), at(c.SDOT, 6), at(c.ALPHA, 6)],
            [at(c.U, 6), at(c.W, 3), at(c.GAMMA, 6), at(c.LAM, 6)])
@@ -157,9 +148,10 @@ def schedule_rnea_derivatives(b: ScheduleBuilder, tree: KinematicTree, motions: 
 
 
 def schedule_forward_dynamics_derivatives(b: ScheduleBuilder, tree: KinematicTree, motions: list[JointMotion],
-                                          qd: ca.SX, tau: ca.SX, outputs: tuple[int, int, int]) -> None:
-    """d qdd/dq, d qdd/dqd and M^-1 at qdd = FD(q, qd, tau) into the kernel outputs numbered
-    ``outputs`` (row-major n x n). M^-1 is straight-line code in the factorisation's block."""
+                                          qd: ca.SX, tau: ca.SX, targets: tuple[tuple[str, int], ...]) -> int:
+    """d qdd/dq, d qdd/dqd and M^-1 at qdd = FD(q, qd, tau) into the three row-major n x n
+    ``targets`` ((kind, index) of schedule arrays); returns the local holding qdd. M^-1 is
+    straight-line code in the factorisation's block."""
     c = _Chain(b, tree, motions, qd)
     n, at = c.n, c.at
     C = b.local(size=6 * (n + 1))  # the accelerations at qdd = 0
@@ -180,7 +172,7 @@ def schedule_forward_dynamics_derivatives(b: ScheduleBuilder, tree: KinematicTre
     c.composite_terms(c.V, C)
     # u_i = Ic_i S_i; M_ij = S_i . u_j for i <= j (both triangles); h_i = S_i . F_i at qdd = 0
     inertia = ca.SX.sym("I", INERTIA)
-    u_out = _apply(_inertia_of(inertia), s)
+    u_out = inertia_of(inertia).apply6(s)
     b.loop(body("joint_mass", [inertia, s, f], [u_out, ca.dot(s, u_out), ca.dot(s, f)]), RANGE, n,
            [c.rec(I), at(c.S, 6), c.rec(F)], [at(c.U, 6), Slice(LOCAL, M, i_stride=n + 1), at(H, 1)])
     b.loop(body("mass_term", [s, u], [ca.dot(s, u)] * 2), ABOVE, n, [at(c.S, 6), at(c.U, 6, "j")],
@@ -193,7 +185,7 @@ def schedule_forward_dynamics_derivatives(b: ScheduleBuilder, tree: KinematicTre
     # while the factorisation's chain of square roots and divisions runs: the terms that do not
     # depend on qdd (w, lam and the d tau/dqd pairs)
     inertia, T_, p = ca.SX.sym("I", INERTIA), ca.SX.sym("T", 9), ca.SX.sym("p", 3)
-    _, w, _, lam = _joint_outputs(_inertia_of(inertia), ca.reshape(T_, 3, 3), p, s, sdot, f, alpha)
+    _, w, _, lam = _joint_outputs(inertia_of(inertia), ca.reshape(T_, 3, 3), p, s, sdot, f, alpha)
     b.loop(body("velocity_outputs", [inertia, T_, p, s, sdot], [w, lam]), RANGE, n,
            [c.rec(I), c.rec(T), c.rec(P), at(c.S, 6), at(c.SDOT, 6)], [at(c.W, 3), at(c.LAM, 6)])
     c.pairs(None, (LOCAL, ROWS), row_stride=2 * n, second_offset=n)
@@ -202,16 +194,16 @@ def schedule_forward_dynamics_derivatives(b: ScheduleBuilder, tree: KinematicTre
     # M^-1 = M^-1 I, the zeros of I dropping out of the straight-line code
     minv = ca.horzcat(*(solve_with_coefficients(coefficients, ca.SX.eye(n)[:, k]) for k in range(n)))
     b.loop(body("mass_inverse", [coefficients], [row_major(minv)]), ONCE, 1, [Slice(LOCAL, COEFFICIENTS)],
-           [Slice(OUTPUT, outputs[2])])
+           [Slice(*targets[2])])
     a_full = a_p + s * qdd_i + sdot * qd_i  # as _forward_step, with Sdot from the velocity pass
-    alpha_out = -_motion_cross(s, a_p) - _motion_cross(sdot, v_p)
+    alpha_out = -motion_cross6(s, a_p) - motion_cross6(sdot, v_p)
     b.loop(body("acceleration_pass", [v_p, a_p, s, sdot, qd_i, qdd_i, c_i, inertia],
-                [a_full, alpha_out, _apply(_inertia_of(inertia), a_full - c_i)]), RANGE, n,
+                [a_full, alpha_out, inertia_of(inertia).apply6(a_full - c_i)]), RANGE, n,
            [at(c.V, 6), at(c.A, 6), at(c.S, 6), at(c.SDOT, 6), at(c.QD, 1), at(QDD, 1), at(C, 6, offset=6),
             at(c.BODY, INERTIA)],
            [at(c.A, 6, offset=6), at(c.ALPHA, 6), at(DF, 6)])
     # from the tip: the subtree sum of I_k (a_k - a_k|qdd=0), added to F, then gamma
-    gamma = _joint_outputs(_inertia_of(inertia), ca.reshape(T_, 3, 3), p, s, sdot, f + df + df_child, alpha)[2]
+    gamma = _joint_outputs(inertia_of(inertia), ca.reshape(T_, 3, 3), p, s, sdot, f + df + df_child, alpha)[2]
     b.loop(body("joint_outputs", [f, df, df_child, inertia, T_, p, s, sdot, alpha], [df + df_child, gamma]),
            DESCENDING, n,
            [c.rec(F), at(DF, 6), at(DFC, 6, offset=6), c.rec(I), c.rec(T), c.rec(P), at(c.S, 6), at(c.SDOT, 6),
@@ -219,4 +211,5 @@ def schedule_forward_dynamics_derivatives(b: ScheduleBuilder, tree: KinematicTre
            [at(DFC, 6), at(c.GAMMA, 6)])
     c.pairs((LOCAL, ROWS), None, row_stride=2 * n)
     schedule_row_solve(b, n, COEFFICIENTS, ROWS, 2 * n,
-                       [((OUTPUT, outputs[0]), 0, -1.0), ((OUTPUT, outputs[1]), n, -1.0)])
+                       [(targets[0], 0, -1.0), (targets[1], n, -1.0)])
+    return QDD

@@ -34,6 +34,19 @@ class OriginInertia:
         Ibar = exact.parallel_axis(body.inertia, body.mass, c)
         return OriginInertia(ca.SX(body.mass), const(body.mass * c), const(Ibar))
 
+    SIZE = 13  # as a column: m, h, Ibar (by columns)
+
+    def vector(self) -> ca.SX:
+        return ca.vertcat(self.m, self.h, ca.vec(self.Ibar))
+
+    @staticmethod
+    def of_vector(x: ca.SX) -> OriginInertia:
+        return OriginInertia(x[0], x[1:4], ca.reshape(x[4:13], 3, 3))
+
+    def apply6(self, x: ca.SX) -> ca.SX:
+        """apply on a stacked 6-vector (angular; linear)."""
+        return ca.vertcat(*self.apply(x[:3], x[3:]))
+
     def apply(self, w: ca.SX, v: ca.SX) -> tuple[ca.SX, ca.SX]:
         """Spatial momentum of the motion (w, v): (Ibar w + h x v, m v - h x w)."""
         return self.Ibar @ w + ca.cross(self.h, v), self.m * v - ca.cross(self.h, w)

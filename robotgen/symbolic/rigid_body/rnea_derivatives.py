@@ -36,20 +36,7 @@ from robotgen.model.chain import PRISMATIC, KinematicTree
 from robotgen.symbolic.rigid_body.friction import friction_torque
 from robotgen.symbolic.rigid_body.inertia import OriginInertia
 from robotgen.symbolic.rigid_body.kinematics import JointMotion, joint_poses
-from robotgen.symbolic.rigid_body.spatial import const, force_cross, motion_cross, skew
-
-
-def _motion_cross(a: ca.SX, b: ca.SX) -> ca.SX:
-    """spatial.motion_cross on stacked 6-vectors."""
-    return ca.vertcat(*motion_cross(a[:3], a[3:], b[:3], b[3:]))
-
-
-def _force_cross(a: ca.SX, f: ca.SX) -> ca.SX:
-    return ca.vertcat(*force_cross(a[:3], a[3:], f[:3], f[3:]))
-
-
-def _apply(inertia: OriginInertia, x: ca.SX) -> ca.SX:
-    return ca.vertcat(*inertia.apply(x[:3], x[3:]))
+from robotgen.symbolic.rigid_body.spatial import const, force_cross6, motion_cross6, skew
 
 
 @dataclass(frozen=True, eq=False)
@@ -87,16 +74,16 @@ def _base_acceleration(tree: KinematicTree) -> ca.SX:
 def _forward_step(v_p: ca.SX, a_p: ca.SX, S: ca.SX, qd: ca.SX, qdd: ca.SX) -> tuple[ca.SX, ...]:
     """(v, a, Sdot, alpha) of a joint from its parent's v and a."""
     v = v_p + S * qd
-    Sdot = _motion_cross(v, S)
+    Sdot = motion_cross6(v, S)
     a = a_p + S * qdd + Sdot * qd
-    return v, a, Sdot, -_motion_cross(S, a_p) - _motion_cross(Sdot, v_p)
+    return v, a, Sdot, -motion_cross6(S, a_p) - motion_cross6(Sdot, v_p)
 
 
 def _body_terms(I: OriginInertia, v: ca.SX, a: ca.SX) -> tuple[ca.SX, ca.SX, ca.SX]:
     """(f = I a + v x* I v, T, p) of one body (T and p define its B, module docstring).
     [w x] Ibar - Ibar [w x] = X + X^T with X = [w x] Ibar (Ibar symmetric), and h nu^T + nu h^T
     is symmetric: each is formed from its upper triangle."""
-    momentum = _apply(I, v)
+    momentum = I.apply6(v)
     w, nu = v[:3], v[3:]
     X = skew(w) @ I.Ibar
     nh = ca.dot(nu, I.h)
@@ -105,7 +92,7 @@ def _body_terms(I: OriginInertia, v: ca.SX, a: ca.SX) -> tuple[ca.SX, ca.SX, ca.
         for c in range(r, 3):
             S[r, c] = X[r, c] + X[c, r] - (I.h[r] * nu[c] + nu[r] * I.h[c]) + (2 * nh if r == c else 0)
             S[c, r] = S[r, c]
-    return _apply(I, a) + _force_cross(v, momentum), S - skew(momentum[:3]), momentum[3:]
+    return I.apply6(a) + force_cross6(v, momentum), S - skew(momentum[:3]), momentum[3:]
 
 
 def _joint_outputs(Ic: OriginInertia, T: ca.SX, p: ca.SX, S: ca.SX, Sdot: ca.SX, F: ca.SX, alpha: ca.SX
@@ -114,8 +101,8 @@ def _joint_outputs(Ic: OriginInertia, T: ca.SX, p: ca.SX, S: ca.SX, Sdot: ca.SX,
     def B(y: ca.SX) -> ca.SX:  # Bc y
         return ca.vertcat(T @ y[:3], -2 * ca.cross(p, y[:3]))
 
-    return (_apply(Ic, S), T.T @ S[:3] + 2 * ca.cross(p, S[3:]),
-            _force_cross(S, F) + _apply(Ic, alpha) + B(Sdot), 2 * _apply(Ic, Sdot) + B(S))
+    return (Ic.apply6(S), T.T @ S[:3] + 2 * ca.cross(p, S[3:]),
+            force_cross6(S, F) + Ic.apply6(alpha) + B(Sdot), 2 * Ic.apply6(Sdot) + B(S))
 
 
 def joint_terms(tree: KinematicTree, motions: list[JointMotion], qd: ca.SX, qdd: ca.SX) -> JointTerms:

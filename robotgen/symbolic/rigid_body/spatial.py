@@ -57,3 +57,13 @@ def motion_cross(w: ca.SX, v: ca.SX, mw: ca.SX, mv: ca.SX) -> tuple[ca.SX, ca.SX
 def force_cross(w: ca.SX, v: ca.SX, n: ca.SX, f: ca.SX) -> tuple[ca.SX, ca.SX]:
     """(w, v) x* (n, f) for a force vector."""
     return ca.cross(w, n) + ca.cross(v, f), ca.cross(w, f)
+
+
+def motion_cross6(a: ca.SX, b: ca.SX) -> ca.SX:
+    """motion_cross on stacked 6-vectors (angular; linear)."""
+    return ca.vertcat(*motion_cross(a[:3], a[3:], b[:3], b[3:]))
+
+
+def force_cross6(a: ca.SX, f: ca.SX) -> ca.SX:
+    """force_cross on stacked 6-vectors."""
+    return ca.vertcat(*force_cross(a[:3], a[3:], f[:3], f[3:]))

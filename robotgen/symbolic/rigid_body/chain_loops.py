@@ -1,0 +1,230 @@
+"""A long serial chain's dynamics as schedule loops (robotgen.symbolic.schedule), in base-frame
+spatial vectors as in rnea_derivatives: the prologue holds the kinematics (each joint's axis
+S_i and its body's inertia I_i about the base origin); loops make the velocity and
+acceleration passes, the subtree composites from the tip, and the joint-pair terms.
+
+    M_ij = S_i . Ic_j S_j (i <= j; Walker and Orin's composite rigid bodies), plus armature;
+    tau_i = S_i . F_i, F_i the subtree sum of f_k = I_k a_k + v_k x* I_k v_k (Newton-Euler),
+            plus armature qdd_i and friction;
+    C_ij  = S_i . (Ic_m Sdot_j + Bc_m S_j), m = max(i, j), Sdot_j = v_j x S_j, Bc the subtree sum
+            of B_k = 1/2 (v_k x* I_k - I_k v_k x + (I_k v_k) xbar), (f xbar) y = y x* f.
+
+C is the Christoffel-consistent factorisation (Mdot - 2C skew: Idot - 2B = -(I v) xbar is
+skew); B_k is half the B_k of rnea_derivatives, [[T_k / 2, 0], [-[p_k x], 0]]. With
+u_i = Ic_i S_i, w_i = T_i^T S_i,ang + 2 p_i x S_i,lin and X_j = Ic_j Sdot_j + Bc_j S_j:
+C_ij = u_i . Sdot_j + w_i . S_j,ang / 2 for i > j, S_i . X_j for i <= j.
+
+Chains whose straight-line kernels pass the instruction cache (LOOPS_ABOVE_OPS) use these: the
+code is O(n) in size, not O(n^2), and compiles in a fraction of the time."""
+from __future__ import annotations
+
+import casadi as ca
+
+from robotgen.model.chain import KinematicTree
+from robotgen.symbolic.kernel import row_major
+from robotgen.symbolic.rigid_body.friction import friction_torque
+from robotgen.symbolic.rigid_body.inertia import OriginInertia
+from robotgen.symbolic.rigid_body.kinematics import JointMotion
+from robotgen.symbolic.rigid_body.rnea_derivatives import _axes_and_inertias, _base_acceleration, _body_terms
+from robotgen.symbolic.rigid_body.spatial import force_cross6, motion_cross6
+from robotgen.symbolic.schedule import (
+    ABOVE,
+    BELOW,
+    DESCENDING,
+    LOCAL,
+    ONCE,
+    OUTPUT,
+    RANGE,
+    ScheduleBuilder,
+    Slice,
+    body,
+)
+
+# Straight-line kernels past this many operations (~13 bytes each in x86-64 code) leave the
+# instruction cache and take gcc superlinear time to compile: a serial chain's are loops then.
+LOOPS_ABOVE_OPS = 5000
+# Past this many joints every kernel built here is (Coriolis alone is ~36 n^2 operations).
+LOOPS_ABOVE_DOF = 12
+
+
+INERTIA = OriginInertia.SIZE
+inertia_of = OriginInertia.of_vector
+
+
+def _syms(names: str, size: int = 6) -> list[ca.SX]:
+    return [ca.SX.sym(name, size) for name in names.split()]
+
+
+def _at(array: int, width: int, by: str = "i", offset: int = 0) -> Slice:
+    return Slice(LOCAL, array, offset, i_stride=width if by == "i" else 0, j_stride=width if by == "j" else 0)
+
+
+class ChainLoops:
+    """Builds the schedules; each method fills a ScheduleBuilder whose inputs are the kernel's."""
+
+    def __init__(self, tree: KinematicTree, motions: list[JointMotion]):
+        self.tree, self.motions, self.n = tree, motions, tree.nq
+
+    # -- pieces ---------------------------------------------------------------------------
+
+    def _kinematics(self, b: ScheduleBuilder) -> tuple[int, int]:
+        axes, inertias = _axes_and_inertias(self.tree, self.motions)
+        return b.local(ca.horzcat(*axes)), b.local(ca.horzcat(*(x.vector() for x in inertias)))
+
+    def _composite_inertias(self, b: ScheduleBuilder, BODY: int) -> int:
+        """Ic_i (13 per joint, n + 1 of them, the last zero), summed from the tip."""
+        IC = b.local(size=INERTIA * (self.n + 1))
+        b.prologue(Slice(LOCAL, IC, INERTIA * self.n), ca.SX.zeros(INERTIA, 1))
+        own, child = ca.SX.sym("I", INERTIA), ca.SX.sym("child", INERTIA)
+        b.loop(body("composite_inertia", [own, child], [own + child]), DESCENDING, self.n,
+               [_at(BODY, INERTIA), _at(IC, INERTIA, offset=INERTIA)], [_at(IC, INERTIA)])
+        return IC
+
+    def _velocities(self, b: ScheduleBuilder, S: int, qd: ca.SX) -> tuple[int, int, int]:
+        """qd, v (at 6 (i + 1), the base's 0 at 0) and Sdot = v x S of each joint."""
+        n = self.n
+        QD, V, SDOT = b.local(qd), b.local(size=6 * (n + 1)), b.local(size=6 * n)
+        b.prologue(Slice(LOCAL, V), ca.SX.zeros(6, 1))
+        v_p, s = _syms("v_p s")
+        qd_i = ca.SX.sym("qd")
+        v = v_p + s * qd_i
+        b.loop(body("velocity_pass", [v_p, s, qd_i], [v, motion_cross6(v, s)]), RANGE, n,
+               [_at(V, 6), _at(S, 6), _at(QD, 1)], [_at(V, 6, offset=6), _at(SDOT, 6)])
+        return QD, V, SDOT
+
+    def _torques(self, b: ScheduleBuilder, S: int, BODY: int, velocities: tuple[int, int, int], qdd: ca.SX | None,
+                 extra: ca.SX, target: Slice) -> None:
+        """tau_i = S_i . F_i + extra_i into ``target`` (Newton-Euler): accelerations from the
+        base's (-g), body forces, their subtree sums from the tip. ``velocities``: _velocities'
+        arrays; ``qdd`` None: at qdd = 0 (C qd + N)."""
+        n = self.n
+        QD, V, SDOT = velocities
+        A = b.local(size=6 * (n + 1))
+        b.prologue(Slice(LOCAL, A), _base_acceleration(self.tree))
+        EXTRA = b.local(extra)
+        F = b.local(size=6 * (n + 1))
+        b.prologue(Slice(LOCAL, F, 6 * n), ca.SX.zeros(6, 1))
+        a_p, s, sdot, v, f, child = _syms("a_p s sdot v f child")
+        qd_i, qdd_i = ca.SX.sym("qd"), ca.SX.sym("qdd")
+        inertia = ca.SX.sym("I", INERTIA)
+        I = inertia_of(inertia)
+        inputs, reads, a = [a_p, s, sdot, qd_i], [_at(A, 6), _at(S, 6), _at(SDOT, 6), _at(QD, 1)], a_p + sdot * qd_i
+        if qdd is not None:
+            QDD = b.local(qdd)
+            inputs, reads, a = inputs + [qdd_i], reads + [_at(QDD, 1)], a + s * qdd_i
+        b.loop(body("acceleration_pass", inputs, [a]), RANGE, n, reads, [_at(A, 6, offset=6)])
+        force = I.apply6(a_p) + force_cross6(v, I.apply6(v))
+        b.loop(body("body_force", [inertia, a_p, v, child], [force + child]), DESCENDING, n,
+               [_at(BODY, INERTIA), _at(A, 6, offset=6), _at(V, 6, offset=6), _at(F, 6, offset=6)], [_at(F, 6)])
+        e = ca.SX.sym("e")
+        b.loop(body("joint_torque", [s, f, e], [ca.dot(s, f) + e]), RANGE, n,
+               [_at(S, 6), _at(F, 6), _at(EXTRA, 1)], [target])
+
+    def _mass(self, b: ScheduleBuilder, S: int, IC: int, target: tuple[str, int]) -> None:
+        """M (row-major n x n) into ``target``."""
+        n = self.n
+        s, u = _syms("s u")
+        inertia, arm = ca.SX.sym("I", INERTIA), ca.SX.sym("armature")
+        U = b.local(size=6 * n)
+        ARM = b.local(ca.vertcat(*(joint.armature for joint in self.tree.joints)))
+        u_out = inertia_of(inertia).apply6(s)
+        b.loop(body("mass_diagonal", [inertia, s, arm], [u_out, ca.dot(s, u_out) + arm]), RANGE, n,
+               [_at(IC, INERTIA), _at(S, 6), _at(ARM, 1)], [_at(U, 6), Slice(*target, i_stride=n + 1)])
+        b.loop(body("mass_term", [s, u], [ca.dot(s, u)] * 2), ABOVE, n, [_at(S, 6), _at(U, 6, "j")],
+               [Slice(*target, i_stride=n, j_stride=1), Slice(*target, i_stride=1, j_stride=n)])
+
+    def _extra(self, qd: ca.SX | None, qdd: ca.SX | None) -> ca.SX:
+        """Armature qdd + friction(qd): what each joint adds to S . F."""
+        extra = ca.SX.zeros(self.n, 1)
+        if qdd is not None:
+            extra += ca.vertcat(*(joint.armature * qdd[i] for i, joint in enumerate(self.tree.joints)))
+        if qd is not None:
+            extra += friction_torque(self.tree, qd)
+        return extra
+
+    # -- kernels ----------------------------------------------------------------------------
+
+    def mass(self, b: ScheduleBuilder) -> None:
+        S, BODY = self._kinematics(b)
+        self._mass(b, S, self._composite_inertias(b, BODY), (OUTPUT, 0))
+
+    def inverse_dynamics(self, b: ScheduleBuilder, qd: ca.SX, qdd: ca.SX | None) -> None:
+        """Newton-Euler torques; qdd None: C qd + N (nonlinear)."""
+        S, BODY = self._kinematics(b)
+        self._torques(b, S, BODY, self._velocities(b, S, qd), qdd, self._extra(qd, qdd), Slice(OUTPUT, 0, i_stride=1))
+
+    def coriolis(self, b: ScheduleBuilder, qd: ca.SX) -> None:
+        n = self.n
+        S, BODY = self._kinematics(b)
+        _, V, SDOT = self._velocities(b, S, qd)
+        REC = b.local(size=25 * (n + 1))  # composites: inertia (13), T (9), p (3); the last zero
+        b.prologue(Slice(LOCAL, REC, 25 * n), ca.SX.zeros(25, 1))
+        inertia, child, (v, s, sdot, u, x) = ca.SX.sym("I", INERTIA), ca.SX.sym("child", 25), _syms("v s sdot u x")
+        _, T_, p = _body_terms(inertia_of(inertia), v, ca.SX.zeros(6, 1))
+        b.loop(body("composite_terms", [inertia, v, child], [ca.vertcat(inertia, ca.vec(T_), p) + child]),
+               DESCENDING, n, [_at(BODY, INERTIA), _at(V, 6, offset=6), _at(REC, 25, offset=25)], [_at(REC, 25)])
+        record = ca.SX.sym("record", 25)
+        Ic, T, pc = inertia_of(record[:INERTIA]), ca.reshape(record[INERTIA:22], 3, 3), record[22:25]
+        B_S = ca.vertcat(T @ s[:3] / 2, -ca.cross(pc, s[:3]))
+        U, W, X = b.local(size=6 * n), b.local(size=3 * n), b.local(size=6 * n)
+        b.loop(body("joint_terms", [record, s, sdot],
+                    [Ic.apply6(s), (T.T @ s[:3] + 2 * ca.cross(pc, s[3:])) / 2, Ic.apply6(sdot) + B_S]),
+               RANGE, n, [_at(REC, 25), _at(S, 6), _at(SDOT, 6)], [_at(U, 6), _at(W, 3), _at(X, 6)])
+        w = ca.SX.sym("w", 3)
+        out = (OUTPUT, 0)
+        b.loop(body("diagonal_term", [s, x], [ca.dot(s, x)]), RANGE, n, [_at(S, 6), _at(X, 6)],
+               [Slice(*out, i_stride=n + 1)])
+        b.loop(body("subtree_term", [u, w, sdot, s], [ca.dot(u, sdot) + ca.dot(w, s[:3])]), BELOW, n,
+               [_at(U, 6), _at(W, 3), _at(SDOT, 6, "j"), _at(S, 6, "j")], [Slice(*out, i_stride=n, j_stride=1)])
+        b.loop(body("ancestor_term", [s, x], [ca.dot(s, x)]), ABOVE, n, [_at(S, 6), _at(X, 6, "j")],
+               [Slice(*out, i_stride=n, j_stride=1)])
+
+    def forward_dynamics(self, b: ScheduleBuilder, qd: ca.SX, tau: ca.SX) -> None:
+        """qdd by the articulated-body algorithm (Featherstone 2008, Table 7.1) in base-frame
+        vectors, O(n): from the tip, the articulated inertia and bias force of each subtree,
+        I^A_i = I_i + I^a_(i+1), p^A_i = v_i x* I_i v_i + p^a_(i+1), U = I^A S, D = S . U +
+        armature, u = tau - friction - S . p^A, I^a = I^A - U U^T / D, p^a = p^A + I^a c + U u / D
+        (c = Sdot qd); then from the base, a'_i = a_(i-1) + c_i, qdd_i = (u_i - U_i . a'_i) / D_i
+        and a_i = a'_i + S_i qdd_i, a_(-1) = -g."""
+        n = self.n
+        S, BODY = self._kinematics(b)
+        QD, V, SDOT = self._velocities(b, S, qd)
+        RHS = b.local(tau - friction_torque(self.tree, qd))
+        ARM = b.local(ca.vertcat(*(joint.armature for joint in self.tree.joints)))
+        ART = b.local(size=42 * (n + 1))  # I^a (36, by columns) and p^a (6) of each subtree; the tip's child 0
+        b.prologue(Slice(LOCAL, ART, 42 * n), ca.SX.zeros(42, 1))
+        UD = b.local(size=8 * n)  # U (6), D, u of each joint
+        A = b.local(size=6 * (n + 1))
+        b.prologue(Slice(LOCAL, A), _base_acceleration(self.tree))
+        QDD = b.local(size=n)
+        inertia, child, (v, s, sdot, a_p, U) = ca.SX.sym("I", INERTIA), ca.SX.sym("child", 42), _syms("v s sdot a_p U")
+        qd_i, rhs, arm, D, u = (ca.SX.sym(name) for name in ("qd", "rhs", "armature", "D", "u"))
+        I = inertia_of(inertia)
+        H = ca.skew(I.h)
+        spatial = ca.vertcat(ca.horzcat(I.Ibar, H), ca.horzcat(H.T, I.m * ca.SX.eye(6)[3:, 3:]))
+        IA = spatial + ca.reshape(child[:36], 6, 6)
+        pA = force_cross6(v, I.apply6(v)) + child[36:]
+        U_out = IA @ s
+        D_out = ca.dot(s, U_out) + arm
+        u_out = rhs - ca.dot(s, pA)
+        Ia = IA - U_out @ U_out.T / D_out
+        pa = pA + Ia @ (sdot * qd_i) + U_out * (u_out / D_out)
+        b.loop(body("articulated", [inertia, v, s, sdot, qd_i, rhs, arm, child],
+                    [ca.vertcat(ca.vec(Ia), pa), ca.vertcat(U_out, D_out, u_out)]), DESCENDING, n,
+               [_at(BODY, INERTIA), _at(V, 6, offset=6), _at(S, 6), _at(SDOT, 6), _at(QD, 1), _at(RHS, 1), _at(ARM, 1),
+                _at(ART, 42, offset=42)], [_at(ART, 42), _at(UD, 8)])
+        a_prime = a_p + sdot * qd_i
+        qdd = (u - ca.dot(U, a_prime)) / D
+        b.loop(body("acceleration", [a_p, U, D, u, s, sdot, qd_i], [qdd, a_prime + s * qdd]), RANGE, n,
+               [_at(A, 6), _at(UD, 8), _at(UD, 8, offset=6), _at(UD, 8, offset=7), _at(S, 6), _at(SDOT, 6), _at(QD, 1)],
+               [_at(QDD, 1), _at(A, 6, offset=6)])
+        x = ca.SX.sym("qdd", n)
+        b.loop(body("copy", [x], [x]), ONCE, 1, [Slice(LOCAL, QDD)], [Slice(OUTPUT, 0)])
+
+    def servo_terms(self, b: ScheduleBuilder, qd: ca.SX, jacobian: ca.SX, jacobian_dot_qd: ca.SX) -> None:
+        """M, C qd + N, and the tip's J and Jdot qd (straight-line, O(n)) in one call."""
+        b.prologue(Slice(OUTPUT, 2), row_major(jacobian))
+        b.prologue(Slice(OUTPUT, 3), jacobian_dot_qd)
+        S, BODY = self._kinematics(b)
+        self._torques(b, S, BODY, self._velocities(b, S, qd), None, self._extra(qd, None), Slice(OUTPUT, 1, i_stride=1))
+        self._mass(b, S, self._composite_inertias(b, BODY), (OUTPUT, 0))
