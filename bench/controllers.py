@@ -12,6 +12,9 @@
    still; here it is called from Python with numpy arguments, measured in the same run and
    reported with the cost of an empty CasADi call subtracted).
 
+3. The servo step of every example tree and the resolved-rate PUMA's steps (rate, position,
+   regulator): ns per call in C and the manifest's operation counts, so that regressions show.
+
 Every number is the minimum over repeats (the least disturbed run); gcc -O2, no -march.
 """
 from __future__ import annotations
@@ -146,7 +149,8 @@ def main(argv=None) -> int:
         rounds = 3 if args.quick else 7
         result = {"machine": {"platform": platform.platform(), "processor": platform.processor()},
                   "c_flags": CFLAGS, "units": "ns per call, min over repeats and rounds",
-                  "gains": gains_section(tmp, rounds), "controllers": controllers_section(tmp, rounds)}
+                  "gains": gains_section(tmp, rounds), "controllers": controllers_section(tmp, rounds),
+                  "servo_steps": servo_steps_section(tmp, rounds)}
         Path(args.json).write_text(json.dumps(result, indent=2) + "\n")
         print(f"bench: wrote {args.json}")
     finally:
@@ -258,7 +262,106 @@ def controllers_section(tmp: Path, rounds: int) -> list[dict]:
               f"{casadi_ns / 1e3:.2f} us (empty call {t_empty * 1e6:.2f} us subtracted): CasADi / C = "
               f"{casadi_ns / c_ns:.1f}; {ops} operations")
     return rows
-    return []
+
+
+STEP_HARNESS = r"""
+#define _POSIX_C_SOURCE 199309L
+#include <stdio.h>
+#include <time.h>
+#include "NAME.h"
+#define NSETS 64
+static double now(void) {
+    struct timespec t;
+    clock_gettime(CLOCK_MONOTONIC, &t);
+    return t.tv_sec * 1e9 + t.tv_nsec;
+}
+static unsigned long long s = 88172645463325252ULL;
+static double u(void) {
+    s = s * 6364136223846793005ULL + 1442695040888963407ULL;
+    return (double)(s >> 11) / 9007199254740992.0 - 0.5;
+}
+static double IN[NSETS][TOTAL + 1];
+static volatile double sink;
+int main(void) {
+    PARAMS_DECL
+    OUT_DECL
+    int set, k, round, failed = 0;
+    for (set = 0; set < NSETS; ++set) for (k = 0; k <= TOTAL; ++k) IN[set][k] = u();
+    FIXED
+    for (set = 0; set < NSETS; ++set) failed += CALL(IN[set]) != 0;
+    for (round = 0; round < ROUNDS; ++round) {
+        double best = 1e30;
+        int rep;
+        for (rep = 0; rep < 10; ++rep) {
+            long n, iters = 20000;
+            double t0 = now();
+            for (n = 0; n < iters; ++n) {
+                sink += CALL(IN[n & (NSETS - 1)]);
+                sink += OUT0[0];
+            }
+            double ns = (now() - t0) / iters;
+            if (ns < best) best = ns;
+        }
+        printf("%f %d\n", best, failed);
+    }
+    return 0;
+}
+"""
+STEP_SPECS = ["styx_high_ct", "styx_low_ct", "styx_multilevel", "styx_redundant", "tripod_grasp", "puma560_rmrc"]
+STEP_FUNCTIONS = ["servo_step", "rate_step", "position_step", "lqr_step"]
+STYX_GRASP = [2.04, 0.31, 1.10, 2.83]  # the Styx fingers' joint angles near a grasp (as in gains_section)
+
+
+def servo_steps_section(tmp: Path, rounds: int) -> list[dict]:
+    """The servo step of every example tree, and the resolved-rate PUMA's steps: ns per call in
+    C on random inputs in [-0.5, 0.5] (64 of them, cycled; a step that reports a nonzero status
+    has still computed everything), with the operation counts of the manifest."""
+    rows = []
+    for spec_name in STEP_SPECS:
+        out = tmp / f"steps-{spec_name}"
+        subprocess.run([sys.executable, "-m", "robotgen", "build", str(ROOT / "specs" / f"{spec_name}.yaml"), "-o",
+                        str(out), "-q", "--no-compile"], check=True, cwd=ROOT, capture_output=True)
+        manifest = json.loads((out / "manifest.json").read_text())
+        for f in manifest["functions"]:
+            if f["name"] not in STEP_FUNCTIONS:
+                continue
+            sizes = [int(np.prod(p["shape"])) for p in f["inputs"]]
+            offsets = np.concatenate([[0], np.cumsum(sizes)[:-1]]).astype(int).tolist()
+            args = [f"(x) + {o}" for o in offsets] + (["&p"] if f.get("reads_parameters", False) else [])
+            args += [f"OUT{k}" for k in range(len(f["outputs"]))]
+            outs = " ".join(f"static double OUT{k}[{max(1, int(np.prod(p['shape'])))}];"
+                            for k, p in enumerate(f["outputs"]))
+            params = (f"{spec_name}_params p = {spec_name.upper()}_PARAMS_DEFAULT;"
+                      if f.get("reads_parameters", False) else "")
+            call = f"#define CALL(x) {f['c_name']}({', '.join(args)})"
+            # a period, not a random number, where an input is the time step
+            fixed = ""
+            if spec_name.startswith("styx"):  # near a grasp, not a singular straight finger
+                fixed += " for (set = 0; set < NSETS; ++set) for (k = 0; k < TOTAL; ++k) IN[set][k] *= 0.2;"
+                fixed += "".join(f" for (set = 0; set < NSETS; ++set) IN[set][{k}] += {x};"
+                                 for k, x in enumerate(STYX_GRASP))
+            # a period, not a random number, where an input is the time step
+            fixed += "".join(f" for (set = 0; set < NSETS; ++set) IN[set][{o}] = 1e-3;"
+                             for o, p in zip(offsets, f["inputs"]) if p["name"] == "dt")
+            text = (STEP_HARNESS.replace('"NAME.h"', f'"{spec_name}.h"\n{call}').replace("FIXED", fixed)
+                    .replace("TOTAL", str(sum(sizes)))
+                    .replace("ROUNDS", str(rounds)).replace("PARAMS_DECL", params).replace("OUT_DECL", outs))
+            src = out / f"bench_{f['name']}.c"
+            src.write_text(text)
+            exe = out / f"bench_{f['name']}"
+            subprocess.run(["cc", *CFLAGS, "-I", str(out), str(src), str(out / f"{spec_name}.c"), "-o", str(exe),
+                            "-lm"], check=True)
+            lines = subprocess.run([str(exe)], capture_output=True, text=True, check=True).stdout.split("\n")
+            values = [line.split() for line in lines if line.strip()]
+            ns = min(float(v[0]) for v in values)
+            failed = int(values[0][1])
+            rows.append({"spec": f"specs/{spec_name}.yaml", "function": f["name"], "c_ns": ns,
+                         "arithmetic_ops": f["arithmetic_ops"], "sin_cos_ops": f["sin_cos_ops"],
+                         "nonzero_status_of_64_inputs": failed})
+            note = f"; status != 0 on {failed} of 64 inputs" if failed else ""
+            print(f"bench: {spec_name} {f['name']}: {ns:8.1f} ns, {f['arithmetic_ops']} operations "
+                  f"({f['sin_cos_ops']} sin/cos){note}")
+    return rows
 
 
 if __name__ == "__main__":

@@ -17,6 +17,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <math.h>
 #include <time.h>
 
 #include RG_HEADER
@@ -99,6 +100,46 @@ static int selected(int argc, char **argv, const char *name) {
     return 0;
 }
 
+/* The machine's scalar floor, measured: "peak_ops_per_ns": multiply-add chains, 12 independent
+ * (enough to fill the floating-point pipes at -O2, scalar code); "sincos_ns": one sin and one
+ * cos of the same angle from libm, on the harness's angles. bench/run.py divides a kernel's
+ * floor (its operations at the peak plus its sin/cos pairs at that cost) by its time. */
+static void calibrate(void) {
+    double a[12], best = 1e30, t0, t1;
+    long it, iters = 1L << 22;
+    int r, k;
+    for (r = 0; r < REPEATS; r++) {
+        double a0 = 1.0, a1 = 1.1, a2 = 1.2, a3 = 1.3, a4 = 1.4, a5 = 1.5, a6 = 1.6, a7 = 1.7, a8 = 1.8,
+               a9 = 1.9, a10 = 2.0, a11 = 2.1;
+        const double m = 0.999999999, c = 1e-9;
+        t0 = now_ns();
+        for (it = 0; it < iters; it++) {
+            a0 = a0 * m + c; a1 = a1 * m + c; a2 = a2 * m + c; a3 = a3 * m + c;
+            a4 = a4 * m + c; a5 = a5 * m + c; a6 = a6 * m + c; a7 = a7 * m + c;
+            a8 = a8 * m + c; a9 = a9 * m + c; a10 = a10 * m + c; a11 = a11 * m + c;
+        }
+        t1 = now_ns();
+        a[0] = a0; a[1] = a1; a[2] = a2; a[3] = a3; a[4] = a4; a[5] = a5; a[6] = a6; a[7] = a7; a[8] = a8;
+        a[9] = a9; a[10] = a10; a[11] = a11;
+        for (k = 0; k < 12; k++) sink += a[k];
+        if (t1 - t0 < best) best = t1 - t0;
+    }
+    printf("peak_ops_per_ns %.4f\n", 24.0 * (double)iters / best);
+    best = 1e30;
+    for (r = 0; r < REPEATS; r++) {
+        double acc = 0.0;
+        t0 = now_ns();
+        for (it = 0; it < iters / 16; it++) {
+            double x = Q[it & (NSETS - 1)][it % NQ];
+            acc += sin(x) * cos(x);
+        }
+        t1 = now_ns();
+        sink += acc;
+        if (t1 - t0 < best) best = t1 - t0;
+    }
+    printf("sincos_ns %.4f\n", best / (double)(iters / 16));
+}
+
 int main(int argc, char **argv) {
     int s, i;
     for (s = 0; s < NSETS; s++)
@@ -107,6 +148,10 @@ int main(int argc, char **argv) {
             QD[s][i] = uniform(-2.0, 2.0);
             QDD[s][i] = uniform(-2.0, 2.0);
         }
+    if (argc > 1 && strcmp(argv[1], "calibrate") == 0) {
+        calibrate();
+        return 0;
+    }
     if (selected(argc, argv, "mass")) BENCH("mass", NQ * NQ, FN(mass)(Q[s], OUT));
     if (selected(argc, argv, "inverse_dynamics"))
         BENCH("inverse_dynamics", NQ, FN(inverse_dynamics)(Q[s], QD[s], QDD[s], OUT));

@@ -80,7 +80,8 @@ def kernel_sources(out: Path) -> list[Path]:
     return srcs
 
 
-def run_c(out: Path, name: str, nq: int, functions: list[str], work: Path) -> dict:
+def c_harness(out: Path, name: str, nq: int, work: Path) -> tuple[Path, list[str]]:
+    """bench/harness.c compiled against the generated kernels in OUT (once per work directory)."""
     cc = os.environ.get("CC", "cc")
     exe = work / "harness"
     derivatives = any(f["name"] == "inverse_dynamics_derivatives"
@@ -91,6 +92,12 @@ def run_c(out: Path, name: str, nq: int, functions: list[str], work: Path) -> di
     if not exe.exists():  # a work directory holds one build (run again in later rounds)
         work.mkdir(parents=True, exist_ok=True)
         subprocess.run(cmd, check=True)
+    return exe, cmd
+
+
+def run_c(out: Path, name: str, nq: int, functions: list[str], work: Path) -> dict:
+    cc = os.environ.get("CC", "cc")
+    exe, cmd = c_harness(out, name, nq, work)
     res = subprocess.run([str(exe), *functions], check=True, capture_output=True, text=True)
     results = {}
     for line in res.stdout.splitlines():
@@ -98,6 +105,20 @@ def run_c(out: Path, name: str, nq: int, functions: list[str], work: Path) -> di
         results[fn] = {"ns_min": float(ns_min), "ns_median": float(ns_med), "iterations": int(iters)}
     return {"compiler": subprocess.run([cc, "--version"], capture_output=True, text=True).stdout.splitlines()[0],
             "cflags": CFLAGS, "command": " ".join(cmd), "results": results}
+
+
+def calibrate(out: Path, name: str, nq: int, work: Path) -> dict:
+    """This machine's scalar peak (operations per ns) and the cost of a libm sin/cos pair, both
+    measured by the harness (its calibrate mode) with the flags of the kernels."""
+    exe, _ = c_harness(out, name, nq, work)
+    res = subprocess.run([str(exe), "calibrate"], check=True, capture_output=True, text=True)
+    return {key: float(value) for key, value in (line.split() for line in res.stdout.splitlines())}
+
+
+def floor_ns(ops: int, sin_cos: int, machine: dict) -> float:
+    """A kernel's floor: its operations other than sin/cos at the scalar peak, plus its sin/cos
+    pairs at libm's cost."""
+    return (ops - sin_cos) / machine["peak_ops_per_ns"] + sin_cos / 2 * machine["sincos_ns"]
 
 
 def best_ns(stmt, number: int, repeat: int) -> float:
@@ -353,13 +374,15 @@ def op_counts(out: Path) -> dict:
 
 
 def versus_table(robots: list[dict]) -> str:
-    head = ["robot", "function", "robotgen C ns", "Pinocchio ns", "Pin/robotgen", "ops", "sin/cos"]
+    head = ["robot", "function", "robotgen C ns", "Pinocchio ns", "Pin/robotgen", "ops", "sin/cos", "floor ns",
+            "efficiency"]
     lines = [head]
     for r in robots:
         for f in r["functions"]:
             lines.append([r["robot"], f["function"], f"{f['robotgen_c']['ns_min']:.1f}",
                           f"{f['pinocchio']['ns_min']:.1f}", f"{f['ratio']:.2f}",
-                          str(f["arithmetic_ops"]), str(f["sin_cos_ops"])])
+                          str(f["arithmetic_ops"]), str(f["sin_cos_ops"]), f"{f['floor_ns']:.1f}",
+                          f"{f['efficiency']:.2f}"])
     widths = [max(len(row[i]) for row in lines) for i in range(len(head))]
     fmt = lambda row: "  ".join(s.rjust(w) if i > 1 else s.ljust(w) for i, (s, w) in enumerate(zip(row, widths)))  # noqa: E731
     return "\n".join([fmt(lines[0]), fmt(["-" * w for w in widths])] + [fmt(r) for r in lines[1:]])
@@ -380,7 +403,7 @@ def build_urdf(name: str, out: Path):
     return urdf, tip, module, locked
 
 
-def time_versus(built: dict, harness: PinocchioHarness, tmp: Path, rounds: int) -> list[dict]:
+def time_versus(built: dict, harness: PinocchioHarness, tmp: Path, rounds: int, machine: dict) -> list[dict]:
     """Alternating rounds of the C harness and the Pinocchio harness per robot; min over rounds."""
     robots = []
     for name, b in built.items():
@@ -402,20 +425,34 @@ def time_versus(built: dict, harness: PinocchioHarness, tmp: Path, rounds: int) 
                 "function": fn, "pinocchio_call": PIN_CALLS[fn],
                 "robotgen_c": best_c[fn], "pinocchio": best_p[fn],
                 "ratio": best_p[fn]["ns_min"] / best_c[fn]["ns_min"], **ops[fn],
+                "floor_ns": floor_ns(ops[fn]["arithmetic_ops"], ops[fn]["sin_cos_ops"], machine),
+                "efficiency": floor_ns(ops[fn]["arithmetic_ops"], ops[fn]["sin_cos_ops"], machine)
+                / best_c[fn]["ns_min"],
             } for fn in PIN_FUNCTIONS],
         })
     return robots
 
 
-def fused_section(robots: list[tuple[str, Path, int]], tmp: Path) -> list[dict]:
-    """servo_terms (M, C qd + N, J, Jdot qd in one call) against the four separate calls."""
+def fused_section(robots: list[tuple[str, Path, int]], tmp: Path, versus: list[dict]) -> list[dict]:
+    """servo_terms (M, C qd + N, J, Jdot qd in one call) against the four separate calls, and
+    against Pinocchio's crba + rnea + computeFrameJacobian timed apart in the same run."""
     rows = []
-    print("\nbench: fused servo terms (one call) vs mass + nonlinear + jacobian + jacobian_dot_qd")
+    pinocchio = {r["robot"]: {f["function"]: f["pinocchio"]["ns_min"] for f in r["functions"]} for r in versus}
+    print("\nbench: fused servo terms (one call) vs mass + nonlinear + jacobian + jacobian_dot_qd, and vs "
+          "Pinocchio's crba + rnea + computeFrameJacobian")
     for name, out, nq in robots:
         res = run_c(out, name, nq, ["servo_terms", "servo_terms_separate"], tmp / f"fused-{name}")["results"]
         fused, separate = res["servo_terms"]["ns_min"], res["servo_terms_separate"]["ns_min"]
-        rows.append({"robot": name, "fused_ns": fused, "separate_ns": separate, "speedup": separate / fused})
-        print(f"  {name:10s} fused {fused:8.1f} ns   separate {separate:8.1f} ns   speedup {separate / fused:4.2f}x")
+        row = {"robot": name, "fused_ns": fused, "separate_ns": separate, "speedup": separate / fused}
+        line = f"  {name:10s} fused {fused:8.1f} ns   separate {separate:8.1f} ns   speedup {separate / fused:4.2f}x"
+        if name in pinocchio:
+            p = pinocchio[name]
+            row["pinocchio_separate_ns"] = p["mass"] + p["inverse_dynamics"] + p["jacobian"]
+            row["versus_pinocchio"] = row["pinocchio_separate_ns"] / fused
+            line += (f"   Pinocchio crba + rnea + J {row['pinocchio_separate_ns']:8.1f} ns: "
+                     f"{row['versus_pinocchio']:5.2f}x")
+        rows.append(row)
+        print(line)
     return rows
 
 
@@ -494,7 +531,11 @@ def main(argv=None) -> int:
                   f"({' '.join(harness.flags)}; algorithms from the wheel's "
                   f"{'libpinocchio_default.so' if harness.instantiation == 'library' else 'headers, compiled here'})",
                   flush=True)
-            robots = time_versus(built, harness, Path(tmp), 1 if args.quick else 2)
+            machine = calibrate(out, name, nq, Path(tmp) / "calibrate")
+            print(f"bench: this machine, measured: scalar peak {machine['peak_ops_per_ns']:.2f} operations/ns, "
+                  f"libm sin+cos {machine['sincos_ns']:.2f} ns; a kernel's floor is its operations at that peak "
+                  "plus its sin/cos pairs at that cost", flush=True)
+            robots = time_versus(built, harness, Path(tmp), 1 if args.quick else 2, machine)
             print(versus_table(robots))
             print("ratio = Pinocchio ns / robotgen ns (> 1: the generated C is faster); ops: arithmetic "
                   "operations in the generated kernel (manifest.json)")
@@ -506,7 +547,7 @@ def main(argv=None) -> int:
                           "robotgen's inverse_dynamics and forward_dynamics include the URDF joint damping "
                           "as viscous friction (Panda: 0.003); Pinocchio's rnea and aba do not",
                           "Pinocchio's crba fills the upper triangle of M; robotgen's mass returns the full matrix"],
-                "robots": robots,
+                "robots": robots, "machine_floor": machine,
             }
         elif versus is not None:
             print(f"\nbench: Pinocchio C++ comparison not run: {versus['error']}", file=sys.stderr)
@@ -526,7 +567,8 @@ def main(argv=None) -> int:
         if versus is not None:
             result["versus_pinocchio"] = versus
         result["fused_servo_terms"] = fused_section(
-            [(name, out, nq)] + [(n, b["out"], b["nq"]) for n, b in (built or {}).items()], Path(tmp))
+            [(name, out, nq)] + [(n, b["out"], b["nq"]) for n, b in (built or {}).items()], Path(tmp),
+            versus.get("robots", []) if versus else [])
         Path(args.json).write_text(json.dumps(result, indent=2) + "\n")
         print(f"bench: wrote {args.json}")
     finally:
