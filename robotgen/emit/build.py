@@ -56,7 +56,7 @@ def emit(out_dir: Path, name: str, kernels: list[Kernel], *, nq: int,
             (staging / file_name).write_bytes(text.encode("utf-8"))
         if compile:
             progress.stage(f"compiling the extension ({' '.join(compiler.compiler())})")
-            compiler.compile_extension(staging, name, [f"{name}_module.c", f"{name}.c"])
+            compiler.compile_extension(staging, name, [f"{name}_module.c", f"{name}.c"], parts=view.parts)
         _swap_in(staging, out_dir)
     except BaseException:
         _remove(staging)

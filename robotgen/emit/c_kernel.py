@@ -28,6 +28,7 @@ from robotgen.symbolic.schedule import (
     DESCENDING,
     LOCAL,
     ONCE,
+    PAIRS,
     RANGE,
     ROWS_ABOVE_DESCENDING,
     ROWS_BELOW,
@@ -185,7 +186,7 @@ def _straight_line(program: Program, kernel: Kernel, precision: Precision, read,
     return declarations, body
 
 
-LOOP_INDICES = ("rg_i", "rg_j")  # a schedule's loop counters (no port or register is named so)
+LOOP_INDICES = ("rg_i", "rg_j", "rg_m")  # a schedule's loop counters (no port or register is named so)
 _LOOP_HEADERS = {
     ONCE: ["{{"],
     RANGE: ["for (rg_i = 0; rg_i < {n}; ++rg_i) {{"],
@@ -205,18 +206,29 @@ def _scheduled_body(kernel: Kernel, precision: Precision, read) -> tuple[list[st
     schedule = kernel.schedule
     zero = literal(0.0, precision)
     declarations = [f"{precision.real} t{k}[{size}];" for k, size in enumerate(schedule.local_sizes)]
+    # index tables (a tree's parents, its ancestor pairs): const locals rg_p0, rg_p1, ...
+    tables: dict[tuple[int, ...], str] = {}
+
+    def table(values: tuple[int, ...]) -> str:
+        if values not in tables:
+            tables[values] = f"rg_p{len(tables)}"
+        return tables[values]
+
     if schedule.loops:
         pairs = any(loop.space not in (ONCE, RANGE, DESCENDING) for loop in schedule.loops)
-        declarations.append("int " + ", ".join(LOOP_INDICES if pairs else LOOP_INDICES[:1]) + ";")
+        listed = any(loop.space == PAIRS for loop in schedule.loops)
+        used = LOOP_INDICES if listed else LOOP_INDICES[:2] if pairs else LOOP_INDICES[:1]
+        declarations.append("int " + ", ".join(used) + ";")
 
     def array(s: Slice) -> str:
         return f"t{s.index}" if s.kind == LOCAL else kernel.outputs[s.index].name
 
     def address(s: Slice, element: int) -> str:
         start = s.offset + element * s.step
+        i = f"{table(s.i_table)}[rg_i]" if s.i_table else "rg_i"
         terms = [str(start)] if start or not (s.i_stride or s.j_stride) else []
         terms += [f"{stride} * {index}" if stride != 1 else index
-                  for stride, index in ((s.i_stride, "rg_i"), (s.j_stride, "rg_j")) if stride]
+                  for stride, index in ((s.i_stride, i), (s.j_stride, "rg_j")) if stride]
         return f"{array(s)}[{' + '.join(terms)}]"
 
     prologue = part_kernel(kernel.name + "_prologue", schedule.prologue, kernel.inputs)
@@ -235,10 +247,18 @@ def _scheduled_body(kernel: Kernel, precision: Precision, read) -> tuple[list[st
             lambda port, element, loop=loop: address(loop.writes[port], element), register="x")
         statements += [f"{address(loop.writes[port], e)} = {zero};" for port, elements in program.unwritten_outputs
                        for e in elements]
+        if loop.space == PAIRS:
+            first, second = table(tuple(i for i, _ in loop.pairs)), table(tuple(j for _, j in loop.pairs))
+            body += [f"for (rg_m = 0; rg_m < {len(loop.pairs)}; ++rg_m) {{",
+                     f"  rg_i = {first}[rg_m];", f"  rg_j = {second}[rg_m];", "  {",
+                     *("    " + line for line in registers + statements), "  }", "}"]
+            continue
         header = [line.format(n=loop.n) for line in _LOOP_HEADERS[loop.space]]
         body += [*header, *("    " + line for line in registers + statements), "  }" if len(header) > 1 else "}"]
     for port, elements in schedule.unwritten:
         body += [f"{kernel.outputs[port].name}[{e}] = {zero};" for e in elements]
+    declarations += [f"const int {name}[{len(values)}] = {{{', '.join(map(str, values))}}};"
+                     for values, name in tables.items()]
     return declarations, body
 
 

@@ -6,6 +6,7 @@ import shlex
 import subprocess
 import sys
 import sysconfig
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import numpy as np
@@ -31,15 +32,39 @@ def compiler() -> list[str]:
     return shlex.split(os.environ.get("CC") or sysconfig.get_config_var("CC") or "cc")
 
 
-def compile_extension(build_dir: Path, name: str, sources: list[str]) -> Path:
-    """Builds ``<name><EXT_SUFFIX>`` in ``build_dir`` from the named sources there."""
+def compile_extension(build_dir: Path, name: str, sources: list[str], parts: int = 1) -> Path:
+    """Builds ``<name><EXT_SUFFIX>`` in ``build_dir`` from the named sources there. With
+    ``parts`` > 1, ``<name>.c`` is compiled as that many parts (-DRG_PART=k), every source to an
+    object, as many compilers at once as the machine has cores, then linked."""
     paths = sysconfig.get_paths()
     includes = dict.fromkeys([paths["include"], paths["platinclude"], np.get_include()])
     target = name + extension_suffix()
-    command = [*compiler(), "-O2", "-shared", "-fPIC", *WARNING_FLAGS,
-               *(f"-I{d}" for d in includes), *sources, "-o", target, "-lm"]
-    if sys.platform == "darwin":
-        command[1:1] = ["-undefined", "dynamic_lookup"]
+    flags = ["-O2", "-fPIC", *WARNING_FLAGS, *(f"-I{d}" for d in includes)]
+    link = ["-shared", *(["-undefined", "dynamic_lookup"] if sys.platform == "darwin" else [])]
+    if parts <= 1:
+        _run([*compiler(), *flags, *link, *sources, "-o", target, "-lm"], build_dir, name)
+        return build_dir / target
+    jobs = []
+    for source in sources:
+        stem = source[:-2]
+        if source == f"{name}.c":
+            jobs += [[*compiler(), *flags, f"-DRG_PART={k}", "-c", source, "-o", f"{stem}.part{k}.o"]
+                     for k in range(parts)]
+        else:
+            jobs.append([*compiler(), *flags, "-c", source, "-o", f"{stem}.o"])
+    objects = [job[-1] for job in jobs]
+    try:
+        with ThreadPoolExecutor(max_workers=max(1, min(len(jobs), os.cpu_count() or 1))) as pool:
+            for future in [pool.submit(_run, job, build_dir, name) for job in jobs]:
+                future.result()
+        _run([*compiler(), *link, *objects, "-o", target, "-lm"], build_dir, name)
+    finally:
+        for obj in objects:
+            (build_dir / obj).unlink(missing_ok=True)
+    return build_dir / target
+
+
+def _run(command: list[str], build_dir: Path, name: str) -> None:
     try:
         result = subprocess.run(command, cwd=build_dir, capture_output=True, text=True)
     except FileNotFoundError as error:
@@ -49,4 +74,3 @@ def compile_extension(build_dir: Path, name: str, sources: list[str]) -> Path:
         raise CompileError(
             f"compiling the generated extension {name!r} failed (a robotgen bug):\n"
             f"$ {shlex.join(command)}\n{result.stdout}{result.stderr}")
-    return build_dir / target

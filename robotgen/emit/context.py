@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import json
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import casadi as ca
 
@@ -96,6 +96,7 @@ class FunctionView:
     sin_cos_ops: int
     reads_parameters: bool  # the kernel has the PARAMS port: every parameter is a keyword
     guarded: bool = False  # the C checks inputs and results (Kernel.guarded)
+    part: int = 0  # which of the module's compile parts holds it (COMPILE_PARTS)
 
 
 @dataclass(frozen=True)
@@ -128,6 +129,7 @@ class ModuleView:
     controllers_note: tuple[str, ...] = ()  # the header's first comment on them
     zero: str = "0.0"  # C literals of the module's precision
     one: str = "1.0"
+    parts: int = 1  # compile parts of <name>.c (COMPILE_PARTS when the source is large)
 
 
 def module_view(name: str, kernels: list[Kernel], *, nq: int, precision: str,
@@ -165,7 +167,7 @@ def module_view(name: str, kernels: list[Kernel], *, nq: int, precision: str,
     for i, k in enumerate(kernels):
         progress.step(i + 1, len(kernels), f"printing C: {k.name}")
         functions.append(_function_view(name, k, PRECISIONS[precision], parameters))
-    functions = tuple(functions)
+    functions = _assign_parts(tuple(functions))
     by_name = {f.name: f for f in functions}
     views = tuple(controller_view(name, c, by_name, PRECISIONS[precision], parameters) for c in controllers)
     _check_controller_names(name, functions, views)
@@ -202,7 +204,7 @@ def module_view(name: str, kernels: list[Kernel], *, nq: int, precision: str,
         parameters=parameters, params_type=c_kernel.params_type(name) if parameters else "",
         params_default_macro=f"{name.upper()}_PARAMS_DEFAULT" if parameters else "",
         controllers=views, parameters_class=parameters_class if any(v.reads_parameters for v in views) else "",
-        controllers_note=controllers_note(views),
+        controllers_note=controllers_note(views), parts=max(f.part for f in functions) + 1,
         zero=c_kernel.literal(0.0, PRECISIONS[precision]), one=c_kernel.literal(1.0, PRECISIONS[precision]))
 
 
@@ -287,6 +289,25 @@ def _summary(doc: str, fallback: str) -> str:
     """The first paragraph of ``doc`` on one line."""
     paragraph = doc.strip().split("\n\n")[0]
     return " ".join(paragraph.split()) or fallback
+
+
+# A source past COMPILE_PARTS_ABOVE characters is compiled in COMPILE_PARTS processes at once
+# (robotgen.emit.compile): each kernel is in one part (#if RG_PART == k in <name>.c), the parts
+# balanced by source size. The number is fixed, not the machine's cores, so that the emitted
+# text is the same everywhere; a user's own build of <name>.c (no RG_PART) takes every kernel.
+COMPILE_PARTS = 2
+COMPILE_PARTS_ABOVE = 300_000
+
+
+def _assign_parts(functions: tuple[FunctionView, ...]) -> tuple[FunctionView, ...]:
+    if sum(len(f.definition) for f in functions) <= COMPILE_PARTS_ABOVE:
+        return functions
+    load = [0] * COMPILE_PARTS
+    part = {}
+    for f in sorted(functions, key=lambda f: (-len(f.definition), f.name)):
+        k = load.index(min(load))
+        part[f.name], load[k] = k, load[k] + len(f.definition)
+    return tuple(replace(f, part=part[f.name]) for f in functions)
 
 
 def _function_view(prefix: str, kernel: Kernel, precision: c_kernel.Precision,

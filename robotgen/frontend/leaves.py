@@ -208,7 +208,7 @@ class LeafReader(Collector):
                           parameters: dict[str, float]) -> None:
         """M must be symmetric and positive definite: checked at q = 0 and at 16 random
         configurations in [-pi, pi] (a fixed seed; run-time parameters at their defaults).
-        Forward dynamics factorises M by Cholesky, which reads one triangle only and fails
+        Forward dynamics factorises M (L D L^T), which reads one triangle only and fails
         where M is not positive definite."""
         n = len(coordinates)
         rng = np.random.default_rng(0)

@@ -4,7 +4,7 @@ them.
 
 Forward dynamics qdd = M^-1 (tau - C qd - N) is differentiated through inverse dynamics: at
 qdd = FD(q, qd, tau), d qdd/dz = -M^-1 d tau/dz for z = q, qd (the implicit function
-theorem), and d qdd/d tau = M^-1; one Cholesky factorisation of M serves every column.
+theorem), and d qdd/d tau = M^-1; one L D L^T factorisation of M serves every column.
 
 Past LOOPS_ABOVE_OPS the kernels of both are built as schedules (robotgen.symbolic.schedule):
 on a serial chain the recursion's steps and joint pairs are loops (derivative_loops), and the

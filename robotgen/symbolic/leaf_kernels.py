@@ -14,7 +14,6 @@ from robotgen.symbolic.kernel import NO_PARAMETERS, Kernel, ParameterSymbols, ma
 from robotgen.symbolic.op_count import count_operations
 from robotgen.symbolic.rigid_body.chain import ChainGraphs, Symbols
 from robotgen.symbolic.rigid_body.chain_loops import LOOPS_ABOVE_DOF, LOOPS_ABOVE_OPS, ChainLoops
-from robotgen.symbolic.rigid_body.rnea_derivatives import is_serial
 from robotgen.symbolic.schedule import ScheduleBuilder
 
 # name: (inputs, output shape as a function of nq, doc)
@@ -30,7 +29,8 @@ _CHAIN = {
     "gravity": ("q", ("n", 1), "Gravity torques g(q)."),
     "nonlinear": ("q qd", ("n", 1), "C(q, qd) qd + N(q, qd): Coriolis, centrifugal, gravity, friction."),
     "inverse_dynamics": ("q qd qdd", ("n", 1), "Joint torques M qdd + C qd + N (recursive Newton-Euler)."),
-    "forward_dynamics": ("q qd tau", ("n", 1), "Joint accelerations M^-1 (tau - C qd - N) by Cholesky solve."),
+    "forward_dynamics": ("q qd tau", ("n", 1), "Joint accelerations M^-1 (tau - C qd - N) by an L D L^T solve "
+                         "(past 12 joints: articulated bodies)."),
 }
 
 _FORMULA = {
@@ -39,7 +39,7 @@ _FORMULA = {
     "gravity": ("q", ("n", 1), "N(q, 0)."),
     "nonlinear": ("q qd", ("n", 1), "C(q, qd) qd + N(q, qd)."),
     "inverse_dynamics": ("q qd qdd", ("n", 1), "M qdd + C qd + N."),
-    "forward_dynamics": ("q qd tau", ("n", 1), "M^-1 (tau - C qd - N) by Cholesky solve."),
+    "forward_dynamics": ("q qd tau", ("n", 1), "M^-1 (tau - C qd - N) by an L D L^T solve."),
     "kinematics": ("q", ("k", 1), "Output map x = f(q) as given in the spec."),
     "kinematics_jacobian": ("q", ("k", "n"), "df/dq."),
 }
@@ -104,8 +104,7 @@ def leaf_kernels(leaf: KinematicTree | FormulaRobot, prefix: str = "",
         k = len(leaf.kinematics or ())
         if not k:
             del table["kinematics"], table["kinematics_jacobian"]
-    loops = ChainLoops(graphs.tree, graphs.motions) if isinstance(leaf, KinematicTree) and is_serial(graphs.tree) \
-        else None
+    loops = ChainLoops(graphs.tree, graphs.motions) if isinstance(leaf, KinematicTree) else None
     kernels = [
         (loops and _looped(loops, name, doc, inputs, _resolve(shape, n, k), lambda name=name: getattr(graphs, name)(),
                            sym, prefix, parameters))
@@ -144,7 +143,7 @@ def _derivative_kernels(graphs, integrator: str, n: int, prefix: str, parameters
                     [("q", s.q), ("qd", s.qd), ("tau", s.tau)],
                     [("dqdd_dq", fq, square), ("dqdd_dqd", fqd, square), ("dqdd_dtau", minv, square)], parameters,
                     guarded=True, schedule=fd_schedule),
-        make_kernel(prefix + "mass_inverse", "M(q)^-1 (Cholesky factorisation, then solves).",
+        make_kernel(prefix + "mass_inverse", "M(q)^-1 (L D L^T factorisation, then solves).",
                     [("q", s.q)], [("mass_inverse", d.mass_inverse(), square)], parameters, guarded=True),
     ]
     q_next, qd_next = d.discrete_dynamics(integrator, dt)

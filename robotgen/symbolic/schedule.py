@@ -17,10 +17,12 @@ LOCAL, OUTPUT = "local", "output"
 ONCE, RANGE, DESCENDING = "once", "range", "descending"
 BELOW, ABOVE, ABOVE_DESCENDING = "below", "above", "above descending"
 ROWS_BELOW, ROWS_ABOVE_DESCENDING = "rows below", "rows above descending"
+PAIRS = "pairs"
 """Index spaces over n: ONCE i = 0 (a straight-line block); RANGE i = 0, ..., n-1;
 DESCENDING i = n-1, ..., 0; pairs with j outer: BELOW j = 0, ..., n-1 and i in (j, n); ABOVE
 j = 1, ..., n-1 and i < j; ABOVE_DESCENDING the same with j = n-1, ..., 1; with i outer:
-ROWS_BELOW i = 1, ..., n-1 and j < i; ROWS_ABOVE_DESCENDING i = n-2, ..., 0 and j in (i, n)."""
+ROWS_BELOW i = 1, ..., n-1 and j < i; ROWS_ABOVE_DESCENDING i = n-2, ..., 0 and j in (i, n);
+PAIRS the (i, j) of a listed table, in its order (a tree's ancestor pairs)."""
 
 
 @dataclass(frozen=True)
@@ -34,9 +36,10 @@ class Slice:
     i_stride: int = 0
     j_stride: int = 0
     step: int = 1
+    i_table: tuple[int, ...] = ()  # when given, i_table[i] takes i's place (a tree's parent)
 
     def elements(self, count: int, i: int, j: int) -> list[int]:
-        start = self.offset + i * self.i_stride + j * self.j_stride
+        start = self.offset + (self.i_table[i] if self.i_table else i) * self.i_stride + j * self.j_stride
         return [start + e * self.step for e in range(count)]
 
 
@@ -47,9 +50,12 @@ class Loop:
     n: int
     reads: tuple[Slice, ...]  # one per body input (locals only)
     writes: tuple[Slice, ...]  # one per body output
+    pairs: tuple[tuple[int, int], ...] = ()  # the space PAIRS
 
     def iterations(self) -> list[tuple[int, int]]:
         n = self.n
+        if self.space == PAIRS:
+            return list(self.pairs)
         if self.space == ONCE:
             return [(0, 0)]
         if self.space == RANGE:
@@ -111,8 +117,11 @@ class ScheduleBuilder:
         self._store(target, [values[e] for e in range(values.numel())], 0, 0)
         self._prologue.append((values, target))
 
-    def loop(self, body: ca.Function, space: str, n: int, reads: list[Slice], writes: list[Slice]) -> None:
-        loop = Loop(body, space, n, tuple(reads), tuple(writes))
+    def loop(self, body: ca.Function, space: str, n: int, reads: list[Slice], writes: list[Slice],
+             pairs: list[tuple[int, int]] = ()) -> None:
+        loop = Loop(body, space, n, tuple(reads), tuple(writes), tuple(pairs))
+        if (space == PAIRS) != bool(pairs):
+            raise ValueError("the space PAIRS, and it alone, lists its pairs")
         if any(s.kind != LOCAL for s in reads):
             raise ValueError("loops read local arrays")
         for i, j in loop.iterations():

@@ -17,7 +17,7 @@ Feedback (§4.2, Table 1's three stages)
      g = P phi / (phi^T P phi + r), each row moves by the prediction error times g and
      P <- (P - P phi phi^T P / (phi^T P phi + r)) / r, formed symmetric, its trace held below
      a limit (without excitation and r < 1 it would grow without bound);
-  3. du = -(R + B^T Q B)^-1 B^T Q A dx (eq 39), by a Cholesky solve.
+  3. du = -(R + B^T Q B)^-1 B^T Q A dx (eq 39), by an L D L^T solve.
   tau = u_n + du.
 
 The identification starts from the linearised model: F = df/dx, L = df/du of the hand-space

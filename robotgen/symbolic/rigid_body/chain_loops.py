@@ -1,4 +1,4 @@
-"""A long serial chain's dynamics as schedule loops (robotgen.symbolic.schedule), in base-frame
+"""A long chain's or tree's dynamics as schedule loops (robotgen.symbolic.schedule), in base-frame
 spatial vectors as in rnea_derivatives: the prologue holds the kinematics (each joint's axis
 S_i and its body's inertia I_i about the base origin); loops make the velocity and
 acceleration passes, the subtree composites from the tip, and the joint-pair terms.
@@ -34,6 +34,7 @@ from robotgen.symbolic.schedule import (
     LOCAL,
     ONCE,
     OUTPUT,
+    PAIRS,
     RANGE,
     ScheduleBuilder,
     Slice,
@@ -60,10 +61,70 @@ def _at(array: int, width: int, by: str = "i", offset: int = 0) -> Slice:
 
 
 class ChainLoops:
-    """Builds the schedules; each method fills a ScheduleBuilder whose inputs are the kernel's."""
+    """Builds the schedules; each method fills a ScheduleBuilder whose inputs are the kernel's.
+
+    A serial chain's joint i has parent i - 1: a parent's block is addressed by i and the
+    subtree sums run "own plus the child's block". A branched tree (parents listed before their
+    children) addresses parents through an index table, and a subtree sum adds each finished
+    block into its parent's (the roots into a spare block n); its joint pairs are listed."""
 
     def __init__(self, tree: KinematicTree, motions: list[JointMotion]):
         self.tree, self.motions, self.n = tree, motions, tree.nq
+        self.parents = [joint.parent for joint in tree.joints]
+        if any(p >= i for i, p in enumerate(self.parents)):
+            raise ValueError("a tree's joints must come after their parents")
+        self.serial = all(p == i - 1 for i, p in enumerate(self.parents))
+        ancestors: list[list[int]] = []
+        for p in self.parents:
+            ancestors.append([] if p < 0 else ancestors[p] + [p])
+        # (i, j) with i a strict ancestor of j, and with j a strict ancestor of i
+        self.ancestor_pairs = [(i, j) for j in range(self.n) for i in ancestors[j]]
+        self.descendant_pairs = [(i, j) for i in range(self.n) for j in ancestors[i]]
+
+    def _parent_state(self, array: int, width: int) -> Slice:
+        """The parent's block of a per-joint state stored at i + 1 (the base's at 0)."""
+        if self.serial:
+            return _at(array, width)
+        return Slice(LOCAL, array, 0, i_stride=width, i_table=tuple(p + 1 for p in self.parents))
+
+    def _parent_block(self, array: int, width: int) -> Slice:
+        """The parent's block of a per-joint array of n + 1 blocks (roots: block n)."""
+        return Slice(LOCAL, array, 0, i_stride=width, i_table=tuple(p if p >= 0 else self.n for p in self.parents))
+
+    def _subtree_sum(self, b: ScheduleBuilder, name: str, inputs: list[ca.SX], reads: list[Slice], own: ca.SX,
+                     array: int, extra: tuple[list[ca.SX], list[Slice]] = ([], [])) -> None:
+        """Block i of ``array`` (n + 1 blocks of own's size, zero before) = own_i + its children's
+        blocks, from the tip; ``extra``: more outputs of the body and where they go."""
+        width, n = own.numel(), self.n
+        if self.serial:
+            child = ca.SX.sym("child", width)
+            b.loop(body(name, [*inputs, child], [own + child, *extra[0]]), DESCENDING, n,
+                   [*reads, _at(array, width, offset=width)], [_at(array, width), *extra[1]])
+            return
+        children, parent = ca.SX.sym("children", width), ca.SX.sym("parent", width)
+        b.loop(body(name, [*inputs, children, parent], [own + children, parent + own + children, *extra[0]]),
+               DESCENDING, n, [*reads, _at(array, width), self._parent_block(array, width)],
+               [_at(array, width), self._parent_block(array, width), *extra[1]])
+
+    def _zeros(self, b: ScheduleBuilder, width: int) -> int:
+        """A local of n + 1 blocks for a subtree sum: the spare block zero (every block for a tree)."""
+        n = self.n
+        array = b.local(size=width * (n + 1))
+        if self.serial:
+            b.prologue(Slice(LOCAL, array, width * n), ca.SX.zeros(width, 1))
+        else:
+            b.prologue(Slice(LOCAL, array), ca.SX.zeros(width * (n + 1), 1))
+        return array
+
+    def _pairs(self, b: ScheduleBuilder, name: str, inputs: list[ca.SX], outputs: list[ca.SX], reads: list[Slice],
+               writes: list[Slice], ancestor: bool) -> None:
+        """A loop over the joint pairs (i, j) with i a strict ancestor of j (``ancestor``) or j one
+        of i: on a serial chain i < j (ABOVE) or i > j (BELOW)."""
+        f = body(name, inputs, outputs)
+        if self.serial:
+            b.loop(f, ABOVE if ancestor else BELOW, self.n, reads, writes)
+        else:
+            b.loop(f, PAIRS, self.n, reads, writes, self.ancestor_pairs if ancestor else self.descendant_pairs)
 
     # -- pieces ---------------------------------------------------------------------------
 
@@ -72,12 +133,10 @@ class ChainLoops:
         return b.local(ca.horzcat(*axes)), b.local(ca.horzcat(*(x.vector() for x in inertias)))
 
     def _composite_inertias(self, b: ScheduleBuilder, BODY: int) -> int:
-        """Ic_i (13 per joint, n + 1 of them, the last zero), summed from the tip."""
-        IC = b.local(size=INERTIA * (self.n + 1))
-        b.prologue(Slice(LOCAL, IC, INERTIA * self.n), ca.SX.zeros(INERTIA, 1))
-        own, child = ca.SX.sym("I", INERTIA), ca.SX.sym("child", INERTIA)
-        b.loop(body("composite_inertia", [own, child], [own + child]), DESCENDING, self.n,
-               [_at(BODY, INERTIA), _at(IC, INERTIA, offset=INERTIA)], [_at(IC, INERTIA)])
+        """Ic_i (13 per joint, n + 1 of them), summed from the tip."""
+        IC = self._zeros(b, INERTIA)
+        own = ca.SX.sym("I", INERTIA)
+        self._subtree_sum(b, "composite_inertia", [own], [_at(BODY, INERTIA)], own, IC)
         return IC
 
     def _velocities(self, b: ScheduleBuilder, S: int, qd: ca.SX) -> tuple[int, int, int]:
@@ -89,7 +148,7 @@ class ChainLoops:
         qd_i = ca.SX.sym("qd")
         v = v_p + s * qd_i
         b.loop(body("velocity_pass", [v_p, s, qd_i], [v, motion_cross6(v, s)]), RANGE, n,
-               [_at(V, 6), _at(S, 6), _at(QD, 1)], [_at(V, 6, offset=6), _at(SDOT, 6)])
+               [self._parent_state(V, 6), _at(S, 6), _at(QD, 1)], [_at(V, 6, offset=6), _at(SDOT, 6)])
         return QD, V, SDOT
 
     def _torques(self, b: ScheduleBuilder, S: int, BODY: int, velocities: tuple[int, int, int], qdd: ca.SX | None,
@@ -102,20 +161,20 @@ class ChainLoops:
         A = b.local(size=6 * (n + 1))
         b.prologue(Slice(LOCAL, A), _base_acceleration(self.tree))
         EXTRA = b.local(extra)
-        F = b.local(size=6 * (n + 1))
-        b.prologue(Slice(LOCAL, F, 6 * n), ca.SX.zeros(6, 1))
-        a_p, s, sdot, v, f, child = _syms("a_p s sdot v f child")
+        F = self._zeros(b, 6)
+        a_p, s, sdot, v, f = _syms("a_p s sdot v f")
         qd_i, qdd_i = ca.SX.sym("qd"), ca.SX.sym("qdd")
         inertia = ca.SX.sym("I", INERTIA)
         I = inertia_of(inertia)
-        inputs, reads, a = [a_p, s, sdot, qd_i], [_at(A, 6), _at(S, 6), _at(SDOT, 6), _at(QD, 1)], a_p + sdot * qd_i
+        inputs, reads, a = ([a_p, s, sdot, qd_i], [self._parent_state(A, 6), _at(S, 6), _at(SDOT, 6), _at(QD, 1)],
+                            a_p + sdot * qd_i)
         if qdd is not None:
             QDD = b.local(qdd)
             inputs, reads, a = inputs + [qdd_i], reads + [_at(QDD, 1)], a + s * qdd_i
         b.loop(body("acceleration_pass", inputs, [a]), RANGE, n, reads, [_at(A, 6, offset=6)])
         force = I.apply6(a_p) + force_cross6(v, I.apply6(v))
-        b.loop(body("body_force", [inertia, a_p, v, child], [force + child]), DESCENDING, n,
-               [_at(BODY, INERTIA), _at(A, 6, offset=6), _at(V, 6, offset=6), _at(F, 6, offset=6)], [_at(F, 6)])
+        self._subtree_sum(b, "body_force", [inertia, a_p, v],
+                          [_at(BODY, INERTIA), _at(A, 6, offset=6), _at(V, 6, offset=6)], force, F)
         e = ca.SX.sym("e")
         b.loop(body("joint_torque", [s, f, e], [ca.dot(s, f) + e]), RANGE, n,
                [_at(S, 6), _at(F, 6), _at(EXTRA, 1)], [target])
@@ -130,8 +189,8 @@ class ChainLoops:
         u_out = inertia_of(inertia).apply6(s)
         b.loop(body("mass_diagonal", [inertia, s, arm], [u_out, ca.dot(s, u_out) + arm]), RANGE, n,
                [_at(IC, INERTIA), _at(S, 6), _at(ARM, 1)], [_at(U, 6), Slice(*target, i_stride=n + 1)])
-        b.loop(body("mass_term", [s, u], [ca.dot(s, u)] * 2), ABOVE, n, [_at(S, 6), _at(U, 6, "j")],
-               [Slice(*target, i_stride=n, j_stride=1), Slice(*target, i_stride=1, j_stride=n)])
+        self._pairs(b, "mass_term", [s, u], [ca.dot(s, u)] * 2, [_at(S, 6), _at(U, 6, "j")],
+                    [Slice(*target, i_stride=n, j_stride=1), Slice(*target, i_stride=1, j_stride=n)], ancestor=True)
 
     def _extra(self, qd: ca.SX | None, qdd: ca.SX | None) -> ca.SX:
         """Armature qdd + friction(qd): what each joint adds to S . F."""
@@ -157,12 +216,11 @@ class ChainLoops:
         n = self.n
         S, BODY = self._kinematics(b)
         _, V, SDOT = self._velocities(b, S, qd)
-        REC = b.local(size=25 * (n + 1))  # composites: inertia (13), T (9), p (3); the last zero
-        b.prologue(Slice(LOCAL, REC, 25 * n), ca.SX.zeros(25, 1))
-        inertia, child, (v, s, sdot, u, x) = ca.SX.sym("I", INERTIA), ca.SX.sym("child", 25), _syms("v s sdot u x")
+        REC = self._zeros(b, 25)  # composites: inertia (13), T (9), p (3)
+        inertia, (v, s, sdot, u, x) = ca.SX.sym("I", INERTIA), _syms("v s sdot u x")
         _, T_, p = _body_terms(inertia_of(inertia), v, ca.SX.zeros(6, 1))
-        b.loop(body("composite_terms", [inertia, v, child], [ca.vertcat(inertia, ca.vec(T_), p) + child]),
-               DESCENDING, n, [_at(BODY, INERTIA), _at(V, 6, offset=6), _at(REC, 25, offset=25)], [_at(REC, 25)])
+        self._subtree_sum(b, "composite_terms", [inertia, v], [_at(BODY, INERTIA), _at(V, 6, offset=6)],
+                          ca.vertcat(inertia, ca.vec(T_), p), REC)
         record = ca.SX.sym("record", 25)
         Ic, T, pc = inertia_of(record[:INERTIA]), ca.reshape(record[INERTIA:22], 3, 3), record[22:25]
         B_S = ca.vertcat(T @ s[:3] / 2, -ca.cross(pc, s[:3]))
@@ -174,50 +232,59 @@ class ChainLoops:
         out = (OUTPUT, 0)
         b.loop(body("diagonal_term", [s, x], [ca.dot(s, x)]), RANGE, n, [_at(S, 6), _at(X, 6)],
                [Slice(*out, i_stride=n + 1)])
-        b.loop(body("subtree_term", [u, w, sdot, s], [ca.dot(u, sdot) + ca.dot(w, s[:3])]), BELOW, n,
-               [_at(U, 6), _at(W, 3), _at(SDOT, 6, "j"), _at(S, 6, "j")], [Slice(*out, i_stride=n, j_stride=1)])
-        b.loop(body("ancestor_term", [s, x], [ca.dot(s, x)]), ABOVE, n, [_at(S, 6), _at(X, 6, "j")],
-               [Slice(*out, i_stride=n, j_stride=1)])
+        self._pairs(b, "subtree_term", [u, w, sdot, s], [ca.dot(u, sdot) + ca.dot(w, s[:3])],
+                    [_at(U, 6), _at(W, 3), _at(SDOT, 6, "j"), _at(S, 6, "j")], [Slice(*out, i_stride=n, j_stride=1)],
+                    ancestor=False)
+        self._pairs(b, "ancestor_term", [s, x], [ca.dot(s, x)], [_at(S, 6), _at(X, 6, "j")],
+                    [Slice(*out, i_stride=n, j_stride=1)], ancestor=True)
 
     def forward_dynamics(self, b: ScheduleBuilder, qd: ca.SX, tau: ca.SX) -> None:
         """qdd by the articulated-body algorithm (Featherstone 2008, Table 7.1) in base-frame
         vectors, O(n): from the tip, the articulated inertia and bias force of each subtree,
-        I^A_i = I_i + I^a_(i+1), p^A_i = v_i x* I_i v_i + p^a_(i+1), U = I^A S, D = S . U +
+        I^A_i = I_i + sum of I^a over its children, p^A_i = v_i x* I_i v_i + sum of p^a, U = I^A S, D = S . U +
         armature, u = tau - friction - S . p^A, I^a = I^A - U U^T / D, p^a = p^A + I^a c + U u / D
-        (c = Sdot qd); then from the base, a'_i = a_(i-1) + c_i, qdd_i = (u_i - U_i . a'_i) / D_i
-        and a_i = a'_i + S_i qdd_i, a_(-1) = -g."""
+        (c = Sdot qd); then from the base, a'_i = a_parent + c_i, qdd_i = (u_i - U_i . a'_i) / D_i
+        and a_i = a'_i + S_i qdd_i, the base's a = -g."""
         n = self.n
         S, BODY = self._kinematics(b)
         QD, V, SDOT = self._velocities(b, S, qd)
         RHS = b.local(tau - friction_torque(self.tree, qd))
         ARM = b.local(ca.vertcat(*(joint.armature for joint in self.tree.joints)))
-        ART = b.local(size=42 * (n + 1))  # I^a (36, by columns) and p^a (6) of each subtree; the tip's child 0
-        b.prologue(Slice(LOCAL, ART, 42 * n), ca.SX.zeros(42, 1))
+        ART = self._zeros(b, 42)  # I^a (36, by columns) and p^a (6) added up per parent
         UD = b.local(size=8 * n)  # U (6), D, u of each joint
         A = b.local(size=6 * (n + 1))
         b.prologue(Slice(LOCAL, A), _base_acceleration(self.tree))
         QDD = b.local(size=n)
-        inertia, child, (v, s, sdot, a_p, U) = ca.SX.sym("I", INERTIA), ca.SX.sym("child", 42), _syms("v s sdot a_p U")
+        inertia, children, (v, s, sdot, a_p, U) = (ca.SX.sym("I", INERTIA), ca.SX.sym("children", 42),
+                                                   _syms("v s sdot a_p U"))
         qd_i, rhs, arm, D, u = (ca.SX.sym(name) for name in ("qd", "rhs", "armature", "D", "u"))
         I = inertia_of(inertia)
         H = ca.skew(I.h)
         spatial = ca.vertcat(ca.horzcat(I.Ibar, H), ca.horzcat(H.T, I.m * ca.SX.eye(6)[3:, 3:]))
-        IA = spatial + ca.reshape(child[:36], 6, 6)
-        pA = force_cross6(v, I.apply6(v)) + child[36:]
+        IA = spatial + ca.reshape(children[:36], 6, 6)
+        pA = force_cross6(v, I.apply6(v)) + children[36:]
         U_out = IA @ s
         D_out = ca.dot(s, U_out) + arm
         u_out = rhs - ca.dot(s, pA)
         Ia = IA - U_out @ U_out.T / D_out
         pa = pA + Ia @ (sdot * qd_i) + U_out * (u_out / D_out)
-        b.loop(body("articulated", [inertia, v, s, sdot, qd_i, rhs, arm, child],
-                    [ca.vertcat(ca.vec(Ia), pa), ca.vertcat(U_out, D_out, u_out)]), DESCENDING, n,
-               [_at(BODY, INERTIA), _at(V, 6, offset=6), _at(S, 6), _at(SDOT, 6), _at(QD, 1), _at(RHS, 1), _at(ARM, 1),
-                _at(ART, 42, offset=42)], [_at(ART, 42), _at(UD, 8)])
+        articulated = ca.vertcat(ca.vec(Ia), pa)
+        inputs = [inertia, v, s, sdot, qd_i, rhs, arm]
+        reads = [_at(BODY, INERTIA), _at(V, 6, offset=6), _at(S, 6), _at(SDOT, 6), _at(QD, 1), _at(RHS, 1),
+                 _at(ARM, 1)]
+        if self.serial:  # block i holds joint i's own I^a, p^a; its child's is block i + 1
+            b.loop(body("articulated", [*inputs, children], [articulated, ca.vertcat(U_out, D_out, u_out)]),
+                   DESCENDING, n, [*reads, _at(ART, 42, offset=42)], [_at(ART, 42), _at(UD, 8)])
+        else:  # block i holds the sum of its children's I^a, p^a; joint i adds its own into its parent's
+            parent = ca.SX.sym("parent", 42)
+            b.loop(body("articulated", [*inputs, children, parent],
+                        [parent + articulated, ca.vertcat(U_out, D_out, u_out)]), DESCENDING, n,
+                   [*reads, _at(ART, 42), self._parent_block(ART, 42)], [self._parent_block(ART, 42), _at(UD, 8)])
         a_prime = a_p + sdot * qd_i
         qdd = (u - ca.dot(U, a_prime)) / D
         b.loop(body("acceleration", [a_p, U, D, u, s, sdot, qd_i], [qdd, a_prime + s * qdd]), RANGE, n,
-               [_at(A, 6), _at(UD, 8), _at(UD, 8, offset=6), _at(UD, 8, offset=7), _at(S, 6), _at(SDOT, 6), _at(QD, 1)],
-               [_at(QDD, 1), _at(A, 6, offset=6)])
+               [self._parent_state(A, 6), _at(UD, 8), _at(UD, 8, offset=6), _at(UD, 8, offset=7), _at(S, 6),
+                _at(SDOT, 6), _at(QD, 1)], [_at(QDD, 1), _at(A, 6, offset=6)])
         x = ca.SX.sym("qdd", n)
         b.loop(body("copy", [x], [x]), ONCE, 1, [Slice(LOCAL, QDD)], [Slice(OUTPUT, 0)])
 

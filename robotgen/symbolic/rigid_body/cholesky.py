@@ -1,7 +1,12 @@
-"""Solve M x = b for symmetric positive definite M by an unrolled Cholesky factorisation
-(M = L L^T, then two triangular solves); never an explicit inverse. The reciprocals of L's
-diagonal are formed once, in the factorisation: every solve multiplies by them (a division
-costs several multiplications, and a matrix of right-hand sides would repeat them)."""
+"""Solve M x = b for symmetric positive definite M by an unrolled factorisation
+M = L D L^T (L unit lower triangular, D diagonal, no square roots), then two triangular
+solves; never an explicit inverse. The reciprocals of D are formed once, in the
+factorisation: every solve multiplies by them (a division costs several multiplications,
+and a matrix of right-hand sides would repeat them). Without square roots the factorisation's
+chain of dependent operations per column is a division shorter than Cholesky's. A pivot
+d_j <= 0 (M not positive definite) becomes NaN, which reaches every result, so the checked
+functions return their status (robotgen.symbolic.kernel.Kernel.guarded) as a square root
+of a negative number would make them."""
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -13,34 +18,36 @@ from robotgen.symbolic.schedule import LOCAL, RANGE, ROWS_ABOVE_DESCENDING, ROWS
 
 @dataclass(frozen=True, eq=False)
 class Cholesky:
-    L: list[list[ca.SX]]  # lower triangular, M = L L^T
-    inverse_diagonal: list[ca.SX]  # 1 / L[i][i]
+    L: list[list[ca.SX]]  # unit lower triangular (the diagonal is 1 and not read), M = L D L^T
+    diagonal: list[ca.SX]  # d_i (NaN where M is not positive definite)
+    inverse_diagonal: list[ca.SX]  # 1 / d_i
 
 
 def cholesky_factor(M: ca.SX) -> Cholesky:
     n = M.shape[0]
     L = [[ca.SX(0)] * n for _ in range(n)]
-    inverse = [ca.SX(0)] * n
+    E = [[ca.SX(0)] * n for _ in range(n)]  # E_ij = L_ij d_j
+    d, inverse = [ca.SX(0)] * n, [ca.SX(0)] * n
     for j in range(n):
-        s = M[j, j] - sum((L[j][k] * L[j][k] for k in range(j)), ca.SX(0))
-        L[j][j] = ca.sqrt(s)
-        inverse[j] = 1 / L[j][j]
+        pivot = M[j, j] - sum((E[j][k] * L[j][k] for k in range(j)), ca.SX(0))
+        d[j] = ca.if_else(pivot > 0, pivot, ca.SX(float("nan")))
+        inverse[j] = 1 / d[j]
         for i in range(j + 1, n):
-            s = M[i, j] - sum((L[i][k] * L[j][k] for k in range(j)), ca.SX(0))
-            L[i][j] = s * inverse[j]
-    return Cholesky(L, inverse)
+            E[i][j] = M[i, j] - sum((E[i][k] * L[j][k] for k in range(j)), ca.SX(0))
+            L[i][j] = E[i][j] * inverse[j]
+    return Cholesky(L, d, inverse)
 
 
 def cholesky_substitute(factor: Cholesky, b: ca.SX) -> ca.SX:
-    """x with L L^T x = b (b a column): forward, then back substitution."""
+    """x with L D L^T x = b (b a column): forward substitution, scaling, back substitution."""
     L, inverse = factor.L, factor.inverse_diagonal
     n = len(L)
     y = [ca.SX(0)] * n
     for i in range(n):
-        y[i] = (b[i] - sum((L[i][k] * y[k] for k in range(i)), ca.SX(0))) * inverse[i]
+        y[i] = b[i] - sum((L[i][k] * y[k] for k in range(i)), ca.SX(0))
     x = [ca.SX(0)] * n
     for i in reversed(range(n)):
-        x[i] = (y[i] - sum((L[k][i] * x[k] for k in range(i + 1, n)), ca.SX(0))) * inverse[i]
+        x[i] = y[i] * inverse[i] - sum((L[k][i] * x[k] for k in range(i + 1, n)), ca.SX(0))
     return ca.vertcat(*x)
 
 
@@ -59,26 +66,23 @@ def cholesky_solve_matrix(M: ca.SX, B: ca.SX) -> ca.SX:
 
 
 def row_solve_coefficients(factor: Cholesky) -> ca.SX:
-    """What schedule_row_solve reads, as one column: F (n x n, row-major) with
-    F_ij = L_ij / L_jj below the diagonal, B with B_ik = L_ki L_ii / L_kk^2 above it, and
-    d_i = 1 / L_ii^2.
+    """What schedule_row_solve reads, as one column: F (n x n, row-major) with F_ij = L_ij below
+    the diagonal, B with B_ik = d_i L_ki / d_k above it, and 1 / d_i.
 
     With them, M X = R for a matrix of right-hand sides R is solved row by row, every update a
     whole row at once (the columns are independent, so the processor overlaps them; solving
     column after column is a chain of dependent operations per column): forward, for
     i = 1, ..., n-1, R_i -= F_ij R_j (j < i); back, for i = n-2, ..., 0, R_i -= B_ik R_k (k > i);
-    then X_i = d_i R_i. (The forward pass leaves R_i = L_ii y_i with L y = R; the back pass
-    R_i = L_ii^2 x_i.)"""
-    L, inverse = factor.L, factor.inverse_diagonal
+    then X_i = R_i / d_i. (The forward pass leaves R = L^-1 R; the back pass R_i = d_i x_i.)"""
+    L, d, inverse = factor.L, factor.diagonal, factor.inverse_diagonal
     n = len(L)
     F = ca.SX.zeros(n, n)
     B = ca.SX.zeros(n, n)
     for i in range(n):
         for j in range(i):
-            F[i, j] = L[i][j] * inverse[j]
-            B[j, i] = L[i][j] * L[j][j] * inverse[i] * inverse[i]
-    d = ca.vertcat(*(inverse[i] * inverse[i] for i in range(n)))
-    return ca.vertcat(ca.vec(F.T), ca.vec(B.T), d)
+            F[i, j] = L[i][j]
+            B[j, i] = d[j] * L[i][j] * inverse[i]
+    return ca.vertcat(ca.vec(F.T), ca.vec(B.T), ca.vertcat(*inverse))
 
 
 def solve_with_coefficients(coefficients: ca.SX, rhs: ca.SX) -> ca.SX:

@@ -78,7 +78,7 @@ int styx_finger_nonlinear(const double *q, const double *qd, double *nonlinear);
 int styx_finger_inverse_dynamics(const double *q, const double *qd, const double *qdd, double *inverse_dynamics);
 
 /* styx_finger_forward_dynamics:
- * M^-1 (tau - C qd - N) by Cholesky solve.
+ * M^-1 (tau - C qd - N) by an L D L^T solve.
  *
  *   in  q (2,)
  *   in  qd (2,)
@@ -152,7 +152,7 @@ int styx_finger_inverse_dynamics_derivatives(const double *q, const double *qd, 
 int styx_finger_forward_dynamics_derivatives(const double *q, const double *qd, const double *tau, double *dqdd_dq, double *dqdd_dqd, double *dqdd_dtau);
 
 /* styx_finger_mass_inverse:
- * M(q)^-1 (Cholesky factorisation, then solves).
+ * M(q)^-1 (L D L^T factorisation, then solves).
  *
  *   in  q (2,)
  *   out mass_inverse (2, 2) row-major

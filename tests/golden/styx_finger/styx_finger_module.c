@@ -605,7 +605,7 @@ PyDoc_STRVAR(k_forward_dynamics_doc,
     "forward_dynamics($module, q, qd, tau)\n"
     "--\n"
     "\n"
-    "M^-1 (tau - C qd - N) by Cholesky solve.\n"
+    "M^-1 (tau - C qd - N) by an L D L^T solve.\n"
     "\n"
     "q: float64 array (2,) or (B, 2)\n"
     "qd: float64 array (2,) or (B, 2)\n"
@@ -903,7 +903,7 @@ PyDoc_STRVAR(k_mass_inverse_doc,
     "mass_inverse($module, q)\n"
     "--\n"
     "\n"
-    "M(q)^-1 (Cholesky factorisation, then solves).\n"
+    "M(q)^-1 (L D L^T factorisation, then solves).\n"
     "\n"
     "q: float64 array (2,) or (B, 2)\n"
     "Returns mass_inverse (2, 2); batched inputs give a leading B axis.");

@@ -120,7 +120,7 @@ int two_link_nonlinear(const double *q, const double *qd, double *nonlinear);
 int two_link_inverse_dynamics(const double *q, const double *qd, const double *qdd, double *inverse_dynamics);
 
 /* two_link_forward_dynamics:
- * Joint accelerations M^-1 (tau - C qd - N) by Cholesky solve.
+ * Joint accelerations M^-1 (tau - C qd - N) by an L D L^T solve (past 12 joints: articulated bodies).
  *
  *   in  q (2,)
  *   in  qd (2,)
@@ -192,7 +192,7 @@ int two_link_inverse_dynamics_derivatives(const double *q, const double *qd, con
 int two_link_forward_dynamics_derivatives(const double *q, const double *qd, const double *tau, double *dqdd_dq, double *dqdd_dqd, double *dqdd_dtau);
 
 /* two_link_mass_inverse:
- * M(q)^-1 (Cholesky factorisation, then solves).
+ * M(q)^-1 (L D L^T factorisation, then solves).
  *
  *   in  q (2,)
  *   out mass_inverse (2, 2) row-major

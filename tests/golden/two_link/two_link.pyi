@@ -43,7 +43,7 @@ def inverse_dynamics(q: npt.ArrayLike, qd: npt.ArrayLike, qdd: npt.ArrayLike) ->
     """Joint torques M qdd + C qd + N (recursive Newton-Euler)."""
 
 def forward_dynamics(q: npt.ArrayLike, qd: npt.ArrayLike, tau: npt.ArrayLike) -> npt.NDArray[np.float64]:
-    """Joint accelerations M^-1 (tau - C qd - N) by Cholesky solve."""
+    """Joint accelerations M^-1 (tau - C qd - N) by an L D L^T solve (past 12 joints: articulated bodies)."""
 
 def servo_terms(q: npt.ArrayLike, qd: npt.ArrayLike) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64], npt.NDArray[np.float64], npt.NDArray[np.float64]]:
     """M(q), C(q, qd) qd + N, the tip Jacobian J and Jdot qd in one call: a computed-torque servo cycle's terms, sharing sin/cos and kinematics."""
@@ -55,7 +55,7 @@ def forward_dynamics_derivatives(q: npt.ArrayLike, qd: npt.ArrayLike, tau: npt.A
     """Partial derivatives of forward dynamics: d qdd/dq, d qdd/dqd and d qdd/d tau = M^-1."""
 
 def mass_inverse(q: npt.ArrayLike) -> npt.NDArray[np.float64]:
-    """M(q)^-1 (Cholesky factorisation, then solves)."""
+    """M(q)^-1 (L D L^T factorisation, then solves)."""
 
 def discrete_dynamics(q: npt.ArrayLike, qd: npt.ArrayLike, tau: npt.ArrayLike, dt: npt.ArrayLike) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
     """One step of length dt, tau held: semi-implicit Euler (qd+ = qd + dt qdd, q+ = q + dt qd+). Returns q+, qd+."""
