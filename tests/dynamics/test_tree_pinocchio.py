@@ -19,10 +19,10 @@ def random_rotation(rng) -> np.ndarray:
     return Q if np.linalg.det(Q) > 0 else -Q
 
 
-def random_tree(seed: int) -> KinematicTree:
+def random_tree(seed: int, parents: list[int] = PARENTS) -> KinematicTree:
     rng = np.random.default_rng(seed)
     joints = []
-    for i, parent in enumerate(PARENTS):
+    for i, parent in enumerate(parents):
         T = np.eye(4)
         T[:3, :3], T[:3, 3] = random_rotation(rng), rng.normal(size=3) * 0.3
         axis = rng.normal(size=3)
@@ -79,6 +79,56 @@ def test_branched_tree_matches_pinocchio(seed):
         pin.forwardKinematics(model, data, q, qd, np.zeros(n))
         acc = pin.getFrameClassicalAcceleration(model, data, fid, pin.LOCAL_WORLD_ALIGNED).vector
         np.testing.assert_allclose(np.array(f["jacobian_dot_qd"](q, qd)).ravel(), acc, atol=1e-12)
+
+
+# 18 joints, two roots, branches of several lengths: past 12 joints its dynamics are loops
+LONG_PARENTS = [-1, 0, 1, 2, 1, 4, 5, 6, 0, 8, 9, 10, 9, 12, 13, -1, 15, 16]
+
+
+def test_long_branched_tree_as_loops_matches_pinocchio(tmp_path):
+    """The loops of chain_loops on a tree (parent tables, listed ancestor pairs), as CasADi
+    graphs and as compiled C, against Pinocchio."""
+    import importlib.util
+
+    from robotgen.emit import compile as emit_compile
+    from robotgen.emit.build import emit
+
+    tree = random_tree(7, LONG_PARENTS)
+    kernels = leaf_kernels(tree)
+    for name in ("mass", "coriolis", "inverse_dynamics", "nonlinear", "forward_dynamics", "servo_terms"):
+        assert next(k for k in kernels if k.name == name).schedule is not None, name
+    emit(tmp_path / "long_tree", "long_tree", kernels, nq=tree.nq)
+    spec = importlib.util.spec_from_file_location(
+        "long_tree", tmp_path / "long_tree" / f"long_tree{emit_compile.extension_suffix()}")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    f = {k.name: k.function for k in kernels}
+    model, _ = pinocchio_model(tree)
+    data = model.createData()
+    n = tree.nq
+    rng = np.random.default_rng(18)
+    for _ in range(10):
+        q, qd, qdd = rng.normal(size=n), rng.normal(size=n), rng.normal(size=n)
+        Mp = pin.crba(model, data, q)
+        Mp = np.triu(Mp) + np.triu(Mp, 1).T
+        tau = pin.rnea(model, data, q, qd, qdd)
+        h = pin.rnea(model, data, q, qd, np.zeros(n))
+        C = pin.computeCoriolisMatrix(model, data, q, qd)
+        for M, t, hh, CC, a in [
+            (np.array(f["mass"](q)).reshape(n, n), np.array(f["inverse_dynamics"](q, qd, qdd)).ravel(),
+             np.array(f["nonlinear"](q, qd)).ravel(), np.array(f["coriolis"](q, qd)).reshape(n, n),
+             np.array(f["forward_dynamics"](q, qd, tau)).ravel()),
+            (module.mass(q), module.inverse_dynamics(q, qd, qdd), module.nonlinear(q, qd), module.coriolis(q, qd),
+             module.forward_dynamics(q, qd, tau)),
+        ]:
+            np.testing.assert_allclose(M, Mp, atol=1e-11)
+            np.testing.assert_allclose(t, tau, atol=1e-10)
+            np.testing.assert_allclose(hh, h, atol=1e-10)
+            np.testing.assert_allclose(CC, C, atol=1e-11)
+            np.testing.assert_allclose(a, qdd, atol=1e-8)
+        Ms, hs, _, _ = module.servo_terms(q, qd)
+        np.testing.assert_allclose(Ms, Mp, atol=1e-11)
+        np.testing.assert_allclose(hs, h, atol=1e-10)
 
 
 @pytest.mark.parametrize("seed", [0, 1, 2])
