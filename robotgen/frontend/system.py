@@ -13,7 +13,6 @@ from robotgen.frontend.document import Document, Path, format_path, sort_errors
 from robotgen.frontend.leaves import LeafReader
 from robotgen.frontend.simulation import SimulationReader
 from robotgen.model.derivatives import SEMI_IMPLICIT_EULER, DerivativeSettings
-from robotgen.model.laws import ROOT_LAWS
 from robotgen.model.names import name_problem
 from robotgen.model.signature import (
     Signature,
@@ -161,17 +160,10 @@ class SpecReader(LeafReader, AttachReader, ControlReader, ResolvedRateReader, Ha
             sig(name)
         return nodes
 
-    def derivatives(self, spec: dict, root: Node | None) -> DerivativeSettings:
-        """The `derivatives` section: asking for them needs a root whose module has a leaf's
-        dynamics (a define leaf, or a chain under a root law)."""
-        settings = DerivativeSettings(spec.get("include"), spec.get("integrator", SEMI_IMPLICIT_EULER))
-        has_dynamics = isinstance(root, DefineNode) or (isinstance(root, ControlNode) and root.law in ROOT_LAWS)
-        if settings.include and root is not None and not has_dynamics:
-            self.at_value(("derivatives", "include"), "derivatives are emitted for a module whose root is a "
-                          "define leaf, or a chain under a root law (resolved_rate, resolved_acceleration, "
-                          f"resolved_adaptive); this root is a{'n' if root.primitive == 'attach' else ''} "
-                          f"{root.primitive} node")
-        return settings
+    def derivatives(self, spec: dict) -> DerivativeSettings:
+        """The `derivatives` section (a robot tree's module gets the plant's derivatives only
+        when it asks, robotgen.symbolic.system_kernels)."""
+        return DerivativeSettings(spec.get("include"), spec.get("integrator", SEMI_IMPLICIT_EULER))
 
     def system(self) -> RobotSystem:
         data = self.doc.data
@@ -186,7 +178,7 @@ class SpecReader(LeafReader, AttachReader, ControlReader, ResolvedRateReader, Ha
         whole = self.check_tree(nodes, root)
         nodes = self.signatures(nodes, root, whole)
         simulation = self.simulation(data["simulation"], nodes, root) if "simulation" in data else None
-        derivatives = self.derivatives(data.get("derivatives", {}), nodes.get(root))
+        derivatives = self.derivatives(data.get("derivatives", {}))
         return RobotSystem(name=data["name"], source=self.doc.path, source_sha256=self.doc.sha256,
                            nodes=nodes, root=root, warnings=tuple(self.warnings), simulation=simulation,
                            derivatives=derivatives,

@@ -9,6 +9,7 @@ import casadi as ca
 from robotgen.model.parameter_struct import runtime_parameters
 from robotgen.model.signature import internal_force_names
 from robotgen.model.system import DefineNode, RobotSystem
+from robotgen.symbolic.differentiation import reverse_jacobian
 from robotgen.symbolic.kernel import Kernel, ParameterSymbols, make_kernel
 from robotgen.symbolic.plant import Plant
 from robotgen.symbolic.servo import Servo, Trajectory
@@ -31,6 +32,25 @@ def _write_kernel(g: SystemGraphs, name: str, kernel_name: str, doc: str) -> Ker
         inputs += [("state", servo.state), ("dt", servo.dt)]
         outputs.append(("state_next", servo.state_next(), (servo.n_state, 1)))
     return make_kernel(kernel_name, doc, inputs, outputs, g.parameters, guarded=kernel_name == "servo_step")
+
+
+def _plant_derivatives(plant: Plant, parameters: ParameterSymbols) -> list[Kernel]:
+    """The partial derivatives of the tree's constrained dynamics (plant_dynamics), for
+    trajectory optimisation and MPC of a robot tree: one reverse sweep of CasADi's AD per output
+    row (the spec asks for them with derivatives: {include: true})."""
+    pg = plant.graphs
+    theta, v, tau = pg.theta, plant.v, plant.tau
+    n, m = pg.n, plant.n_v
+    outputs = [("dtheta_dot_dtheta", reverse_jacobian(plant.theta_dot, theta), (n, n)),
+               ("dtheta_dot_dv", reverse_jacobian(plant.theta_dot, v), (n, m)),
+               ("dv_dot_dtheta", reverse_jacobian(plant.v_dot, theta), (m, n)),
+               ("dv_dot_dv", reverse_jacobian(plant.v_dot, v), (m, m)),
+               ("dv_dot_dtau", reverse_jacobian(plant.v_dot, tau), (m, n))]
+    return [make_kernel(
+        "plant_dynamics_derivatives", "Partial derivatives of plant_dynamics: d theta_dot/d theta, "
+        "d theta_dot/d v, d v_dot/d theta, d v_dot/d v and d v_dot/d tau.",
+        [("theta", theta), ("v", v), ("tau", tau)], [(name, ca.densify(x), shape) for name, x, shape in outputs],
+        parameters, guarded=True)]
 
 
 def system_kernels(system: RobotSystem) -> list[Kernel]:
@@ -94,6 +114,8 @@ def system_kernels(system: RobotSystem) -> list[Kernel]:
             "constraint_residual", "Position-level constraint residual y - h^-1(h(y)) at every attach with an "
             f"inverse map, y its robots' stacked positions ({', '.join(plant.residual_names)}): zero when the leaf "
             "positions satisfy every grasp.", [theta], [("residual", plant.residual, (plant.residual.shape[0], 1))]))
+    if system.derivatives.include:
+        kernels += _plant_derivatives(plant, parameters)
     if plant.inverse is not None:
         kernels.append(kernel("plant_inverse", "Leaf joint positions for root positions x, through "
                                "every attach's inverse kinematics.", [("x", plant.x_sym)],
