@@ -373,7 +373,8 @@ _DEFS = {
         "the derivative functions of a module whose root is a define leaf (or a hand or "
         "resolved-rate law on a chain): inverse_dynamics_derivatives, "
         "forward_dynamics_derivatives, mass_inverse, discrete_dynamics, "
-        "discrete_dynamics_derivatives and, for a chain, jacobian_derivative",
+        "discrete_dynamics_derivatives and, for a chain, jacobian_derivative; of a robot "
+        "tree's module: plant_dynamics_derivatives",
         {"include": {"type": "boolean",
                      "description": f"emit them; default true for a define leaf of at most {DEFAULT_MAX_DOF} "
                                     "coordinates, false otherwise (they grow build time)"},
