@@ -25,7 +25,7 @@ from robotgen.symbolic.kernel import row_major
 from robotgen.symbolic.rigid_body.friction import friction_torque
 from robotgen.symbolic.rigid_body.inertia import OriginInertia
 from robotgen.symbolic.rigid_body.kinematics import JointMotion
-from robotgen.symbolic.rigid_body.rnea_derivatives import _axes_and_inertias, _base_acceleration, _body_terms
+from robotgen.symbolic.rigid_body.rnea_derivatives import axes_and_inertias, base_acceleration, body_terms
 from robotgen.symbolic.rigid_body.spatial import force_cross6, motion_cross6
 from robotgen.symbolic.schedule import (
     ABOVE,
@@ -129,7 +129,7 @@ class ChainLoops:
     # -- pieces ---------------------------------------------------------------------------
 
     def _kinematics(self, b: ScheduleBuilder) -> tuple[int, int]:
-        axes, inertias = _axes_and_inertias(self.tree, self.motions)
+        axes, inertias = axes_and_inertias(self.tree, self.motions)
         return b.local(ca.horzcat(*axes)), b.local(ca.horzcat(*(x.vector() for x in inertias)))
 
     def _composite_inertias(self, b: ScheduleBuilder, BODY: int) -> int:
@@ -159,7 +159,7 @@ class ChainLoops:
         n = self.n
         QD, V, SDOT = velocities
         A = b.local(size=6 * (n + 1))
-        b.prologue(Slice(LOCAL, A), _base_acceleration(self.tree))
+        b.prologue(Slice(LOCAL, A), base_acceleration(self.tree))
         EXTRA = b.local(extra)
         F = self._zeros(b, 6)
         a_p, s, sdot, v, f = _syms("a_p s sdot v f")
@@ -218,7 +218,7 @@ class ChainLoops:
         _, V, SDOT = self._velocities(b, S, qd)
         REC = self._zeros(b, 25)  # composites: inertia (13), T (9), p (3)
         inertia, (v, s, sdot, u, x) = ca.SX.sym("I", INERTIA), _syms("v s sdot u x")
-        _, T_, p = _body_terms(inertia_of(inertia), v, ca.SX.zeros(6, 1))
+        _, T_, p = body_terms(inertia_of(inertia), v, ca.SX.zeros(6, 1))
         self._subtree_sum(b, "composite_terms", [inertia, v], [_at(BODY, INERTIA), _at(V, 6, offset=6)],
                           ca.vertcat(inertia, ca.vec(T_), p), REC)
         record = ca.SX.sym("record", 25)
@@ -253,7 +253,7 @@ class ChainLoops:
         ART = self._zeros(b, 42)  # I^a (36, by columns) and p^a (6) added up per parent
         UD = b.local(size=8 * n)  # U (6), D, u of each joint
         A = b.local(size=6 * (n + 1))
-        b.prologue(Slice(LOCAL, A), _base_acceleration(self.tree))
+        b.prologue(Slice(LOCAL, A), base_acceleration(self.tree))
         QDD = b.local(size=n)
         inertia, children, (v, s, sdot, a_p, U) = (ca.SX.sym("I", INERTIA), ca.SX.sym("children", 42),
                                                    _syms("v s sdot a_p U"))

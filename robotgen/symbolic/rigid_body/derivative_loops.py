@@ -26,12 +26,12 @@ from robotgen.symbolic.rigid_body.friction import friction_torque
 from robotgen.symbolic.rigid_body.inertia import OriginInertia
 from robotgen.symbolic.rigid_body.kinematics import JointMotion
 from robotgen.symbolic.rigid_body.rnea_derivatives import (
-    _axes_and_inertias,
-    _base_acceleration,
-    _body_terms,
-    _forward_step,
-    _joint_outputs,
     ancestor_term,
+    axes_and_inertias,
+    base_acceleration,
+    body_terms,
+    forward_step,
+    joint_outputs,
     subtree_term,
 )
 from robotgen.symbolic.rigid_body.spatial import motion_cross6
@@ -63,7 +63,7 @@ class _Chain:
     def __init__(self, b: ScheduleBuilder, tree: KinematicTree, motions: list[JointMotion], qd: ca.SX):
         self.b, self.n = b, tree.nq
         n = self.n
-        axes, inertias = _axes_and_inertias(tree, motions)
+        axes, inertias = axes_and_inertias(tree, motions)
         self.S = b.local(ca.horzcat(*axes))
         self.BODY = b.local(ca.horzcat(*(x.vector() for x in inertias)))  # each body's own
         self.REC = b.local(size=RECORD * (n + 1))
@@ -71,7 +71,7 @@ class _Chain:
         self.V = b.local(size=6 * (n + 1))  # v of joint i at 6 (i + 1); the base's at 0
         self.A = b.local(size=6 * (n + 1))
         b.prologue(Slice(LOCAL, self.V), ca.SX.zeros(6, 1))
-        b.prologue(Slice(LOCAL, self.A), _base_acceleration(tree))
+        b.prologue(Slice(LOCAL, self.A), base_acceleration(tree))
         self.QD = b.local(qd)
         self.FR = b.local(ca.densify(ca.diag(ca.jacobian(friction_torque(tree, qd), qd))))
         self.SDOT, self.ALPHA, self.U, self.W, self.GAMMA, self.LAM = (
@@ -87,7 +87,7 @@ class _Chain:
         """Each record: f, I, T, p of the body (from its inertia and the v, a in V, A, written
         at 6 (i + 1)) plus its child's record, from the tip: the subtree sums in one pass."""
         inertia, child, (v, a) = ca.SX.sym("I", INERTIA), ca.SX.sym("child", RECORD), _syms("v a")
-        f, T_, p = _body_terms(inertia_of(inertia), v, a)
+        f, T_, p = body_terms(inertia_of(inertia), v, a)
         own = ca.vertcat(f, inertia, ca.vec(T_), p)
         self.b.loop(body("composite_terms", [inertia, v, a, child], [own + child]), DESCENDING, self.n,
                     [self.at(self.BODY, INERTIA), self.at(V, 6, offset=6), self.at(A, 6, offset=6),
@@ -135,12 +135,12 @@ def schedule_rnea_derivatives(b: ScheduleBuilder, tree: KinematicTree, motions: 
     QDD = b.local(qdd)
     v_p, a_p, s, sdot, alpha, f = _syms("v_p a_p s sdot alpha f")
     qd_i, qdd_i = ca.SX.sym("qd"), ca.SX.sym("qdd")
-    b.loop(body("forward_pass", [v_p, a_p, s, qd_i, qdd_i], list(_forward_step(v_p, a_p, s, qd_i, qdd_i))),
+    b.loop(body("forward_pass", [v_p, a_p, s, qd_i, qdd_i], list(forward_step(v_p, a_p, s, qd_i, qdd_i))),
            RANGE, n, [at(c.V, 6), at(c.A, 6), at(c.S, 6), at(c.QD, 1), at(QDD, 1)],
            [at(c.V, 6, offset=6), at(c.A, 6, offset=6), at(c.SDOT, 6), at(c.ALPHA, 6)])
     c.composite_terms(c.V, c.A)
     inertia, T_, p = ca.SX.sym("I", INERTIA), ca.SX.sym("T", 9), ca.SX.sym("p", 3)
-    outputs = _joint_outputs(inertia_of(inertia), ca.reshape(T_, 3, 3), p, s, sdot, f, alpha)
+    outputs = joint_outputs(inertia_of(inertia), ca.reshape(T_, 3, 3), p, s, sdot, f, alpha)
     b.loop(body("joint_outputs", [f, inertia, T_, p, s, sdot, alpha], list(outputs)), RANGE, n,
            [c.rec(F), c.rec(I), c.rec(T), c.rec(P), at(c.S, 6), at(c.SDOT, 6), at(c.ALPHA, 6)],
            [at(c.U, 6), at(c.W, 3), at(c.GAMMA, 6), at(c.LAM, 6)])
@@ -155,7 +155,7 @@ def schedule_forward_dynamics_derivatives(b: ScheduleBuilder, tree: KinematicTre
     c = _Chain(b, tree, motions, qd)
     n, at = c.n, c.at
     C = b.local(size=6 * (n + 1))  # the accelerations at qdd = 0
-    b.prologue(Slice(LOCAL, C), _base_acceleration(tree))
+    b.prologue(Slice(LOCAL, C), base_acceleration(tree))
     RHS = b.local(tau - friction_torque(tree, qd))
     M, H, QDD, DF = (b.local(size=size) for size in (n * n, n, n, 6 * n))
     DFC = b.local(size=6 * (n + 1))  # subtree sums of DF, the last zero
@@ -165,7 +165,7 @@ def schedule_forward_dynamics_derivatives(b: ScheduleBuilder, tree: KinematicTre
 
     v_p, c_p, a_p, s, sdot, alpha, f, df, df_child, u, c_i = _syms("v_p c_p a_p s sdot alpha f df df_child u c")
     qd_i, qdd_i = ca.SX.sym("qd"), ca.SX.sym("qdd")
-    v, a_zero, sdot_out, _ = _forward_step(v_p, c_p, s, qd_i, ca.SX(0))
+    v, a_zero, sdot_out, _ = forward_step(v_p, c_p, s, qd_i, ca.SX(0))
     b.loop(body("velocity_pass", [v_p, c_p, s, qd_i], [v, a_zero, sdot_out]), RANGE, n,
            [at(c.V, 6), at(C, 6), at(c.S, 6), at(c.QD, 1)],
            [at(c.V, 6, offset=6), at(C, 6, offset=6), at(c.SDOT, 6)])
@@ -185,7 +185,7 @@ def schedule_forward_dynamics_derivatives(b: ScheduleBuilder, tree: KinematicTre
     # while the factorisation's chain of square roots and divisions runs: the terms that do not
     # depend on qdd (w, lam and the d tau/dqd pairs)
     inertia, T_, p = ca.SX.sym("I", INERTIA), ca.SX.sym("T", 9), ca.SX.sym("p", 3)
-    _, w, _, lam = _joint_outputs(inertia_of(inertia), ca.reshape(T_, 3, 3), p, s, sdot, f, alpha)
+    _, w, _, lam = joint_outputs(inertia_of(inertia), ca.reshape(T_, 3, 3), p, s, sdot, f, alpha)
     b.loop(body("velocity_outputs", [inertia, T_, p, s, sdot], [w, lam]), RANGE, n,
            [c.rec(I), c.rec(T), c.rec(P), at(c.S, 6), at(c.SDOT, 6)], [at(c.W, 3), at(c.LAM, 6)])
     c.pairs(None, (LOCAL, ROWS), row_stride=2 * n, second_offset=n)
@@ -195,7 +195,7 @@ def schedule_forward_dynamics_derivatives(b: ScheduleBuilder, tree: KinematicTre
     minv = ca.horzcat(*(solve_with_coefficients(coefficients, ca.SX.eye(n)[:, k]) for k in range(n)))
     b.loop(body("mass_inverse", [coefficients], [row_major(minv)]), ONCE, 1, [Slice(LOCAL, COEFFICIENTS)],
            [Slice(*targets[2])])
-    a_full = a_p + s * qdd_i + sdot * qd_i  # as _forward_step, with Sdot from the velocity pass
+    a_full = a_p + s * qdd_i + sdot * qd_i  # as forward_step, with Sdot from the velocity pass
     alpha_out = -motion_cross6(s, a_p) - motion_cross6(sdot, v_p)
     b.loop(body("acceleration_pass", [v_p, a_p, s, sdot, qd_i, qdd_i, c_i, inertia],
                 [a_full, alpha_out, inertia_of(inertia).apply6(a_full - c_i)]), RANGE, n,
@@ -203,7 +203,7 @@ def schedule_forward_dynamics_derivatives(b: ScheduleBuilder, tree: KinematicTre
             at(c.BODY, INERTIA)],
            [at(c.A, 6, offset=6), at(c.ALPHA, 6), at(DF, 6)])
     # from the tip: the subtree sum of I_k (a_k - a_k|qdd=0), added to F, then gamma
-    gamma = _joint_outputs(inertia_of(inertia), ca.reshape(T_, 3, 3), p, s, sdot, f + df + df_child, alpha)[2]
+    gamma = joint_outputs(inertia_of(inertia), ca.reshape(T_, 3, 3), p, s, sdot, f + df + df_child, alpha)[2]
     b.loop(body("joint_outputs", [f, df, df_child, inertia, T_, p, s, sdot, alpha], [df + df_child, gamma]),
            DESCENDING, n,
            [c.rec(F), at(DF, 6), at(DFC, 6, offset=6), c.rec(I), c.rec(T), c.rec(P), at(c.S, 6), at(c.SDOT, 6),

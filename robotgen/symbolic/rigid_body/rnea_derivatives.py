@@ -56,7 +56,7 @@ class JointTerms:
     ancestors: list[set[int]]
 
 
-def _axes_and_inertias(tree: KinematicTree, motions: list[JointMotion]) -> tuple[list[ca.SX], list[OriginInertia]]:
+def axes_and_inertias(tree: KinematicTree, motions: list[JointMotion]) -> tuple[list[ca.SX], list[OriginInertia]]:
     """Each joint's motion axis S and its body's inertia, about the base origin."""
     zero3 = ca.SX.zeros(3, 1)
     S, inertias = [], []
@@ -67,11 +67,11 @@ def _axes_and_inertias(tree: KinematicTree, motions: list[JointMotion]) -> tuple
     return S, inertias
 
 
-def _base_acceleration(tree: KinematicTree) -> ca.SX:
+def base_acceleration(tree: KinematicTree) -> ca.SX:
     return ca.vertcat(ca.SX.zeros(3, 1), -const(tree.gravity))
 
 
-def _forward_step(v_p: ca.SX, a_p: ca.SX, S: ca.SX, qd: ca.SX, qdd: ca.SX) -> tuple[ca.SX, ...]:
+def forward_step(v_p: ca.SX, a_p: ca.SX, S: ca.SX, qd: ca.SX, qdd: ca.SX) -> tuple[ca.SX, ...]:
     """(v, a, Sdot, alpha) of a joint from its parent's v and a."""
     v = v_p + S * qd
     Sdot = motion_cross6(v, S)
@@ -79,7 +79,7 @@ def _forward_step(v_p: ca.SX, a_p: ca.SX, S: ca.SX, qd: ca.SX, qdd: ca.SX) -> tu
     return v, a, Sdot, -motion_cross6(S, a_p) - motion_cross6(Sdot, v_p)
 
 
-def _body_terms(I: OriginInertia, v: ca.SX, a: ca.SX) -> tuple[ca.SX, ca.SX, ca.SX]:
+def body_terms(I: OriginInertia, v: ca.SX, a: ca.SX) -> tuple[ca.SX, ca.SX, ca.SX]:
     """(f = I a + v x* I v, T, p) of one body (T and p define its B, module docstring).
     [w x] Ibar - Ibar [w x] = X + X^T with X = [w x] Ibar (Ibar symmetric), and h nu^T + nu h^T
     is symmetric: each is formed from its upper triangle."""
@@ -95,7 +95,7 @@ def _body_terms(I: OriginInertia, v: ca.SX, a: ca.SX) -> tuple[ca.SX, ca.SX, ca.
     return I.apply6(a) + force_cross6(v, momentum), S - skew(momentum[:3]), momentum[3:]
 
 
-def _joint_outputs(Ic: OriginInertia, T: ca.SX, p: ca.SX, S: ca.SX, Sdot: ca.SX, F: ca.SX, alpha: ca.SX
+def joint_outputs(Ic: OriginInertia, T: ca.SX, p: ca.SX, S: ca.SX, Sdot: ca.SX, F: ca.SX, alpha: ca.SX
                    ) -> tuple[ca.SX, ...]:
     """(u, w, gamma, lam) of a joint from its subtree's composites Ic, T, p, F."""
     def B(y: ca.SX) -> ca.SX:  # Bc y
@@ -108,14 +108,14 @@ def _joint_outputs(Ic: OriginInertia, T: ca.SX, p: ca.SX, S: ca.SX, Sdot: ca.SX,
 def joint_terms(tree: KinematicTree, motions: list[JointMotion], qd: ca.SX, qdd: ca.SX) -> JointTerms:
     """The O(n) part of the recursion: everything the joint-pair terms read."""
     n = tree.nq
-    S, Ic = _axes_and_inertias(tree, motions)
-    a_base = _base_acceleration(tree)
+    S, Ic = axes_and_inertias(tree, motions)
+    a_base = base_acceleration(tree)
     Sdot, v, a, alpha, F, T, p = [], [], [], [], [], [], []
     for i, joint in enumerate(tree.joints):
         v_p, a_p = (ca.SX.zeros(6, 1), a_base) if joint.parent < 0 else (v[joint.parent], a[joint.parent])
-        for lst, x in zip((v, a, Sdot, alpha), _forward_step(v_p, a_p, S[i], qd[i], qdd[i])):
+        for lst, x in zip((v, a, Sdot, alpha), forward_step(v_p, a_p, S[i], qd[i], qdd[i])):
             lst.append(x)
-        for lst, x in zip((F, T, p), _body_terms(Ic[i], v[i], a[i])):
+        for lst, x in zip((F, T, p), body_terms(Ic[i], v[i], a[i])):
             lst.append(x)
     for i in reversed(range(n)):  # composites: subtree sums
         parent = tree.joints[i].parent
@@ -124,7 +124,7 @@ def joint_terms(tree: KinematicTree, motions: list[JointMotion], qd: ca.SX, qdd:
             Ic[parent] = Ic[parent] + Ic[i]
             T[parent] = T[parent] + T[i]
             p[parent] = p[parent] + p[i]
-    u, w, gamma, lam = (list(x) for x in zip(*(_joint_outputs(Ic[i], T[i], p[i], S[i], Sdot[i], F[i], alpha[i])
+    u, w, gamma, lam = (list(x) for x in zip(*(joint_outputs(Ic[i], T[i], p[i], S[i], Sdot[i], F[i], alpha[i])
                                                 for i in range(n))))
     ancestors: list[set[int]] = []
     for joint in tree.joints:
