@@ -66,3 +66,20 @@ def test_concurrent_builds_to_one_directory_both_succeed(tmp_path):
         assert [p.returncode for p in procs] == [0] * 6, results
         assert {p.name: p.read_bytes() for p in out.iterdir() if p.name != ".robotgen-build"} == reference
         assert not [p for p in tmp_path.iterdir() if p.name.startswith(".gen.")]
+
+
+@pytest.mark.parametrize("signum, status", [(signal.SIGINT, 130), (signal.SIGTERM, 143)])
+def test_a_signal_while_python_imports_robotgen_is_one_line(tmp_path, signum, status):
+    """Signals 0.1-0.55 s after the start, while numpy and CasADi are imported (a KeyboardInterrupt
+    inside a C extension's import once surfaced as an ImportError traceback). Earlier, Python's
+    own start-up (site) is running, whose KeyboardInterrupt traceback no program can catch."""
+    for k in range(10):
+        proc = subprocess.Popen([sys.executable, "-m", "robotgen", "check", SPEC], stdout=subprocess.PIPE,
+                                stderr=subprocess.PIPE, text=True)
+        time.sleep(0.1 + 0.05 * k)
+        proc.send_signal(signum)
+        _, err = proc.communicate(timeout=60)
+        assert proc.returncode in (0, status, -signum), err  # -signum: before Python ran anything
+        assert "Traceback" not in err, err
+        if proc.returncode == status:
+            assert err.strip() in ("robotgen: interrupted", "robotgen: terminated"), err
