@@ -6,7 +6,7 @@ Forward dynamics qdd = M^-1 (tau - C qd - N) is differentiated through inverse d
 qdd = FD(q, qd, tau), d qdd/dz = -M^-1 d tau/dz for z = q, qd (the implicit function
 theorem), and d qdd/d tau = M^-1; one L D L^T factorisation of M serves every column.
 
-Past LOOPS_ABOVE_OPS the kernels of both are built as schedules (robotgen.symbolic.schedule):
+Past DERIVATIVE_LOOPS_ABOVE_OPS the kernels of both are built as schedules (robotgen.symbolic.schedule):
 on a serial chain the recursion's steps and joint pairs are loops (derivative_loops), and the
 solve with M is row-wise loops."""
 from __future__ import annotations
@@ -35,7 +35,7 @@ from robotgen.symbolic.schedule import LOCAL, OUTPUT, RANGE, ScheduleBuilder, Sl
 # (forward dynamics' derivatives are ~1.6 times that) the kernels are emitted with loops
 # (robotgen.symbolic.schedule). The UR5 (3398, reverse sweeps) gets the row-wise solve, the
 # Panda (5724) the recursion's loops; small arms stay straight-line, where CSE makes them tiny.
-LOOPS_ABOVE_OPS = 3000
+DERIVATIVE_LOOPS_ABOVE_OPS = 3000
 
 
 class DynamicsDerivatives:
@@ -127,9 +127,9 @@ class DynamicsDerivatives:
         b.prologue(Slice(*dqd), row_major(DQD))
 
     def _large(self) -> bool:
-        """Whether the derivatives are too large for straight-line code (LOOPS_ABOVE_OPS)."""
+        """Whether the derivatives are too large for straight-line code (DERIVATIVE_LOOPS_ABOVE_OPS)."""
         g = self.graphs
-        return isinstance(g, ChainGraphs) and g.id_derivatives_ops() > LOOPS_ABOVE_OPS
+        return isinstance(g, ChainGraphs) and g.id_derivatives_ops() > DERIVATIVE_LOOPS_ABOVE_OPS
 
     def _looped(self) -> bool:
         """Whether the recursion's loops are used: a large serial chain on which the recursion

@@ -2,11 +2,13 @@
 then loops apply one small body to slices of them, so the emitted C holds each repeated part
 once. Straight-line code costs ~13 bytes per operation; a 7-dof arm's dynamics derivatives
 unrolled (~75-115 KB) overflow the instruction cache, and a kernel that streams its code from
-L2 runs ~2.5x slower than one that fits (the joint-pair terms of d tau/dq and the column
-solves with M^-1 are the loops here).
+L2 runs ~2.5x slower than one that fits. The loops here: the derivative recursion
+(rigid_body/derivative_loops), a long chain's or tree's dynamics (rigid_body/chain_loops) and
+row-wise solves (rigid_body/cholesky).
 
-The schedule is the one source of the kernel's graph: ``flatten`` applies its bodies to SX
-slices, and that is the kernel's CasADi function, so the graph and the loops cannot differ."""
+The schedule is the one source of the kernel's graph: ScheduleBuilder applies each loop's body
+to SX slices as it is added, and ``outputs()`` is the kernel's CasADi function, so the graph and
+the loops cannot differ."""
 from __future__ import annotations
 
 from dataclasses import dataclass, field
@@ -81,7 +83,6 @@ class Schedule:
     prologue: ca.Function  # the kernel's inputs -> one column per prologue write
     prologue_writes: tuple[Slice, ...]
     loops: tuple[Loop, ...]
-    output_sizes: tuple[int, ...]
     unwritten: tuple[tuple[int, tuple[int, ...]], ...]  # (output, elements nothing writes: 0)
 
 
@@ -163,9 +164,19 @@ class ScheduleBuilder:
         unwritten = tuple((k, tuple(e for e, v in enumerate(out) if v is None))
                           for k, out in enumerate(self._outputs) if any(v is None for v in out))
         return Schedule(tuple(len(a) for a in self._locals), prologue, tuple(s for _, s in self._prologue),
-                        tuple(self._loops), tuple(self.output_sizes), unwritten)
+                        tuple(self._loops), unwritten)
 
 
 def body(name: str, inputs: list[ca.SX], outputs: list[ca.SX]) -> ca.Function:
     """A loop body: SX columns in, dense columns out."""
     return ca.Function(name, inputs, [ca.densify(ca.vec(o)) for o in outputs], {"cse": True})
+
+
+def symbols(names: str, size: int = 6) -> list[ca.SX]:
+    """Columns of ``size`` symbols, one per space-separated name (a body's inputs)."""
+    return [ca.SX.sym(name, size) for name in names.split()]
+
+
+def block(array: int, width: int, by: str = "i", offset: int = 0) -> Slice:
+    """Block i (or j, ``by``) of ``width`` elements of a local array, from ``offset``."""
+    return Slice(LOCAL, array, offset, i_stride=width if by == "i" else 0, j_stride=width if by == "j" else 0)

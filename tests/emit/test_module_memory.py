@@ -1,6 +1,6 @@
 """The Python module's memory behaviour: no invalid read or write of the module's own code under
 valgrind on a short run (single points, batches, strided views, refused arguments), and a
-batch of 10^7 states is computed right; one too large to allocate is a MemoryError."""
+batch of 10^7 states is computed right; one whose arguments cannot be copied is a MemoryError."""
 from __future__ import annotations
 
 import os
@@ -70,7 +70,9 @@ def test_a_batch_of_ten_million_states(build_module):
 
 
 def test_a_batch_too_large_to_allocate_is_a_memory_error(build_module):
+    """A zero-stride view of 2^45 states: the module's conversion of its arguments (a contiguous
+    copy) cannot be allocated, and the user gets a MemoryError, not a crash."""
     m = build_module(SPECS / "two_link.yaml")
-    huge = np.broadcast_to(np.zeros(2), (2**45, 2))  # a view: no memory until copied or answered
+    huge = np.broadcast_to(np.zeros(2), (2**45, 2))  # a view: no memory until copied
     with pytest.raises(MemoryError):
         m.gravity(huge)

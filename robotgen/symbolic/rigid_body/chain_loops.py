@@ -38,7 +38,9 @@ from robotgen.symbolic.schedule import (
     RANGE,
     ScheduleBuilder,
     Slice,
+    block,
     body,
+    symbols,
 )
 
 # Straight-line kernels past this many operations (~13 bytes each in x86-64 code) leave the
@@ -50,14 +52,6 @@ LOOPS_ABOVE_DOF = 12
 
 INERTIA = OriginInertia.SIZE
 inertia_of = OriginInertia.of_vector
-
-
-def _syms(names: str, size: int = 6) -> list[ca.SX]:
-    return [ca.SX.sym(name, size) for name in names.split()]
-
-
-def _at(array: int, width: int, by: str = "i", offset: int = 0) -> Slice:
-    return Slice(LOCAL, array, offset, i_stride=width if by == "i" else 0, j_stride=width if by == "j" else 0)
 
 
 class ChainLoops:
@@ -84,7 +78,7 @@ class ChainLoops:
     def _parent_state(self, array: int, width: int) -> Slice:
         """The parent's block of a per-joint state stored at i + 1 (the base's at 0)."""
         if self.serial:
-            return _at(array, width)
+            return block(array, width)
         return Slice(LOCAL, array, 0, i_stride=width, i_table=tuple(p + 1 for p in self.parents))
 
     def _parent_block(self, array: int, width: int) -> Slice:
@@ -92,19 +86,19 @@ class ChainLoops:
         return Slice(LOCAL, array, 0, i_stride=width, i_table=tuple(p if p >= 0 else self.n for p in self.parents))
 
     def _subtree_sum(self, b: ScheduleBuilder, name: str, inputs: list[ca.SX], reads: list[Slice], own: ca.SX,
-                     array: int, extra: tuple[list[ca.SX], list[Slice]] = ([], [])) -> None:
+                     array: int) -> None:
         """Block i of ``array`` (n + 1 blocks of own's size, zero before) = own_i + its children's
-        blocks, from the tip; ``extra``: more outputs of the body and where they go."""
+        blocks, from the tip."""
         width, n = own.numel(), self.n
         if self.serial:
             child = ca.SX.sym("child", width)
-            b.loop(body(name, [*inputs, child], [own + child, *extra[0]]), DESCENDING, n,
-                   [*reads, _at(array, width, offset=width)], [_at(array, width), *extra[1]])
+            b.loop(body(name, [*inputs, child], [own + child]), DESCENDING, n,
+                   [*reads, block(array, width, offset=width)], [block(array, width)])
             return
         children, parent = ca.SX.sym("children", width), ca.SX.sym("parent", width)
-        b.loop(body(name, [*inputs, children, parent], [own + children, parent + own + children, *extra[0]]),
-               DESCENDING, n, [*reads, _at(array, width), self._parent_block(array, width)],
-               [_at(array, width), self._parent_block(array, width), *extra[1]])
+        b.loop(body(name, [*inputs, children, parent], [own + children, parent + own + children]),
+               DESCENDING, n, [*reads, block(array, width), self._parent_block(array, width)],
+               [block(array, width), self._parent_block(array, width)])
 
     def _zeros(self, b: ScheduleBuilder, width: int) -> int:
         """A local of n + 1 blocks for a subtree sum: the spare block zero (every block for a tree)."""
@@ -136,7 +130,7 @@ class ChainLoops:
         """Ic_i (13 per joint, n + 1 of them), summed from the tip."""
         IC = self._zeros(b, INERTIA)
         own = ca.SX.sym("I", INERTIA)
-        self._subtree_sum(b, "composite_inertia", [own], [_at(BODY, INERTIA)], own, IC)
+        self._subtree_sum(b, "composite_inertia", [own], [block(BODY, INERTIA)], own, IC)
         return IC
 
     def _velocities(self, b: ScheduleBuilder, S: int, qd: ca.SX) -> tuple[int, int, int]:
@@ -144,11 +138,11 @@ class ChainLoops:
         n = self.n
         QD, V, SDOT = b.local(qd), b.local(size=6 * (n + 1)), b.local(size=6 * n)
         b.prologue(Slice(LOCAL, V), ca.SX.zeros(6, 1))
-        v_p, s = _syms("v_p s")
+        v_p, s = symbols("v_p s")
         qd_i = ca.SX.sym("qd")
         v = v_p + s * qd_i
         b.loop(body("velocity_pass", [v_p, s, qd_i], [v, motion_cross6(v, s)]), RANGE, n,
-               [self._parent_state(V, 6), _at(S, 6), _at(QD, 1)], [_at(V, 6, offset=6), _at(SDOT, 6)])
+               [self._parent_state(V, 6), block(S, 6), block(QD, 1)], [block(V, 6, offset=6), block(SDOT, 6)])
         return QD, V, SDOT
 
     def _torques(self, b: ScheduleBuilder, S: int, BODY: int, velocities: tuple[int, int, int], qdd: ca.SX | None,
@@ -162,34 +156,34 @@ class ChainLoops:
         b.prologue(Slice(LOCAL, A), base_acceleration(self.tree))
         EXTRA = b.local(extra)
         F = self._zeros(b, 6)
-        a_p, s, sdot, v, f = _syms("a_p s sdot v f")
+        a_p, s, sdot, v, f = symbols("a_p s sdot v f")
         qd_i, qdd_i = ca.SX.sym("qd"), ca.SX.sym("qdd")
         inertia = ca.SX.sym("I", INERTIA)
         I = inertia_of(inertia)
-        inputs, reads, a = ([a_p, s, sdot, qd_i], [self._parent_state(A, 6), _at(S, 6), _at(SDOT, 6), _at(QD, 1)],
+        inputs, reads, a = ([a_p, s, sdot, qd_i], [self._parent_state(A, 6), block(S, 6), block(SDOT, 6), block(QD, 1)],
                             a_p + sdot * qd_i)
         if qdd is not None:
             QDD = b.local(qdd)
-            inputs, reads, a = inputs + [qdd_i], reads + [_at(QDD, 1)], a + s * qdd_i
-        b.loop(body("acceleration_pass", inputs, [a]), RANGE, n, reads, [_at(A, 6, offset=6)])
+            inputs, reads, a = inputs + [qdd_i], reads + [block(QDD, 1)], a + s * qdd_i
+        b.loop(body("acceleration_pass", inputs, [a]), RANGE, n, reads, [block(A, 6, offset=6)])
         force = I.apply6(a_p) + force_cross6(v, I.apply6(v))
         self._subtree_sum(b, "body_force", [inertia, a_p, v],
-                          [_at(BODY, INERTIA), _at(A, 6, offset=6), _at(V, 6, offset=6)], force, F)
+                          [block(BODY, INERTIA), block(A, 6, offset=6), block(V, 6, offset=6)], force, F)
         e = ca.SX.sym("e")
         b.loop(body("joint_torque", [s, f, e], [ca.dot(s, f) + e]), RANGE, n,
-               [_at(S, 6), _at(F, 6), _at(EXTRA, 1)], [target])
+               [block(S, 6), block(F, 6), block(EXTRA, 1)], [target])
 
     def _mass(self, b: ScheduleBuilder, S: int, IC: int, target: tuple[str, int]) -> None:
         """M (row-major n x n) into ``target``."""
         n = self.n
-        s, u = _syms("s u")
+        s, u = symbols("s u")
         inertia, arm = ca.SX.sym("I", INERTIA), ca.SX.sym("armature")
         U = b.local(size=6 * n)
         ARM = b.local(ca.vertcat(*(joint.armature for joint in self.tree.joints)))
         u_out = inertia_of(inertia).apply6(s)
         b.loop(body("mass_diagonal", [inertia, s, arm], [u_out, ca.dot(s, u_out) + arm]), RANGE, n,
-               [_at(IC, INERTIA), _at(S, 6), _at(ARM, 1)], [_at(U, 6), Slice(*target, i_stride=n + 1)])
-        self._pairs(b, "mass_term", [s, u], [ca.dot(s, u)] * 2, [_at(S, 6), _at(U, 6, "j")],
+               [block(IC, INERTIA), block(S, 6), block(ARM, 1)], [block(U, 6), Slice(*target, i_stride=n + 1)])
+        self._pairs(b, "mass_term", [s, u], [ca.dot(s, u)] * 2, [block(S, 6), block(U, 6, "j")],
                     [Slice(*target, i_stride=n, j_stride=1), Slice(*target, i_stride=1, j_stride=n)], ancestor=True)
 
     def _extra(self, qd: ca.SX | None, qdd: ca.SX | None) -> ca.SX:
@@ -217,9 +211,9 @@ class ChainLoops:
         S, BODY = self._kinematics(b)
         _, V, SDOT = self._velocities(b, S, qd)
         REC = self._zeros(b, 25)  # composites: inertia (13), T (9), p (3)
-        inertia, (v, s, sdot, u, x) = ca.SX.sym("I", INERTIA), _syms("v s sdot u x")
+        inertia, (v, s, sdot, u, x) = ca.SX.sym("I", INERTIA), symbols("v s sdot u x")
         _, T_, p = body_terms(inertia_of(inertia), v, ca.SX.zeros(6, 1))
-        self._subtree_sum(b, "composite_terms", [inertia, v], [_at(BODY, INERTIA), _at(V, 6, offset=6)],
+        self._subtree_sum(b, "composite_terms", [inertia, v], [block(BODY, INERTIA), block(V, 6, offset=6)],
                           ca.vertcat(inertia, ca.vec(T_), p), REC)
         record = ca.SX.sym("record", 25)
         Ic, T, pc = inertia_of(record[:INERTIA]), ca.reshape(record[INERTIA:22], 3, 3), record[22:25]
@@ -227,15 +221,15 @@ class ChainLoops:
         U, W, X = b.local(size=6 * n), b.local(size=3 * n), b.local(size=6 * n)
         b.loop(body("joint_terms", [record, s, sdot],
                     [Ic.apply6(s), (T.T @ s[:3] + 2 * ca.cross(pc, s[3:])) / 2, Ic.apply6(sdot) + B_S]),
-               RANGE, n, [_at(REC, 25), _at(S, 6), _at(SDOT, 6)], [_at(U, 6), _at(W, 3), _at(X, 6)])
+               RANGE, n, [block(REC, 25), block(S, 6), block(SDOT, 6)], [block(U, 6), block(W, 3), block(X, 6)])
         w = ca.SX.sym("w", 3)
         out = (OUTPUT, 0)
-        b.loop(body("diagonal_term", [s, x], [ca.dot(s, x)]), RANGE, n, [_at(S, 6), _at(X, 6)],
+        b.loop(body("diagonal_term", [s, x], [ca.dot(s, x)]), RANGE, n, [block(S, 6), block(X, 6)],
                [Slice(*out, i_stride=n + 1)])
         self._pairs(b, "subtree_term", [u, w, sdot, s], [ca.dot(u, sdot) + ca.dot(w, s[:3])],
-                    [_at(U, 6), _at(W, 3), _at(SDOT, 6, "j"), _at(S, 6, "j")], [Slice(*out, i_stride=n, j_stride=1)],
-                    ancestor=False)
-        self._pairs(b, "ancestor_term", [s, x], [ca.dot(s, x)], [_at(S, 6), _at(X, 6, "j")],
+                    [block(U, 6), block(W, 3), block(SDOT, 6, "j"), block(S, 6, "j")],
+                    [Slice(*out, i_stride=n, j_stride=1)], ancestor=False)
+        self._pairs(b, "ancestor_term", [s, x], [ca.dot(s, x)], [block(S, 6), block(X, 6, "j")],
                     [Slice(*out, i_stride=n, j_stride=1)], ancestor=True)
 
     def forward_dynamics(self, b: ScheduleBuilder, qd: ca.SX, tau: ca.SX) -> None:
@@ -256,7 +250,7 @@ class ChainLoops:
         b.prologue(Slice(LOCAL, A), base_acceleration(self.tree))
         QDD = b.local(size=n)
         inertia, children, (v, s, sdot, a_p, U) = (ca.SX.sym("I", INERTIA), ca.SX.sym("children", 42),
-                                                   _syms("v s sdot a_p U"))
+                                                   symbols("v s sdot a_p U"))
         qd_i, rhs, arm, D, u = (ca.SX.sym(name) for name in ("qd", "rhs", "armature", "D", "u"))
         I = inertia_of(inertia)
         H = ca.skew(I.h)
@@ -270,21 +264,21 @@ class ChainLoops:
         pa = pA + Ia @ (sdot * qd_i) + U_out * (u_out / D_out)
         articulated = ca.vertcat(ca.vec(Ia), pa)
         inputs = [inertia, v, s, sdot, qd_i, rhs, arm]
-        reads = [_at(BODY, INERTIA), _at(V, 6, offset=6), _at(S, 6), _at(SDOT, 6), _at(QD, 1), _at(RHS, 1),
-                 _at(ARM, 1)]
+        reads = [block(BODY, INERTIA), block(V, 6, offset=6), block(S, 6), block(SDOT, 6), block(QD, 1), block(RHS, 1),
+                 block(ARM, 1)]
         if self.serial:  # block i holds joint i's own I^a, p^a; its child's is block i + 1
             b.loop(body("articulated", [*inputs, children], [articulated, ca.vertcat(U_out, D_out, u_out)]),
-                   DESCENDING, n, [*reads, _at(ART, 42, offset=42)], [_at(ART, 42), _at(UD, 8)])
+                   DESCENDING, n, [*reads, block(ART, 42, offset=42)], [block(ART, 42), block(UD, 8)])
         else:  # block i holds the sum of its children's I^a, p^a; joint i adds its own into its parent's
             parent = ca.SX.sym("parent", 42)
             b.loop(body("articulated", [*inputs, children, parent],
                         [parent + articulated, ca.vertcat(U_out, D_out, u_out)]), DESCENDING, n,
-                   [*reads, _at(ART, 42), self._parent_block(ART, 42)], [self._parent_block(ART, 42), _at(UD, 8)])
+                   [*reads, block(ART, 42), self._parent_block(ART, 42)], [self._parent_block(ART, 42), block(UD, 8)])
         a_prime = a_p + sdot * qd_i
         qdd = (u - ca.dot(U, a_prime)) / D
         b.loop(body("acceleration", [a_p, U, D, u, s, sdot, qd_i], [qdd, a_prime + s * qdd]), RANGE, n,
-               [self._parent_state(A, 6), _at(UD, 8), _at(UD, 8, offset=6), _at(UD, 8, offset=7), _at(S, 6),
-                _at(SDOT, 6), _at(QD, 1)], [_at(QDD, 1), _at(A, 6, offset=6)])
+               [self._parent_state(A, 6), block(UD, 8), block(UD, 8, offset=6), block(UD, 8, offset=7), block(S, 6),
+                block(SDOT, 6), block(QD, 1)], [block(QDD, 1), block(A, 6, offset=6)])
         x = ca.SX.sym("qdd", n)
         b.loop(body("copy", [x], [x]), ONCE, 1, [Slice(LOCAL, QDD)], [Slice(OUTPUT, 0)])
 

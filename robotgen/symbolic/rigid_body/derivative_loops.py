@@ -44,16 +44,14 @@ from robotgen.symbolic.schedule import (
     RANGE,
     ScheduleBuilder,
     Slice,
+    block,
     body,
+    symbols,
 )
 
 INERTIA = OriginInertia.SIZE
 inertia_of = OriginInertia.of_vector
 F, I, T, P, RECORD = 0, 6, 19, 28, 31  # offsets in a joint's record (f, inertia, T, p), and its width
-
-
-def _syms(names: str, size: int = 6) -> list[ca.SX]:
-    return [ca.SX.sym(name, size) for name in names.split()]
 
 
 class _Chain:
@@ -77,8 +75,7 @@ class _Chain:
         self.SDOT, self.ALPHA, self.U, self.W, self.GAMMA, self.LAM = (
             b.local(size=width * n) for width in (6, 6, 6, 3, 6, 6))
 
-    def at(self, array: int, width: int, by: str = "i", offset: int = 0) -> Slice:
-        return Slice(LOCAL, array, offset, i_stride=width if by == "i" else 0, j_stride=width if by == "j" else 0)
+    at = staticmethod(block)
 
     def rec(self, offset: int) -> Slice:
         return self.at(self.REC, RECORD, offset=offset)
@@ -86,7 +83,7 @@ class _Chain:
     def composite_terms(self, V: int, A: int) -> None:
         """Each record: f, I, T, p of the body (from its inertia and the v, a in V, A, written
         at 6 (i + 1)) plus its child's record, from the tip: the subtree sums in one pass."""
-        inertia, child, (v, a) = ca.SX.sym("I", INERTIA), ca.SX.sym("child", RECORD), _syms("v a")
+        inertia, child, (v, a) = ca.SX.sym("I", INERTIA), ca.SX.sym("child", RECORD), symbols("v a")
         f, T_, p = body_terms(inertia_of(inertia), v, a)
         own = ca.vertcat(f, inertia, ca.vec(T_), p)
         self.b.loop(body("composite_terms", [inertia, v, a, child], [own + child]), DESCENDING, self.n,
@@ -102,7 +99,7 @@ class _Chain:
         while its factorisation is under way)."""
         n, at = self.n, self.at
         r = row_stride or n
-        u, alpha, sdot, s, gamma, lam = _syms("u alpha sdot s gamma lam")
+        u, alpha, sdot, s, gamma, lam = symbols("u alpha sdot s gamma lam")
         w, fr = ca.SX.sym("w", 3), ca.SX.sym("fr")
         term_q, term_qd = subtree_term(u, w, alpha, sdot, s)
         anc_q, anc_qd = ancestor_term(s, gamma, lam)
@@ -133,7 +130,7 @@ def schedule_rnea_derivatives(b: ScheduleBuilder, tree: KinematicTree, motions: 
     c = _Chain(b, tree, motions, qd)
     n, at = c.n, c.at
     QDD = b.local(qdd)
-    v_p, a_p, s, sdot, alpha, f = _syms("v_p a_p s sdot alpha f")
+    v_p, a_p, s, sdot, alpha, f = symbols("v_p a_p s sdot alpha f")
     qd_i, qdd_i = ca.SX.sym("qd"), ca.SX.sym("qdd")
     b.loop(body("forward_pass", [v_p, a_p, s, qd_i, qdd_i], list(forward_step(v_p, a_p, s, qd_i, qdd_i))),
            RANGE, n, [at(c.V, 6), at(c.A, 6), at(c.S, 6), at(c.QD, 1), at(QDD, 1)],
@@ -163,7 +160,7 @@ def schedule_forward_dynamics_derivatives(b: ScheduleBuilder, tree: KinematicTre
     COEFFICIENTS = b.local(size=2 * n * n + n)
     ROWS = b.local(size=2 * n * n)  # row i: d tau_i/dq, d tau_i/dqd
 
-    v_p, c_p, a_p, s, sdot, alpha, f, df, df_child, u, c_i = _syms("v_p c_p a_p s sdot alpha f df df_child u c")
+    v_p, c_p, a_p, s, sdot, alpha, f, df, df_child, u, c_i = symbols("v_p c_p a_p s sdot alpha f df df_child u c")
     qd_i, qdd_i = ca.SX.sym("qd"), ca.SX.sym("qdd")
     v, a_zero, sdot_out, _ = forward_step(v_p, c_p, s, qd_i, ca.SX(0))
     b.loop(body("velocity_pass", [v_p, c_p, s, qd_i], [v, a_zero, sdot_out]), RANGE, n,
@@ -182,8 +179,8 @@ def schedule_forward_dynamics_derivatives(b: ScheduleBuilder, tree: KinematicTre
     armature = ca.diag(ca.vertcat(*(joint.armature for joint in tree.joints)))
     b.loop(body("factor", [m], [row_solve_coefficients(cholesky_factor(ca.reshape(m, n, n).T + armature))]),
            ONCE, 1, [Slice(LOCAL, M)], [Slice(LOCAL, COEFFICIENTS)])
-    # while the factorisation's chain of square roots and divisions runs: the terms that do not
-    # depend on qdd (w, lam and the d tau/dqd pairs)
+    # while the factorisation's chain of divisions runs: the terms that do not depend on qdd
+    # (w, lam and the d tau/dqd pairs)
     inertia, T_, p = ca.SX.sym("I", INERTIA), ca.SX.sym("T", 9), ca.SX.sym("p", 3)
     _, w, _, lam = joint_outputs(inertia_of(inertia), ca.reshape(T_, 3, 3), p, s, sdot, f, alpha)
     b.loop(body("velocity_outputs", [inertia, T_, p, s, sdot], [w, lam]), RANGE, n,
