@@ -19,6 +19,7 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
+from robotgen.emit import sincos
 from robotgen.emit.sx_program import Instruction, KernelError, Program, read_program, reads_first
 from robotgen.symbolic.kernel import PARAMS, Kernel, Port
 from robotgen.symbolic.schedule import (
@@ -178,12 +179,35 @@ def kernel_source(prefix: str, kernel: Kernel, precision: Precision,
 def _straight_line(program: Program, kernel: Kernel, precision: Precision, read, write,
                    register: str = "w") -> tuple[list[str], list[str]]:
     """(declarations of the registers, statements) of one SX program; ``read(port, element)``
-    and ``write(port, element)`` spell its inputs and outputs."""
-    body = [_statement(step, kernel, precision, read, write, register) for step in program.instructions]
+    and ``write(port, element)`` spell its inputs and outputs. In double precision the
+    angles of a straight-line program (not a loop body) go through robotgen.emit.sincos."""
+    if precision.real == "double" and register == "w":
+        program = sincos.pair_angles(program)
+    body = []
+    for step in program.instructions:
+        if step.op == sincos.SINCOS:
+            body += _sincos_statements(step, register, precision)
+        else:
+            body.append(_statement(step, kernel, precision, read, write, register))
     registers = sorted({s.target for s in program.instructions if s.target >= 0})
     declarations = [f"{precision.real} " + ", ".join(f"{register}{r}" for r in registers[start:start + 12]) + ";"
                     for start in range(0, len(registers), 12)]
+    if sincos.uses_helper(program):
+        n = sincos.lanes(program)
+        declarations.append(f"{precision.real} {sincos.ANGLES}[{n}], {sincos.SINES}[{n}], {sincos.COSINES}[{n}];")
     return declarations, body
+
+
+def _sincos_statements(step: Instruction, register: str, precision: Precision) -> list[str]:
+    """The angles into their lanes (an odd one paired with 0), then sin and cos two at a time."""
+    angles = [f"{register}{r}" for r in step.args]
+    if len(angles) % 2:
+        angles.append(literal(0.0, precision))
+    lines = [f"{sincos.ANGLES}[{lane}] = {angle};" for lane, angle in enumerate(angles)]
+    for lane in range(0, len(angles), 2):
+        offset = f" + {lane}" if lane else ""
+        lines.append(f"{sincos.HELPER}({sincos.ANGLES}{offset}, {sincos.SINES}{offset}, {sincos.COSINES}{offset});")
+    return lines
 
 
 LOOP_INDICES = ("rg_i", "rg_j", "rg_m")  # a schedule's loop counters (no port or register is named so)
@@ -322,6 +346,9 @@ def _check_ports(kernel: Kernel) -> None:
 
 
 def _statement(step: Instruction, kernel: Kernel, precision: Precision, read, write, register: str) -> str:
+    if step.op in (sincos.SIN_LANE, sincos.COS_LANE):
+        lanes = sincos.SINES if step.op == sincos.SIN_LANE else sincos.COSINES
+        return f"{register}{step.target} = {lanes}[{step.element}];"
     if step.op == ca.OP_INPUT:
         return f"{register}{step.target} = {read(step.port, step.element)};"
     if step.op == ca.OP_OUTPUT:

@@ -8,7 +8,7 @@ from dataclasses import dataclass, replace
 import casadi as ca
 
 import robotgen
-from robotgen.emit import c_kernel
+from robotgen.emit import c_kernel, sincos
 from robotgen.emit.c_kernel import PRECISIONS, KernelError, check_identifier, is_parameter_port
 from robotgen.emit.controllers import PARAMETERS_CLASS, ControllerView, controller_view, controllers_note
 from robotgen.emit.literals import c_string, py_string
@@ -130,6 +130,10 @@ class ModuleView:
     zero: str = "0.0"  # C literals of the module's precision
     one: str = "1.0"
     parts: int = 1  # compile parts of <name>.c (COMPILE_PARTS when the source is large)
+    # The double kernels' sin and cos routine (robotgen.emit.sincos), printed once before the
+    # functions; with parts, only in the parts whose functions call it (no unused static).
+    sincos_helper: str = ""
+    sincos_parts: tuple[int, ...] = ()
 
 
 def module_view(name: str, kernels: list[Kernel], *, nq: int, precision: str,
@@ -192,6 +196,7 @@ def module_view(name: str, kernels: list[Kernel], *, nq: int, precision: str,
     if views:
         info_doc = info_doc[:-1] + ", controllers."
     keyword_names = {p.name for f in functions for p in f.inputs} | {p.name for p in parameters}
+    sincos_parts = tuple(sorted({f.part for f in functions if sincos.HELPER + "(" in f.definition}))
     return ModuleView(
         name=name, macro_prefix=name.upper(), precision=precision,
         real=PRECISIONS[precision].real, nq=nq, robotgen_version=robotgen.__version__,
@@ -205,7 +210,8 @@ def module_view(name: str, kernels: list[Kernel], *, nq: int, precision: str,
         params_default_macro=f"{name.upper()}_PARAMS_DEFAULT" if parameters else "",
         controllers=views, parameters_class=parameters_class if any(v.reads_parameters for v in views) else "",
         controllers_note=controllers_note(views), parts=max(f.part for f in functions) + 1,
-        zero=c_kernel.literal(0.0, PRECISIONS[precision]), one=c_kernel.literal(1.0, PRECISIONS[precision]))
+        zero=c_kernel.literal(0.0, PRECISIONS[precision]), one=c_kernel.literal(1.0, PRECISIONS[precision]),
+        sincos_helper=sincos.helper_source() if sincos_parts else "", sincos_parts=sincos_parts)
 
 
 def _module_parameters(name: str, kernels: list[Kernel],

@@ -30,6 +30,9 @@ SOURCES = ["{name}.h", "{name}.c", "{name}_module.c", "{name}.pyi", "Makefile", 
            "{name}Config.cmake.in", "manifest.json"]
 pytestmark = pytest.mark.skipif(GCC is None, reason="gcc is required")
 
+# a static object (not const) in C; a static function (code, like rg_sincos2) is not state
+MUTABLE_STATIC = r"\bstatic\b(?!\s+const\b)(?![^;={(]*\()"
+
 
 # ---------------------------------------------------------------- kernels built with casadi
 
@@ -635,7 +638,7 @@ def test_float_precision_agrees_to_single_precision(tmp_path):
 def test_c_library_has_no_mutable_statics_heap_or_io(built):
     for file in ("randbot.c", "randbot.h"):
         text = (built / file).read_text()
-        assert not re.search(r"\bstatic\b(?!\s+const\b)", text)
+        assert not re.search(MUTABLE_STATIC, text)
         assert not re.search(r"\b(malloc|calloc|realloc|free|printf|fprintf|puts|fopen)\b", text)
 
 

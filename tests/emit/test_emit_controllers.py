@@ -35,6 +35,9 @@ STRICT = ["-std=c99", "-Wall", "-Wextra", "-Werror", "-pedantic"]
 STEPS = 20
 pytestmark = pytest.mark.skipif(GCC is None, reason="gcc is required")
 
+# a static object (not const) in C; a static function (code, like rg_sincos2) is not state
+MUTABLE_STATIC = r"\bstatic\b(?!\s+const\b)(?![^;={(]*\()"
+
 
 # ------------------------------------------------------------------------------ helpers
 
@@ -437,7 +440,7 @@ def test_header_declares_the_struct_and_functions(rmac, rac):
 def test_no_mutable_state_beyond_what_cpython_needs(rmac):
     for file in ("puma560_rmac.c", "puma560_rmac.h"):
         text = (rmac.dir / file).read_text()
-        assert not re.search(r"\bstatic\b(?!\s+const\b)", text)
+        assert not re.search(MUTABLE_STATIC, text)
         assert not re.search(r"\b(malloc|calloc|realloc|free|printf|fopen)\s*\(", text)
     found = set(re.findall(r"^static (?!const\b)[^(=;]*?\**(\w+)(?:\[[^]]*\])?\s*(?:=|;)",
                            (rmac.dir / "puma560_rmac_module.c").read_text(), re.M))

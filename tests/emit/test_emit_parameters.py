@@ -42,6 +42,9 @@ DEFAULTS = {p.name: np.array(p.default).reshape(p.shape) if p.shape else p.defau
             for p in PARAMETERS}
 SHAPES = {p.name: p.shape for p in PARAMETERS}
 
+# a static object (not const) in C; a static function (code, like rg_sincos2) is not state
+MUTABLE_STATIC = r"\bstatic\b(?!\s+const\b)(?![^;={(]*\()"
+
 
 def parameter_kernels(parameters: list[RuntimeParameter] = PARAMETERS) -> list[Kernel]:
     """servo reads every parameter, fk none (so it has no port), gain_matrix only the
@@ -231,7 +234,7 @@ def test_a_kernel_without_the_port_is_emitted_as_before(built, tmp_path):
 
 def test_no_mutable_state_beyond_what_cpython_needs(built, tmp_path):
     for file in ("pbot.c", "pbot.h"):
-        assert not re.search(r"\bstatic\b(?!\s+const\b)", (built / file).read_text())
+        assert not re.search(MUTABLE_STATIC, (built / file).read_text())
     x = ca.SX.sym("x")
     build.emit(tmp_path / "plain", "plain", [make_kernel("f", "", [("x", x)], [("y", 2 * x, (1, 1))])],
                nq=1, compile=False)

@@ -4,15 +4,61 @@
 
 #include "styx_finger.h"
 
+/* sin and cos of x[0] and x[1] into s and c: reduction by pi/2 in three parts, Taylor
+ * polynomials on [-pi/4, pi/4], quadrant by arithmetic. Absolute error <= 2.3e-16 for
+ * |x| <= 100000; other angles (larger, infinite, NaN) through libm. Written lane by lane
+ * so that the compiler may compute both lanes at once. */
+static void rg_sincos2(const double *x, double *s, double *c) {
+  double y[2], k[2], r[2], z[2], z2[2], z4[2], ps[2], pc[2], sr[2], cr[2], w[2], ss[2], sc[2];
+  int n[2], l;
+  if (!(fabs(x[0]) <= 100000.0) || !(fabs(x[1]) <= 100000.0)) {
+    for (l = 0; l < 2; ++l) {
+      s[l] = sin(x[l]);
+      c[l] = cos(x[l]);
+    }
+    return;
+  }
+  /* n = round(2 x / pi) (x + 65536.5 > 0, so the conversion truncates to the floor) */
+  for (l = 0; l < 2; ++l) y[l] = x[l] * 0.6366197723675814 + 65536.5;
+  for (l = 0; l < 2; ++l) n[l] = (int)y[l];
+  for (l = 0; l < 2; ++l) k[l] = (double)n[l] - 65536.0;
+  for (l = 0; l < 2; ++l) r[l] = ((x[l] - k[l] * 1.5707963267341256) - k[l] * 6.077100506303966e-11) - k[l] * 2.0222662487959506e-21;
+  for (l = 0; l < 2; ++l) {
+    z[l] = r[l] * r[l];
+    z2[l] = z[l] * z[l];
+    z4[l] = z2[l] * z2[l];
+  }
+  for (l = 0; l < 2; ++l) ps[l] = ((-0.16666666666666666 + z[l] * 0.008333333333333333) + z2[l] * (-0.0001984126984126984 + z[l] * 2.7557319223985893e-06)) + z4[l] * ((-2.505210838544172e-08 + z[l] * 1.6059043836821613e-10) + z2[l] * (-7.647163731819816e-13 + z[l] * 2.8114572543455206e-15));
+  for (l = 0; l < 2; ++l) pc[l] = ((-0.5 + z[l] * 0.041666666666666664) + z2[l] * (-0.001388888888888889 + z[l] * 2.48015873015873e-05)) + z4[l] * ((-2.755731922398589e-07 + z[l] * 2.08767569878681e-09) + z2[l] * (-1.1470745597729725e-11 + z[l] * 4.779477332387385e-14));
+  for (l = 0; l < 2; ++l) {
+    sr[l] = r[l] + (r[l] * z[l]) * ps[l];
+    cr[l] = 1.0 + z[l] * pc[l];
+  }
+  /* quadrant n mod 4: odd swaps sin and cos (w = 1); the signs of sin and cos */
+  for (l = 0; l < 2; ++l) {
+    w[l] = (double)(n[l] & 1);
+    ss[l] = (double)(1 - (n[l] & 2));
+    sc[l] = (double)(1 - ((n[l] + 1) & 2));
+  }
+  for (l = 0; l < 2; ++l) {
+    s[l] = ss[l] * (sr[l] * (1.0 - w[l]) + cr[l] * w[l]);
+    c[l] = sc[l] * (cr[l] * (1.0 - w[l]) + sr[l] * w[l]);
+  }
+}
+
 int styx_finger_mass(const double *q, double *mass) {
-  double w0, w1, w2;
+  double w0, w1, w3, w4, w5;
+  double rg_x[2], rg_s[2], rg_c[2];
+  w3 = q[0];
+  w4 = q[1];
+  w5 = w3 - w4;
+  rg_x[0] = w5;
+  rg_x[1] = 0.0;
+  rg_sincos2(rg_x, rg_s, rg_c);
   w0 = 0.005000000000000001;
   mass[0] = w0;
   w0 = 0.0020000000000000005;
-  w1 = q[0];
-  w2 = q[1];
-  w1 = w1 - w2;
-  w1 = cos(w1);
+  w1 = rg_c[0];
   w1 = w0 * w1;
   mass[1] = w1;
   mass[2] = w1;
@@ -21,16 +67,20 @@ int styx_finger_mass(const double *q, double *mass) {
 }
 
 int styx_finger_coriolis(const double *q, const double *qd, double *coriolis) {
-  double w0, w1, w2, w3, w4, w5, w6, w7;
+  double w0, w1, w2, w3, w4, w5, w6, w7, w8, w9, w10;
+  double rg_x[2], rg_s[2], rg_c[2];
+  w8 = q[0];
+  w9 = q[1];
+  w10 = w8 - w9;
+  rg_x[0] = w10;
+  rg_x[1] = 0.0;
+  rg_sincos2(rg_x, rg_s, rg_c);
   w0 = 0.0;
   coriolis[0] = w0;
   w1 = 0.5;
   w2 = qd[1];
   w3 = 0.0020000000000000005;
-  w4 = q[0];
-  w5 = q[1];
-  w4 = w4 - w5;
-  w4 = sin(w4);
+  w4 = rg_s[0];
   w5 = w3 * w4;
   w6 = w2 * w5;
   w7 = qd[0];
@@ -61,14 +111,18 @@ int styx_finger_gravity(const double *q, double *gravity) {
 }
 
 int styx_finger_nonlinear(const double *q, const double *qd, double *nonlinear) {
-  double w0, w1, w2, w3, w4, w5, w6, w7;
+  double w0, w1, w2, w3, w4, w5, w6, w7, w8, w9, w10;
+  double rg_x[2], rg_s[2], rg_c[2];
+  w8 = q[0];
+  w9 = q[1];
+  w10 = w8 - w9;
+  rg_x[0] = w10;
+  rg_x[1] = 0.0;
+  rg_sincos2(rg_x, rg_s, rg_c);
   w0 = 0.5;
   w1 = qd[1];
   w2 = 0.0020000000000000005;
-  w3 = q[0];
-  w4 = q[1];
-  w3 = w3 - w4;
-  w3 = sin(w3);
+  w3 = rg_s[0];
   w4 = w2 * w3;
   w5 = w1 * w4;
   w6 = qd[0];
@@ -92,21 +146,26 @@ int styx_finger_nonlinear(const double *q, const double *qd, double *nonlinear) 
 
 int styx_finger_inverse_dynamics(const double *q, const double *qd, const double *qdd, double *inverse_dynamics) {
   double w0, w1, w2, w3, w4, w5, w6, w7, w8, w9, w10, w11;
+  double w12, w13, w14;
+  double rg_x[2], rg_s[2], rg_c[2];
+  w12 = q[0];
+  w13 = q[1];
+  w14 = w12 - w13;
+  rg_x[0] = w14;
+  rg_x[1] = 0.0;
+  rg_sincos2(rg_x, rg_s, rg_c);
   w0 = 0.005000000000000001;
   w1 = qdd[0];
   w0 = w0 * w1;
   w2 = 0.0020000000000000005;
-  w3 = q[0];
-  w4 = q[1];
-  w3 = w3 - w4;
-  w4 = cos(w3);
+  w4 = rg_c[0];
   w4 = w2 * w4;
   w5 = qdd[1];
   w6 = w4 * w5;
   w0 = w0 + w6;
   w6 = 0.5;
   w7 = qd[1];
-  w3 = sin(w3);
+  w3 = rg_s[0];
   w8 = w2 * w3;
   w9 = w7 * w8;
   w10 = qd[0];
@@ -133,20 +192,25 @@ int styx_finger_inverse_dynamics(const double *q, const double *qd, const double
 }
 
 int styx_finger_forward_dynamics(const double *q, const double *qd, const double *tau, double *forward_dynamics) {
-  double w0, w1, w2, w3, w4, w5, w6, w7, w8, w9, w10;
+  double w0, w1, w2, w3, w4, w5, w6, w7, w8, w9, w10, w11;
+  double w12, w13;
+  double rg_x[2], rg_s[2], rg_c[2];
   int rg_k;
   for (rg_k = 0; rg_k < 2; ++rg_k) if (!isfinite(q[rg_k])) return 1;
   for (rg_k = 0; rg_k < 2; ++rg_k) if (!isfinite(qd[rg_k])) return 1;
   for (rg_k = 0; rg_k < 2; ++rg_k) if (!isfinite(tau[rg_k])) return 1;
+  w11 = q[0];
+  w12 = q[1];
+  w13 = w11 - w12;
+  rg_x[0] = w13;
+  rg_x[1] = 0.0;
+  rg_sincos2(rg_x, rg_s, rg_c);
   w0 = 199.99999999999997;
   w1 = tau[0];
   w2 = 0.5;
   w3 = qd[1];
   w4 = 0.0020000000000000005;
-  w5 = q[0];
-  w6 = q[1];
-  w5 = w5 - w6;
-  w6 = sin(w5);
+  w6 = rg_s[0];
   w7 = w4 * w6;
   w8 = w3 * w7;
   w9 = qd[0];
@@ -161,7 +225,7 @@ int styx_finger_forward_dynamics(const double *q, const double *qd, const double
   w1 = w1 - w10;
   w0 = w0 * w1;
   w10 = 0.4;
-  w5 = cos(w5);
+  w5 = rg_c[0];
   w10 = w10 * w5;
   w3 = tau[1];
   w6 = w6 + w7;
@@ -197,19 +261,23 @@ not_finite:
 }
 
 int styx_finger_kinematics(const double *q, double *kinematics) {
-  double w0, w1, w2, w3, w4;
+  double w0, w1, w2, w3, w4, w5, w6;
+  double rg_x[2], rg_s[2], rg_c[2];
+  w5 = q[0];
+  w6 = q[1];
+  rg_x[0] = w5;
+  rg_x[1] = w6;
+  rg_sincos2(rg_x, rg_s, rg_c);
   w0 = 0.1;
-  w1 = q[0];
-  w2 = cos(w1);
+  w2 = rg_c[0];
   w2 = w0 * w2;
-  w3 = q[1];
-  w4 = cos(w3);
+  w4 = rg_c[1];
   w4 = w0 * w4;
   w2 = w2 + w4;
   kinematics[0] = w2;
-  w1 = sin(w1);
+  w1 = rg_s[0];
   w1 = w0 * w1;
-  w3 = sin(w3);
+  w3 = rg_s[1];
   w0 = w0 * w3;
   w1 = w1 + w0;
   kinematics[1] = w1;
@@ -217,22 +285,26 @@ int styx_finger_kinematics(const double *q, double *kinematics) {
 }
 
 int styx_finger_kinematics_jacobian(const double *q, double *kinematics_jacobian) {
-  double w0, w1, w2, w3;
+  double w0, w1, w2, w3, w4, w5;
+  double rg_x[2], rg_s[2], rg_c[2];
+  w4 = q[0];
+  w5 = q[1];
+  rg_x[0] = w4;
+  rg_x[1] = w5;
+  rg_sincos2(rg_x, rg_s, rg_c);
   w0 = 0.1;
-  w1 = q[0];
-  w2 = sin(w1);
+  w2 = rg_s[0];
   w2 = w0 * w2;
   w2 = -w2;
   kinematics_jacobian[0] = w2;
-  w2 = q[1];
-  w3 = sin(w2);
+  w3 = rg_s[1];
   w3 = w0 * w3;
   w3 = -w3;
   kinematics_jacobian[1] = w3;
-  w1 = cos(w1);
+  w1 = rg_c[0];
   w1 = w0 * w1;
   kinematics_jacobian[2] = w1;
-  w2 = cos(w2);
+  w2 = rg_c[1];
   w0 = w0 * w2;
   kinematics_jacobian[3] = w0;
   return 0;
@@ -240,15 +312,19 @@ int styx_finger_kinematics_jacobian(const double *q, double *kinematics_jacobian
 
 int styx_finger_inverse_dynamics_derivatives(const double *q, const double *qd, const double *qdd, double *dtau_dq, double *dtau_dqd) {
   double w0, w1, w2, w3, w4, w5, w6, w7, w8, w9, w10, w11;
-  double w12, w13;
+  double w12, w13, w14, w15, w16;
+  double rg_x[2], rg_s[2], rg_c[2];
   int rg_k;
   for (rg_k = 0; rg_k < 2; ++rg_k) if (!isfinite(q[rg_k])) return 1;
   for (rg_k = 0; rg_k < 2; ++rg_k) if (!isfinite(qd[rg_k])) return 1;
   for (rg_k = 0; rg_k < 2; ++rg_k) if (!isfinite(qdd[rg_k])) return 1;
-  w0 = q[0];
-  w1 = q[1];
-  w0 = w0 - w1;
-  w1 = cos(w0);
+  w14 = q[0];
+  w15 = q[1];
+  w16 = w14 - w15;
+  rg_x[0] = w16;
+  rg_x[1] = 0.0;
+  rg_sincos2(rg_x, rg_s, rg_c);
+  w1 = rg_c[0];
   w2 = 0.0020000000000000005;
   w3 = qd[0];
   w4 = 0.5;
@@ -267,7 +343,7 @@ int styx_finger_inverse_dynamics_derivatives(const double *q, const double *qd, 
   w12 = w1 * w12;
   w8 = w8 - w12;
   w7 = w7 + w8;
-  w0 = sin(w0);
+  w0 = rg_s[0];
   w8 = qdd[1];
   w8 = w2 * w8;
   w8 = w0 * w8;
@@ -338,16 +414,21 @@ not_finite:
 
 int styx_finger_forward_dynamics_derivatives(const double *q, const double *qd, const double *tau, double *dqdd_dq, double *dqdd_dqd, double *dqdd_dtau) {
   double w0, w1, w2, w3, w4, w5, w6, w7, w8, w9, w10, w11;
-  double w12, w13, w14, w15, w16, w17, w18, w19, w20, w21, w22;
+  double w12, w13, w14, w15, w16, w17, w18, w19, w20, w21, w22, w23;
+  double w24, w25;
+  double rg_x[2], rg_s[2], rg_c[2];
   int rg_k;
   for (rg_k = 0; rg_k < 2; ++rg_k) if (!isfinite(q[rg_k])) return 1;
   for (rg_k = 0; rg_k < 2; ++rg_k) if (!isfinite(qd[rg_k])) return 1;
   for (rg_k = 0; rg_k < 2; ++rg_k) if (!isfinite(tau[rg_k])) return 1;
+  w23 = q[0];
+  w24 = q[1];
+  w25 = w23 - w24;
+  rg_x[0] = w25;
+  rg_x[1] = 0.0;
+  rg_sincos2(rg_x, rg_s, rg_c);
   w0 = 199.99999999999997;
-  w1 = q[0];
-  w2 = q[1];
-  w1 = w1 - w2;
-  w2 = cos(w1);
+  w2 = rg_c[0];
   w3 = 0.0020000000000000005;
   w4 = qd[0];
   w5 = 0.5;
@@ -366,7 +447,7 @@ int styx_finger_forward_dynamics_derivatives(const double *q, const double *qd, 
   w13 = w2 * w13;
   w9 = w9 - w13;
   w8 = w8 + w9;
-  w1 = sin(w1);
+  w1 = rg_s[0];
   w9 = tau[1];
   w13 = w1 * w10;
   w13 = w3 * w13;
@@ -501,15 +582,19 @@ not_finite:
 }
 
 int styx_finger_mass_inverse(const double *q, double *mass_inverse) {
-  double w0, w1, w2, w3, w4;
+  double w0, w1, w2, w3, w4, w5, w6, w7;
+  double rg_x[2], rg_s[2], rg_c[2];
   int rg_k;
   for (rg_k = 0; rg_k < 2; ++rg_k) if (!isfinite(q[rg_k])) return 1;
+  w5 = q[0];
+  w6 = q[1];
+  w7 = w5 - w6;
+  rg_x[0] = w7;
+  rg_x[1] = 0.0;
+  rg_sincos2(rg_x, rg_s, rg_c);
   w0 = 199.99999999999997;
   w1 = 0.4;
-  w2 = q[0];
-  w3 = q[1];
-  w2 = w2 - w3;
-  w2 = cos(w2);
+  w2 = rg_c[0];
   w1 = w1 * w2;
   w3 = 0.0;
   w4 = 0.0020000000000000005;
@@ -545,13 +630,19 @@ not_finite:
 
 int styx_finger_discrete_dynamics(const double *q, const double *qd, const double *tau, const double *dt, double *q_next, double *qd_next) {
   double w0, w1, w2, w3, w4, w5, w6, w7, w8, w9, w10, w11;
-  double w12, w13, w14;
+  double w12, w13, w14, w15, w16, w17;
+  double rg_x[2], rg_s[2], rg_c[2];
   int rg_k;
   for (rg_k = 0; rg_k < 2; ++rg_k) if (!isfinite(q[rg_k])) return 1;
   for (rg_k = 0; rg_k < 2; ++rg_k) if (!isfinite(qd[rg_k])) return 1;
   for (rg_k = 0; rg_k < 2; ++rg_k) if (!isfinite(tau[rg_k])) return 1;
   for (rg_k = 0; rg_k < 1; ++rg_k) if (!isfinite(dt[rg_k])) return 1;
-  w0 = q[0];
+  w15 = q[0];
+  w16 = q[1];
+  w17 = w15 - w16;
+  rg_x[0] = w17;
+  rg_x[1] = 0.0;
+  rg_sincos2(rg_x, rg_s, rg_c);
   w1 = dt[0];
   w2 = qd[0];
   w3 = 199.99999999999997;
@@ -559,9 +650,7 @@ int styx_finger_discrete_dynamics(const double *q, const double *qd, const doubl
   w5 = 0.5;
   w6 = qd[1];
   w7 = 0.0020000000000000005;
-  w8 = q[1];
-  w9 = w0 - w8;
-  w10 = sin(w9);
+  w10 = rg_s[0];
   w11 = w7 * w10;
   w12 = w6 * w11;
   w13 = w2 - w6;
@@ -575,7 +664,7 @@ int styx_finger_discrete_dynamics(const double *q, const double *qd, const doubl
   w4 = w4 - w13;
   w3 = w3 * w4;
   w13 = 0.4;
-  w9 = cos(w9);
+  w9 = rg_c[0];
   w13 = w13 * w9;
   w14 = tau[1];
   w10 = w10 + w11;
@@ -601,12 +690,12 @@ int styx_finger_discrete_dynamics(const double *q, const double *qd, const doubl
   w3 = w1 * w3;
   w2 = w2 + w3;
   w3 = w1 * w2;
-  w0 = w0 + w3;
+  w0 = w15 + w3;
   q_next[0] = w0;
   w14 = w1 * w14;
   w6 = w6 + w14;
   w1 = w1 * w6;
-  w8 = w8 + w1;
+  w8 = w16 + w1;
   q_next[1] = w8;
   qd_next[0] = w2;
   qd_next[1] = w6;
@@ -625,12 +714,19 @@ not_finite:
 int styx_finger_discrete_dynamics_derivatives(const double *q, const double *qd, const double *tau, const double *dt, double *q_next, double *qd_next, double *A, double *B) {
   double w0, w1, w2, w3, w4, w5, w6, w7, w8, w9, w10, w11;
   double w12, w13, w14, w15, w16, w17, w18, w19, w20, w21, w22, w23;
+  double w24, w25, w26;
+  double rg_x[2], rg_s[2], rg_c[2];
   int rg_k;
   for (rg_k = 0; rg_k < 2; ++rg_k) if (!isfinite(q[rg_k])) return 1;
   for (rg_k = 0; rg_k < 2; ++rg_k) if (!isfinite(qd[rg_k])) return 1;
   for (rg_k = 0; rg_k < 2; ++rg_k) if (!isfinite(tau[rg_k])) return 1;
   for (rg_k = 0; rg_k < 1; ++rg_k) if (!isfinite(dt[rg_k])) return 1;
-  w0 = q[0];
+  w24 = q[0];
+  w25 = q[1];
+  w26 = w24 - w25;
+  rg_x[0] = w26;
+  rg_x[1] = 0.0;
+  rg_sincos2(rg_x, rg_s, rg_c);
   w1 = dt[0];
   w2 = qd[0];
   w3 = 199.99999999999997;
@@ -638,9 +734,7 @@ int styx_finger_discrete_dynamics_derivatives(const double *q, const double *qd,
   w5 = 0.5;
   w6 = qd[1];
   w7 = 0.0020000000000000005;
-  w8 = q[1];
-  w9 = w0 - w8;
-  w10 = sin(w9);
+  w10 = rg_s[0];
   w11 = w7 * w10;
   w12 = w6 * w11;
   w13 = w2 - w6;
@@ -654,7 +748,7 @@ int styx_finger_discrete_dynamics_derivatives(const double *q, const double *qd,
   w4 = w4 - w17;
   w17 = w3 * w4;
   w18 = 0.4;
-  w9 = cos(w9);
+  w9 = rg_c[0];
   w18 = w18 * w9;
   w19 = tau[1];
   w14 = w14 + w16;
@@ -681,12 +775,12 @@ int styx_finger_discrete_dynamics_derivatives(const double *q, const double *qd,
   w4 = w1 * w17;
   w4 = w2 + w4;
   w16 = w1 * w4;
-  w0 = w0 + w16;
+  w0 = w24 + w16;
   q_next[0] = w0;
   w0 = w1 * w19;
   w0 = w6 + w0;
   w16 = w1 * w0;
-  w8 = w8 + w16;
+  w8 = w25 + w16;
   q_next[1] = w8;
   qd_next[0] = w4;
   qd_next[1] = w0;

@@ -4,20 +4,66 @@
 
 #include "two_link.h"
 
+/* sin and cos of x[0] and x[1] into s and c: reduction by pi/2 in three parts, Taylor
+ * polynomials on [-pi/4, pi/4], quadrant by arithmetic. Absolute error <= 2.3e-16 for
+ * |x| <= 100000; other angles (larger, infinite, NaN) through libm. Written lane by lane
+ * so that the compiler may compute both lanes at once. */
+static void rg_sincos2(const double *x, double *s, double *c) {
+  double y[2], k[2], r[2], z[2], z2[2], z4[2], ps[2], pc[2], sr[2], cr[2], w[2], ss[2], sc[2];
+  int n[2], l;
+  if (!(fabs(x[0]) <= 100000.0) || !(fabs(x[1]) <= 100000.0)) {
+    for (l = 0; l < 2; ++l) {
+      s[l] = sin(x[l]);
+      c[l] = cos(x[l]);
+    }
+    return;
+  }
+  /* n = round(2 x / pi) (x + 65536.5 > 0, so the conversion truncates to the floor) */
+  for (l = 0; l < 2; ++l) y[l] = x[l] * 0.6366197723675814 + 65536.5;
+  for (l = 0; l < 2; ++l) n[l] = (int)y[l];
+  for (l = 0; l < 2; ++l) k[l] = (double)n[l] - 65536.0;
+  for (l = 0; l < 2; ++l) r[l] = ((x[l] - k[l] * 1.5707963267341256) - k[l] * 6.077100506303966e-11) - k[l] * 2.0222662487959506e-21;
+  for (l = 0; l < 2; ++l) {
+    z[l] = r[l] * r[l];
+    z2[l] = z[l] * z[l];
+    z4[l] = z2[l] * z2[l];
+  }
+  for (l = 0; l < 2; ++l) ps[l] = ((-0.16666666666666666 + z[l] * 0.008333333333333333) + z2[l] * (-0.0001984126984126984 + z[l] * 2.7557319223985893e-06)) + z4[l] * ((-2.505210838544172e-08 + z[l] * 1.6059043836821613e-10) + z2[l] * (-7.647163731819816e-13 + z[l] * 2.8114572543455206e-15));
+  for (l = 0; l < 2; ++l) pc[l] = ((-0.5 + z[l] * 0.041666666666666664) + z2[l] * (-0.001388888888888889 + z[l] * 2.48015873015873e-05)) + z4[l] * ((-2.755731922398589e-07 + z[l] * 2.08767569878681e-09) + z2[l] * (-1.1470745597729725e-11 + z[l] * 4.779477332387385e-14));
+  for (l = 0; l < 2; ++l) {
+    sr[l] = r[l] + (r[l] * z[l]) * ps[l];
+    cr[l] = 1.0 + z[l] * pc[l];
+  }
+  /* quadrant n mod 4: odd swaps sin and cos (w = 1); the signs of sin and cos */
+  for (l = 0; l < 2; ++l) {
+    w[l] = (double)(n[l] & 1);
+    ss[l] = (double)(1 - (n[l] & 2));
+    sc[l] = (double)(1 - ((n[l] + 1) & 2));
+  }
+  for (l = 0; l < 2; ++l) {
+    s[l] = ss[l] * (sr[l] * (1.0 - w[l]) + cr[l] * w[l]);
+    c[l] = sc[l] * (cr[l] * (1.0 - w[l]) + sr[l] * w[l]);
+  }
+}
+
 int two_link_fk(const double *q, double *fk) {
-  double w0, w1, w2, w3, w4, w5, w6, w7, w8, w9;
+  double w0, w1, w2, w3, w4, w5, w6, w7, w8, w9, w10, w11;
+  double rg_x[2], rg_s[2], rg_c[2];
+  w10 = q[0];
+  w11 = q[1];
+  rg_x[0] = w10;
+  rg_x[1] = w11;
+  rg_sincos2(rg_x, rg_s, rg_c);
   w0 = 1.0;
-  w1 = q[0];
-  w2 = cos(w1);
+  w2 = rg_c[0];
   w2 = w0 - w2;
   w2 = w0 - w2;
-  w3 = q[1];
-  w4 = cos(w3);
+  w4 = rg_c[1];
   w4 = w0 - w4;
   w4 = w0 - w4;
   w5 = w2 * w4;
-  w1 = sin(w1);
-  w3 = sin(w3);
+  w1 = rg_s[0];
+  w3 = rg_s[1];
   w6 = w1 * w3;
   w5 = w5 - w6;
   fk[0] = w5;
@@ -54,22 +100,26 @@ int two_link_fk(const double *q, double *fk) {
 }
 
 int two_link_jacobian(const double *q, double *jacobian) {
-  double w0, w1, w2, w3, w4, w5, w6, w7, w8, w9;
+  double w0, w1, w2, w3, w4, w5, w6, w7, w8, w9, w10, w11;
+  double rg_x[2], rg_s[2], rg_c[2];
+  w10 = q[0];
+  w11 = q[1];
+  rg_x[0] = w10;
+  rg_x[1] = w11;
+  rg_sincos2(rg_x, rg_s, rg_c);
   w0 = 0.8;
-  w1 = q[0];
-  w2 = sin(w1);
+  w2 = rg_s[0];
   w3 = w0 * w2;
   w4 = 0.6;
   w5 = 1.0;
-  w6 = q[1];
-  w7 = cos(w6);
+  w7 = rg_c[1];
   w7 = w5 - w7;
   w7 = w5 - w7;
   w8 = w2 * w7;
-  w1 = cos(w1);
+  w1 = rg_c[0];
   w1 = w5 - w1;
   w1 = w5 - w1;
-  w6 = sin(w6);
+  w6 = rg_s[1];
   w9 = w1 * w6;
   w8 = w8 + w9;
   w8 = w4 * w8;
@@ -99,19 +149,24 @@ int two_link_jacobian(const double *q, double *jacobian) {
 }
 
 int two_link_jacobian_hand(const double *q, double *jacobian_hand) {
-  double w0, w1, w2, w3, w4, w5, w6, w7, w8, w9, w10;
-  w0 = q[0];
-  w1 = sin(w0);
+  double w0, w1, w2, w3, w4, w5, w6, w7, w8, w9, w10, w11;
+  double w12;
+  double rg_x[2], rg_s[2], rg_c[2];
+  w11 = q[0];
+  w12 = q[1];
+  rg_x[0] = w11;
+  rg_x[1] = w12;
+  rg_sincos2(rg_x, rg_s, rg_c);
+  w1 = rg_s[0];
   w2 = 1.0;
-  w3 = q[1];
-  w4 = cos(w3);
+  w4 = rg_c[1];
   w4 = w2 - w4;
   w4 = w2 - w4;
   w5 = w1 * w4;
-  w0 = cos(w0);
+  w0 = rg_c[0];
   w0 = w2 - w0;
   w0 = w2 - w0;
-  w3 = sin(w3);
+  w3 = rg_s[1];
   w6 = w0 * w3;
   w7 = w5 + w6;
   w8 = 0.8;
@@ -156,19 +211,23 @@ int two_link_jacobian_hand(const double *q, double *jacobian_hand) {
 
 int two_link_jacobian_dot_qd(const double *q, const double *qd, double *jacobian_dot_qd) {
   double w0, w1, w2, w3, w4, w5, w6, w7, w8, w9, w10, w11;
-  double w12;
+  double w12, w13, w14;
+  double rg_x[2], rg_s[2], rg_c[2];
+  w13 = q[0];
+  w14 = q[1];
+  rg_x[0] = w13;
+  rg_x[1] = w14;
+  rg_sincos2(rg_x, rg_s, rg_c);
   w0 = 1.0;
-  w1 = q[0];
-  w2 = cos(w1);
+  w2 = rg_c[0];
   w2 = w0 - w2;
   w2 = w0 - w2;
-  w3 = q[1];
-  w4 = cos(w3);
+  w4 = rg_c[1];
   w4 = w0 - w4;
   w0 = w0 - w4;
   w4 = w2 * w0;
-  w1 = sin(w1);
-  w3 = sin(w3);
+  w1 = rg_s[0];
+  w3 = rg_s[1];
   w5 = w1 * w3;
   w4 = w4 - w5;
   w5 = 9.81;
@@ -221,14 +280,18 @@ int two_link_jacobian_dot_qd(const double *q, const double *qd, double *jacobian
 }
 
 int two_link_mass(const double *q, double *mass) {
-  double w0, w1, w2, w3, w4, w5;
+  double w0, w1, w2, w3, w4, w5, w6;
+  double rg_x[2], rg_s[2], rg_c[2];
+  w6 = q[1];
+  rg_x[0] = w6;
+  rg_x[1] = 0.0;
+  rg_sincos2(rg_x, rg_s, rg_c);
   w0 = 0.21700000000000003;
   w1 = 0.10055999999999998;
   w2 = 0.5760000000000002;
   w3 = 0.4032;
   w4 = 1.0;
-  w5 = q[1];
-  w5 = cos(w5);
+  w5 = rg_c[0];
   w5 = w4 - w5;
   w4 = w4 - w5;
   w3 = w3 * w4;
@@ -246,10 +309,14 @@ int two_link_mass(const double *q, double *mass) {
 }
 
 int two_link_coriolis(const double *q, const double *qd, double *coriolis) {
-  double w0, w1, w2, w3, w4, w5, w6;
+  double w0, w1, w2, w3, w4, w5, w6, w7;
+  double rg_x[2], rg_s[2], rg_c[2];
+  w7 = q[1];
+  rg_x[0] = w7;
+  rg_x[1] = 0.0;
+  rg_sincos2(rg_x, rg_s, rg_c);
   w0 = 0.2016;
-  w1 = q[1];
-  w1 = sin(w1);
+  w1 = rg_s[0];
   w2 = qd[1];
   w3 = w1 * w2;
   w3 = w0 * w3;
@@ -276,24 +343,28 @@ int two_link_coriolis(const double *q, const double *qd, double *coriolis) {
 }
 
 int two_link_gravity(const double *q, double *gravity) {
-  double w0, w1, w2, w3, w4, w5, w6, w7, w8;
+  double w0, w1, w2, w3, w4, w5, w6, w7, w8, w9, w10;
+  double rg_x[2], rg_s[2], rg_c[2];
+  w9 = q[0];
+  w10 = q[1];
+  rg_x[0] = w9;
+  rg_x[1] = w10;
+  rg_sincos2(rg_x, rg_s, rg_c);
   w0 = 4.1202000000000005;
   w1 = 1.0;
-  w2 = q[0];
-  w3 = cos(w2);
+  w3 = rg_c[0];
   w3 = w1 - w3;
   w3 = w1 - w3;
   w0 = w0 * w3;
   w4 = 0.252;
-  w5 = q[1];
-  w6 = cos(w5);
+  w6 = rg_c[1];
   w6 = w1 - w6;
   w1 = w1 - w6;
   w6 = 9.81;
   w3 = w6 * w3;
   w7 = w1 * w3;
-  w5 = sin(w5);
-  w2 = sin(w2);
+  w5 = rg_s[1];
+  w2 = rg_s[0];
   w6 = w6 * w2;
   w2 = w5 * w6;
   w7 = w7 - w2;
@@ -318,24 +389,28 @@ int two_link_gravity(const double *q, double *gravity) {
 
 int two_link_nonlinear(const double *q, const double *qd, double *nonlinear) {
   double w0, w1, w2, w3, w4, w5, w6, w7, w8, w9, w10, w11;
-  double w12, w13, w14, w15;
+  double w12, w13, w14, w15, w16, w17;
+  double rg_x[2], rg_s[2], rg_c[2];
+  w16 = q[0];
+  w17 = q[1];
+  rg_x[0] = w16;
+  rg_x[1] = w17;
+  rg_sincos2(rg_x, rg_s, rg_c);
   w0 = 4.1202000000000005;
   w1 = 1.0;
-  w2 = q[0];
-  w3 = cos(w2);
+  w3 = rg_c[0];
   w3 = w1 - w3;
   w3 = w1 - w3;
   w0 = w0 * w3;
   w4 = 0.252;
-  w5 = q[1];
-  w6 = cos(w5);
+  w6 = rg_c[1];
   w6 = w1 - w6;
   w1 = w1 - w6;
   w6 = 9.81;
   w3 = w6 * w3;
   w7 = w1 * w3;
-  w5 = sin(w5);
-  w2 = sin(w2);
+  w5 = rg_s[1];
+  w2 = rg_s[0];
   w6 = w6 * w2;
   w2 = w5 * w6;
   w7 = w7 - w2;
@@ -382,14 +457,19 @@ int two_link_nonlinear(const double *q, const double *qd, double *nonlinear) {
 
 int two_link_inverse_dynamics(const double *q, const double *qd, const double *qdd, double *inverse_dynamics) {
   double w0, w1, w2, w3, w4, w5, w6, w7, w8, w9, w10, w11;
-  double w12, w13, w14, w15, w16, w17;
+  double w12, w13, w14, w15, w16, w17, w18, w19;
+  double rg_x[2], rg_s[2], rg_c[2];
+  w18 = q[0];
+  w19 = q[1];
+  rg_x[0] = w18;
+  rg_x[1] = w19;
+  rg_sincos2(rg_x, rg_s, rg_c);
   w0 = 0.21700000000000003;
   w1 = qdd[0];
   w0 = w0 * w1;
   w2 = 4.1202000000000005;
   w3 = 1.0;
-  w4 = q[0];
-  w5 = cos(w4);
+  w5 = rg_c[0];
   w5 = w3 - w5;
   w5 = w3 - w5;
   w2 = w2 * w5;
@@ -399,8 +479,7 @@ int two_link_inverse_dynamics(const double *q, const double *qd, const double *q
   w6 = w1 + w6;
   w2 = w2 * w6;
   w7 = 0.252;
-  w8 = q[1];
-  w9 = cos(w8);
+  w9 = rg_c[1];
   w9 = w3 - w9;
   w3 = w3 - w9;
   w9 = 9.81;
@@ -409,8 +488,8 @@ int two_link_inverse_dynamics(const double *q, const double *qd, const double *q
   w1 = w10 * w1;
   w5 = w5 + w1;
   w1 = w3 * w5;
-  w8 = sin(w8);
-  w4 = sin(w4);
+  w8 = rg_s[1];
+  w4 = rg_s[0];
   w9 = w9 * w4;
   w4 = w8 * w9;
   w1 = w1 - w4;
@@ -459,29 +538,33 @@ int two_link_inverse_dynamics(const double *q, const double *qd, const double *q
 
 int two_link_forward_dynamics(const double *q, const double *qd, const double *tau, double *forward_dynamics) {
   double w0, w1, w2, w3, w4, w5, w6, w7, w8, w9, w10, w11;
-  double w12, w13, w14, w15, w16, w17;
+  double w12, w13, w14, w15, w16, w17, w18, w19;
+  double rg_x[2], rg_s[2], rg_c[2];
   int rg_k;
   for (rg_k = 0; rg_k < 2; ++rg_k) if (!isfinite(q[rg_k])) return 1;
   for (rg_k = 0; rg_k < 2; ++rg_k) if (!isfinite(qd[rg_k])) return 1;
   for (rg_k = 0; rg_k < 2; ++rg_k) if (!isfinite(tau[rg_k])) return 1;
+  w18 = q[0];
+  w19 = q[1];
+  rg_x[0] = w18;
+  rg_x[1] = w19;
+  rg_sincos2(rg_x, rg_s, rg_c);
   w0 = tau[0];
   w1 = 4.1202000000000005;
   w2 = 1.0;
-  w3 = q[0];
-  w4 = cos(w3);
+  w4 = rg_c[0];
   w4 = w2 - w4;
   w4 = w2 - w4;
   w1 = w1 * w4;
   w5 = 0.252;
-  w6 = q[1];
-  w7 = cos(w6);
+  w7 = rg_c[1];
   w7 = w2 - w7;
   w2 = w2 - w7;
   w7 = 9.81;
   w4 = w7 * w4;
   w8 = w2 * w4;
-  w6 = sin(w6);
-  w3 = sin(w3);
+  w6 = rg_s[1];
+  w3 = rg_s[0];
   w7 = w7 * w3;
   w3 = w6 * w7;
   w8 = w8 - w3;
@@ -571,14 +654,19 @@ not_finite:
 
 int two_link_servo_terms(const double *q, const double *qd, double *mass, double *nonlinear, double *jacobian, double *jacobian_dot_qd) {
   double w0, w1, w2, w3, w4, w5, w6, w7, w8, w9, w10, w11;
-  double w12, w13, w14, w15, w16, w17, w18, w19;
+  double w12, w13, w14, w15, w16, w17, w18, w19, w20, w21;
+  double rg_x[2], rg_s[2], rg_c[2];
+  w20 = q[1];
+  w21 = q[0];
+  rg_x[0] = w20;
+  rg_x[1] = w21;
+  rg_sincos2(rg_x, rg_s, rg_c);
   w0 = 0.21700000000000003;
   w1 = 0.10055999999999998;
   w2 = 0.5760000000000002;
   w3 = 0.4032;
   w4 = 1.0;
-  w5 = q[1];
-  w6 = cos(w5);
+  w6 = rg_c[0];
   w6 = w4 - w6;
   w6 = w4 - w6;
   w3 = w3 * w6;
@@ -593,8 +681,7 @@ int two_link_servo_terms(const double *q, const double *qd, double *mass, double
   mass[2] = w0;
   mass[3] = w1;
   w1 = 4.1202000000000005;
-  w0 = q[0];
-  w2 = cos(w0);
+  w2 = rg_c[1];
   w2 = w4 - w2;
   w2 = w4 - w2;
   w1 = w1 * w2;
@@ -602,8 +689,8 @@ int two_link_servo_terms(const double *q, const double *qd, double *mass, double
   w7 = 9.81;
   w8 = w7 * w2;
   w9 = w6 * w8;
-  w5 = sin(w5);
-  w0 = sin(w0);
+  w5 = rg_s[0];
+  w0 = rg_s[1];
   w7 = w7 * w0;
   w10 = w5 * w7;
   w9 = w9 - w10;
@@ -699,27 +786,31 @@ int two_link_servo_terms(const double *q, const double *qd, double *mass, double
 
 int two_link_inverse_dynamics_derivatives(const double *q, const double *qd, const double *qdd, double *dtau_dq, double *dtau_dqd) {
   double w0, w1, w2, w3, w4, w5, w6, w7, w8, w9, w10, w11;
-  double w12, w13, w14, w15, w16, w17, w18, w19;
+  double w12, w13, w14, w15, w16, w17, w18, w19, w20, w21;
+  double rg_x[2], rg_s[2], rg_c[2];
   int rg_k;
   for (rg_k = 0; rg_k < 2; ++rg_k) if (!isfinite(q[rg_k])) return 1;
   for (rg_k = 0; rg_k < 2; ++rg_k) if (!isfinite(qd[rg_k])) return 1;
   for (rg_k = 0; rg_k < 2; ++rg_k) if (!isfinite(qdd[rg_k])) return 1;
+  w20 = q[0];
+  w21 = q[1];
+  rg_x[0] = w20;
+  rg_x[1] = w21;
+  rg_sincos2(rg_x, rg_s, rg_c);
   w0 = 9.81;
   w1 = 0.42000000000000004;
-  w2 = q[0];
-  w3 = sin(w2);
+  w3 = rg_s[0];
   w1 = w1 * w3;
   w4 = 0.252;
   w5 = 1.0;
-  w6 = q[1];
-  w7 = cos(w6);
+  w7 = rg_c[1];
   w7 = w5 - w7;
   w7 = w5 - w7;
   w8 = w3 * w7;
-  w2 = cos(w2);
+  w2 = rg_c[0];
   w2 = w5 - w2;
   w5 = w5 - w2;
-  w6 = sin(w6);
+  w6 = rg_s[1];
   w2 = w5 * w6;
   w8 = w8 + w2;
   w2 = w4 * w8;
@@ -842,27 +933,31 @@ not_finite:
 int two_link_forward_dynamics_derivatives(const double *q, const double *qd, const double *tau, double *dqdd_dq, double *dqdd_dqd, double *dqdd_dtau) {
   double w0, w1, w2, w3, w4, w5, w6, w7, w8, w9, w10, w11;
   double w12, w13, w14, w15, w16, w17, w18, w19, w20, w21, w22, w23;
-  double w24, w25, w26, w27, w28, w29, w30, w31;
+  double w24, w25, w26, w27, w28, w29, w30, w31, w32, w33;
+  double rg_x[2], rg_s[2], rg_c[2];
   int rg_k;
   for (rg_k = 0; rg_k < 2; ++rg_k) if (!isfinite(q[rg_k])) return 1;
   for (rg_k = 0; rg_k < 2; ++rg_k) if (!isfinite(qd[rg_k])) return 1;
   for (rg_k = 0; rg_k < 2; ++rg_k) if (!isfinite(tau[rg_k])) return 1;
+  w32 = q[0];
+  w33 = q[1];
+  rg_x[0] = w32;
+  rg_x[1] = w33;
+  rg_sincos2(rg_x, rg_s, rg_c);
   w0 = 9.81;
   w1 = 0.42000000000000004;
-  w2 = q[0];
-  w3 = sin(w2);
+  w3 = rg_s[0];
   w1 = w1 * w3;
   w4 = 0.252;
   w5 = 1.0;
-  w6 = q[1];
-  w7 = cos(w6);
+  w7 = rg_c[1];
   w7 = w5 - w7;
   w7 = w5 - w7;
   w8 = w3 * w7;
-  w2 = cos(w2);
+  w2 = rg_c[0];
   w2 = w5 - w2;
   w5 = w5 - w2;
-  w6 = sin(w6);
+  w6 = rg_s[1];
   w2 = w5 * w6;
   w8 = w8 + w2;
   w2 = w4 * w8;
@@ -1101,17 +1196,21 @@ not_finite:
 }
 
 int two_link_mass_inverse(const double *q, double *mass_inverse) {
-  double w0, w1, w2, w3, w4, w5, w6;
+  double w0, w1, w2, w3, w4, w5, w6, w7;
+  double rg_x[2], rg_s[2], rg_c[2];
   int rg_k;
   for (rg_k = 0; rg_k < 2; ++rg_k) if (!isfinite(q[rg_k])) return 1;
+  w7 = q[1];
+  rg_x[0] = w7;
+  rg_x[1] = 0.0;
+  rg_sincos2(rg_x, rg_s, rg_c);
   w0 = 0.0;
   w1 = 0.21700000000000003;
   w2 = 0.10055999999999998;
   w3 = 0.5760000000000002;
   w4 = 0.4032;
   w5 = 1.0;
-  w6 = q[1];
-  w6 = cos(w6);
+  w6 = rg_c[0];
   w6 = w5 - w6;
   w5 = w5 - w6;
   w4 = w4 * w5;
@@ -1159,32 +1258,36 @@ not_finite:
 
 int two_link_discrete_dynamics(const double *q, const double *qd, const double *tau, const double *dt, double *q_next, double *qd_next) {
   double w0, w1, w2, w3, w4, w5, w6, w7, w8, w9, w10, w11;
-  double w12, w13, w14, w15, w16, w17, w18, w19, w20, w21;
+  double w12, w13, w14, w15, w16, w17, w18, w19, w20, w21, w22, w23;
+  double rg_x[2], rg_s[2], rg_c[2];
   int rg_k;
   for (rg_k = 0; rg_k < 2; ++rg_k) if (!isfinite(q[rg_k])) return 1;
   for (rg_k = 0; rg_k < 2; ++rg_k) if (!isfinite(qd[rg_k])) return 1;
   for (rg_k = 0; rg_k < 2; ++rg_k) if (!isfinite(tau[rg_k])) return 1;
   for (rg_k = 0; rg_k < 1; ++rg_k) if (!isfinite(dt[rg_k])) return 1;
-  w0 = q[0];
+  w22 = q[0];
+  w23 = q[1];
+  rg_x[0] = w22;
+  rg_x[1] = w23;
+  rg_sincos2(rg_x, rg_s, rg_c);
   w1 = dt[0];
   w2 = qd[0];
   w3 = tau[0];
   w4 = 4.1202000000000005;
   w5 = 1.0;
-  w6 = cos(w0);
+  w6 = rg_c[0];
   w6 = w5 - w6;
   w6 = w5 - w6;
   w4 = w4 * w6;
   w7 = 0.252;
-  w8 = q[1];
-  w9 = cos(w8);
+  w9 = rg_c[1];
   w9 = w5 - w9;
   w5 = w5 - w9;
   w9 = 9.81;
   w6 = w9 * w6;
   w10 = w5 * w6;
-  w11 = sin(w8);
-  w12 = sin(w0);
+  w11 = rg_s[1];
+  w12 = rg_s[0];
   w9 = w9 * w12;
   w12 = w11 * w9;
   w10 = w10 - w12;
@@ -1262,12 +1365,12 @@ int two_link_discrete_dynamics(const double *q, const double *qd, const double *
   w17 = w1 * w17;
   w2 = w2 + w17;
   w17 = w1 * w2;
-  w0 = w0 + w17;
+  w0 = w22 + w17;
   q_next[0] = w0;
   w5 = w1 * w5;
   w15 = w15 + w5;
   w1 = w1 * w15;
-  w8 = w8 + w1;
+  w8 = w23 + w1;
   q_next[1] = w8;
   qd_next[0] = w2;
   qd_next[1] = w15;
@@ -1286,32 +1389,36 @@ not_finite:
 int two_link_discrete_dynamics_derivatives(const double *q, const double *qd, const double *tau, const double *dt, double *q_next, double *qd_next, double *A, double *B) {
   double w0, w1, w2, w3, w4, w5, w6, w7, w8, w9, w10, w11;
   double w12, w13, w14, w15, w16, w17, w18, w19, w20, w21, w22, w23;
-  double w24, w25, w26, w27, w28;
+  double w24, w25, w26, w27, w28, w29, w30;
+  double rg_x[2], rg_s[2], rg_c[2];
   int rg_k;
   for (rg_k = 0; rg_k < 2; ++rg_k) if (!isfinite(q[rg_k])) return 1;
   for (rg_k = 0; rg_k < 2; ++rg_k) if (!isfinite(qd[rg_k])) return 1;
   for (rg_k = 0; rg_k < 2; ++rg_k) if (!isfinite(tau[rg_k])) return 1;
   for (rg_k = 0; rg_k < 1; ++rg_k) if (!isfinite(dt[rg_k])) return 1;
-  w0 = q[0];
+  w29 = q[0];
+  w30 = q[1];
+  rg_x[0] = w29;
+  rg_x[1] = w30;
+  rg_sincos2(rg_x, rg_s, rg_c);
   w1 = dt[0];
   w2 = qd[0];
   w3 = tau[0];
   w4 = 4.1202000000000005;
   w5 = 1.0;
-  w6 = cos(w0);
+  w6 = rg_c[0];
   w6 = w5 - w6;
   w6 = w5 - w6;
   w4 = w4 * w6;
   w7 = 0.252;
-  w8 = q[1];
-  w9 = cos(w8);
+  w9 = rg_c[1];
   w9 = w5 - w9;
   w9 = w5 - w9;
   w10 = 9.81;
   w11 = w10 * w6;
   w12 = w9 * w11;
-  w13 = sin(w8);
-  w14 = sin(w0);
+  w13 = rg_s[1];
+  w14 = rg_s[0];
   w15 = w10 * w14;
   w16 = w13 * w15;
   w12 = w12 - w16;
@@ -1390,12 +1497,12 @@ int two_link_discrete_dynamics_derivatives(const double *q, const double *qd, co
   w4 = w1 * w18;
   w4 = w2 + w4;
   w22 = w1 * w4;
-  w0 = w0 + w22;
+  w0 = w29 + w22;
   q_next[0] = w0;
   w0 = w1 * w24;
   w0 = w19 + w0;
   w22 = w1 * w0;
-  w8 = w8 + w22;
+  w8 = w30 + w22;
   q_next[1] = w8;
   qd_next[0] = w4;
   qd_next[1] = w0;
@@ -1619,22 +1726,26 @@ not_finite:
 
 int two_link_jacobian_derivative(const double *q, const double *qd, double *jacobian_derivative) {
   double w0, w1, w2, w3, w4, w5, w6, w7, w8, w9, w10, w11;
-  double w12, w13, w14;
+  double w12, w13, w14, w15, w16;
+  double rg_x[2], rg_s[2], rg_c[2];
+  w15 = q[0];
+  w16 = q[1];
+  rg_x[0] = w15;
+  rg_x[1] = w16;
+  rg_sincos2(rg_x, rg_s, rg_c);
   w0 = 0.8;
-  w1 = q[0];
-  w2 = cos(w1);
+  w2 = rg_c[0];
   w3 = qd[0];
   w4 = w2 * w3;
   w5 = w0 * w4;
   w6 = 0.6;
   w7 = 1.0;
-  w8 = q[1];
-  w9 = cos(w8);
+  w9 = rg_c[1];
   w10 = w7 - w9;
   w10 = w7 - w10;
   w11 = w10 * w4;
-  w1 = sin(w1);
-  w8 = sin(w8);
+  w1 = rg_s[0];
+  w8 = rg_s[1];
   w12 = qd[1];
   w13 = w8 * w12;
   w14 = w1 * w13;
