@@ -14,6 +14,7 @@ from pathlib import Path
 
 import robotgen
 from robotgen.emit.compile import NoCompiler
+from robotgen.emit.targets import TARGETS, TargetUnavailable, check_available
 from robotgen.errors import UserError, UserErrors
 from robotgen.model.derivatives import INTEGRATORS, SEMI_IMPLICIT_EULER, DerivativeSettings
 from robotgen.model.describe import system_info, system_nq
@@ -92,8 +93,16 @@ def _cmd_build(args: argparse.Namespace) -> int:
     from robotgen.emit import cache
 
     out = Path(args.output) if args.output else Path("generated") / system.name
+    targets = tuple(sorted(set(args.target)))
+    try:
+        for target in targets:
+            check_available(target)
+    except TargetUnavailable as e:
+        print(f"robotgen: error: {e}", file=sys.stderr)
+        return EXIT_USER
     options = {"name": system.name, "precision": args.precision, "compile": not args.no_compile,
-               "tip": args.tip, "base": args.base, "tree": getattr(args, "tree", False)}
+               "tip": args.tip, "base": args.base, "tree": getattr(args, "tree", False),
+               **({"targets": list(targets)} if targets else {})}
     key = cache.build_key([Path(system.source), *map(Path, system.dependencies)], options)
     if cache.is_current(out, key, not args.no_compile, system.name):
         print(f"robotgen: {out} is up to date")
@@ -114,7 +123,7 @@ def _cmd_build(args: argparse.Namespace) -> int:
         emit(out, system.name, kernels, nq=system_nq(system), precision=args.precision,
              compile=not args.no_compile, extra_info={**system_info(system), **extra_info},
              spec_sha256=system.source_sha256, attributes=attributes, progress=progress,
-             controllers=controllers_for(system))
+             controllers=controllers_for(system), targets=targets)
     except FileExistsError as e:
         print(f"robotgen: error: {e}", file=sys.stderr)
         return EXIT_USER
@@ -269,6 +278,9 @@ def _parser() -> argparse.ArgumentParser:
     b.add_argument("-o", "--output", help="output directory (default generated/<name>/)")
     b.add_argument("--precision", choices=["double", "float"], default="double")
     b.add_argument("--no-compile", action="store_true", help="emit sources only")
+    b.add_argument("--target", action="append", choices=sorted(TARGETS), default=[],
+                   help="also compile the C for this microcontroller and record each function's code and "
+                        "stack bytes in manifest.json (needs its compiler, e.g. arm-none-eabi-gcc)")
     b.add_argument("--tip", help="URDF: the tip link")
     b.add_argument("--base", help="URDF: the base link (default: the root link)")
     b.add_argument("--name", help="URDF: module name (default: the robot's name)")

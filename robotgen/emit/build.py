@@ -15,6 +15,7 @@ from robotgen.emit.cache import BUILD_KEY
 from robotgen.emit.context import module_view
 from robotgen.emit.manifest import manifest_json
 from robotgen.emit.render import render_all
+from robotgen.emit.targets import measure as measure_target
 from robotgen.progress import QUIET, Progress
 from robotgen.symbolic.control.law import Controller
 from robotgen.symbolic.kernel import Kernel
@@ -30,7 +31,7 @@ MANIFEST = "manifest.json"
 def emit(out_dir: Path, name: str, kernels: list[Kernel], *, nq: int,
          precision: str = "double", compile: bool = True, extra_info: dict | None = None,
          spec_sha256: str = "", attributes: dict | None = None, progress: Progress = QUIET,
-         controllers: list[Controller] | None = None) -> Path:
+         controllers: list[Controller] | None = None, targets: tuple[str, ...] = ()) -> Path:
     """Writes ``<name>.h``, ``<name>.c``, ``<name>_module.c``, the stub ``<name>.pyi``,
     ``Makefile`` (with ``<name>.pc.in`` and ``<name>Config.cmake.in``, which its ``install``
     target fills in), ``manifest.json`` and (if ``compile``) the extension
@@ -39,13 +40,15 @@ def emit(out_dir: Path, name: str, kernels: list[Kernel], *, nq: int,
     ``nodes``); ``attributes`` adds json-valued module attributes; ``controllers`` (each
     around kernels of ``kernels``) adds a state struct with reset and step functions to the C
     and a class to the extension (robotgen.emit.controllers). Everything is made in a
-    temporary sibling directory first, so a failure leaves ``out_dir`` as it was."""
+    temporary sibling directory first, so a failure leaves ``out_dir`` as it was. ``targets``
+    (robotgen.emit.targets) compiles the C for those microcontrollers as well and puts each
+    function's code and stack bytes in the manifest."""
     out_dir = Path(out_dir)
     view = module_view(name, kernels, nq=nq, precision=precision, spec_sha256=spec_sha256,
                        extra_info=extra_info, attributes=attributes, progress=progress,
                        controllers=tuple(controllers or ()))
     sources = render_all(view)
-    files = {**sources, MANIFEST: manifest_json(view, sources)}
+    files = dict(sources)
     _check_replaceable(out_dir)
     out_dir.parent.mkdir(parents=True, exist_ok=True)
     staging = out_dir.parent / f".{out_dir.name}.tmp-{os.getpid()}"
@@ -54,6 +57,11 @@ def emit(out_dir: Path, name: str, kernels: list[Kernel], *, nq: int,
         staging.mkdir()
         for file_name, text in files.items():
             (staging / file_name).write_bytes(text.encode("utf-8"))
+        reports = {}
+        for target in targets:
+            progress.stage(f"compiling for {target}")
+            reports[target] = measure_target(target, staging, name)
+        (staging / MANIFEST).write_bytes(manifest_json(view, sources, reports).encode("utf-8"))
         if compile:
             progress.stage(f"compiling the extension ({' '.join(compiler.compiler())})")
             compiler.compile_extension(staging, name, [f"{name}_module.c", f"{name}.c"], parts=view.parts)

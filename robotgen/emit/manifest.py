@@ -6,12 +6,13 @@ import hashlib
 from robotgen.emit.context import ModuleView, PortView, to_json
 
 
-def manifest_json(view: ModuleView, sources: dict[str, str]) -> str:
+def manifest_json(view: ModuleView, sources: dict[str, str], targets: dict[str, dict] | None = None) -> str:
     """Deterministic text (sorted keys, no timestamps or paths): the module's info()
     (with its "parameters" list, name, shape, default and doc, when it has run-time
     parameters) plus the CasADi version, each function's ports (the parameter struct is not
     a port: "reads_parameters" says which functions take it) and operation counts, and the
-    sha256 of every other emitted file (so a manifest alone pins a build byte for byte)."""
+    sha256 of every other emitted file (so a manifest alone pins a build byte for byte).
+    ``targets``: what robotgen.emit.targets measured, only when the build asked for it."""
     manifest = {
         **view.info,
         "casadi_version": view.casadi_version,
@@ -30,6 +31,7 @@ def manifest_json(view: ModuleView, sources: dict[str, str]) -> str:
             }
             for f in view.functions
         ],
+        **({"targets": targets} if targets else {}),
     }
     return to_json(manifest) + "\n"
 

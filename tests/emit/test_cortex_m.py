@@ -1,9 +1,11 @@
 """The emitted C of the examples, double and float, compiled for a Cortex-M7 with the Arm GNU
 toolchain (Debian's gcc-arm-none-eabi): warning-free under -Wall -Wextra -Werror
 -Wdouble-promotion, no data or bss (no globals), nothing called but <math.h> functions (no
-memset either), every function's stack use static. Prints code size and stack per function."""
+memset either), every function's stack use static. Prints code size and stack per function;
+`robotgen build --target cortex-m7` puts the same numbers in manifest.json."""
 from __future__ import annotations
 
+import json
 import re
 import shutil
 import subprocess
@@ -24,10 +26,11 @@ MATH = {"sin", "cos", "tan", "asin", "acos", "atan", "atan2", "exp", "log", "sqr
 @pytest.mark.skipif(CC is None, reason="arm-none-eabi-gcc is not installed (Debian: apt-get install gcc-arm-none-eabi)")
 @pytest.mark.parametrize("precision", ["double", "float"])
 @pytest.mark.parametrize("spec", ["puma560", "styx_high_ct", "puma560_rmrc"])
-def test_cortex_m7_build(tmp_path, spec, precision):
-    out = tmp_path / spec
+def test_cortex_m7_build(tmp_path, monkeypatch, spec, precision):
+    monkeypatch.chdir(tmp_path)
+    out = Path(spec)  # relative, as a user types it
     assert main(["build", str(SPECS / f"{spec}.yaml"), "-o", str(out), "--precision", precision, "--no-compile",
-                 "-q"]) == 0
+                 "--target", "cortex-m7", "-q"]) == 0
     obj = tmp_path / f"{spec}.o"
     result = subprocess.run([CC, *FLAGS, "-c", str(out / f"{spec}.c"), "-o", str(obj)], capture_output=True,
                             text=True, cwd=tmp_path)
@@ -51,3 +54,28 @@ def test_cortex_m7_build(tmp_path, spec, precision):
     for name in sorted(code):
         print(f"  {name:50s} {code[name]:7d} B code {stack.get(name, 0):6d} B stack")
     assert set(code) == set(stack)
+    # the manifest's report is these numbers (same compiler, same flags)
+    report = json.loads((out / "manifest.json").read_text())["targets"]["cortex-m7"]
+    assert (report["text_bytes"], report["data_bytes"], report["bss_bytes"]) == (text, 0, 0)
+    assert {f: (v["code_bytes"], v["stack_bytes"]) for f, v in report["functions"].items()} == \
+        {f: (code[f], stack[f]) for f in code}
+    helper = stack.get("rg_sincos2", 0)
+    for f, v in report["functions"].items():  # a caller of the sin/cos routine also needs its frame
+        assert v["stack_bytes_with_calls"] in (stack[f], stack[f] + helper)
+        assert (v["stack_bytes_with_calls"] > stack[f]) == (f"{f}>:" in _callers_of_helper(obj))
+
+
+def _callers_of_helper(obj: Path) -> str:
+    """'name>:' of every function whose code calls rg_sincos2."""
+    listing = subprocess.run(["arm-none-eabi-objdump", "-d", str(obj)], capture_output=True, text=True,
+                             check=True).stdout
+    return " ".join(block.split("\n", 1)[0] for block in listing.split("\n\n")
+                    if re.search(r"bl\s+\w+ <rg_sincos2>", block))
+
+
+def test_target_without_its_compiler_is_the_users_to_fix(tmp_path, monkeypatch, capsys):
+    monkeypatch.setenv("PATH", str(tmp_path))  # no arm-none-eabi-gcc here
+    out = tmp_path / "out"
+    assert main(["build", str(SPECS / "two_link.yaml"), "-o", str(out), "--target", "cortex-m7", "--no-compile",
+                 "-q"]) == 1
+    assert "arm-none-eabi-gcc" in capsys.readouterr().err and not out.exists()
