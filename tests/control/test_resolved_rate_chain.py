@@ -194,6 +194,18 @@ def test_axis_angle_of_eqs_15_to_18_handles_every_angle():
 
 
 # -- singularities --------------------------------------------------------------------
+@pytest.mark.parametrize("bad", [np.nan, -np.inf])
+def test_a_nan_or_infinite_measurement_is_status_1(puma, ur5, bad):
+    q = np.array([0.2, 0.6, 2.9, 0.0, 0.3, 0.0])
+    broken = np.where(np.arange(6) == 3, bad, q)
+    for call in (lambda: puma.rate_step(broken, np.ones(6)), lambda: puma.rate_step(q, np.where(q > 1, bad, 0)),
+                 lambda: puma.position_step(broken, puma.fk(q)), lambda: ur5.lqr_step(broken, np.zeros(6))):
+        with pytest.raises(FloatingPointError, match="status 1"):
+            call()
+    qd, w, cond = puma.rate_step(q, np.ones(6))
+    assert np.all(np.isfinite(qd)) and w[0] > 0 and cond[0] >= 1
+
+
 def test_through_a_wrist_singularity_rates_stay_bounded(puma):
     """Rotating the hand about joint 5's axis takes q5 from 0.3 through 0 (a wrist singularity,
     where damping is active) to -0.3; then a command with a component about the lost axis

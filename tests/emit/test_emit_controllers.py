@@ -24,7 +24,7 @@ from robotgen.emit.controllers import snake_case
 from robotgen.emit.sx_program import KernelError
 from robotgen.frontend import load_system
 from robotgen.symbolic import controllers_for, kernels_for
-from robotgen.symbolic.control.hand import Hand
+from robotgen.symbolic.control.hand import SINGULAR_PIVOT, Hand
 from robotgen.symbolic.control.law import Controller, StateView
 from robotgen.symbolic.kernel import PARAMS, make_kernel
 
@@ -314,6 +314,50 @@ def test_keyword_arguments_of_step(rac):
     controller = rac.cls()
     expected = controller.step(q, qd, pose, twist, accel)
     assert_close(controller.step(q, qd, accel_d=accel, twist_d=twist, pose_d=pose.tolist()), expected)
+
+
+def _wrist(q5: float) -> np.ndarray:
+    """A PUMA posture; q5 = 0 aligns joints 4 and 6 (the wrist singularity)."""
+    return np.array([0.1, -0.5, 0.4, 0.2, q5, 0.3])
+
+
+def test_a_singular_hand_jacobian_is_status_2_not_huge_torques(rac):
+    """J^-1 at the wrist singularity does not exist, and near it the solve amplifies the command
+    without bound: the step refuses (status 2, zero outputs) when numpy's QR of the same J^T
+    has a pivot below hand.SINGULAR_PIVOT of the largest, and answers otherwise."""
+    node = rac.system.root_node
+    J = ca.Function("J", [q := ca.SX.sym("q", 6)], [Hand(rac.system.nodes[node.robot].leaf,
+                                                         node.hand.tool).jacobian(q)])
+    rest = (np.zeros(6), rac.module.fk(_wrist(0.5)), np.zeros(6), np.array([0.1, 0, 0, 0, 0, 0.1]))
+    tripped = []
+    for q5 in [0.0, *np.geomspace(1e-10, 1e-2, 41), -1e-9, 0.5]:
+        pivots = np.abs(np.diag(np.linalg.qr(np.array(J(_wrist(q5))).T)[1]))
+        ratio = pivots.min() / pivots.max()
+        if abs(ratio / SINGULAR_PIVOT - 1) < 0.01:
+            continue  # rounding decides at the threshold itself
+        if ratio < SINGULAR_PIVOT:
+            tripped.append(q5)
+            for call in (rac.module.resolved_acceleration_step, rac.cls().step):
+                with pytest.raises(FloatingPointError, match="status 2"):
+                    call(_wrist(q5), *rest)
+        else:
+            tau, _ = rac.module.resolved_acceleration_step(_wrist(q5), *rest)
+            assert np.all(np.isfinite(tau))
+    assert 0.0 in tripped and -1e-9 in tripped and 0.5 not in tripped and len(tripped) < 20
+
+
+@pytest.mark.parametrize("bad", [np.nan, np.inf])
+def test_a_nan_or_infinite_measurement_is_status_1(rac, rmac, bad):
+    q, qd, pose, twist, accel = rac.trajectory[1]
+    for module, step in ((rac.module, "resolved_acceleration_step"), (rmac.module, "adaptive_init")):
+        with pytest.raises(FloatingPointError, match="status 1"):
+            getattr(module, step)(np.where(np.arange(6) == 2, bad, q), qd, pose, twist, accel)
+    controller = rmac.cls()
+    controller.step(q, qd, pose, twist, accel)
+    state = controller.state.copy()
+    with pytest.raises(FloatingPointError, match="status 1"):
+        controller.step(q, np.where(np.arange(6) == 4, bad, qd), pose, twist, accel)
+    assert np.array_equal(controller.state, state)  # nothing written: the next step starts from here
 
 
 # ------------------------------------------------------------------------------ errors

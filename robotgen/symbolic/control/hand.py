@@ -15,11 +15,28 @@ import numpy as np
 
 from robotgen.model.chain import KinematicTree
 from robotgen.numeric import exact
+from robotgen.symbolic.control.resolved_rate.resolution import DampedResolver
 from robotgen.symbolic.rigid_body.chain import ChainGraphs, Symbols
 from robotgen.symbolic.rigid_body.cholesky import cholesky_solve_matrix
 from robotgen.symbolic.rigid_body.rpy import rpy_of, rpy_rate_map, rpy_rates
 
 N = 6
+# A 6 x 6 solve refuses a Jacobian whose QR factor R has a pivot below this fraction of its
+# largest (a condition number of about 1e6 or more): the answer would be torques of 1e6 x the
+# command and more, so it is NaN instead, which a checked step turns into status 2 with zero
+# outputs (docs/c-api.md). Near singular is where resolved motion has no sane answer.
+SINGULAR_PIVOT = 1e-6
+
+
+def checked_solve(J: ca.SX, b: ca.SX) -> ca.SX:
+    """J^-1 b by Householder QR of J^T (J = R^T Q^T, so J^-1 b = Q R^-T b); NaN when J is
+    singular to SINGULAR_PIVOT."""
+    resolver = DampedResolver(J, None)
+    pivots = [ca.fabs(resolver.qr.R[k][k]) for k in range(J.shape[0])]
+    smallest, largest = pivots[0], pivots[0]
+    for pivot in pivots[1:]:
+        smallest, largest = ca.fmin(smallest, pivot), ca.fmax(largest, pivot)
+    return resolver.pinv_times(b) * ca.if_else(smallest > SINGULAR_PIVOT * largest, 1, ca.SX(float("nan")))
 
 
 def pose_rows(pose: ca.SX) -> tuple[ca.SX, ca.SX]:
@@ -81,12 +98,12 @@ class Hand:
 
     # -- resolved motion (eqs 11, 13) --------------------------------------------------
     def joint_rates(self, q: ca.SX, twist: ca.SX) -> ca.SX:
-        """qd = J^-1 [v; Omega] (eq 11), by a solve."""
-        return ca.solve(self.jacobian(q), twist)
+        """qd = J^-1 [v; Omega] (eq 11), by a solve (NaN at a singular J)."""
+        return checked_solve(self.jacobian(q), twist)
 
     def joint_accelerations(self, q: ca.SX, qd: ca.SX, accel: ca.SX) -> ca.SX:
-        """qdd = J^-1 ([vdot; Omegadot] - Jdot qd) (eq 13), by a solve."""
-        return ca.solve(self.jacobian(q), accel - self.bias(q, qd))
+        """qdd = J^-1 ([vdot; Omegadot] - Jdot qd) (eq 13), by a solve (NaN at a singular J)."""
+        return checked_solve(self.jacobian(q), accel - self.bias(q, qd))
 
     def inverse_kinematics(self, R_d: ca.SX, p_d: ca.SX, q0: ca.SX, iterations: int) -> ca.SX:
         """q with the hand at (R_d, p_d): Newton steps q <- q + J^-1 [p_d - p; e_o] from q0 (a
@@ -95,7 +112,7 @@ class Hand:
         q = q0
         for _ in range(iterations):
             R, p = self.pose(q)
-            q = q + ca.solve(self.jacobian(q), ca.vertcat(p_d - p, orientation_error(R_d, R)))
+            q = q + checked_solve(self.jacobian(q), ca.vertcat(p_d - p, orientation_error(R_d, R)))
         return q
 
     # -- dynamics -----------------------------------------------------------------------

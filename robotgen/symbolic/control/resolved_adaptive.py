@@ -168,7 +168,7 @@ def kernels(system: RobotSystem) -> list[Kernel]:
         "feedforward along the resolved desired trajectory plus the one-step optimal feedback (eq 39) of "
         "the RLS-identified perturbation model (eq 37); adapt = 0 freezes the identification. The state "
         "(A, B, P, the last phi, the resolved joint trajectory) comes from adaptive_init or the previous "
-        "step. Also the hand perturbation dx (eq 20).", inputs, outputs, parameters)
+        "step. Also the hand perturbation dx (eq 20).", inputs, outputs, parameters, guarded=True)
 
     # the first state after a reset: the linearised model at the nominal
     j = Inputs()
@@ -181,7 +181,7 @@ def kernels(system: RobotSystem) -> list[Kernel]:
         INIT, "The adaptive controller's state for its first period: the resolved desired joint trajectory "
         "(inverse kinematics from the measured q) and the perturbation model linearised there (eqs 24-28) "
         "and discretised at T (eqs 29-32); P = p0 I.",
-        j.ports(), [("state", pack(first), (STATE_SIZE, 1))], parameters)
+        j.ports(), [("state", pack(first), (STATE_SIZE, 1))], parameters, guarded=True)
     return leaf_kernels(tree, derivatives=system.derivatives.when_asked()) + [step, init]
 
 

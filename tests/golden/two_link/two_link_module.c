@@ -275,7 +275,8 @@ static PyObject *rg_finish(const char *fn, int status, PyArrayObject **results, 
         if (status == 2) {
             return PyErr_Format(PyExc_FloatingPointError,
                                 "%s(): the result is not finite (the mass matrix is not positive definite "
-                                "at this state, or the numbers overflow); the outputs were set to 0 (status 2)",
+                                "or the hand Jacobian is singular at this state, or the numbers overflow); "
+                                "the outputs were set to 0 (status 2)",
                                 fn);
         }
         return PyErr_Format(PyExc_RuntimeError, "%s(): kernel returned %d", fn, status);

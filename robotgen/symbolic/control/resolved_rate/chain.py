@@ -146,14 +146,15 @@ def chain_kernels(system: RobotSystem) -> list[Kernel]:
                 "sqrt(det(J J^T)) and the condition number of the task Jacobian.",
                 [("q", q, (n, 1)), ("command", command, (6, 1))],
                 [("qd", qd_rate, (n, 1)), ("manipulability", law.manipulability, (1, 1)),
-                 ("condition", law.condition, (1, 1))]),
+                 ("condition", law.condition, (1, 1))], guarded=True),
         make_kernel("position_step", f"Position control through rates (eqs 11-18), re-planned from q at every "
                 f"call: the hand rates that reach the target pose (4x4, base frame) in T = {s.horizon:g} s, "
                 "resolved as rate_step does. error = (target - hand position in base coordinates, "
                 "rotation vector Omega alpha of C_if in hand coordinates).",
                 [("q", q, (n, 1)), ("target", target, (4, 4))],
                 [("qd", qd_pos, (n, 1)), ("error", error, (6, 1)),
-                 ("manipulability", law.manipulability, (1, 1)), ("condition", law.condition, (1, 1))]),
+                 ("manipulability", law.manipulability, (1, 1)), ("condition", law.condition, (1, 1))],
+                guarded=True),
     ]
     if law.H is not None:
         kernels.append(make_kernel("objective", f"The secondary objective H(q) ({s.redundancy.objective}) that "
@@ -173,7 +174,7 @@ def _lqr_kernel(tree: KinematicTree, s: RateControlSettings) -> Kernel:
     return make_kernel("lqr_step", "Optimal regulator about the nominal posture (Whitney 1972, eq 19): "
                        "tau = tau0 - K (q - q0, qd), K from the continuous Riccati equation of the "
                        "linearised dynamics (module attribute lqr).",
-                       [("q", q, (n, 1)), ("qd", qd, (n, 1))], [("tau", tau, (n, 1))])
+                       [("q", q, (n, 1)), ("qd", qd, (n, 1))], [("tau", tau, (n, 1))], guarded=True)
 
 
 def chain_report(system: RobotSystem) -> tuple[dict, dict]:
