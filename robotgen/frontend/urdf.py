@@ -61,6 +61,10 @@ _CHILDREN = {
     "joint": {"origin", "parent", "child", "axis", "limit", "dynamics", "mimic"} | _IGNORED,
 }
 _JOINT_TYPES = {"revolute": REVOLUTE, "continuous": REVOLUTE, "prismatic": PRISMATIC, "fixed": None}
+# Bounds read before anything is built: real robot descriptions are far below both (the
+# largest in example-robot-data: 210 kB, 130 links); a file past them is refused, located.
+MAX_BYTES = 16_000_000
+MAX_LINKS = 1000
 _UNSUPPORTED_TYPES = {"floating": "a floating joint", "planar": "a planar joint"}
 
 
@@ -86,8 +90,15 @@ def _parse_xml(path: str, data: bytes) -> Element:
         (stack[-1].children if stack else root).append(el)
         stack.append(el)
 
+    def entity(name, *_):
+        # no URDF needs one, and expanding them is how a small file becomes gigabytes (the
+        # expat in use may predate its amplification limit)
+        raise UserError(Location(path, parser.CurrentLineNumber, parser.CurrentColumnNumber + 1),
+                        f"the URDF declares an XML entity ('{name}'); robotgen reads URDFs without entities")
+
     parser.StartElementHandler = start
     parser.EndElementHandler = lambda tag: stack.pop()
+    parser.EntityDeclHandler = entity
     try:
         parser.Parse(data, True)
     except xml.parsers.expat.ExpatError as e:
@@ -330,6 +341,9 @@ def _read_links_and_joints(path: str, floating_ok: bool):
     unless ``floating_ok`` (then it is returned, for the caller to accept only above its
     base)."""
     try:
+        size = Path(path).stat().st_size
+        if size > MAX_BYTES:
+            raise UserError(Location(path, 1, 1), f"URDF file is {size} bytes; robotgen reads at most {MAX_BYTES}")
         data = Path(path).read_bytes()
     except OSError as e:
         raise UserError(Location(path, 1, 1), f"cannot read URDF file: {e.strerror}") from None
@@ -343,6 +357,10 @@ def _read_links_and_joints(path: str, floating_ok: bool):
             if lname in links:
                 raise r.fail(el, f"duplicate link '{lname}'")
             links[lname] = el
+            if len(links) > MAX_LINKS:
+                raise r.fail(el, f"more than {MAX_LINKS} links; robotgen reads robots up to that size")
+    if not links:
+        raise r.fail(root, "the URDF has no <link> elements")
     joints = {}  # child link -> joint element
     floating = []
     joint_names: set[str] = set()

@@ -80,3 +80,40 @@ def test_a_massless_last_link_of_a_spec_chain_is_warned_about(tmp_path, capsys):
     assert main(["check", str(path)]) == 0
     line = text[:start].count("\n") + 1
     assert f"{path}:{line}:13: warning: arm: joint 'elbow' moves no mass" in capsys.readouterr().err
+
+
+LAUGHS = ('<?xml version="1.0"?>\n<!DOCTYPE robot [\n<!ENTITY a "' + "a" * 40 + '">\n'
+          + "".join(f'<!ENTITY {b} "{("&" + a + ";") * 16}">\n' for a, b in zip("abcdef", "bcdefg"))
+          + ']>\n<robot name="&g;"><link name="base"/></robot>\n')
+
+
+@pytest.mark.parametrize("name, text, where, words", [
+    ("laughs", LAUGHS, ":3:", "declares an XML entity ('a')"),
+    ("external", '<?xml version="1.0"?>\n<!DOCTYPE robot [<!ENTITY x SYSTEM "file:///etc/passwd">]>\n'
+                 '<robot name="&x;"><link name="base"/></robot>\n', ":2:", "declares an XML entity ('x')"),
+    ("no_links", "<robot name='r'>" + "<a>" * 10000 + "</a>" * 10000 + "</robot>", ":1:1:", "no <link> elements"),
+    ("no_robot", "<model/>", ":1:1:", "must have a <robot> root element"),
+    ("many_links", "<robot name='r'>" + "".join(f"<link name='l{i}'/>" for i in range(1002)) + "</robot>", ":1:",
+     "more than 1000 links"),
+])
+def test_hostile_xml_is_refused_quickly_and_located(tmp_path, capsys, name, text, where, words):
+    path = tmp_path / f"{name}.urdf"
+    path.write_text(text)
+    assert main(["check", str(path), "--tip", "l1"]) == 1
+    err = capsys.readouterr().err
+    assert err.startswith(f"{path}{where}") and words in err, err
+
+
+def test_a_file_past_the_size_bound_is_not_read(tmp_path, capsys):
+    path = tmp_path / "huge.urdf"
+    with open(path, "wb") as f:  # sparse: 17 MB that cost no disk
+        f.truncate(17_000_000)
+    assert main(["check", str(path), "--tip", "l1"]) == 1
+    assert f"{path}:1:1: URDF file is 17000000 bytes; robotgen reads at most 16000000" in capsys.readouterr().err
+
+
+def test_links_without_inertial_are_massless_and_warned_about(tmp_path, capsys):
+    path = tmp_path / "r.urdf"
+    path.write_text(urdf().replace(LINK.format(**GOOD), '<link name="l1"/>'))
+    assert main(["check", str(path), "--tip", "l1"]) == 0
+    assert "warning: joint 'j1' moves no mass" in capsys.readouterr().err
