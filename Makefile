@@ -4,7 +4,7 @@ PYTHON ?= python3
 # OpenBLAS kernels to build under (test-reproducible): those this CPU can run
 CORETYPES ?= $(shell $(PYTHON) -c "from tests.emit.test_reproducible import coretypes; print(' '.join(coretypes()))" 2>/dev/null)
 
-.PHONY: install test lint test-reproducible demo controller bench golden clean
+.PHONY: install test test-slow lint test-reproducible demo controller bench golden clean
 
 install:
 	$(PYTHON) -m pip install --quiet --upgrade pip
@@ -12,6 +12,10 @@ install:
 
 test: lint
 	$(PYTHON) -m pytest -q
+
+# the long runs (pytest -m slow): 10^4 Hypothesis mutants of the example specs (~10 min)
+test-slow:
+	$(PYTHON) -m pytest -q -m slow
 
 lint:
 	$(PYTHON) -m ruff check .

@@ -13,7 +13,12 @@ from robotgen.symbolic.formulas import FormulaGraphs
 from robotgen.symbolic.kernel import NO_PARAMETERS, Kernel, ParameterSymbols, make_kernel
 from robotgen.symbolic.op_count import count_operations
 from robotgen.symbolic.rigid_body.chain import ChainGraphs, Symbols
-from robotgen.symbolic.rigid_body.chain_loops import LOOPS_ABOVE_DOF, LOOPS_ABOVE_OPS, ChainLoops
+from robotgen.symbolic.rigid_body.chain_loops import (
+    CORIOLIS_LOOPS_ABOVE_OPS,
+    LOOPS_ABOVE_DOF,
+    LOOPS_ABOVE_OPS,
+    ChainLoops,
+)
 from robotgen.symbolic.schedule import ScheduleBuilder
 
 # name: (inputs, output shape as a function of nq, doc)
@@ -63,10 +68,10 @@ LOOPED = {  # the chain kernels ChainLoops builds: name -> how (gravity stays st
 }
 
 
-def _long(symbols: list[ca.SX], outputs, n: int) -> bool:
-    """Whether straight-line code would be long (chain_loops.LOOPS_ABOVE_OPS); past
+def _long(symbols: list[ca.SX], outputs, n: int, above: int = LOOPS_ABOVE_OPS) -> bool:
+    """Whether straight-line code would be long (more than ``above`` operations); past
     LOOPS_ABOVE_DOF joints it is, without building it to count."""
-    return n > LOOPS_ABOVE_DOF or count_operations(symbols, outputs())["total"] > LOOPS_ABOVE_OPS
+    return n > LOOPS_ABOVE_DOF or count_operations(symbols, outputs())["total"] > above
 
 
 def _looped(loops: ChainLoops, name: str, doc: str, inputs: str, shape: tuple[int, int], expr,
@@ -74,7 +79,8 @@ def _looped(loops: ChainLoops, name: str, doc: str, inputs: str, shape: tuple[in
     """The kernel as loops when it is one of LOOPED, the chain reads no run-time parameter
     and the kernel's straight-line form (``expr()``) would be long."""
     symbols = [getattr(sym, s) for s in inputs.split()]
-    if name not in LOOPED or parameters.parameters or not _long(symbols, lambda: [expr()], loops.n):
+    above = CORIOLIS_LOOPS_ABOVE_OPS if name == "coriolis" else LOOPS_ABOVE_OPS
+    if name not in LOOPED or parameters.parameters or not _long(symbols, lambda: [expr()], loops.n, above):
         return None
     b = ScheduleBuilder(symbols, [shape[0] * shape[1]])
     LOOPED[name](loops, b, sym)
