@@ -22,13 +22,19 @@ def skew(v: ca.SX) -> ca.SX:
 
 
 def axis_rotation(axis: np.ndarray, c: ca.SX, s: ca.SX) -> ca.SX:
-    """Rotation by an angle with cosine c and sine s about a constant unit axis (Rodrigues):
-    R = I + s K + (1 - c) K^2, K = skew(axis). Zero entries of K stay structural zeros."""
+    """Rotation by an angle with cosine c and sine s about a constant unit axis k (Rodrigues):
+    R = c I + s K + (1 - c) k k^T, K = skew(k). Entries that are zero stay structural zeros,
+    and about a coordinate axis the others are exactly c, +-s and 1 (not 1 - (1 - c))."""
     k = np.asarray(axis, dtype=float)
     K = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
-    K2 = K @ K
-    R = ca.SX.eye(3)
-    R = R + s * const(K) + (1 - c) * const(K2)
+    kk = np.outer(k, k)
+    R = ca.SX(3, 3)
+    for i in range(3):
+        for j in range(3):
+            if i == j:
+                R[i, j] = 1.0 if kk[i, i] == 1.0 else c if kk[i, i] == 0.0 else c + (1 - c) * kk[i, i]
+            elif K[i, j] or kk[i, j]:
+                R[i, j] = (s * K[i, j] if K[i, j] else 0) + ((1 - c) * kk[i, j] if kk[i, j] else 0)
     return R
 
 
