@@ -86,11 +86,11 @@ def _calls(objdump: str) -> dict[str, set[str]]:
     calls: dict[str, set[str]] = {}
     current = None
     for line in objdump.splitlines():
-        header = re.match(r"[0-9a-f]+ <(\w+)>:$", line)
+        header = re.match(r"[0-9a-f]+ <([\w.]+)>:$", line)
         if header:
             current = calls.setdefault(header.group(1), set())
             continue
-        call = re.search(r"\sbl\s+[0-9a-f]+ <(\w+)(?:\+0x[0-9a-f]+)?>", line)
+        call = re.search(r"\sbl\s+[0-9a-f]+ <([\w.]+?)(?:\+0x[0-9a-f]+)?>", line)
         if call and current is not None:
             current.add(call.group(1))
     return calls
@@ -104,10 +104,11 @@ def _deepest(function: str, stack: dict[str, int], calls: dict[str, set[str]]) -
 
 
 def _stack_usage(su: str) -> dict[str, int]:
-    """Stack bytes of each function from gcc's .su file; every frame must be static."""
+    """Stack bytes of each function from gcc's .su file; every frame must be static. Names
+    may carry gcc's suffixes for the parts it splits off (``f.part.0``, ``f.isra.0``)."""
     stack = {}
     for line in su.splitlines():
-        match = re.match(r".*:(\w+)\t(\d+)\t([\w,]+)$", line)
+        match = re.match(r".*:([\w.]+)\t(\d+)\t([\w,]+)$", line)
         if not match or match.group(3) != "static":
             raise RuntimeError(f"a stack frame that is not of fixed size: {line!r}")
         stack[match.group(1)] = int(match.group(2))
