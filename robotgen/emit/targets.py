@@ -81,26 +81,30 @@ def _function_sizes(nm: str) -> dict[str, int]:
     return sizes
 
 
-def _calls(objdump: str) -> dict[str, set[str]]:
-    """The functions each function calls (bl), from ``objdump -dr``."""
-    calls: dict[str, set[str]] = {}
+def _calls(objdump: str) -> dict[str, tuple[set[str], set[str]]]:
+    """The functions each function calls (bl) and those it ends in (a tail call: b to another
+    function, its own frame already popped), from ``objdump -dr``."""
+    calls: dict[str, tuple[set[str], set[str]]] = {}
     current = None
     for line in objdump.splitlines():
         header = re.match(r"[0-9a-f]+ <([\w.]+)>:$", line)
         if header:
-            current = calls.setdefault(header.group(1), set())
+            current = header.group(1)
+            calls[current] = (set(), set())
             continue
-        call = re.search(r"\sbl\s+[0-9a-f]+ <([\w.]+?)(?:\+0x[0-9a-f]+)?>", line)
-        if call and current is not None:
-            current.add(call.group(1))
+        branch = re.search(r"\s(bl|b[a-z]{0,2}(?:\.[nw])?)\s+[0-9a-f]+ <([\w.]+?)(?:\+0x[0-9a-f]+)?>", line)
+        if branch and current is not None and branch.group(2) != current:
+            calls[current][0 if branch.group(1) == "bl" else 1].add(branch.group(2))
     return calls
 
 
-def _deepest(function: str, stack: dict[str, int], calls: dict[str, set[str]]) -> int:
+def _deepest(function: str, stack: dict[str, int], calls: dict[str, tuple[set[str], set[str]]]) -> int:
     """Stack bytes of ``function`` and its deepest chain of calls into this object (the
     emitted code does not recurse); <math.h> functions, defined elsewhere, count nothing."""
-    inner = [_deepest(f, stack, calls) for f in calls.get(function, ()) if f in stack and f != function]
-    return stack[function] + max(inner, default=0)
+    called, tail = calls.get(function, (set(), set()))
+    inner = [_deepest(f, stack, calls) for f in called if f in stack]
+    after = [_deepest(f, stack, calls) for f in tail if f in stack]
+    return max([stack[function] + max(inner, default=0), *after])
 
 
 def _stack_usage(su: str) -> dict[str, int]:
