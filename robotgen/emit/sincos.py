@@ -4,8 +4,8 @@ A robot kernel's trigonometry is one sin and one cos per revolute joint, of the 
 (plus a constant offset), and those pairs were half the time of a small kernel through libm.
 The emitted double code computes them with ``rg_sincos2``, a routine printed into the
 source once: both angles' Cody-Waite reduction to r in [-pi/4, pi/4] (n = round(2x/pi),
-r = x - n pi/2 with pi/2 in three parts), the Taylor polynomials of sin r (to r^17) and
-cos r (to r^16) evaluated by Estrin's scheme, and the quadrant n mod 4 choosing and signing
+r = x - n pi/2 with pi/2 in three parts), minimax polynomials of sin r (degree 13) and
+cos r (degree 14) evaluated by Estrin's scheme, and the quadrant n mod 4 choosing and signing
 them without a branch. The two angles' statements are written lane by lane, so that a
 compiler may run both in one vector register (gcc and clang at -O2 on x86-64 do).
 
@@ -52,31 +52,38 @@ _P1 = _leading_bits(_PI / 2, 33)
 _P2 = _leading_bits(_PI / 2 - _P1, 33)
 _P3 = _PI / 2 - _P1 - _P2
 _TWO_OVER_PI = 2 / _PI
-SIN_TERMS = tuple((-1) ** n * Fraction(1, math.factorial(2 * n + 1)) for n in range(1, 9))  # r^3 .. r^17
-COS_TERMS = tuple((-1) ** n * Fraction(1, math.factorial(2 * n)) for n in range(1, 9))  # r^2 .. r^16
+# The minimax polynomials of fdlibm's __kernel_sin and __kernel_cos (Sun Microsystems, 1993):
+# sin r = r + r z (S1 + S2 z + ... + S6 z^5) and cos r = 1 + z (-1/2 + C1 z + ... + C6 z^6),
+# z = r^2, |r| <= pi/4, each within 2^-57 of the function; degree 13 and 14 where the Taylor
+# series needs 17 and 16. Printed from these decimal strings, the same literals everywhere.
+SIN_TERMS = ("-1.66666666666666324348e-01", "8.33333333332248946124e-03", "-1.98412698298579493134e-04",
+             "2.75573137070700676789e-06", "-2.50507602534068634195e-08", "1.58969099521155010221e-10")
+COS_TERMS = ("-0.5", "4.16666666666666019037e-02", "-1.38888888888741095749e-03", "2.48015872894767294178e-05",
+             "-2.75573143513906633035e-07", "2.08757232129817482790e-09", "-1.13596475577881948265e-11")
 
 
-def _c(value: Fraction) -> str:
+def _c(value: Fraction | str) -> str:
     """The nearest double as a C literal that reads back exactly."""
     return repr(float(value))
 
 
-def _estrin(terms: tuple[Fraction, ...]) -> str:
-    """c0 + c1 z + ... + c7 z^7 in lane l, with z2 = z^2 and z4 = z^4 (Estrin's scheme)."""
+def _estrin(terms: tuple[str, ...]) -> str:
+    """c0 + c1 z + ... in lane l, with z2 = z^2 and z4 = z^4 (Estrin's scheme, 6 or 7 terms)."""
     c = [_c(t) for t in terms]
-    pair = [f"({c[k]} + z[l] * {c[k + 1]})" for k in range(0, 8, 2)]
-    return f"({pair[0]} + z2[l] * {pair[1]}) + z4[l] * ({pair[2]} + z2[l] * {pair[3]})"
+    low = f"({c[0]} + z[l] * {c[1]}) + z2[l] * ({c[2]} + z[l] * {c[3]})"
+    high = f"({c[4]} + z[l] * {c[5]})" + (f" + z2[l] * {c[6]}" if len(c) == 7 else "")
+    return f"({low}) + z4[l] * ({high})"
 
 
 def helper_source() -> str:
     """The C definition of ``rg_sincos2`` (static: each source that uses it has its own)."""
     return "\n".join([
-        "/* sin and cos of x[0] and x[1] into s and c: reduction by pi/2 in three parts, Taylor",
+        "/* sin and cos of x[0] and x[1] into s and c: reduction by pi/2 in three parts, minimax",
         " * polynomials on [-pi/4, pi/4], quadrant by arithmetic. Absolute error <= 2.3e-16 for",
         f" * |x| <= {ABOVE:g}; other angles (larger, infinite, NaN) through libm. Written lane by lane",
         " * so that the compiler may compute both lanes at once. */",
         f"static void {HELPER}(const double *x, double *s, double *c) {{",
-        "  double y[2], k[2], r[2], z[2], z2[2], z4[2], ps[2], pc[2], sr[2], cr[2], w[2], ss[2], sc[2];",
+        "  double y[2], k[2], r[2], z[2], z2[2], z4[2], ps[2], pc[2], sr[2], cr[2], w[2], ss[2], sc[2], so[2], co[2];",
         "  int n[2], l;",
         f"  if (!(fabs(x[0]) <= {ABOVE!r}) || !(fabs(x[1]) <= {ABOVE!r})) {{",
         "    for (l = 0; l < 2; ++l) {",
@@ -108,9 +115,14 @@ def helper_source() -> str:
         "    sc[l] = (double)(1 - ((n[l] + 1) & 2));",
         "  }",
         "  for (l = 0; l < 2; ++l) {",
-        "    s[l] = ss[l] * (sr[l] * (1.0 - w[l]) + cr[l] * w[l]);",
-        "    c[l] = sc[l] * (cr[l] * (1.0 - w[l]) + sr[l] * w[l]);",
+        "    so[l] = ss[l] * (sr[l] * (1.0 - w[l]) + cr[l] * w[l]);",
+        "    co[l] = sc[l] * (cr[l] * (1.0 - w[l]) + sr[l] * w[l]);",
         "  }",
+        "  /* stored lane by lane: s and c may overlap, so a loop writing them would stay scalar */",
+        "  s[0] = so[0];",
+        "  s[1] = so[1];",
+        "  c[0] = co[0];",
+        "  c[1] = co[1];",
         "}",
     ]) + "\n"
 

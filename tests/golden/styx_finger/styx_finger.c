@@ -4,12 +4,12 @@
 
 #include "styx_finger.h"
 
-/* sin and cos of x[0] and x[1] into s and c: reduction by pi/2 in three parts, Taylor
+/* sin and cos of x[0] and x[1] into s and c: reduction by pi/2 in three parts, minimax
  * polynomials on [-pi/4, pi/4], quadrant by arithmetic. Absolute error <= 2.3e-16 for
  * |x| <= 100000; other angles (larger, infinite, NaN) through libm. Written lane by lane
  * so that the compiler may compute both lanes at once. */
 static void rg_sincos2(const double *x, double *s, double *c) {
-  double y[2], k[2], r[2], z[2], z2[2], z4[2], ps[2], pc[2], sr[2], cr[2], w[2], ss[2], sc[2];
+  double y[2], k[2], r[2], z[2], z2[2], z4[2], ps[2], pc[2], sr[2], cr[2], w[2], ss[2], sc[2], so[2], co[2];
   int n[2], l;
   if (!(fabs(x[0]) <= 100000.0) || !(fabs(x[1]) <= 100000.0)) {
     for (l = 0; l < 2; ++l) {
@@ -28,8 +28,8 @@ static void rg_sincos2(const double *x, double *s, double *c) {
     z2[l] = z[l] * z[l];
     z4[l] = z2[l] * z2[l];
   }
-  for (l = 0; l < 2; ++l) ps[l] = ((-0.16666666666666666 + z[l] * 0.008333333333333333) + z2[l] * (-0.0001984126984126984 + z[l] * 2.7557319223985893e-06)) + z4[l] * ((-2.505210838544172e-08 + z[l] * 1.6059043836821613e-10) + z2[l] * (-7.647163731819816e-13 + z[l] * 2.8114572543455206e-15));
-  for (l = 0; l < 2; ++l) pc[l] = ((-0.5 + z[l] * 0.041666666666666664) + z2[l] * (-0.001388888888888889 + z[l] * 2.48015873015873e-05)) + z4[l] * ((-2.755731922398589e-07 + z[l] * 2.08767569878681e-09) + z2[l] * (-1.1470745597729725e-11 + z[l] * 4.779477332387385e-14));
+  for (l = 0; l < 2; ++l) ps[l] = ((-0.16666666666666632 + z[l] * 0.00833333333332249) + z2[l] * (-0.0001984126982985795 + z[l] * 2.7557313707070068e-06)) + z4[l] * ((-2.5050760253406863e-08 + z[l] * 1.58969099521155e-10));
+  for (l = 0; l < 2; ++l) pc[l] = ((-0.5 + z[l] * 0.0416666666666666) + z2[l] * (-0.001388888888887411 + z[l] * 2.480158728947673e-05)) + z4[l] * ((-2.7557314351390663e-07 + z[l] * 2.087572321298175e-09) + z2[l] * -1.1359647557788195e-11);
   for (l = 0; l < 2; ++l) {
     sr[l] = r[l] + (r[l] * z[l]) * ps[l];
     cr[l] = 1.0 + z[l] * pc[l];
@@ -41,9 +41,14 @@ static void rg_sincos2(const double *x, double *s, double *c) {
     sc[l] = (double)(1 - ((n[l] + 1) & 2));
   }
   for (l = 0; l < 2; ++l) {
-    s[l] = ss[l] * (sr[l] * (1.0 - w[l]) + cr[l] * w[l]);
-    c[l] = sc[l] * (cr[l] * (1.0 - w[l]) + sr[l] * w[l]);
+    so[l] = ss[l] * (sr[l] * (1.0 - w[l]) + cr[l] * w[l]);
+    co[l] = sc[l] * (cr[l] * (1.0 - w[l]) + sr[l] * w[l]);
   }
+  /* stored lane by lane: s and c may overlap, so a loop writing them would stay scalar */
+  s[0] = so[0];
+  s[1] = so[1];
+  c[0] = co[0];
+  c[1] = co[1];
 }
 
 int styx_finger_mass(const double *q, double *mass) {
