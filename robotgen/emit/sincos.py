@@ -10,9 +10,9 @@ them without a branch. The two angles' statements are written lane by lane, so t
 compiler may run both in one vector register (gcc and clang at -O2 on x86-64 do).
 
 Bound: absolute error at most 2.3e-16 (about one unit in the last place of a number near 1)
-for |x| <= 1e5; larger, infinite and NaN angles go to libm's sin and cos. Every coefficient
-comes from exact rational arithmetic here, so the printed literals are the same on every
-machine. Float kernels keep sinf and cosf.
+for |x| <= 1e5; larger, infinite and NaN angles go to libm's sin and cos. The pi/2 split
+comes from exact rational arithmetic and the polynomials' coefficients from decimal strings,
+so the printed literals are the same on every machine. Float kernels keep sinf and cosf.
 
 ``pair_angles`` rewrites a straight-line program so that every angle (the value under a sin
 or a cos) is computed first, then one SINCOS step computes all their sines and cosines,
