@@ -69,6 +69,7 @@ def _c(value: Fraction | str) -> str:
 
 def _estrin(terms: tuple[str, ...]) -> str:
     """c0 + c1 z + ... in lane l, with z2 = z^2 and z4 = z^4 (Estrin's scheme, 6 or 7 terms)."""
+    assert len(terms) in (6, 7), terms
     c = [_c(t) for t in terms]
     low = f"({c[0]} + z[l] * {c[1]}) + z2[l] * ({c[2]} + z[l] * {c[3]})"
     high = f"({c[4]} + z[l] * {c[5]})" + (f" + z2[l] * {c[6]}" if len(c) == 7 else "")
