@@ -59,6 +59,37 @@ static int cmp_double(const void *a, const void *b) {
     return (x > y) - (x < y);
 }
 
+/* One call at a time (harness argument "serial"): on x86 an lfence after each call keeps the
+ * next call from starting before this one has finished, as when a Python call (or a servo
+ * loop's other work) separates them. Without it the out-of-order core overlaps consecutive
+ * independent calls, and the loop measures throughput. Elsewhere only a compiler barrier. */
+static int serial;
+#if defined(__x86_64__) || defined(__i386__)
+#define RG_SERIALIZE() __asm__ __volatile__("lfence" ::: "memory")
+#else
+#define RG_SERIALIZE() __asm__ __volatile__("" ::: "memory")
+#endif
+
+/* The timed loop: ITERS calls of CALL on the input sets in turn (s), each output summed. */
+#define BENCH_LOOP(CALL, outsize, AFTER)                                        \
+    for (it = 0; it < iters; it++) {                                            \
+        int s = (int)(it & (NSETS - 1));                                        \
+        CALL;                                                                   \
+        acc += OUT[it % (outsize)];                                             \
+        AFTER;                                                                  \
+    }
+
+#define BENCH_TIMED(CALL, outsize)                                              \
+    do {                                                                        \
+        t0 = now_ns();                                                          \
+        if (serial) {                                                           \
+            BENCH_LOOP(CALL, outsize, RG_SERIALIZE())                           \
+        } else {                                                                \
+            BENCH_LOOP(CALL, outsize, (void)0)                                  \
+        }                                                                       \
+        t1 = now_ns();                                                          \
+    } while (0)
+
 /* CALL uses s (the input set) and writes OUT; outsize = number of outputs written. */
 #define BENCH(label, outsize, CALL)                                              \
     do {                                                                        \
@@ -66,24 +97,12 @@ static int cmp_double(const void *a, const void *b) {
         double t0, t1, acc = 0.0, times[REPEATS];                               \
         int r;                                                                  \
         for (;;) { /* calibrate */                                              \
-            t0 = now_ns();                                                      \
-            for (it = 0; it < iters; it++) {                                    \
-                int s = (int)(it & (NSETS - 1));                                \
-                CALL;                                                           \
-                acc += OUT[it % (outsize)];                                     \
-            }                                                                   \
-            t1 = now_ns();                                                      \
+            BENCH_TIMED(CALL, outsize);                                         \
             if (t1 - t0 >= MIN_NS || iters > (1L << 30)) break;                 \
             iters *= 2;                                                         \
         }                                                                       \
         for (r = 0; r < REPEATS; r++) {                                         \
-            t0 = now_ns();                                                      \
-            for (it = 0; it < iters; it++) {                                    \
-                int s = (int)(it & (NSETS - 1));                                \
-                CALL;                                                           \
-                acc += OUT[it % (outsize)];                                     \
-            }                                                                   \
-            t1 = now_ns();                                                      \
+            BENCH_TIMED(CALL, outsize);                                         \
             times[r] = (t1 - t0) / (double)iters;                               \
         }                                                                       \
         sink += acc;                                                            \
@@ -151,6 +170,11 @@ int main(int argc, char **argv) {
     if (argc > 1 && strcmp(argv[1], "calibrate") == 0) {
         calibrate();
         return 0;
+    }
+    if (argc > 1 && strcmp(argv[1], "serial") == 0) {
+        serial = 1;
+        --argc;
+        ++argv;
     }
     if (selected(argc, argv, "mass")) BENCH("mass", NQ * NQ, FN(mass)(Q[s], OUT));
     if (selected(argc, argv, "inverse_dynamics"))

@@ -95,14 +95,22 @@ def c_harness(out: Path, name: str, nq: int, work: Path) -> tuple[Path, list[str
     return exe, cmd
 
 
-def run_c(out: Path, name: str, nq: int, functions: list[str], work: Path) -> dict:
+def run_c(out: Path, name: str, nq: int, functions: list[str], work: Path, single_calls: bool = False) -> dict:
+    """Each function back to back (throughput: the core overlaps consecutive calls), and with
+    single_calls also one call at a time (the harness's serial mode: a single call's time, as
+    a Python call makes it)."""
     cc = os.environ.get("CC", "cc")
     exe, cmd = c_harness(out, name, nq, work)
-    res = subprocess.run([str(exe), *functions], check=True, capture_output=True, text=True)
-    results = {}
-    for line in res.stdout.splitlines():
-        fn, ns_min, ns_med, iters = line.split()
-        results[fn] = {"ns_min": float(ns_min), "ns_median": float(ns_med), "iterations": int(iters)}
+    results: dict = {}
+    for mode in ("", "serial") if single_calls else ("",):
+        res = subprocess.run([str(exe), *([mode] if mode else []), *functions], check=True,
+                             capture_output=True, text=True)
+        for line in res.stdout.splitlines():
+            fn, ns_min, ns_med, iters = line.split()
+            if mode:
+                results[fn].update(ns_single_call=float(ns_min), ns_single_call_median=float(ns_med))
+            else:
+                results[fn] = {"ns_min": float(ns_min), "ns_median": float(ns_med), "iterations": int(iters)}
     return {"compiler": subprocess.run([cc, "--version"], capture_output=True, text=True).stdout.splitlines()[0],
             "cflags": CFLAGS, "command": " ".join(cmd), "results": results}
 
@@ -122,7 +130,9 @@ def floor_ns(ops: int, sin_cos: int, machine: dict) -> float:
 
 
 def best_ns(stmt, number: int, repeat: int) -> float:
-    return min(timeit.repeat(stmt, number=number, repeat=repeat)) / number * 1e9
+    """ns per run of stmt (a callable or a timeit.Timer), the least disturbed of repeat runs."""
+    timer = stmt if isinstance(stmt, timeit.Timer) else timeit.Timer(stmt)
+    return min(timer.repeat(number=number, repeat=repeat)) / number * 1e9
 
 
 def states(nq: int, n: int, rng) -> list[np.ndarray]:
@@ -136,9 +146,13 @@ def run_python(module, fn: str, nq: int, quick: bool) -> dict:
     one = [a[0] for a in states(nq, 1, rng)][:k]
     batch = states(nq, BATCH, rng)[:k]
     number = 2000 if quick else 20000
-    single = best_ns(lambda: f(*one), number, 3 if quick else 7)
+    # calls as a user writes them, f(q, qd) and f(q, qd, out=r): timeit compiles the statement
+    names = {f"a{i}": a for i, a in enumerate(one)} | {"f": f, "r": f(*one)}
+    call = f"f({', '.join(f'a{i}' for i in range(k))}"
+    single = best_ns(timeit.Timer(call + ")", globals=names), number, 3 if quick else 7)
+    into = best_ns(timeit.Timer(call + ", out=r)", globals=names), number, 3 if quick else 7)
     per_state = best_ns(lambda: f(*batch), 5 if quick else 50, 3 if quick else 7) / BATCH
-    return {"ns_single": single, "ns_per_state_batch": per_state}
+    return {"ns_single": single, "ns_single_out": into, "ns_per_state_batch": per_state}
 
 
 def run_casadi(kernel, nq: int, quick: bool) -> dict:
@@ -155,13 +169,15 @@ def run_casadi(kernel, nq: int, quick: bool) -> dict:
 
 
 def table(rows: list[dict]) -> str:
-    head = ["function", "C ns", "Py ns", "Py batch ns/st", "CasADi ns", "CasADi map ns/st",
-            "Py/C", "CasADi/C", "CasADi/Py", "CasADi map/Py batch"]
+    head = ["function", "C ns", "C 1 call", "Py ns", "Py out=", "Py-C 1 call", "Py out=-C 1 call",
+            "Py batch ns/st", "CasADi ns", "CasADi map ns/st", "Py/C", "CasADi/C", "CasADi/Py", "CasADi map/Py batch"]
     lines = [head]
     for r in rows:
         c, p, k = r["c"]["ns_min"], r["python"], r["casadi"]
+        one = r["c"]["ns_single_call"]
         lines.append([
-            r["function"], f"{c:.1f}", f"{p['ns_single']:.0f}", f"{p['ns_per_state_batch']:.1f}",
+            r["function"], f"{c:.1f}", f"{one:.1f}", f"{p['ns_single']:.0f}", f"{p['ns_single_out']:.0f}",
+            f"{p['ns_single'] - one:.0f}", f"{p['ns_single_out'] - one:.0f}", f"{p['ns_per_state_batch']:.1f}",
             f"{k['ns_single']:.0f}", f"{k['ns_per_state_map']:.1f}",
             f"{p['ns_single'] / c:.1f}", f"{k['ns_single'] / c:.1f}", f"{k['ns_single'] / p['ns_single']:.1f}",
             f"{k['ns_per_state_map'] / p['ns_per_state_batch']:.1f}",
@@ -513,7 +529,7 @@ def main(argv=None) -> int:
         functions = [f for f in args.functions if f in kernels and hasattr(module, f)]
 
         print(f"bench: {name} (nq = {nq}), C: {' '.join(CFLAGS)}", flush=True)
-        c = run_c(out, name, nq, functions, Path(tmp))
+        c = run_c(out, name, nq, functions, Path(tmp), single_calls=True)
         rows = []
         for fn in functions:
             rows.append({
@@ -523,6 +539,9 @@ def main(argv=None) -> int:
                 "casadi": run_casadi(kernels[fn], nq, args.quick),
             })
         print(table(rows))
+        print("C ns: calls back to back (the core overlaps consecutive calls); C 1 call: one call at a time "
+              "(lfence between calls), as a Python call makes it; Py out=: the result written into a given "
+              "array; Py-C 1 call: what the Python call f(q, ...) costs over the C call")
 
         if harness is not None:
             import pinocchio as pin

@@ -25,6 +25,7 @@ INFO_KEYS = frozenset({"name", "nq", "functions", "robotgen_version", "spec_sha2
                        "precision"})
 # Names the .pyi stub imports (numpy, numpy.typing, typing.Any) at module level.
 STUB_NAMES = frozenset({"np", "npt", "Any"})
+OUT_KEYWORD = "out"  # every function's keyword-only argument for result arrays to write into
 INFO_DOC = ("A new dict describing this module: name, nq, nodes, functions, robotgen_version, "
             "spec_sha256, precision.")
 # A module with run-time parameters also has these attributes and info() key.
@@ -196,6 +197,9 @@ def module_view(name: str, kernels: list[Kernel], *, nq: int, precision: str,
     if views:
         info_doc = info_doc[:-1] + ", controllers."
     keyword_names = {p.name for f in functions for p in f.inputs} | {p.name for p in parameters}
+    if OUT_KEYWORD in keyword_names:
+        raise KernelError(f"module {name!r}: an input or run-time parameter is named {OUT_KEYWORD!r}, "
+                          "every function's keyword for its result arrays")
     sincos_parts = tuple(sorted({f.part for f in functions if sincos.HELPER + "(" in f.definition}))
     return ModuleView(
         name=name, macro_prefix=name.upper(), precision=precision,
@@ -363,7 +367,7 @@ def _initializer(literals: list[str], shape: tuple[int, ...]) -> tuple[str, ...]
 
 def _py_doc(kernel: Kernel, inputs: tuple[PortView, ...], outputs: tuple[PortView, ...],
             parameters: tuple[ParameterView, ...]) -> str:
-    keywords = ["*", *(f"{p.name}={p.py_default}" for p in parameters)] if parameters else []
+    keywords = ["*", *(f"{p.name}={p.py_default}" for p in parameters), "out=None"]
     signature = ", ".join(["$module", *(p.name for p in inputs), *keywords])
     lines = [f"{kernel.name}({signature})", "--", "", kernel.doc.strip() or kernel.name, ""]
     lines += [f"{p.name}: float64 array {p.shape_text} or {p.batch_shape_text}" for p in inputs]
@@ -371,6 +375,12 @@ def _py_doc(kernel: Kernel, inputs: tuple[PortView, ...], outputs: tuple[PortVie
         kind = "float64 array " + p.shape_text if p.shape else "number"
         lines.append(f"{p.name}: {kind}, keyword-only, default {p.py_default}"
                      + (f". {_summary(p.doc, '')}" if p.doc else ""))
+    if len(outputs) == 1:
+        lines.append(f"out: None, or a float64 array {outputs[0].shape_text} (or {outputs[0].batch_shape_text} "
+                     "for a batch) to write the result into, then returned: no allocation")
+    else:
+        lines.append(f"out: None, or a tuple of {len(outputs)} float64 arrays of the results' shapes to write "
+                     "them into, then returned: no allocation")
     returned = ", ".join(f"{p.name} {p.shape_text}" for p in outputs)
     lines.append(f"Returns {returned}" + (" as a tuple" if len(outputs) > 1 else "")
                  + "; batched inputs give a leading B axis.")

@@ -204,7 +204,7 @@ def controller_view(module: str, controller: Controller, functions: dict[str, Fu
             "outputs": [o.name for o in others], "reads_parameters": reads}
     keywords = [f"{p.name}={p.py_default}" for p in parameters] if reads else []
     signature = f"{controller.class_name}({', '.join(['*', *keywords]) if keywords else ''})"
-    step_signature = f"step($self, {', '.join(p.name for p in inputs)})"
+    step_signature = f"step($self, {', '.join(p.name for p in inputs)}, *, out=None)"
     step_doc = _step_doc(step, inputs, others)
     return ControllerView(
         class_name=controller.class_name, snake=snake, c_type=c_type, macro=macro,
@@ -285,6 +285,8 @@ def _step_doc(step, inputs, others) -> str:
     lines = [step.doc.strip() or step.name, ""]
     lines += [f"{p.name}: float64 array {p.shape_text} (no batch axis)" for p in inputs]
     extra = f"; the other outputs ({', '.join(o.name for o in others)}) are in .last" if others else ""
+    lines.append(f"out: None, or a float64 array {step.outputs[0].shape_text} to write "
+                 f"{step.outputs[0].name} into (then returned: no allocation)")
     lines.append(f"Returns {step.outputs[0].name} {step.outputs[0].shape_text}{extra}.")
     return "\n".join(lines)
 

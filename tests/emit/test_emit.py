@@ -381,11 +381,100 @@ def test_keyword_calls_equal_positional_calls(module):
                     np.testing.assert_array_equal(g, e)
 
 
-def test_signature_is_positional_or_keyword(module):
+def test_signature_is_positional_or_keyword_then_out(module):
     for kernel in KERNELS:
         parameters = inspect.signature(getattr(module, kernel.name)).parameters
-        assert list(parameters) == [p.name for p in kernel.inputs]
-        assert {p.kind for p in parameters.values()} == {inspect.Parameter.POSITIONAL_OR_KEYWORD}
+        assert list(parameters) == [p.name for p in kernel.inputs] + ["out"]
+        assert [p.kind for p in parameters.values()] == \
+            [inspect.Parameter.POSITIONAL_OR_KEYWORD] * len(kernel.inputs) + [inspect.Parameter.KEYWORD_ONLY]
+        assert parameters["out"].default is None
+
+
+# --------------------------------------------------- out=: results written into given arrays
+
+def _results_like(value):
+    return tuple(np.full_like(v, np.nan) for v in value) if isinstance(value, tuple) else np.full_like(value, np.nan)
+
+
+@pytest.mark.parametrize("batch", [None, 4])
+def test_out_receives_the_results_and_is_returned(module, batch):
+    rng = np.random.default_rng(31)
+    for kernel in KERNELS:
+        fn = getattr(module, kernel.name)
+        args = random_args(kernel, rng, batch)
+        expected = fn(*args)
+        out = _results_like(expected)
+        got = fn(*args, out=out)
+        if isinstance(expected, tuple):
+            assert got is not out and len(got) == len(out)
+            assert all(g is o for g, o in zip(got, out))
+        else:
+            assert got is out
+        for g, e in zip(*(v if isinstance(v, tuple) else (v,) for v in (out, expected))):
+            np.testing.assert_array_equal(g, e)
+        for g, e in zip(*(v if isinstance(v, tuple) else (v,) for v in (fn(*args, out=None), expected))):
+            np.testing.assert_array_equal(g, e)
+
+
+def test_out_as_keyword_with_keyword_arguments(module):
+    q, qd = np.linspace(-1, 1, 3), np.array([0.3, -0.2])
+    y, m = module.rand_a(q, qd)
+    out = (np.empty(4), np.empty((3, 3)))
+    module.rand_a(qd=qd, out=out, q=q)
+    np.testing.assert_array_equal(out[0], y)
+    np.testing.assert_array_equal(out[1], m)
+
+
+_Y, _M, _BUFFER = np.empty(4), np.empty((3, 3)), np.empty(9)
+
+
+@pytest.mark.parametrize("call, kind, message", [
+    (lambda m: m.rand_a(_Q, _QD, out=_Y), TypeError,
+     "rand_a(): out must be a tuple of 2 float64 arrays (one per result), got numpy.ndarray"),
+    (lambda m: m.rand_a(_Q, _QD, out=(_Y,)), TypeError, "rand_a(): out must be a tuple of 2"),
+    (lambda m: m.rand_a(_Q, _QD, out=[_Y, _M]), TypeError, "rand_a(): out must be a tuple of 2 float64 "
+     "arrays (one per result), got list"),
+    (lambda m: m.rand_a(_Q, _QD, out=(_Y, np.empty((3, 3), np.float32))), TypeError,
+     "rand_a(): out[i] must be a float64 numpy array for 'M', got an array of another dtype"),
+    (lambda m: m.rand_a(_Q, _QD, out=(_Y, [[0.0] * 3] * 3)), TypeError,
+     "rand_a(): out[i] must be a float64 numpy array for 'M', got list"),
+    (lambda m: m.rand_a(_Q, _QD, out=(_Y, np.empty((3, 4)))), ValueError,
+     "rand_a(): out for 'M' must have shape (3, 3), got (3, 4)"),
+    (lambda m: m.rand_a(np.zeros((2, 3)), _QD, out=(_Y, _M)), ValueError,
+     "rand_a(): out for 'y' must have shape (B, 4) (B of the batched arguments), got (4,)"),
+    (lambda m: m.rand_a(np.zeros((2, 3)), _QD, out=(np.empty((3, 4)), np.empty((2, 3, 3)))), ValueError,
+     "rand_a(): out for 'y' must have shape (B, 4) (B of the batched arguments), got (3, 4)"),
+    (lambda m: m.rand_a(_Q, _QD, out=(_Y, np.empty((3, 3)).T)), ValueError,
+     "rand_a(): out for 'M' must be writeable, aligned and C-contiguous"),
+    (lambda m: m.rand_a(_Q, _QD, out=(np.empty(8)[::2], _M)), ValueError,
+     "rand_a(): out for 'y' must be writeable, aligned and C-contiguous"),
+    (lambda m: m.rand_a(_Q, _QD, out=(np.frombuffer(bytes(32)), _M)), ValueError,
+     "rand_a(): out for 'y' must be writeable, aligned and C-contiguous"),
+    (lambda m: m.rand_a(_Q, _QD, out=(_M.reshape(-1)[:4], _M)), ValueError,
+     "rand_a(): out for 'M' shares memory with out for 'y'"),
+    (lambda m: m.rand_c(_BUFFER[:4], out=_BUFFER[3:8]), ValueError,
+     "rand_c(): out for 'v' shares memory with the argument 'u'"),
+    (lambda m: m.rand_c(_BUFFER[:4], out=_BUFFER[4:9]), None, None),  # adjacent, not shared: valid
+])
+def test_wrong_out_is_refused_naming_it(module, call, kind, message):
+    if kind is None:  # a valid out, for contrast
+        call(module)
+        return
+    with pytest.raises(kind) as caught:
+        call(module)
+    assert str(caught.value).startswith(message), str(caught.value)
+
+
+def test_out_leaks_no_references(module):
+    q, qd, y, m = np.zeros(3), np.zeros(2), np.zeros(4), np.zeros((3, 3))
+    before = [sys.getrefcount(a) for a in (q, qd, y, m)]
+    for _ in range(200):
+        module.rand_a(q, qd, out=(y, m))
+        with pytest.raises(ValueError):
+            module.rand_a(q, qd, out=(y, y))
+        with pytest.raises(TypeError):
+            module.rand_a(q, qd, out=(y, m, m))
+    assert [sys.getrefcount(a) for a in (q, qd, y, m)] == before
 
 
 _Q, _QD = np.zeros(3), np.zeros(2)
@@ -460,15 +549,17 @@ def test_stub_declares_every_function_attribute_and_signature(built, module):
     for kernel in KERNELS:
         node = functions[kernel.name]
         arguments = node.args
-        assert not (arguments.posonlyargs or arguments.kwonlyargs or arguments.vararg
-                    or arguments.kwarg or arguments.defaults)
+        assert not (arguments.posonlyargs or arguments.vararg or arguments.kwarg or arguments.defaults)
         assert [a.arg for a in arguments.args] == [p.name for p in kernel.inputs]
+        assert [a.arg for a in arguments.kwonlyargs] == ["out"]
         assert list(inspect.signature(getattr(module, kernel.name)).parameters) == \
-            [a.arg for a in arguments.args]
+            [a.arg for a in arguments.args] + ["out"]
         assert {ast.unparse(a.annotation) for a in arguments.args} == {"npt.ArrayLike"}
         expected = (array if len(kernel.outputs) == 1
                     else f"tuple[{', '.join([array] * len(kernel.outputs))}]")
         assert ast.unparse(node.returns) == expected
+        assert ast.unparse(arguments.kwonlyargs[0].annotation) == f"{expected} | None"
+        assert ast.unparse(arguments.kw_defaults[0]) == "None"
         assert ast.get_docstring(node) == kernel.doc.strip()
 
 
@@ -533,7 +624,7 @@ def test_module_attributes_and_info(module):
     module.info()["nq"] = 99
     assert module.info()["nq"] == 3 == module.nq
     assert (module.dt, module.tool) == (0.001, "gripper")
-    assert str(inspect.signature(module.rand_a)) == "(q, qd)"
+    assert str(inspect.signature(module.rand_a)) == "(q, qd, *, out=None)"
     assert module.rand_a.__doc__.startswith("Random kernel rand_a")
 
 

@@ -316,6 +316,25 @@ def test_keyword_arguments_of_step(rac):
     assert_close(controller.step(q, qd, accel_d=accel, twist_d=twist, pose_d=pose.tolist()), expected)
 
 
+def test_step_writes_into_out(rac, rmac):
+    """out= takes tau's array: the same torques, the same object back, checked like a function's."""
+    for built in (rac, rmac):
+        fresh, into = built.cls(), built.cls()
+        tau = np.full(6, np.nan)
+        for point in built.trajectory[:4]:
+            expected = fresh.step(*point)
+            assert into.step(*point, out=tau) is tau
+            np.testing.assert_array_equal(tau, expected)
+        assert into.step(*built.trajectory[0], out=None) is not tau
+    controller, point = rac.cls(), rac.trajectory[0]
+    with pytest.raises(ValueError, match=r"step\(\): out for 'tau' must have shape \(6,\), got \(7,\)"):
+        controller.step(*point, out=np.empty(7))
+    with pytest.raises(ValueError, match=r"out for 'tau' shares memory with the argument 'q'"):
+        controller.step(*point, out=point[0])
+    with pytest.raises(TypeError, match=r"out must be a float64 numpy array for 'tau', got list"):
+        controller.step(*point, out=[0.0] * 6)
+
+
 def _wrist(q5: float) -> np.ndarray:
     """A PUMA posture; q5 = 0 aligns joints 4 and 6 (the wrist singularity)."""
     return np.array([0.1, -0.5, 0.4, 0.2, q5, 0.3])
@@ -440,7 +459,7 @@ def test_docs_info_and_manifest(rmac, rac):
     assert list(signature.parameters) == ["rmac_q", "rmac_r", "rmac_forgetting"]
     assert all(p.kind is p.KEYWORD_ONLY for p in signature.parameters.values())
     assert signature.parameters["rmac_forgetting"].default == 0.97
-    assert list(inspect.signature(rmac.cls().step).parameters) == ["q", "qd", "pose_d", "twist_d", "accel_d"]
+    assert list(inspect.signature(rmac.cls().step).parameters) == ["q", "qd", "pose_d", "twist_d", "accel_d", "out"]
     assert "Resolved motion adaptive control" in rmac.cls.__doc__
     assert "Resolved motion adaptive control" in rmac.cls.step.__doc__
     assert "eq 29" in rmac.cls.A.__doc__

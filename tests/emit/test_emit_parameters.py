@@ -300,11 +300,11 @@ def test_signature_has_keyword_only_parameters_with_the_spec_defaults(module):
     kinds = {name: p.kind for name, p in signature.parameters.items()}
     assert kinds == {"q": inspect.Parameter.POSITIONAL_OR_KEYWORD, "qd": inspect.Parameter.POSITIONAL_OR_KEYWORD,
                      "gain": inspect.Parameter.KEYWORD_ONLY, "damping": inspect.Parameter.KEYWORD_ONLY,
-                     "stiffness": inspect.Parameter.KEYWORD_ONLY}
+                     "stiffness": inspect.Parameter.KEYWORD_ONLY, "out": inspect.Parameter.KEYWORD_ONLY}
     for name, default in DEFAULTS.items():
         np.testing.assert_array_equal(signature.parameters[name].default, default)
-    assert list(inspect.signature(module.gain_matrix).parameters) == ["gain", "damping", "stiffness"]
-    assert list(inspect.signature(module.fk).parameters) == ["q"]
+    assert list(inspect.signature(module.gain_matrix).parameters) == ["gain", "damping", "stiffness", "out"]
+    assert list(inspect.signature(module.fk).parameters) == ["q", "out"]
     doc = module.servo.__doc__
     assert "gain: number, keyword-only, default 2.5. Proportional gain [1/s^2]." in doc
     assert "damping: float64 array (3,), keyword-only, default [0.1, -0.25, 0.3]." in doc
@@ -398,10 +398,11 @@ def test_stub_lists_the_keyword_only_parameters(built):
     for name, positional in (("servo", ["q", "qd"]), ("gain_matrix", [])):
         arguments = functions[name]
         assert [a.arg for a in arguments.args] == positional
-        assert [(a.arg, ast.unparse(a.annotation)) for a in arguments.kwonlyargs] == [
+        assert [(a.arg, ast.unparse(a.annotation)) for a in arguments.kwonlyargs][:3] == [
             ("gain", "float"), ("damping", "npt.ArrayLike"), ("stiffness", "npt.ArrayLike")]
-        assert [ast.unparse(d) for d in arguments.kw_defaults] == ["..."] * 3
-    assert not functions["fk"].kwonlyargs
+        assert [a.arg for a in arguments.kwonlyargs][3:] == ["out"]
+        assert [ast.unparse(d) for d in arguments.kw_defaults] == ["..."] * 3 + ["None"]
+    assert [a.arg for a in functions["fk"].kwonlyargs] == ["out"]
 
 
 @pytest.mark.skipif(importlib.util.find_spec("mypy") is None, reason="mypy not installed")

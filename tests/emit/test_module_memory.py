@@ -1,5 +1,6 @@
 """The Python module's memory behaviour: no invalid read or write of the module's own code under
-valgrind on a short run (single points, batches, strided views, refused arguments), and a
+valgrind on a short run (single points, batches, strided views, results written into out=,
+refused arguments), and a
 batch of 10^7 states is computed right; one whose arguments cannot be copied is a MemoryError."""
 from __future__ import annotations
 
@@ -35,6 +36,13 @@ def test_valgrind_finds_nothing_in_the_module(build_module, tmp_path):
         m.inverse_dynamics(q[::2], qd[::2], qd[::2]), m.servo_terms(q, qd)
         m.inverse_dynamics_derivatives(q, qd, qd), m.forward_dynamics_derivatives(q, qd, qd)
         m.discrete_dynamics_derivatives(q, qd, qd, 0.01), m.mass_inverse(q)
+        M, parts = np.empty((50, 2, 2)), tuple(np.empty(a.shape) for a in m.servo_terms(q[0], qd[0]))
+        m.mass(q, out=M), m.servo_terms(q[0], qd[0], out=parts)
+        for bad in (M[0], M[:, ::-1], (M, M), q):
+            try:
+                m.mass(q, out=bad)
+            except (TypeError, ValueError):
+                pass
         for bad in (None, np.zeros(3), "x", np.zeros((2, 2, 2))):
             try:
                 m.mass(bad)

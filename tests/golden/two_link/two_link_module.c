@@ -17,16 +17,19 @@ typedef struct {
     int key; /* inputs: index of the name in rg_keys */
 } rg_port;
 
-/* The input names as interned str, made at import: keywords are matched by identity first
- * (CPython interns the names written in a call), by value otherwise. */
+/* The input names and "out" (every function's keyword for its result arrays, last) as
+ * interned str, made at import: keywords are matched by identity first (CPython interns the
+ * names written in a call), by value otherwise. */
 static const char *const rg_key_names[] = {
     "dt",
     "q",
     "qd",
     "qdd",
     "tau",
+    "out",
 };
-static PyObject *rg_keys[5];
+#define RG_OUT_KEY 5
+static PyObject *rg_keys[RG_OUT_KEY + 1];
 
 static void rg_release(PyArrayObject **arrays, int n)
 {
@@ -42,10 +45,11 @@ static double *rg_data(PyArrayObject *array)
 }
 
 /* Slow path of the argument binding (keywords given, or a wrong positional count): puts
- * the n arguments in port order into bound[], with the TypeErrors CPython gives when a
- * Python function is called wrongly. Returns 0, or -1 with an exception set. */
+ * the n arguments in port order into bound[] and the keyword out (or NULL) into *out, with
+ * the TypeErrors CPython gives when a Python function is called wrongly. Returns 0, or -1
+ * with an exception set. */
 static int rg_bind(const char *fn, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames,
-                   const rg_port *ports, int n, PyObject **bound)
+                   const rg_port *ports, int n, PyObject **bound, PyObject **out)
 {
     Py_ssize_t i, keywords = kwnames == NULL ? 0 : PyTuple_GET_SIZE(kwnames);
     PyObject *key, *names, *text;
@@ -58,11 +62,16 @@ static int rg_bind(const char *fn, PyObject *const *args, Py_ssize_t nargs, PyOb
     for (k = 0; k < n; ++k) {
         bound[k] = k < nargs ? args[k] : NULL;
     }
+    *out = NULL;
     for (i = 0; i < keywords; ++i) {
         key = PyTuple_GET_ITEM(kwnames, i);
         if (!PyUnicode_Check(key)) {
             PyErr_Format(PyExc_TypeError, "%s() keywords must be strings", fn);
             return -1;
+        }
+        if (key == rg_keys[RG_OUT_KEY] || PyUnicode_CompareWithASCIIString(key, "out") == 0) {
+            *out = args[nargs + i]; /* a call cannot repeat a keyword */
+            continue;
         }
         for (k = 0; k < n && key != rg_keys[ports[k].key]; ++k) {
         }
@@ -261,6 +270,71 @@ static int rg_new_results(const rg_port *ports, int n, npy_intp batch, PyArrayOb
     return 0;
 }
 
+/* The arrays given as out= (one array, or a tuple of one per result) as the results: each
+ * must be a writeable, aligned, C-contiguous float64 ndarray of the result's shape (with the
+ * batch axis when the call has one) that shares no memory with an argument or another
+ * result, since the kernel writes results while it still reads its arguments. Returns 0
+ * (new references in arrays[]), or -1 with an exception set. */
+static int rg_given_results(const char *fn, PyObject *given, const rg_port *ports, int n, npy_intp batch,
+                            PyArrayObject *const *in, const rg_port *in_ports, int n_in,
+                            PyArrayObject **arrays)
+{
+    PyArrayObject *array;
+    PyObject *item;
+    const char *start, *end, *other;
+    int i, k, lead = batch >= 0, fits;
+    if (n > 1 && (!PyTuple_Check(given) || PyTuple_GET_SIZE(given) != n)) {
+        PyErr_Format(PyExc_TypeError, "%s(): out must be a tuple of %d float64 arrays (one per result), got %s",
+                     fn, n, Py_TYPE(given)->tp_name);
+        return -1;
+    }
+    for (i = 0; i < n; ++i) {
+        item = n > 1 ? PyTuple_GET_ITEM(given, i) : given;
+        if (!PyArray_Check(item) || PyArray_TYPE((PyArrayObject *)item) != NPY_DOUBLE
+            || !PyArray_ISNOTSWAPPED((PyArrayObject *)item)) {
+            PyErr_Format(PyExc_TypeError, "%s(): out%s must be a float64 numpy array for '%s', got %s",
+                         fn, n > 1 ? "[i]" : "", ports[i].name,
+                         PyArray_Check(item) ? "an array of another dtype" : Py_TYPE(item)->tp_name);
+            return -1;
+        }
+        array = (PyArrayObject *)item;
+        fits = PyArray_NDIM(array) == lead + ports[i].ndim && (!lead || PyArray_DIM(array, 0) == batch);
+        for (k = 0; fits && k < ports[i].ndim; ++k) {
+            fits = PyArray_DIM(array, lead + k) == ports[i].dims[k];
+        }
+        if (!fits) {
+            PyObject *got = PyObject_GetAttrString(item, "shape");
+            if (got != NULL) {
+                PyErr_Format(PyExc_ValueError, "%s(): out for '%s' must have shape %s%s, got %R", fn,
+                             ports[i].name, lead ? ports[i].batch_shape : ports[i].shape,
+                             lead ? " (B of the batched arguments)" : "", got);
+                Py_DECREF(got);
+            }
+            return -1;
+        }
+        if (!PyArray_ISCARRAY(array)) {
+            PyErr_Format(PyExc_ValueError, "%s(): out for '%s' must be writeable, aligned and C-contiguous",
+                         fn, ports[i].name);
+            return -1;
+        }
+        start = PyArray_BYTES(array);
+        end = start + PyArray_NBYTES(array);
+        for (k = 0; k < n_in + i; ++k) {
+            PyArrayObject *seen = k < n_in ? in[k] : arrays[k - n_in];
+            other = PyArray_BYTES(seen);
+            if (other < end && start < other + PyArray_NBYTES(seen)) {
+                PyErr_Format(PyExc_ValueError, "%s(): out for '%s' shares memory with %s '%s'", fn,
+                             ports[i].name, k < n_in ? "the argument" : "out for",
+                             k < n_in ? in_ports[k].name : ports[k - n_in].name);
+                return -1;
+            }
+        }
+        Py_INCREF(item);
+        arrays[i] = array;
+    }
+    return 0;
+}
+
 /* Hands the results to Python: one array or a tuple of them. Steals the arrays. */
 static PyObject *rg_finish(const char *fn, int status, PyArrayObject **results, int n)
 {
@@ -315,18 +389,19 @@ static const rg_port k_fk_outputs[] = {
     {"fk", 2, {4, 4}, "(4, 4)", "(B, 4, 4)", -1},
 };
 PyDoc_STRVAR(k_fk_doc,
-    "fk($module, q)\n"
+    "fk($module, q, *, out=None)\n"
     "--\n"
     "\n"
     "Homogeneous transform of the tip frame in the base frame.\n"
     "\n"
     "q: float64 array (2,) or (B, 2)\n"
+    "out: None, or a float64 array (4, 4) (or (B, 4, 4) for a batch) to write the result into, then returned: no allocation\n"
     "Returns fk (4, 4); batched inputs give a leading B axis.");
 
 static PyObject *k_fk(PyObject *self, PyObject *const *args, Py_ssize_t nargs,
                       PyObject *kwnames)
 {
-    PyObject *bound[1];
+    PyObject *bound[1], *given_out = NULL;
     PyArrayObject *in[1] = {NULL};
     PyArrayObject *out[1] = {NULL};
     PyThreadState *unlocked;
@@ -335,13 +410,17 @@ static PyObject *k_fk(PyObject *self, PyObject *const *args, Py_ssize_t nargs,
     (void)self;
     if (kwnames != NULL || nargs != 1) {
         /* keywords, or a wrong count: the slow path (positional calls skip it) */
-        if (rg_bind("fk", args, nargs, kwnames, k_fk_inputs, 1, bound) < 0) {
+        if (rg_bind("fk", args, nargs, kwnames, k_fk_inputs, 1, bound,
+                    &given_out) < 0) {
             return NULL;
         }
         args = bound;
     }
     if (rg_convert_args("fk", args, k_fk_inputs, 1, in, &batch) < 0
-        || rg_new_results(k_fk_outputs, 1, batch, out) < 0) {
+        || (given_out == NULL || given_out == Py_None
+                ? rg_new_results(k_fk_outputs, 1, batch, out)
+                : rg_given_results("fk", given_out, k_fk_outputs, 1, batch,
+                                   in, k_fk_inputs, 1, out)) < 0) {
         rg_release(in, 1);
         rg_release(out, 1);
         return NULL;
@@ -369,18 +448,19 @@ static const rg_port k_jacobian_outputs[] = {
     {"jacobian", 2, {6, 2}, "(6, 2)", "(B, 6, 2)", -1},
 };
 PyDoc_STRVAR(k_jacobian_doc,
-    "jacobian($module, q)\n"
+    "jacobian($module, q, *, out=None)\n"
     "--\n"
     "\n"
     "Geometric Jacobian [v; omega] of the tip frame origin, base coordinates (Whitney 1972, eqs 8-9).\n"
     "\n"
     "q: float64 array (2,) or (B, 2)\n"
+    "out: None, or a float64 array (6, 2) (or (B, 6, 2) for a batch) to write the result into, then returned: no allocation\n"
     "Returns jacobian (6, 2); batched inputs give a leading B axis.");
 
 static PyObject *k_jacobian(PyObject *self, PyObject *const *args, Py_ssize_t nargs,
                             PyObject *kwnames)
 {
-    PyObject *bound[1];
+    PyObject *bound[1], *given_out = NULL;
     PyArrayObject *in[1] = {NULL};
     PyArrayObject *out[1] = {NULL};
     PyThreadState *unlocked;
@@ -389,13 +469,17 @@ static PyObject *k_jacobian(PyObject *self, PyObject *const *args, Py_ssize_t na
     (void)self;
     if (kwnames != NULL || nargs != 1) {
         /* keywords, or a wrong count: the slow path (positional calls skip it) */
-        if (rg_bind("jacobian", args, nargs, kwnames, k_jacobian_inputs, 1, bound) < 0) {
+        if (rg_bind("jacobian", args, nargs, kwnames, k_jacobian_inputs, 1, bound,
+                    &given_out) < 0) {
             return NULL;
         }
         args = bound;
     }
     if (rg_convert_args("jacobian", args, k_jacobian_inputs, 1, in, &batch) < 0
-        || rg_new_results(k_jacobian_outputs, 1, batch, out) < 0) {
+        || (given_out == NULL || given_out == Py_None
+                ? rg_new_results(k_jacobian_outputs, 1, batch, out)
+                : rg_given_results("jacobian", given_out, k_jacobian_outputs, 1, batch,
+                                   in, k_jacobian_inputs, 1, out)) < 0) {
         rg_release(in, 1);
         rg_release(out, 1);
         return NULL;
@@ -423,18 +507,19 @@ static const rg_port k_jacobian_hand_outputs[] = {
     {"jacobian_hand", 2, {6, 2}, "(6, 2)", "(B, 6, 2)", -1},
 };
 PyDoc_STRVAR(k_jacobian_hand_doc,
-    "jacobian_hand($module, q)\n"
+    "jacobian_hand($module, q, *, out=None)\n"
     "--\n"
     "\n"
     "Geometric Jacobian in tip-frame coordinates (Whitney 1972, eq 7).\n"
     "\n"
     "q: float64 array (2,) or (B, 2)\n"
+    "out: None, or a float64 array (6, 2) (or (B, 6, 2) for a batch) to write the result into, then returned: no allocation\n"
     "Returns jacobian_hand (6, 2); batched inputs give a leading B axis.");
 
 static PyObject *k_jacobian_hand(PyObject *self, PyObject *const *args, Py_ssize_t nargs,
                                  PyObject *kwnames)
 {
-    PyObject *bound[1];
+    PyObject *bound[1], *given_out = NULL;
     PyArrayObject *in[1] = {NULL};
     PyArrayObject *out[1] = {NULL};
     PyThreadState *unlocked;
@@ -443,13 +528,17 @@ static PyObject *k_jacobian_hand(PyObject *self, PyObject *const *args, Py_ssize
     (void)self;
     if (kwnames != NULL || nargs != 1) {
         /* keywords, or a wrong count: the slow path (positional calls skip it) */
-        if (rg_bind("jacobian_hand", args, nargs, kwnames, k_jacobian_hand_inputs, 1, bound) < 0) {
+        if (rg_bind("jacobian_hand", args, nargs, kwnames, k_jacobian_hand_inputs, 1, bound,
+                    &given_out) < 0) {
             return NULL;
         }
         args = bound;
     }
     if (rg_convert_args("jacobian_hand", args, k_jacobian_hand_inputs, 1, in, &batch) < 0
-        || rg_new_results(k_jacobian_hand_outputs, 1, batch, out) < 0) {
+        || (given_out == NULL || given_out == Py_None
+                ? rg_new_results(k_jacobian_hand_outputs, 1, batch, out)
+                : rg_given_results("jacobian_hand", given_out, k_jacobian_hand_outputs, 1, batch,
+                                   in, k_jacobian_hand_inputs, 1, out)) < 0) {
         rg_release(in, 1);
         rg_release(out, 1);
         return NULL;
@@ -478,19 +567,20 @@ static const rg_port k_jacobian_dot_qd_outputs[] = {
     {"jacobian_dot_qd", 1, {6, 1}, "(6,)", "(B, 6)", -1},
 };
 PyDoc_STRVAR(k_jacobian_dot_qd_doc,
-    "jacobian_dot_qd($module, q, qd)\n"
+    "jacobian_dot_qd($module, q, qd, *, out=None)\n"
     "--\n"
     "\n"
     "Jdot(q, qd) qd: tip acceleration at qdd = 0.\n"
     "\n"
     "q: float64 array (2,) or (B, 2)\n"
     "qd: float64 array (2,) or (B, 2)\n"
+    "out: None, or a float64 array (6,) (or (B, 6) for a batch) to write the result into, then returned: no allocation\n"
     "Returns jacobian_dot_qd (6,); batched inputs give a leading B axis.");
 
 static PyObject *k_jacobian_dot_qd(PyObject *self, PyObject *const *args, Py_ssize_t nargs,
                                    PyObject *kwnames)
 {
-    PyObject *bound[2];
+    PyObject *bound[2], *given_out = NULL;
     PyArrayObject *in[2] = {NULL};
     PyArrayObject *out[1] = {NULL};
     PyThreadState *unlocked;
@@ -499,13 +589,17 @@ static PyObject *k_jacobian_dot_qd(PyObject *self, PyObject *const *args, Py_ssi
     (void)self;
     if (kwnames != NULL || nargs != 2) {
         /* keywords, or a wrong count: the slow path (positional calls skip it) */
-        if (rg_bind("jacobian_dot_qd", args, nargs, kwnames, k_jacobian_dot_qd_inputs, 2, bound) < 0) {
+        if (rg_bind("jacobian_dot_qd", args, nargs, kwnames, k_jacobian_dot_qd_inputs, 2, bound,
+                    &given_out) < 0) {
             return NULL;
         }
         args = bound;
     }
     if (rg_convert_args("jacobian_dot_qd", args, k_jacobian_dot_qd_inputs, 2, in, &batch) < 0
-        || rg_new_results(k_jacobian_dot_qd_outputs, 1, batch, out) < 0) {
+        || (given_out == NULL || given_out == Py_None
+                ? rg_new_results(k_jacobian_dot_qd_outputs, 1, batch, out)
+                : rg_given_results("jacobian_dot_qd", given_out, k_jacobian_dot_qd_outputs, 1, batch,
+                                   in, k_jacobian_dot_qd_inputs, 2, out)) < 0) {
         rg_release(in, 2);
         rg_release(out, 1);
         return NULL;
@@ -535,18 +629,19 @@ static const rg_port k_mass_outputs[] = {
     {"mass", 2, {2, 2}, "(2, 2)", "(B, 2, 2)", -1},
 };
 PyDoc_STRVAR(k_mass_doc,
-    "mass($module, q)\n"
+    "mass($module, q, *, out=None)\n"
     "--\n"
     "\n"
     "Joint-space inertia matrix M(q) (composite rigid bodies + armature).\n"
     "\n"
     "q: float64 array (2,) or (B, 2)\n"
+    "out: None, or a float64 array (2, 2) (or (B, 2, 2) for a batch) to write the result into, then returned: no allocation\n"
     "Returns mass (2, 2); batched inputs give a leading B axis.");
 
 static PyObject *k_mass(PyObject *self, PyObject *const *args, Py_ssize_t nargs,
                         PyObject *kwnames)
 {
-    PyObject *bound[1];
+    PyObject *bound[1], *given_out = NULL;
     PyArrayObject *in[1] = {NULL};
     PyArrayObject *out[1] = {NULL};
     PyThreadState *unlocked;
@@ -555,13 +650,17 @@ static PyObject *k_mass(PyObject *self, PyObject *const *args, Py_ssize_t nargs,
     (void)self;
     if (kwnames != NULL || nargs != 1) {
         /* keywords, or a wrong count: the slow path (positional calls skip it) */
-        if (rg_bind("mass", args, nargs, kwnames, k_mass_inputs, 1, bound) < 0) {
+        if (rg_bind("mass", args, nargs, kwnames, k_mass_inputs, 1, bound,
+                    &given_out) < 0) {
             return NULL;
         }
         args = bound;
     }
     if (rg_convert_args("mass", args, k_mass_inputs, 1, in, &batch) < 0
-        || rg_new_results(k_mass_outputs, 1, batch, out) < 0) {
+        || (given_out == NULL || given_out == Py_None
+                ? rg_new_results(k_mass_outputs, 1, batch, out)
+                : rg_given_results("mass", given_out, k_mass_outputs, 1, batch,
+                                   in, k_mass_inputs, 1, out)) < 0) {
         rg_release(in, 1);
         rg_release(out, 1);
         return NULL;
@@ -590,19 +689,20 @@ static const rg_port k_coriolis_outputs[] = {
     {"coriolis", 2, {2, 2}, "(2, 2)", "(B, 2, 2)", -1},
 };
 PyDoc_STRVAR(k_coriolis_doc,
-    "coriolis($module, q, qd)\n"
+    "coriolis($module, q, qd, *, out=None)\n"
     "--\n"
     "\n"
     "Coriolis matrix C(q, qd) from Christoffel symbols; Mdot - 2C is skew-symmetric.\n"
     "\n"
     "q: float64 array (2,) or (B, 2)\n"
     "qd: float64 array (2,) or (B, 2)\n"
+    "out: None, or a float64 array (2, 2) (or (B, 2, 2) for a batch) to write the result into, then returned: no allocation\n"
     "Returns coriolis (2, 2); batched inputs give a leading B axis.");
 
 static PyObject *k_coriolis(PyObject *self, PyObject *const *args, Py_ssize_t nargs,
                             PyObject *kwnames)
 {
-    PyObject *bound[2];
+    PyObject *bound[2], *given_out = NULL;
     PyArrayObject *in[2] = {NULL};
     PyArrayObject *out[1] = {NULL};
     PyThreadState *unlocked;
@@ -611,13 +711,17 @@ static PyObject *k_coriolis(PyObject *self, PyObject *const *args, Py_ssize_t na
     (void)self;
     if (kwnames != NULL || nargs != 2) {
         /* keywords, or a wrong count: the slow path (positional calls skip it) */
-        if (rg_bind("coriolis", args, nargs, kwnames, k_coriolis_inputs, 2, bound) < 0) {
+        if (rg_bind("coriolis", args, nargs, kwnames, k_coriolis_inputs, 2, bound,
+                    &given_out) < 0) {
             return NULL;
         }
         args = bound;
     }
     if (rg_convert_args("coriolis", args, k_coriolis_inputs, 2, in, &batch) < 0
-        || rg_new_results(k_coriolis_outputs, 1, batch, out) < 0) {
+        || (given_out == NULL || given_out == Py_None
+                ? rg_new_results(k_coriolis_outputs, 1, batch, out)
+                : rg_given_results("coriolis", given_out, k_coriolis_outputs, 1, batch,
+                                   in, k_coriolis_inputs, 2, out)) < 0) {
         rg_release(in, 2);
         rg_release(out, 1);
         return NULL;
@@ -647,18 +751,19 @@ static const rg_port k_gravity_outputs[] = {
     {"gravity", 1, {2, 1}, "(2,)", "(B, 2)", -1},
 };
 PyDoc_STRVAR(k_gravity_doc,
-    "gravity($module, q)\n"
+    "gravity($module, q, *, out=None)\n"
     "--\n"
     "\n"
     "Gravity torques g(q).\n"
     "\n"
     "q: float64 array (2,) or (B, 2)\n"
+    "out: None, or a float64 array (2,) (or (B, 2) for a batch) to write the result into, then returned: no allocation\n"
     "Returns gravity (2,); batched inputs give a leading B axis.");
 
 static PyObject *k_gravity(PyObject *self, PyObject *const *args, Py_ssize_t nargs,
                            PyObject *kwnames)
 {
-    PyObject *bound[1];
+    PyObject *bound[1], *given_out = NULL;
     PyArrayObject *in[1] = {NULL};
     PyArrayObject *out[1] = {NULL};
     PyThreadState *unlocked;
@@ -667,13 +772,17 @@ static PyObject *k_gravity(PyObject *self, PyObject *const *args, Py_ssize_t nar
     (void)self;
     if (kwnames != NULL || nargs != 1) {
         /* keywords, or a wrong count: the slow path (positional calls skip it) */
-        if (rg_bind("gravity", args, nargs, kwnames, k_gravity_inputs, 1, bound) < 0) {
+        if (rg_bind("gravity", args, nargs, kwnames, k_gravity_inputs, 1, bound,
+                    &given_out) < 0) {
             return NULL;
         }
         args = bound;
     }
     if (rg_convert_args("gravity", args, k_gravity_inputs, 1, in, &batch) < 0
-        || rg_new_results(k_gravity_outputs, 1, batch, out) < 0) {
+        || (given_out == NULL || given_out == Py_None
+                ? rg_new_results(k_gravity_outputs, 1, batch, out)
+                : rg_given_results("gravity", given_out, k_gravity_outputs, 1, batch,
+                                   in, k_gravity_inputs, 1, out)) < 0) {
         rg_release(in, 1);
         rg_release(out, 1);
         return NULL;
@@ -702,19 +811,20 @@ static const rg_port k_nonlinear_outputs[] = {
     {"nonlinear", 1, {2, 1}, "(2,)", "(B, 2)", -1},
 };
 PyDoc_STRVAR(k_nonlinear_doc,
-    "nonlinear($module, q, qd)\n"
+    "nonlinear($module, q, qd, *, out=None)\n"
     "--\n"
     "\n"
     "C(q, qd) qd + N(q, qd): Coriolis, centrifugal, gravity, friction.\n"
     "\n"
     "q: float64 array (2,) or (B, 2)\n"
     "qd: float64 array (2,) or (B, 2)\n"
+    "out: None, or a float64 array (2,) (or (B, 2) for a batch) to write the result into, then returned: no allocation\n"
     "Returns nonlinear (2,); batched inputs give a leading B axis.");
 
 static PyObject *k_nonlinear(PyObject *self, PyObject *const *args, Py_ssize_t nargs,
                              PyObject *kwnames)
 {
-    PyObject *bound[2];
+    PyObject *bound[2], *given_out = NULL;
     PyArrayObject *in[2] = {NULL};
     PyArrayObject *out[1] = {NULL};
     PyThreadState *unlocked;
@@ -723,13 +833,17 @@ static PyObject *k_nonlinear(PyObject *self, PyObject *const *args, Py_ssize_t n
     (void)self;
     if (kwnames != NULL || nargs != 2) {
         /* keywords, or a wrong count: the slow path (positional calls skip it) */
-        if (rg_bind("nonlinear", args, nargs, kwnames, k_nonlinear_inputs, 2, bound) < 0) {
+        if (rg_bind("nonlinear", args, nargs, kwnames, k_nonlinear_inputs, 2, bound,
+                    &given_out) < 0) {
             return NULL;
         }
         args = bound;
     }
     if (rg_convert_args("nonlinear", args, k_nonlinear_inputs, 2, in, &batch) < 0
-        || rg_new_results(k_nonlinear_outputs, 1, batch, out) < 0) {
+        || (given_out == NULL || given_out == Py_None
+                ? rg_new_results(k_nonlinear_outputs, 1, batch, out)
+                : rg_given_results("nonlinear", given_out, k_nonlinear_outputs, 1, batch,
+                                   in, k_nonlinear_inputs, 2, out)) < 0) {
         rg_release(in, 2);
         rg_release(out, 1);
         return NULL;
@@ -761,7 +875,7 @@ static const rg_port k_inverse_dynamics_outputs[] = {
     {"inverse_dynamics", 1, {2, 1}, "(2,)", "(B, 2)", -1},
 };
 PyDoc_STRVAR(k_inverse_dynamics_doc,
-    "inverse_dynamics($module, q, qd, qdd)\n"
+    "inverse_dynamics($module, q, qd, qdd, *, out=None)\n"
     "--\n"
     "\n"
     "Joint torques M qdd + C qd + N (recursive Newton-Euler).\n"
@@ -769,12 +883,13 @@ PyDoc_STRVAR(k_inverse_dynamics_doc,
     "q: float64 array (2,) or (B, 2)\n"
     "qd: float64 array (2,) or (B, 2)\n"
     "qdd: float64 array (2,) or (B, 2)\n"
+    "out: None, or a float64 array (2,) (or (B, 2) for a batch) to write the result into, then returned: no allocation\n"
     "Returns inverse_dynamics (2,); batched inputs give a leading B axis.");
 
 static PyObject *k_inverse_dynamics(PyObject *self, PyObject *const *args, Py_ssize_t nargs,
                                     PyObject *kwnames)
 {
-    PyObject *bound[3];
+    PyObject *bound[3], *given_out = NULL;
     PyArrayObject *in[3] = {NULL};
     PyArrayObject *out[1] = {NULL};
     PyThreadState *unlocked;
@@ -783,13 +898,17 @@ static PyObject *k_inverse_dynamics(PyObject *self, PyObject *const *args, Py_ss
     (void)self;
     if (kwnames != NULL || nargs != 3) {
         /* keywords, or a wrong count: the slow path (positional calls skip it) */
-        if (rg_bind("inverse_dynamics", args, nargs, kwnames, k_inverse_dynamics_inputs, 3, bound) < 0) {
+        if (rg_bind("inverse_dynamics", args, nargs, kwnames, k_inverse_dynamics_inputs, 3, bound,
+                    &given_out) < 0) {
             return NULL;
         }
         args = bound;
     }
     if (rg_convert_args("inverse_dynamics", args, k_inverse_dynamics_inputs, 3, in, &batch) < 0
-        || rg_new_results(k_inverse_dynamics_outputs, 1, batch, out) < 0) {
+        || (given_out == NULL || given_out == Py_None
+                ? rg_new_results(k_inverse_dynamics_outputs, 1, batch, out)
+                : rg_given_results("inverse_dynamics", given_out, k_inverse_dynamics_outputs, 1, batch,
+                                   in, k_inverse_dynamics_inputs, 3, out)) < 0) {
         rg_release(in, 3);
         rg_release(out, 1);
         return NULL;
@@ -823,7 +942,7 @@ static const rg_port k_forward_dynamics_outputs[] = {
     {"forward_dynamics", 1, {2, 1}, "(2,)", "(B, 2)", -1},
 };
 PyDoc_STRVAR(k_forward_dynamics_doc,
-    "forward_dynamics($module, q, qd, tau)\n"
+    "forward_dynamics($module, q, qd, tau, *, out=None)\n"
     "--\n"
     "\n"
     "Joint accelerations M^-1 (tau - C qd - N) by an L D L^T solve (past 12 joints: articulated bodies).\n"
@@ -831,12 +950,13 @@ PyDoc_STRVAR(k_forward_dynamics_doc,
     "q: float64 array (2,) or (B, 2)\n"
     "qd: float64 array (2,) or (B, 2)\n"
     "tau: float64 array (2,) or (B, 2)\n"
+    "out: None, or a float64 array (2,) (or (B, 2) for a batch) to write the result into, then returned: no allocation\n"
     "Returns forward_dynamics (2,); batched inputs give a leading B axis.");
 
 static PyObject *k_forward_dynamics(PyObject *self, PyObject *const *args, Py_ssize_t nargs,
                                     PyObject *kwnames)
 {
-    PyObject *bound[3];
+    PyObject *bound[3], *given_out = NULL;
     PyArrayObject *in[3] = {NULL};
     PyArrayObject *out[1] = {NULL};
     PyThreadState *unlocked;
@@ -845,13 +965,17 @@ static PyObject *k_forward_dynamics(PyObject *self, PyObject *const *args, Py_ss
     (void)self;
     if (kwnames != NULL || nargs != 3) {
         /* keywords, or a wrong count: the slow path (positional calls skip it) */
-        if (rg_bind("forward_dynamics", args, nargs, kwnames, k_forward_dynamics_inputs, 3, bound) < 0) {
+        if (rg_bind("forward_dynamics", args, nargs, kwnames, k_forward_dynamics_inputs, 3, bound,
+                    &given_out) < 0) {
             return NULL;
         }
         args = bound;
     }
     if (rg_convert_args("forward_dynamics", args, k_forward_dynamics_inputs, 3, in, &batch) < 0
-        || rg_new_results(k_forward_dynamics_outputs, 1, batch, out) < 0) {
+        || (given_out == NULL || given_out == Py_None
+                ? rg_new_results(k_forward_dynamics_outputs, 1, batch, out)
+                : rg_given_results("forward_dynamics", given_out, k_forward_dynamics_outputs, 1, batch,
+                                   in, k_forward_dynamics_inputs, 3, out)) < 0) {
         rg_release(in, 3);
         rg_release(out, 1);
         return NULL;
@@ -887,19 +1011,20 @@ static const rg_port k_servo_terms_outputs[] = {
     {"jacobian_dot_qd", 1, {6, 1}, "(6,)", "(B, 6)", -1},
 };
 PyDoc_STRVAR(k_servo_terms_doc,
-    "servo_terms($module, q, qd)\n"
+    "servo_terms($module, q, qd, *, out=None)\n"
     "--\n"
     "\n"
     "M(q), C(q, qd) qd + N, the tip Jacobian J and Jdot qd in one call: a computed-torque servo cycle's terms, sharing sin/cos and kinematics.\n"
     "\n"
     "q: float64 array (2,) or (B, 2)\n"
     "qd: float64 array (2,) or (B, 2)\n"
+    "out: None, or a tuple of 4 float64 arrays of the results' shapes to write them into, then returned: no allocation\n"
     "Returns mass (2, 2), nonlinear (2,), jacobian (6, 2), jacobian_dot_qd (6,) as a tuple; batched inputs give a leading B axis.");
 
 static PyObject *k_servo_terms(PyObject *self, PyObject *const *args, Py_ssize_t nargs,
                                PyObject *kwnames)
 {
-    PyObject *bound[2];
+    PyObject *bound[2], *given_out = NULL;
     PyArrayObject *in[2] = {NULL};
     PyArrayObject *out[4] = {NULL};
     PyThreadState *unlocked;
@@ -908,13 +1033,17 @@ static PyObject *k_servo_terms(PyObject *self, PyObject *const *args, Py_ssize_t
     (void)self;
     if (kwnames != NULL || nargs != 2) {
         /* keywords, or a wrong count: the slow path (positional calls skip it) */
-        if (rg_bind("servo_terms", args, nargs, kwnames, k_servo_terms_inputs, 2, bound) < 0) {
+        if (rg_bind("servo_terms", args, nargs, kwnames, k_servo_terms_inputs, 2, bound,
+                    &given_out) < 0) {
             return NULL;
         }
         args = bound;
     }
     if (rg_convert_args("servo_terms", args, k_servo_terms_inputs, 2, in, &batch) < 0
-        || rg_new_results(k_servo_terms_outputs, 4, batch, out) < 0) {
+        || (given_out == NULL || given_out == Py_None
+                ? rg_new_results(k_servo_terms_outputs, 4, batch, out)
+                : rg_given_results("servo_terms", given_out, k_servo_terms_outputs, 4, batch,
+                                   in, k_servo_terms_inputs, 2, out)) < 0) {
         rg_release(in, 2);
         rg_release(out, 4);
         return NULL;
@@ -950,7 +1079,7 @@ static const rg_port k_inverse_dynamics_derivatives_outputs[] = {
     {"dtau_dqd", 2, {2, 2}, "(2, 2)", "(B, 2, 2)", -1},
 };
 PyDoc_STRVAR(k_inverse_dynamics_derivatives_doc,
-    "inverse_dynamics_derivatives($module, q, qd, qdd)\n"
+    "inverse_dynamics_derivatives($module, q, qd, qdd, *, out=None)\n"
     "--\n"
     "\n"
     "Partial derivatives of inverse dynamics: d tau/dq and d tau/dqd (d tau/dqdd is M).\n"
@@ -958,12 +1087,13 @@ PyDoc_STRVAR(k_inverse_dynamics_derivatives_doc,
     "q: float64 array (2,) or (B, 2)\n"
     "qd: float64 array (2,) or (B, 2)\n"
     "qdd: float64 array (2,) or (B, 2)\n"
+    "out: None, or a tuple of 2 float64 arrays of the results' shapes to write them into, then returned: no allocation\n"
     "Returns dtau_dq (2, 2), dtau_dqd (2, 2) as a tuple; batched inputs give a leading B axis.");
 
 static PyObject *k_inverse_dynamics_derivatives(PyObject *self, PyObject *const *args, Py_ssize_t nargs,
                                                 PyObject *kwnames)
 {
-    PyObject *bound[3];
+    PyObject *bound[3], *given_out = NULL;
     PyArrayObject *in[3] = {NULL};
     PyArrayObject *out[2] = {NULL};
     PyThreadState *unlocked;
@@ -972,13 +1102,17 @@ static PyObject *k_inverse_dynamics_derivatives(PyObject *self, PyObject *const 
     (void)self;
     if (kwnames != NULL || nargs != 3) {
         /* keywords, or a wrong count: the slow path (positional calls skip it) */
-        if (rg_bind("inverse_dynamics_derivatives", args, nargs, kwnames, k_inverse_dynamics_derivatives_inputs, 3, bound) < 0) {
+        if (rg_bind("inverse_dynamics_derivatives", args, nargs, kwnames, k_inverse_dynamics_derivatives_inputs, 3, bound,
+                    &given_out) < 0) {
             return NULL;
         }
         args = bound;
     }
     if (rg_convert_args("inverse_dynamics_derivatives", args, k_inverse_dynamics_derivatives_inputs, 3, in, &batch) < 0
-        || rg_new_results(k_inverse_dynamics_derivatives_outputs, 2, batch, out) < 0) {
+        || (given_out == NULL || given_out == Py_None
+                ? rg_new_results(k_inverse_dynamics_derivatives_outputs, 2, batch, out)
+                : rg_given_results("inverse_dynamics_derivatives", given_out, k_inverse_dynamics_derivatives_outputs, 2, batch,
+                                   in, k_inverse_dynamics_derivatives_inputs, 3, out)) < 0) {
         rg_release(in, 3);
         rg_release(out, 2);
         return NULL;
@@ -1015,7 +1149,7 @@ static const rg_port k_forward_dynamics_derivatives_outputs[] = {
     {"dqdd_dtau", 2, {2, 2}, "(2, 2)", "(B, 2, 2)", -1},
 };
 PyDoc_STRVAR(k_forward_dynamics_derivatives_doc,
-    "forward_dynamics_derivatives($module, q, qd, tau)\n"
+    "forward_dynamics_derivatives($module, q, qd, tau, *, out=None)\n"
     "--\n"
     "\n"
     "Partial derivatives of forward dynamics: d qdd/dq, d qdd/dqd and d qdd/d tau = M^-1.\n"
@@ -1023,12 +1157,13 @@ PyDoc_STRVAR(k_forward_dynamics_derivatives_doc,
     "q: float64 array (2,) or (B, 2)\n"
     "qd: float64 array (2,) or (B, 2)\n"
     "tau: float64 array (2,) or (B, 2)\n"
+    "out: None, or a tuple of 3 float64 arrays of the results' shapes to write them into, then returned: no allocation\n"
     "Returns dqdd_dq (2, 2), dqdd_dqd (2, 2), dqdd_dtau (2, 2) as a tuple; batched inputs give a leading B axis.");
 
 static PyObject *k_forward_dynamics_derivatives(PyObject *self, PyObject *const *args, Py_ssize_t nargs,
                                                 PyObject *kwnames)
 {
-    PyObject *bound[3];
+    PyObject *bound[3], *given_out = NULL;
     PyArrayObject *in[3] = {NULL};
     PyArrayObject *out[3] = {NULL};
     PyThreadState *unlocked;
@@ -1037,13 +1172,17 @@ static PyObject *k_forward_dynamics_derivatives(PyObject *self, PyObject *const 
     (void)self;
     if (kwnames != NULL || nargs != 3) {
         /* keywords, or a wrong count: the slow path (positional calls skip it) */
-        if (rg_bind("forward_dynamics_derivatives", args, nargs, kwnames, k_forward_dynamics_derivatives_inputs, 3, bound) < 0) {
+        if (rg_bind("forward_dynamics_derivatives", args, nargs, kwnames, k_forward_dynamics_derivatives_inputs, 3, bound,
+                    &given_out) < 0) {
             return NULL;
         }
         args = bound;
     }
     if (rg_convert_args("forward_dynamics_derivatives", args, k_forward_dynamics_derivatives_inputs, 3, in, &batch) < 0
-        || rg_new_results(k_forward_dynamics_derivatives_outputs, 3, batch, out) < 0) {
+        || (given_out == NULL || given_out == Py_None
+                ? rg_new_results(k_forward_dynamics_derivatives_outputs, 3, batch, out)
+                : rg_given_results("forward_dynamics_derivatives", given_out, k_forward_dynamics_derivatives_outputs, 3, batch,
+                                   in, k_forward_dynamics_derivatives_inputs, 3, out)) < 0) {
         rg_release(in, 3);
         rg_release(out, 3);
         return NULL;
@@ -1077,18 +1216,19 @@ static const rg_port k_mass_inverse_outputs[] = {
     {"mass_inverse", 2, {2, 2}, "(2, 2)", "(B, 2, 2)", -1},
 };
 PyDoc_STRVAR(k_mass_inverse_doc,
-    "mass_inverse($module, q)\n"
+    "mass_inverse($module, q, *, out=None)\n"
     "--\n"
     "\n"
     "M(q)^-1 (L D L^T factorisation, then solves).\n"
     "\n"
     "q: float64 array (2,) or (B, 2)\n"
+    "out: None, or a float64 array (2, 2) (or (B, 2, 2) for a batch) to write the result into, then returned: no allocation\n"
     "Returns mass_inverse (2, 2); batched inputs give a leading B axis.");
 
 static PyObject *k_mass_inverse(PyObject *self, PyObject *const *args, Py_ssize_t nargs,
                                 PyObject *kwnames)
 {
-    PyObject *bound[1];
+    PyObject *bound[1], *given_out = NULL;
     PyArrayObject *in[1] = {NULL};
     PyArrayObject *out[1] = {NULL};
     PyThreadState *unlocked;
@@ -1097,13 +1237,17 @@ static PyObject *k_mass_inverse(PyObject *self, PyObject *const *args, Py_ssize_
     (void)self;
     if (kwnames != NULL || nargs != 1) {
         /* keywords, or a wrong count: the slow path (positional calls skip it) */
-        if (rg_bind("mass_inverse", args, nargs, kwnames, k_mass_inverse_inputs, 1, bound) < 0) {
+        if (rg_bind("mass_inverse", args, nargs, kwnames, k_mass_inverse_inputs, 1, bound,
+                    &given_out) < 0) {
             return NULL;
         }
         args = bound;
     }
     if (rg_convert_args("mass_inverse", args, k_mass_inverse_inputs, 1, in, &batch) < 0
-        || rg_new_results(k_mass_inverse_outputs, 1, batch, out) < 0) {
+        || (given_out == NULL || given_out == Py_None
+                ? rg_new_results(k_mass_inverse_outputs, 1, batch, out)
+                : rg_given_results("mass_inverse", given_out, k_mass_inverse_outputs, 1, batch,
+                                   in, k_mass_inverse_inputs, 1, out)) < 0) {
         rg_release(in, 1);
         rg_release(out, 1);
         return NULL;
@@ -1135,7 +1279,7 @@ static const rg_port k_discrete_dynamics_outputs[] = {
     {"qd_next", 1, {2, 1}, "(2,)", "(B, 2)", -1},
 };
 PyDoc_STRVAR(k_discrete_dynamics_doc,
-    "discrete_dynamics($module, q, qd, tau, dt)\n"
+    "discrete_dynamics($module, q, qd, tau, dt, *, out=None)\n"
     "--\n"
     "\n"
     "One step of length dt, tau held: semi-implicit Euler (qd+ = qd + dt qdd, q+ = q + dt qd+). Returns q+, qd+.\n"
@@ -1144,12 +1288,13 @@ PyDoc_STRVAR(k_discrete_dynamics_doc,
     "qd: float64 array (2,) or (B, 2)\n"
     "tau: float64 array (2,) or (B, 2)\n"
     "dt: float64 array (1,) or (B, 1)\n"
+    "out: None, or a tuple of 2 float64 arrays of the results' shapes to write them into, then returned: no allocation\n"
     "Returns q_next (2,), qd_next (2,) as a tuple; batched inputs give a leading B axis.");
 
 static PyObject *k_discrete_dynamics(PyObject *self, PyObject *const *args, Py_ssize_t nargs,
                                      PyObject *kwnames)
 {
-    PyObject *bound[4];
+    PyObject *bound[4], *given_out = NULL;
     PyArrayObject *in[4] = {NULL};
     PyArrayObject *out[2] = {NULL};
     PyThreadState *unlocked;
@@ -1158,13 +1303,17 @@ static PyObject *k_discrete_dynamics(PyObject *self, PyObject *const *args, Py_s
     (void)self;
     if (kwnames != NULL || nargs != 4) {
         /* keywords, or a wrong count: the slow path (positional calls skip it) */
-        if (rg_bind("discrete_dynamics", args, nargs, kwnames, k_discrete_dynamics_inputs, 4, bound) < 0) {
+        if (rg_bind("discrete_dynamics", args, nargs, kwnames, k_discrete_dynamics_inputs, 4, bound,
+                    &given_out) < 0) {
             return NULL;
         }
         args = bound;
     }
     if (rg_convert_args("discrete_dynamics", args, k_discrete_dynamics_inputs, 4, in, &batch) < 0
-        || rg_new_results(k_discrete_dynamics_outputs, 2, batch, out) < 0) {
+        || (given_out == NULL || given_out == Py_None
+                ? rg_new_results(k_discrete_dynamics_outputs, 2, batch, out)
+                : rg_given_results("discrete_dynamics", given_out, k_discrete_dynamics_outputs, 2, batch,
+                                   in, k_discrete_dynamics_inputs, 4, out)) < 0) {
         rg_release(in, 4);
         rg_release(out, 2);
         return NULL;
@@ -1205,7 +1354,7 @@ static const rg_port k_discrete_dynamics_derivatives_outputs[] = {
     {"B", 2, {4, 2}, "(4, 2)", "(B, 4, 2)", -1},
 };
 PyDoc_STRVAR(k_discrete_dynamics_derivatives_doc,
-    "discrete_dynamics_derivatives($module, q, qd, tau, dt)\n"
+    "discrete_dynamics_derivatives($module, q, qd, tau, dt, *, out=None)\n"
     "--\n"
     "\n"
     "One step (semi-implicit Euler (qd+ = qd + dt qdd, q+ = q + dt qd+)) and its Jacobians: q+, qd+, A = d(q+, qd+)/d(q, qd), B = d(q+, qd+)/d tau.\n"
@@ -1214,12 +1363,13 @@ PyDoc_STRVAR(k_discrete_dynamics_derivatives_doc,
     "qd: float64 array (2,) or (B, 2)\n"
     "tau: float64 array (2,) or (B, 2)\n"
     "dt: float64 array (1,) or (B, 1)\n"
+    "out: None, or a tuple of 4 float64 arrays of the results' shapes to write them into, then returned: no allocation\n"
     "Returns q_next (2,), qd_next (2,), A (4, 4), B (4, 2) as a tuple; batched inputs give a leading B axis.");
 
 static PyObject *k_discrete_dynamics_derivatives(PyObject *self, PyObject *const *args, Py_ssize_t nargs,
                                                  PyObject *kwnames)
 {
-    PyObject *bound[4];
+    PyObject *bound[4], *given_out = NULL;
     PyArrayObject *in[4] = {NULL};
     PyArrayObject *out[4] = {NULL};
     PyThreadState *unlocked;
@@ -1228,13 +1378,17 @@ static PyObject *k_discrete_dynamics_derivatives(PyObject *self, PyObject *const
     (void)self;
     if (kwnames != NULL || nargs != 4) {
         /* keywords, or a wrong count: the slow path (positional calls skip it) */
-        if (rg_bind("discrete_dynamics_derivatives", args, nargs, kwnames, k_discrete_dynamics_derivatives_inputs, 4, bound) < 0) {
+        if (rg_bind("discrete_dynamics_derivatives", args, nargs, kwnames, k_discrete_dynamics_derivatives_inputs, 4, bound,
+                    &given_out) < 0) {
             return NULL;
         }
         args = bound;
     }
     if (rg_convert_args("discrete_dynamics_derivatives", args, k_discrete_dynamics_derivatives_inputs, 4, in, &batch) < 0
-        || rg_new_results(k_discrete_dynamics_derivatives_outputs, 4, batch, out) < 0) {
+        || (given_out == NULL || given_out == Py_None
+                ? rg_new_results(k_discrete_dynamics_derivatives_outputs, 4, batch, out)
+                : rg_given_results("discrete_dynamics_derivatives", given_out, k_discrete_dynamics_derivatives_outputs, 4, batch,
+                                   in, k_discrete_dynamics_derivatives_inputs, 4, out)) < 0) {
         rg_release(in, 4);
         rg_release(out, 4);
         return NULL;
@@ -1272,19 +1426,20 @@ static const rg_port k_jacobian_derivative_outputs[] = {
     {"jacobian_derivative", 2, {6, 2}, "(6, 2)", "(B, 6, 2)", -1},
 };
 PyDoc_STRVAR(k_jacobian_derivative_doc,
-    "jacobian_derivative($module, q, qd)\n"
+    "jacobian_derivative($module, q, qd, *, out=None)\n"
     "--\n"
     "\n"
     "dJ/dt (6 x n): the time derivative of the tip Jacobian; jacobian_derivative qd = jacobian_dot_qd.\n"
     "\n"
     "q: float64 array (2,) or (B, 2)\n"
     "qd: float64 array (2,) or (B, 2)\n"
+    "out: None, or a float64 array (6, 2) (or (B, 6, 2) for a batch) to write the result into, then returned: no allocation\n"
     "Returns jacobian_derivative (6, 2); batched inputs give a leading B axis.");
 
 static PyObject *k_jacobian_derivative(PyObject *self, PyObject *const *args, Py_ssize_t nargs,
                                        PyObject *kwnames)
 {
-    PyObject *bound[2];
+    PyObject *bound[2], *given_out = NULL;
     PyArrayObject *in[2] = {NULL};
     PyArrayObject *out[1] = {NULL};
     PyThreadState *unlocked;
@@ -1293,13 +1448,17 @@ static PyObject *k_jacobian_derivative(PyObject *self, PyObject *const *args, Py
     (void)self;
     if (kwnames != NULL || nargs != 2) {
         /* keywords, or a wrong count: the slow path (positional calls skip it) */
-        if (rg_bind("jacobian_derivative", args, nargs, kwnames, k_jacobian_derivative_inputs, 2, bound) < 0) {
+        if (rg_bind("jacobian_derivative", args, nargs, kwnames, k_jacobian_derivative_inputs, 2, bound,
+                    &given_out) < 0) {
             return NULL;
         }
         args = bound;
     }
     if (rg_convert_args("jacobian_derivative", args, k_jacobian_derivative_inputs, 2, in, &batch) < 0
-        || rg_new_results(k_jacobian_derivative_outputs, 1, batch, out) < 0) {
+        || (given_out == NULL || given_out == Py_None
+                ? rg_new_results(k_jacobian_derivative_outputs, 1, batch, out)
+                : rg_given_results("jacobian_derivative", given_out, k_jacobian_derivative_outputs, 1, batch,
+                                   in, k_jacobian_derivative_inputs, 2, out)) < 0) {
         rg_release(in, 2);
         rg_release(out, 1);
         return NULL;
