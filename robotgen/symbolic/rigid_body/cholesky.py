@@ -24,18 +24,25 @@ class Cholesky:
 
 
 def cholesky_factor(M: ca.SX) -> Cholesky:
+    """The pivots' chain of dependent operations is kept short: d_j = M_jj - sum_k E_jk^2 / d_k
+    (E_jk^2 is ready before 1 / d_k, and the last pivot's term is subtracted last), and the
+    test d_j > 0 is off the chain: one term, NaN unless every pivot is positive, is added to
+    d and 1 / d once they are all known."""
     n = M.shape[0]
     L = [[ca.SX(0)] * n for _ in range(n)]
     E = [[ca.SX(0)] * n for _ in range(n)]  # E_ij = L_ij d_j
-    d, inverse = [ca.SX(0)] * n, [ca.SX(0)] * n
+    pivots, inverse = [ca.SX(0)] * n, [ca.SX(0)] * n
     for j in range(n):
-        pivot = M[j, j] - sum((E[j][k] * L[j][k] for k in range(j)), ca.SX(0))
-        d[j] = ca.if_else(pivot > 0, pivot, ca.SX(float("nan")))
-        inverse[j] = 1 / d[j]
+        pivots[j] = _minus_terms(M[j, j], [(E[j][k] * E[j][k]) * inverse[k] for k in range(j)])
+        inverse[j] = 1 / pivots[j]
         for i in range(j + 1, n):
-            E[i][j] = M[i, j] - sum((E[i][k] * L[j][k] for k in range(j)), ca.SX(0))
+            E[i][j] = _minus_terms(M[i, j], [E[i][k] * L[j][k] for k in range(j)])
             L[i][j] = E[i][j] * inverse[j]
-    return Cholesky(L, d, inverse)
+    positive = pivots[0] > 0
+    for pivot in pivots[1:]:
+        positive = ca.logic_and(positive, pivot > 0)
+    nan_unless_positive = ca.if_else(positive, ca.SX(0), ca.SX(float("nan")))
+    return Cholesky(L, [p + nan_unless_positive for p in pivots], [v + nan_unless_positive for v in inverse])
 
 
 def cholesky_substitute(factor: Cholesky, b: ca.SX) -> ca.SX:
@@ -44,11 +51,19 @@ def cholesky_substitute(factor: Cholesky, b: ca.SX) -> ca.SX:
     n = len(L)
     y = [ca.SX(0)] * n
     for i in range(n):
-        y[i] = b[i] - sum((L[i][k] * y[k] for k in range(i)), ca.SX(0))
+        y[i] = _minus_terms(b[i], [L[i][k] * y[k] for k in range(i)])
     x = [ca.SX(0)] * n
     for i in reversed(range(n)):
-        x[i] = y[i] * inverse[i] - sum((L[k][i] * x[k] for k in range(i + 1, n)), ca.SX(0))
+        x[i] = _minus_terms(y[i] * inverse[i], [L[k][i] * x[k] for k in reversed(range(i + 1, n))])
     return ca.vertcat(*x)
+
+
+def _minus_terms(value: ca.SX, terms: list[ca.SX]) -> ca.SX:
+    """value - t_1 - t_2 - ..., in this order: the term known last (the latest pivot's, the
+    latest unknown's) is listed last, one subtraction before the result."""
+    for term in terms:
+        value = value - term
+    return value
 
 
 def cholesky_solve(M: ca.SX, b: ca.SX) -> ca.SX:
