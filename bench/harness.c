@@ -11,7 +11,8 @@
  * is finally stored to a volatile, so the calls cannot be dropped as dead code (the kernels
  * live in another translation unit and are not inlined without LTO anyway). The loop is
  * calibrated to take >= ~50 ms, repeated REPEATS times; min and median ns per call printed
- * as "name min_ns median_ns iterations", one line per function.
+ * as "name min_ns median_ns iterations", one line per function. "harness serial f..." times
+ * one call at a time (below); "harness calibrate" measures the machine's floor.
  */
 #define _POSIX_C_SOURCE 199309L
 #include <stdio.h>

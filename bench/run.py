@@ -6,9 +6,11 @@ generated C against Pinocchio's C++ on real URDF arms.
 
 1. builds the spec with `robotgen build SPEC -o DIR` (a temporary directory unless --out);
 2. (a) compiles bench/harness.c against the generated header and kernel sources with
-       `cc -std=c99 -O2` (no -march=native: portable numbers) and runs it;
-   (b) times the Python extension with timeit: one state per call, and a batch of B states
-       in one call (reported per state);
+       `cc -std=c99 -O2` (no -march=native: portable numbers) and runs it: calls back to
+       back (the core overlaps consecutive calls), then one call at a time (as a Python
+       call makes it; the Python overhead is taken over this);
+   (b) times the Python extension with timeit: one state per call as written (f(q, qd)),
+       the same writing into out= arrays, and a batch of B states in one call (per state);
    (c) times CasADi's own evaluation of the same graph (robotgen.symbolic.kernels_for ->
        Kernel.function): one call with a numpy argument, and Function.map over B states;
 3. prints a table and writes bench/results.json.
