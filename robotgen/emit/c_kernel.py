@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
-from robotgen.emit import sincos
+from robotgen.emit import issue_order, sincos
 from robotgen.emit.sx_program import Instruction, KernelError, Program, read_program, reads_first
 from robotgen.symbolic.kernel import PARAMS, Kernel, Port
 from robotgen.symbolic.schedule import (
@@ -180,7 +180,10 @@ def _straight_line(program: Program, kernel: Kernel, precision: Precision, read,
                    register: str = "w") -> tuple[list[str], list[str]]:
     """(declarations of the registers, statements) of one SX program; ``read(port, element)``
     and ``write(port, element)`` spell its inputs and outputs. In double precision the
-    angles of a straight-line program (not a loop body) go through robotgen.emit.sincos."""
+    angles of a straight-line program (not a loop body) go through robotgen.emit.sincos, and
+    one bound by its longest chain is printed in list-schedule order (robotgen.emit.issue_order)."""
+    if register == "w" and issue_order.latency_bound(program):
+        program = issue_order.list_scheduled(program)
     if precision.real == "double" and register == "w":
         program = sincos.pair_angles(program)
     body = []

@@ -1,0 +1,102 @@
+"""The order in which a small straight-line kernel's statements are printed.
+
+CasADi lists a program's steps in the order its expression graph was built: one recursion
+after the other. A kernel with few operations per step of its longest chain of dependent
+operations (a mass matrix: 480 operations, a chain 133 cycles long) is bound by that chain,
+and the processor overlaps the independent chains only as far as its window reaches. For
+such a kernel the statements are printed in the order of a list schedule instead: cycle by
+cycle, up to ISSUE_WIDTH ready operations, the one heading the longest remaining chain
+first. The values, and so the results, are the same bit for bit; only the order differs.
+Kernels with many operations per chain step (fused, derivative kernels) are bound by the
+processor's throughput and keep CasADi's order, which holds fewer values live at once.
+
+The latencies are a model (cycles of a current x86-64 core), used only to rank; the order
+is computed from them alone, so it is the same on every machine.
+"""
+from __future__ import annotations
+
+import heapq
+
+import casadi as ca
+
+from robotgen.emit.sx_program import Instruction, Program
+
+ISSUE_WIDTH = 4  # floating-point operations a core starts per cycle
+_FREE = frozenset({ca.OP_INPUT, ca.OP_CONST, ca.OP_OUTPUT, ca.OP_ASSIGN})
+_LATENCY = {ca.OP_NEG: 1, ca.OP_FABS: 1, ca.OP_DIV: 13, ca.OP_INV: 13, ca.OP_SQRT: 15,
+            ca.OP_SIN: 25, ca.OP_COS: 25, ca.OP_TAN: 30, ca.OP_ATAN2: 40, ca.OP_EXP: 20, ca.OP_LOG: 20}
+_DEFAULT_LATENCY = 3  # add, subtract, multiply, compare, select
+
+
+def latency(op: int) -> int:
+    return 0 if op in _FREE else _LATENCY.get(op, _DEFAULT_LATENCY)
+
+
+def _single_assignment(program: Program) -> list[Instruction]:
+    """The steps with step k writing register k (CasADi reuses registers; a moved step must
+    not read a register that something else wrote in the meantime)."""
+    writer: dict[int, int] = {}
+    steps = []
+    for k, step in enumerate(program.instructions):
+        steps.append(Instruction(step.op, k if step.target >= 0 else -1, tuple(writer[r] for r in step.args),
+                                 step.port, step.element, step.constant))
+        if step.target >= 0:
+            writer[step.target] = k
+    return steps
+
+
+def critical_path(program: Program) -> tuple[int, int]:
+    """(operations, cycles of the longest chain of dependent operations) in the model."""
+    ready: dict[int, int] = {}
+    longest = operations = 0
+    for step in program.instructions:
+        start = max((ready.get(r, 0) for r in step.args), default=0)
+        if step.target >= 0:
+            ready[step.target] = start + latency(step.op)
+        operations += step.op not in _FREE
+        longest = max(longest, start + latency(step.op))
+    return operations, longest
+
+
+def latency_bound(program: Program) -> bool:
+    """Whether the program has fewer operations per cycle of its longest chain than a core
+    can start (so the chain, not the operations, sets its time)."""
+    operations, longest = critical_path(program)
+    return operations < ISSUE_WIDTH * longest
+
+
+def list_scheduled(program: Program) -> Program:
+    """``program`` in list-schedule order (registers renamed: step k of the original writes
+    register k). Ties go to the step listed first, so the order is deterministic."""
+    steps = _single_assignment(program)
+    n = len(steps)
+    users: list[list[int]] = [[] for _ in range(n)]
+    waiting = [0] * n
+    for k, step in enumerate(steps):
+        for r in set(step.args):
+            users[r].append(k)
+        waiting[k] = len(set(step.args))
+    height = [0] * n  # cycles from the start of step k to the end of the program
+    for k in reversed(range(n)):
+        height[k] = latency(steps[k].op) + max((height[u] for u in users[k]), default=0)
+    available = [0] * n
+    ready = [(-height[k], k) for k in range(n) if waiting[k] == 0]
+    heapq.heapify(ready)
+    later: list[tuple[int, int]] = []  # (cycle its operands are done, step)
+    order: list[int] = []
+    cycle = 0
+    while ready or later:
+        while later and later[0][0] <= cycle:
+            heapq.heappush(ready, (-height[later[0][1]], heapq.heappop(later)[1]))
+        for _ in range(ISSUE_WIDTH):
+            if not ready:
+                break
+            k = heapq.heappop(ready)[1]
+            order.append(k)
+            for u in users[k]:
+                available[u] = max(available[u], cycle + latency(steps[k].op))
+                waiting[u] -= 1
+                if waiting[u] == 0:
+                    heapq.heappush(later, (available[u], u))
+        cycle += 1
+    return Program(tuple(steps[k] for k in order), program.unwritten_outputs)
