@@ -435,9 +435,9 @@ _Y, _M, _BUFFER = np.empty(4), np.empty((3, 3)), np.empty(9)
     (lambda m: m.rand_a(_Q, _QD, out=[_Y, _M]), TypeError, "rand_a(): out must be a tuple of 2 float64 "
      "arrays (one per result), got list"),
     (lambda m: m.rand_a(_Q, _QD, out=(_Y, np.empty((3, 3), np.float32))), TypeError,
-     "rand_a(): out[i] must be a float64 numpy array for 'M', got an array of another dtype"),
+     "rand_a(): out[1] must be a float64 numpy array for 'M', got an array of another dtype"),
     (lambda m: m.rand_a(_Q, _QD, out=(_Y, [[0.0] * 3] * 3)), TypeError,
-     "rand_a(): out[i] must be a float64 numpy array for 'M', got list"),
+     "rand_a(): out[1] must be a float64 numpy array for 'M', got list"),
     (lambda m: m.rand_a(_Q, _QD, out=(_Y, np.empty((3, 4)))), ValueError,
      "rand_a(): out for 'M' must have shape (3, 3), got (3, 4)"),
     (lambda m: m.rand_a(np.zeros((2, 3)), _QD, out=(_Y, _M)), ValueError,

