@@ -9,10 +9,13 @@ generated C against Pinocchio's C++ on real URDF arms.
        `cc -std=c99 -O2` (no -march=native: portable numbers) and runs it: calls back to
        back (the core overlaps consecutive calls), then one call at a time (as a Python
        call makes it; the Python overhead is taken over this);
-   (b) times the Python extension with timeit: one state per call as written (f(q, qd)),
+   (b) times the Python extension with timeit: one state per call as a servo loop writes it (y = f(q, qd)),
        the same writing into out= arrays, and a batch of B states in one call (per state);
    (c) times CasADi's own evaluation of the same graph (robotgen.symbolic.kernels_for ->
        Kernel.function): one call with a numpy argument, and Function.map over B states;
+   (d) two more rounds of (a)'s one-call timing and (b)'s single calls, alternating: each
+       keeps its least disturbed time, so that Python's cost over C, a difference of two
+       small times, is not the difference of two moments of a busy machine;
 3. prints a table and writes bench/results.json.
 
 Then, for each URDF arm (default UR5 and Panda; none when --spec is given, unless --urdf):
@@ -97,20 +100,21 @@ def c_harness(out: Path, name: str, nq: int, work: Path) -> tuple[Path, list[str
     return exe, cmd
 
 
-def run_c(out: Path, name: str, nq: int, functions: list[str], work: Path, single_calls: bool = False) -> dict:
+def run_c(out: Path, name: str, nq: int, functions: list[str], work: Path, single_calls: bool = False,
+          back_to_back: bool = True) -> dict:
     """Each function back to back (throughput: the core overlaps consecutive calls), and with
     single_calls also one call at a time (the harness's serial mode: a single call's time, as
     a Python call makes it)."""
     cc = os.environ.get("CC", "cc")
     exe, cmd = c_harness(out, name, nq, work)
     results: dict = {}
-    for mode in ("", "serial") if single_calls else ("",):
+    for mode in ("",) * back_to_back + ("serial",) * single_calls:
         res = subprocess.run([str(exe), *([mode] if mode else []), *functions], check=True,
                              capture_output=True, text=True)
         for line in res.stdout.splitlines():
             fn, ns_min, ns_med, iters = line.split()
             if mode:
-                results[fn].update(ns_single_call=float(ns_min), ns_single_call_median=float(ns_med))
+                results.setdefault(fn, {}).update(ns_single_call=float(ns_min), ns_single_call_median=float(ns_med))
             else:
                 results[fn] = {"ns_min": float(ns_min), "ns_median": float(ns_med), "iterations": int(iters)}
     return {"compiler": subprocess.run([cc, "--version"], capture_output=True, text=True).stdout.splitlines()[0],
@@ -143,18 +147,41 @@ def states(nq: int, n: int, rng) -> list[np.ndarray]:
 
 def run_python(module, fn: str, nq: int, quick: bool) -> dict:
     f = getattr(module, fn)
-    k = ARITY[fn]
     rng = np.random.default_rng(0)
-    one = [a[0] for a in states(nq, 1, rng)][:k]
-    batch = states(nq, BATCH, rng)[:k]
-    number = 2000 if quick else 20000
-    # calls as a user writes them, f(q, qd) and f(q, qd, out=r): timeit compiles the statement
-    names = {f"a{i}": a for i, a in enumerate(one)} | {"f": f, "r": f(*one)}
-    call = f"f({', '.join(f'a{i}' for i in range(k))}"
-    single = best_ns(timeit.Timer(call + ")", globals=names), number, 3 if quick else 7)
-    into = best_ns(timeit.Timer(call + ", out=r)", globals=names), number, 3 if quick else 7)
+    batch = states(nq, BATCH, rng)[:ARITY[fn]]
     per_state = best_ns(lambda: f(*batch), 5 if quick else 50, 3 if quick else 7) / BATCH
-    return {"ns_single": single, "ns_single_out": into, "ns_per_state_batch": per_state}
+    return {**python_single_calls(module, fn, nq, quick), "ns_per_state_batch": per_state}
+
+
+def python_single_calls(module, fn: str, nq: int, quick: bool) -> dict:
+    """One call as a servo loop writes it, y = f(q, qd) (y holds the previous result while the
+    call runs) and f(q, qd, out=r); timeit compiles the statements."""
+    f = getattr(module, fn)
+    k = ARITY[fn]
+    one = [a[0] for a in states(nq, 1, np.random.default_rng(0))][:k]
+    number = 2000 if quick else 20000
+    names = {f"a{i}": a for i, a in enumerate(one)} | {"f": f, "r": f(*one), "y": None}
+    call = f"f({', '.join(f'a{i}' for i in range(k))}"
+    return {"ns_single": best_ns(timeit.Timer("y = " + call + ")", globals=names), number, 3 if quick else 7),
+            "ns_single_out": best_ns(timeit.Timer(call + ", out=r)", globals=names), number, 3 if quick else 7)}
+
+
+def single_call_rounds(rows: list[dict], module, out: Path, name: str, nq: int, work: Path, rounds: int,
+                       quick: bool) -> None:
+    """Python's cost over C is a difference of two small times taken at different moments on
+    a shared machine: further rounds alternate the C harness (serial) and the Python calls,
+    and each keeps its least disturbed time (the first round is in ``rows`` already)."""
+    functions = [r["function"] for r in rows]
+    for _ in range(rounds - 1):
+        c = run_c(out, name, nq, functions, work, single_calls=True, back_to_back=False)["results"]
+        for r in rows:
+            fn = r["function"]
+            r["c"]["ns_single_call"] = min(r["c"]["ns_single_call"], c[fn]["ns_single_call"])
+            python = python_single_calls(module, fn, nq, quick)
+            for key in ("ns_single", "ns_single_out"):
+                r["python"][key] = min(r["python"][key], python[key])
+    for r in rows:
+        r["c"]["single_call_rounds"] = r["python"]["single_call_rounds"] = rounds
 
 
 def run_casadi(kernel, nq: int, quick: bool) -> dict:
@@ -540,10 +567,12 @@ def main(argv=None) -> int:
                 "python": run_python(module, fn, nq, args.quick),
                 "casadi": run_casadi(kernels[fn], nq, args.quick),
             })
+        single_call_rounds(rows, module, out, name, nq, Path(tmp), 1 if args.quick else 3, args.quick)
         print(table(rows))
         print("C ns: calls back to back (the core overlaps consecutive calls); C 1 call: one call at a time "
               "(lfence between calls), as a Python call makes it; Py out=: the result written into a given "
-              "array; Py-C 1 call: what the Python call f(q, ...) costs over the C call")
+              "array; Py-C 1 call: what the Python call f(q, ...) costs over the C call (C 1 call and Py: the "
+              "least of alternating rounds)")
 
         if harness is not None:
             import pinocchio as pin

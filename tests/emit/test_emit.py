@@ -11,6 +11,7 @@ import re
 import shutil
 import subprocess
 import sys
+import weakref
 from pathlib import Path
 
 import casadi as ca
@@ -475,6 +476,58 @@ def test_out_leaks_no_references(module):
         with pytest.raises(TypeError):
             module.rand_a(q, qd, out=(y, m, m))
     assert [sys.getrefcount(a) for a in (q, qd, y, m)] == before
+
+
+def _states(count: int, seed: int = 5):
+    rng = np.random.default_rng(seed)
+    return rng.normal(size=(count, 3)), rng.normal(size=(count, 2))
+
+
+def test_a_servo_loop_reuses_the_results_it_has_let_go(module):
+    Q, QD = _states(12)
+    expected = module.rand_a(Q, QD)  # a batch call: new arrays, never reused
+    seen = set()
+    y = M = None
+    for k in range(len(Q)):
+        y, M = module.rand_a(Q[k], QD[k])  # y, M hold the previous results while the call runs
+        np.testing.assert_array_equal(y, expected[0][k])
+        np.testing.assert_array_equal(M, expected[1][k])
+        assert M.flags.writeable and M.flags.c_contiguous and M.flags.owndata
+        seen.add(id(M))
+    assert len(seen) == 2  # after the first two calls, the one before the previous is filled anew
+
+
+def test_results_a_caller_holds_are_never_written_again(module):
+    Q, QD = _states(6)
+    expected = module.rand_a(Q, QD)
+    kept = [module.rand_a(Q[k], QD[k]) for k in range(len(Q))]
+    row = module.rand_a(Q[0], QD[0])[1][0]  # a view keeps its base
+    _, M = module.rand_a(Q[1], QD[1])
+    ref = weakref.ref(M)
+    del M
+    for k in range(len(Q)):
+        module.rand_a(Q[k], QD[k])
+    for k, (y, M) in enumerate(kept):
+        np.testing.assert_array_equal(y, expected[0][k])
+        np.testing.assert_array_equal(M, expected[1][k])
+    np.testing.assert_array_equal(row, expected[1][0][0])
+    assert ref() is None  # let go with only a weak reference: freed, not handed out again
+
+
+@pytest.mark.parametrize("change", [
+    lambda M: setattr(M, "shape", (9,)),
+    lambda M: setattr(M.flags, "writeable", False),
+])
+def test_a_result_changed_before_it_was_let_go_is_not_handed_out(module, change):
+    Q, QD = _states(4)
+    expected = module.rand_a(Q, QD)
+    _, M = module.rand_a(Q[0], QD[0])
+    change(M)
+    del M
+    for k in range(len(Q)):
+        _, M = module.rand_a(Q[k], QD[k])
+        assert M.shape == (3, 3) and M.flags.writeable
+        np.testing.assert_array_equal(M, expected[1][k])
 
 
 _Q, _QD = np.zeros(3), np.zeros(2)

@@ -1,6 +1,6 @@
 """The Python module's memory behaviour: no invalid read or write of the module's own code under
 valgrind on a short run (single points, batches, strided views, results written into out=,
-refused arguments), and a
+results let go of and filled anew, refused arguments), and a
 batch of 10^7 states is computed right; one whose arguments cannot be copied is a MemoryError."""
 from __future__ import annotations
 
@@ -25,6 +25,7 @@ def test_valgrind_finds_nothing_in_the_module(build_module, tmp_path):
     script = tmp_path / "run.py"
     script.write_text(textwrap.dedent(f"""
         import sys
+        import weakref
         sys.path.insert(0, {str(Path(module.__file__).parent)!r})
         import numpy as np
         import two_link as m
@@ -36,6 +37,12 @@ def test_valgrind_finds_nothing_in_the_module(build_module, tmp_path):
         m.inverse_dynamics(q[::2], qd[::2], qd[::2]), m.servo_terms(q, qd)
         m.inverse_dynamics_derivatives(q, qd, qd), m.forward_dynamics_derivatives(q, qd, qd)
         m.discrete_dynamics_derivatives(q, qd, qd, 0.01), m.mass_inverse(q)
+        kept = []
+        for k in range(6):  # results let go of, kept, viewed and watched: filled anew or not
+            M = m.mass(q[k])
+            parts = m.servo_terms(q[k], qd[k])
+            kept.append(m.gravity(q[k])[:1])
+            watched = weakref.ref(m.jacobian(q[k]))
         M, parts = np.empty((50, 2, 2)), tuple(np.empty(a.shape) for a in m.servo_terms(q[0], qd[0]))
         m.mass(q, out=M), m.servo_terms(q[0], qd[0], out=parts)
         for bad in (M[0], M[:, ::-1], (M, M), q):

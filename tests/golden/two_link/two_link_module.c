@@ -251,12 +251,51 @@ static int rg_convert_args(const char *fn, PyObject *const *args, const rg_port 
     return 0;
 }
 
-/* New float64 result arrays, with a leading axis of length batch when batch >= 0. */
-static int rg_new_results(const rg_port *ports, int n, npy_intp batch, PyArrayObject **arrays)
+/* Whether a spare result (below) that nothing else holds can be filled anew: it is still a
+ * writeable C-contiguous float64 array of the port's shape with its own data, and no weak
+ * reference watches it (a caller may have changed it before letting it go). */
+static int rg_spare_fits(PyArrayObject *spare, const rg_port *port)
 {
-    int i, k, lead;
+    int k;
+    if (((PyArrayObject_fields *)spare)->weakreflist != NULL || PyArray_BASE(spare) != NULL
+        || !PyArray_ISCARRAY(spare) || PyArray_TYPE(spare) != NPY_DOUBLE || PyArray_NDIM(spare) != port->ndim) {
+        return 0;
+    }
+    for (k = 0; k < port->ndim; ++k) {
+        if (PyArray_DIM(spare, k) != port->dims[k]) {
+            return 0;
+        }
+    }
+    return 1;
+}
+
+/* New float64 result arrays, with a leading axis of length batch when batch >= 0. A single
+ * call (batch < 0) keeps references to the last RG_SPARES arrays it made for each result
+ * (spare[RG_SPARES * i + s]) and returns one of them again, filled anew, once the caller has
+ * let go of it: in a servo loop, M = f(q) holds the previous result while the call runs, so
+ * the one before it is free, and the loop allocates nothing after its first two calls. */
+#define RG_SPARES 2
+static int rg_new_results(const rg_port *ports, int n, npy_intp batch, PyArrayObject **spare, PyArrayObject **arrays)
+{
+    int i, k, s, lead;
     npy_intp dims[3];
+    PyArrayObject **slot, *oldest;
     for (i = 0; i < n; ++i) {
+        arrays[i] = NULL;
+        for (s = 0; batch < 0 && s < RG_SPARES && arrays[i] == NULL; ++s) {
+            slot = &spare[RG_SPARES * i + s];
+            if (*slot != NULL && Py_REFCNT(*slot) == 1) {
+                if (rg_spare_fits(*slot, &ports[i])) {
+                    Py_INCREF(*slot);
+                    arrays[i] = *slot;
+                } else {
+                    Py_CLEAR(*slot); /* changed by the caller, or watched: let go of it */
+                }
+            }
+        }
+        if (arrays[i] != NULL) {
+            continue;
+        }
         lead = batch >= 0;
         dims[0] = batch;
         for (k = 0; k < ports[i].ndim; ++k) {
@@ -265,6 +304,16 @@ static int rg_new_results(const rg_port *ports, int n, npy_intp batch, PyArrayOb
         arrays[i] = (PyArrayObject *)PyArray_SimpleNew(lead + ports[i].ndim, dims, NPY_DOUBLE);
         if (arrays[i] == NULL) {
             return -1;
+        }
+        if (batch < 0) { /* kept as the newest spare; the oldest is let go of */
+            slot = &spare[RG_SPARES * i];
+            oldest = slot[RG_SPARES - 1];
+            for (s = RG_SPARES - 1; s > 0; --s) {
+                slot[s] = slot[s - 1];
+            }
+            Py_INCREF(arrays[i]);
+            slot[0] = arrays[i];
+            Py_XDECREF(oldest);
         }
     }
     return 0;
@@ -341,12 +390,13 @@ static int rg_given_results(const char *fn, PyObject *given, const rg_port *port
     return 0;
 }
 
-/* The result arrays of a call: new ones, or those given as out= (None is no out). */
+/* The result arrays of a call: new or spare ones, or those given as out= (None is no out). */
 static int rg_results(const char *fn, PyObject *given, const rg_port *ports, int n, npy_intp batch,
-                      PyArrayObject *const *in, const rg_port *in_ports, int n_in, PyArrayObject **arrays)
+                      PyArrayObject **spare, PyArrayObject *const *in, const rg_port *in_ports, int n_in,
+                      PyArrayObject **arrays)
 {
     if (given == NULL || given == Py_None) {
-        return rg_new_results(ports, n, batch, arrays);
+        return rg_new_results(ports, n, batch, spare, arrays);
     }
     return rg_given_results(fn, given, ports, n, batch, in, in_ports, n_in, arrays);
 }
@@ -404,6 +454,7 @@ static const rg_port k_fk_inputs[] = {
 static const rg_port k_fk_outputs[] = {
     {"fk", 2, {4, 4}, "(4, 4)", "(B, 4, 4)", -1},
 };
+static PyArrayObject *k_fk_spare[RG_SPARES * 1];
 PyDoc_STRVAR(k_fk_doc,
     "fk($module, q, *, out=None)\n"
     "--\n"
@@ -434,7 +485,7 @@ static PyObject *k_fk(PyObject *self, PyObject *const *args, Py_ssize_t nargs,
     }
     if (rg_convert_args("fk", args, k_fk_inputs, 1, in, &batch) < 0
         || rg_results("fk", given_out, k_fk_outputs, 1, batch,
-                      in, k_fk_inputs, 1, out) < 0) {
+                      k_fk_spare, in, k_fk_inputs, 1, out) < 0) {
         rg_release(in, 1);
         rg_release(out, 1);
         return NULL;
@@ -461,6 +512,7 @@ static const rg_port k_jacobian_inputs[] = {
 static const rg_port k_jacobian_outputs[] = {
     {"jacobian", 2, {6, 2}, "(6, 2)", "(B, 6, 2)", -1},
 };
+static PyArrayObject *k_jacobian_spare[RG_SPARES * 1];
 PyDoc_STRVAR(k_jacobian_doc,
     "jacobian($module, q, *, out=None)\n"
     "--\n"
@@ -491,7 +543,7 @@ static PyObject *k_jacobian(PyObject *self, PyObject *const *args, Py_ssize_t na
     }
     if (rg_convert_args("jacobian", args, k_jacobian_inputs, 1, in, &batch) < 0
         || rg_results("jacobian", given_out, k_jacobian_outputs, 1, batch,
-                      in, k_jacobian_inputs, 1, out) < 0) {
+                      k_jacobian_spare, in, k_jacobian_inputs, 1, out) < 0) {
         rg_release(in, 1);
         rg_release(out, 1);
         return NULL;
@@ -518,6 +570,7 @@ static const rg_port k_jacobian_hand_inputs[] = {
 static const rg_port k_jacobian_hand_outputs[] = {
     {"jacobian_hand", 2, {6, 2}, "(6, 2)", "(B, 6, 2)", -1},
 };
+static PyArrayObject *k_jacobian_hand_spare[RG_SPARES * 1];
 PyDoc_STRVAR(k_jacobian_hand_doc,
     "jacobian_hand($module, q, *, out=None)\n"
     "--\n"
@@ -548,7 +601,7 @@ static PyObject *k_jacobian_hand(PyObject *self, PyObject *const *args, Py_ssize
     }
     if (rg_convert_args("jacobian_hand", args, k_jacobian_hand_inputs, 1, in, &batch) < 0
         || rg_results("jacobian_hand", given_out, k_jacobian_hand_outputs, 1, batch,
-                      in, k_jacobian_hand_inputs, 1, out) < 0) {
+                      k_jacobian_hand_spare, in, k_jacobian_hand_inputs, 1, out) < 0) {
         rg_release(in, 1);
         rg_release(out, 1);
         return NULL;
@@ -576,6 +629,7 @@ static const rg_port k_jacobian_dot_qd_inputs[] = {
 static const rg_port k_jacobian_dot_qd_outputs[] = {
     {"jacobian_dot_qd", 1, {6, 1}, "(6,)", "(B, 6)", -1},
 };
+static PyArrayObject *k_jacobian_dot_qd_spare[RG_SPARES * 1];
 PyDoc_STRVAR(k_jacobian_dot_qd_doc,
     "jacobian_dot_qd($module, q, qd, *, out=None)\n"
     "--\n"
@@ -607,7 +661,7 @@ static PyObject *k_jacobian_dot_qd(PyObject *self, PyObject *const *args, Py_ssi
     }
     if (rg_convert_args("jacobian_dot_qd", args, k_jacobian_dot_qd_inputs, 2, in, &batch) < 0
         || rg_results("jacobian_dot_qd", given_out, k_jacobian_dot_qd_outputs, 1, batch,
-                      in, k_jacobian_dot_qd_inputs, 2, out) < 0) {
+                      k_jacobian_dot_qd_spare, in, k_jacobian_dot_qd_inputs, 2, out) < 0) {
         rg_release(in, 2);
         rg_release(out, 1);
         return NULL;
@@ -636,6 +690,7 @@ static const rg_port k_mass_inputs[] = {
 static const rg_port k_mass_outputs[] = {
     {"mass", 2, {2, 2}, "(2, 2)", "(B, 2, 2)", -1},
 };
+static PyArrayObject *k_mass_spare[RG_SPARES * 1];
 PyDoc_STRVAR(k_mass_doc,
     "mass($module, q, *, out=None)\n"
     "--\n"
@@ -666,7 +721,7 @@ static PyObject *k_mass(PyObject *self, PyObject *const *args, Py_ssize_t nargs,
     }
     if (rg_convert_args("mass", args, k_mass_inputs, 1, in, &batch) < 0
         || rg_results("mass", given_out, k_mass_outputs, 1, batch,
-                      in, k_mass_inputs, 1, out) < 0) {
+                      k_mass_spare, in, k_mass_inputs, 1, out) < 0) {
         rg_release(in, 1);
         rg_release(out, 1);
         return NULL;
@@ -694,6 +749,7 @@ static const rg_port k_coriolis_inputs[] = {
 static const rg_port k_coriolis_outputs[] = {
     {"coriolis", 2, {2, 2}, "(2, 2)", "(B, 2, 2)", -1},
 };
+static PyArrayObject *k_coriolis_spare[RG_SPARES * 1];
 PyDoc_STRVAR(k_coriolis_doc,
     "coriolis($module, q, qd, *, out=None)\n"
     "--\n"
@@ -725,7 +781,7 @@ static PyObject *k_coriolis(PyObject *self, PyObject *const *args, Py_ssize_t na
     }
     if (rg_convert_args("coriolis", args, k_coriolis_inputs, 2, in, &batch) < 0
         || rg_results("coriolis", given_out, k_coriolis_outputs, 1, batch,
-                      in, k_coriolis_inputs, 2, out) < 0) {
+                      k_coriolis_spare, in, k_coriolis_inputs, 2, out) < 0) {
         rg_release(in, 2);
         rg_release(out, 1);
         return NULL;
@@ -754,6 +810,7 @@ static const rg_port k_gravity_inputs[] = {
 static const rg_port k_gravity_outputs[] = {
     {"gravity", 1, {2, 1}, "(2,)", "(B, 2)", -1},
 };
+static PyArrayObject *k_gravity_spare[RG_SPARES * 1];
 PyDoc_STRVAR(k_gravity_doc,
     "gravity($module, q, *, out=None)\n"
     "--\n"
@@ -784,7 +841,7 @@ static PyObject *k_gravity(PyObject *self, PyObject *const *args, Py_ssize_t nar
     }
     if (rg_convert_args("gravity", args, k_gravity_inputs, 1, in, &batch) < 0
         || rg_results("gravity", given_out, k_gravity_outputs, 1, batch,
-                      in, k_gravity_inputs, 1, out) < 0) {
+                      k_gravity_spare, in, k_gravity_inputs, 1, out) < 0) {
         rg_release(in, 1);
         rg_release(out, 1);
         return NULL;
@@ -812,6 +869,7 @@ static const rg_port k_nonlinear_inputs[] = {
 static const rg_port k_nonlinear_outputs[] = {
     {"nonlinear", 1, {2, 1}, "(2,)", "(B, 2)", -1},
 };
+static PyArrayObject *k_nonlinear_spare[RG_SPARES * 1];
 PyDoc_STRVAR(k_nonlinear_doc,
     "nonlinear($module, q, qd, *, out=None)\n"
     "--\n"
@@ -843,7 +901,7 @@ static PyObject *k_nonlinear(PyObject *self, PyObject *const *args, Py_ssize_t n
     }
     if (rg_convert_args("nonlinear", args, k_nonlinear_inputs, 2, in, &batch) < 0
         || rg_results("nonlinear", given_out, k_nonlinear_outputs, 1, batch,
-                      in, k_nonlinear_inputs, 2, out) < 0) {
+                      k_nonlinear_spare, in, k_nonlinear_inputs, 2, out) < 0) {
         rg_release(in, 2);
         rg_release(out, 1);
         return NULL;
@@ -874,6 +932,7 @@ static const rg_port k_inverse_dynamics_inputs[] = {
 static const rg_port k_inverse_dynamics_outputs[] = {
     {"inverse_dynamics", 1, {2, 1}, "(2,)", "(B, 2)", -1},
 };
+static PyArrayObject *k_inverse_dynamics_spare[RG_SPARES * 1];
 PyDoc_STRVAR(k_inverse_dynamics_doc,
     "inverse_dynamics($module, q, qd, qdd, *, out=None)\n"
     "--\n"
@@ -906,7 +965,7 @@ static PyObject *k_inverse_dynamics(PyObject *self, PyObject *const *args, Py_ss
     }
     if (rg_convert_args("inverse_dynamics", args, k_inverse_dynamics_inputs, 3, in, &batch) < 0
         || rg_results("inverse_dynamics", given_out, k_inverse_dynamics_outputs, 1, batch,
-                      in, k_inverse_dynamics_inputs, 3, out) < 0) {
+                      k_inverse_dynamics_spare, in, k_inverse_dynamics_inputs, 3, out) < 0) {
         rg_release(in, 3);
         rg_release(out, 1);
         return NULL;
@@ -939,6 +998,7 @@ static const rg_port k_forward_dynamics_inputs[] = {
 static const rg_port k_forward_dynamics_outputs[] = {
     {"forward_dynamics", 1, {2, 1}, "(2,)", "(B, 2)", -1},
 };
+static PyArrayObject *k_forward_dynamics_spare[RG_SPARES * 1];
 PyDoc_STRVAR(k_forward_dynamics_doc,
     "forward_dynamics($module, q, qd, tau, *, out=None)\n"
     "--\n"
@@ -971,7 +1031,7 @@ static PyObject *k_forward_dynamics(PyObject *self, PyObject *const *args, Py_ss
     }
     if (rg_convert_args("forward_dynamics", args, k_forward_dynamics_inputs, 3, in, &batch) < 0
         || rg_results("forward_dynamics", given_out, k_forward_dynamics_outputs, 1, batch,
-                      in, k_forward_dynamics_inputs, 3, out) < 0) {
+                      k_forward_dynamics_spare, in, k_forward_dynamics_inputs, 3, out) < 0) {
         rg_release(in, 3);
         rg_release(out, 1);
         return NULL;
@@ -1006,6 +1066,7 @@ static const rg_port k_servo_terms_outputs[] = {
     {"jacobian", 2, {6, 2}, "(6, 2)", "(B, 6, 2)", -1},
     {"jacobian_dot_qd", 1, {6, 1}, "(6,)", "(B, 6)", -1},
 };
+static PyArrayObject *k_servo_terms_spare[RG_SPARES * 4];
 PyDoc_STRVAR(k_servo_terms_doc,
     "servo_terms($module, q, qd, *, out=None)\n"
     "--\n"
@@ -1037,7 +1098,7 @@ static PyObject *k_servo_terms(PyObject *self, PyObject *const *args, Py_ssize_t
     }
     if (rg_convert_args("servo_terms", args, k_servo_terms_inputs, 2, in, &batch) < 0
         || rg_results("servo_terms", given_out, k_servo_terms_outputs, 4, batch,
-                      in, k_servo_terms_inputs, 2, out) < 0) {
+                      k_servo_terms_spare, in, k_servo_terms_inputs, 2, out) < 0) {
         rg_release(in, 2);
         rg_release(out, 4);
         return NULL;
@@ -1072,6 +1133,7 @@ static const rg_port k_inverse_dynamics_derivatives_outputs[] = {
     {"dtau_dq", 2, {2, 2}, "(2, 2)", "(B, 2, 2)", -1},
     {"dtau_dqd", 2, {2, 2}, "(2, 2)", "(B, 2, 2)", -1},
 };
+static PyArrayObject *k_inverse_dynamics_derivatives_spare[RG_SPARES * 2];
 PyDoc_STRVAR(k_inverse_dynamics_derivatives_doc,
     "inverse_dynamics_derivatives($module, q, qd, qdd, *, out=None)\n"
     "--\n"
@@ -1104,7 +1166,7 @@ static PyObject *k_inverse_dynamics_derivatives(PyObject *self, PyObject *const 
     }
     if (rg_convert_args("inverse_dynamics_derivatives", args, k_inverse_dynamics_derivatives_inputs, 3, in, &batch) < 0
         || rg_results("inverse_dynamics_derivatives", given_out, k_inverse_dynamics_derivatives_outputs, 2, batch,
-                      in, k_inverse_dynamics_derivatives_inputs, 3, out) < 0) {
+                      k_inverse_dynamics_derivatives_spare, in, k_inverse_dynamics_derivatives_inputs, 3, out) < 0) {
         rg_release(in, 3);
         rg_release(out, 2);
         return NULL;
@@ -1140,6 +1202,7 @@ static const rg_port k_forward_dynamics_derivatives_outputs[] = {
     {"dqdd_dqd", 2, {2, 2}, "(2, 2)", "(B, 2, 2)", -1},
     {"dqdd_dtau", 2, {2, 2}, "(2, 2)", "(B, 2, 2)", -1},
 };
+static PyArrayObject *k_forward_dynamics_derivatives_spare[RG_SPARES * 3];
 PyDoc_STRVAR(k_forward_dynamics_derivatives_doc,
     "forward_dynamics_derivatives($module, q, qd, tau, *, out=None)\n"
     "--\n"
@@ -1172,7 +1235,7 @@ static PyObject *k_forward_dynamics_derivatives(PyObject *self, PyObject *const 
     }
     if (rg_convert_args("forward_dynamics_derivatives", args, k_forward_dynamics_derivatives_inputs, 3, in, &batch) < 0
         || rg_results("forward_dynamics_derivatives", given_out, k_forward_dynamics_derivatives_outputs, 3, batch,
-                      in, k_forward_dynamics_derivatives_inputs, 3, out) < 0) {
+                      k_forward_dynamics_derivatives_spare, in, k_forward_dynamics_derivatives_inputs, 3, out) < 0) {
         rg_release(in, 3);
         rg_release(out, 3);
         return NULL;
@@ -1205,6 +1268,7 @@ static const rg_port k_mass_inverse_inputs[] = {
 static const rg_port k_mass_inverse_outputs[] = {
     {"mass_inverse", 2, {2, 2}, "(2, 2)", "(B, 2, 2)", -1},
 };
+static PyArrayObject *k_mass_inverse_spare[RG_SPARES * 1];
 PyDoc_STRVAR(k_mass_inverse_doc,
     "mass_inverse($module, q, *, out=None)\n"
     "--\n"
@@ -1235,7 +1299,7 @@ static PyObject *k_mass_inverse(PyObject *self, PyObject *const *args, Py_ssize_
     }
     if (rg_convert_args("mass_inverse", args, k_mass_inverse_inputs, 1, in, &batch) < 0
         || rg_results("mass_inverse", given_out, k_mass_inverse_outputs, 1, batch,
-                      in, k_mass_inverse_inputs, 1, out) < 0) {
+                      k_mass_inverse_spare, in, k_mass_inverse_inputs, 1, out) < 0) {
         rg_release(in, 1);
         rg_release(out, 1);
         return NULL;
@@ -1266,6 +1330,7 @@ static const rg_port k_discrete_dynamics_outputs[] = {
     {"q_next", 1, {2, 1}, "(2,)", "(B, 2)", -1},
     {"qd_next", 1, {2, 1}, "(2,)", "(B, 2)", -1},
 };
+static PyArrayObject *k_discrete_dynamics_spare[RG_SPARES * 2];
 PyDoc_STRVAR(k_discrete_dynamics_doc,
     "discrete_dynamics($module, q, qd, tau, dt, *, out=None)\n"
     "--\n"
@@ -1299,7 +1364,7 @@ static PyObject *k_discrete_dynamics(PyObject *self, PyObject *const *args, Py_s
     }
     if (rg_convert_args("discrete_dynamics", args, k_discrete_dynamics_inputs, 4, in, &batch) < 0
         || rg_results("discrete_dynamics", given_out, k_discrete_dynamics_outputs, 2, batch,
-                      in, k_discrete_dynamics_inputs, 4, out) < 0) {
+                      k_discrete_dynamics_spare, in, k_discrete_dynamics_inputs, 4, out) < 0) {
         rg_release(in, 4);
         rg_release(out, 2);
         return NULL;
@@ -1339,6 +1404,7 @@ static const rg_port k_discrete_dynamics_derivatives_outputs[] = {
     {"A", 2, {4, 4}, "(4, 4)", "(B, 4, 4)", -1},
     {"B", 2, {4, 2}, "(4, 2)", "(B, 4, 2)", -1},
 };
+static PyArrayObject *k_discrete_dynamics_derivatives_spare[RG_SPARES * 4];
 PyDoc_STRVAR(k_discrete_dynamics_derivatives_doc,
     "discrete_dynamics_derivatives($module, q, qd, tau, dt, *, out=None)\n"
     "--\n"
@@ -1372,7 +1438,7 @@ static PyObject *k_discrete_dynamics_derivatives(PyObject *self, PyObject *const
     }
     if (rg_convert_args("discrete_dynamics_derivatives", args, k_discrete_dynamics_derivatives_inputs, 4, in, &batch) < 0
         || rg_results("discrete_dynamics_derivatives", given_out, k_discrete_dynamics_derivatives_outputs, 4, batch,
-                      in, k_discrete_dynamics_derivatives_inputs, 4, out) < 0) {
+                      k_discrete_dynamics_derivatives_spare, in, k_discrete_dynamics_derivatives_inputs, 4, out) < 0) {
         rg_release(in, 4);
         rg_release(out, 4);
         return NULL;
@@ -1409,6 +1475,7 @@ static const rg_port k_jacobian_derivative_inputs[] = {
 static const rg_port k_jacobian_derivative_outputs[] = {
     {"jacobian_derivative", 2, {6, 2}, "(6, 2)", "(B, 6, 2)", -1},
 };
+static PyArrayObject *k_jacobian_derivative_spare[RG_SPARES * 1];
 PyDoc_STRVAR(k_jacobian_derivative_doc,
     "jacobian_derivative($module, q, qd, *, out=None)\n"
     "--\n"
@@ -1440,7 +1507,7 @@ static PyObject *k_jacobian_derivative(PyObject *self, PyObject *const *args, Py
     }
     if (rg_convert_args("jacobian_derivative", args, k_jacobian_derivative_inputs, 2, in, &batch) < 0
         || rg_results("jacobian_derivative", given_out, k_jacobian_derivative_outputs, 1, batch,
-                      in, k_jacobian_derivative_inputs, 2, out) < 0) {
+                      k_jacobian_derivative_spare, in, k_jacobian_derivative_inputs, 2, out) < 0) {
         rg_release(in, 2);
         rg_release(out, 1);
         return NULL;
