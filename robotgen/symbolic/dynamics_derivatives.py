@@ -33,9 +33,14 @@ from robotgen.symbolic.schedule import LOCAL, OUTPUT, RANGE, ScheduleBuilder, Sl
 
 # Straight-line code takes ~13 bytes per operation: past ~3000 operations of d tau/dq, dqd
 # (forward dynamics' derivatives are ~1.6 times that) the kernels are emitted with loops
-# (robotgen.symbolic.schedule). The UR5 (3398, reverse sweeps) gets the row-wise solve, the
-# Panda (5724) the recursion's loops; small arms stay straight-line, where CSE makes them tiny.
+# (robotgen.symbolic.schedule). The UR5 (3017, reverse sweeps) gets the row-wise solve, the
+# Panda (5238) the recursion's loops; small arms stay straight-line, where CSE makes them tiny.
 DERIVATIVE_LOOPS_ABOVE_OPS = 3000
+# Loops run an operation faster than straight-line code this long, so the recursion's loops
+# are taken while they have at most 10% more operations than the straight-line sweeps (the
+# PUMA: 3583 against 3459). The UR5's sweeps are ~20% fewer: they stay straight-line, its
+# forward dynamics' derivatives a row-wise solve.
+RECURSION_LOOPS_WITHIN = 1.1
 
 
 class DynamicsDerivatives:
@@ -132,10 +137,13 @@ class DynamicsDerivatives:
         return isinstance(g, ChainGraphs) and g.id_derivatives_ops() > DERIVATIVE_LOOPS_ABOVE_OPS
 
     def _looped(self) -> bool:
-        """Whether the recursion's loops are used: a large serial chain on which the recursion
-        has fewer operations than reverse sweeps (derivative_loops)."""
+        """Whether the recursion's loops are used (derivative_loops): a large serial chain on
+        which the recursion has at most RECURSION_LOOPS_WITHIN times the sweeps' operations."""
         g = self.graphs
-        return self._large() and is_serial(g.tree) and g.id_derivatives_by_recursion()
+        if not (self._large() and is_serial(g.tree)):
+            return False
+        recursion, sweeps = g.id_derivatives_counts()
+        return recursion <= RECURSION_LOOPS_WITHIN * sweeps
 
     def mass_inverse(self) -> ca.SX:
         n = self.sym.q.shape[0]

@@ -109,27 +109,26 @@ class ChainGraphs:
     def inverse_dynamics_derivatives(self) -> tuple[ca.SX, ca.SX]:
         """(d tau/dq, d tau/dqd): the recursion of rnea_derivatives or reverse sweeps of
         Newton-Euler (one per joint), whichever CasADi's CSE leaves with fewer operations
-        (UR5: the sweeps, 3398 vs 4038; Panda: the recursion, 5724 vs 7372)."""
+        (UR5: the sweeps, 3017 vs 3672; Panda: the recursion, 5238 vs 6848)."""
         def build():
             s = self.sym
             recursion = rnea_derivatives(self.tree, self.motions, s.qd, s.qdd)
             tau = self.inverse_dynamics()
             sweeps = (reverse_jacobian(tau, s.q), reverse_jacobian(tau, s.qd))
-            count = [count_operations([s.q, s.qd, s.qdd], list(d))["total"] for d in (recursion, sweeps)]
-            self._cache["id_derivatives_by_recursion"] = count[0] <= count[1]
-            self._cache["id_derivatives_ops"] = min(count)
+            count = tuple(count_operations([s.q, s.qd, s.qdd], list(d))["total"] for d in (recursion, sweeps))
+            self._cache["id_derivatives_counts"] = count
             return recursion if count[0] <= count[1] else sweeps
         return self._get("id_derivatives", build)
 
+    def id_derivatives_counts(self) -> tuple[int, int]:
+        """Straight-line operations of the recursion and of the reverse sweeps; the fewer is
+        inverse_dynamics_derivatives."""
+        self.inverse_dynamics_derivatives()
+        return self._cache["id_derivatives_counts"]
+
     def id_derivatives_ops(self) -> int:
         """Operations of inverse_dynamics_derivatives, straight-line."""
-        self.inverse_dynamics_derivatives()
-        return self._cache["id_derivatives_ops"]
-
-    def id_derivatives_by_recursion(self) -> bool:
-        """Whether inverse_dynamics_derivatives is the recursion (not the reverse sweeps)."""
-        self.inverse_dynamics_derivatives()
-        return self._cache["id_derivatives_by_recursion"]
+        return min(self.id_derivatives_counts())
 
     def jacobian_derivative(self) -> ca.SX:
         """dJ/dt = sum_k dJ/dq_k qd_k, by one forward sweep."""
