@@ -335,6 +335,20 @@ def test_step_writes_into_out(rac, rmac):
         controller.step(*point, out=[0.0] * 6)
 
 
+def test_step_in_a_loop_fills_the_torques_it_was_let_go_of(rac, rmac):
+    """tau = controller.step(...) in a loop: the same torques as a twin writing into out=, in
+    two arrays taken in turn once the first two steps have made them."""
+    for built in (rac, rmac):
+        looped, twin = built.cls(), built.cls()
+        expected, seen, tau = np.empty(6), set(), None
+        for point in built.trajectory[:5]:
+            tau = looped.step(*point)
+            twin.step(*point, out=expected)
+            np.testing.assert_array_equal(tau, expected)
+            seen.add(id(tau))
+        assert len(seen) == 2
+
+
 def _wrist(q5: float) -> np.ndarray:
     """A PUMA posture; q5 = 0 aligns joints 4 and 6 (the wrist singularity)."""
     return np.array([0.1, -0.5, 0.4, 0.2, q5, 0.3])
