@@ -3,7 +3,6 @@ from __future__ import annotations
 
 import json
 import math
-import re
 from dataclasses import dataclass, replace
 
 import casadi as ca
@@ -304,21 +303,10 @@ def _summary(doc: str, fallback: str) -> str:
 
 # A source past COMPILE_PARTS_ABOVE characters is compiled in COMPILE_PARTS processes at once
 # (robotgen.emit.compile): each kernel is in one part (#if RG_PART == k in <name>.c), the parts
-# balanced by an estimate of gcc's work on them (_compile_cost). The number is fixed, not the
-# machine's cores, so that the emitted text is the same everywhere; a user's own build of
-# <name>.c (no RG_PART) takes every kernel.
+# balanced by source size. The number is fixed, not the machine's cores, so that the emitted
+# text is the same everywhere; a user's own build of <name>.c (no RG_PART) takes every kernel.
 COMPILE_PARTS = 2
 COMPILE_PARTS_ABOVE = 300_000
-# gcc -O2's time on a kernel grows with its text and, beyond that, with its stores into arrays
-# (its alias analysis walks them): on the iCub's kernels a store cost as much as ~160
-# characters of text (forward dynamics, 2129 stores in 217 kB: 3.2 s; the Coriolis matrix,
-# 1523 in 214 kB: 2.1 s). Parts balanced by text alone took 4.8 and 6.4 s.
-STORE_CHARACTERS = 160
-_STORE = re.compile(r"\]\s*=[^=]")
-
-
-def _compile_cost(f: FunctionView) -> int:
-    return len(f.definition) + STORE_CHARACTERS * len(_STORE.findall(f.definition))
 
 
 def _assign_parts(functions: tuple[FunctionView, ...]) -> tuple[FunctionView, ...]:
@@ -326,9 +314,9 @@ def _assign_parts(functions: tuple[FunctionView, ...]) -> tuple[FunctionView, ..
         return functions
     load = [0] * COMPILE_PARTS
     part = {}
-    for f in sorted(functions, key=lambda f: (-_compile_cost(f), f.name)):
+    for f in sorted(functions, key=lambda f: (-len(f.definition), f.name)):
         k = load.index(min(load))
-        part[f.name], load[k] = k, load[k] + _compile_cost(f)
+        part[f.name], load[k] = k, load[k] + len(f.definition)
     return tuple(replace(f, part=part[f.name]) for f in functions)
 
 

@@ -1,14 +1,12 @@
 """A large module's <name>.c is compiled in parts at once (-DRG_PART=k): each function is in
 exactly one part, the file without RG_PART holds them all, and the extension built from the
-parts works. The threshold is lowered so that the two-link arm is split. The parts are balanced
-by text and stores into arrays (gcc's work)."""
+parts works. The threshold is lowered so that the two-link arm is split."""
 from __future__ import annotations
 
 import importlib.util
 import re
 import shutil
 import subprocess
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -54,22 +52,3 @@ def test_parts_partition_the_functions_and_the_module_works(tmp_path, monkeypatc
     q = np.array([0.3, -0.7])
     M = module.mass(q)
     np.testing.assert_allclose(module.mass_inverse(q) @ M, np.eye(2), atol=1e-12)
-
-
-@dataclass(frozen=True)
-class _Function:  # what _assign_parts reads of a FunctionView
-    name: str
-    definition: str
-    part: int = 0
-
-
-def test_parts_are_balanced_by_text_and_stores(monkeypatch):
-    monkeypatch.setattr(context, "COMPILE_PARTS_ABOVE", 0)
-    compare = "  if (t0[1] == w2) w1 = w3;\n"  # a comparison is not a store
-    assert context._compile_cost(_Function("c", compare)) == len(compare)
-    assert context._compile_cost(_Function("s", "  t0[1] = w1;\n")) == 14 + context.STORE_CHARACTERS
-    stores = _Function("stores", "  t0[1] = w1;\n" * 1000)  # 14 kB, 1000 stores
-    long_, shorter = _Function("long", "  w1 = w2 * w3;\n" * 6000), _Function("shorter", "  w1 = w2;\n" * 6000)
-    parts = {f.name: f.part for f in context._assign_parts((stores, long_, shorter))}
-    # by text alone the store-heavy function would join the shorter one; by cost it is alone
-    assert parts["long"] == parts["shorter"] != parts["stores"]
