@@ -7,7 +7,6 @@ from __future__ import annotations
 import casadi as ca
 
 from robotgen.model.chain import Body, KinematicTree
-from robotgen.symbolic.rigid_body.inertia import OriginInertia
 from robotgen.symbolic.rigid_body.kinematics import JointMotion
 from robotgen.symbolic.rigid_body.spatial import (
     const,
@@ -61,12 +60,7 @@ def rnea(tree: KinematicTree, motions: list[JointMotion], qd: ca.SX | None, qdd:
     ``passes``: the forward pass if already built (shared with the tip acceleration)."""
     n = tree.nq
     vel, acc = passes or forward_pass(tree, motions, qd, qdd, gravity)
-    force: list[list[ca.SX]] = []
-    for joint, (w, v), (aw, av) in zip(tree.joints, vel, acc):
-        if qd is None:  # I a: the velocity terms vanish
-            force.append(list(OriginInertia.of_body(joint.body).apply(aw, av)))
-        else:
-            force.append(list(body_force(joint.body, w, v, aw, av)))
+    force = [list(body_force(joint.body, w, v, aw, av)) for joint, (w, v), (aw, av) in zip(tree.joints, vel, acc)]
     tau = [ca.SX(0)] * n
     for i in reversed(range(n)):
         m = motions[i]
