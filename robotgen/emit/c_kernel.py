@@ -34,6 +34,7 @@ from robotgen.symbolic.schedule import (
     ROWS_ABOVE_DESCENDING,
     ROWS_BELOW,
     Slice,
+    Stage,
 )
 
 
@@ -146,8 +147,9 @@ def prototype(prefix: str, kernel: Kernel, precision: Precision) -> str:
 
 
 def kernel_source(prefix: str, kernel: Kernel, precision: Precision,
-                  program: Program | None = None) -> str:
-    """The C definition of ``kernel``; ``program`` may be passed if already read."""
+                  program: Program | None = None, helpers: dict[Stage, str] | None = None) -> str:
+    """The C definition of ``kernel``; ``program`` may be passed if already read. ``helpers``:
+    the C name of each of its schedule's stages (stage_source), by default rg_<stage>."""
     _check_ports(kernel)
     fields = {i: parameter_elements(p) for i, p in enumerate(kernel.inputs) if is_parameter_port(p)}
 
@@ -155,7 +157,8 @@ def kernel_source(prefix: str, kernel: Kernel, precision: Precision,
         return fields[port][element] if port in fields else f"{kernel.inputs[port].name}[{element}]"
 
     if kernel.schedule is not None:
-        declarations, body = _scheduled_body(kernel, precision, read)
+        helpers = helpers or {stage: stage_name(stage) for stage in kernel.schedule.stages}
+        declarations, body = _scheduled_body(kernel, precision, read, helpers)
     else:
         program = program or read_program(kernel)
         declarations, body = _straight_line(program, kernel, precision, read,
@@ -227,9 +230,36 @@ _LOOP_HEADERS = {
 }
 
 
-def _scheduled_body(kernel: Kernel, precision: Precision, read) -> tuple[list[str], list[str]]:
-    """A schedule's C: local arrays t0, t1, ...; the prologue as one straight-line block; each
-    loop as a block whose body reads and writes slices (registers x0, x1, ...)."""
+def stage_name(stage: Stage) -> str:
+    """A stage's helper is static: named like rg_sincos2, without the module's prefix."""
+    return f"rg_{stage.name}"
+
+
+def stage_source(c_name: str, stage: Stage, kernel: Kernel, precision: Precision) -> str:
+    """The static helper that does ``stage`` of ``kernel``'s schedule: its parameters are the
+    kernel's inputs that the stage reads, then one array per output."""
+    ports = tuple(kernel.inputs[k] for k in stage.inputs)
+    names = [p.name for p in ports] + list(stage.names)
+    if any(is_parameter_port(p) for p in ports) or len(set(names)) != len(names):
+        raise KernelError(f"kernel {kernel.name!r}: stage {stage.name!r} reads a parameter port or its "
+                          f"names repeat: {names}")
+    inner = part_kernel(stage.name, stage.function, ports)
+    program = read_program(inner)
+    registers, statements = _straight_line(program, inner, precision, lambda port, e: f"{ports[port].name}[{e}]",
+                                           lambda port, e: f"{stage.names[port]}[{e}]")
+    zero = literal(0.0, precision)
+    statements += [f"{stage.names[port]}[{e}] = {zero};" for port, elements in program.unwritten_outputs
+                   for e in elements]
+    parameters = [f"const {precision.real} *{p.name}" for p in ports] + [f"{precision.real} *{n}" for n in stage.names]
+    return "\n".join([f"static void {c_name}({', '.join(parameters)}) {{",
+                      *("  " + line for line in registers + statements), "}"]) + "\n"
+
+
+def _scheduled_body(kernel: Kernel, precision: Precision, read, helpers: dict[Stage, str]
+                    ) -> tuple[list[str], list[str]]:
+    """A schedule's C: local arrays t0, t1, ...; a call of each stage's helper; the prologue
+    as one straight-line block; each loop as a block whose body reads and writes slices
+    (registers x0, x1, ...)."""
     schedule = kernel.schedule
     zero = literal(0.0, precision)
     declarations = [f"{precision.real} t{k}[{size}];" for k, size in enumerate(schedule.local_sizes)]
@@ -258,6 +288,8 @@ def _scheduled_body(kernel: Kernel, precision: Precision, read) -> tuple[list[st
                   for stride, index in ((s.i_stride, i), (s.j_stride, "rg_j")) if stride]
         return f"{array(s)}[{' + '.join(terms)}]"
 
+    body = [f"{helpers[stage]}({', '.join([kernel.inputs[k].name for k in stage.inputs] + [f't{a}' for a in stage.writes])});"
+            for stage in schedule.stages]
     prologue = part_kernel(kernel.name + "_prologue", schedule.prologue, kernel.inputs)
     program = read_program(prologue)
     writes = schedule.prologue_writes
@@ -265,7 +297,7 @@ def _scheduled_body(kernel: Kernel, precision: Precision, read) -> tuple[list[st
                                            lambda port, element: address(writes[port], element))
     statements += [f"{address(writes[port], e)} = {zero};" for port, elements in program.unwritten_outputs
                    for e in elements]
-    body = ["{", *("  " + line for line in registers + statements), "}"]
+    body += ["{", *("  " + line for line in registers + statements), "}"]
     for loop in schedule.loops:
         inner = part_kernel(kernel.name + "_" + loop.body.name(), loop.body)
         program = reads_first(read_program(inner))

@@ -98,6 +98,17 @@ class FunctionView:
     reads_parameters: bool  # the kernel has the PARAMS port: every parameter is a keyword
     guarded: bool = False  # the C checks inputs and results (Kernel.guarded)
     part: int = 0  # which of the module's compile parts holds it (COMPILE_PARTS)
+    helpers: tuple[str, ...] = ()  # the stage helpers it calls (HelperView.c_name)
+
+
+@dataclass(frozen=True)
+class HelperView:
+    """A static function of <name>.c that several kernels call: a schedule's stage
+    (robotgen.symbolic.schedule.Stage), printed once."""
+
+    c_name: str
+    definition: str
+    parts: tuple[int, ...] = ()  # the compile parts whose functions call it
 
 
 @dataclass(frozen=True)
@@ -135,6 +146,7 @@ class ModuleView:
     # functions; with parts, only in the parts whose functions call it (no unused static).
     sincos_helper: str = ""
     sincos_parts: tuple[int, ...] = ()
+    helpers: tuple[HelperView, ...] = ()  # after the sin and cos routine, before the functions
 
 
 def module_view(name: str, kernels: list[Kernel], *, nq: int, precision: str,
@@ -168,14 +180,17 @@ def module_view(name: str, kernels: list[Kernel], *, nq: int, precision: str,
     info_keys = INFO_KEYS | ({"parameters"} if parameters else set()) | ({"controllers"} if controllers else set())
     if info_keys & extra_info.keys():
         raise KernelError(f"extra_info may not set {sorted(info_keys & extra_info.keys())}")
+    helpers, helper_names = _stage_helpers(kernels, PRECISIONS[precision])
     functions = []
     for i, k in enumerate(kernels):
         progress.step(i + 1, len(kernels), f"printing C: {k.name}")
-        functions.append(_function_view(name, k, PRECISIONS[precision], parameters))
-    functions = _assign_parts(tuple(functions))
+        functions.append(_function_view(name, k, PRECISIONS[precision], parameters, helper_names))
+    functions = _assign_parts(tuple(functions), helpers)
+    helpers = tuple(replace(h, parts=tuple(sorted({f.part for f in functions if h.c_name in f.helpers})))
+                    for h in helpers)
     by_name = {f.name: f for f in functions}
     views = tuple(controller_view(name, c, by_name, PRECISIONS[precision], parameters) for c in controllers)
-    _check_controller_names(name, functions, views)
+    _check_controller_names(name, functions, views, helpers)
     _check_macros_unique(name, functions, views)
     info = {"nodes": [], **extra_info, "name": name, "nq": nq, "functions": names,
             "robotgen_version": robotgen.__version__, "spec_sha256": spec_sha256,
@@ -200,7 +215,8 @@ def module_view(name: str, kernels: list[Kernel], *, nq: int, precision: str,
     if OUT_KEYWORD in keyword_names:
         raise KernelError(f"module {name!r}: an input or run-time parameter is named {OUT_KEYWORD!r}, "
                           "every function's keyword for its result arrays")
-    sincos_parts = tuple(sorted({f.part for f in functions if sincos.HELPER + "(" in f.definition}))
+    sincos_parts = tuple(sorted({f.part for f in functions if sincos.HELPER + "(" in f.definition}
+                                | {k for h in helpers if sincos.HELPER + "(" in h.definition for k in h.parts}))
     return ModuleView(
         name=name, macro_prefix=name.upper(), precision=precision,
         real=PRECISIONS[precision].real, nq=nq, robotgen_version=robotgen.__version__,
@@ -215,7 +231,8 @@ def module_view(name: str, kernels: list[Kernel], *, nq: int, precision: str,
         controllers=views, parameters_class=parameters_class if any(v.reads_parameters for v in views) else "",
         controllers_note=controllers_note(views), parts=max(f.part for f in functions) + 1,
         zero=c_kernel.literal(0.0, PRECISIONS[precision]), one=c_kernel.literal(1.0, PRECISIONS[precision]),
-        sincos_helper=sincos.helper_source() if sincos_parts else "", sincos_parts=sincos_parts)
+        sincos_helper=sincos.helper_source() if sincos_parts else "", sincos_parts=sincos_parts,
+        helpers=helpers)
 
 
 def _module_parameters(name: str, kernels: list[Kernel],
@@ -302,26 +319,72 @@ def _summary(doc: str, fallback: str) -> str:
 
 
 # A source past COMPILE_PARTS_ABOVE characters is compiled in COMPILE_PARTS processes at once
-# (robotgen.emit.compile): each kernel is in one part (#if RG_PART == k in <name>.c), the parts
-# balanced by source size. The number is fixed, not the machine's cores, so that the emitted
-# text is the same everywhere; a user's own build of <name>.c (no RG_PART) takes every kernel.
+# (robotgen.emit.compile): each kernel is in one part (#if RG_PART == k in <name>.c), and each
+# stage helper in every part that calls it. The number is fixed, not the machine's cores, so that
+# the emitted text is the same everywhere; a user's own build of <name>.c (no RG_PART) takes
+# every kernel.
 COMPILE_PARTS = 2
 COMPILE_PARTS_ABOVE = 300_000
+# gcc -O2 spends more time on a statement inside a loop body than on one of straight-line code,
+# most of it in SLP vectorisation of the body's stores (the iCub's kernels compiled one by one:
+# 0.08-0.19 s per 1000 straight-line statements, 0.23-1.18 s per 1000 in loops, more in larger
+# bodies). Counting loop statements 5 times, the iCub's two parts take 3.96 and 3.60 s (summed
+# from those times; 4.3 and 3.2 s at a count of 1, and 3.8 at best).
+LOOP_STATEMENT_COST = 5
 
 
-def _assign_parts(functions: tuple[FunctionView, ...]) -> tuple[FunctionView, ...]:
-    if sum(len(f.definition) for f in functions) <= COMPILE_PARTS_ABOVE:
+def compile_cost(definition: str) -> int:
+    """Statements of a C function, those in a schedule's loops (indented past the loop
+    headers, which follow the prologue) counted LOOP_STATEMENT_COST times."""
+    cost, looping = 0, False
+    for line in definition.splitlines():
+        looping = looping or line.startswith(("  for (rg_i", "  for (rg_j", "  for (rg_m"))
+        if line.endswith(";"):
+            cost += LOOP_STATEMENT_COST if looping and line.startswith("    ") else 1
+    return cost
+
+
+def _assign_parts(functions: tuple[FunctionView, ...], helpers: tuple[HelperView, ...] = ()
+                  ) -> tuple[FunctionView, ...]:
+    """Each function into the part whose load (compile_cost, with the helpers it would add)
+    grows least, the costliest functions first."""
+    if sum(len(f.definition) for f in functions) + sum(len(h.definition) for h in helpers) <= COMPILE_PARTS_ABOVE:
         return functions
-    load = [0] * COMPILE_PARTS
+    own = {f.name: compile_cost(f.definition) for f in functions}
+    shared = {h.c_name: compile_cost(h.definition) for h in helpers}
+    load, held = [0] * COMPILE_PARTS, [set() for _ in range(COMPILE_PARTS)]
     part = {}
-    for f in sorted(functions, key=lambda f: (-len(f.definition), f.name)):
-        k = load.index(min(load))
-        part[f.name], load[k] = k, load[k] + len(f.definition)
+    for f in sorted(functions, key=lambda f: (-own[f.name] - sum(shared[h] for h in f.helpers), f.name)):
+        after = [load[k] + own[f.name] + sum(shared[h] for h in f.helpers if h not in held[k])
+                 for k in range(COMPILE_PARTS)]
+        k = after.index(min(after))
+        part[f.name], load[k] = k, after[k]
+        held[k].update(f.helpers)
     return tuple(replace(f, part=part[f.name]) for f in functions)
 
 
+def _stage_helpers(kernels: list[Kernel], precision: c_kernel.Precision
+                   ) -> tuple[tuple[HelperView, ...], dict]:
+    """One static helper per distinct stage of the kernels' schedules (the same stage of
+    several kernels prints the same text), and the C name of each stage."""
+    helpers: dict[str, HelperView] = {}  # by the text printed under the stage's own name
+    count: dict[str, int] = {}
+    names = {}
+    for kernel in kernels:
+        for stage in kernel.schedule.stages if kernel.schedule is not None else ():
+            base = c_kernel.stage_name(stage)
+            key = c_kernel.stage_source(base, stage, kernel, precision)
+            if key not in helpers:  # a stage of the same name that differs: rg_<stage>_2, ...
+                count[base] = count.get(base, 0) + 1
+                c_name = base if count[base] == 1 else f"{base}_{count[base]}"
+                helpers[key] = HelperView(c_name, key if c_name == base
+                                          else c_kernel.stage_source(c_name, stage, kernel, precision))
+            names[stage] = helpers[key].c_name
+    return tuple(helpers.values()), names
+
+
 def _function_view(prefix: str, kernel: Kernel, precision: c_kernel.Precision,
-                   parameters: tuple[ParameterView, ...]) -> FunctionView:
+                   parameters: tuple[ParameterView, ...], helper_names: dict | None = None) -> FunctionView:
     if not kernel.outputs:
         raise KernelError(f"kernel {kernel.name!r} has no outputs")
     program = read_program(kernel) if kernel.schedule is None else None
@@ -337,10 +400,12 @@ def _function_view(prefix: str, kernel: Kernel, precision: c_kernel.Precision,
         doc_lines=tuple(line.replace("*/", "* /").rstrip()
                         for line in (kernel.doc.strip() or kernel.name).splitlines()),
         prototype=c_kernel.prototype(prefix, kernel, precision),
-        definition=c_kernel.kernel_source(prefix, kernel, precision, program),
+        definition=c_kernel.kernel_source(prefix, kernel, precision, program, helper_names),
         inputs=inputs, outputs=outputs, py_doc=c_string(_py_doc(kernel, inputs, outputs, keywords)),
         stub_doc=py_string(_summary(kernel.doc, kernel.name)),
-        arithmetic_ops=arithmetic, sin_cos_ops=sin_cos, reads_parameters=reads_parameters, guarded=kernel.guarded)
+        arithmetic_ops=arithmetic, sin_cos_ops=sin_cos, reads_parameters=reads_parameters, guarded=kernel.guarded,
+        helpers=tuple(dict.fromkeys(helper_names[stage] for stage in kernel.schedule.stages))
+        if kernel.schedule is not None and helper_names else ())
 
 
 def _port_view(port: Port, macro: str) -> PortView:
@@ -398,7 +463,8 @@ def _count_scheduled(kernel: Kernel) -> tuple[int, int]:
     """Operations a scheduled kernel performs: its prologue's, and each loop body's times the
     loop's iterations."""
     schedule = kernel.schedule
-    parts = [(schedule.prologue, 1)] + [(loop.body, len(loop.iterations())) for loop in schedule.loops]
+    parts = [(stage.function, 1) for stage in schedule.stages] + [(schedule.prologue, 1)]
+    parts += [(loop.body, len(loop.iterations())) for loop in schedule.loops]
     arithmetic = sin_cos = 0
     for function, times in parts:
         a, s = _count_operations(read_program(c_kernel.part_kernel(function.name(), function)))
@@ -407,10 +473,10 @@ def _count_scheduled(kernel: Kernel) -> tuple[int, int]:
 
 
 def _check_controller_names(name: str, functions: tuple[FunctionView, ...],
-                            controllers: tuple[ControllerView, ...]) -> None:
+                            controllers: tuple[ControllerView, ...], helpers: tuple[HelperView, ...] = ()) -> None:
     """The controllers' C names (struct types, reset and step) clash neither with each other
-    nor with the kernels and the parameter struct."""
-    c_names = [f.c_name for f in functions] + [c_kernel.params_type(name)]
+    nor with the kernels, the stage helpers and the parameter struct."""
+    c_names = [f.c_name for f in functions] + [h.c_name for h in helpers] + [c_kernel.params_type(name)]
     for c in controllers:
         c_names += [c.c_type, c.c_reset, c.c_step]
     if len(set(c_names)) != len(c_names):

@@ -78,12 +78,25 @@ class Loop:
 
 
 @dataclass(frozen=True, eq=False)
+class Stage:
+    """Straight-line work that other kernels of the module repeat (a chain's kinematics): the
+    emitted C holds it once, as a static helper that each kernel calls before its prologue."""
+
+    name: str
+    function: ca.Function  # the kernel inputs it reads -> one column per write
+    inputs: tuple[int, ...]  # which of the kernel's inputs those are
+    writes: tuple[int, ...]  # the locals it fills, whole
+    names: tuple[str, ...]  # of its outputs (the helper's parameters)
+
+
+@dataclass(frozen=True, eq=False)
 class Schedule:
     local_sizes: tuple[int, ...]
     prologue: ca.Function  # the kernel's inputs -> one column per prologue write
     prologue_writes: tuple[Slice, ...]
     loops: tuple[Loop, ...]
     unwritten: tuple[tuple[int, tuple[int, ...]], ...]  # (output, elements nothing writes: 0)
+    stages: tuple[Stage, ...] = ()  # run before the prologue, in order
 
 
 @dataclass
@@ -96,6 +109,8 @@ class ScheduleBuilder:
     _outputs: list[list] = field(default_factory=list)
     _prologue: list[tuple[ca.SX, Slice]] = field(default_factory=list)
     _loops: list[Loop] = field(default_factory=list)
+    # (name, output names, values, the symbols the locals hold in their place, the locals)
+    _stages: list[tuple[str, list[str], list[ca.SX], list[ca.SX], list[int]]] = field(default_factory=list)
 
     def __post_init__(self):
         self._outputs = [[None] * size for size in self.output_sizes]
@@ -108,6 +123,20 @@ class ScheduleBuilder:
         if values is not None:
             self.prologue(Slice(LOCAL, index), ca.vec(values))
         return index
+
+    def stage(self, name: str, outputs: list[tuple[str, ca.SX]]) -> list[int]:
+        """Locals filled by the Stage ``name`` with the (output name, values of the kernel's
+        inputs) ``outputs``. Until outputs() they hold symbols standing for the values, so
+        that the loops read them as the helper's results (the prologue does not read them)."""
+        standing, arrays = [], []
+        for output, values in outputs:
+            values = ca.vec(values)
+            symbol = ca.SX.sym(f"{name}_{output}", values.numel())
+            self._locals.append([symbol[e] for e in range(values.numel())])
+            standing.append(symbol)
+            arrays.append(len(self._locals) - 1)
+        self._stages.append((name, [o for o, _ in outputs], [ca.vec(v) for _, v in outputs], standing, arrays))
+        return arrays
 
     def prologue(self, target: Slice, values: ca.SX) -> None:
         """``values`` (of the kernel's inputs only) into ``target`` before any loop runs. Called
@@ -154,17 +183,29 @@ class ScheduleBuilder:
             array[e] = v
 
     def outputs(self) -> list[ca.SX]:
-        """The kernel's outputs as SX columns (elements nothing writes are 0)."""
-        return [ca.vertcat(*[ca.SX(0) if v is None else v for v in out]) for out in self._outputs]
+        """The kernel's outputs as SX columns (elements nothing writes are 0), of its inputs
+        alone (the stages' values in place of their symbols)."""
+        columns = [ca.vertcat(*[ca.SX(0) if v is None else v for v in out]) for out in self._outputs]
+        if not self._stages:
+            return columns
+        standing = [s for stage in self._stages for s in stage[3]]
+        values = [v for stage in self._stages for v in stage[2]]
+        return ca.substitute(columns, standing, values)
 
     def finish(self, inputs: list[ca.SX] | None = None) -> Schedule:
         """``inputs``: the kernel's input symbols if they differ from the builder's (a run-time
         parameter port added)."""
-        prologue = ca.Function("prologue", inputs or self.inputs, [v for v, _ in self._prologue], {"cse": True})
+        inputs = inputs or self.inputs
+        stages = []
+        for name, names, values, _, arrays in self._stages:
+            read = tuple(k for k, x in enumerate(inputs) if any(ca.depends_on(v, x) for v in values))
+            function = ca.Function(name, [inputs[k] for k in read], values, {"cse": True})
+            stages.append(Stage(name, function, read, tuple(arrays), tuple(names)))
+        prologue = ca.Function("prologue", inputs, [v for v, _ in self._prologue], {"cse": True})
         unwritten = tuple((k, tuple(e for e, v in enumerate(out) if v is None))
                           for k, out in enumerate(self._outputs) if any(v is None for v in out))
         return Schedule(tuple(len(a) for a in self._locals), prologue, tuple(s for _, s in self._prologue),
-                        tuple(self._loops), unwritten)
+                        tuple(self._loops), unwritten, tuple(stages))
 
 
 def body(name: str, inputs: list[ca.SX], outputs: list[ca.SX]) -> ca.Function:

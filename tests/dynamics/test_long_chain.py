@@ -3,6 +3,8 @@ loops (robotgen.symbolic.rigid_body.chain_loops) and are checked against Pinocch
 the same DH numbers (tests/reference.py), and C against the Christoffel property."""
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 import yaml
@@ -61,6 +63,17 @@ def test_the_quadratic_kernels_are_loops(spec):
     for name in ("mass", "coriolis", "nonlinear", "inverse_dynamics", "forward_dynamics", "servo_terms"):
         assert kernels[name].schedule is not None, name
     assert kernels["gravity"].schedule is None
+
+
+def test_the_looped_kernels_share_one_kinematics_helper(case):
+    """The kinematics (axes and inertias about the base) are printed once, and each looped
+    kernel calls them instead of repeating them."""
+    source = (Path(case[0].__file__).parent / "long_chain.c").read_text()
+    assert source.count("static void rg_kinematics(const double *q, double *axes, double *inertias) {") == 1
+    for name in ("mass", "coriolis", "nonlinear", "inverse_dynamics", "forward_dynamics", "servo_terms"):
+        start = source.index(f"int long_chain_{name}(")
+        definition = source[start:source.index("\n}\n", start)]
+        assert definition.count("  rg_kinematics(q, t0, t1);") == 1, name
 
 
 def test_dynamics_against_pinocchio(case):

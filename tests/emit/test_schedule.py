@@ -130,6 +130,23 @@ def _solve_kernel(n: int, width: int):
                        [("first", values[0], (n, n)), ("second", values[1], (n, n))], schedule=b)
 
 
+def _staged_kernel(name: str, scale: float):
+    """A running sum over a stage's outputs: sum_k<=i scale x_k^2 sin x_k."""
+    x = ca.SX.sym("x", N)
+    b = ScheduleBuilder([x], [N])
+    SQUARES, SINES = b.stage("powers", [("squares", scale * x * x), ("sines", ca.sin(x))])
+    TOTAL = b.local(size=N + 1)
+    b.prologue(Slice(LOCAL, TOTAL), ca.SX(0.0))
+    prev, square, sine = ca.SX.sym("prev"), ca.SX.sym("square"), ca.SX.sym("sine")
+    b.loop(body("running", [prev, square, sine], [prev + square * sine]), RANGE, N,
+           [Slice(LOCAL, TOTAL, i_stride=1), Slice(LOCAL, SQUARES, i_stride=1), Slice(LOCAL, SINES, i_stride=1)],
+           [Slice(LOCAL, TOTAL, 1, i_stride=1)])
+    whole = ca.SX.sym("whole", N)
+    b.loop(body("copy", [whole], [whole]), ONCE, 1, [Slice(LOCAL, TOTAL, 1)], [Slice(OUTPUT, 0)])
+    return make_kernel(name, "A running sum over a stage.", [("x", x)], [("total", b.outputs()[0], (N, 1))],
+                       schedule=b)
+
+
 def _load(directory: Path, name: str):
     spec = importlib.util.spec_from_file_location(name, directory / (name + emit_compile.extension_suffix()))
     module = importlib.util.module_from_spec(spec)
@@ -140,7 +157,9 @@ def _load(directory: Path, name: str):
 @pytest.fixture(scope="module")
 def module(tmp_path_factory):
     out = tmp_path_factory.mktemp("scheduled") / "loops"
-    build.emit(out, "loops", [_order_kernel(), _solve_kernel(4, 8)], nq=1, spec_sha256="cd" * 32)
+    kernels = [_order_kernel(), _solve_kernel(4, 8), _staged_kernel("staged", 1.0), _staged_kernel("again", 1.0),
+               _staged_kernel("other", 2.0)]
+    build.emit(out, "loops", kernels, nq=1, spec_sha256="cd" * 32)
     return _load(out, "loops")
 
 
@@ -179,3 +198,21 @@ def test_operation_count_counts_each_iteration():
     arithmetic, _ = _count_scheduled(kernel)
     # forward and back passes: 6 pairs each, one multiply and one subtract per column
     assert arithmetic >= 2 * 6 * 8 * 2 + 4 * 8
+
+
+def test_a_stage_is_one_helper_for_every_kernel_that_repeats_it(module):
+    """Two kernels with the same stage call one static helper; a different stage of the same
+    name gets a helper of its own. The results are those of numpy."""
+    source = (Path(module.__file__).parent / "loops.c").read_text()
+    assert source.count("static void rg_powers(const double *x, double *squares, double *sines) {") == 1
+    assert source.count("static void rg_powers_2(const double *x, double *squares, double *sines) {") == 1
+    assert source.count("  rg_powers(x, ") == 2 and source.count("  rg_powers_2(x, ") == 1
+    x = np.linspace(-1.2, 0.9, N)
+    for name, scale in (("staged", 1.0), ("again", 1.0), ("other", 2.0)):
+        np.testing.assert_allclose(getattr(module, name)(x), np.cumsum(scale * x * x * np.sin(x)), rtol=1e-14)
+
+
+def test_a_stages_operations_count_once_per_call():
+    arithmetic, sin_cos = _count_scheduled(_staged_kernel("staged", 2.0))
+    # stage: 2 multiplies and a sine per element (the sines are operations too); loop: a multiply and an add
+    assert (arithmetic, sin_cos) == (5 * N, N)

@@ -25,7 +25,7 @@ from robotgen.symbolic.kernel import row_major
 from robotgen.symbolic.rigid_body.friction import friction_torque
 from robotgen.symbolic.rigid_body.inertia import OriginInertia
 from robotgen.symbolic.rigid_body.kinematics import JointMotion
-from robotgen.symbolic.rigid_body.rnea_derivatives import axes_and_inertias, base_acceleration, body_terms
+from robotgen.symbolic.rigid_body.rnea_derivatives import base_acceleration, body_terms, kinematics_stage
 from robotgen.symbolic.rigid_body.spatial import force_cross6, motion_cross6
 from robotgen.symbolic.schedule import (
     ABOVE,
@@ -130,8 +130,7 @@ class ChainLoops:
     # -- pieces ---------------------------------------------------------------------------
 
     def _kinematics(self, b: ScheduleBuilder) -> tuple[int, int]:
-        axes, inertias = axes_and_inertias(self.tree, self.motions)
-        return b.local(ca.horzcat(*axes)), b.local(ca.horzcat(*(x.vector() for x in inertias)))
+        return kinematics_stage(b, self.tree, self.motions)
 
     def _composite_inertias(self, b: ScheduleBuilder, BODY: int) -> int:
         """Ic_i (13 per joint, n + 1 of them), summed from the tip."""

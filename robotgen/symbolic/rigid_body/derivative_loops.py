@@ -27,11 +27,11 @@ from robotgen.symbolic.rigid_body.inertia import OriginInertia
 from robotgen.symbolic.rigid_body.kinematics import JointMotion
 from robotgen.symbolic.rigid_body.rnea_derivatives import (
     ancestor_term,
-    axes_and_inertias,
     base_acceleration,
     body_terms,
     forward_step,
     joint_outputs,
+    kinematics_stage,
     subtree_term,
 )
 from robotgen.symbolic.rigid_body.spatial import motion_cross6
@@ -61,9 +61,7 @@ class _Chain:
     def __init__(self, b: ScheduleBuilder, tree: KinematicTree, motions: list[JointMotion], qd: ca.SX):
         self.b, self.n = b, tree.nq
         n = self.n
-        axes, inertias = axes_and_inertias(tree, motions)
-        self.S = b.local(ca.horzcat(*axes))
-        self.BODY = b.local(ca.horzcat(*(x.vector() for x in inertias)))  # each body's own
+        self.S, self.BODY = kinematics_stage(b, tree, motions)  # BODY: each body's own inertia
         self.REC = b.local(size=RECORD * (n + 1))
         b.prologue(Slice(LOCAL, self.REC, RECORD * n), ca.SX.zeros(RECORD, 1))
         self.V = b.local(size=6 * (n + 1))  # v of joint i at 6 (i + 1); the base's at 0

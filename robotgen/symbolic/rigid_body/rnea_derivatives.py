@@ -37,6 +37,7 @@ from robotgen.symbolic.rigid_body.friction import friction_torque
 from robotgen.symbolic.rigid_body.inertia import OriginInertia
 from robotgen.symbolic.rigid_body.kinematics import JointMotion, joint_poses
 from robotgen.symbolic.rigid_body.spatial import const, force_cross6, motion_cross6, skew
+from robotgen.symbolic.schedule import ScheduleBuilder
 
 
 @dataclass(frozen=True, eq=False)
@@ -65,6 +66,15 @@ def axes_and_inertias(tree: KinematicTree, motions: list[JointMotion]) -> tuple[
         S.append(ca.vertcat(zero3, z) if joint.type == PRISMATIC else ca.vertcat(z, ca.cross(o, z)))
         inertias.append(OriginInertia.of_body(joint.body).in_frame(R, o))
     return S, inertias
+
+
+def kinematics_stage(b: ScheduleBuilder, tree: KinematicTree, motions: list[JointMotion]) -> tuple[int, int]:
+    """Locals of a schedule holding axes_and_inertias (6 and 13 per joint), filled by the stage
+    "kinematics": every looped kernel of a chain computes the same, so the C holds it once."""
+    axes, inertias = axes_and_inertias(tree, motions)
+    S, BODY = b.stage("kinematics", [("axes", ca.horzcat(*axes)),
+                                     ("inertias", ca.horzcat(*(x.vector() for x in inertias)))])
+    return S, BODY
 
 
 def base_acceleration(tree: KinematicTree) -> ca.SX:
