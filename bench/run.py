@@ -33,6 +33,8 @@ The compiled Pinocchio harness is cached in bench/out/ (its compile takes ~35 s)
 
 Inputs are random states (angles in [-pi, pi], rates in [-2, 2]); every number is the
 minimum over several repeats (the least disturbed run), the C harness also reports the median.
+Each run of a harness is from a fresh copy of its program (and of libpinocchio_default), so
+that rounds are independent samples (fresh_copy).
 """
 from __future__ import annotations
 
@@ -100,6 +102,18 @@ def c_harness(out: Path, name: str, nq: int, work: Path) -> tuple[Path, list[str
     return exe, cmd
 
 
+def fresh_copy(path: Path, directory: Path) -> Path:
+    """A new copy of ``path`` in ``directory`` (the last one replaced), for one round of timing.
+    On this VM a program's code sometimes ran 1.6-3x slower for minutes, run after run, while a
+    byte-identical copy under another name ran at full speed: rounds run from one file are not
+    independent samples. Each round runs its own copy."""
+    directory.mkdir(parents=True, exist_ok=True)
+    copy = directory / path.name
+    copy.unlink(missing_ok=True)
+    shutil.copy2(path, copy)
+    return copy
+
+
 def run_c(out: Path, name: str, nq: int, functions: list[str], work: Path, single_calls: bool = False,
           back_to_back: bool = True) -> dict:
     """Each function back to back (throughput: the core overlaps consecutive calls), and with
@@ -107,6 +121,7 @@ def run_c(out: Path, name: str, nq: int, functions: list[str], work: Path, singl
     a Python call makes it)."""
     cc = os.environ.get("CC", "cc")
     exe, cmd = c_harness(out, name, nq, work)
+    exe = fresh_copy(exe, work / "round")
     results: dict = {}
     for mode in ("",) * back_to_back + ("serial",) * single_calls:
         res = subprocess.run([str(exe), *([mode] if mode else []), *functions], check=True,
@@ -326,6 +341,7 @@ class PinocchioHarness:
         self.compiler = version
         self.command = [self.cxx, *self.flags, *cmd_tail, "-o", str(self.exe)]
         self.cached = self.exe.exists()
+        self._rounds = tempfile.TemporaryDirectory(prefix="robotgen-bench-pinocchio-")
         self._proc = None
         if not self.cached:
             self._tmp = self.exe.with_name(self.exe.name + ".tmp")
@@ -344,8 +360,16 @@ class PinocchioHarness:
         return self.exe
 
     def run(self, urdf: Path, tip: str, locked: list[str], args: list[str], stdin: str | None = None) -> dict:
-        cmd = [str(self.wait()), str(urdf), tip, *(["--lock", ",".join(locked)] if locked else []), *args]
-        res = subprocess.run(cmd, input=stdin, capture_output=True, text=True)
+        """A fresh copy of the harness and of libpinocchio_default (where Pinocchio's algorithms
+        are; found first through LD_LIBRARY_PATH) for each run: fresh_copy."""
+        round_dir = Path(self._rounds.name)
+        exe = fresh_copy(self.wait(), round_dir)
+        env = dict(os.environ)
+        if self.instantiation == "library":
+            fresh_copy(self.tool["prefix"] / "lib" / "libpinocchio_default.so", round_dir)
+            env["LD_LIBRARY_PATH"] = os.pathsep.join(filter(None, [str(round_dir), env.get("LD_LIBRARY_PATH")]))
+        cmd = [str(exe), str(urdf), tip, *(["--lock", ",".join(locked)] if locked else []), *args]
+        res = subprocess.run(cmd, input=stdin, capture_output=True, text=True, env=env)
         if res.returncode != 0:
             raise ToolchainError(f"{' '.join(cmd)} failed (exit {res.returncode}): {res.stderr.strip()}")
         return json.loads(res.stdout)
