@@ -502,16 +502,18 @@ def time_versus(built: dict, harness: PinocchioHarness, tmp: Path, rounds: int, 
     return robots
 
 
-def fused_section(robots: list[tuple[str, Path, int]], tmp: Path, versus: list[dict]) -> list[dict]:
+def fused_section(robots: list[tuple[str, Path, int]], tmp: Path, versus: list[dict], rounds: int) -> list[dict]:
     """servo_terms (M, C qd + N, J, Jdot qd in one call) against the four separate calls, and
-    against Pinocchio's crba + rnea + computeFrameJacobian timed apart in the same run."""
+    against Pinocchio's crba + rnea + computeFrameJacobian timed apart in the same run; each the
+    least of ``rounds`` runs, as the kernels against Pinocchio are."""
     rows = []
     pinocchio = {r["robot"]: {f["function"]: f["pinocchio"]["ns_min"] for f in r["functions"]} for r in versus}
     print("\nbench: fused servo terms (one call) vs mass + nonlinear + jacobian + jacobian_dot_qd, and vs "
           "Pinocchio's crba + rnea + computeFrameJacobian")
     for name, out, nq in robots:
-        res = run_c(out, name, nq, ["servo_terms", "servo_terms_separate"], tmp / f"fused-{name}")["results"]
-        fused, separate = res["servo_terms"]["ns_min"], res["servo_terms_separate"]["ns_min"]
+        runs = [run_c(out, name, nq, ["servo_terms", "servo_terms_separate"], tmp / f"fused-{name}")["results"]
+                for _ in range(rounds)]
+        fused, separate = (min(r[f]["ns_min"] for r in runs) for f in ("servo_terms", "servo_terms_separate"))
         row = {"robot": name, "fused_ns": fused, "separate_ns": separate, "speedup": separate / fused}
         line = f"  {name:10s} fused {fused:8.1f} ns   separate {separate:8.1f} ns   speedup {separate / fused:4.2f}x"
         if name in pinocchio:
@@ -642,7 +644,7 @@ def main(argv=None) -> int:
             result["versus_pinocchio"] = versus
         result["fused_servo_terms"] = fused_section(
             [(name, out, nq)] + [(n, b["out"], b["nq"]) for n, b in (built or {}).items()], Path(tmp),
-            versus.get("robots", []) if versus else [])
+            versus.get("robots", []) if versus else [], 1 if args.quick else 2)
         Path(args.json).write_text(json.dumps(result, indent=2) + "\n")
         print(f"bench: wrote {args.json}")
     finally:

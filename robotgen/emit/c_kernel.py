@@ -288,8 +288,10 @@ def _scheduled_body(kernel: Kernel, precision: Precision, read, helpers: dict[St
                   for stride, index in ((s.i_stride, i), (s.j_stride, "rg_j")) if stride]
         return f"{array(s)}[{' + '.join(terms)}]"
 
-    body = [f"{helpers[stage]}({', '.join([kernel.inputs[k].name for k in stage.inputs] + [f't{a}' for a in stage.writes])});"
-            for stage in schedule.stages]
+    body = []
+    for stage in schedule.stages:
+        arguments = [kernel.inputs[k].name for k in stage.inputs] + [f"t{a}" for a in stage.writes]
+        body.append(f"{helpers[stage]}({', '.join(arguments)});")
     prologue = part_kernel(kernel.name + "_prologue", schedule.prologue, kernel.inputs)
     program = read_program(prologue)
     writes = schedule.prologue_writes

@@ -19,7 +19,7 @@ import heapq
 
 import casadi as ca
 
-from robotgen.emit.sx_program import Instruction, Program
+from robotgen.emit.sx_program import Instruction, Program, defining_steps
 
 ISSUE_WIDTH = 4  # floating-point operations a core starts per cycle
 _FREE = frozenset({ca.OP_INPUT, ca.OP_CONST, ca.OP_OUTPUT, ca.OP_ASSIGN})
@@ -35,14 +35,9 @@ def latency(op: int) -> int:
 def _single_assignment(program: Program) -> list[Instruction]:
     """The steps with step k writing register k (CasADi reuses registers; a moved step must
     not read a register that something else wrote in the meantime)."""
-    writer: dict[int, int] = {}
-    steps = []
-    for k, step in enumerate(program.instructions):
-        steps.append(Instruction(step.op, k if step.target >= 0 else -1, tuple(writer[r] for r in step.args),
-                                 step.port, step.element, step.constant))
-        if step.target >= 0:
-            writer[step.target] = k
-    return steps
+    defs = defining_steps(program.instructions)
+    return [Instruction(step.op, k if step.target >= 0 else -1, defs[k], step.port, step.element, step.constant)
+            for k, step in enumerate(program.instructions)]
 
 
 def critical_path(program: Program) -> tuple[int, int]:

@@ -25,7 +25,7 @@ from fractions import Fraction
 
 import casadi as ca
 
-from robotgen.emit.sx_program import Instruction, Program
+from robotgen.emit.sx_program import Instruction, Program, defining_steps
 
 HELPER = "rg_sincos2"
 ANGLES, SINES, COSINES = "rg_x", "rg_s", "rg_c"  # a kernel's local arrays
@@ -147,12 +147,7 @@ def pair_angles(program: Program) -> Program:
     reading the moved values through their fresh registers. An angle that itself depends on a
     sin or cos keeps libm."""
     steps = program.instructions
-    writer: dict[int, int] = {}  # register -> step that last wrote it
-    defs: list[tuple[int, ...]] = []  # per step, the steps that wrote what it reads
-    for k, step in enumerate(steps):
-        defs.append(tuple(writer.get(r, -1) for r in step.args))
-        if step.target >= 0:
-            writer[step.target] = k
+    defs = defining_steps(steps)  # per step, the steps that wrote what it reads
     trig = (ca.OP_SIN, ca.OP_COS)
 
     def closure(k: int, seen: set[int]) -> bool:

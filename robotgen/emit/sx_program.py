@@ -113,27 +113,35 @@ def _drop_dead_writes(steps: list[Instruction]) -> tuple[Instruction, ...]:
         steps = kept
 
 
+def defining_steps(steps: tuple[Instruction, ...] | list[Instruction]) -> list[tuple[int, ...]]:
+    """For each step, the index of the step that last wrote each register it reads (-1: none
+    before it). CasADi reuses registers, so a value is a register together with its writer."""
+    writer: dict[int, int] = {}  # register -> step that last wrote it
+    defs = []
+    for k, step in enumerate(steps):
+        defs.append(tuple(writer.get(r, -1) for r in step.args))
+        if step.target >= 0:
+            writer[step.target] = k
+    return defs
+
+
 def _shared_reciprocals(steps: tuple[Instruction, ...]) -> tuple[Instruction, ...]:
     """Divisions by one value (a register between two writes) that occurs more than once
     become multiplications by its reciprocal, formed once right after the value: a triangular
     solve with many right-hand sides (M^-1 B) would otherwise divide by L's diagonal in every
     column, and a division costs several multiplications. New registers are numbered above
     CasADi's, each written once."""
-    version: dict[int, int] = {}  # register -> index of the step that last wrote it
+    defs = defining_steps(steps)
+    divisors = [(step.args[1], defs[k][1]) if step.op == ca.OP_DIV else None for k, step in enumerate(steps)]
     uses: dict[tuple[int, int], int] = {}
-    for k, step in enumerate(steps):
-        if step.op == ca.OP_DIV:
-            key = (step.args[1], version.get(step.args[1], -1))
-            uses[key] = uses.get(key, 0) + 1
-        if step.target >= 0:
-            version[step.target] = k
+    for key in filter(None, divisors):
+        uses[key] = uses.get(key, 0) + 1
     shared = {key for key, count in uses.items() if count > 1}
     if not shared:
         return steps
     fresh = max((s.target for s in steps), default=-1) + 1
     reciprocal: dict[tuple[int, int], int] = {}
     out: list[Instruction] = []
-    version = {}
 
     def add_reciprocal(register: int, defined_at: int) -> None:
         nonlocal fresh
@@ -144,15 +152,11 @@ def _shared_reciprocals(steps: tuple[Instruction, ...]) -> tuple[Instruction, ..
     for register, defined_at in sorted(key for key in shared if key[1] < 0):  # registers never written here
         add_reciprocal(register, defined_at)
     for k, step in enumerate(steps):
-        if step.op == ca.OP_DIV:
-            key = (step.args[1], version.get(step.args[1], -1))
-            if key in reciprocal:
-                step = Instruction(ca.OP_MUL, step.target, (step.args[0], reciprocal[key]))
+        if divisors[k] in reciprocal:
+            step = Instruction(ca.OP_MUL, step.target, (step.args[0], reciprocal[divisors[k]]))
         out.append(step)
-        if step.target >= 0:
-            version[step.target] = k
-            if (step.target, k) in shared:
-                add_reciprocal(step.target, k)
+        if (step.target, k) in shared:
+            add_reciprocal(step.target, k)
     return tuple(out)
 
 
