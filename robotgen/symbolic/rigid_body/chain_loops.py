@@ -25,7 +25,12 @@ from robotgen.symbolic.kernel import row_major
 from robotgen.symbolic.rigid_body.friction import friction_torque
 from robotgen.symbolic.rigid_body.inertia import OriginInertia
 from robotgen.symbolic.rigid_body.kinematics import JointMotion
-from robotgen.symbolic.rigid_body.rnea_derivatives import base_acceleration, body_terms, kinematics_stage
+from robotgen.symbolic.rigid_body.rnea_derivatives import (
+    axes_and_inertias,
+    base_acceleration,
+    body_terms,
+    kinematics_stage,
+)
 from robotgen.symbolic.rigid_body.spatial import force_cross6, motion_cross6
 from robotgen.symbolic.schedule import (
     ABOVE,
@@ -71,6 +76,7 @@ class ChainLoops:
 
     def __init__(self, tree: KinematicTree, motions: list[JointMotion]):
         self.tree, self.motions, self.n = tree, motions, tree.nq
+        self._axes_and_inertias = None
         self.parents = [joint.parent for joint in tree.joints]
         if any(p >= i for i, p in enumerate(self.parents)):
             raise ValueError("a tree's joints must come after their parents")
@@ -130,7 +136,9 @@ class ChainLoops:
     # -- pieces ---------------------------------------------------------------------------
 
     def _kinematics(self, b: ScheduleBuilder) -> tuple[int, int]:
-        return kinematics_stage(b, self.tree, self.motions)
+        if self._axes_and_inertias is None:  # the same for every kernel: built once
+            self._axes_and_inertias = axes_and_inertias(self.tree, self.motions)
+        return kinematics_stage(b, *self._axes_and_inertias)
 
     def _composite_inertias(self, b: ScheduleBuilder, BODY: int) -> int:
         """Ic_i (13 per joint, n + 1 of them), summed from the tip."""

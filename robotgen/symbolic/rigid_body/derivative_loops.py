@@ -27,6 +27,7 @@ from robotgen.symbolic.rigid_body.inertia import OriginInertia
 from robotgen.symbolic.rigid_body.kinematics import JointMotion
 from robotgen.symbolic.rigid_body.rnea_derivatives import (
     ancestor_term,
+    axes_and_inertias,
     base_acceleration,
     body_terms,
     forward_step,
@@ -61,7 +62,7 @@ class _Chain:
     def __init__(self, b: ScheduleBuilder, tree: KinematicTree, motions: list[JointMotion], qd: ca.SX):
         self.b, self.n = b, tree.nq
         n = self.n
-        self.S, self.BODY = kinematics_stage(b, tree, motions)  # BODY: each body's own inertia
+        self.S, self.BODY = kinematics_stage(b, *axes_and_inertias(tree, motions))  # BODY: each body's own inertia
         self.REC = b.local(size=RECORD * (n + 1))
         b.prologue(Slice(LOCAL, self.REC, RECORD * n), ca.SX.zeros(RECORD, 1))
         self.V = b.local(size=6 * (n + 1))  # v of joint i at 6 (i + 1); the base's at 0

@@ -68,10 +68,9 @@ def axes_and_inertias(tree: KinematicTree, motions: list[JointMotion]) -> tuple[
     return S, inertias
 
 
-def kinematics_stage(b: ScheduleBuilder, tree: KinematicTree, motions: list[JointMotion]) -> tuple[int, int]:
+def kinematics_stage(b: ScheduleBuilder, axes: list[ca.SX], inertias: list[OriginInertia]) -> tuple[int, int]:
     """Locals of a schedule holding axes_and_inertias (6 and 13 per joint), filled by the stage
     "kinematics": every looped kernel of a chain computes the same, so the C holds it once."""
-    axes, inertias = axes_and_inertias(tree, motions)
     S, BODY = b.stage("kinematics", [("axes", ca.horzcat(*axes)),
                                      ("inertias", ca.horzcat(*(x.vector() for x in inertias)))])
     return S, BODY
