@@ -181,10 +181,10 @@ def module_view(name: str, kernels: list[Kernel], *, nq: int, precision: str,
     if info_keys & extra_info.keys():
         raise KernelError(f"extra_info may not set {sorted(info_keys & extra_info.keys())}")
     helpers, helper_names = _stage_helpers(kernels, PRECISIONS[precision])
-    functions = []
+    functions, stage_counts = [], {}
     for i, k in enumerate(kernels):
         progress.step(i + 1, len(kernels), f"printing C: {k.name}")
-        functions.append(_function_view(name, k, PRECISIONS[precision], parameters, helper_names))
+        functions.append(_function_view(name, k, PRECISIONS[precision], parameters, helper_names, stage_counts))
     functions = _assign_parts(tuple(functions), helpers)
     helpers = tuple(replace(h, parts=tuple(sorted({f.part for f in functions if h.c_name in f.helpers})))
                     for h in helpers)
@@ -370,10 +370,14 @@ def _stage_helpers(kernels: list[Kernel], precision: c_kernel.Precision
     helpers: dict[str, HelperView] = {}  # by the text printed under the stage's own name
     count: dict[str, int] = {}
     names = {}
+    printed: dict[tuple, str] = {}  # the same function, ports and names print the same text
     for kernel in kernels:
         for stage in kernel.schedule.stages if kernel.schedule is not None else ():
             base = c_kernel.stage_name(stage)
-            key = c_kernel.stage_source(base, stage, kernel, precision)
+            same = (stage.function.serialize(), stage.names, tuple(kernel.inputs[k] for k in stage.inputs))
+            if same not in printed:
+                printed[same] = c_kernel.stage_source(base, stage, kernel, precision)
+            key = printed[same]
             if key not in helpers:  # a stage of the same name that differs: rg_<stage>_2, ...
                 count[base] = count.get(base, 0) + 1
                 c_name = base if count[base] == 1 else f"{base}_{count[base]}"
@@ -384,7 +388,8 @@ def _stage_helpers(kernels: list[Kernel], precision: c_kernel.Precision
 
 
 def _function_view(prefix: str, kernel: Kernel, precision: c_kernel.Precision,
-                   parameters: tuple[ParameterView, ...], helper_names: dict | None = None) -> FunctionView:
+                   parameters: tuple[ParameterView, ...], helper_names: dict | None = None,
+                   stage_counts: dict | None = None) -> FunctionView:
     if not kernel.outputs:
         raise KernelError(f"kernel {kernel.name!r} has no outputs")
     program = read_program(kernel) if kernel.schedule is None else None
@@ -393,7 +398,8 @@ def _function_view(prefix: str, kernel: Kernel, precision: c_kernel.Precision,
     arrays = kernel.inputs[:-1] if reads_parameters else kernel.inputs
     inputs = tuple(_port_view(p, macro) for p in arrays)
     outputs = tuple(_port_view(p, macro) for p in kernel.outputs)
-    arithmetic, sin_cos = _count_operations(program) if program is not None else _count_scheduled(kernel)
+    arithmetic, sin_cos = (_count_operations(program) if program is not None
+                           else _count_scheduled(kernel, stage_counts))
     keywords = parameters if reads_parameters else ()
     return FunctionView(
         name=kernel.name, c_name=c_kernel.function_name(prefix, kernel), doc=kernel.doc.strip(),
@@ -459,13 +465,19 @@ def _count_operations(program: Program) -> tuple[int, int]:
     return (sum(op not in _NOT_ARITHMETIC for op in ops), sum(op in _SIN_COS for op in ops))
 
 
-def _count_scheduled(kernel: Kernel) -> tuple[int, int]:
-    """Operations a scheduled kernel performs: its prologue's, and each loop body's times the
-    loop's iterations."""
+def _count_scheduled(kernel: Kernel, stages: dict[str, tuple[int, int]] | None = None) -> tuple[int, int]:
+    """Operations a scheduled kernel performs: its stages' and prologue's, and each loop body's
+    times the loop's iterations. ``stages``: counts of stages already seen (by their serialized
+    function: the kernels of a module repeat one stage)."""
     schedule = kernel.schedule
-    parts = [(stage.function, 1) for stage in schedule.stages] + [(schedule.prologue, 1)]
-    parts += [(loop.body, len(loop.iterations())) for loop in schedule.loops]
+    stages = {} if stages is None else stages
     arithmetic = sin_cos = 0
+    for stage in schedule.stages:
+        key = stage.function.serialize()
+        if key not in stages:
+            stages[key] = _count_operations(read_program(c_kernel.part_kernel(stage.name, stage.function)))
+        arithmetic, sin_cos = arithmetic + stages[key][0], sin_cos + stages[key][1]
+    parts = [(schedule.prologue, 1)] + [(loop.body, len(loop.iterations())) for loop in schedule.loops]
     for function, times in parts:
         a, s = _count_operations(read_program(c_kernel.part_kernel(function.name(), function)))
         arithmetic, sin_cos = arithmetic + times * a, sin_cos + times * s
