@@ -136,12 +136,18 @@ def run_c(out: Path, name: str, nq: int, functions: list[str], work: Path, singl
             "cflags": CFLAGS, "command": " ".join(cmd), "results": results}
 
 
-def calibrate(out: Path, name: str, nq: int, work: Path) -> dict:
+def calibrate(out: Path, name: str, nq: int, work: Path, rounds: int = 3) -> dict:
     """This machine's scalar peak (operations per ns) and the cost of a libm sin/cos pair, both
-    measured by the harness (its calibrate mode) with the flags of the kernels."""
+    measured by the harness (its calibrate mode) with the flags of the kernels: the least
+    disturbed of ``rounds`` runs (the highest peak, the cheapest pair), so that a disturbed
+    calibration cannot raise the floors."""
     exe, _ = c_harness(out, name, nq, work)
-    res = subprocess.run([str(exe), "calibrate"], check=True, capture_output=True, text=True)
-    return {key: float(value) for key, value in (line.split() for line in res.stdout.splitlines())}
+    runs = []
+    for _ in range(rounds):
+        res = subprocess.run([str(fresh_copy(exe, work / "round")), "calibrate"], check=True, capture_output=True,
+                             text=True)
+        runs.append({key: float(value) for key, value in (line.split() for line in res.stdout.splitlines())})
+    return {"peak_ops_per_ns": max(r["peak_ops_per_ns"] for r in runs), "sincos_ns": min(r["sincos_ns"] for r in runs)}
 
 
 def floor_ns(ops: int, sin_cos: int, machine: dict) -> float:
