@@ -365,25 +365,21 @@ def _assign_parts(functions: tuple[FunctionView, ...], helpers: tuple[HelperView
 
 def _stage_helpers(kernels: list[Kernel], precision: c_kernel.Precision
                    ) -> tuple[tuple[HelperView, ...], dict]:
-    """One static helper per distinct stage of the kernels' schedules (the same stage of
-    several kernels prints the same text), and the C name of each stage."""
-    helpers: dict[str, HelperView] = {}  # by the text printed under the stage's own name
+    """One static helper per distinct stage of the kernels' schedules (the same function,
+    ports and names: the kernels of a chain repeat its kinematics), and the C name of each
+    stage; a different stage of a name already taken is rg_<stage>_2, ..."""
+    helpers: dict[tuple, HelperView] = {}
     count: dict[str, int] = {}
     names = {}
-    printed: dict[tuple, str] = {}  # the same function, ports and names print the same text
     for kernel in kernels:
         for stage in kernel.schedule.stages if kernel.schedule is not None else ():
-            base = c_kernel.stage_name(stage)
             same = (stage.function.serialize(), stage.names, tuple(kernel.inputs[k] for k in stage.inputs))
-            if same not in printed:
-                printed[same] = c_kernel.stage_source(base, stage, kernel, precision)
-            key = printed[same]
-            if key not in helpers:  # a stage of the same name that differs: rg_<stage>_2, ...
+            if same not in helpers:
+                base = c_kernel.stage_name(stage)
                 count[base] = count.get(base, 0) + 1
                 c_name = base if count[base] == 1 else f"{base}_{count[base]}"
-                helpers[key] = HelperView(c_name, key if c_name == base
-                                          else c_kernel.stage_source(c_name, stage, kernel, precision))
-            names[stage] = helpers[key].c_name
+                helpers[same] = HelperView(c_name, c_kernel.stage_source(c_name, stage, kernel, precision))
+            names[stage] = helpers[same].c_name
     return tuple(helpers.values()), names
 
 
