@@ -11,6 +11,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import yaml
 
 from robotgen.emit import compile as emit_compile
 from robotgen.emit import context
@@ -52,3 +53,47 @@ def test_parts_partition_the_functions_and_the_module_works(tmp_path, monkeypatc
     q = np.array([0.3, -0.7])
     M = module.mass(q)
     np.testing.assert_allclose(module.mass_inverse(q) @ M, np.eye(2), atol=1e-12)
+
+
+def _chain_spec(path: Path, n: int) -> Path:
+    """An n-joint DH chain (past 12 joints its dynamics are loops, sharing rg_kinematics)."""
+    joints = [{"name": f"j{i + 1}", "type": "revolute",
+               "dh": {"a": 0.05 * (i % 3), "alpha": ["pi/2", "-pi/2", "0"][i % 3], "d": 0.1, "theta": 0},
+               "link": {"mass": 1.0 + 0.1 * i, "com": [0.01, -0.02, 0.03],
+                        "inertia": {"ixx": 0.02, "iyy": 0.03, "izz": 0.01, "ixy": 0.001, "ixz": 0.0, "iyz": 0.0}}}
+              for i in range(n)]
+    doc = {"robotgen": 1, "name": "chain13", "root": "arm",
+           "nodes": {"arm": {"define": {"chain": {"convention": "dh_standard", "joints": joints}}}}}
+    path.write_text(yaml.safe_dump(doc, sort_keys=False))
+    return path
+
+
+def test_a_stage_helper_is_in_exactly_the_parts_that_call_it(tmp_path, monkeypatch):
+    """Each part compiles warning-free (an unused static helper would fail -Werror) and holds
+    rg_kinematics exactly when one of its functions calls it; the module equals the graphs."""
+    monkeypatch.setattr(context, "COMPILE_PARTS_ABOVE", 0)
+    monkeypatch.setattr(context, "COMPILE_PARTS", 8)  # more parts than looped kernels: some without
+    system = load_system(str(_chain_spec(tmp_path / "chain13.yaml", 13)))
+    kernels = kernels_for(system)
+    out = tmp_path / "chain13"
+    emit(out, "chain13", kernels, nq=system_nq(system), extra_info=system_info(system))
+    source = (out / "chain13.c").read_text()
+    assert source.count("static void rg_kinematics(") == 1
+    functions = re.findall(r"#if !defined\(RG_PART\) \|\| RG_PART == (\d)\n(int chain13_.*?\n}\n)", source, re.S)
+    calling = {int(k) for k, definition in functions if "  rg_kinematics(q, " in definition}
+    assert calling and set(range(context.COMPILE_PARTS)) - calling and len(functions) == len(kernels)
+    for k in range(context.COMPILE_PARTS):
+        obj = tmp_path / f"part{k}.o"
+        subprocess.run(["cc", "-std=c99", "-O0", "-Wall", "-Wextra", "-Werror", "-c", f"-DRG_PART={k}",
+                        str(out / "chain13.c"), "-I", str(out), "-o", str(obj)], check=True)
+        symbols = subprocess.run(["nm", str(obj)], capture_output=True, text=True, check=True).stdout
+        assert (re.search(r" t rg_kinematics$", symbols, re.M) is not None) == (k in calling), k
+    spec = importlib.util.spec_from_file_location("chain13", out / f"chain13{emit_compile.extension_suffix()}")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    q, qd = np.linspace(-1, 1, 13), np.cos(np.arange(13))
+    by_name = {k.name: k for k in kernels}
+    for name, args in (("mass", (q,)), ("coriolis", (q, qd)), ("nonlinear", (q, qd))):
+        assert by_name[name].schedule is not None and by_name[name].schedule.stages, name
+        expected = np.array(by_name[name].function(*args)).reshape(getattr(module, name)(*args).shape)
+        np.testing.assert_allclose(getattr(module, name)(*args), expected, rtol=1e-12, atol=1e-12)
