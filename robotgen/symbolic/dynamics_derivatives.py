@@ -82,7 +82,7 @@ class DynamicsDerivatives:
         n = s.q.shape[0]
         b = ScheduleBuilder([s.q, s.qd, s.tau], [n * n] * 3)
         if self._looped():
-            schedule_forward_dynamics_derivatives(b, self.graphs.tree, self.graphs.motions, s.qd, s.tau,
+            schedule_forward_dynamics_derivatives(b, self.graphs.tree, self.graphs.axes_and_inertias(), s.qd, s.tau,
                                                   ((OUTPUT, 0), (OUTPUT, 1), (OUTPUT, 2)))
             return b
         factor = cholesky_factor(self.graphs.mass())  # forward_dynamics' own, after CSE
@@ -103,7 +103,7 @@ class DynamicsDerivatives:
         b = ScheduleBuilder([s.q, s.qd, s.tau, dt], [n, n, 4 * n * n, 2 * n * n])
         Q, QD, DT, EYE = b.local(s.q), b.local(s.qd), b.local(dt), b.local(ca.SX.eye(n))
         FQ, FQD, MINV = (b.local(size=n * n) for _ in range(3))
-        QDD = schedule_forward_dynamics_derivatives(b, self.graphs.tree, self.graphs.motions, s.qd, s.tau,
+        QDD = schedule_forward_dynamics_derivatives(b, self.graphs.tree, self.graphs.axes_and_inertias(), s.qd, s.tau,
                                                     ((LOCAL, FQ), (LOCAL, FQD), (LOCAL, MINV)))
         # qd+ = qd + dt qdd, q+ = q + dt qd+; row i of A = [[I + dt^2 Fq, dt I + dt^2 Fqd], [dt Fq, I + dt Fqd]]
         # and of B = [dt^2 M^-1; dt M^-1]
@@ -125,7 +125,7 @@ class DynamicsDerivatives:
         pair loops on a serial chain, else straight-line in the prologue."""
         g, s = self.graphs, self.sym
         if self._looped():
-            schedule_rnea_derivatives(b, g.tree, g.motions, s.qd, qdd, dq, dqd)
+            schedule_rnea_derivatives(b, g.tree, g.axes_and_inertias(), s.qd, qdd, dq, dqd)
             return
         DQ, DQD = self._id(s.q, s.qd, qdd)
         b.prologue(Slice(*dq), row_major(DQ))

@@ -110,7 +110,7 @@ def leaf_kernels(leaf: KinematicTree | FormulaRobot, prefix: str = "",
         k = len(leaf.kinematics or ())
         if not k:
             del table["kinematics"], table["kinematics_jacobian"]
-    loops = ChainLoops(graphs.tree, graphs.motions) if isinstance(leaf, KinematicTree) else None
+    loops = ChainLoops(graphs.tree, graphs.axes_and_inertias) if isinstance(leaf, KinematicTree) else None
     kernels = [
         (loops and _looped(loops, name, doc, inputs, _resolve(shape, n, k), lambda name=name: getattr(graphs, name)(),
                            sym, prefix, parameters))

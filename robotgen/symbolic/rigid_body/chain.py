@@ -18,7 +18,7 @@ from robotgen.symbolic.rigid_body.friction import friction_torque
 from robotgen.symbolic.rigid_body.jacobian import geometric_jacobian, hand_jacobian, tip_bias_acceleration
 from robotgen.symbolic.rigid_body.kinematics import forward_kinematics, joint_motions, joint_poses
 from robotgen.symbolic.rigid_body.rnea import forward_pass, rnea
-from robotgen.symbolic.rigid_body.rnea_derivatives import rnea_derivatives
+from robotgen.symbolic.rigid_body.rnea_derivatives import axes_and_inertias, rnea_derivatives
 
 
 @dataclass(frozen=True, eq=False)
@@ -72,6 +72,11 @@ class ChainGraphs:
 
     def mass(self) -> ca.SX:
         return self._get("mass", lambda: crba(self.tree, self.motions))
+
+    def axes_and_inertias(self):
+        """Each joint's axis and each body's inertia in base coordinates: what every looped
+        kernel (chain_loops, derivative_loops) starts from, as its kinematics stage."""
+        return self._get("axes_and_inertias", lambda: axes_and_inertias(self.tree, self.motions))
 
     def coriolis(self) -> ca.SX:
         """Christoffel symbols of M by AD (O(n^3) terms, compact for small arms) or the

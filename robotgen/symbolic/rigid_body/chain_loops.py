@@ -18,19 +18,15 @@ Chains whose straight-line kernels pass the instruction cache (LOOPS_ABOVE_OPS) 
 code is O(n) in size, not O(n^2), and compiles in a fraction of the time."""
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import casadi as ca
 
 from robotgen.model.chain import KinematicTree
 from robotgen.symbolic.kernel import row_major
 from robotgen.symbolic.rigid_body.friction import friction_torque
 from robotgen.symbolic.rigid_body.inertia import OriginInertia
-from robotgen.symbolic.rigid_body.kinematics import JointMotion
-from robotgen.symbolic.rigid_body.rnea_derivatives import (
-    axes_and_inertias,
-    base_acceleration,
-    body_terms,
-    kinematics_stage,
-)
+from robotgen.symbolic.rigid_body.rnea_derivatives import base_acceleration, body_terms, kinematics_stage
 from robotgen.symbolic.rigid_body.spatial import force_cross6, motion_cross6
 from robotgen.symbolic.schedule import (
     ABOVE,
@@ -74,9 +70,9 @@ class ChainLoops:
     children) addresses parents through an index table, and a subtree sum adds each finished
     block into its parent's (the roots into a spare block n); its joint pairs are listed."""
 
-    def __init__(self, tree: KinematicTree, motions: list[JointMotion]):
-        self.tree, self.motions, self.n = tree, motions, tree.nq
-        self._axes_and_inertias = None
+    def __init__(self, tree: KinematicTree, kinematics: Callable[[], tuple[list[ca.SX], list[OriginInertia]]]):
+        """``kinematics``: builds (or returns, once built) axes_and_inertias of ``tree``."""
+        self.tree, self.kinematics, self.n = tree, kinematics, tree.nq
         self.parents = [joint.parent for joint in tree.joints]
         if any(p >= i for i, p in enumerate(self.parents)):
             raise ValueError("a tree's joints must come after their parents")
@@ -136,9 +132,7 @@ class ChainLoops:
     # -- pieces ---------------------------------------------------------------------------
 
     def _kinematics(self, b: ScheduleBuilder) -> tuple[int, int]:
-        if self._axes_and_inertias is None:  # the same for every kernel: built once
-            self._axes_and_inertias = axes_and_inertias(self.tree, self.motions)
-        return kinematics_stage(b, *self._axes_and_inertias)
+        return kinematics_stage(b, *self.kinematics())
 
     def _composite_inertias(self, b: ScheduleBuilder, BODY: int) -> int:
         """Ic_i (13 per joint, n + 1 of them), summed from the tip."""

@@ -24,10 +24,8 @@ from robotgen.symbolic.rigid_body.cholesky import (
 )
 from robotgen.symbolic.rigid_body.friction import friction_torque
 from robotgen.symbolic.rigid_body.inertia import OriginInertia
-from robotgen.symbolic.rigid_body.kinematics import JointMotion
 from robotgen.symbolic.rigid_body.rnea_derivatives import (
     ancestor_term,
-    axes_and_inertias,
     base_acceleration,
     body_terms,
     forward_step,
@@ -59,10 +57,11 @@ class _Chain:
     """The local arrays shared by both schedules and the slice helpers. REC holds n + 1
     records, the last zero (the tip's child)."""
 
-    def __init__(self, b: ScheduleBuilder, tree: KinematicTree, motions: list[JointMotion], qd: ca.SX):
+    def __init__(self, b: ScheduleBuilder, tree: KinematicTree, kinematics: tuple[list[ca.SX], list[OriginInertia]],
+                 qd: ca.SX):
         self.b, self.n = b, tree.nq
         n = self.n
-        self.S, self.BODY = kinematics_stage(b, *axes_and_inertias(tree, motions))  # BODY: each body's own inertia
+        self.S, self.BODY = kinematics_stage(b, *kinematics)  # BODY: each body's own inertia
         self.REC = b.local(size=RECORD * (n + 1))
         b.prologue(Slice(LOCAL, self.REC, RECORD * n), ca.SX.zeros(RECORD, 1))
         self.V = b.local(size=6 * (n + 1))  # v of joint i at 6 (i + 1); the base's at 0
@@ -122,11 +121,11 @@ class _Chain:
              [at(self.S, 6), at(self.GAMMA, 6, "j"), at(self.LAM, 6, "j")], r, 1)
 
 
-def schedule_rnea_derivatives(b: ScheduleBuilder, tree: KinematicTree, motions: list[JointMotion], qd: ca.SX,
+def schedule_rnea_derivatives(b: ScheduleBuilder, tree: KinematicTree, kinematics: tuple, qd: ca.SX,
                               qdd: ca.SX, dq: tuple[str, int], dqd: tuple[str, int]) -> None:
     """d tau/dq and d tau/dqd at ``qdd`` into the row-major n x n arrays ``dq``, ``dqd``
-    ((kind, index) of a schedule array)."""
-    c = _Chain(b, tree, motions, qd)
+    ((kind, index) of a schedule array); ``kinematics``: the tree's axes_and_inertias."""
+    c = _Chain(b, tree, kinematics, qd)
     n, at = c.n, c.at
     QDD = b.local(qdd)
     v_p, a_p, s, sdot, alpha, f = symbols("v_p a_p s sdot alpha f")
@@ -143,12 +142,12 @@ def schedule_rnea_derivatives(b: ScheduleBuilder, tree: KinematicTree, motions: 
     c.pairs(dq, dqd)
 
 
-def schedule_forward_dynamics_derivatives(b: ScheduleBuilder, tree: KinematicTree, motions: list[JointMotion],
+def schedule_forward_dynamics_derivatives(b: ScheduleBuilder, tree: KinematicTree, kinematics: tuple,
                                           qd: ca.SX, tau: ca.SX, targets: tuple[tuple[str, int], ...]) -> int:
     """d qdd/dq, d qdd/dqd and M^-1 at qdd = FD(q, qd, tau) into the three row-major n x n
     ``targets`` ((kind, index) of schedule arrays); returns the local holding qdd. M^-1 is
     straight-line code in the factorisation's block."""
-    c = _Chain(b, tree, motions, qd)
+    c = _Chain(b, tree, kinematics, qd)
     n, at = c.n, c.at
     C = b.local(size=6 * (n + 1))  # the accelerations at qdd = 0
     b.prologue(Slice(LOCAL, C), base_acceleration(tree))
