@@ -99,6 +99,18 @@ class Schedule:
     stages: tuple[Stage, ...] = ()  # run before the prologue, in order
 
 
+@dataclass(frozen=True)
+class _StageValues:
+    """A stage as the builder holds it: the symbols its locals hold until outputs() puts the
+    values in their place."""
+
+    name: str
+    names: list[str]
+    values: list[ca.SX]
+    symbols: list[ca.SX]
+    arrays: list[int]
+
+
 @dataclass
 class ScheduleBuilder:
     """Collects a schedule while keeping its SX value, so loops can be chained."""
@@ -109,8 +121,7 @@ class ScheduleBuilder:
     _outputs: list[list] = field(default_factory=list)
     _prologue: list[tuple[ca.SX, Slice]] = field(default_factory=list)
     _loops: list[Loop] = field(default_factory=list)
-    # (name, output names, values, the symbols the locals hold in their place, the locals)
-    _stages: list[tuple[str, list[str], list[ca.SX], list[ca.SX], list[int]]] = field(default_factory=list)
+    _stages: list[_StageValues] = field(default_factory=list)
 
     def __post_init__(self):
         self._outputs = [[None] * size for size in self.output_sizes]
@@ -135,7 +146,8 @@ class ScheduleBuilder:
             self._locals.append([symbol[e] for e in range(values.numel())])
             standing.append(symbol)
             arrays.append(len(self._locals) - 1)
-        self._stages.append((name, [o for o, _ in outputs], [ca.vec(v) for _, v in outputs], standing, arrays))
+        self._stages.append(_StageValues(name, [o for o, _ in outputs], [ca.vec(v) for _, v in outputs], standing,
+                                         arrays))
         return arrays
 
     def prologue(self, target: Slice, values: ca.SX) -> None:
@@ -188,19 +200,18 @@ class ScheduleBuilder:
         columns = [ca.vertcat(*[ca.SX(0) if v is None else v for v in out]) for out in self._outputs]
         if not self._stages:
             return columns
-        standing = [s for stage in self._stages for s in stage[3]]
-        values = [v for stage in self._stages for v in stage[2]]
-        return ca.substitute(columns, standing, values)
+        return ca.substitute(columns, [s for st in self._stages for s in st.symbols],
+                             [v for st in self._stages for v in st.values])
 
     def finish(self, inputs: list[ca.SX] | None = None) -> Schedule:
         """``inputs``: the kernel's input symbols if they differ from the builder's (a run-time
         parameter port added)."""
         inputs = inputs or self.inputs
         stages = []
-        for name, names, values, _, arrays in self._stages:
-            read = tuple(k for k, x in enumerate(inputs) if any(ca.depends_on(v, x) for v in values))
-            function = ca.Function(name, [inputs[k] for k in read], values, {"cse": True})
-            stages.append(Stage(name, function, read, tuple(arrays), tuple(names)))
+        for st in self._stages:
+            read = tuple(k for k, x in enumerate(inputs) if any(ca.depends_on(v, x) for v in st.values))
+            function = ca.Function(st.name, [inputs[k] for k in read], st.values, {"cse": True})
+            stages.append(Stage(st.name, function, read, tuple(st.arrays), tuple(st.names)))
         prologue = ca.Function("prologue", inputs, [v for v, _ in self._prologue], {"cse": True})
         unwritten = tuple((k, tuple(e for e, v in enumerate(out) if v is None))
                           for k, out in enumerate(self._outputs) if any(v is None for v in out))
