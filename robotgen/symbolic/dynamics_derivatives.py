@@ -33,13 +33,14 @@ from robotgen.symbolic.schedule import LOCAL, OUTPUT, RANGE, ScheduleBuilder, Sl
 
 # Straight-line code takes ~13 bytes per operation: past ~3000 operations of d tau/dq, dqd
 # (forward dynamics' derivatives are ~1.6 times that) the kernels are emitted with loops
-# (robotgen.symbolic.schedule). The UR5 (3017, reverse sweeps) gets the row-wise solve, the
-# Panda (5238) the recursion's loops; small arms stay straight-line, where CSE makes them tiny.
+# (robotgen.symbolic.schedule). With regrouped inertial parameters the UR5 (1648, reverse
+# sweeps) and the PUMA (2437) stay straight-line, where CSE makes them small; the Panda
+# (4888, the recursion) takes the recursion's loops.
 DERIVATIVE_LOOPS_ABOVE_OPS = 3000
 # Loops run an operation faster than straight-line code this long, so the recursion's loops
-# are taken while they have at most 10% more operations than the straight-line sweeps (the
-# PUMA: 3583 against 3459). The UR5's sweeps are ~20% fewer: they stay straight-line, its
-# forward dynamics' derivatives a row-wise solve.
+# are taken while they have at most 10% more operations than the straight-line sweeps (before
+# regrouping, the PUMA: 3583 against 3459). Past that the sweeps stay straight-line and forward
+# dynamics' derivatives are a row-wise solve.
 RECURSION_LOOPS_WITHIN = 1.1
 
 

@@ -31,7 +31,7 @@ def assert_close(a, b, rel=1e-6):
     assert np.abs(a - b).max() <= rel * max(1.0, np.abs(b).max()), (a, b)
 
 
-@pytest.mark.parametrize("spec", ["styx_finger.yaml", "two_link.yaml", "puma560.yaml"])  # PUMA: as loops
+@pytest.mark.parametrize("spec", ["styx_finger.yaml", "two_link.yaml", "puma560.yaml"])
 def test_dynamics_derivatives_match_finite_differences(build_module, spec):
     m = build_module(SPECS / spec)
     assert set(DERIVATIVES) <= set(m.info()["functions"])
@@ -49,7 +49,7 @@ def test_dynamics_derivatives_match_finite_differences(build_module, spec):
         assert_close(m.mass_inverse(q) @ m.mass(q), np.eye(n), 1e-12)
 
 
-@pytest.mark.parametrize("spec", ["styx_finger.yaml", "two_link.yaml", "puma560.yaml"])  # PUMA: as loops
+@pytest.mark.parametrize("spec", ["styx_finger.yaml", "two_link.yaml", "puma560.yaml"])
 def test_semi_implicit_euler_step_and_its_jacobians(build_module, spec):
     m = build_module(SPECS / spec)
     rng = np.random.default_rng(4)
@@ -109,13 +109,15 @@ def names(tree, settings) -> set[str]:
     return {k.name for k in leaf_kernels(tree, derivatives=settings)}
 
 
-def test_the_puma_derivatives_are_loops():
-    """The PUMA's recursion passes 3000 operations: its derivative kernels are schedules (the
-    finite-difference tests above then check the loops)."""
-    from robotgen.frontend import load_system
-    from robotgen.symbolic import kernels_for
+def test_the_panda_derivatives_are_loops():
+    """The Panda's derivatives pass 3000 operations: its derivative kernels are schedules
+    (tests/dynamics/test_urdf_pinocchio.py checks them against Pinocchio's)."""
+    from robots import PANDA, robots_dir
 
-    kernels = {k.name: k for k in kernels_for(load_system(str(SPECS / "puma560.yaml")))}
+    from robotgen.frontend.urdf import read_urdf
+
+    tree = read_urdf(str(robots_dir() / PANDA[0]), PANDA[1]).tree
+    kernels = {k.name: k for k in leaf_kernels(tree, derivatives=DerivativeSettings())}
     for name in ("inverse_dynamics_derivatives", "forward_dynamics_derivatives", "discrete_dynamics_derivatives"):
         assert kernels[name].schedule is not None, name
 

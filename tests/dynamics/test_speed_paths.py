@@ -47,7 +47,7 @@ def test_spatial_coriolis_equals_christoffel_and_pinocchio():
     n = tree.nq
     sym = Symbols.make(n)
     g = ChainGraphs(tree, sym)
-    f = ca.Function("c", [sym.q, sym.qd], [coriolis_spatial(g.tree, g.motions, sym.qd),
+    f = ca.Function("c", [sym.q, sym.qd], [coriolis_spatial(g.tree, g.motions, g.inertias, sym.qd),
                                             coriolis_matrix(g.mass(), sym.q, sym.qd)])
     model, _ = pinocchio_model(tree)
     data = model.createData()

@@ -178,7 +178,7 @@ def test_derivative_algorithms_agree(seed):
     g = ChainGraphs(tree, Symbols.make(tree.nq))
     s = g.sym
     tau = g.inverse_dynamics()
-    f = ca.Function("f", [s.q, s.qd, s.qdd], [*rnea_derivatives(g.tree, g.motions, s.qd, s.qdd),
+    f = ca.Function("f", [s.q, s.qd, s.qdd], [*rnea_derivatives(g.tree, g.motions, g.inertias, s.qd, s.qdd),
                                                reverse_jacobian(tau, s.q), reverse_jacobian(tau, s.qd)])
     rng = np.random.default_rng(seed)
     for _ in range(10):

@@ -86,7 +86,8 @@ def test_against_pinocchio(robot):
 def test_derivatives_against_pinocchio(robot):
     """d tau/dq, d tau/dqd (computeRNEADerivatives), d qdd/dq, d qdd/dqd, M^-1
     (computeABADerivatives), mass_inverse and the Jacobian's time derivative
-    (getFrameJacobianTimeVariation) on 1000 random states, <= 1e-9 relative. Pinocchio has
+    (getFrameJacobianTimeVariation) on 1000 random states, <= 1e-9 relative, and the
+    semi-implicit Euler step's A and B by the chain rule on Pinocchio's. Pinocchio has
     no joint damping: it adds diag(damping) to d tau/dqd, and -M^-1 diag(damping) to
     d qdd/dqd with tau - damping qd as Pinocchio's torque."""
     module, model, tip = robot
@@ -104,8 +105,15 @@ def test_derivatives_against_pinocchio(robot):
         errs = {"dtau_dq": rel_err(dtau_dq[k], data.dtau_dq), "dtau_dqd": rel_err(dtau_dqd[k], data.dtau_dv + D)}
         pin.computeABADerivatives(model, data, q[k], qd[k], x[k] - D @ qd[k])
         Minv_p = np.triu(data.Minv) + np.triu(data.Minv, 1).T
-        errs |= {"dqdd_dq": rel_err(dqdd_dq[k], data.ddq_dq), "dqdd_dqd": rel_err(dqdd_dqd[k], data.ddq_dv - Minv_p @ D),
+        Fq, Fqd = data.ddq_dq, data.ddq_dv - Minv_p @ D
+        errs |= {"dqdd_dq": rel_err(dqdd_dq[k], Fq), "dqdd_dqd": rel_err(dqdd_dqd[k], Fqd),
                  "dqdd_dtau": rel_err(dqdd_dtau[k], Minv_p), "mass_inverse": rel_err(Minv[k], Minv_p)}
+        # qd1 = qd + dt qdd(q, qd, tau), q1 = q + dt qd1
+        dt, eye = 0.01, np.eye(model.nq)
+        _, _, A, B = module.discrete_dynamics_derivatives(q[k], qd[k], x[k], dt)
+        dqd1 = np.hstack([dt * Fq, eye + dt * Fqd])
+        errs["discrete_A"] = rel_err(A, np.vstack([np.hstack([eye, np.zeros_like(eye)]) + dt * dqd1, dqd1]))
+        errs["discrete_B"] = rel_err(B, np.vstack([dt * dt * Minv_p, dt * Minv_p]))
         pin.computeJointJacobiansTimeVariation(model, data, q[k], qd[k])
         pin.updateFramePlacements(model, data)
         errs["jacobian_derivative"] = rel_err(

@@ -7,6 +7,7 @@ from dataclasses import dataclass
 import casadi as ca
 
 from robotgen.model.chain import KinematicTree
+from robotgen.model.regrouping import regrouped_inertias
 from robotgen.model.snap import snap_tree
 from robotgen.symbolic.differentiation import reverse_jacobian
 from robotgen.symbolic.op_count import count_operations
@@ -15,6 +16,7 @@ from robotgen.symbolic.rigid_body.christoffel import coriolis_matrix
 from robotgen.symbolic.rigid_body.coriolis import coriolis_spatial
 from robotgen.symbolic.rigid_body.crba import crba
 from robotgen.symbolic.rigid_body.friction import friction_torque
+from robotgen.symbolic.rigid_body.inertia import OriginInertia
 from robotgen.symbolic.rigid_body.jacobian import geometric_jacobian, hand_jacobian, tip_bias_acceleration
 from robotgen.symbolic.rigid_body.kinematics import forward_kinematics, joint_motions, joint_poses
 from robotgen.symbolic.rigid_body.rnea import forward_pass, rnea
@@ -45,6 +47,8 @@ class ChainGraphs:
         self.tree = tree = snap_tree(tree) if snap else tree
         self.sym = sym
         self.motions = joint_motions(tree, sym.q)
+        # every algorithm below reads the bodies through these (the same torques, fewer terms)
+        self.inertias = [OriginInertia.constant(p) for p in regrouped_inertias(tree)]
         self._cache: dict[str, ca.SX] = {}
 
     def _get(self, key: str, build) -> ca.SX:
@@ -71,19 +75,19 @@ class ChainGraphs:
         return self._get("bias_pass", lambda: forward_pass(self.tree, self.motions, self.sym.qd, None))
 
     def mass(self) -> ca.SX:
-        return self._get("mass", lambda: crba(self.tree, self.motions))
+        return self._get("mass", lambda: crba(self.tree, self.motions, self.inertias))
 
     def axes_and_inertias(self):
         """Each joint's axis and each body's inertia in base coordinates: what every looped
         kernel (chain_loops, derivative_loops) starts from, as its kinematics stage."""
-        return self._get("axes_and_inertias", lambda: axes_and_inertias(self.tree, self.motions))
+        return self._get("axes_and_inertias", lambda: axes_and_inertias(self.tree, self.motions, self.inertias))
 
     def coriolis(self) -> ca.SX:
         """Christoffel symbols of M by AD (O(n^3) terms, compact for small arms) or the
         spatial O(n^2) algorithm, whichever CasADi's CSE leaves with fewer operations."""
         def build():
             q, qd = self.sym.q, self.sym.qd
-            spatial = coriolis_spatial(self.tree, self.motions, qd)
+            spatial = coriolis_spatial(self.tree, self.motions, self.inertias, qd)
             if self.tree.nq > AD_CORIOLIS_MAX_DOF:
                 return spatial
             candidates = [coriolis_matrix(self.mass(), q, qd), spatial]
@@ -94,17 +98,17 @@ class ChainGraphs:
         return self._get("friction", lambda: friction_torque(self.tree, self.sym.qd))
 
     def gravity(self) -> ca.SX:
-        return self._get("gravity", lambda: rnea(self.tree, self.motions, None, None))
+        return self._get("gravity", lambda: rnea(self.tree, self.motions, self.inertias, None, None))
 
     def nonlinear(self) -> ca.SX:
         """C(q, qd) qd + N(q, qd): Newton-Euler with qdd = 0, plus friction."""
-        return self._get("nonlinear", lambda: rnea(self.tree, self.motions, self.sym.qd, None,
+        return self._get("nonlinear", lambda: rnea(self.tree, self.motions, self.inertias, self.sym.qd, None,
                                                    passes=self.bias_pass()) + self.friction())
 
     def inverse_dynamics(self) -> ca.SX:
         def build():
             armature = ca.vertcat(*[j.armature * self.sym.qdd[i] for i, j in enumerate(self.tree.joints)])
-            return rnea(self.tree, self.motions, self.sym.qd, self.sym.qdd) + armature + self.friction()
+            return rnea(self.tree, self.motions, self.inertias, self.sym.qd, self.sym.qdd) + armature + self.friction()
         return self._get("inverse_dynamics", build)
 
     def forward_dynamics(self) -> ca.SX:
@@ -114,10 +118,10 @@ class ChainGraphs:
     def inverse_dynamics_derivatives(self) -> tuple[ca.SX, ca.SX]:
         """(d tau/dq, d tau/dqd): the recursion of rnea_derivatives or reverse sweeps of
         Newton-Euler (one per joint), whichever CasADi's CSE leaves with fewer operations
-        (UR5: the sweeps, 3017 vs 3672; Panda: the recursion, 5238 vs 6848)."""
+        (UR5: the sweeps, 1648 vs 2546; Panda: the recursion, 4888 vs 6293)."""
         def build():
             s = self.sym
-            recursion = rnea_derivatives(self.tree, self.motions, s.qd, s.qdd)
+            recursion = rnea_derivatives(self.tree, self.motions, self.inertias, s.qd, s.qdd)
             tau = self.inverse_dynamics()
             sweeps = (reverse_jacobian(tau, s.q), reverse_jacobian(tau, s.qd))
             count = tuple(count_operations([s.q, s.qd, s.qdd], list(d))["total"] for d in (recursion, sweeps))

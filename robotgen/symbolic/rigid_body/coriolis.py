@@ -16,6 +16,7 @@ from __future__ import annotations
 import casadi as ca
 
 from robotgen.model.chain import PRISMATIC, KinematicTree
+from robotgen.symbolic.rigid_body.inertia import OriginInertia
 from robotgen.symbolic.rigid_body.kinematics import JointMotion, joint_poses
 from robotgen.symbolic.rigid_body.spatial import const, skew
 
@@ -32,16 +33,15 @@ def _force_cross_bar(f: ca.SX) -> ca.SX:
     return ca.blockcat([[-n, -g], [-g, ca.SX.zeros(3, 3)]])
 
 
-def _world_inertia(body, R: ca.SX, p: ca.SX) -> ca.SX:
+def _world_inertia(inertia: OriginInertia, R: ca.SX, p: ca.SX) -> ca.SX:
     """6x6 spatial inertia about the world origin of a body whose frame is (R, p)."""
-    c = p + R @ const(body.com)
-    Ic = R @ const(body.inertia) @ R.T
-    m = body.mass
-    cx = skew(c)
-    return ca.blockcat([[Ic + m * cx @ cx.T, m * cx], [m * cx.T, m * ca.SX.eye(3)]])
+    I = inertia.in_frame(R, p)
+    hx = skew(I.h)
+    return ca.blockcat([[I.Ibar, hx], [hx.T, I.m * ca.SX.eye(3)]])
 
 
-def coriolis_spatial(tree: KinematicTree, motions: list[JointMotion], qd: ca.SX) -> ca.SX:
+def coriolis_spatial(tree: KinematicTree, motions: list[JointMotion], inertias: list[OriginInertia],
+                     qd: ca.SX) -> ca.SX:
     n = tree.nq
     poses = joint_poses(tree, motions)
     S, v, dS, I = [], [], [], []
@@ -52,7 +52,7 @@ def coriolis_spatial(tree: KinematicTree, motions: list[JointMotion], qd: ca.SX)
         S.append(Si)
         v.append(vi)
         dS.append(_motion_cross(vi) @ Si)
-        I.append(_world_inertia(joint.body, R, p))
+        I.append(_world_inertia(inertias[i], R, p))
     B = []
     for k in range(n):
         Iv = I[k] @ v[k]

@@ -10,9 +10,10 @@ from robotgen.symbolic.rigid_body.kinematics import JointMotion
 from robotgen.symbolic.rigid_body.spatial import force_transform_to_parent
 
 
-def crba(tree: KinematicTree, motions: list[JointMotion]) -> ca.SX:
+def crba(tree: KinematicTree, motions: list[JointMotion], inertias: list[OriginInertia]) -> ca.SX:
+    """``inertias``: each body's, about its joint's origin (regrouped or not)."""
     n = tree.nq
-    composite = [OriginInertia.of_body(j.body) for j in tree.joints]
+    composite = list(inertias)
     for i in reversed(range(n)):
         p = tree.joints[i].parent
         if p >= 0:

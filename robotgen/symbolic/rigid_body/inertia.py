@@ -8,6 +8,7 @@ import casadi as ca
 import numpy as np
 
 from robotgen.model.chain import Body
+from robotgen.model.regrouping import OriginParameters
 from robotgen.numeric import exact
 from robotgen.symbolic.rigid_body.spatial import const
 
@@ -33,6 +34,10 @@ class OriginInertia:
         c = np.asarray(body.com, dtype=float)
         Ibar = exact.parallel_axis(body.inertia, body.mass, c)
         return OriginInertia(ca.SX(body.mass), const(body.mass * c), const(Ibar))
+
+    @staticmethod
+    def constant(p: OriginParameters) -> OriginInertia:
+        return OriginInertia(ca.SX(p.mass), const(p.first_moment), const(p.inertia))
 
     SIZE = 13  # as a column: m, h, Ibar (by columns)
 

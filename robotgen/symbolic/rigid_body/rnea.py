@@ -1,12 +1,13 @@
 """Inverse dynamics by the recursive Newton-Euler algorithm (Luh, Walker, Paul 1980), in
-spatial-vector form (Featherstone 2008, Table 5.1), each body's force from Newton's and Euler's
-equations about its centre of mass. Gravity enters as a base acceleration -g; the armature
+spatial-vector form (Featherstone 2008, Table 5.1), each body's force from its inertia about
+its frame origin. Gravity enters as a base acceleration -g; the armature
 and friction terms of each joint are added to its torque."""
 from __future__ import annotations
 
 import casadi as ca
 
-from robotgen.model.chain import Body, KinematicTree
+from robotgen.model.chain import KinematicTree
+from robotgen.symbolic.rigid_body.inertia import OriginInertia
 from robotgen.symbolic.rigid_body.kinematics import JointMotion
 from robotgen.symbolic.rigid_body.spatial import (
     const,
@@ -41,26 +42,26 @@ def forward_pass(tree: KinematicTree, motions: list[JointMotion], qd: ca.SX | No
     return vel, acc
 
 
-def body_force(body: Body, w: ca.SX, v: ca.SX, aw: ca.SX, av: ca.SX) -> tuple[ca.SX, ca.SX]:
-    """The force (moment about the frame origin; force) that moves ``body`` with spatial
-    velocity (w, v) and acceleration (aw, av): I a + v x* I v, written about the centre of mass
-    c as Newton's and Euler's equations (Luh, Walker, Paul 1980): the COM accelerates at
-    a_c = av + aw x c + w x (v + w x c), f = m a_c, and n = I_c aw + w x I_c w + c x f.
-    The same numbers as the spatial form with about 10% fewer operations (the Panda's C qd + N:
-    883 against 961; the UR5's 460 against 529)."""
-    c, Ic = const(body.com), const(body.inertia)
-    f = body.mass * (av + ca.cross(aw, c) + ca.cross(w, v + ca.cross(w, c)))
-    return Ic @ aw + ca.cross(w, Ic @ w) + ca.cross(c, f), f
+def body_force(I: OriginInertia, w: ca.SX, v: ca.SX, aw: ca.SX, av: ca.SX) -> tuple[ca.SX, ca.SX]:
+    """The force (moment about the frame origin; force) I a + v x* I v that moves a body of
+    inertia I = (m, h, Ibar) about the frame origin with spatial velocity (w, v) and
+    acceleration (aw, av), written with the origin's classical acceleration a0 = av + w x v:
+    f = m a0 + aw x h + w x (w x h), n = Ibar aw + w x Ibar w + h x a0. Linear in (m, h, Ibar),
+    so regrouped parameters (robotgen.model.regrouping) serve as well as a body's, and their
+    zeros (m = 0 for a revolute joint's body) drop terms."""
+    a0 = av + ca.cross(w, v)
+    f = I.m * a0 + ca.cross(aw, I.h) + ca.cross(w, ca.cross(w, I.h))
+    return I.Ibar @ aw + ca.cross(w, I.Ibar @ w) + ca.cross(I.h, a0), f
 
 
-def rnea(tree: KinematicTree, motions: list[JointMotion], qd: ca.SX | None, qdd: ca.SX | None,
-         gravity: bool = True, passes: tuple[list[Motion], list[Motion]] | None = None) -> ca.SX:
+def rnea(tree: KinematicTree, motions: list[JointMotion], inertias: list[OriginInertia], qd: ca.SX | None,
+         qdd: ca.SX | None, gravity: bool = True, passes: tuple[list[Motion], list[Motion]] | None = None) -> ca.SX:
     """Rigid-body joint torques M qdd + C qd + g (no armature, no friction). ``qd`` or
     ``qdd`` None means zero, so that gravity alone and C qd + g stay small graphs.
     ``passes``: the forward pass if already built (shared with the tip acceleration)."""
     n = tree.nq
     vel, acc = passes or forward_pass(tree, motions, qd, qdd, gravity)
-    force = [list(body_force(joint.body, w, v, aw, av)) for joint, (w, v), (aw, av) in zip(tree.joints, vel, acc)]
+    force = [list(body_force(I, w, v, aw, av)) for I, (w, v), (aw, av) in zip(inertias, vel, acc)]
     tau = [ca.SX(0)] * n
     for i in reversed(range(n)):
         m = motions[i]

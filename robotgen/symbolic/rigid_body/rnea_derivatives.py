@@ -57,15 +57,17 @@ class JointTerms:
     ancestors: list[set[int]]
 
 
-def axes_and_inertias(tree: KinematicTree, motions: list[JointMotion]) -> tuple[list[ca.SX], list[OriginInertia]]:
-    """Each joint's motion axis S and its body's inertia, about the base origin."""
+def axes_and_inertias(tree: KinematicTree, motions: list[JointMotion], inertias: list[OriginInertia]
+                      ) -> tuple[list[ca.SX], list[OriginInertia]]:
+    """Each joint's motion axis S and its body's inertia (``inertias``, about the joint's
+    origin), about the base origin."""
     zero3 = ca.SX.zeros(3, 1)
-    S, inertias = [], []
-    for joint, (R, o) in zip(tree.joints, joint_poses(tree, motions)):
+    S, based = [], []
+    for joint, inertia, (R, o) in zip(tree.joints, inertias, joint_poses(tree, motions)):
         z = R @ const(joint.axis)
         S.append(ca.vertcat(zero3, z) if joint.type == PRISMATIC else ca.vertcat(z, ca.cross(o, z)))
-        inertias.append(OriginInertia.of_body(joint.body).in_frame(R, o))
-    return S, inertias
+        based.append(inertia.in_frame(R, o))
+    return S, based
 
 
 def kinematics_stage(b: ScheduleBuilder, axes: list[ca.SX], inertias: list[OriginInertia]) -> tuple[int, int]:
@@ -114,10 +116,11 @@ def joint_outputs(Ic: OriginInertia, T: ca.SX, p: ca.SX, S: ca.SX, Sdot: ca.SX, 
             force_cross6(S, F) + Ic.apply6(alpha) + B(Sdot), 2 * Ic.apply6(Sdot) + B(S))
 
 
-def joint_terms(tree: KinematicTree, motions: list[JointMotion], qd: ca.SX, qdd: ca.SX) -> JointTerms:
+def joint_terms(tree: KinematicTree, motions: list[JointMotion], inertias: list[OriginInertia], qd: ca.SX,
+                qdd: ca.SX) -> JointTerms:
     """The O(n) part of the recursion: everything the joint-pair terms read."""
     n = tree.nq
-    S, Ic = axes_and_inertias(tree, motions)
+    S, Ic = axes_and_inertias(tree, motions, inertias)
     a_base = base_acceleration(tree)
     Sdot, v, a, alpha, F, T, p = [], [], [], [], [], [], []
     for i, joint in enumerate(tree.joints):
@@ -153,12 +156,12 @@ def ancestor_term(S_i: ca.SX, gamma_j: ca.SX, lam_j: ca.SX) -> tuple[ca.SX, ca.S
     return ca.dot(S_i, gamma_j), ca.dot(S_i, lam_j)
 
 
-def rnea_derivatives(tree: KinematicTree, motions: list[JointMotion], qd: ca.SX, qdd: ca.SX
-                     ) -> tuple[ca.SX, ca.SX]:
+def rnea_derivatives(tree: KinematicTree, motions: list[JointMotion], inertias: list[OriginInertia], qd: ca.SX,
+                     qdd: ca.SX) -> tuple[ca.SX, ca.SX]:
     """(d tau / dq, d tau / dqd) of inverse dynamics with friction (the armature term
     depends on qdd only)."""
     n = tree.nq
-    t = joint_terms(tree, motions, qd, qdd)
+    t = joint_terms(tree, motions, inertias, qd, qdd)
     dq = ca.SX.zeros(n, n)
     dqd = ca.SX.zeros(n, n)
     for j in range(n):
