@@ -68,7 +68,7 @@ class ChainGraphs:
     def jacobian_dot_qd(self) -> ca.SX:
         """From the forward pass that nonlinear() uses too (one pass in a fused kernel)."""
         return self._get("jdqd", lambda: tip_bias_acceleration(
-            self.tree, joint_poses(self.tree, self.motions), *self.bias_pass()))
+            self.tree, joint_poses(self.tree, self.motions), self.bias_pass()))
 
     def bias_pass(self):
         """RNEA's forward pass at qdd = 0 with gravity, shared by nonlinear and Jdot qd."""

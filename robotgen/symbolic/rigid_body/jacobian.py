@@ -34,13 +34,12 @@ def hand_jacobian(tree: KinematicTree, q: ca.SX) -> ca.SX:
     return ca.vertcat(R.T @ J[:3, :], R.T @ J[3:, :])
 
 
-def tip_bias_acceleration(tree: KinematicTree, poses: list[tuple[ca.SX, ca.SX]], vel, acc) -> ca.SX:
-    """Jdot qd from RNEA's forward pass at qdd = 0 (with the base accelerating at -g):
-    the classical acceleration of the tip origin p (in the frame of joint ``tip``) is
-    a = a_v + a_w x p + w x (v + w x p); rotated to the base, with g added back."""
-    w, v = vel[tree.tip]
-    aw, av = acc[tree.tip]
+def tip_bias_acceleration(tree: KinematicTree, poses: list[tuple[ca.SX, ca.SX]], passes: list) -> ca.SX:
+    """Jdot qd from RNEA's forward pass at qdd = 0 (rnea.BodyMotion, with the base accelerating
+    at -g): the tip origin p (in the frame of joint ``tip``) accelerates at
+    a + aw x p + w x (w x p); rotated to the base, with g added back."""
+    b = passes[tree.tip]
     p = const(tree.tool[:3, 3])
-    a = av + ca.cross(aw, p) + ca.cross(w, v + ca.cross(w, p))
+    a = b.a + ca.cross(b.aw, p) + ca.cross(b.w, ca.cross(b.w, p))
     R, _ = poses[tree.tip]
-    return ca.vertcat(R @ a + const(tree.gravity), R @ aw)
+    return ca.vertcat(R @ a + const(tree.gravity), R @ b.aw)

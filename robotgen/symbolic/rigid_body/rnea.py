@@ -1,67 +1,80 @@
-"""Inverse dynamics by the recursive Newton-Euler algorithm (Luh, Walker, Paul 1980), in
-spatial-vector form (Featherstone 2008, Table 5.1), each body's force from its inertia about
-its frame origin. Gravity enters as a base acceleration -g; the armature
+"""Inverse dynamics by the recursive Newton-Euler algorithm (Luh, Walker, Paul 1980): the
+forward pass carries each body's angular velocity and acceleration and its frame origin's
+classical (linear) acceleration, with no linear velocity; each body's force comes from its
+inertia about that origin, and the backward pass sums them to the base as spatial forces
+(Featherstone 2008, Table 5.1). Gravity enters as a base acceleration -g; the armature
 and friction terms of each joint are added to its torque."""
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import casadi as ca
 
-from robotgen.model.chain import KinematicTree
+from robotgen.model.chain import PRISMATIC, KinematicTree
 from robotgen.symbolic.rigid_body.inertia import OriginInertia
 from robotgen.symbolic.rigid_body.kinematics import JointMotion
-from robotgen.symbolic.rigid_body.spatial import (
-    const,
-    force_transform_to_parent,
-    motion_cross,
-    motion_transform,
-)
+from robotgen.symbolic.rigid_body.spatial import const, force_transform_to_parent
 
-Motion = tuple[ca.SX, ca.SX]  # (angular; linear) in a body frame
+
+@dataclass(frozen=True, eq=False)
+class BodyMotion:
+    """One body in its own frame: angular velocity w and acceleration aw, and a, the
+    classical acceleration of the frame origin (the second derivative of its position)."""
+
+    w: ca.SX
+    aw: ca.SX
+    a: ca.SX
 
 
 def forward_pass(tree: KinematicTree, motions: list[JointMotion], qd: ca.SX | None, qdd: ca.SX | None,
-                 gravity: bool = True) -> tuple[list[Motion], list[Motion]]:
-    """Spatial velocity and acceleration of every body in its own frame (the first pass of
-    RNEA). With gravity, the base accelerates at -g, so every acceleration carries it."""
+                 gravity: bool = True) -> list[BodyMotion]:
+    """The first pass of RNEA. A joint's origin is a point of the parent body at r (parent
+    coordinates), so it accelerates at a_p + aw_p x r + w_p x (w_p x r); a revolute joint
+    adds qd S to w and (w x S qd + qdd S) to aw, a prismatic joint 2 w x S qd + qdd S to a.
+    With gravity the base accelerates at -g, so every a carries it."""
     zero = ca.SX.zeros(3, 1)
-    a_base = (zero, -const(tree.gravity)) if gravity else (zero, zero)
-    vel: list[Motion] = []
-    acc: list[Motion] = []
+    out: list[BodyMotion] = []
     for i, (joint, m) in enumerate(zip(tree.joints, motions)):
-        vp, ap = ((zero, zero), a_base) if joint.parent < 0 else (vel[joint.parent], acc[joint.parent])
-        w, v = motion_transform(m, *vp)
-        aw, av = motion_transform(m, *ap)
+        if joint.parent < 0:
+            w, aw, a = zero, zero, m.to_child(-const(tree.gravity)) if gravity else zero
+        else:
+            p = out[joint.parent]
+            a = p.a + ca.cross(p.aw, m.r) + ca.cross(p.w, ca.cross(p.w, m.r))
+            w, aw, a = m.to_child(p.w), m.to_child(p.aw), m.to_child(a)
+        prismatic = joint.type == PRISMATIC
         if qd is not None:
-            w, v = w + m.S_w * qd[i], v + m.S_v * qd[i]
-            cw, cv = motion_cross(w, v, m.S_w * qd[i], m.S_v * qd[i])
-            aw, av = aw + cw, av + cv
+            if prismatic:
+                a = a + 2 * ca.cross(w, m.S_v * qd[i])
+            else:
+                aw = aw + ca.cross(w, m.S_w * qd[i])
+                w = w + m.S_w * qd[i]
         if qdd is not None:
-            aw, av = aw + m.S_w * qdd[i], av + m.S_v * qdd[i]
-        vel.append((w, v))
-        acc.append((aw, av))
-    return vel, acc
+            if prismatic:
+                a = a + m.S_v * qdd[i]
+            else:
+                aw = aw + m.S_w * qdd[i]
+        out.append(BodyMotion(w, aw, a))
+    return out
 
 
-def body_force(I: OriginInertia, w: ca.SX, v: ca.SX, aw: ca.SX, av: ca.SX) -> tuple[ca.SX, ca.SX]:
-    """The force (moment about the frame origin; force) I a + v x* I v that moves a body of
-    inertia I = (m, h, Ibar) about the frame origin with spatial velocity (w, v) and
-    acceleration (aw, av), written with the origin's classical acceleration a0 = av + w x v:
-    f = m a0 + aw x h + w x (w x h), n = Ibar aw + w x Ibar w + h x a0. Linear in (m, h, Ibar),
-    so regrouped parameters (robotgen.model.regrouping) serve as well as a body's, and their
-    zeros (m = 0 for a revolute joint's body) drop terms."""
-    a0 = av + ca.cross(w, v)
-    f = I.m * a0 + ca.cross(aw, I.h) + ca.cross(w, ca.cross(w, I.h))
-    return I.Ibar @ aw + ca.cross(w, I.Ibar @ w) + ca.cross(I.h, a0), f
+def body_force(I: OriginInertia, b: BodyMotion) -> tuple[ca.SX, ca.SX]:
+    """The force (moment about the frame origin; force) that moves a body of inertia
+    I = (m, h = m c, Ibar) about its frame origin as ``b`` (Newton's and Euler's equations
+    moved to the origin): f = m a + aw x h + w x (w x h), n = Ibar aw + w x Ibar w + h x a.
+    Linear in (m, h, Ibar), so regrouped parameters (robotgen.model.regrouping) serve as well
+    as a body's, and their zeros (m = 0 for a revolute joint's body) drop terms."""
+    f = I.m * b.a + ca.cross(b.aw, I.h) + ca.cross(b.w, ca.cross(b.w, I.h))
+    return I.Ibar @ b.aw + ca.cross(b.w, I.Ibar @ b.w) + ca.cross(I.h, b.a), f
 
 
 def rnea(tree: KinematicTree, motions: list[JointMotion], inertias: list[OriginInertia], qd: ca.SX | None,
-         qdd: ca.SX | None, gravity: bool = True, passes: tuple[list[Motion], list[Motion]] | None = None) -> ca.SX:
+         qdd: ca.SX | None, gravity: bool = True, passes: list[BodyMotion] | None = None) -> ca.SX:
     """Rigid-body joint torques M qdd + C qd + g (no armature, no friction). ``qd`` or
     ``qdd`` None means zero, so that gravity alone and C qd + g stay small graphs.
     ``passes``: the forward pass if already built (shared with the tip acceleration)."""
     n = tree.nq
-    vel, acc = passes or forward_pass(tree, motions, qd, qdd, gravity)
-    force = [list(body_force(I, w, v, aw, av)) for I, (w, v), (aw, av) in zip(inertias, vel, acc)]
+    passes = passes or forward_pass(tree, motions, qd, qdd, gravity)
+    force = [list(body_force(I, b)) for I, b in zip(inertias, passes)]
     tau = [ca.SX(0)] * n
     for i in reversed(range(n)):
         m = motions[i]
