@@ -16,6 +16,7 @@ import casadi as ca
 from robotgen.model.derivatives import RK4, SEMI_IMPLICIT_EULER
 from robotgen.symbolic.differentiation import reverse_jacobian
 from robotgen.symbolic.kernel import row_major
+from robotgen.symbolic.op_count import count_operations
 from robotgen.symbolic.rigid_body.chain import ChainGraphs, Symbols
 from robotgen.symbolic.rigid_body.cholesky import (
     cholesky_factor,
@@ -77,7 +78,7 @@ class DynamicsDerivatives:
     def forward_dynamics_derivatives_schedule(self) -> ScheduleBuilder | None:
         """Outputs (d qdd/dq, d qdd/dqd, M^-1), row-major, with loops; None: straight-line is
         better."""
-        if not self._large():
+        if not self._forward_large():
             return None
         s = self.sym
         n = s.q.shape[0]
@@ -136,6 +137,14 @@ class DynamicsDerivatives:
         """Whether the derivatives are too large for straight-line code (DERIVATIVE_LOOPS_ABOVE_OPS)."""
         g = self.graphs
         return isinstance(g, ChainGraphs) and g.id_derivatives_ops() > DERIVATIVE_LOOPS_ABOVE_OPS
+
+    def _forward_large(self) -> bool:
+        """Whether forward dynamics' derivatives (about twice the inverse's operations) are too
+        large for straight-line code: the UR5's 3088 ran in 680-700 ns, as the row-wise solve
+        in 628-633 (A/B, 3 rounds)."""
+        s = self.sym
+        return self._large() or (isinstance(self.graphs, ChainGraphs) and count_operations(
+            [s.q, s.qd, s.tau], list(self.forward_dynamics_derivatives()[1:]))["total"] > DERIVATIVE_LOOPS_ABOVE_OPS)
 
     def _looped(self) -> bool:
         """Whether the recursion's loops are used (derivative_loops): a large serial chain on
