@@ -36,10 +36,9 @@ def hand_jacobian(tree: KinematicTree, q: ca.SX) -> ca.SX:
 
 def tip_bias_acceleration(tree: KinematicTree, poses: list[tuple[ca.SX, ca.SX]], passes: list) -> ca.SX:
     """Jdot qd from RNEA's forward pass at qdd = 0 (rnea.BodyMotion, with the base accelerating
-    at -g): the tip origin p (in the frame of joint ``tip``) accelerates at
-    a + aw x p + w x (w x p); rotated to the base, with g added back."""
+    at -g): the tip origin p (in the frame of joint ``tip``) accelerates at a + U p (U the
+    body's rate_matrix); rotated to the base, with g added back."""
     b = passes[tree.tip]
-    p = const(tree.tool[:3, 3])
-    a = b.a + ca.cross(b.aw, p) + ca.cross(b.w, ca.cross(b.w, p))
+    a = b.a + b.rate_matrix() @ const(tree.tool[:3, 3])
     R, _ = poses[tree.tip]
     return ca.vertcat(R @ a + const(tree.gravity), R @ b.aw)

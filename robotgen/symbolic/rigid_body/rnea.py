@@ -25,6 +25,19 @@ class BodyMotion:
     aw: ca.SX
     a: ca.SX
 
+    def rate_matrix(self) -> ca.SX:
+        """U = [aw x] + [w x]^2 = [aw x] + w w^T - |w|^2 1, so that a point of the body at x
+        from the origin accelerates at a + U x (Khalil and Kleinfinger's U_j): formed once,
+        it serves the body's force and its children's origins. Built entry by entry."""
+        w, aw = self.w, self.aw
+        U = ca.SX.zeros(3, 3)
+        for i in range(3):
+            j, k = (i + 1) % 3, (i + 2) % 3
+            U[i, i] = -(w[j] * w[j] + w[k] * w[k])
+            U[i, j] = w[i] * w[j] - aw[k]
+            U[j, i] = w[i] * w[j] + aw[k]
+        return U
+
 
 def forward_pass(tree: KinematicTree, motions: list[JointMotion], qd: ca.SX | None, qdd: ca.SX | None,
                  gravity: bool = True) -> list[BodyMotion]:
@@ -39,7 +52,7 @@ def forward_pass(tree: KinematicTree, motions: list[JointMotion], qd: ca.SX | No
             w, aw, a = zero, zero, m.to_child(-const(tree.gravity)) if gravity else zero
         else:
             p = out[joint.parent]
-            a = p.a + ca.cross(p.aw, m.r) + ca.cross(p.w, ca.cross(p.w, m.r))
+            a = p.a + p.rate_matrix() @ m.r
             w, aw, a = m.to_child(p.w), m.to_child(p.aw), m.to_child(a)
         prismatic = joint.type == PRISMATIC
         if qd is not None:
@@ -63,7 +76,7 @@ def body_force(I: OriginInertia, b: BodyMotion) -> tuple[ca.SX, ca.SX]:
     moved to the origin): f = m a + aw x h + w x (w x h), n = Ibar aw + w x Ibar w + h x a.
     Linear in (m, h, Ibar), so regrouped parameters (robotgen.model.regrouping) serve as well
     as a body's, and their zeros (m = 0 for a revolute joint's body) drop terms."""
-    f = I.m * b.a + ca.cross(b.aw, I.h) + ca.cross(b.w, ca.cross(b.w, I.h))
+    f = I.m * b.a + b.rate_matrix() @ I.h
     return I.Ibar @ b.aw + ca.cross(b.w, I.Ibar @ b.w) + ca.cross(I.h, b.a), f
 
 
