@@ -10,17 +10,7 @@ import numpy as np
 from robotgen.model.chain import Body
 from robotgen.model.regrouping import OriginParameters
 from robotgen.numeric import exact
-from robotgen.symbolic.rigid_body.spatial import const
-
-
-def rotate_symmetric(R: ca.SX, X: ca.SX) -> ca.SX:
-    """R X R^T for a symmetric X: (R X) R^T formed on its upper triangle only."""
-    RX = R @ X
-    Y = ca.SX.zeros(3, 3)
-    for i in range(3):
-        for j in range(i, 3):
-            Y[i, j] = Y[j, i] = ca.dot(RX[i, :].T, R[j, :].T)
-    return Y
+from robotgen.symbolic.rigid_body.spatial import const, rotate_symmetric
 
 
 @dataclass(frozen=True, eq=False)
@@ -59,7 +49,7 @@ class OriginInertia:
     def to_parent(self, m) -> OriginInertia:
         """Express about the parent origin of joint motion ``m``: X^T I X with
         X = [E 0; -E skew(r) E]."""
-        Ibar = self.Ibar if m.Rm is None else rotate_symmetric(m.Rm, self.Ibar)
+        Ibar = m.turn_symmetric(self.Ibar)
         return self._shifted(m.to_parent(self.h), rotate_symmetric(m.R0, Ibar), m.r)
 
     def in_frame(self, R: ca.SX, p: ca.SX) -> OriginInertia:

@@ -6,7 +6,7 @@ from dataclasses import dataclass
 import casadi as ca
 
 from robotgen.model.chain import PRISMATIC, KinematicTree
-from robotgen.symbolic.rigid_body.spatial import axis_rotation, const, homogeneous
+from robotgen.symbolic.rigid_body.spatial import axis_rotation, const, homogeneous, rotate_symmetric
 
 
 @dataclass(frozen=True, eq=False)
@@ -25,6 +25,8 @@ class JointMotion:
     r: ca.SX
     S_w: ca.SX
     S_v: ca.SX
+    # about a coordinate axis: (k, cos q, sin q) of Rm as a turn about +e_k (sign folded in)
+    turn: tuple[int, ca.SX, ca.SX] | None = None
 
     @property
     def R(self) -> ca.SX:
@@ -43,6 +45,28 @@ class JointMotion:
         """R v = R0 (Rm v)."""
         return self.R0 @ (v if self.Rm is None else self.Rm @ v)
 
+    def turn_symmetric(self, X: ca.SX) -> ca.SX:
+        """Rm X Rm^T for a symmetric X. About a coordinate axis k (plane i, j) by double
+        angles, c2 = 2c^2 - 1 and s2 = 2cs shared by every use: with d = (X_ii - X_jj)/2,
+        t = (X_ii + X_jj)/2 and e = c2 d - s2 X_ij, Y_ii = t + e, Y_jj = t - e,
+        Y_ij = s2 d + c2 X_ij, (Y_ik, Y_jk) = (c X_ik - s X_jk, s X_ik + c X_jk), Y_kk = X_kk."""
+        if self.Rm is None:
+            return X
+        if self.turn is None:
+            return rotate_symmetric(self.Rm, X)
+        k, c, s = self.turn
+        i, j = (k + 1) % 3, (k + 2) % 3
+        c2, s2 = 2 * (c * c) - 1, 2 * (c * s)
+        d, t = 0.5 * (X[i, i] - X[j, j]), 0.5 * (X[i, i] + X[j, j])
+        e = c2 * d - s2 * X[i, j]
+        Y = ca.SX.zeros(3, 3)
+        Y[i, i], Y[j, j] = t + e, t - e
+        Y[i, j] = Y[j, i] = s2 * d + c2 * X[i, j]
+        Y[i, k] = Y[k, i] = c * X[i, k] - s * X[j, k]
+        Y[j, k] = Y[k, j] = s * X[i, k] + c * X[j, k]
+        Y[k, k] = X[k, k]
+        return Y
+
     def matrix_to_parent(self, X: ca.SX) -> ca.SX:
         """R X R^T, the rotation of a 3x3 tensor into parent coordinates."""
         Y = X if self.Rm is None else self.Rm @ X @ self.Rm.T
@@ -60,8 +84,11 @@ def joint_motions(tree: KinematicTree, q: ca.SX) -> list[JointMotion]:
         if joint.type == PRISMATIC:
             motions.append(JointMotion(R0, None, p0 + R0 @ axis * q[i], zero, axis))
         else:
-            Rm = axis_rotation(joint.axis, ca.cos(q[i]), ca.sin(q[i]))
-            motions.append(JointMotion(R0, Rm, p0, axis, zero))
+            c, s = ca.cos(q[i]), ca.sin(q[i])
+            Rm = axis_rotation(joint.axis, c, s)
+            k = [j for j in range(3) if abs(joint.axis[j]) == 1.0]
+            turn = (k[0], c, s if joint.axis[k[0]] > 0 else -s) if k else None
+            motions.append(JointMotion(R0, Rm, p0, axis, zero, turn))
     return motions
 
 

@@ -38,6 +38,16 @@ def axis_rotation(axis: np.ndarray, c: ca.SX, s: ca.SX) -> ca.SX:
     return R
 
 
+def rotate_symmetric(R: ca.SX, X: ca.SX) -> ca.SX:
+    """R X R^T for a symmetric X: (R X) R^T formed on its upper triangle only."""
+    RX = R @ X
+    Y = ca.SX.zeros(3, 3)
+    for i in range(3):
+        for j in range(i, 3):
+            Y[i, j] = Y[j, i] = ca.dot(RX[i, :].T, R[j, :].T)
+    return Y
+
+
 def homogeneous(R: ca.SX, p: ca.SX) -> ca.SX:
     return ca.vertcat(ca.horzcat(R, p), ca.horzcat(ca.SX.zeros(1, 3), ca.SX.ones(1, 1)))
 
