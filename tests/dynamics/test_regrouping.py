@@ -7,7 +7,7 @@ import casadi as ca
 import numpy as np
 import pytest
 from robots import PANDA, UR5, robots_dir
-from test_tree_pinocchio import random_tree
+from test_tree_pinocchio import random_tree, with_coordinate_axes
 
 from robotgen.frontend.urdf import read_urdf
 from robotgen.model.chain import Body, Joint, KinematicTree
@@ -22,14 +22,6 @@ from robotgen.symbolic.rigid_body.rnea import rnea
 
 def urdf_tree(which) -> KinematicTree:
     return read_urdf(str(robots_dir() / which[0]), which[1]).tree
-
-
-def with_coordinate_axes(tree: KinematicTree) -> KinematicTree:
-    """The random tree with every revolute axis turned onto a coordinate axis (x, y, z, -z, ...)."""
-    axes = [np.array(a, dtype=float) for a in ((0, 0, 1), (1, 0, 0), (0, -1, 0), (0, 0, -1), (0, 1, 0), (-1, 0, 0))]
-    joints = tuple(j if j.type == "prismatic" else Joint(j.name, j.type, j.parent, j.origin, axes[i % 6], j.body)
-                   for i, j in enumerate(tree.joints))
-    return KinematicTree(tree.name, joints, tree.tip, tree.tool, tree.gravity)
 
 
 def test_the_promised_zeros():

@@ -3,6 +3,8 @@ a prismatic joint, arbitrary joint origins and inertias) against Pinocchio built
 same canonical model. Evaluated with CasADi, so it checks the graphs, not the emitted C."""
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pinocchio as pin
 import pytest
@@ -35,6 +37,14 @@ def random_tree(seed: int, parents: list[int] = PARENTS) -> KinematicTree:
     return KinematicTree("t", tuple(joints), 6, tool, np.array([0.3, -0.2, -9.81]))
 
 
+def with_coordinate_axes(tree: KinematicTree) -> KinematicTree:
+    """The tree with every revolute axis turned onto a coordinate axis (z, x, -y, -z, y, -x, ...):
+    the axes the kernels turn inertias about by double angles."""
+    axes = [np.array(a, dtype=float) for a in ((0, 0, 1), (1, 0, 0), (0, -1, 0), (0, 0, -1), (0, 1, 0), (-1, 0, 0))]
+    joints = tuple(j if j.type == "prismatic" else replace(j, axis=axes[i % 6]) for i, j in enumerate(tree.joints))
+    return replace(tree, joints=joints)
+
+
 def pinocchio_model(tree: KinematicTree):
     model = pin.Model()
     model.gravity.linear = tree.gravity
@@ -49,9 +59,10 @@ def pinocchio_model(tree: KinematicTree):
     return model, fid
 
 
-@pytest.mark.parametrize("seed", [0, 1, 2])
-def test_branched_tree_matches_pinocchio(seed):
-    tree = random_tree(seed)
+@pytest.mark.parametrize("seed, axes", [(0, "oblique"), (1, "oblique"), (2, "oblique"), (3, "coordinate"),
+                                        (4, "coordinate")])
+def test_branched_tree_matches_pinocchio(seed, axes):
+    tree = random_tree(seed) if axes == "oblique" else with_coordinate_axes(random_tree(seed))
     f = {k.name: k.function for k in leaf_kernels(tree)}
     model, fid = pinocchio_model(tree)
     data = model.createData()
