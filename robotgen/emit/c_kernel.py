@@ -184,9 +184,12 @@ def _straight_line(program: Program, kernel: Kernel, precision: Precision, read,
     """(declarations of the registers, statements) of one SX program; ``read(port, element)``
     and ``write(port, element)`` spell its inputs and outputs. In double precision the
     angles of a straight-line program (not a loop body) go through robotgen.emit.sincos, and
-    one bound by its longest chain is printed in list-schedule order (robotgen.emit.issue_order)."""
+    one bound by its longest chain is printed in list-schedule order, any other kernel without
+    loops in an order holding few values live (robotgen.emit.issue_order)."""
     if register == "w" and issue_order.latency_bound(program):
         program = issue_order.list_scheduled(program)
+    elif register == "w" and kernel.schedule is None:
+        program = issue_order.pressure_scheduled(program)
     if precision.real == "double" and register == "w":
         program = sincos.pair_angles(program)
     body = []

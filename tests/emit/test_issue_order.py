@@ -1,6 +1,8 @@
-"""The printing order of latency-bound kernels (robotgen.emit.issue_order): a list schedule
-computes what CasADi's order computes, bit for bit, reads every value after it is written,
-keeps the longest chain, and is chosen for the kernels bound by it and only for them."""
+"""The printing order of straight-line kernels (robotgen.emit.issue_order): a list schedule
+for latency-bound kernels, an order holding few values live for the others. Each computes
+what CasADi's order computes, bit for bit, and reads every value after it is written; the list
+schedule keeps the longest chain and is chosen for the kernels bound by it and only for them;
+the other order holds fewer values live than CasADi's."""
 from __future__ import annotations
 
 import math
@@ -54,6 +56,11 @@ def kernels():
 def test_the_schedule_computes_the_same_bits_in_a_valid_order(kernels, robot, kernel):
     program = read_program(kernels[robot][kernel])
     scheduled = issue_order.list_scheduled(program)
+    assert_same_bits_in_a_valid_order(kernels[robot][kernel], program, scheduled)
+    assert issue_order.critical_path(scheduled) == issue_order.critical_path(program)
+
+
+def assert_same_bits_in_a_valid_order(kernel, program, scheduled):
     written: set[int] = set()
     for step in scheduled.instructions:
         assert set(step.args) <= written, f"{step.op_name} reads a register before it is written"
@@ -61,15 +68,14 @@ def test_the_schedule_computes_the_same_bits_in_a_valid_order(kernels, robot, ke
             assert step.target not in written  # one write per register
             written.add(step.target)
     assert sorted(s.op for s in scheduled.instructions) == sorted(s.op for s in program.instructions)
-    assert issue_order.critical_path(scheduled) == issue_order.critical_path(program)
     # step k of the original writes register k: the order changed where the registers are not ascending
     targets = [s.target for s in scheduled.instructions if s.target >= 0]
     assert targets != sorted(targets)
     rng = np.random.default_rng(7)
-    n = kernels[robot][kernel].inputs[0].size
+    n = kernel.inputs[0].size
     for _ in range(5):
         inputs = [rng.uniform(-np.pi, np.pi, p.size) if p.name == "q" else rng.uniform(-2, 2, p.size)
-                  for p in kernels[robot][kernel].inputs]
+                  for p in kernel.inputs]
         expected, got = run(program, inputs), run(scheduled, inputs)
         assert got.keys() == expected.keys() and len(got) >= n
         assert all(got[k] == expected[k] or (math.isnan(got[k]) and math.isnan(expected[k])) for k in got)
@@ -88,3 +94,21 @@ def test_it_is_chosen_for_the_kernels_bound_by_their_longest_chain(kernels):
 def test_the_order_is_deterministic(kernels):
     program = read_program(kernels["panda"]["mass"])
     assert issue_order.list_scheduled(program) == issue_order.list_scheduled(program)
+
+
+@pytest.mark.parametrize("robot, kernel", [("panda", "servo_terms"), ("ur5", "servo_terms"),
+                                           ("panda", "forward_dynamics"), ("ur5", "coriolis"),
+                                           ("ur5", "inverse_dynamics_derivatives")])
+def test_the_pressure_order_computes_the_same_bits_with_constants_read_at_once(kernels, robot, kernel):
+    """The order of every other straight-line kernel: the same bits, each value written before
+    it is read, and each constant and input printed just before the step that first reads it
+    (with that step's other constants and inputs), so none of them is held live."""
+    program = read_program(kernels[robot][kernel])
+    ordered = issue_order.pressure_scheduled(program)
+    assert_same_bits_in_a_valid_order(kernels[robot][kernel], program, ordered)
+    steps = ordered.instructions
+    for k, step in enumerate(steps):
+        if step.op in (ca.OP_CONST, ca.OP_INPUT):
+            reader = next(j for j in range(k + 1, len(steps)) if steps[j].op not in (ca.OP_CONST, ca.OP_INPUT))
+            assert step.target in steps[reader].args, f"step {k} is not read by the next operation"
+    assert ordered == issue_order.pressure_scheduled(program)  # deterministic
