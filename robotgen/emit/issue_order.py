@@ -2,7 +2,7 @@
 
 CasADi lists a program's steps in the order its expression graph was built: one recursion
 after the other. A kernel with few operations per step of its longest chain of dependent
-operations (a mass matrix: 480 operations, a chain 133 cycles long) is bound by that chain,
+operations (the Panda's mass matrix: 434 operations, a chain 142 cycles long) is bound by that chain,
 and the processor overlaps the independent chains only as far as its window reaches. For
 such a kernel the statements are printed in the order of a list schedule instead: cycle by
 cycle, up to ISSUE_WIDTH ready operations, the one heading the longest remaining chain
