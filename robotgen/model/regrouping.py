@@ -51,10 +51,6 @@ class _Exact:
     h: _Vector
     I: _Matrix
 
-    @staticmethod
-    def zero() -> _Exact:
-        return _Exact(Fraction(0), [Fraction(0)] * 3, [[Fraction(0)] * 3 for _ in range(3)])
-
     def plus(self, other: _Exact) -> _Exact:
         return _Exact(self.m + other.m, [a + b for a, b in zip(self.h, other.h)],
                       [[a + b for a, b in zip(r, s)] for r, s in zip(self.I, other.I)])

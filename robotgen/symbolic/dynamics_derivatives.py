@@ -59,6 +59,7 @@ class DynamicsDerivatives:
             dq, dqd = reverse_jacobian(tau, s.q), reverse_jacobian(tau, s.qd)
         self._id = ca.Function("id_derivatives", [s.q, s.qd, s.qdd], [dq, dqd])
         self._fd: ca.Function | None = None
+        self._fd_derivatives: tuple[ca.SX, ca.SX, ca.SX, ca.SX] | None = None
 
     def inverse_dynamics_derivatives(self) -> tuple[ca.SX, ca.SX]:
         s = self.sym
@@ -160,7 +161,12 @@ class DynamicsDerivatives:
         return cholesky_solve_matrix(self.graphs.mass(), ca.SX.eye(n))
 
     def forward_dynamics_derivatives(self) -> tuple[ca.SX, ca.SX, ca.SX, ca.SX]:
-        """(qdd, d qdd/dq, d qdd/dqd, d qdd/d tau = M^-1) at (q, qd, tau)."""
+        """(qdd, d qdd/dq, d qdd/dqd, d qdd/d tau = M^-1) at (q, qd, tau), built once."""
+        if self._fd_derivatives is None:
+            self._fd_derivatives = self._build_forward_dynamics_derivatives()
+        return self._fd_derivatives
+
+    def _build_forward_dynamics_derivatives(self) -> tuple[ca.SX, ca.SX, ca.SX, ca.SX]:
         s = self.sym
         n = s.q.shape[0]
         qdd = self.graphs.forward_dynamics()  # its factorisation of M and this one are one after CSE

@@ -37,8 +37,8 @@ def hand_jacobian(tree: KinematicTree, q: ca.SX) -> ca.SX:
 def tip_bias_acceleration(tree: KinematicTree, poses: list[tuple[ca.SX, ca.SX]], passes: list) -> ca.SX:
     """Jdot qd from RNEA's forward pass at qdd = 0 (rnea.BodyMotion, with the base accelerating
     at -g): the tip origin p (in the frame of joint ``tip``) accelerates at a + U p (U the
-    body's rate_matrix); rotated to the base, with g added back."""
+    body's BodyMotion.U); rotated to the base, with g added back."""
     b = passes[tree.tip]
-    a = b.a + b.rate_matrix() @ const(tree.tool[:3, 3])
+    a = b.a + b.U @ const(tree.tool[:3, 3])
     R, _ = poses[tree.tip]
     return ca.vertcat(R @ a + const(tree.gravity), R @ b.aw)

@@ -7,6 +7,7 @@ and friction terms of each joint are added to its torque."""
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import casadi as ca
 
@@ -25,7 +26,8 @@ class BodyMotion:
     aw: ca.SX
     a: ca.SX
 
-    def rate_matrix(self) -> ca.SX:
+    @cached_property
+    def U(self) -> ca.SX:
         """U = [aw x] + [w x]^2 = [aw x] + w w^T - |w|^2 1, so that a point of the body at x
         from the origin accelerates at a + U x (Khalil and Kleinfinger's U_j): formed once,
         it serves the body's force and its children's origins. Built entry by entry."""
@@ -52,7 +54,7 @@ def forward_pass(tree: KinematicTree, motions: list[JointMotion], qd: ca.SX | No
             w, aw, a = zero, zero, m.to_child(-const(tree.gravity)) if gravity else zero
         else:
             p = out[joint.parent]
-            a = p.a + p.rate_matrix() @ m.r
+            a = p.a + p.U @ m.r
             w, aw, a = m.to_child(p.w), m.to_child(p.aw), m.to_child(a)
         prismatic = joint.type == PRISMATIC
         if qd is not None:
@@ -76,7 +78,7 @@ def body_force(I: OriginInertia, b: BodyMotion) -> tuple[ca.SX, ca.SX]:
     moved to the origin): f = m a + aw x h + w x (w x h), n = Ibar aw + w x Ibar w + h x a.
     Linear in (m, h, Ibar), so regrouped parameters (robotgen.model.regrouping) serve as well
     as a body's, and their zeros (m = 0 for a revolute joint's body) drop terms."""
-    f = I.m * b.a + b.rate_matrix() @ I.h
+    f = I.m * b.a + b.U @ I.h
     return I.Ibar @ b.aw + ca.cross(b.w, I.Ibar @ b.w) + ca.cross(I.h, b.a), f
 
 
