@@ -8,6 +8,7 @@ import os
 import re
 import signal
 import sys
+import threading
 import traceback
 from dataclasses import replace
 from pathlib import Path
@@ -33,6 +34,22 @@ class _Terminated(BaseException):
 
 def _on_sigterm(signum, frame) -> None:
     raise _Terminated
+
+
+def _unraisable(hook) -> None:
+    """A signal's exception raised where Python cannot pass it on (in a weakref callback of
+    the import system, say) would be printed as "Exception ignored" with a traceback and
+    lost, and the build would go on. The signal is sent again instead, 10 ms later from
+    another thread (sent from here it would be raised here again), to be raised in the main
+    thread at the next point that can pass it on."""
+    signum = (signal.SIGINT if issubclass(hook.exc_type, KeyboardInterrupt) else
+              signal.SIGTERM if issubclass(hook.exc_type, _Terminated) else None)
+    if signum is None:
+        sys.__unraisablehook__(hook)
+    else:
+        resend = threading.Timer(0.01, os.kill, (os.getpid(), signum))
+        resend.daemon = True
+        resend.start()
 
 
 
@@ -361,6 +378,7 @@ def main(argv: list[str] | None = None) -> int:
 
 def entry() -> None:
     signal.signal(signal.SIGTERM, _on_sigterm)
+    sys.unraisablehook = _unraisable
     try:
         status = main()
     except KeyboardInterrupt:  # before or after main's own handling (argument parsing, exit)

@@ -83,3 +83,27 @@ def test_a_signal_while_python_imports_robotgen_is_one_line(tmp_path, signum, st
         assert "Traceback" not in err, err
         if proc.returncode == status:
             assert err.strip() in ("robotgen: interrupted", "robotgen: terminated"), err
+
+
+@pytest.mark.parametrize("signum, exception", [("SIGTERM", "cli._Terminated"), ("SIGINT", "KeyboardInterrupt")])
+def test_a_signal_inside_a_callback_is_neither_printed_nor_lost(signum, exception):
+    """Raised in a weakref callback (where the import system's locks have theirs), a signal's
+    exception cannot propagate: Python would print "Exception ignored" with a traceback and go
+    on. robotgen's hook sends the signal again, and it is raised in the code that follows."""
+    code = f"""
+import os, signal, sys, time, weakref
+from robotgen import cli
+signal.signal(signal.SIGTERM, cli._on_sigterm)
+sys.unraisablehook = cli._unraisable
+class Body: pass
+body = Body()
+ref = weakref.ref(body, lambda _: os.kill(os.getpid(), signal.{signum}) or time.sleep(0.05))
+try:
+    del body
+    time.sleep(5)
+    print("went on")
+except {exception}:
+    print("stopped")
+"""
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    assert (done.stdout.strip(), done.stderr) == ("stopped", "")
