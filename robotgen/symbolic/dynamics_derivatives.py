@@ -141,7 +141,7 @@ class DynamicsDerivatives:
 
     def _forward_large(self) -> bool:
         """Whether forward dynamics' derivatives (about twice the inverse's operations) are too
-        large for straight-line code: the UR5's 3088 ran in 680-700 ns, as the row-wise solve
+        large for straight-line code: the UR5's 3088 ran in 693-701 ns, as the row-wise solve
         in 628-633 (A/B, 3 rounds)."""
         s = self.sym
         return self._large() or (isinstance(self.graphs, ChainGraphs) and count_operations(
