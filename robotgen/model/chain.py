@@ -101,6 +101,12 @@ class KinematicTree:
         return any(j.viscous or j.coulomb for j in self.joints)
 
 
+def coordinate_axis(axis: np.ndarray) -> int | None:
+    """k when the unit ``axis`` is +e_k or -e_k (exactly, as snapping leaves it), else None."""
+    k = [i for i in range(3) if abs(float(axis[i])) == 1.0]
+    return k[0] if k else None
+
+
 def with_payload(tree: KinematicTree, mass: float, point: np.ndarray) -> KinematicTree:
     """The same tree with a point mass added to the body of joint ``tree.tip`` at ``point``
     (in that joint's frame): a payload held at the hand."""

@@ -29,7 +29,7 @@ from fractions import Fraction
 
 import numpy as np
 
-from robotgen.model.chain import PRISMATIC, KinematicTree
+from robotgen.model.chain import PRISMATIC, Body, KinematicTree, coordinate_axis
 
 _Vector = list[Fraction]
 _Matrix = list[list[Fraction]]
@@ -65,7 +65,7 @@ def _exact(a) -> list:
     return [Fraction(float(x)) for x in a] if a.ndim == 1 else [_exact(row) for row in a]
 
 
-def _of_body(body) -> _Exact:
+def _of_body(body: Body) -> _Exact:
     m, c, Ic = Fraction(float(body.mass)), _exact(body.com), _exact(body.inertia)
     cc = sum(x * x for x in c)
     I = [[Ic[i][j] + m * ((cc if i == j else 0) - c[i] * c[j]) for j in range(3)] for i in range(3)]
@@ -77,10 +77,9 @@ def _split(p: _Exact, joint_type: str, axis: np.ndarray) -> tuple[_Exact, _Exact
     if joint_type == PRISMATIC:
         moved = _Exact(Fraction(0), [Fraction(0)] * 3, [row[:] for row in p.I])
     else:
-        k = [i for i in range(3) if abs(axis[i]) == 1.0]
+        k = coordinate_axis(axis)
         moved = _Exact(p.m, [Fraction(0)] * 3, [[Fraction(0)] * 3 for _ in range(3)])
-        if k:  # about a coordinate axis: the axial first moment and alpha (1 - a a^T) too
-            k = k[0]
+        if k is not None:  # about a coordinate axis: the axial first moment and alpha (1 - a a^T) too
             moved.h[k] = p.h[k]
             alpha = p.I[(k + 2) % 3][(k + 2) % 3]
             for i in range(3):
@@ -103,6 +102,11 @@ def _to_parent(p: _Exact, origin: np.ndarray) -> _Exact:
     shifted = [[I[i][j] - p.m * r[i] * r[j] - r[i] * h[j] - h[i] * r[j] + ((p.m * rr + 2 * rh) if i == j else 0)
                 for j in range(3)] for i in range(3)]
     return _Exact(p.m, [a + p.m * b for a, b in zip(h, r)], shifted)
+
+
+def origin_parameters(body: Body) -> OriginParameters:
+    """A body's own (m, h, Ibar) about its joint's origin, not regrouped."""
+    return _of_body(body).rounded()
 
 
 def regrouped_inertias(tree: KinematicTree) -> list[OriginParameters]:

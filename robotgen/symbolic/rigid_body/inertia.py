@@ -1,15 +1,13 @@
 """Rigid-body inertia about a frame origin, as (m, h = m c, Ibar = Ic + m(|c|^2 I - c c^T)),
-the form in which bodies are combined by the composite rigid body algorithm."""
+the form in which bodies are combined by the composite rigid body algorithm; its constants come
+from robotgen.model.regrouping (a body's own, or regrouped)."""
 from __future__ import annotations
 
 from dataclasses import dataclass
 
 import casadi as ca
-import numpy as np
 
-from robotgen.model.chain import Body
 from robotgen.model.regrouping import OriginParameters
-from robotgen.numeric import exact
 from robotgen.symbolic.rigid_body.spatial import const, rotate_symmetric
 
 
@@ -18,12 +16,6 @@ class OriginInertia:
     m: ca.SX
     h: ca.SX  # (3,) first mass moment m c
     Ibar: ca.SX  # (3, 3) rotational inertia about the frame origin
-
-    @staticmethod
-    def of_body(body: Body) -> OriginInertia:
-        c = np.asarray(body.com, dtype=float)
-        Ibar = exact.parallel_axis(body.inertia, body.mass, c)
-        return OriginInertia(ca.SX(body.mass), const(body.mass * c), const(Ibar))
 
     @staticmethod
     def constant(p: OriginParameters) -> OriginInertia:

@@ -5,7 +5,7 @@ from dataclasses import dataclass
 
 import casadi as ca
 
-from robotgen.model.chain import PRISMATIC, KinematicTree
+from robotgen.model.chain import PRISMATIC, KinematicTree, coordinate_axis
 from robotgen.symbolic.rigid_body.spatial import axis_rotation, const, homogeneous, rotate_symmetric
 
 
@@ -86,8 +86,8 @@ def joint_motions(tree: KinematicTree, q: ca.SX) -> list[JointMotion]:
         else:
             c, s = ca.cos(q[i]), ca.sin(q[i])
             Rm = axis_rotation(joint.axis, c, s)
-            k = [j for j in range(3) if abs(joint.axis[j]) == 1.0]
-            turn = (k[0], c, s if joint.axis[k[0]] > 0 else -s) if k else None
+            k = coordinate_axis(joint.axis)
+            turn = None if k is None else (k, c, s if joint.axis[k] > 0 else -s)
             motions.append(JointMotion(R0, Rm, p0, axis, zero, turn))
     return motions
 
