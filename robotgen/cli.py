@@ -376,9 +376,15 @@ def main(argv: list[str] | None = None) -> int:
         return EXIT_BUG
 
 
-def entry() -> None:
+def answer_signals() -> None:
+    """SIGTERM raised as _Terminated (SIGINT is Python's KeyboardInterrupt), and either one
+    sent again when it lands where it cannot be raised (_unraisable)."""
     signal.signal(signal.SIGTERM, _on_sigterm)
     sys.unraisablehook = _unraisable
+
+
+def entry() -> None:
+    answer_signals()
     try:
         status = main()
     except KeyboardInterrupt:  # before or after main's own handling (argument parsing, exit)

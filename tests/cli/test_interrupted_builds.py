@@ -93,8 +93,7 @@ def test_a_signal_inside_a_callback_is_neither_printed_nor_lost(signum, exceptio
     code = f"""
 import os, signal, sys, time, weakref
 from robotgen import cli
-signal.signal(signal.SIGTERM, cli._on_sigterm)
-sys.unraisablehook = cli._unraisable
+cli.answer_signals()  # as the robotgen command does before anything else
 class Body: pass
 body = Body()
 ref = weakref.ref(body, lambda _: os.kill(os.getpid(), signal.{signum}) or time.sleep(0.05))
