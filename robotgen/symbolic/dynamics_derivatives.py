@@ -34,8 +34,8 @@ from robotgen.symbolic.schedule import LOCAL, OUTPUT, RANGE, ScheduleBuilder, Sl
 
 # Straight-line code takes ~13 bytes per operation: past ~3000 operations of d tau/dq, dqd
 # (forward dynamics' derivatives are ~1.6 times that) the kernels are emitted with loops
-# (robotgen.symbolic.schedule). With regrouped inertial parameters the UR5 (1648, reverse
-# sweeps) and the PUMA (2437) stay straight-line, where CSE makes them small; the Panda
+# (robotgen.symbolic.schedule). With regrouped inertial parameters the UR5 (1465, reverse
+# sweeps) and the PUMA (2211) stay straight-line, where CSE makes them small; the Panda
 # (4888, the recursion) takes the recursion's loops.
 DERIVATIVE_LOOPS_ABOVE_OPS = 3000
 # Loops run an operation faster than straight-line code this long, so the recursion's loops

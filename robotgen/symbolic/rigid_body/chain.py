@@ -118,7 +118,7 @@ class ChainGraphs:
     def inverse_dynamics_derivatives(self) -> tuple[ca.SX, ca.SX]:
         """(d tau/dq, d tau/dqd): the recursion of rnea_derivatives or reverse sweeps of
         Newton-Euler (one per joint), whichever CasADi's CSE leaves with fewer operations
-        (UR5: the sweeps, 1648 vs 2546; Panda: the recursion, 4888 vs 6293)."""
+        (UR5: the sweeps, 1465 vs 2546; Panda: the recursion, 4888 vs 5170)."""
         def build():
             s = self.sym
             recursion = rnea_derivatives(self.tree, self.motions, self.inertias, s.qd, s.qdd)
