@@ -31,8 +31,6 @@ from robotgen.symbolic.schedule import (
     ONCE,
     PAIRS,
     RANGE,
-    ROWS_ABOVE_DESCENDING,
-    ROWS_BELOW,
     Slice,
     Stage,
 )
@@ -227,9 +225,6 @@ _LOOP_HEADERS = {
     BELOW: ["for (rg_j = 0; rg_j < {n}; ++rg_j)", "  for (rg_i = rg_j + 1; rg_i < {n}; ++rg_i) {{"],
     ABOVE: ["for (rg_j = 1; rg_j < {n}; ++rg_j)", "  for (rg_i = 0; rg_i < rg_j; ++rg_i) {{"],
     ABOVE_DESCENDING: ["for (rg_j = {n} - 1; rg_j > 0; --rg_j)", "  for (rg_i = 0; rg_i < rg_j; ++rg_i) {{"],
-    ROWS_BELOW: ["for (rg_i = 1; rg_i < {n}; ++rg_i)", "  for (rg_j = 0; rg_j < rg_i; ++rg_j) {{"],
-    ROWS_ABOVE_DESCENDING: ["for (rg_i = {n} - 2; rg_i >= 0; --rg_i)",
-                            "  for (rg_j = rg_i + 1; rg_j < {n}; ++rg_j) {{"],
 }
 
 

@@ -7,8 +7,8 @@ qdd = FD(q, qd, tau), d qdd/dz = -M^-1 d tau/dz for z = q, qd (the implicit func
 theorem), and d qdd/d tau = M^-1; one L D L^T factorisation of M serves every column.
 
 Past DERIVATIVE_LOOPS_ABOVE_OPS the kernels of both are built as schedules (robotgen.symbolic.schedule):
-on a serial chain the recursion's steps and joint pairs are loops (derivative_loops), and the
-solve with M is row-wise loops."""
+on a serial chain the recursion's steps and joint pairs are loops (derivative_loops), and
+M^-1 d tau/dz is a loop over the rows of M^-1, formed once (it is d qdd/d tau)."""
 from __future__ import annotations
 
 import casadi as ca
@@ -22,8 +22,7 @@ from robotgen.symbolic.rigid_body.cholesky import (
     cholesky_factor,
     cholesky_solve_matrix,
     cholesky_substitute_columns,
-    row_solve_coefficients,
-    schedule_row_solve,
+    schedule_inverse_product,
 )
 from robotgen.symbolic.rigid_body.derivative_loops import (
     schedule_forward_dynamics_derivatives,
@@ -41,7 +40,7 @@ DERIVATIVE_LOOPS_ABOVE_OPS = 3000
 # Loops run an operation faster than straight-line code this long, so the recursion's loops
 # are taken while they have at most 10% more operations than the straight-line sweeps (before
 # regrouping, the PUMA: 3583 against 3459). Past that the sweeps stay straight-line and forward
-# dynamics' derivatives are a row-wise solve.
+# dynamics' derivatives end in the loop over the rows of M^-1.
 RECURSION_LOOPS_WITHIN = 1.1
 
 
@@ -89,11 +88,11 @@ class DynamicsDerivatives:
                                                   ((OUTPUT, 0), (OUTPUT, 1), (OUTPUT, 2)))
             return b
         factor = cholesky_factor(self.graphs.mass())  # forward_dynamics' own, after CSE
-        coefficients = b.local(row_solve_coefficients(factor))
-        b.prologue(Slice(OUTPUT, 2), row_major(cholesky_substitute_columns(factor, ca.SX.eye(n))))
+        inverse = row_major(cholesky_substitute_columns(factor, ca.SX.eye(n)))
+        b.prologue(Slice(OUTPUT, 2), inverse)
         dq, dqd = self._id(s.q, s.qd, self.graphs.forward_dynamics())
         rows = b.local(row_major(ca.horzcat(dq, dqd)))
-        schedule_row_solve(b, n, coefficients, rows, 2 * n, [((OUTPUT, 0), 0, -1.0), ((OUTPUT, 1), n, -1.0)])
+        schedule_inverse_product(b, n, b.local(inverse), rows, 2 * n, [((OUTPUT, 0), 0, -1.0), ((OUTPUT, 1), n, -1.0)])
         return b
 
     def discrete_dynamics_derivatives_schedule(self, integrator: str, dt: ca.SX) -> ScheduleBuilder | None:
@@ -141,8 +140,8 @@ class DynamicsDerivatives:
 
     def _forward_large(self) -> bool:
         """Whether forward dynamics' derivatives (about twice the inverse's operations) are too
-        large for straight-line code: the UR5's 3088 ran in 693-701 ns, as the row-wise solve
-        in 628-633 (A/B, 3 rounds)."""
+        large for straight-line code: on a Zen 5 core the UR5's 3088 ran in 693-701 ns, with
+        the solve as loops in 628-633 (A/B, 3 rounds)."""
         s = self.sym
         return self._large() or (isinstance(self.graphs, ChainGraphs) and count_operations(
             [s.q, s.qd, s.tau], list(self.forward_dynamics_derivatives()[1:]))["total"] > DERIVATIVE_LOOPS_ABOVE_OPS)

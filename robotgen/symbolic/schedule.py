@@ -4,7 +4,7 @@ once. Straight-line code costs ~13 bytes per operation; a 7-dof arm's dynamics d
 unrolled (~75-115 KB) overflow the instruction cache, and a kernel that streams its code from
 L2 runs ~2.5x slower than one that fits. The loops here: the derivative recursion
 (rigid_body/derivative_loops), a long chain's or tree's dynamics (rigid_body/chain_loops) and
-row-wise solves (rigid_body/cholesky).
+products with M^-1 (rigid_body/cholesky).
 
 The schedule is the one source of the kernel's graph: ScheduleBuilder applies each loop's body
 to SX slices as it is added, and ``outputs()`` is the kernel's CasADi function, so the graph and
@@ -18,13 +18,11 @@ import casadi as ca
 LOCAL, OUTPUT = "local", "output"
 ONCE, RANGE, DESCENDING = "once", "range", "descending"
 BELOW, ABOVE, ABOVE_DESCENDING = "below", "above", "above descending"
-ROWS_BELOW, ROWS_ABOVE_DESCENDING = "rows below", "rows above descending"
 PAIRS = "pairs"
 """Index spaces over n: ONCE i = 0 (a straight-line block); RANGE i = 0, ..., n-1;
 DESCENDING i = n-1, ..., 0; pairs with j outer: BELOW j = 0, ..., n-1 and i in (j, n); ABOVE
-j = 1, ..., n-1 and i < j; ABOVE_DESCENDING the same with j = n-1, ..., 1; with i outer:
-ROWS_BELOW i = 1, ..., n-1 and j < i; ROWS_ABOVE_DESCENDING i = n-2, ..., 0 and j in (i, n);
-PAIRS the (i, j) of a listed table, in its order (a tree's ancestor pairs)."""
+j = 1, ..., n-1 and i < j; ABOVE_DESCENDING the same with j = n-1, ..., 1; PAIRS the (i, j)
+of a listed table, in its order (a tree's ancestor pairs)."""
 
 
 @dataclass(frozen=True)
@@ -68,10 +66,6 @@ class Loop:
             return [(i, j) for j in range(n) for i in range(j + 1, n)]
         if self.space == ABOVE:
             return [(i, j) for j in range(n) for i in range(j)]
-        if self.space == ROWS_BELOW:
-            return [(i, j) for i in range(1, n) for j in range(i)]
-        if self.space == ROWS_ABOVE_DESCENDING:
-            return [(i, j) for i in range(n - 2, -1, -1) for j in range(i + 1, n)]
         if self.space == ABOVE_DESCENDING:
             return [(i, j) for j in range(n - 1, 0, -1) for i in range(j)]
         raise ValueError(f"unknown index space {self.space!r}")

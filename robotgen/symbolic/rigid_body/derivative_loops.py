@@ -18,8 +18,8 @@ from robotgen.model.chain import KinematicTree
 from robotgen.symbolic.kernel import row_major
 from robotgen.symbolic.rigid_body.cholesky import (
     cholesky_factor,
-    row_solve_coefficients,
-    schedule_row_solve,
+    schedule_inverse_product,
+    solve_coefficients,
     solve_with_coefficients,
 )
 from robotgen.symbolic.rigid_body.friction import friction_torque
@@ -175,7 +175,7 @@ def schedule_forward_dynamics_derivatives(b: ScheduleBuilder, tree: KinematicTre
     m, h, rhs, coefficients = (ca.SX.sym(name, size) for name, size in
                                (("M", n * n), ("h", n), ("rhs", n), ("coefficients", 2 * n * n + n)))
     armature = ca.diag(ca.vertcat(*(joint.armature for joint in tree.joints)))
-    b.loop(body("factor", [m], [row_solve_coefficients(cholesky_factor(ca.reshape(m, n, n).T + armature))]),
+    b.loop(body("factor", [m], [solve_coefficients(cholesky_factor(ca.reshape(m, n, n).T + armature))]),
            ONCE, 1, [Slice(LOCAL, M)], [Slice(LOCAL, COEFFICIENTS)])
     # while the factorisation's chain of divisions runs: the terms that do not depend on qdd
     # (w, lam and the d tau/dqd pairs)
@@ -188,8 +188,11 @@ def schedule_forward_dynamics_derivatives(b: ScheduleBuilder, tree: KinematicTre
            [Slice(LOCAL, COEFFICIENTS), Slice(LOCAL, H), Slice(LOCAL, RHS)], [Slice(LOCAL, QDD)])
     # M^-1 = M^-1 I, the zeros of I dropping out of the straight-line code
     minv = ca.horzcat(*(solve_with_coefficients(coefficients, ca.SX.eye(n)[:, k]) for k in range(n)))
-    b.loop(body("mass_inverse", [coefficients], [row_major(minv)]), ONCE, 1, [Slice(LOCAL, COEFFICIENTS)],
-           [Slice(*targets[2])])
+    # the last loop reads M^-1 from a local: the target's, or a copy of an output's
+    copies = [] if targets[2][0] == LOCAL else [Slice(LOCAL, b.local(size=n * n))]
+    MINV = (copies[0] if copies else Slice(*targets[2])).index
+    b.loop(body("mass_inverse", [coefficients], [row_major(minv)] * (1 + len(copies))), ONCE, 1,
+           [Slice(LOCAL, COEFFICIENTS)], [Slice(*targets[2]), *copies])
     a_full = a_p + s * qdd_i + sdot * qd_i  # as forward_step, with Sdot from the velocity pass
     alpha_out = -motion_cross6(s, a_p) - motion_cross6(sdot, v_p)
     b.loop(body("acceleration_pass", [v_p, a_p, s, sdot, qd_i, qdd_i, c_i, inertia],
@@ -205,6 +208,5 @@ def schedule_forward_dynamics_derivatives(b: ScheduleBuilder, tree: KinematicTre
             at(c.ALPHA, 6)],
            [at(DFC, 6), at(c.GAMMA, 6)])
     c.pairs((LOCAL, ROWS), None, row_stride=2 * n)
-    schedule_row_solve(b, n, COEFFICIENTS, ROWS, 2 * n,
-                       [(targets[0], 0, -1.0), (targets[1], n, -1.0)])
+    schedule_inverse_product(b, n, MINV, ROWS, 2 * n, [(targets[0], 0, -1.0), (targets[1], n, -1.0)])
     return QDD
