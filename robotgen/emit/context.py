@@ -107,8 +107,19 @@ class HelperView:
     (robotgen.symbolic.schedule.Stage), printed once."""
 
     c_name: str
-    definition: str
+    definition: str  # static void rg_<stage>(...) {...}
     parts: tuple[int, ...] = ()  # the compile parts whose functions call it
+    home: int | None = None  # when several parts call it: the one part that defines it
+
+    @property
+    def shared_definition(self) -> str:
+        """The definition with the linkage RG_SHARED (external in robotgen's own build, so
+        that the other parts call this one copy; static in a user's build of the file)."""
+        return "RG_SHARED " + self.definition.removeprefix("static ")
+
+    @property
+    def prototype(self) -> str:
+        return "RG_SHARED " + self.definition.removeprefix("static ").split(" {", 1)[0] + ";"
 
 
 @dataclass(frozen=True)
@@ -185,9 +196,10 @@ def module_view(name: str, kernels: list[Kernel], *, nq: int, precision: str,
     for i, k in enumerate(kernels):
         progress.step(i + 1, len(kernels), f"printing C: {k.name}")
         functions.append(_function_view(name, k, PRECISIONS[precision], parameters, helper_names, stage_counts))
-    functions = _assign_parts(tuple(functions), helpers)
-    helpers = tuple(replace(h, parts=tuple(sorted({f.part for f in functions if h.c_name in f.helpers})))
-                    for h in helpers)
+    functions, homes = _assign_parts(tuple(functions), helpers)
+    helpers = tuple(replace(h, parts=parts, home=homes[h.c_name] if len(parts) > 1 else None)
+                    for h in helpers
+                    for parts in [tuple(sorted({f.part for f in functions if h.c_name in f.helpers}))])
     by_name = {f.name: f for f in functions}
     views = tuple(controller_view(name, c, by_name, PRECISIONS[precision], parameters) for c in controllers)
     _check_controller_names(name, functions, views, helpers)
@@ -216,7 +228,8 @@ def module_view(name: str, kernels: list[Kernel], *, nq: int, precision: str,
         raise KernelError(f"module {name!r}: an input or run-time parameter is named {OUT_KEYWORD!r}, "
                           "every function's keyword for its result arrays")
     sincos_parts = tuple(sorted({f.part for f in functions if sincos.HELPER + "(" in f.definition}
-                                | {k for h in helpers if sincos.HELPER + "(" in h.definition for k in h.parts}))
+                                | {k for h in helpers if sincos.HELPER + "(" in h.definition
+                                   for k in (h.parts if h.home is None else (h.home,))}))
     return ModuleView(
         name=name, macro_prefix=name.upper(), precision=precision,
         real=PRECISIONS[precision].real, nq=nq, robotgen_version=robotgen.__version__,
@@ -320,9 +333,10 @@ def _summary(doc: str, fallback: str) -> str:
 
 # A source past COMPILE_PARTS_ABOVE characters is compiled in COMPILE_PARTS processes at once
 # (robotgen.emit.compile): each kernel is in one part (#if RG_PART == k in <name>.c), and each
-# stage helper in every part that calls it. The number is fixed, not the machine's cores, so that
-# the emitted text is the same everywhere; a user's own build of <name>.c (no RG_PART) takes
-# every kernel.
+# stage helper in one part, its home, which the other parts that call it link to (RG_SHARED;
+# the iCub's kinematics, 6700 lines and 1.4 s of gcc, was compiled in both parts before). The
+# number is fixed, not the machine's cores, so that the emitted text is the same everywhere; a
+# user's own build of <name>.c (no RG_PART) takes every kernel.
 COMPILE_PARTS = 2
 COMPILE_PARTS_ABOVE = 300_000
 # gcc -O2 spends more time on a statement inside a loop body than on one of straight-line code,
@@ -345,22 +359,24 @@ def compile_cost(definition: str) -> int:
 
 
 def _assign_parts(functions: tuple[FunctionView, ...], helpers: tuple[HelperView, ...] = ()
-                  ) -> tuple[FunctionView, ...]:
-    """Each function into the part whose load (compile_cost, with the helpers it would add)
-    grows least, the costliest functions first."""
+                  ) -> tuple[tuple[FunctionView, ...], dict[str, int]]:
+    """Each function into the part whose load (compile_cost, with the helpers it would be the
+    first to call) grows least, the costliest functions first; and each helper's home: the
+    part of its first caller."""
     if sum(len(f.definition) for f in functions) + sum(len(h.definition) for h in helpers) <= COMPILE_PARTS_ABOVE:
-        return functions
+        return functions, {h.c_name: 0 for h in helpers}
     own = {f.name: compile_cost(f.definition) for f in functions}
     shared = {h.c_name: compile_cost(h.definition) for h in helpers}
-    load, held = [0] * COMPILE_PARTS, [set() for _ in range(COMPILE_PARTS)]
+    load, home = [0] * COMPILE_PARTS, {}
     part = {}
     for f in sorted(functions, key=lambda f: (-own[f.name] - sum(shared[h] for h in f.helpers), f.name)):
-        after = [load[k] + own[f.name] + sum(shared[h] for h in f.helpers if h not in held[k])
+        after = [load[k] + own[f.name] + sum(shared[h] for h in f.helpers if h not in home)
                  for k in range(COMPILE_PARTS)]
         k = after.index(min(after))
         part[f.name], load[k] = k, after[k]
-        held[k].update(f.helpers)
-    return tuple(replace(f, part=part[f.name]) for f in functions)
+        for h in f.helpers:
+            home.setdefault(h, k)
+    return tuple(replace(f, part=part[f.name]) for f in functions), home
 
 
 def _stage_helpers(kernels: list[Kernel], precision: c_kernel.Precision
