@@ -3,12 +3,21 @@
 robotgen.cli imports numpy and CasADi, which takes a moment; a Ctrl-C or SIGTERM that lands
 meanwhile is held until the import is done (raised inside a C extension's import it would
 surface as an ImportError traceback), then answered as robotgen answers it later: one line,
-exit 130 or 143, nothing done."""
+exit 130 or 143, nothing done. A Ctrl-C between the handlers' return and robotgen.cli.entry's
+own handling is answered the same way."""
 import signal
 import sys
 
 
 def main() -> None:
+    try:
+        _start()
+    except KeyboardInterrupt:
+        sys.stderr.write("robotgen: interrupted\n")
+        sys.exit(130)
+
+
+def _start() -> None:
     held: list[int] = []
     previous = {s: signal.signal(s, lambda signum, frame: held.append(signum))
                 for s in (signal.SIGINT, signal.SIGTERM)}
