@@ -103,8 +103,9 @@ class FunctionView:
 
 @dataclass(frozen=True)
 class HelperView:
-    """A static function of <name>.c that several kernels call: a schedule's stage
-    (robotgen.symbolic.schedule.Stage), printed once."""
+    """A function of <name>.c that several kernels call: a schedule's stage
+    (robotgen.symbolic.schedule.Stage), printed once; static, or RG_SHARED when functions of
+    several compile parts call it."""
 
     c_name: str
     definition: str  # static void rg_<stage>(...) {...}
