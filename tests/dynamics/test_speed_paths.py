@@ -16,8 +16,6 @@ from robotgen.model.snap import SNAP_TOLERANCE, snap_tree
 from robotgen.symbolic.leaf_kernels import leaf_kernels
 from robotgen.symbolic.op_count import count_operations
 from robotgen.symbolic.rigid_body.chain import ChainGraphs, Symbols
-from robotgen.symbolic.rigid_body.christoffel import coriolis_matrix
-from robotgen.symbolic.rigid_body.coriolis import coriolis_spatial
 
 TWO_LINK = Path(__file__).resolve().parents[2] / "specs" / "two_link.yaml"
 
@@ -42,19 +40,22 @@ def test_snapping_removes_only_noise():
             np.testing.assert_allclose(np.array(f_new(q)), np.array(f_raw(q)), atol=1e-8, err_msg=name)
 
 
-def test_spatial_coriolis_equals_christoffel_and_pinocchio():
-    tree = random_tree(4)
-    n = tree.nq
-    sym = Symbols.make(n)
-    g = ChainGraphs(tree, sym)
-    f = ca.Function("c", [sym.q, sym.qd], [coriolis_spatial(g.tree, g.motions, g.inertias, sym.qd),
-                                            coriolis_matrix(g.mass(), sym.q, sym.qd)])
-    model, _ = pinocchio_model(tree)
-    data = model.createData()
-    for q, qd in np.random.default_rng(5).normal(size=(20, 2, n)):
-        spatial, christoffel = (np.array(c) for c in f(q, qd))
-        np.testing.assert_allclose(spatial, christoffel, atol=1e-12)
-        np.testing.assert_allclose(spatial, pin.computeCoriolisMatrix(model, data, q, qd), atol=1e-12)
+def test_every_coriolis_form_equals_pinocchio():
+    """The three forms ChainGraphs.coriolis picks from, on a branched tree (the forces'
+    form with the q_i that M does not read set to 0) and on the Panda."""
+    for tree in (random_tree(4), read_urdf(str(robots_dir() / PANDA[0]), PANDA[1]).tree):
+        n = tree.nq
+        sym = Symbols.make(n)
+        candidates = ChainGraphs(tree, sym).coriolis_candidates()
+        assert sorted(candidates) == ["christoffel", "forces", "spatial"]
+        f = ca.Function("c", [sym.q, sym.qd], list(candidates.values()))
+        model, _ = pinocchio_model(tree)
+        data = model.createData()
+        for q, qd in np.random.default_rng(5).normal(size=(20, 2, n)):
+            expected = pin.computeCoriolisMatrix(model, data, q, qd)
+            for name, C in zip(candidates, f(q, qd)):
+                np.testing.assert_allclose(np.array(C), expected, atol=1e-12 * max(1, np.abs(expected).max()),
+                                           err_msg=name)
 
 
 def test_fused_servo_terms_equal_the_separate_functions():

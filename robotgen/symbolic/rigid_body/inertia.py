@@ -30,6 +30,9 @@ class OriginInertia:
     def of_vector(x: ca.SX) -> OriginInertia:
         return OriginInertia(x[0], x[1:4], ca.reshape(x[4:13], 3, 3))
 
+    def scaled(self, k: float) -> OriginInertia:
+        return OriginInertia(k * self.m, k * self.h, k * self.Ibar)
+
     def apply6(self, x: ca.SX) -> ca.SX:
         """apply on a stacked 6-vector (angular; linear)."""
         return ca.vertcat(*self.apply(x[:3], x[3:]))

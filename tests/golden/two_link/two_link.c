@@ -290,37 +290,34 @@ int two_link_mass(const double *q, double *mass) {
 }
 
 int two_link_coriolis(const double *q, const double *qd, double *coriolis) {
-  double w0, w2, w3, w4, w5, w6, w8, w9, w10, w11, w12, w13;
-  double w14, w15, w16, w17, w18, w20, w21, w23, w24;
+  double w0, w2, w3, w4, w5, w6, w7, w8, w9, w10, w11, w12;
+  double w13, w14, w15, w17, w20, w21;
   double rg_x[2], rg_s[2], rg_c[2];
-  w24 = q[1];
-  rg_x[0] = w24;
+  w21 = q[1];
+  rg_x[0] = w21;
   rg_x[1] = 0.0;
   rg_sincos2(rg_x, rg_s, rg_c);
-  w0 = 0.2016;
-  w10 = 0.4032;
-  w3 = qd[1];
+  w4 = qd[0];
+  w10 = qd[1];
+  w3 = 1.6;
   w2 = rg_s[0];
-  w9 = qd[0];
-  w8 = 0.5;
-  w23 = 0.0;
-  coriolis[3] = w23;
-  w11 = w10 * w2;
-  w13 = w0 * w2;
-  w4 = w2 * w3;
+  w11 = w4 + w10;
+  w5 = w3 * w4;
+  w9 = 0.252;
+  w0 = 0.126;
+  w8 = 0.8;
+  w20 = 0.0;
+  coriolis[3] = w20;
   w12 = w9 * w11;
-  w14 = w3 * w13;
-  w5 = w0 * w4;
-  w15 = w12 + w14;
-  w6 = -w5;
-  coriolis[0] = w6;
-  w16 = w5 + w15;
-  w20 = w15 - w5;
-  w17 = w8 * w16;
-  w21 = w8 * w20;
-  w18 = -w17;
-  coriolis[2] = w21;
-  coriolis[1] = w18;
+  w6 = w2 * w5;
+  w13 = w2 * w12;
+  w7 = w0 * w6;
+  w14 = w8 * w13;
+  w15 = w7 - w14;
+  w17 = -w14;
+  coriolis[2] = w7;
+  coriolis[1] = w17;
+  coriolis[0] = w15;
   return 0;
 }
 
