@@ -1,7 +1,9 @@
 """The hand-over between the symbolic layer and the emitters."""
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
+from functools import cached_property
 
 import casadi as ca
 
@@ -37,13 +39,16 @@ class Port:
 class Kernel:
     """One emitted function. ``function`` is a CasADi SX Function whose i-th input is a
     dense column of ``inputs[i].size`` and whose j-th output is a dense column of
-    ``outputs[j].size`` holding the matrix row by row."""
+    ``outputs[j].size`` holding the matrix row by row. ``graph`` is that Function or, for a
+    kernel with a schedule (whose C is printed from the schedule's parts), what builds it on
+    first use: a big tree's flattened kernels are CasADi's slowest step of a build and only
+    tests and checks evaluate them."""
 
     name: str
     doc: str
     inputs: tuple[Port, ...]
     outputs: tuple[Port, ...]
-    function: ca.Function
+    graph: ca.Function | Callable[[], ca.Function]
     # The emitted C checks its inputs and results: status 1 (nothing written) when an input
     # is NaN or infinite, 2 (every output set to 0) when a result is not finite, such as
     # forward dynamics where M is not positive definite. For the functions a controller
@@ -52,6 +57,10 @@ class Kernel:
     # How the C evaluates ``function`` when its work repeats (robotgen.symbolic.schedule):
     # a prologue and loops; None: one straight-line program.
     schedule: Schedule | None = None
+
+    @cached_property
+    def function(self) -> ca.Function:
+        return self.graph if isinstance(self.graph, ca.Function) else self.graph()
 
 
 def row_major(X: ca.SX) -> ca.SX:
@@ -98,7 +107,9 @@ def make_kernel(name: str, doc: str, inputs: list[tuple], outputs: list[tuple[st
     ports_in = tuple(Port(i[0], *(i[2] if len(i) > 2 else (i[1].shape[0], 1)), *i[3:]) for i in inputs)
     for port, expr, shape in outputs:
         assert expr.shape == shape, (name, port, expr.shape, shape)
-    f = ca.Function(name, [i[1] for i in inputs], [row_major(e) for _, e, _ in outputs],
-                    [i[0] for i in inputs], [o[0] for o in outputs], {"cse": True})
-    return Kernel(name, doc, ports_in, tuple(Port(o[0], *o[2]) for o in outputs), f, guarded,
+    def function() -> ca.Function:
+        return ca.Function(name, [i[1] for i in inputs], [row_major(e) for _, e, _ in outputs],
+                           [i[0] for i in inputs], [o[0] for o in outputs], {"cse": True})
+    return Kernel(name, doc, ports_in, tuple(Port(o[0], *o[2]) for o in outputs),
+                  function if schedule is not None else function(), guarded,
                   schedule.finish([i[1] for i in inputs]) if schedule is not None else None)
