@@ -94,21 +94,30 @@ class ParameterSymbols:
 NO_PARAMETERS = ParameterSymbols((), {})
 
 
-def make_kernel(name: str, doc: str, inputs: list[tuple], outputs: list[tuple[str, ca.SX, Shape]],
+def make_kernel(name: str, doc: str, inputs: list[tuple], outputs: list[tuple[str, ca.SX | None, Shape]],
                 parameters: ParameterSymbols = NO_PARAMETERS, *, guarded: bool = False,
                 schedule: ScheduleBuilder | None = None) -> Kernel:
     """The one way a kernel is built: ``inputs`` are (port name, SX column[, (rows, cols)
     the port shows, default a column]), ``outputs`` (port name, SX, (rows, cols)); matrices
     leave row-major, and CasADi's common-subexpression elimination is on. A kernel whose
     outputs read a run-time parameter gets the PARAMS port last. ``schedule``: the loops the
-    outputs were built by (their SX must be ``schedule.outputs()``)."""
-    if parameters.parameters and any(ca.depends_on(e, parameters.vector) for _, e, _ in outputs):
+    outputs were built by; their SX may be given as None, and are then ``schedule.outputs()``,
+    flattened only when the kernel's function is first used."""
+    for k, (port, expr, shape) in enumerate(outputs):
+        if expr is None:
+            assert schedule is not None and schedule.output_sizes[k] == shape[0] * shape[1], (name, port, shape)
+        else:
+            assert expr.shape == shape, (name, port, expr.shape, shape)
+
+    def columns() -> list[ca.SX]:
+        flat = schedule.outputs() if schedule is not None else None
+        return [flat[k] if e is None else row_major(e) for k, (_, e, _) in enumerate(outputs)]
+    if parameters.parameters and any(ca.depends_on(e, parameters.vector) for e in columns()):
         inputs = [*inputs, parameters.port()]
     ports_in = tuple(Port(i[0], *(i[2] if len(i) > 2 else (i[1].shape[0], 1)), *i[3:]) for i in inputs)
-    for port, expr, shape in outputs:
-        assert expr.shape == shape, (name, port, expr.shape, shape)
+
     def function() -> ca.Function:
-        return ca.Function(name, [i[1] for i in inputs], [row_major(e) for _, e, _ in outputs],
+        return ca.Function(name, [i[1] for i in inputs], columns(),
                            [i[0] for i in inputs], [o[0] for o in outputs], {"cse": True})
     return Kernel(name, doc, ports_in, tuple(Port(o[0], *o[2]) for o in outputs),
                   function if schedule is not None else function(), guarded,

@@ -85,11 +85,7 @@ def _looped(loops: ChainLoops, name: str, doc: str, inputs: str, shape: tuple[in
     b = ScheduleBuilder(symbols, [shape[0] * shape[1]])
     LOOPED[name](loops, b, sym)
     return make_kernel(prefix + name, doc, [(s, getattr(sym, s)) for s in inputs.split()],
-                       [(name, _shaped(b.outputs()[0], shape), shape)], guarded=name in GUARDED, schedule=b)
-
-
-def _shaped(row_major_column: ca.SX, shape: tuple[int, int]) -> ca.SX:
-    return ca.reshape(row_major_column, shape[1], shape[0]).T
+                       [(name, None, shape)], guarded=name in GUARDED, schedule=b)
 
 
 def _resolve(shape, n: int, k: int) -> tuple[int, int]:
@@ -132,10 +128,9 @@ def _derivative_kernels(graphs, integrator: str, n: int, prefix: str, parameters
     state = [("q", s.q), ("qd", s.qd), ("tau", s.tau), ("dt", dt)]
     square = (n, n)
     id_schedule, fd_schedule = d.inverse_dynamics_derivatives_schedule(), d.forward_dynamics_derivatives_schedule()
-    dq, dqd = ((_shaped(x, square) for x in id_schedule.outputs()) if id_schedule
-               else d.inverse_dynamics_derivatives())
-    fq, fqd, minv = ((_shaped(x, square) for x in fd_schedule.outputs()) if fd_schedule
-                     else d.forward_dynamics_derivatives()[1:])
+    # a scheduled kernel's outputs are its schedule's, flattened on first use (make_kernel)
+    dq, dqd = (None, None) if id_schedule else d.inverse_dynamics_derivatives()
+    fq, fqd, minv = (None, None, None) if fd_schedule else d.forward_dynamics_derivatives()[1:]
     step = "semi-implicit Euler (qd+ = qd + dt qdd, q+ = q + dt qd+)" if integrator == SEMI_IMPLICIT_EULER \
         else "classical Runge-Kutta (RK4) on (qd, qdd)"
     kernels = [
@@ -159,7 +154,7 @@ def _derivative_kernels(graphs, integrator: str, n: int, prefix: str, parameters
     step_schedule = d.discrete_dynamics_derivatives_schedule(integrator, dt)
     shapes = [(n, 1), (n, 1), (2 * n, 2 * n), (2 * n, n)]
     if step_schedule is not None:
-        q_next, qd_next, A, B = (_shaped(x, shape) for x, shape in zip(step_schedule.outputs(), shapes))
+        q_next, qd_next, A, B = None, None, None, None
     else:
         q_next, qd_next, A, B = d.discrete_dynamics_derivatives(integrator, dt)
     kernels.append(make_kernel(
@@ -184,7 +179,7 @@ def _servo_terms(graphs: ChainGraphs, sym: Symbols, n: int, prefix: str, loops: 
     if loops is not None and _long([sym.q, sym.qd], lambda: [o[1]() for o in outputs], n):
         schedule = ScheduleBuilder([sym.q, sym.qd], [n * n, n, 6 * n, 6])
         loops.servo_terms(schedule, sym.qd, graphs.jacobian(), graphs.jacobian_dot_qd())
-        outputs = [(name, _shaped(x, shape), shape) for (name, _, shape), x in zip(outputs, schedule.outputs())]
+        outputs = [(name, None, shape) for name, _, shape in outputs]
     else:
         outputs = [(name, build(), shape) for name, build, shape in outputs]
     return make_kernel(prefix + "servo_terms", "M(q), C(q, qd) qd + N, the tip Jacobian J and Jdot qd in one "
