@@ -109,6 +109,8 @@ def test_long_branched_tree_as_loops_matches_pinocchio(tmp_path):
     for name in ("mass", "coriolis", "inverse_dynamics", "nonlinear", "forward_dynamics", "servo_terms"):
         assert next(k for k in kernels if k.name == name).schedule is not None, name
     emit(tmp_path / "long_tree", "long_tree", kernels, nq=tree.nq)
+    # the zeroed accumulators and untouched outputs of M and C are printed as fill loops
+    assert "for (int rg_e = " in (tmp_path / "long_tree" / "long_tree.c").read_text()
     spec = importlib.util.spec_from_file_location(
         "long_tree", tmp_path / "long_tree" / f"long_tree{emit_compile.extension_suffix()}")
     module = importlib.util.module_from_spec(spec)

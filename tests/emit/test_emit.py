@@ -18,7 +18,7 @@ import casadi as ca
 import numpy as np
 import pytest
 
-from robotgen.emit import build
+from robotgen.emit import build, c_kernel
 from robotgen.emit import compile as emit_compile
 from robotgen.emit.c_kernel import OPERATIONS
 from robotgen.emit.sx_program import KernelError
@@ -818,3 +818,15 @@ _IDENTITY = ca.Function("f", [_X], [_X])
 def test_broken_kernels_are_internal_errors(tmp_path, kernel, message):
     with pytest.raises(KernelError, match=message):
         build.emit(tmp_path / "bad", "bad", [kernel], nq=1, compile=False)
+
+
+def test_long_runs_of_one_value_are_printed_as_fill_loops():
+    run = [f"t3[{k}] = w0;" for k in range(4, 4 + c_kernel.FILL_RUN)]
+    short = [f"out[{k}] = 0.0;" for k in range(c_kernel.FILL_RUN - 1)]
+    broken = [f"t1[{k}] = w{k % 2};" for k in range(2 * c_kernel.FILL_RUN)]  # the value alternates
+    gap = [f"t2[{k}] = 1e-05;" for k in (*range(10), *range(11, 30))]  # t2[10] is missing
+    assert c_kernel.fills(["w0 = 0.0;", *run, "w1 = w0 + q[0];"]) == [
+        "w0 = 0.0;", f"for (int rg_e = 4; rg_e < {4 + c_kernel.FILL_RUN}; ++rg_e) t3[rg_e] = w0;", "w1 = w0 + q[0];"]
+    assert c_kernel.fills(short) == short
+    assert c_kernel.fills(broken) == broken
+    assert c_kernel.fills(gap) == gap[:10] + ["for (int rg_e = 11; rg_e < 30; ++rg_e) t2[rg_e] = 1e-05;"]
