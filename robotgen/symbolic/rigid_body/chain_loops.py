@@ -48,12 +48,13 @@ from robotgen.symbolic.schedule import (
 # instruction cache and take gcc superlinear time to compile: a serial chain's are loops then.
 LOOPS_ABOVE_OPS = 5000
 # The Coriolis matrix's loops cost few operations more than its straight-line form (O(n^2) terms
-# against the Christoffel symbols' O(n^3)), so it turns to loops sooner: past ~2500 operations
-# (~32 kB of code, a level-1 instruction cache). The Panda's: 2951 operations in 36 kB, 593 ns;
-# as loops 3975 operations, 445 ns (Zen 5, gcc -O2); re-measured after later changes to the
-# straight-line code, 2906 operations in 455-470 ns and the loops in 446-472 ns: a tie, kept as
-# loops. Its other kernels run 2x slower as loops.
-CORIOLIS_LOOPS_ABOVE_OPS = 2500
+# against the Christoffel symbols' O(n^3)), so it turns to loops sooner: past ~3000 operations
+# (~39 kB of code, past a level-1 instruction cache). The Panda's: 2951 operations in 36 kB,
+# 593 ns, as loops 3975 operations, 445 ns (Zen 5, gcc -O2); after later changes, 2906 in
+# 455-470 ns and the loops in 446-472 ns: a tie, kept as loops (the bound was 2500). On a Zen 2
+# guest, 2663 operations straight ran in 719-1092 ns and the loops' 3752 in 940-1544 ns (8
+# alternating rounds; medians 850 and 1175): straight-line since.
+CORIOLIS_LOOPS_ABOVE_OPS = 3000
 # Past this many joints every kernel built here is (Coriolis alone is ~36 n^2 operations).
 LOOPS_ABOVE_DOF = 12
 
