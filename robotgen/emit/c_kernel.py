@@ -326,9 +326,14 @@ def _scheduled_body(kernel: Kernel, precision: Precision, read, helpers: dict[St
 # is printed as a loop. A schedule's prologue zeroes the arrays its loops add into and the
 # outputs they leave alone, up to a thousand stores in a row (the iCub's mass matrix), and gcc's
 # dead-store and alias passes take time quadratic in such a block: the iCub's mass compiled in
-# 1.6 s, forward dynamics in 3.7 s; with the runs as loops, 0.28 and 0.59 s. Shorter runs stay
-# stores (gcc may turn a long run's loop into a call to memset, which any gcc target has).
-FILL_RUN = 16
+# 1.6 s, forward dynamics in 3.7 s; with every run of 16 or more as a loop, 0.28 and 0.59 s,
+# but M then ran 7% slower (its outputs' zero runs of 18-32 as loops). With runs of 64 or more
+# as loops, the iCub's compile step took 4.3 s against 6.5 s and its kernels ran as fast (5
+# alternating rounds, a Zen 2 guest). The loop stores two elements per step (an odd run's last
+# store follows it): gcc -O2 makes that one 16-byte store per step, where a loop of single
+# stores of zero became `rep stosq` (an inline memset, slow to start) and of another value
+# stayed scalar.
+FILL_RUN = 64
 _STORE = re.compile(r"(\w+)\[(\d+)\] = ([\w.+-]+);")
 
 
@@ -342,7 +347,10 @@ def fills(statements: list[str]) -> list[str]:
             while end < len(statements) and statements[end] == f"{array}[{start + end - k}] = {value};":
                 end += 1
         if end - k >= FILL_RUN:
-            out.append(f"for (int rg_e = {start}; rg_e < {start + end - k}; ++rg_e) {array}[rg_e] = {value};")
+            even = (end - k) // 2 * 2
+            out.append(f"for (int rg_e = {start}; rg_e < {start + even}; rg_e += 2) "
+                       f"{{ {array}[rg_e] = {value}; {array}[rg_e + 1] = {value}; }}")
+            out += statements[k + even:end]
         else:
             out += statements[k:end]
         k = end
