@@ -122,7 +122,6 @@ class ScheduleBuilder:
     _prologue: list[tuple[ca.SX, Slice]] = field(default_factory=list)
     _loops: list[Loop] = field(default_factory=list)
     _stages: list[_StageValues] = field(default_factory=list)
-    _before_loops: tuple[list, list] | None = None  # _locals, _outputs without the loops' writes
     _flat: list[ca.SX] | None = None
 
     def __post_init__(self):
@@ -132,8 +131,6 @@ class ScheduleBuilder:
         """A local array, filled by the prologue with ``values`` or left for loops to write."""
         size = values.numel() if values is not None else size
         self._locals.append([None] * size)
-        if self._before_loops is not None:
-            self._before_loops[0].append([None] * size)
         index = len(self._locals) - 1
         if values is not None:
             self.prologue(Slice(LOCAL, index), ca.vec(values))
@@ -148,8 +145,6 @@ class ScheduleBuilder:
             values = ca.vec(values)
             symbol = ca.SX.sym(f"{name}_{output}", values.numel())
             self._locals.append([symbol[e] for e in range(values.numel())])
-            if self._before_loops is not None:
-                self._before_loops[0].append(list(self._locals[-1]))
             standing.append(symbol)
             arrays.append(len(self._locals) - 1)
         self._flat = None
@@ -163,10 +158,7 @@ class ScheduleBuilder:
         values = ca.vec(values)
         if self._loops and any(v is not None for v in self._load_any(target, values.numel())):
             raise ValueError("a prologue write after loops must go to elements nothing wrote")
-        elements = [values[e] for e in range(values.numel())]
-        self._store(target, elements, 0, 0)
-        if self._before_loops is not None:
-            self._store(target, elements, 0, 0, self._before_loops)
+        self._store(target, [values[e] for e in range(values.numel())], 0, 0)
         self._prologue.append((values, target))
         self._flat = None
 
@@ -177,8 +169,6 @@ class ScheduleBuilder:
             raise ValueError("the space PAIRS, and it alone, lists its pairs")
         if any(s.kind != LOCAL for s in reads):
             raise ValueError("loops read local arrays")
-        if self._before_loops is None:
-            self._before_loops = ([list(a) for a in self._locals], [list(a) for a in self._outputs])
         for i, j in loop.iterations():
             for k, s in enumerate(reads):
                 self._load(s, body.size1_in(k), i, j)
@@ -216,10 +206,14 @@ class ScheduleBuilder:
         return self._flat
 
     def _flatten(self) -> list[ca.SX]:
-        if self._before_loops is None:
-            arrays = (self._locals, self._outputs)
-        else:
-            arrays = tuple([list(a) for a in kind] for kind in self._before_loops)
+        """The stages' symbols and the prologue's values (which only go to elements no loop
+        wrote before them), then the loops in order."""
+        arrays = ([[None] * len(a) for a in self._locals], [[None] * size for size in self.output_sizes])
+        for st in self._stages:
+            for symbol, index in zip(st.symbols, st.arrays):
+                arrays[0][index] = [symbol[e] for e in range(symbol.numel())]
+        for values, target in self._prologue:
+            self._store(target, [values[e] for e in range(values.numel())], 0, 0, arrays)
         for loop in self._loops:
             for i, j in loop.iterations():
                 args = [ca.vertcat(*self._load(s, loop.body.size1_in(k), i, j, arrays))
