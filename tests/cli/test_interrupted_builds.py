@@ -93,6 +93,7 @@ def test_a_signal_inside_a_callback_is_neither_printed_nor_lost(signum, exceptio
     code = f"""
 import os, signal, sys, time, weakref
 from robotgen import cli
+signal.signal(signal.SIGINT, signal.default_int_handler)  # a background job starts with SIGINT ignored
 cli.answer_signals()  # as the robotgen command does before anything else
 class Body: pass
 body = Body()
