@@ -67,21 +67,30 @@ def test_emitted_c_is_clean_under_sanitizers(tmp_path, spec):
     (tmp_path / "harness.c").write_text(harness(manifest))
     sources = [str(out / f"{manifest['name']}.c"), str(tmp_path / "harness.c")]
     exes = {cc: tmp_path / f"harness-{cc}" for cc in COMPILERS}
-    # gcc's and clang's builds, then their runs, side by side (each is one process)
-    builds = {cc: subprocess.Popen([cc, *SANITIZE, "-std=c99", f"-I{out}", *sources, "-lm", "-o", str(exe)],
-                                   stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-              for cc, exe in exes.items()}
-    for cc, build in builds.items():
-        stderr = build.communicate()[1]
-        if build.returncode != 0 and "sanitize" in stderr and "unsupported" in stderr.lower():
-            pytest.skip(f"{cc} has no sanitizer runtime here: {stderr.strip()[:200]}")
-        assert build.returncode == 0, stderr
-    runs = {cc: subprocess.Popen([str(exe)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                                 env={"ASAN_OPTIONS": "detect_leaks=1", "UBSAN_OPTIONS": "print_stacktrace=1"})
-            for cc, exe in exes.items()}
-    for cc, run in runs.items():
-        stdout, stderr = run.communicate(timeout=600)
-        assert run.returncode == 0 and stdout.startswith("done"), f"{cc}: {stderr[-3000:]}"
+    started: list[subprocess.Popen] = []
+
+    def start(command: list[str], **kwargs) -> subprocess.Popen:
+        started.append(subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, **kwargs))
+        return started[-1]
+
+    try:  # gcc's and clang's builds, then their runs, side by side (each is one process)
+        builds = {cc: start([cc, *SANITIZE, "-std=c99", f"-I{out}", *sources, "-lm", "-o", str(exe)])
+                  for cc, exe in exes.items()}
+        for cc, build in builds.items():
+            stderr = build.communicate()[1]
+            if build.returncode != 0 and "sanitize" in stderr and "unsupported" in stderr.lower():
+                pytest.skip(f"{cc} has no sanitizer runtime here: {stderr.strip()[:200]}")
+            assert build.returncode == 0, stderr
+        runs = {cc: start([str(exe)], env={"ASAN_OPTIONS": "detect_leaks=1", "UBSAN_OPTIONS": "print_stacktrace=1"})
+                for cc, exe in exes.items()}
+        for cc, run in runs.items():
+            stdout, stderr = run.communicate(timeout=600)
+            assert run.returncode == 0 and stdout.startswith("done"), f"{cc}: {stderr[-3000:]}"
+    finally:  # a skip or a failure leaves no process behind
+        for process in started:
+            if process.poll() is None:
+                process.kill()
+                process.communicate()
 
 
 @pytest.mark.skipif(not COMPILERS, reason="no C compiler")
