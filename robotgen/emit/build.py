@@ -113,16 +113,26 @@ def _check_replaceable(out_dir: Path) -> None:
 
 @contextmanager
 def _signals_held():
-    """SIGINT and SIGTERM wait until the block is left (POSIX, main thread): the two renames
-    of a swap happen both or neither, so the output is never missing."""
-    held = {signal.SIGINT, signal.SIGTERM}
-    can = hasattr(signal, "pthread_sigmask") and threading.current_thread() is threading.main_thread()
-    before = signal.pthread_sigmask(signal.SIG_BLOCK, held) if can else None
+    """SIGINT and SIGTERM wait until the block is left: the two renames of a swap and the
+    removal of the old output happen whole, so the output is never missing and nothing is
+    left beside it. Python runs signal handlers in the main thread, between bytecodes, but the
+    signal itself may reach any thread (OpenBLAS's among them), so masking it in this one is
+    not enough: until the block is left the handlers only note the signal, which is then
+    raised again under the handlers of before."""
+    held = (signal.SIGINT, signal.SIGTERM)
+    if threading.current_thread() is not threading.main_thread() or None in map(signal.getsignal, held):
+        yield  # the handlers raise in the main thread only; None: a handler not set from Python
+        return
+    noted: list[int] = []
+    before = {signum: signal.signal(signum, lambda signum, frame: noted.append(signum))
+              for signum in held}
     try:
         yield
     finally:
-        if can:
-            signal.pthread_sigmask(signal.SIG_SETMASK, before)
+        for signum, handler in before.items():
+            signal.signal(signum, handler)
+        if noted:
+            signal.raise_signal(noted[0])
 
 
 @contextmanager

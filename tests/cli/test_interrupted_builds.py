@@ -107,3 +107,28 @@ except {exception}:
 """
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
     assert (done.stdout.strip(), done.stderr) == ("stopped", "")
+
+
+@pytest.mark.parametrize("signum", ["SIGTERM", "SIGINT"])
+def test_a_signal_during_the_swap_waits_for_its_end_whatever_thread_takes_it(signum):
+    """The kernel gives a signal to any thread that does not block it (numpy's OpenBLAS runs
+    threads in every build), and Python then runs the handler in the main thread between two
+    bytecodes: inside the swap, had it only been masked in the main thread. It runs after."""
+    code = f"""
+import os, signal, threading, time
+from robotgen.emit import build
+events = []
+signal.signal(signal.{signum}, lambda signum, frame: events.append("handler"))
+idle = threading.Event()
+other = threading.Thread(target=idle.wait)
+other.start()
+with build._signals_held():
+    os.kill(os.getpid(), signal.{signum})
+    time.sleep(0.2)  # time for the other thread to take it
+    events.append("block done")
+idle.set()
+other.join()
+print(" ".join(events))
+"""
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    assert (done.stdout.strip(), done.stderr) == ("block done handler", "")
