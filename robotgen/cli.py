@@ -40,17 +40,14 @@ def _unraisable(hook) -> None:
     """A signal's exception raised where Python cannot pass it on (in a weakref callback of
     the import system, say) would be printed as "Exception ignored" with a traceback and
     lost, and the build would go on. The signal is sent again instead, 10 ms later from
-    another thread (sent from here it would be raised here again), to the main thread: sent
-    to the process, the kernel may hand it to the sending thread, and a main thread asleep
-    would not wake (seen in CI: a 5 s sleep went on). It is raised in the main thread at the
-    next point that can pass it on."""
+    another thread (sent from here it would be raised here again), to be raised in the main
+    thread at the next point that can pass it on."""
     signum = (signal.SIGINT if issubclass(hook.exc_type, KeyboardInterrupt) else
               signal.SIGTERM if issubclass(hook.exc_type, _Terminated) else None)
     if signum is None:
         sys.__unraisablehook__(hook)
     else:
-        resend = (threading.Timer(0.01, signal.pthread_kill, (threading.main_thread().ident, signum))
-                  if hasattr(signal, "pthread_kill") else threading.Timer(0.01, os.kill, (os.getpid(), signum)))
+        resend = threading.Timer(0.01, os.kill, (os.getpid(), signum))
         resend.daemon = True
         resend.start()
 
