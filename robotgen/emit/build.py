@@ -124,8 +124,7 @@ def _signals_held():
         yield  # the handlers raise in the main thread only; None: a handler not set from Python
         return
     noted: list[int] = []
-    before = {signum: signal.signal(signum, lambda signum, frame: noted.append(signum))
-              for signum in held}
+    before = {signum: signal.signal(signum, lambda received, frame: noted.append(received)) for signum in held}
     try:
         yield
     finally:
