@@ -48,13 +48,14 @@ from robotgen.symbolic.schedule import (
 # instruction cache and take gcc superlinear time to compile: a serial chain's are loops then.
 LOOPS_ABOVE_OPS = 5000
 # The Coriolis matrix's loops cost few operations more than its straight-line form (O(n^2) terms
-# against the Christoffel symbols' O(n^3)), so it turns to loops sooner: past ~3000 operations
-# (~39 kB of code, past a level-1 instruction cache). The Panda's: 2951 operations in 36 kB,
-# 593 ns, as loops 3975 operations, 445 ns (Zen 5, gcc -O2); after later changes, 2906 in
-# 455-470 ns and the loops in 446-472 ns: a tie, kept as loops (the bound was 2500). On a Zen 2
-# guest, 2663 operations straight ran in 719-1092 ns and the loops' 3752 in 940-1544 ns (8
-# alternating rounds; medians 850 and 1175): straight-line since.
-CORIOLIS_LOOPS_ABOVE_OPS = 3000
+# against the Christoffel symbols' O(n^3)), so it turns to loops sooner, past 2500 operations.
+# Which runs faster depends on the core: the Panda's 2663 straight-line operations (31 kB of
+# code) against the loops' 3752 (5 kB), gcc -O2, calls back to back in alternating rounds:
+# 719-1092 ns against 940-1544 on a Zen 2 guest; 482-503 against 375-391 on a Zen 5 one, where
+# with two other large kernels called between them (their code sharing the caches) they tied,
+# 454-537 against 488-512. Loops it is, for the smaller code: on a Cortex-M7 (gcc -O2) 2.9 kB
+# against 19 kB, where common parts have a 4-16 kB instruction cache.
+CORIOLIS_LOOPS_ABOVE_OPS = 2500
 # Past this many joints every kernel built here is (Coriolis alone is ~36 n^2 operations).
 LOOPS_ABOVE_DOF = 12
 
