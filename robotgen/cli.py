@@ -14,7 +14,7 @@ from dataclasses import replace
 from pathlib import Path
 
 import robotgen
-from robotgen.emit.compile import NoCompiler
+from robotgen.emit.compile import CompilerSetupError
 from robotgen.emit.targets import TARGETS, TargetUnavailable, check_available
 from robotgen.errors import UserError, UserErrors
 from robotgen.model.derivatives import INTEGRATORS, SEMI_IMPLICIT_EULER, DerivativeSettings
@@ -355,7 +355,7 @@ def main(argv: list[str] | None = None) -> int:
     except _Usage as e:
         print(f"robotgen: error: {e}", file=sys.stderr)
         return EXIT_USAGE
-    except NoCompiler as e:
+    except CompilerSetupError as e:
         print(f"robotgen: error: {e}", file=sys.stderr)
         return EXIT_USER
     except KeyboardInterrupt:  # Ctrl-C: the build's staging directory is already cleaned up

@@ -2,7 +2,7 @@
 
 The key covers everything a build depends on: the spec (and the files it reads, such as a
 URDF), the output options, robotgen's own code and templates, and the CasADi and compiler
-versions. It is stored beside the build in BUILD_KEY (not part of the emitted sources, so
+versions, and $CFLAGS. It is stored beside the build in BUILD_KEY (not part of the emitted sources, so
 generated/ stays byte-identical across robotgen edits that change nothing emitted)."""
 from __future__ import annotations
 
@@ -11,7 +11,7 @@ import sysconfig
 from importlib import metadata
 from pathlib import Path
 
-from robotgen.emit.compile import compiler
+from robotgen.emit.compile import compiler, user_flags
 from robotgen.emit.render import template_dir
 
 BUILD_KEY = ".robotgen-build"
@@ -29,6 +29,7 @@ def build_key(inputs: list[Path], options: dict) -> str:
     h.update(repr(sorted(options.items())).encode())
     h.update(metadata.version("casadi").encode())
     h.update(" ".join(compiler()).encode())  # $CC or Python's
+    h.update(b"\0" + " ".join(user_flags()).encode())  # $CFLAGS
     return h.hexdigest()
 
 

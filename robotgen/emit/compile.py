@@ -18,9 +18,17 @@ class CompileError(RuntimeError):
     """The compiler rejected generated code: a robotgen bug (message holds its output)."""
 
 
-class NoCompiler(OSError):
-    """The C compiler named by $CC (or Python's build configuration) is not there: the
-    machine's setup, not a robotgen bug."""
+class CompilerSetupError(OSError):
+    """The machine's compiler setup, not a robotgen bug: the user's to mend."""
+
+
+class NoCompiler(CompilerSetupError):
+    """The C compiler named by $CC (or Python's build configuration) is not there."""
+
+
+class FlagsRejected(CompilerSetupError):
+    """The compiler failed with the user's $CFLAGS (their flags, not the generated code, are
+    the first suspect)."""
 
 
 def extension_suffix() -> str:
@@ -32,6 +40,13 @@ def compiler() -> list[str]:
     return shlex.split(os.environ.get("CC") or sysconfig.get_config_var("CC") or "cc")
 
 
+def user_flags() -> list[str]:
+    """$CFLAGS, placed after robotgen's -O2 (so -O3 or -march=native take effect) and before
+    -std=c99, which keeps ISO C's floating point: no contraction of a * b + c into one fused
+    multiply-add, so a build for a wider instruction set computes the same bits."""
+    return shlex.split(os.environ.get("CFLAGS", ""))
+
+
 def compile_extension(build_dir: Path, name: str, sources: list[str], parts: int = 1) -> Path:
     """Builds ``<name><EXT_SUFFIX>`` in ``build_dir`` from the named sources there. With
     ``parts`` > 1, ``<name>.c`` is compiled as that many parts (-DRG_PART=k), every source to an
@@ -39,7 +54,7 @@ def compile_extension(build_dir: Path, name: str, sources: list[str], parts: int
     paths = sysconfig.get_paths()
     includes = dict.fromkeys([paths["include"], paths["platinclude"], np.get_include()])
     target = name + extension_suffix()
-    flags = ["-O2", "-fPIC", *WARNING_FLAGS, *(f"-I{d}" for d in includes)]
+    flags = ["-O2", "-fPIC", *user_flags(), *WARNING_FLAGS, *(f"-I{d}" for d in includes)]
     link = ["-shared", *(["-undefined", "dynamic_lookup"] if sys.platform == "darwin" else [])]
     if parts <= 1:
         _run([*compiler(), *flags, *link, *sources, "-o", target, "-lm"], build_dir, name)
@@ -71,6 +86,11 @@ def _run(command: list[str], build_dir: Path, name: str) -> None:
         raise NoCompiler(f"no C compiler: cannot run {command[0]!r} ({error.strerror}); install one (gcc or clang) "
                          "or set CC to it, or build with --no-compile") from None
     if result.returncode != 0:
+        if user_flags():
+            raise FlagsRejected(
+                f"compiling the generated extension {name!r} failed with CFLAGS={shlex.join(user_flags())!r} "
+                f"from the environment; unset CFLAGS to build with robotgen's own flags:\n"
+                f"$ {shlex.join(command)}\n{result.stdout}{result.stderr}")
         raise CompileError(
             f"compiling the generated extension {name!r} failed (a robotgen bug):\n"
             f"$ {shlex.join(command)}\n{result.stdout}{result.stderr}")
