@@ -29,6 +29,10 @@ Then, for each URDF arm (default UR5 and Panda; none when --spec is given, unles
    Pinocchio / robotgen (> 1: the generated C is faster) and the generated kernels' op counts,
    the derivatives of inverse and forward dynamics included (computeRNEADerivatives,
    computeABADerivatives).
+7. times the fused servo terms against the four separate calls and Pinocchio's three;
+8. (not with --quick) times each URDF arm's kernels built with -march=native against the
+   portable build: the same bits (-std=c99 keeps a * b + c unfused), what this CPU's wider
+   instructions buy.
 The compiled Pinocchio harness is cached in bench/out/ (its compile takes ~35 s).
 
 Inputs are random states (angles in [-pi, pi], rates in [-2, 2]); every number is the
@@ -43,6 +47,7 @@ import datetime
 import hashlib
 import importlib
 import json
+import math
 import os
 import platform
 import re
@@ -87,13 +92,13 @@ def kernel_sources(out: Path) -> list[Path]:
     return srcs
 
 
-def c_harness(out: Path, name: str, nq: int, work: Path) -> tuple[Path, list[str]]:
+def c_harness(out: Path, name: str, nq: int, work: Path, flags: list[str] = CFLAGS) -> tuple[Path, list[str]]:
     """bench/harness.c compiled against the generated kernels in OUT (once per work directory)."""
     cc = os.environ.get("CC", "cc")
     exe = work / "harness"
     derivatives = any(f["name"] == "inverse_dynamics_derivatives"
                       for f in json.loads((out / "manifest.json").read_text())["functions"])
-    cmd = [cc, *CFLAGS, f'-DRG_HEADER="{name}.h"', f"-DRG_PREFIX={name}", f"-DRG_NQ={nq}",
+    cmd = [cc, *flags, f'-DRG_HEADER="{name}.h"', f"-DRG_PREFIX={name}", f"-DRG_NQ={nq}",
            *(["-DRG_DERIVATIVES"] if derivatives else []),
            f"-I{out}", str(HERE / "harness.c"), *map(str, kernel_sources(out)), "-lm", "-o", str(exe)]
     if not exe.exists():  # a work directory holds one build (run again in later rounds)
@@ -115,12 +120,12 @@ def fresh_copy(path: Path, directory: Path) -> Path:
 
 
 def run_c(out: Path, name: str, nq: int, functions: list[str], work: Path, single_calls: bool = False,
-          back_to_back: bool = True) -> dict:
+          back_to_back: bool = True, flags: list[str] = CFLAGS) -> dict:
     """Each function back to back (throughput: the core overlaps consecutive calls), and with
     single_calls also one call at a time (the harness's serial mode: a single call's time, as
     a Python call makes it)."""
     cc = os.environ.get("CC", "cc")
-    exe, cmd = c_harness(out, name, nq, work)
+    exe, cmd = c_harness(out, name, nq, work, flags)
     exe = fresh_copy(exe, work / "round")
     results: dict = {}
     for mode in ("",) * back_to_back + ("serial",) * single_calls:
@@ -133,7 +138,7 @@ def run_c(out: Path, name: str, nq: int, functions: list[str], work: Path, singl
             else:
                 results[fn] = {"ns_min": float(ns_min), "ns_median": float(ns_med), "iterations": int(iters)}
     return {"compiler": subprocess.run([cc, "--version"], capture_output=True, text=True).stdout.splitlines()[0],
-            "cflags": CFLAGS, "command": " ".join(cmd), "results": results}
+            "cflags": flags, "command": " ".join(cmd), "results": results}
 
 
 def calibrate(out: Path, name: str, nq: int, work: Path, rounds: int = 3) -> dict:
@@ -533,6 +538,33 @@ def fused_section(robots: list[tuple[str, Path, int]], tmp: Path, versus: list[d
     return rows
 
 
+def native_section(built: dict, tmp: Path, rounds: int) -> list[dict]:
+    """The same generated C compiled for this CPU (-march=native; -std=c99 keeps a * b + c
+    unfused, so it computes the same bits) against the portable build, alternating rounds."""
+    native = [*CFLAGS, "-march=native"]
+    functions = [*PIN_FUNCTIONS, "servo_terms"]
+    print(f"\nbench: the same C built for this CPU ({' '.join(native)}) vs the portable build "
+          f"({' '.join(CFLAGS)}), least of {rounds} alternating rounds")
+    rows = []
+    for name, b in built.items():
+        best: dict = {}
+        for _ in range(rounds):
+            for label, flags in (("portable", CFLAGS), ("native", native)):
+                res = run_c(b["out"], name, b["nq"], functions, tmp / f"{label}-{name}", flags=flags)["results"]
+                for fn, t in res.items():
+                    best.setdefault(fn, {})[label] = min(t["ns_min"], best.get(fn, {}).get(label, math.inf))
+        for fn in functions:
+            t = best[fn]
+            rows.append({"robot": name, "function": fn, "portable_ns": t["portable"], "native_ns": t["native"],
+                         "speedup": t["portable"] / t["native"]})
+    header = f"{'robot':6s} {'function':30s} {'portable ns':>11s} {'native ns':>10s} {'speedup':>8s}"
+    print(header + "\n" + "-" * len(header))
+    for r in rows:
+        print(f"{r['robot']:6s} {r['function']:30s} {r['portable_ns']:11.1f} {r['native_ns']:10.1f} "
+              f"{r['speedup']:8.2f}")
+    return rows
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--spec", help="spec to benchmark (default specs/puma560.yaml)")
@@ -651,6 +683,8 @@ def main(argv=None) -> int:
         result["fused_servo_terms"] = fused_section(
             [(name, out, nq)] + [(n, b["out"], b["nq"]) for n, b in (built or {}).items()], Path(tmp),
             versus.get("robots", []) if versus else [], 1 if args.quick else 2)
+        if built and not args.quick:
+            result["native_build"] = native_section(built, Path(tmp), 2)
         Path(args.json).write_text(json.dumps(result, indent=2) + "\n")
         print(f"bench: wrote {args.json}")
     finally:
