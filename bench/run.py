@@ -31,7 +31,7 @@ Then, for each URDF arm (default UR5 and Panda; none when --spec is given, unles
    computeABADerivatives).
 7. times the fused servo terms against the four separate calls and Pinocchio's three;
 8. (not with --quick) times each URDF arm's kernels built with -march=native against the
-   portable build: the same bits (-std=c99 keeps a * b + c unfused), what this CPU's wider
+   portable build: the same bits (-ffp-contract=off keeps a * b + c unfused), what this CPU's wider
    instructions buy.
 The compiled Pinocchio harness is cached in bench/out/ (its compile takes ~35 s).
 
@@ -539,9 +539,10 @@ def fused_section(robots: list[tuple[str, Path, int]], tmp: Path, versus: list[d
 
 
 def native_section(built: dict, tmp: Path, rounds: int) -> list[dict]:
-    """The same generated C compiled for this CPU (-march=native; -std=c99 keeps a * b + c
-    unfused, so it computes the same bits) against the portable build, alternating rounds."""
-    native = [*CFLAGS, "-march=native"]
+    """The same generated C compiled for this CPU (-march=native; -ffp-contract=off keeps
+    a * b + c unfused, so it computes the same bits) against the portable build, alternating
+    rounds."""
+    native = [*CFLAGS, "-march=native", "-ffp-contract=off"]  # as the extension's build adds
     functions = [*PIN_FUNCTIONS, "servo_terms"]
     print(f"\nbench: the same C built for this CPU ({' '.join(native)}) vs the portable build "
           f"({' '.join(CFLAGS)}), least of {rounds} alternating rounds")

@@ -12,6 +12,9 @@ from pathlib import Path
 import numpy as np
 
 WARNING_FLAGS = ("-std=c99", "-Wall", "-Wextra", "-Werror")
+# No a * b + c fused into one multiply-add, whatever $CFLAGS asks for the instruction set: gcc
+# does not fuse under -std=c99, clang does within an expression (its sin/cos polynomials) unless told
+SAME_BITS_FLAGS = ("-ffp-contract=off",)
 
 
 class CompileError(RuntimeError):
@@ -42,8 +45,8 @@ def compiler() -> list[str]:
 
 def user_flags() -> list[str]:
     """$CFLAGS, placed after robotgen's -O2 (so -O3 or -march=native take effect) and before
-    -std=c99, which keeps ISO C's floating point: no contraction of a * b + c into one fused
-    multiply-add, so a build for a wider instruction set computes the same bits."""
+    -std=c99 and SAME_BITS_FLAGS, so that a build for a wider instruction set computes the
+    portable build's bits."""
     return shlex.split(os.environ.get("CFLAGS", ""))
 
 
@@ -54,7 +57,7 @@ def compile_extension(build_dir: Path, name: str, sources: list[str], parts: int
     paths = sysconfig.get_paths()
     includes = dict.fromkeys([paths["include"], paths["platinclude"], np.get_include()])
     target = name + extension_suffix()
-    flags = ["-O2", "-fPIC", *user_flags(), *WARNING_FLAGS, *(f"-I{d}" for d in includes)]
+    flags = ["-O2", "-fPIC", *user_flags(), *WARNING_FLAGS, *SAME_BITS_FLAGS, *(f"-I{d}" for d in includes)]
     link = ["-shared", *(["-undefined", "dynamic_lookup"] if sys.platform == "darwin" else [])]
     if parts <= 1:
         _run([*compiler(), *flags, *link, *sources, "-o", target, "-lm"], build_dir, name)
