@@ -2,12 +2,13 @@
 matrix, the fused servo terms, and the content-hash build cache."""
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 import casadi as ca
 import numpy as np
 import pinocchio as pin
-from robots import PANDA, robots_dir
+from robots import PANDA, UR5, robots_dir
 from test_tree_pinocchio import pinocchio_model, random_tree
 
 from robotgen.cli import main
@@ -15,6 +16,7 @@ from robotgen.frontend.urdf import read_urdf
 from robotgen.model.snap import SNAP_TOLERANCE, snap_tree
 from robotgen.symbolic.leaf_kernels import leaf_kernels
 from robotgen.symbolic.op_count import count_operations
+from robotgen.symbolic.rigid_body.base_turn import base_axis, turned
 from robotgen.symbolic.rigid_body.chain import ChainGraphs, Symbols
 
 TWO_LINK = Path(__file__).resolve().parents[2] / "specs" / "two_link.yaml"
@@ -68,6 +70,31 @@ def test_fused_servo_terms_equal_the_separate_functions():
         np.testing.assert_array_equal(h, np.array(k["nonlinear"](q, qd)).ravel())
         np.testing.assert_array_equal(J, np.array(k["jacobian"](q)).ravel())
         np.testing.assert_array_equal(a, np.array(k["jacobian_dot_qd"](q, qd)).ravel())
+
+
+def test_the_first_joints_turn_factored_out_changes_nothing():
+    """fk, J and Jdot qd at q_0 = 0 turned by R(q_0) equal the direct forms, on a branched
+    tree whose first axis is oblique and passes through the base origin (gravity not along
+    it), on the UR5 and on the Panda; a first axis off the origin has no such turn."""
+    tree = random_tree(7)
+    assert base_axis(tree) is None  # its first joint sits off its axis line through the origin
+    first = tree.joints[0]
+    origin = first.origin.copy()
+    origin[:3, 3] = 0.4 * (origin[:3, :3] @ first.axis)
+    oblique = replace(tree, joints=(replace(first, origin=origin), *tree.joints[1:]))
+    for t in (oblique, read_urdf(str(robots_dir() / UR5[0]), UR5[1]).tree,
+              read_urdf(str(robots_dir() / PANDA[0]), PANDA[1]).tree):
+        n = t.nq
+        sym = Symbols.make(n)
+        g = ChainGraphs(t, sym)
+        assert base_axis(g.tree) is not None
+        direct = [g.fk(), g._jacobian_direct(), g._jacobian_dot_qd_direct()]
+        turn = [turned(g.tree, sym.q, direct[0], 0), g._turned("jacobian"), g._turned("jacobian_dot_qd")]
+        f = ca.Function("f", [sym.q, sym.qd], direct + turn)
+        for q, qd in np.random.default_rng(3).normal(size=(20, 2, n)):
+            out = [np.array(x) for x in f(q, qd)]
+            for a, b in zip(out[:3], out[3:]):
+                np.testing.assert_allclose(b, a, atol=1e-13 * max(1.0, np.abs(a).max()))
 
 
 def test_unchanged_spec_is_not_rebuilt(tmp_path, capsys):

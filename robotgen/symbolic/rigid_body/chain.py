@@ -11,6 +11,7 @@ from robotgen.model.regrouping import regrouped_inertias
 from robotgen.model.snap import snap_tree
 from robotgen.symbolic.differentiation import reverse_jacobian
 from robotgen.symbolic.op_count import count_operations
+from robotgen.symbolic.rigid_body.base_turn import turned
 from robotgen.symbolic.rigid_body.cholesky import cholesky_solve
 from robotgen.symbolic.rigid_body.christoffel import coriolis_from_forces, coriolis_matrix
 from robotgen.symbolic.rigid_body.coriolis import coriolis_spatial
@@ -38,6 +39,8 @@ class Symbols:
 # Above this many joints the AD Christoffel form (O(n^3) terms) is not even tried: at 12 it
 # is already twice the spatial algorithm's size, at 30 seven times.
 AD_CORIOLIS_MAX_DOF = 12
+# Up to this many joints the choice of the tip's form counts it with M and C qd + N (straight-line there)
+TIP_FORM_COUNTED_MAX_DOF = 12
 
 
 class ChainGraphs:
@@ -56,19 +59,57 @@ class ChainGraphs:
             self._cache[key] = build()
         return self._cache[key]
 
+    def _fewest(self, inputs: list[ca.SX], candidates: list[ca.SX | None]) -> ca.SX:
+        """The candidate CasADi's CSE leaves with fewest operations (the first on a tie)."""
+        return min((c for c in candidates if c is not None), key=lambda e: count_operations(inputs, [e])["total"])
+
     def fk(self) -> ca.SX:
-        return self._get("fk", lambda: forward_kinematics(self.tree, self.sym.q))
+        """The tip pose directly or with the first joint's turn factored out (base_turn)."""
+        def build():
+            direct = forward_kinematics(self.tree, self.sym.q)
+            return self._fewest([self.sym.q], [direct, turned(self.tree, self.sym.q, direct, 0)])
+        return self._get("fk", build)
 
     def jacobian(self) -> ca.SX:
-        return self._get("jacobian", lambda: geometric_jacobian(self.tree, self.sym.q))
+        """Directly or with the first joint's turn factored out, as tip_turned decides."""
+        return self._turned("jacobian") if self.tip_turned() else self._jacobian_direct()
+
+    def _jacobian_direct(self) -> ca.SX:
+        return self._get("jacobian_direct", lambda: geometric_jacobian(self.tree, self.sym.q))
+
+    def _jacobian_dot_qd_direct(self) -> ca.SX:
+        return self._get("jdqd_direct", lambda: tip_bias_acceleration(
+            self.tree, joint_poses(self.tree, self.motions), self.bias_pass()))
+
+    def _turned(self, name: str) -> ca.SX | None:
+        """The Jacobian or Jdot qd at q_root = 0, turned by R(q_root); None if no such turn."""
+        direct = self._jacobian_direct() if name == "jacobian" else self._jacobian_dot_qd_direct()
+        return self._get(name + "_turned", lambda: turned(self.tree, self.sym.q, direct, 2))
+
+    def tip_turned(self) -> bool:
+        """Whether J and Jdot qd are built turned (base_turn), one choice for both, so that the
+        fused servo terms compute the separate functions' bits: the form that leaves M, C qd + N,
+        J and Jdot qd together with fewer operations (direct, Jdot qd shares nonlinear's forward
+        pass; UR5 701 turned against 732, Panda 1314 direct against 1357). Past
+        TIP_FORM_COUNTED_MAX_DOF joints M and C qd + N are loops and J and Jdot qd are counted alone."""
+        def build():
+            s = self.sym
+            if self._turned("jacobian") is None:
+                return False
+            shared = [self.mass(), self.nonlinear()] if self.tree.nq <= TIP_FORM_COUNTED_MAX_DOF else []
+            count = [count_operations([s.q, s.qd], [*shared, J, a])["total"]
+                     for J, a in ((self._jacobian_direct(), self._jacobian_dot_qd_direct()),
+                                  (self._turned("jacobian"), self._turned("jacobian_dot_qd")))]
+            return count[1] < count[0]
+        return self._get("tip_turned", build)
 
     def jacobian_hand(self) -> ca.SX:
         return self._get("jacobian_hand", lambda: hand_jacobian(self.tree, self.sym.q))
 
     def jacobian_dot_qd(self) -> ca.SX:
-        """From the forward pass that nonlinear() uses too (one pass in a fused kernel)."""
-        return self._get("jdqd", lambda: tip_bias_acceleration(
-            self.tree, joint_poses(self.tree, self.motions), self.bias_pass()))
+        """From RNEA's forward pass at qdd = 0: directly (the pass nonlinear() uses too) or with
+        the first joint's turn factored out, as tip_turned decides."""
+        return self._turned("jacobian_dot_qd") if self.tip_turned() else self._jacobian_dot_qd_direct()
 
     def bias_pass(self):
         """RNEA's forward pass at qdd = 0 with gravity, shared by nonlinear and Jdot qd."""
