@@ -125,11 +125,8 @@ class ChainGraphs:
 
     def coriolis(self) -> ca.SX:
         """Whichever of coriolis_candidates CasADi's CSE leaves with fewest operations."""
-        def build():
-            s = self.sym
-            return min(self.coriolis_candidates().values(),
-                       key=lambda C: count_operations([s.q, s.qd], [C])["total"])
-        return self._get("coriolis", build)
+        return self._get("coriolis", lambda: self._fewest([self.sym.q, self.sym.qd],
+                                                          list(self.coriolis_candidates().values())))
 
     def coriolis_candidates(self) -> dict[str, ca.SX]:
         """The Christoffel-consistent C three ways: Christoffel symbols of M by AD (O(n^3)
