@@ -12,6 +12,7 @@ from robotgen.model.snap import snap_tree
 from robotgen.symbolic.differentiation import reverse_jacobian
 from robotgen.symbolic.op_count import count_operations
 from robotgen.symbolic.rigid_body.base_turn import turned
+from robotgen.symbolic.rigid_body.chain_loops import LOOPS_ABOVE_DOF
 from robotgen.symbolic.rigid_body.cholesky import cholesky_solve
 from robotgen.symbolic.rigid_body.christoffel import coriolis_from_forces, coriolis_matrix
 from robotgen.symbolic.rigid_body.coriolis import coriolis_spatial
@@ -39,8 +40,6 @@ class Symbols:
 # Above this many joints the AD Christoffel form (O(n^3) terms) is not even tried: at 12 it
 # is already twice the spatial algorithm's size, at 30 seven times.
 AD_CORIOLIS_MAX_DOF = 12
-# Up to this many joints the choice of the tip's form counts it with M and C qd + N (straight-line there)
-TIP_FORM_COUNTED_MAX_DOF = 12
 
 
 class ChainGraphs:
@@ -90,13 +89,14 @@ class ChainGraphs:
         """Whether J and Jdot qd are built turned (base_turn), one choice for both, so that the
         fused servo terms compute the separate functions' bits: the form that leaves M, C qd + N,
         J and Jdot qd together with fewer operations (direct, Jdot qd shares nonlinear's forward
-        pass; UR5 701 turned against 732, Panda 1314 direct against 1357). Past
-        TIP_FORM_COUNTED_MAX_DOF joints M and C qd + N are loops and J and Jdot qd are counted alone."""
+        pass; UR5 701 turned against 732, Panda 1314 direct against 1357). Past LOOPS_ABOVE_DOF
+        joints M and C qd + N are loops, not built straight-line to count, and J and Jdot qd are
+        counted alone."""
         def build():
             s = self.sym
             if self._turned("jacobian") is None:
                 return False
-            shared = [self.mass(), self.nonlinear()] if self.tree.nq <= TIP_FORM_COUNTED_MAX_DOF else []
+            shared = [self.mass(), self.nonlinear()] if self.tree.nq <= LOOPS_ABOVE_DOF else []
             count = [count_operations([s.q, s.qd], [*shared, J, a])["total"]
                      for J, a in ((self._jacobian_direct(), self._jacobian_dot_qd_direct()),
                                   (self._turned("jacobian"), self._turned("jacobian_dot_qd")))]
