@@ -42,6 +42,11 @@ def _weights(description: str) -> dict:
     return {"type": ["number", "string", "array"], "items": {"$ref": "#/$defs/number"}, "description": description}
 
 
+def _weight_matrix(description: str) -> dict:
+    return {"type": ["number", "string", "array"], "description": description,
+            "items": {"anyOf": [{"$ref": "#/$defs/number"}, {"type": "array", "items": {"$ref": "#/$defs/number"}}]}}
+
+
 def _vector3(description: str) -> dict:
     return {"type": "array", "description": description, "minItems": 3, "maxItems": 3,
             "items": {"$ref": "#/$defs/number"}}
@@ -307,15 +312,29 @@ _DEFS = {
         "feedforward and the one-step optimal control (eq 39) of an RLS-identified perturbation model",
         {"period": _number("sampling period T [s], > 0, default 0.001", exclusiveMinimum=0),
          "tool": {"$ref": "#/$defs/pose", "description": "the hand frame in the tip frame, default identity"},
-         "q": _weights("Q of eq 38: 4 numbers (position, orientation, velocity, angular velocity), 12, "
-                       "or one number; default [1e6, 1e6, 1e4, 1e4]"),
-         "r": _weights("R of eq 38 on the torques: a number or 6, default 1e-5"),
-         "forgetting": _number("forgetting factor r of eq 37, 0 < r <= 1, default 0.97", exclusiveMinimum=0),
-         "initial_covariance": _number("P_0 = p0 I, > 0, default 100", exclusiveMinimum=0),
+         "bandwidth": _number("the weight rule: positions and orientations decay at this rate [rad/s], "
+                              "> 0, default 20 (Q = diag(2 bandwidth / period on p and Phi, 1 on v and Omega))",
+                              exclusiveMinimum=0),
+         "q": _weight_matrix("Q of eq 38 instead of the rule: a number, 4 numbers (position, orientation, velocity, "
+                             "angular velocity), 12 (the diagonal) or 12 rows of 12 (symmetric positive definite)"),
+         "torque_weight": _number("the weight rule: R = torque_weight B^T Q B, > 0, default 1", exclusiveMinimum=0),
+         "r": _weight_matrix("R of eq 38 instead of the rule: a number, 6 (the diagonal) or 6 rows of 6 "
+                             "(symmetric positive definite)"),
+         "forgetting": _number("forgetting factor mu of eq 37, 0 < mu <= 1, default 0.99", exclusiveMinimum=0),
+         "directional": {"type": "boolean", "description": "forget along the regressor only (default true); false is "
+                                                           "eq 37 as printed, P divided by mu"},
+         "initial_covariance": {"type": ["number", "string", "object"],
+                                "description": "P_0 of eq 37: one number, or per regressor block "
+                                               "{A: 1, B: 1e-8, c: 1e-2} (the defaults)",
+                                "properties": {k: {"$ref": "#/$defs/number"} for k in ("A", "B", "c")},
+                                "additionalProperties": False},
          "covariance_limit": _number("largest trace of P, default 1e6", exclusiveMinimum=0),
+         "affine": {"type": "boolean", "description": "identify and cancel the model's constant term c "
+                                                      "(default true)"},
          "ik_iterations": {"type": "integer", "minimum": 1, "maximum": 10,
                            "description": "Newton steps of the inverse kinematics per cycle, default 2"},
-         "gains": {"enum": list(GAIN_MODES), "description": "runtime (default) or folded q, r, forgetting"}}),
+         "gains": {"enum": list(GAIN_MODES),
+                   "description": "runtime (default) or folded q, r or torque_weight, forgetting"}}),
     "control": _object(
         "CONTROL: a controller on a robot (Deno et al. 1990, 3.4)",
         {"robot": {"type": "string", "pattern": IDENTIFIER, "description": "the controlled node"},
@@ -365,10 +384,17 @@ _DEFS = {
                        "description": "[Hz] per root coordinate"},
          "internal_forces": {"type": "array", "items": {"$ref": "#/$defs/number"},
                              "description": "internal forces commanded at the root"},
-         "payload_change": _object("a hand controller's run: the plant's hand picks up a point mass",
-                                   {"at": _number("time of the change [s], >= 0", minimum=0),
-                                    "mass": _number("the payload's mass [kg], >= 0", minimum=0)},
-                                   ("at", "mass"))}),
+         "payload_change": {
+             "description": "a hand controller's run: from time at on the plant's hand holds a point mass the "
+                            "controller is not told about; one change or a list of them in time order",
+             "anyOf": [{"$ref": "#/$defs/payload_change"},
+                       {"type": "array", "minItems": 1, "items": {"$ref": "#/$defs/payload_change"}}]}}),
+    "payload_change": _object("from time at on, the plant's hand holds mass at com",
+                              {"at": _number("time of the change [s], >= 0", minimum=0),
+                               "mass": _number("the payload's mass [kg], >= 0 (0 drops it)", minimum=0),
+                               "com": _vector3("the payload's centre of mass in the hand frame [m], "
+                                               "default the hand's origin")},
+                              ("at", "mass")),
     "derivatives": _object(
         "the derivative functions of a module whose root is a define leaf (or a hand or "
         "resolved-rate law on a chain): inverse_dynamics_derivatives, "

@@ -12,7 +12,7 @@ from scipy.optimize import minimize
 
 from robotgen.frontend import load_system
 from robotgen.symbolic.control.hand import Hand, discretise, orientation_error
-from robotgen.symbolic.control.resolved_adaptive import identify, one_step_control
+from robotgen.symbolic.control.resolved_adaptive import HOLD_REGULARISATION, identify, one_step_control, torque_weight
 from robotgen.symbolic.rigid_body.rpy import rpy_of, rpy_rates, rpy_rotation
 from robotgen.symbolic.rigid_body.spatial import skew
 
@@ -120,79 +120,125 @@ def test_discretisation_is_the_matrix_exponential():
     np.testing.assert_allclose(Bv, big[:4, 4:], atol=1e-14)
 
 
-def rls():
-    """identify() as a function of numbers: (A, B, P, phi, dx, r, limit, adapt) -> (A, B, P)."""
-    A, B, P = ca.SX.sym("A", 12, 12), ca.SX.sym("B", 12, 6), ca.SX.sym("P", 18, 18)
-    phi, dx, r, adapt = ca.SX.sym("phi", 18), ca.SX.sym("dx", 12), ca.SX.sym("r"), ca.SX.sym("adapt")
-    return ca.Function("rls", [A, B, P, phi, dx, r, adapt], [*identify(A, B, P, phi, dx, r, 1e12, adapt)])
+def rls(n_phi=19, limit=None):
+    """eq 37 with directional forgetting on Theta = [A B c] (phi = (x, u, 1))."""
+    Theta, P = ca.SX.sym("Theta", 12, n_phi), ca.SX.sym("P", n_phi, n_phi)
+    phi, dx, mu, adapt = ca.SX.sym("phi", n_phi), ca.SX.sym("dx", 12), ca.SX.sym("mu"), ca.SX.sym("adapt")
+    return ca.Function("rls", [Theta, P, phi, dx, mu, adapt], [*identify(Theta, P, phi, dx, mu, limit, adapt)])
 
 
 def test_rls_identifies_a_known_system_and_tracks_a_change():
-    """From persistent excitation (random inputs) the shared-P RLS of eq 37 finds the A, B of
-    a stable 12-state, 6-input system to 1e-6; with r = 0.95 it follows a step change of B
-    within 500 samples, which r = 1 does not; adapt = 0 leaves the estimates alone; P stays
-    symmetric."""
+    """From persistent excitation (random inputs) the shared-P RLS of eq 37 finds the A, B, c
+    of a stable 12-state, 6-input affine system to 1e-6; after B and c change, directional
+    forgetting with mu = 0.8 follows within 1500 samples (to 1e-2), which mu = 1 does not
+    (it averages the old data in); adapt = 0 leaves the estimates alone; P stays symmetric."""
     rng = np.random.default_rng(5)
     A_true = 0.9 * np.linalg.qr(rng.normal(size=(12, 12)))[0]
-    B_true = rng.normal(size=(12, 6))
+    Theta_true = np.hstack([A_true, rng.normal(size=(12, 6)), rng.normal(size=(12, 1))])
     f = rls()
 
-    def run(A_sys, B_sys, A, B, P, r, steps, x):
+    def run(Theta_sys, Theta, P, mu, steps, x):
         for _ in range(steps):
-            u = rng.normal(size=6)
-            x_next = A_sys @ x + B_sys @ u
-            A, B, P = (np.array(v) for v in f(A, B, P, np.r_[x, u], x_next, r, 1))
+            phi = np.r_[x, rng.normal(size=6), 1.0]
+            x_next = Theta_sys @ phi
+            Theta, P = (np.array(v) for v in f(Theta, P, phi, x_next, mu, 1))
             x = x_next
-        return A, B, P, x
+        return Theta, P, x
 
-    A, B, P, x = run(A_true, B_true, np.zeros((12, 12)), np.zeros((12, 6)), 1e6 * np.eye(18), 1.0, 300,
-                     rng.normal(size=12))
-    error = max(np.abs(A - A_true).max(), np.abs(B - B_true).max())
-    print(f"\n  RLS, 300 samples, r = 1: max |[A B] - true| = {error:.1e}")
+    Theta, P, x = run(Theta_true, np.zeros((12, 19)), 1e6 * np.eye(19), 1.0, 300, rng.normal(size=12))
+    error = np.abs(Theta - Theta_true).max()
+    print(f"\n  RLS, 300 samples, mu = 1: max |[A B c] - true| = {error:.1e}")
     assert error < 1e-6
     np.testing.assert_array_equal(P, P.T)
-    B_changed = B_true.copy()
-    B_changed[:, 0] *= 2
-    A2, B2, P2, x2 = run(A_true, B_changed, A, B, P, 0.95, 500, x)
-    _, B_rigid, _, _ = run(A_true, B_changed, A, B, P, 1.0, 500, x)
-    print(f"  after B's first column doubled, 500 samples: |B - true| = {np.abs(B2 - B_changed).max():.1e} "
-          f"at r = 0.95, {np.abs(B_rigid - B_changed).max():.1e} at r = 1")
-    assert np.abs(B2 - B_changed).max() < 1e-6 < np.abs(B_rigid - B_changed).max()
-    frozen = [np.array(v) for v in f(A2, B2, P2, rng.normal(size=18), rng.normal(size=12), 0.95, 0)]
-    for before, after in zip((A2, B2, P2), frozen):
+    changed = Theta_true.copy()
+    changed[:, 12] *= 2  # B's first column doubled
+    changed[:, 18] += 0.5  # and the offset moved
+    Theta2, P2, x2 = run(changed, Theta, P, 0.8, 1500, x)
+    rigid, _, _ = run(changed, Theta, P, 1.0, 1500, x)
+    print(f"  after the change, 1500 samples: |[A B c] - true| = {np.abs(Theta2 - changed).max():.1e} at mu = 0.8, "
+          f"{np.abs(rigid - changed).max():.1e} at mu = 1")
+    assert np.abs(Theta2 - changed).max() < 1e-2 and np.abs(rigid - changed).max() > 0.1
+    frozen = [np.array(v) for v in f(Theta2, P2, rng.normal(size=19), rng.normal(size=12), 0.95, 0)]
+    for before, after in zip((Theta2, P2), frozen):
         np.testing.assert_array_equal(before, after)
 
 
-def test_covariance_stays_bounded_without_excitation():
-    """r < 1 and no excitation: P would grow as r^-k; its trace is held at the limit."""
-    A, B, P = ca.SX.sym("A", 12, 12), ca.SX.sym("B", 12, 6), ca.SX.sym("P", 18, 18)
-    phi, dx = ca.SX.sym("phi", 18), ca.SX.sym("dx", 12)
-    f = ca.Function("rls", [A, B, P, phi, dx], [identify(A, B, P, phi, dx, 0.9, 1e4)[2]])
+def test_directional_forgetting_keeps_the_covariance_bounded_in_closed_loop():
+    """Closed-loop data: du = -K dx, so phi = (dx, -K dx, 1) spans 13 of 19 directions.
+    Eq 37's exponential forgetting divides all of P by mu and its trace grows as mu^-k (the
+    windup behind the torque spikes); the directional update changes P only along P phi and
+    leaves phi^T P' phi = s / (s + mu) (s = phi^T P phi): P stays bounded. Without the affine
+    term and with phi = 0 nothing is updated and nothing is NaN; the trace limit holds P when
+    phi is tiny (P then grows along one direction only)."""
+    rng = np.random.default_rng(8)
+    K = rng.normal(size=(6, 12))
+    f = rls()
+    mu = 0.99
+    P, Theta, P_exp = np.eye(19), np.zeros((12, 19)), np.eye(19)
+    for _ in range(2000):
+        dx = 1e-3 * rng.normal(size=12)
+        phi = np.r_[dx, -K @ dx, 1.0]
+        s = phi @ P @ phi
+        Theta, P_next = (np.array(v) for v in f(Theta, P, phi, rng.normal(size=12), mu, 1))
+        assert abs(phi @ P_next @ phi - s / (s + mu)) < 1e-12 * max(1.0, s)
+        P = P_next
+        Pphi = P_exp @ phi  # eq 37 as printed
+        P_exp = (P_exp - np.outer(Pphi, Pphi) / (phi @ Pphi + mu)) / mu
+    print(f"\n  2000 closed-loop samples, mu = {mu}: trace P = {np.trace(P):.3g} directional, "
+          f"{np.trace(P_exp):.3g} exponential (eq 37)")
+    assert np.trace(P) < 2 * 19 and np.linalg.eigvalsh(P).min() > 0
+    assert np.trace(P_exp) > 1e6
+    no_affine = rls(18, limit=1e4)
     Pv = np.eye(18)
-    for _ in range(200):
-        Pv = np.array(f(np.zeros((12, 12)), np.zeros((12, 6)), Pv, np.zeros(18), np.zeros(12)))
-    assert abs(np.trace(Pv) - 1e4) < 1e-6 and np.linalg.eigvalsh(Pv).min() > 0
+    for k in range(3000):
+        phi = np.zeros(18) if k == 0 else 1e-6 * rng.normal(size=18)
+        _, Pv = (np.array(v) for v in no_affine(np.zeros((12, 18)), Pv, phi, np.zeros(12), 0.9, 1))
+        assert np.all(np.isfinite(Pv))
+    assert np.trace(Pv) <= 1e4 * (1 + 1e-12) and np.linalg.eigvalsh(Pv).min() > -1e-12 * np.trace(Pv)
 
 
 def test_one_step_control_minimises_eq_38():
-    """u* of eq 39 against a numerical minimisation of J = (x'^T Q x' + u^T R u) / 2 with
-    x' = A x + B u."""
+    """du* of eq 39 with the holding torque u_c against a numerical minimisation of
+    x'^T Q x' + (u - u_c)^T R (u - u_c), x' = A dx + B u + c, u_c = -(B^T Q B + delta R)^-1
+    B^T Q c: full symmetric positive definite Q and R, and the rule R = kappa B0^T Q B0.
+    u_c leaves only what B cannot reach (up to delta), and stays bounded as B tends to 0."""
     rng = np.random.default_rng(6)
-    A, B, x = ca.SX.sym("A", 12, 12), ca.SX.sym("B", 12, 6), ca.SX.sym("x", 12)
-    q, r = ca.SX.sym("q", 12), ca.SX.sym("r", 6)
-    f = ca.Function("u", [A, B, x, q, r], [one_step_control(A, B, x, q, r)])
+    A, B, c, x = ca.SX.sym("A", 12, 12), ca.SX.sym("B", 12, 6), ca.SX.sym("c", 12), ca.SX.sym("x", 12)
+    Q, R, B0, kappa = ca.SX.sym("Q", 12, 12), ca.SX.sym("R", 6, 6), ca.SX.sym("B0", 12, 6), ca.SX.sym("kappa")
+    given = ca.Function("u", [A, B, c, x, Q, R], [one_step_control(A, B, c, x, Q, R)])
+    rule = ca.Function("R", [Q, B0, kappa], [torque_weight(Q, None, kappa, B0)])
     for _ in range(5):
-        Av, Bv, xv = rng.normal(size=(12, 12)), rng.normal(size=(12, 6)), rng.normal(size=12)
-        qv, rv = rng.uniform(0.1, 10, 12), rng.uniform(0.1, 10, 6)
-        u_star = np.array(f(Av, Bv, xv, qv, rv)).ravel()
+        Av, Bv, cv, xv = rng.normal(size=(12, 12)), rng.normal(size=(12, 6)), rng.normal(size=12), rng.normal(size=12)
+        L, M = rng.normal(size=(12, 12)), rng.normal(size=(6, 6))
+        Qv, kv = L @ L.T + 0.1 * np.eye(12), rng.uniform(0.2, 3)
+        B0v = Bv + 0.1 * rng.normal(size=(12, 6))
+        Rrule = np.array(rule(Qv, B0v, kv))
+        np.testing.assert_allclose(Rrule, kv * B0v.T @ Qv @ B0v, rtol=1e-12)
+        for Rv in (M @ M.T + 0.1 * np.eye(6), Rrule):
+            H = Bv.T @ Qv @ Bv
+            u_c = -np.linalg.solve(H + HOLD_REGULARISATION * Rv, Bv.T @ Qv @ cv)
+            u_star = np.array(given(Av, Bv, cv, xv, Qv, Rv)).ravel()
+            np.testing.assert_allclose(u_star, u_c - np.linalg.solve(H + Rv, Bv.T @ Qv @ Av @ xv), rtol=1e-9)
+            exact_hold = -np.linalg.solve(H, Bv.T @ Qv @ cv)
 
-        def cost(u):
-            x1 = Av @ xv + Bv @ u
-            return 0.5 * (x1 @ (qv * x1) + u @ (rv * u))
+            def cost(u, hold, c):
+                x1 = Av @ xv + Bv @ u + c
+                return x1 @ Qv @ x1 + (u - hold) @ Rv @ (u - hold)
 
-        found = minimize(cost, np.zeros(6), method="BFGS", options={"gtol": 1e-10}).x
-        assert cost(u_star) <= cost(found) + 1e-9
-        np.testing.assert_allclose(u_star, found, atol=1e-5)
+            # without c, eq 39 is the minimiser of eq 38; with it, up to the regularisation
+            u_free = np.array(given(Av, Bv, 0 * cv, xv, Qv, Rv)).ravel()
+            found = minimize(cost, np.zeros(6), (np.zeros(6), 0 * cv), method="BFGS", options={"gtol": 1e-10}).x
+            assert cost(u_free, np.zeros(6), 0 * cv) <= cost(found, np.zeros(6), 0 * cv) + 1e-9
+            np.testing.assert_allclose(u_free, found, atol=1e-5)
+            found = minimize(cost, np.zeros(6), (exact_hold, cv), method="BFGS", options={"gtol": 1e-10}).x
+            assert np.abs(u_star - found).max() < 1e-5 + 10 * HOLD_REGULARISATION * np.abs(exact_hold).max()
+            # at dx = 0 the holding torque leaves what B cannot reach, up to the regularisation:
+            # B^T Q x' = -delta R u_c
+            at_rest = np.array(given(Av, Bv, cv, np.zeros(12), Qv, Rv)).ravel()
+            np.testing.assert_allclose(Bv.T @ Qv @ (Bv @ at_rest + cv), -HOLD_REGULARISATION * Rv @ at_rest,
+                                       atol=1e-9 * np.abs(Bv.T @ Qv @ cv).max())
+        tiny = np.array(given(Av, 1e-9 * Bv, cv, np.zeros(12), Qv, Rrule)).ravel()
+        assert np.all(np.isfinite(tiny)) and np.abs(tiny).max() < 1e-3  # an arm held fast: no runaway
 
 
 def test_orientation_error_is_the_rotation_that_remains():

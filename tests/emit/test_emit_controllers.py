@@ -182,7 +182,7 @@ def test_adaptive_controller_follows_the_casadi_kernel_chain(rmac):
         assert sorted(controller.last) == ["dx"]
         assert_close(controller.last["dx"], others["dx"])
         assert_close(controller.state, chain.state)
-        for name, shape in (("A", (12, 12)), ("B", (12, 6)), ("P", (18, 18))):
+        for name, shape in (("A", (12, 12)), ("B", (12, 6)), ("c", (12,)), ("P", (19, 19))):
             view = getattr(controller, name)
             assert view.shape == shape and view.dtype == np.float64
             assert_close(view, chain.view(name))
@@ -216,7 +216,7 @@ def test_adapt_false_keeps_the_model_from_init(rmac):
             start = np.array(init.function(point[0], point[1], point[2].ravel(), point[3], point[4])).ravel()
             assert_close(A, start[:144].reshape(12, 12))  # the C of adaptive_init vs CasADi's evaluation
             assert_close(B, start[144:216].reshape(12, 6))
-            np.testing.assert_array_equal(P, start[216:540].reshape(18, 18))
+            np.testing.assert_array_equal(P, start[228:589].reshape(19, 19))
     np.testing.assert_array_equal(controller.A, A)
     np.testing.assert_array_equal(controller.B, B)
     np.testing.assert_array_equal(controller.P, P)
@@ -240,11 +240,11 @@ def test_reset_restarts(rmac):
 
 
 def test_parameters_change_the_result_as_casadi_predicts(rmac):
-    changed = {"rmac_forgetting": 0.9, "rmac_r": np.full(6, 3e-5)}
+    changed = {"rmac_forgetting": 0.9, "rmac_torque_weight": 2.5}
     controller, chain = rmac.cls(**changed), rmac.chain(**changed)
     default = rmac.cls()
     assert controller.parameters["rmac_forgetting"] == 0.9
-    np.testing.assert_array_equal(controller.parameters["rmac_r"], changed["rmac_r"])
+    assert controller.parameters["rmac_torque_weight"] == 2.5
     q_weights = np.linspace(1e5, 2e6, 12)
     for k, point in enumerate(rmac.trajectory):
         if k == 5:  # per key, from the next step on
@@ -260,13 +260,13 @@ def test_parameters_change_the_result_as_casadi_predicts(rmac):
         default_tau = default.step(*point)
     assert not np.allclose(default_tau, tau, rtol=1e-9, atol=0)
     parameters = controller.parameters
-    assert sorted(parameters) == ["rmac_forgetting", "rmac_q", "rmac_r"] and len(parameters) == 3
+    assert sorted(parameters) == ["rmac_forgetting", "rmac_q", "rmac_torque_weight"] and len(parameters) == 3
     assert parameters["rmac_forgetting"] == 0.95 and "rmac_q" in parameters and "x" not in parameters
     np.testing.assert_array_equal(parameters["rmac_q"], rmac.module.parameters["rmac_q"])
     assert dict(parameters.items()).keys() == set(parameters.keys())
     assert parameters.get("nope", 7) == 7
     # the defaults of the module and its functions are untouched
-    np.testing.assert_array_equal(default.parameters["rmac_r"], rmac.module.parameters["rmac_r"])
+    assert default.parameters["rmac_torque_weight"] == rmac.module.parameters["rmac_torque_weight"]
     # one controller's parameters copied to another
     other = rmac.cls()
     other.parameters = controller.parameters
@@ -415,8 +415,8 @@ POINT = (np.zeros(6), np.zeros(6), np.eye(4), np.zeros(6), np.zeros(6))
     (lambda c: type(c)(0.9), TypeError, "AdaptiveController() takes no positional arguments"),
     (lambda c: type(c)(forgetting=0.9), TypeError,
      "AdaptiveController() got an unexpected keyword argument 'forgetting' (its run-time parameters are rmac_q, "
-     "rmac_r, rmac_forgetting)"),
-    (lambda c: type(c)(rmac_r=np.ones(5)), ValueError, "argument 'rmac_r' must have shape (6,), got (5,)"),
+     "rmac_torque_weight, rmac_forgetting)"),
+    (lambda c: type(c)(rmac_q=np.ones(5)), ValueError, "argument 'rmac_q' must have shape (12,), got (5,)"),
     (lambda c: type(c)(rmac_forgetting=None), TypeError, "argument 'rmac_forgetting' must be a number"),
     (lambda c: c.parameters.__setitem__("rmac_q", np.ones(3)), ValueError,
      "AdaptiveController.parameters(): argument 'rmac_q' must have shape (12,), got (3,)"),
@@ -429,7 +429,7 @@ POINT = (np.zeros(6), np.zeros(6), np.eye(4), np.zeros(6), np.zeros(6))
     (lambda c: setattr(c, "adapt", "no"), TypeError, "AdaptiveController.adapt must be a bool, got str"),
     (lambda c: delattr(c, "adapt"), AttributeError, "cannot delete"),
     (lambda c: setattr(c, "A", np.eye(12)), AttributeError, "not writable"),
-    (lambda c: setattr(c, "state", np.zeros(576)), AttributeError, "not writable"),
+    (lambda c: setattr(c, "state", np.zeros(698)), AttributeError, "not writable"),
     (lambda c: setattr(c, "x", 1), AttributeError, "x"),
 ])
 def test_errors_are_clear(rmac, call, kind, message):
@@ -470,18 +470,18 @@ def test_docs_info_and_manifest(rmac, rac):
     import json
 
     signature = inspect.signature(rmac.cls)
-    assert list(signature.parameters) == ["rmac_q", "rmac_r", "rmac_forgetting"]
+    assert list(signature.parameters) == ["rmac_q", "rmac_torque_weight", "rmac_forgetting"]
     assert all(p.kind is p.KEYWORD_ONLY for p in signature.parameters.values())
-    assert signature.parameters["rmac_forgetting"].default == 0.97
+    assert signature.parameters["rmac_forgetting"].default == 0.99
     assert list(inspect.signature(rmac.cls().step).parameters) == ["q", "qd", "pose_d", "twist_d", "accel_d", "out"]
     assert "Resolved motion adaptive control" in rmac.cls.__doc__
     assert "Resolved motion adaptive control" in rmac.cls.step.__doc__
     assert "eq 29" in rmac.cls.A.__doc__
     expected = {"class": "AdaptiveController", "c_type": "puma560_rmac_adaptive_controller", "step": "adaptive_step",
-                "init": "adaptive_init", "period": 0.001, "state_size": 576, "flags": ["adapt"],
+                "init": "adaptive_init", "period": 0.001, "state_size": 698, "flags": ["adapt"],
                 "outputs": ["dx"], "reads_parameters": True,
                 "views": [{"name": "A", "offset": 0, "shape": [12, 12]}, {"name": "B", "offset": 144, "shape": [12, 6]},
-                          {"name": "P", "offset": 216, "shape": [18, 18]}]}
+                          {"name": "c", "offset": 216, "shape": [12]}, {"name": "P", "offset": 228, "shape": [19, 19]}]}
     (info,) = rmac.module.info()["controllers"]
     for view in info["views"]:
         assert view.pop("doc")
@@ -499,9 +499,9 @@ def test_header_declares_the_struct_and_functions(rmac, rac):
     header = (rmac.dir / "puma560_rmac.h").read_text()
     assert ("typedef struct {\n    double state[PUMA560_RMAC_ADAPTIVE_CONTROLLER_STATE_SIZE];\n    double dx[12];\n"
             "    int initialised;\n    int adapt;\n} puma560_rmac_adaptive_controller;") in header
-    assert "#define PUMA560_RMAC_ADAPTIVE_CONTROLLER_STATE_SIZE 576" in header
-    assert "#define PUMA560_RMAC_ADAPTIVE_CONTROLLER_P_OFFSET 216" in header
-    assert "[216, 540) P (18, 18) row-major: the RLS covariance P (eq 37)" in header
+    assert "#define PUMA560_RMAC_ADAPTIVE_CONTROLLER_STATE_SIZE 698" in header
+    assert "#define PUMA560_RMAC_ADAPTIVE_CONTROLLER_P_OFFSET 228" in header
+    assert "[228, 589) P (19, 19) row-major: the RLS covariance P (eq 37)" in header
     comments = re.sub(r"\n \*\s*", " ", header)  # comment lines joined
     assert "The caller owns the struct: one per controlled arm, stepped from one thread" in comments
     assert "a struct is not for sharing between threads" in comments
@@ -533,7 +533,7 @@ def test_no_mutable_state_beyond_what_cpython_needs(rmac):
 def test_stub_declares_the_classes(rmac):
     stub = (rmac.dir / "puma560_rmac.pyi").read_text()
     assert "@final\nclass AdaptiveController:" in stub
-    assert ("    def __init__(self, *, rmac_q: npt.ArrayLike = ..., rmac_r: npt.ArrayLike = ..., "
+    assert ("    def __init__(self, *, rmac_q: npt.ArrayLike = ..., rmac_torque_weight: float = ..., "
             "rmac_forgetting: float = ...) -> None: ...") in stub
     assert "    adapt: bool\n" in stub and "    def P(self) -> npt.NDArray[np.float64]:" in stub
 
@@ -542,7 +542,7 @@ def test_stub_declares_the_classes(rmac):
 def test_mypy_and_stubtest(rmac, tmp_path):
     (tmp_path / "good.py").write_text(
         "import numpy as np\nimport puma560_rmac as m\n\n"
-        "c = m.AdaptiveController(rmac_forgetting=0.95, rmac_r=np.ones(6))\n"
+        "c = m.AdaptiveController(rmac_forgetting=0.95, rmac_q=np.ones(12))\n"
         "tau = c.step(np.zeros(6), np.zeros(6), np.eye(4), np.zeros(6), np.zeros(6))\n"
         "c.adapt = False\n"
         "c.parameters['rmac_forgetting'] = 0.9\n"

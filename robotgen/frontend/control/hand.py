@@ -10,19 +10,27 @@ from robotgen.frontend.collector import Collector
 from robotgen.frontend.document import Path
 from robotgen.model.chain import KinematicTree
 from robotgen.model.laws import RESOLVED_ACCELERATION
-from robotgen.model.laws.hand import HAND_DOF, AdaptiveSettings, ResolvedAccelerationSettings
+from robotgen.model.laws.hand import (
+    COVARIANCE_BLOCKS,
+    HAND_DOF,
+    AdaptiveSettings,
+    ResolvedAccelerationSettings,
+)
 from robotgen.model.signature import Signature
 from robotgen.model.system import RUNTIME_GAINS, ControlNode, RobotSystem
 
 # defaults (docs/spec-format.md): a 1 kHz servo; Kp, Kv critically damped at 20 rad/s
 DEFAULT_PERIOD = 1e-3
 DEFAULT_KP, DEFAULT_KV = 400.0, 40.0
-# eq 38 on (p, Phi, v, Omega) and on the torques, and eq 37's forgetting factor: chosen on the
-# PUMA 560 at 1 kHz (docs/spec-format.md says how they act)
-DEFAULT_Q = (1e6, 1e6, 1e4, 1e4)
-DEFAULT_R = 1e-5
-DEFAULT_FORGETTING = 0.97
-DEFAULT_INITIAL_COVARIANCE = 100.0
+# the weight rule of eq 38 (docs/spec-format.md): positions and orientations decay at 20 rad/s
+# (a 50 ms time constant), and R = B^T Q B removes half the predicted rate error per period
+DEFAULT_BANDWIDTH = 20.0
+DEFAULT_TORQUE_WEIGHT = 1.0
+# eq 37: the directional forgetting factor and P_0 on the regressor blocks (A's, B's, c's):
+# A and B start at the linearised model and are trusted (closed-loop data do not tell them
+# apart), the offset c is not (docs/spec-format.md gives the measurements behind them)
+DEFAULT_FORGETTING = 0.99
+DEFAULT_INITIAL_COVARIANCE = {"A": 1.0, "B": 1e-8, "c": 1e-2}
 DEFAULT_COVARIANCE_LIMIT = 1e6
 DEFAULT_IK_ITERATIONS = 2
 
@@ -59,28 +67,86 @@ class HandLawReader(Collector):
                 period, tool, self.weights(where + ("kp",), settings.get("kp", DEFAULT_KP), HAND_DOF, "gain"),
                 self.weights(where + ("kv",), settings.get("kv", DEFAULT_KV), HAND_DOF, "gain"), runtime)
         else:
-            q = settings.get("q", list(DEFAULT_Q))
-            if isinstance(q, list) and len(q) == 4:
-                q_values = np.repeat(self.weights(where + ("q",), q, 4, "weight"), 3)
-            else:
-                q_values = self.weights(where + ("q",), q, 12, "weight", counts="4 (position, orientation, "
-                                        "velocity, angular velocity) or 12 (one per state)")
-            forgetting = self.optional(settings, where, "forgetting", DEFAULT_FORGETTING, minimum=0.0, exclusive=True)
-            if forgetting > 1:
-                self.at_value(where + ("forgetting",), f"forgetting factor {forgetting:g} must be at most 1 (eq 37)")
-            p0 = self.optional(settings, where, "initial_covariance", DEFAULT_INITIAL_COVARIANCE, minimum=0.0,
-                               exclusive=True)
-            limit = self.optional(settings, where, "covariance_limit", DEFAULT_COVARIANCE_LIMIT, minimum=0.0,
-                                  exclusive=True)
-            if limit < p0 * 3 * HAND_DOF:
-                self.at_value(where + ("covariance_limit",), f"covariance_limit {limit:g} is below trace(P_0) = "
-                                                             f"{p0 * 3 * HAND_DOF:g} (18 x initial_covariance)")
-            iterations = settings.get("ik_iterations", DEFAULT_IK_ITERATIONS)  # the schema: an integer >= 1
-            hand = AdaptiveSettings(period, tool, q_values,
-                                    self.weights(where + ("r",), settings.get("r", DEFAULT_R), HAND_DOF, "weight"),
-                                    forgetting, p0, limit, int(iterations), runtime)
+            hand = self.adaptive_settings(where, settings, period, tool, runtime)
         n = robot.n_external
         return dataclasses.replace(node, kp=np.zeros((n, n)), kv=np.zeros((n, n)), hand=hand)
+
+    def adaptive_settings(self, where: Path, settings: dict, period: float, tool: np.ndarray,
+                          runtime: bool) -> AdaptiveSettings:
+        """resolved_adaptive: Q by the weight rule from ``bandwidth`` or given, R by the rule
+        from ``torque_weight`` or given, and the identification's settings."""
+        for given, rule in (("q", "bandwidth"), ("r", "torque_weight")):
+            if given in settings and rule in settings:
+                self.at_key(where + (rule,), f"give {given} or {rule}, not both: {rule} sets {given.upper()} by the "
+                                             "weight rule (docs/spec-format.md)")
+        bandwidth = self.optional(settings, where, "bandwidth", DEFAULT_BANDWIDTH, minimum=0.0, exclusive=True)
+        if "q" in settings:
+            q = self.weight_matrix(where + ("q",), settings["q"], 12, "Q", groups=4)
+            bandwidth_used = None
+        else:
+            if bandwidth * period >= 2:
+                self.at_value(where + ("bandwidth",), f"bandwidth {bandwidth:g} rad/s is at or past 2 / period "
+                                                      f"({2 / period:g} rad/s): the rule's discrete pole "
+                                                      "(2 - bandwidth T) / (2 + bandwidth T) would not be in (0, 1)")
+            q = np.repeat([2 * bandwidth / period, 1.0], 6)
+            bandwidth_used = bandwidth
+        torque_weight = self.optional(settings, where, "torque_weight", DEFAULT_TORQUE_WEIGHT, minimum=0.0,
+                                      exclusive=True)
+        r = self.weight_matrix(where + ("r",), settings["r"], HAND_DOF, "R") if "r" in settings else None
+        forgetting = self.optional(settings, where, "forgetting", DEFAULT_FORGETTING, minimum=0.0, exclusive=True)
+        if forgetting > 1:
+            self.at_value(where + ("forgetting",), f"forgetting factor {forgetting:g} must be at most 1 (eq 37)")
+        p0 = self.initial_covariance(where + ("initial_covariance",), settings.get("initial_covariance"))
+        affine = bool(settings.get("affine", True))  # the schema: booleans
+        directional = bool(settings.get("directional", True))
+        limit = self.optional(settings, where, "covariance_limit", DEFAULT_COVARIANCE_LIMIT, minimum=0.0,
+                              exclusive=True)
+        trace0 = 12 * p0[0] + HAND_DOF * p0[1] + (p0[2] if affine else 0.0)
+        if limit < trace0:
+            self.at_value(where + ("covariance_limit",), f"covariance_limit {limit:g} is below trace(P_0) = "
+                                                         f"{trace0:g}")
+        iterations = settings.get("ik_iterations", DEFAULT_IK_ITERATIONS)  # the schema: an integer >= 1
+        return AdaptiveSettings(period, tool, q, r, torque_weight, bandwidth_used, forgetting, p0, limit,
+                                int(iterations), affine, directional, runtime)
+
+    def initial_covariance(self, path: Path, value: object) -> tuple[float, float, float]:
+        """P_0's blocks on A's, B's and c's regressors: one positive number for all, or a
+        mapping with any of A, B, c (the others keep their defaults)."""
+        if value is None:
+            return tuple(DEFAULT_INITIAL_COVARIANCE[k] for k in COVARIANCE_BLOCKS)
+        if not isinstance(value, dict):
+            v = self.constant(path, value, minimum=0.0, exclusive=True)
+            return (v, v, v)
+        return tuple(self.constant(path + (k,), value[k], minimum=0.0, exclusive=True) if k in value
+                     else DEFAULT_INITIAL_COVARIANCE[k] for k in COVARIANCE_BLOCKS)
+
+    def weight_matrix(self, path: Path, value: object, n: int, name: str, groups: int | None = None) -> np.ndarray:
+        """A weight of eq 38: a number (n equal diagonal entries), ``groups`` numbers (each
+        repeated n / groups times), n numbers (the diagonal), or an n x n symmetric positive
+        definite matrix (rows as lists). A diagonal is returned as (n,), a matrix as (n, n)."""
+        if isinstance(value, list) and value and all(isinstance(row, list) for row in value):
+            if len(value) != n or any(len(row) != n for row in value):
+                self.at_key(path, f"{name} as a matrix must be {n} x {n}, got {len(value)} rows of "
+                                  f"{sorted({len(row) for row in value})} entries")
+                return np.ones(n)
+            M = np.array([[self.constant(path + (i, j), v) for j, v in enumerate(row)]
+                          for i, row in enumerate(value)])
+            if not np.array_equal(M, M.T):
+                i, j = np.argwhere(M != M.T)[0]
+                self.at_value(path + (int(i), int(j)), f"{name} must be symmetric: entry ({i}, {j}) = {M[i, j]:g} "
+                                                       f"but ({j}, {i}) = {M[j, i]:g}")
+                return np.ones(n)
+            smallest = float(np.linalg.eigvalsh(M)[0])
+            if not smallest > 0:
+                self.at_key(path, f"{name} must be positive definite (eq 38): its smallest eigenvalue is "
+                                  f"{smallest:.3g}")
+                return np.ones(n)
+            return M
+        if isinstance(value, list) and groups and len(value) == groups:
+            return np.repeat(self.weights(path, value, groups, "weight"), n // groups)
+        counts = f"{groups} ({', '.join(('position', 'orientation', 'velocity', 'angular velocity'))}), " \
+            f"{n} (the diagonal) or {n} rows of {n}" if groups else f"{n} (the diagonal) or {n} rows of {n}"
+        return self.weights(path, value, n, "weight", counts=counts)
 
     def weights(self, path: Path, value: object, n: int, kind: str, *, counts: str | None = None) -> np.ndarray:
         """A positive number (the same on every axis) or a list of n positive numbers."""

@@ -39,35 +39,71 @@ class ResolvedAccelerationSettings:
                                  f"hand velocity gains Kv of '{node}' on {axes}")]
 
 
+# Lee and Lee's regressor phi = (dx, du, 1): the blocks of the RLS covariance P_0 (eq 37)
+COVARIANCE_BLOCKS = ("A", "B", "c")
+
+
 @dataclass(frozen=True, eq=False)
 class AdaptiveSettings:
     """Resolved motion adaptive control: Newton-Euler feedforward along the resolved desired
     trajectory, and feedback on the hand-state perturbation dx (eq 20) by the one-step optimal
-    control (eq 39) of a model dx(k+1) = A dx(k) + B du(k) (eq 29) identified by recursive
-    least squares with forgetting (eq 37), started from the linearised dynamics (eqs 24-32).
+    control (eqs 38-39) of a model dx(k+1) = A dx(k) + B du(k) + c (eq 29 with an affine term)
+    identified by recursive least squares (eq 37), started from the linearised dynamics (eqs
+    24-32).
 
-    q:  (12,) diagonal of Q (eq 38) on (p, Phi, v, Omega); r: (6,) diagonal of R.
-    forgetting: r of eq 37, 0 < r <= 1. initial_covariance: P_0 = p0 I.
-    covariance_limit: trace(P) is held below it (with r < 1 an unexcited P grows).
-    ik_iterations: Newton steps of the inverse kinematics per cycle, from the prediction of
-    the previous cycle's resolved joint trajectory."""
+    q: Q of eq 38 on (p, Phi, v, Omega), (12,) its diagonal or (12, 12) symmetric positive
+       definite. By the weight rule (docs/spec-format.md) it comes from ``bandwidth``: the
+       position and orientation rows weigh 2 bandwidth / period, the rates 1, so that the
+       one-step control makes positions and orientations decay at ``bandwidth`` [rad/s].
+    r: R of eq 38, (6,) its diagonal or (6, 6), or None for the rule R = torque_weight B0^T Q B0
+       (B0 the model's B at the reset): the control then removes 1 / (1 + torque_weight) of
+       the predicted rate error per period there, whatever the arm.
+    forgetting: mu of eq 37's forgetting, 0 < mu <= 1.
+    directional: forget along the regressor only (directional forgetting); False is eq 37 as
+       printed (all of P divided by mu), which winds P up in closed loop.
+    initial_covariance: P_0 on the regressor blocks (A's, B's, c's).
+    covariance_limit: trace(P) is held below it, unless the forgetting is directional and the
+       model affine (the regressor's constant 1 then keeps P bounded:
+       robotgen.symbolic.control.resolved_adaptive.identify).
+    affine: the model's constant term c, identified and cancelled (the torque that holds a
+       payload the model does not know).
+    ik_iterations: Newton steps of the inverse kinematics per cycle (arms without a closed form)."""
 
     period: float
     tool: np.ndarray
     q: np.ndarray
-    r: np.ndarray
+    r: np.ndarray | None
+    torque_weight: float
+    bandwidth: float | None  # the rule's, None when q was given
     forgetting: float
-    initial_covariance: float
+    initial_covariance: tuple[float, float, float]  # COVARIANCE_BLOCKS
     covariance_limit: float
     ik_iterations: int
-    runtime: bool = True  # q, r, forgetting read at run time
+    affine: bool = True
+    directional: bool = True
+    runtime: bool = True  # q, r or torque_weight, forgetting read at run time
+
+    @property
+    def trace_limit(self) -> float | None:
+        return None if self.affine and self.directional else self.covariance_limit
+
+    @property
+    def n_phi(self) -> int:
+        return 12 + HAND_DOF + (1 if self.affine else 0)
 
     def parameters(self, node: str) -> list[RuntimeParameter]:
         if not self.runtime:
             return []
-        return [RuntimeParameter(f"{node}_q", (12,), tuple(map(float, self.q)),
-                                 f"state weights Q (eq 38) of '{node}' on {', '.join(STATE_NAMES)}"),
-                RuntimeParameter(f"{node}_r", (HAND_DOF,), tuple(map(float, self.r)),
-                                 f"torque weights R (eq 38) of '{node}'"),
-                RuntimeParameter(f"{node}_forgetting", (), (float(self.forgetting),),
-                                 f"forgetting factor r (eq 37) of '{node}', 0 < r <= 1")]
+        out = [RuntimeParameter(f"{node}_q", self.q.shape, tuple(map(float, self.q.ravel())),
+                                f"state weights Q (eq 38) of '{node}' on {', '.join(STATE_NAMES)}"
+                                + (" (its diagonal)" if self.q.ndim == 1 else " (row-major, symmetric)"))]
+        if self.r is None:
+            out.append(RuntimeParameter(f"{node}_torque_weight", (), (float(self.torque_weight),),
+                                        f"R = torque_weight B0^T Q B0 (eq 38) of '{node}', > 0"))
+        else:
+            out.append(RuntimeParameter(f"{node}_r", self.r.shape, tuple(map(float, self.r.ravel())),
+                                        f"torque weights R (eq 38) of '{node}'"
+                                        + (" (its diagonal)" if self.r.ndim == 1 else " (row-major, symmetric)")))
+        out.append(RuntimeParameter(f"{node}_forgetting", (), (float(self.forgetting),),
+                                    f"forgetting factor mu (eq 37) of '{node}', 0 < mu <= 1"))
+        return out

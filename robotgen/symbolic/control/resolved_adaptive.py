@@ -4,34 +4,46 @@ One sampling period k, from the measured joint state (q, qd) and the desired han
 (pose, twist [v; Omega], its derivative):
 
 Feedforward (§4.1, Table 1's four stages)
-  1. q_d by inverse kinematics: Newton steps from the previous period's resolved joint
-     trajectory carried one period on;
+  1. q_d by inverse kinematics: closed form for an arm with a spherical wrist, else Newton
+     steps from the previous period's resolved joint trajectory carried one period on;
   2. qd_d = J^-1 [v_d; Omega_d] (eq 11);
   3. qdd_d = J^-1 ([vdot_d; Omegadot_d] - Jdot qd_d) (eq 13);
   4. u_n by Newton-Euler at (q_d, qd_d, qdd_d).
 Feedback (§4.2, Table 1's three stages)
   1. the hand state x = (p, Phi, v, Omega) (eqs 1, 2, 8, 20) and the nominal x_n from the
      desired trajectory; dx = x - x_n (angle differences wrapped);
-  2. recursive least squares with forgetting r (eq 37) for the rows of [A B] of
-     dx(k) = A dx(k-1) + B du(k-1) (eq 29), with one P for all rows (phi_k is shared): with
-     g = P phi / (phi^T P phi + r), each row moves by the prediction error times g and
-     P <- (P - P phi phi^T P / (phi^T P phi + r)) / r, formed symmetric, its trace held below
-     a limit (without excitation and r < 1 it would grow without bound);
-  3. du = -(R + B^T Q B)^-1 B^T Q A dx (eq 39), by an L D L^T solve.
+  2. recursive least squares (eq 37) for the rows of Theta = [A B c] of
+     dx(k) = A dx(k-1) + B du(k-1) + c (eq 29 and an affine term), with one P for all rows
+     (phi = (dx, du, 1) is shared): with g = P phi / (phi^T P phi + mu), each row moves by its
+     prediction error times g (eq 37's gain), and P <- P - eps P phi g^T,
+     eps = 1 - (1 - mu) / (phi^T P phi): forgetting along phi only (directional forgetting,
+     Kulhavy 1987), where eq 37 divides all of P by r. In closed loop du follows dx, the data
+     excite only part of Theta, and eq 37's P/r grows without bound in the rest; the next
+     disturbance then moves A and B far (the torque spikes of ±50-130 N m that the first
+     version of this controller showed at a payload step);
+  3. du = u_c - (R + B^T Q B)^-1 B^T Q A dx (eqs 38-39), where u_c = -(B^T Q B)^-1 B^T Q c holds
+     the model at rest at dx = 0 (eq 38 taken about the identified model's equilibrium, so that
+     R does not weigh the torque that carries a payload). The weight rule takes
+     R = kappa B0^T Q B0, B0 the model's B at the reset: there the control removes
+     1 / (1 + kappa) of the predicted rate error per period.
   tau = u_n + du.
 
 The identification starts from the linearised model: F = df/dx, L = df/du of the hand-space
-state equations (eq 19) at the nominal, by AD (eqs 24-28), and A = exp(F T),
-B = int exp(F s) ds L (eqs 29-32). That is the ``init`` kernel, run on the first period after
-a reset; the controller's state (A, B, P, the last phi, the resolved joint trajectory) is the
-caller's, passed in and out of each step."""
+state equations (eq 19) at the nominal, by AD (eqs 24-28), A = exp(F T),
+B = int exp(F s) ds L (eqs 29-32) and c = 0. That is the ``init`` kernel, run on the first
+period after a reset; the controller's state (A, B, c, P, the last phi, the resolved joint
+trajectory) is the caller's, passed in and out of each step."""
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import casadi as ca
+import numpy as np
 
 from robotgen.model.laws import RESOLVED_ADAPTIVE
 from robotgen.model.laws.hand import AdaptiveSettings
 from robotgen.model.parameter_struct import runtime_parameters
+from robotgen.model.simulation import rest_posture
 from robotgen.model.system import RobotSystem
 from robotgen.symbolic.control.hand import Hand, discretise, pose_rows, wrap
 from robotgen.symbolic.control.law import Controller, RootLaw, StateView
@@ -42,40 +54,61 @@ from robotgen.symbolic.rigid_body.cholesky import cholesky_solve
 from robotgen.symbolic.rigid_body.rpy import rpy_of
 
 NX, NU = 12, 6  # hand state and torques
-NPHI = NX + NU
 STEP, INIT = "adaptive_step", "adaptive_init"
-# the controller's state, in this order
-LAYOUT = (("A", NX, NX), ("B", NX, NU), ("P", NPHI, NPHI), ("phi", NPHI, 1), ("q_d", NU, 1), ("qd_d", NU, 1),
-          ("qdd_d", NU, 1))
-OFFSETS = {}
-_o = 0
-for _name, _r, _c in LAYOUT:
-    OFFSETS[_name] = (_o, _r, _c)
-    _o += _r * _c
-STATE_SIZE = _o
+TINY = 1e-30  # phi^T P phi is 0 only when phi is (the first period): no update then
+HOLD_REGULARISATION = 1e-3  # delta of the holding torque u_c (one_step_control)
 
 
-def unpack(state: ca.SX) -> dict[str, ca.SX]:
-    """The state's blocks, matrices row-major."""
-    out = {}
-    for name, (o, r, c) in OFFSETS.items():
-        block = state[o:o + r * c]
-        out[name] = ca.reshape(block, c, r).T if c > 1 else block
-    return out
+@dataclass(frozen=True)
+class StateLayout:
+    """The controller's state vector: its blocks in order, matrices row-major."""
+
+    blocks: tuple[tuple[str, int, int], ...]
+
+    @staticmethod
+    def of(s: AdaptiveSettings) -> StateLayout:
+        n = s.n_phi
+        return StateLayout((("A", NX, NX), ("B", NX, NU), *((("c", NX, 1),) if s.affine else ()), ("P", n, n),
+                            ("phi", n, 1), ("B0", NX, NU), ("q_d", NU, 1), ("qd_d", NU, 1), ("qdd_d", NU, 1)))
+
+    @property
+    def offsets(self) -> dict[str, tuple[int, int, int]]:
+        out, o = {}, 0
+        for name, r, c in self.blocks:
+            out[name] = (o, r, c)
+            o += r * c
+        return out
+
+    @property
+    def size(self) -> int:
+        return sum(r * c for _, r, c in self.blocks)
+
+    def unpack(self, state: ca.SX) -> dict[str, ca.SX]:
+        out = {}
+        for name, (o, r, c) in self.offsets.items():
+            block = state[o:o + r * c]
+            out[name] = ca.reshape(block, c, r).T if c > 1 else block
+        return out
+
+    def pack(self, blocks: dict[str, ca.SX]) -> ca.SX:
+        return ca.vertcat(*[ca.reshape(blocks[name].T, r * c, 1) for name, r, c in self.blocks])
 
 
-def pack(blocks: dict[str, ca.SX]) -> ca.SX:
-    return ca.vertcat(*[ca.reshape(blocks[name].T, r * c, 1) for name, r, c in LAYOUT])
+def _matrix(symbol: ca.SX | ca.DM, n: int) -> ca.SX:
+    """A weight of eq 38 as read: its diagonal (n entries) or the matrix (n^2, row-major)."""
+    symbol = ca.SX(symbol)
+    return ca.diag(symbol) if symbol.numel() == n else ca.reshape(symbol, n, n).T
 
 
 class Weights:
-    """Q, R and r: run-time parameters or folded constants."""
+    """Q, R (or the rule's kappa) and mu: run-time parameters or folded constants."""
 
     def __init__(self, name: str, s: AdaptiveSettings, parameters: ParameterSymbols):
         p = parameters.symbols
-        self.q = p.get(f"{name}_q", ca.DM(s.q))
-        self.r = p.get(f"{name}_r", ca.DM(s.r))
-        self.forgetting = p.get(f"{name}_forgetting", s.forgetting)
+        self.Q = _matrix(p.get(f"{name}_q", ca.DM(s.q.ravel())), NX)
+        self.R = None if s.r is None else _matrix(p.get(f"{name}_r", ca.DM(s.r.ravel())), NU)
+        self.kappa = p.get(f"{name}_torque_weight", ca.SX(s.torque_weight))
+        self.forgetting = p.get(f"{name}_forgetting", ca.SX(s.forgetting))
 
 
 class Inputs:
@@ -89,7 +122,7 @@ class Inputs:
                 ("accel_d", self.accel_d)]
 
 
-def feedforward(hand: Hand, s: AdaptiveSettings, i: Inputs, q_start: ca.SX, iterations: int) -> dict[str, ca.SX]:
+def feedforward(hand: Hand, i: Inputs, q_start: ca.SX, iterations: int) -> dict[str, ca.SX]:
     """The four feedforward stages: q_d, qd_d, qdd_d and the nominal torques u_n."""
     R_d, p_d = pose_rows(i.pose_d)
     q_d = hand.inverse_kinematics(R_d, p_d, q_start, iterations)
@@ -103,57 +136,106 @@ def perturbation(hand: Hand, i: Inputs) -> ca.SX:
     return _error(hand.state(i.q, i.qd), i)
 
 
-def identify(A: ca.SX, B: ca.SX, P: ca.SX, phi: ca.SX, dx: ca.SX, r, limit: float,
-             adapt: ca.SX | float = 1.0) -> tuple[ca.SX, ca.SX, ca.SX]:
-    """One step of eq 37 for every row of [A B], with the shared P; ``adapt`` = 0 leaves
-    A, B and P as they are (the gain g and the forgetting are switched off, not the
-    arithmetic: no selection per entry)."""
-    Theta = ca.horzcat(A, B)
+def identify(Theta: ca.SX, P: ca.SX, phi: ca.SX, dx: ca.SX, mu, limit: float | None,
+             adapt: ca.SX | float = 1.0, directional: bool = True) -> tuple[ca.SX, ca.SX]:
+    """One step of eq 37 for every row of Theta = [A B (c)] with the shared P; ``adapt`` = 0
+    leaves Theta and P as they are (the gain is switched off, not the arithmetic: no
+    selection per entry).
+
+    Directional forgetting forgets the information about phi^T theta by mu and adds the new
+    sample: P - eps P phi g^T, eps = 1 - (1 - mu) / s, s = phi^T P phi. It changes P only
+    along P phi and leaves phi^T P phi = s / (s + mu) < 1: P grows only where phi is small.
+    With the affine term phi ends in a constant 1 and P stays bounded; without it ``limit``
+    holds trace(P) (None: no limit). ``directional`` = False is eq 37 as printed:
+    (P - P phi g^T) / mu."""
+    n = phi.shape[0]
     Pphi = P @ phi
-    g = Pphi * (adapt / (ca.dot(phi, Pphi) + r))
+    s = ca.dot(phi, Pphi)
+    g = Pphi * (adapt / (s + mu))
     Theta = Theta + (dx - Theta @ phi) @ g.T
-    # (P - P phi phi^T P / (phi^T P phi + r)) / r on the upper triangle, mirrored
-    inv_r = ca.if_else(adapt, 1 / r, 1)
-    P_next = ca.SX(NPHI, NPHI)
-    for a in range(NPHI):
-        for b in range(a, NPHI):
-            P_next[a, b] = (P[a, b] - Pphi[a] * g[b]) * inv_r
+    if directional:
+        eg, scale = g * (1 - (1 - mu) / ca.fmax(s, TINY)), 1
+    else:
+        eg, scale = g, ca.if_else(adapt, 1 / mu, 1)
+    P_next = ca.SX(n, n)  # the upper triangle, mirrored
+    for a in range(n):
+        for b in range(a, n):
+            P_next[a, b] = (P[a, b] - Pphi[a] * eg[b]) * scale
             P_next[b, a] = P_next[a, b]
-    trace = sum((P_next[k, k] for k in range(NPHI)), ca.SX(0))
-    P_next = P_next * ca.fmin(1, limit / trace)
-    return Theta[:, :NX], Theta[:, NX:], P_next
+    if limit is None:
+        return Theta, P_next
+    trace = sum((P_next[k, k] for k in range(n)), ca.SX(0))
+    return Theta, P_next * ca.fmin(1, limit / trace)
 
 
-def one_step_control(A: ca.SX, B: ca.SX, dx: ca.SX, q, r) -> ca.SX:
-    """du* = -(R + B^T Q B)^-1 B^T Q A dx (eq 39), Q and R diagonal."""
-    QB = ca.diag(q) @ B
-    H = ca.diag(r) + B.T @ QB
-    return -cholesky_solve(H, QB.T @ (A @ dx))
+def _gram(B: ca.SX, QB: ca.SX) -> ca.SX:
+    """B^T Q B from B and Q B, each entry once (it is symmetric)."""
+    n = B.shape[1]
+    H = ca.SX(n, n)
+    for a in range(n):
+        for b in range(a, n):
+            H[a, b] = ca.dot(B[:, a], QB[:, b])
+            H[b, a] = H[a, b]
+    return H
+
+
+def torque_weight(Q: ca.SX, R: ca.SX | None, kappa, B0: ca.SX) -> ca.SX:
+    """R of eq 38: given, or the rule's kappa B0^T Q B0 with B0 the model's B at the reset."""
+    return _gram(B0, Q @ B0) * kappa if R is None else R
+
+
+def one_step_control(A: ca.SX, B: ca.SX, c: ca.SX | None, dx: ca.SX, Q: ca.SX, R: ca.SX) -> ca.SX:
+    """du = u_c - (R + B^T Q B)^-1 B^T Q A dx (eq 39), u_c = -(B^T Q B + delta R)^-1 B^T Q c the
+    torque that holds the identified model at rest (x'^T Q x' least at dx = 0, regularised
+    by delta = HOLD_REGULARISATION so that it stays bounded where B tends to 0, an arm held
+    fast): du minimises x'^T Q x' + (du - u_c)^T R (du - u_c), x' = A dx + B du + c (eq 38
+    about the model's equilibrium)."""
+    QB = Q @ B
+    H = _gram(B, QB)
+    feedback = -cholesky_solve(H + R, QB.T @ (A @ dx))
+    return feedback if c is None else feedback - cholesky_solve(H + HOLD_REGULARISATION * R, QB.T @ c)
 
 
 def step_graph(system: RobotSystem) -> tuple[list[tuple], list[tuple], ParameterSymbols]:
     """The step kernel's inputs and outputs (make_kernel's form) and the parameters."""
     node = system.root_node
     s: AdaptiveSettings = node.hand
+    layout = StateLayout.of(s)
     parameters = ParameterSymbols.of(runtime_parameters(system))
     hand = Hand(system.nodes[node.robot].leaf, s.tool)
     w = Weights(node.name, s, parameters)
     T = s.period
     i = Inputs()
-    state = ca.SX.sym("state", STATE_SIZE)
+    state = ca.SX.sym("state", layout.size)
     adapt = ca.SX.sym("adapt")
-    old = unpack(state)
+    old = layout.unpack(state)
     q_start = old["q_d"] + T * old["qd_d"] + 0.5 * T ** 2 * old["qdd_d"]
-    ff = feedforward(hand, s, i, q_start, s.ik_iterations)
+    ff = feedforward(hand, i, q_start, s.ik_iterations)
     dx = perturbation(hand, i)
-    A, B, P = identify(old["A"], old["B"], old["P"], old["phi"], dx, w.forgetting, s.covariance_limit, adapt)
-    du = one_step_control(A, B, dx, w.q, w.r)
+    Theta = ca.horzcat(old["A"], old["B"], *((old["c"],) if s.affine else ()))
+    Theta, P = identify(Theta, old["P"], old["phi"], dx, w.forgetting, s.trace_limit, adapt, s.directional)
+    A, B = Theta[:, :NX], Theta[:, NX:NX + NU]
+    c = Theta[:, NX + NU] if s.affine else None
+    du = one_step_control(A, B, c, dx, w.Q, torque_weight(w.Q, w.R, w.kappa, old["B0"]))
     tau = ff["u_n"] + du
-    new = {"A": A, "B": B, "P": P, "phi": ca.vertcat(dx, du), "q_d": ff["q_d"], "qd_d": ff["qd_d"],
-           "qdd_d": ff["qdd_d"]}
+    new = {"A": A, "B": B, "c": c, "P": P, "phi": ca.vertcat(dx, du, *((1,) if s.affine else ())),
+           "B0": old["B0"], "q_d": ff["q_d"], "qd_d": ff["qd_d"], "qdd_d": ff["qdd_d"]}
     inputs = [*i.ports(), ("state", state), ("adapt", adapt)]
-    outputs = [("tau", tau, (NU, 1)), ("dx", dx, (NX, 1)), ("state_next", pack(new), (STATE_SIZE, 1))]
+    outputs = [("tau", tau, (NU, 1)), ("dx", dx, (NX, 1)), ("state_next", layout.pack(new), (layout.size, 1))]
     return inputs, outputs, parameters
+
+
+def initial_state(hand: Hand, s: AdaptiveSettings, i: Inputs) -> ca.SX:
+    """The state after a reset: the resolved desired joint trajectory (inverse kinematics from
+    the measured q), the model linearised there and discretised (eqs 24-32), c = 0, P_0."""
+    ff = feedforward(hand, i, i.q, max(2 * s.ik_iterations, 4))
+    F, L = hand.linearisation(ff["q_d"], ff["qd_d"], ff["qdd_d"])
+    A0, B0 = discretise(F, L, s.period)
+    p_a, p_b, p_c = s.initial_covariance
+    P0 = ca.diag(ca.vertcat(*([p_a] * NX + [p_b] * NU + ([p_c] if s.affine else []))))
+    return StateLayout.of(s).pack({"A": A0, "B": B0, "c": ca.SX.zeros(NX), "P": ca.SX(P0),
+                                   "phi": ca.SX.zeros(s.n_phi), "B0": B0, "q_d": ff["q_d"], "qd_d": ff["qd_d"],
+                                   "qdd_d": ff["qdd_d"]})
 
 
 def kernels(system: RobotSystem) -> list[Kernel]:
@@ -161,79 +243,20 @@ def kernels(system: RobotSystem) -> list[Kernel]:
     s: AdaptiveSettings = node.hand
     tree = system.nodes[node.robot].leaf
     hand = Hand(tree, s.tool)
-    T = s.period
     inputs, outputs, parameters = step_graph(system)
     step = make_kernel(
         STEP, "Resolved motion adaptive control (Lee and Lee 1983), one sampling period: Newton-Euler "
         "feedforward along the resolved desired trajectory plus the one-step optimal feedback (eq 39) of "
         "the RLS-identified perturbation model (eq 37); adapt = 0 freezes the identification. The state "
-        "(A, B, P, the last phi, the resolved joint trajectory) comes from adaptive_init or the previous "
+        "(A, B, c, P, the last phi, the resolved joint trajectory) comes from adaptive_init or the previous "
         "step. Also the hand perturbation dx (eq 20).", inputs, outputs, parameters, guarded=True)
-
-    # the first state after a reset: the linearised model at the nominal
     j = Inputs()
-    ff0 = feedforward(hand, s, j, j.q, max(2 * s.ik_iterations, 4))
-    F, L = hand.linearisation(ff0["q_d"], ff0["qd_d"], ff0["qdd_d"])
-    A0, B0 = discretise(F, L, T)
-    first = {"A": A0, "B": B0, "P": s.initial_covariance * ca.SX.eye(NPHI), "phi": ca.SX.zeros(NPHI),
-             "q_d": ff0["q_d"], "qd_d": ff0["qd_d"], "qdd_d": ff0["qdd_d"]}
     init = make_kernel(
         INIT, "The adaptive controller's state for its first period: the resolved desired joint trajectory "
         "(inverse kinematics from the measured q) and the perturbation model linearised there (eqs 24-28) "
-        "and discretised at T (eqs 29-32); P = p0 I.",
-        j.ports(), [("state", pack(first), (STATE_SIZE, 1))], parameters, guarded=True)
+        "and discretised at T (eqs 29-32); c = 0 and P = P_0.",
+        j.ports(), [("state", initial_state(hand, s, j), (StateLayout.of(s).size, 1))], parameters, guarded=True)
     return leaf_kernels(tree, derivatives=system.derivatives.when_asked()) + [step, init]
-
-
-# Lee and Lee 1983, Table 1: (multiplications, additions) per stage of one period
-TABLE_1 = {
-    "feedforward": {"inverse kinematics": (39, 32), "joint rates (eq 11)": (516, 242),
-                    "joint accelerations (eq 13)": (108, 102), "Newton-Euler torques": (678, 597)},
-    "feedback": {"hand state (eqs 1, 2, 8, 9)": (48 + 168, 22 + 138), "errors and identification (eq 37)": (1111, 1109),
-                 "one-step optimal control (eq 39)": (2148, 1790)},
-}
-
-
-def stage_counts(system: RobotSystem) -> dict:
-    """Operations of each of Table 1's stages, each stage's graph alone, and of the emitted
-    step (the stages fused, common subexpressions shared)."""
-    node = system.root_node
-    s: AdaptiveSettings = node.hand
-    hand = Hand(system.nodes[node.robot].leaf, s.tool)
-    i = Inputs()
-    sym = {name: ca.SX.sym(name, n) for name, n in (("q_start", NU), ("q_d", NU), ("qd_d", NU), ("qdd_d", NU),
-                                                    ("x", NX), ("phi", NPHI), ("Q", NX), ("R", NU))}
-    A, B, P = ca.SX.sym("A", NX, NX), ca.SX.sym("B", NX, NU), ca.SX.sym("P", NPHI, NPHI)
-    R_d, p_d = pose_rows(i.pose_d)
-    dx = ca.SX.sym("dx", NX)
-    r = ca.SX.sym("r")
-    stages = {
-        "feedforward": {
-            "inverse kinematics": ([i.pose_d, sym["q_start"]],
-                                   [hand.inverse_kinematics(R_d, p_d, sym["q_start"], s.ik_iterations)]),
-            "joint rates (eq 11)": ([sym["q_d"], i.twist_d], [hand.joint_rates(sym["q_d"], i.twist_d)]),
-            "joint accelerations (eq 13)": ([sym["q_d"], sym["qd_d"], i.accel_d],
-                                            [hand.joint_accelerations(sym["q_d"], sym["qd_d"], i.accel_d)]),
-            "Newton-Euler torques": ([sym["q_d"], sym["qd_d"], sym["qdd_d"]],
-                                     [hand.torques(sym["q_d"], sym["qd_d"], sym["qdd_d"])]),
-        },
-        "feedback": {
-            "hand state (eqs 1, 2, 8, 9)": ([i.q, i.qd], [hand.state(i.q, i.qd)]),
-            "errors and identification (eq 37)": (
-                [sym["x"], i.pose_d, i.twist_d, A, B, P, sym["phi"], r],
-                [*identify(A, B, P, sym["phi"], _error(sym["x"], i), r, s.covariance_limit)]),
-            "one-step optimal control (eq 39)": ([A, B, dx, sym["Q"], sym["R"]],
-                                                 [one_step_control(A, B, dx, sym["Q"], sym["R"])]),
-        },
-    }
-    out: dict = {part: {name: count_operations(*graph) for name, graph in parts.items()}
-                 for part, parts in stages.items()}
-    for part in stages:
-        out[part]["total"] = {k: sum(c[k] for c in out[part].values())
-                              for k in ("mul", "add", "trig", "other", "total")}
-    inputs, outputs, parameters = step_graph(system)
-    out["step"] = count_operations([i[1] for i in inputs] + [parameters.vector], [o[1] for o in outputs])
-    return out
 
 
 def _error(x: ca.SX, i: Inputs) -> ca.SX:
@@ -242,25 +265,147 @@ def _error(x: ca.SX, i: Inputs) -> ca.SX:
     return ca.vertcat(dx[:3], wrap(dx[3:6]), dx[6:])
 
 
+# Lee and Lee 1983, Table 1: (multiplications, additions) per stage of one period. The paper
+# computes the feedforward and the feedback in parallel, and feedback stage 1's two parts in
+# parallel, so its period costs max(feedforward, feedback) with stage 1 the larger part:
+# 168 + 1111 + 2148 = 3427 multiplications, 138 + 12 + 1097 + 1790 = 3037 additions.
+TABLE_1 = (
+    ("feedforward", "1", "inverse kinematics", (39, 32)),
+    ("feedforward", "2", "joint rates (eq 11)", (516, 242)),
+    ("feedforward", "3", "joint accelerations (eq 13)", (108, 102)),
+    ("feedforward", "4", "Newton-Euler torques", (678, 597)),
+    ("feedback", "1a", "hand pose (eqs 1, 2)", (48, 22)),
+    ("feedback", "1b", "hand velocity (eqs 8, 9)", (168, 138)),
+    ("feedback", "2", "errors and identification (eq 37)", (0 + 1111, 12 + 1097)),
+    ("feedback", "3", "one-step optimal control (eq 39)", (2148, 1790)),
+)
+KINDS = ("mul", "add", "trig", "other", "total")
+
+
+def stage_counts(system: RobotSystem) -> dict:
+    """Operations of each of Table 1's stages, given what the stages before it computed (stage
+    3 of the feedforward is counted as what it adds to stage 2, whose J^-1 the paper's stage 3
+    reuses), the totals in the paper's accounting (parallel parts counted by the larger), and
+    the emitted step (every stage fused, common subexpressions shared)."""
+    node = system.root_node
+    s: AdaptiveSettings = node.hand
+    hand = Hand(system.nodes[node.robot].leaf, s.tool)
+    parameters = ParameterSymbols.of(runtime_parameters(system))
+    w = Weights(node.name, s, parameters)
+    i = Inputs()
+    sym = {name: ca.SX.sym(name, n) for name, n in (("q_start", NU), ("q_d", NU), ("qd_d", NU), ("qdd_d", NU),
+                                                    ("x", NX), ("dx", NX), ("phi", s.n_phi))}
+    n_theta = NX + NU + (1 if s.affine else 0)
+    Theta, P = ca.SX.sym("Theta", NX, n_theta), ca.SX.sym("P", s.n_phi, s.n_phi)
+    B0 = ca.SX.sym("B0", NX, NU)
+    R_d, p_d = pose_rows(i.pose_d)
+    qd_d = hand.joint_rates(sym["q_d"], i.twist_d)
+    qdd_d = hand.joint_accelerations(sym["q_d"], qd_d, i.accel_d)
+    pose_R, pose_p = hand.pose(i.q)
+    c = Theta[:, NX + NU] if s.affine else None
+    graphs = {
+        "inverse kinematics": ([i.pose_d, sym["q_start"]],
+                               [hand.inverse_kinematics(R_d, p_d, sym["q_start"], s.ik_iterations)]),
+        "joint rates (eq 11)": ([sym["q_d"], i.twist_d], [qd_d]),
+        "joint accelerations (eq 13)": ([sym["q_d"], i.twist_d, i.accel_d], [qd_d, qdd_d]),
+        "Newton-Euler torques": ([sym["q_d"], sym["qd_d"], sym["qdd_d"]],
+                                 [hand.torques(sym["q_d"], sym["qd_d"], sym["qdd_d"])]),
+        "hand pose (eqs 1, 2)": ([i.q], [pose_p, rpy_of(pose_R)]),
+        "hand velocity (eqs 8, 9)": ([i.q, i.qd], [hand.jacobian(i.q) @ i.qd]),
+        "errors and identification (eq 37)": (
+            [sym["x"], i.pose_d, i.twist_d, Theta, P, sym["phi"], parameters.vector],
+            [*identify(Theta, P, sym["phi"], _error(sym["x"], i), w.forgetting, s.trace_limit, 1.0,
+                       s.directional)]),
+        "one-step optimal control (eq 39)": (
+            [Theta, sym["dx"], B0, parameters.vector],
+            [one_step_control(Theta[:, :NX], Theta[:, NX:NX + NU], c, sym["dx"], w.Q,
+                              torque_weight(w.Q, w.R, w.kappa, B0))]),
+    }
+    counts = {name: count_operations(*graph) for name, graph in graphs.items()}
+    counts["joint accelerations (eq 13)"] = {k: counts["joint accelerations (eq 13)"][k] - counts[
+        "joint rates (eq 11)"][k] for k in KINDS}
+    rows = [{"part": part, "stage": stage, "name": name, "paper": {"mul": m, "add": a}, "robotgen": counts[name]}
+            for part, stage, name, (m, a) in TABLE_1]
+    out: dict = {"rows": rows}
+
+    def total(part: str, key: str) -> dict:
+        chosen = [r for r in rows if r["part"] == part]
+        if part == "feedback":  # stage 1's parts in parallel: the larger counts
+            first = [r for r in chosen if r["stage"].startswith("1")]
+            chosen = [max(first, key=lambda r: r[key]["mul"])] + [r for r in chosen if r not in first]
+        kinds = KINDS if key == "robotgen" else ("mul", "add")
+        return {k: sum(r[key][k] for r in chosen) for k in kinds}
+    for key in ("paper", "robotgen"):
+        parts = {part: total(part, key) for part in ("feedforward", "feedback")}
+        out[key] = {**parts, "period": max(parts.values(), key=lambda t: t["mul"]),
+                    "sequential": {k: sum(r[key][k] for r in rows) for k in parts["feedback"]}}
+    inputs, outputs, parameters = step_graph(system)
+    out["step"] = count_operations([i[1] for i in inputs] + [parameters.vector], [o[1] for o in outputs])
+    return out
+
+
+def nominal_pose(system: RobotSystem) -> np.ndarray:
+    """Where the weight rule's closed loop is evaluated: the simulation's theta0, else the
+    middle of the joints' limits."""
+    tree = system.nodes[system.root_node.robot].leaf
+    sim = system.simulation
+    if sim is not None and sim.theta0 is not None:
+        return np.asarray(sim.theta0, float)
+    return np.asarray(rest_posture([tree]), float)
+
+
+def closed_loop(system: RobotSystem, q: np.ndarray | None = None) -> dict:
+    """The one-step control's closed loop dx(k+1) = (A - B K) dx(k) on the model linearised
+    at the joint pose q (default nominal_pose) with the hand at rest there, the spec's
+    weights: its eigenvalues' moduli, the spectral radius and its margin to 1, and the
+    slowest time constant -T / ln(radius)."""
+    node = system.root_node
+    s: AdaptiveSettings = node.hand
+    hand = Hand(system.nodes[node.robot].leaf, s.tool)
+    q = nominal_pose(system) if q is None else np.asarray(q, float)
+    i = Inputs()
+    R, p = hand.pose(i.q)
+    at_rest = [(i.pose_d, ca.reshape(ca.vertcat(ca.horzcat(R, p), ca.DM([[0, 0, 0, 1]])).T, 16, 1)),
+               (i.twist_d, ca.SX.zeros(6)), (i.accel_d, ca.SX.zeros(6)), (i.qd, ca.SX.zeros(6))]
+    state = ca.substitute([initial_state(hand, s, i)], [a for a, _ in at_rest], [b for _, b in at_rest])[0]
+    blocks = StateLayout.of(s).unpack(ca.SX(ca.Function("state", [i.q], [state])(q)))
+    A, B = (np.array(ca.DM(blocks[k]), float) for k in ("A", "B"))
+    Q = np.diag(s.q) if s.q.ndim == 1 else s.q
+    H = B.T @ Q @ B
+    R_ = s.torque_weight * H if s.r is None else np.diag(s.r) if s.r.ndim == 1 else s.r
+    K = np.linalg.solve(H + R_, B.T @ Q @ A)
+    moduli = np.sort(np.abs(np.linalg.eigvals(A - B @ K)))[::-1]
+    radius = float(moduli[0])
+    return {"pose": [float(v) for v in q], "moduli": [float(f"{m:.4g}") for m in moduli],
+            "spectral_radius": float(f"{radius:.4g}"), "margin": float(f"{1 - radius:.4g}"),
+            "time_constant": float(f"{-s.period / np.log(radius):.4g}") if 0 < radius < 1 else float("inf")}
+
+
 def report(system: RobotSystem) -> tuple[dict, dict]:
     node = system.root_node
     s: AdaptiveSettings = node.hand
+
+    def listed(m: np.ndarray | None):
+        return None if m is None else m.tolist()
     info = {"controller": system.root, "robot": node.robot, "law": RESOLVED_ADAPTIVE, "period": s.period,
-            "q": [float(v) for v in s.q], "r": [float(v) for v in s.r], "forgetting": s.forgetting,
-            "initial_covariance": s.initial_covariance, "covariance_limit": s.covariance_limit,
-            "ik_iterations": s.ik_iterations, "tool": [[float(v) for v in row] for row in s.tool],
-            "state_layout": {name: {"offset": o, "shape": [r, c]} for name, (o, r, c) in OFFSETS.items()},
-            "operation_counts": stage_counts(system),
-            "table_1": {part: {name: {"mul": m, "add": a} for name, (m, a) in rows.items()}
-                        for part, rows in TABLE_1.items()}}
+            "q": listed(s.q), "r": listed(s.r), "torque_weight": s.torque_weight, "bandwidth": s.bandwidth,
+            "forgetting": s.forgetting, "initial_covariance": dict(zip(("A", "B", "c"), s.initial_covariance)),
+            "covariance_limit": s.covariance_limit, "affine": s.affine, "directional": s.directional,
+            "ik_iterations": s.ik_iterations,
+            "tool": [[float(v) for v in row] for row in s.tool],
+            "state_layout": {name: {"offset": o, "shape": [r, c]}
+                             for name, (o, r, c) in StateLayout.of(s).offsets.items()},
+            "operation_counts": stage_counts(system)}
     return {"hand_control": info}, {}
 
 
 def controller(system: RobotSystem) -> Controller:
-    views = tuple(StateView(name, *OFFSETS[name], doc) for name, doc in (
-        ("A", "the identified A of dx(k+1) = A dx(k) + B du(k) (eq 29)"),
-        ("B", "the identified B (eq 29)"), ("P", "the RLS covariance P (eq 37)")))
-    return Controller("AdaptiveController", STEP, system.root_node.hand.period, STATE_SIZE, INIT, ("adapt",), views)
+    s: AdaptiveSettings = system.root_node.hand
+    layout = StateLayout.of(s)
+    docs = {"A": "the identified A of dx(k+1) = A dx(k) + B du(k) + c (eq 29)", "B": "the identified B (eq 29)",
+            "c": "the identified constant term c (the offset a payload makes)", "P": "the RLS covariance P (eq 37)"}
+    views = tuple(StateView(name, *layout.offsets[name], doc) for name, doc in docs.items() if name in layout.offsets)
+    return Controller("AdaptiveController", STEP, s.period, layout.size, INIT, ("adapt",), views)
 
 
 LAW = RootLaw(RESOLVED_ADAPTIVE, kernels, report, controller)
