@@ -184,10 +184,17 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
         emit(build, system.name, kernels_for(system), nq=system_nq(system), extra_info=system_info(system),
              spec_sha256=system.source_sha256, controllers=controllers_for(system))
         module = simulate.load_module(build, system.name)
+        comparison = None
+        if system.root_law == RESOLVED_ADAPTIVE:  # resolved acceleration control on the same path
+            twin = hand_simulation.comparison_system(system)
+            progress.stage(f"compiling {twin.name}, resolved acceleration control for comparison")
+            emit(Path(tmp) / twin.name, twin.name, kernels_for(twin), nq=system_nq(twin),
+                 extra_info=system_info(twin), spec_sha256=twin.source_sha256, controllers=controllers_for(twin))
+            comparison = simulate.load_module(Path(tmp) / twin.name, twin.name)
         step = system.root_node.hand.period if hand else settings.dt
         progress.stage(f"simulating {settings.duration:g} s at dt = {step:g} s")
         try:
-            result = (hand_simulation.run(module, system, settings) if hand
+            result = (hand_simulation.run(module, system, settings, comparison) if hand
                       else simulate.run(module, settings, rest))
         except simulate.SimulationError as e:
             in_spec = e.field is not None and e.field in settings.locations
@@ -243,40 +250,55 @@ def _cmd_info(args: argparse.Namespace) -> int:
             print(f"    locked at q = 0: {', '.join(node['locked_joints'])}")
     if system.root_law == RESOLVED_ADAPTIVE:
         from robotgen.symbolic import module_extras  # lazy: CasADi only where it is needed
+        from robotgen.symbolic.control.resolved_adaptive import closed_loop
 
+        print(closed_loop_line(closed_loop(system), system.root_node.hand.period))
         print(operation_table(module_extras(system)[0]["hand_control"]))
     return EXIT_OK
 
 
+# why a row of Table 1 may cost robotgen more than the paper: what robotgen computes there
+TABLE_1_NOTES = {
+    "joint accelerations (eq 13)": "exact Jdot qd by Newton-Euler's forward pass (the paper differences J "
+                                   "over a period); what it adds to stage 2",
+    "errors and identification (eq 37)": "19 regressors with the affine term c (the paper 18)",
+}
+
+
 def operation_table(hand: dict) -> str:
-    """One period of the adaptive controller, stage by stage, beside Lee and Lee's Table 1."""
-    counts, table = hand["operation_counts"], hand["table_1"]
-    lines = ["  operations per sampling period, each stage's graph alone (Lee and Lee 1983, Table 1 beside):",
-             f"    {'stage':44} {'mul':>6} {'add':>6} {'trig':>5} {'other':>6}   {'Table 1 mul':>11} {'add':>5}"]
-    totals = [0, 0]
-    for part in ("feedforward", "feedback"):
-        lines.append(f"    {part}")
-        for name, c in counts[part].items():
-            if name == "total":
-                continue
-            ref = table[part][name]
-            lines.append(f"      {name:42} {c['mul']:6d} {c['add']:6d} {c['trig']:5d} {c['other']:6d}   "
-                         f"{ref['mul']:11d} {ref['add']:5d}")
-        c = counts[part]["total"]
-        ref_mul, ref_add = (sum(r[k] for r in table[part].values()) for k in ("mul", "add"))
-        totals[0] += ref_mul
-        totals[1] += ref_add
-        lines.append(f"      {'total ' + part:42} {c['mul']:6d} {c['add']:6d} {c['trig']:5d} {c['other']:6d}   "
-                     f"{ref_mul:11d} {ref_add:5d}")
-    both = {k: counts["feedforward"]["total"][k] + counts["feedback"]["total"][k]
-            for k in ("mul", "add", "trig", "other")}
-    lines.append(f"    {'both':44} {both['mul']:6d} {both['add']:6d} {both['trig']:5d} {both['other']:6d}   "
-                 f"{totals[0]:11d} {totals[1]:5d}")
-    step = counts.get("step")
-    if step:
-        lines.append(f"    {'emitted step (stages fused, terms shared)':44} {step['mul']:6d} {step['add']:6d} "
-                     f"{step['trig']:5d} {step['other']:6d}")
+    """One period of the adaptive controller beside Lee and Lee's Table 1, row by row, with
+    the paper's accounting of parallel parts in the totals."""
+    counts = hand["operation_counts"]
+    head = f"    {'stage':46} {'paper mul':>9} {'add':>5}   {'robotgen mul':>12} {'add':>5} {'trig':>5} {'other':>5}"
+    lines = ["  operations per sampling period (Lee and Lee 1983, Table 1; other = divisions, square roots, "
+             "selections):", head]
+    part = None
+    for row in counts["rows"]:
+        if row["part"] != part:
+            part = row["part"]
+            lines.append(f"    {part}")
+        p, r = row["paper"], row["robotgen"]
+        note = TABLE_1_NOTES.get(row["name"], "") if r["mul"] > p["mul"] or r["add"] > p["add"] else ""
+        lines.append(f"      {row['stage'] + ' ' + row['name']:44} {p['mul']:9d} {p['add']:5d}   {r['mul']:12d} "
+                     f"{r['add']:5d} {r['trig']:5d} {r['other']:5d}" + (f"   more: {note}" if note else ""))
+    labels = {"feedforward": "total feedforward", "feedback": "total feedback (stage 1: the larger part)",
+              "period": "period: feedforward and feedback in parallel", "sequential": "every stage on one processor"}
+    for key, label in labels.items():
+        p, r = counts["paper"][key], counts["robotgen"][key]
+        lines.append(f"    {label:46} {p['mul']:9d} {p['add']:5d}   {r['mul']:12d} {r['add']:5d} {r['trig']:5d} "
+                     f"{r['other']:5d}")
+    step = counts["step"]
+    lines.append(f"    {'emitted step (every stage fused, terms shared)':46} {'':9} {'':5}   {step['mul']:12d} "
+                 f"{step['add']:5d} {step['trig']:5d} {step['other']:5d}")
     return "\n".join(lines)
+
+
+def closed_loop_line(loop: dict, period: float) -> str:
+    """The one-step control's closed loop at the nominal pose."""
+    pose = ", ".join(f"{v:.4g}" for v in loop["pose"])
+    return (f"  one-step control's closed loop at q = ({pose}), hand at rest: spectral radius "
+            f"{loop['spectral_radius']:.4g} (margin {loop['margin']:.4g}), slowest time constant "
+            f"{1e3 * loop['time_constant']:.3g} ms at T = {1e3 * period:g} ms")
 
 
 def _parser() -> argparse.ArgumentParser:

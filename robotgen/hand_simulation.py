@@ -1,25 +1,28 @@
 """`robotgen simulate` for a hand controller (law resolved_acceleration or resolved_adaptive at
 the root): the compiled controller against the chain's true dynamics, the hand following its
 start pose plus amplitude sin(2 pi frequency t) on x, y, z, roll, pitch, yaw, and the payload
-changing mid-run (the plant's hand picks up a point mass the controller is not told about).
+changing mid-run (the plant's hand picks up point masses the controller is not told about).
 
-The plant is the chain's forward dynamics (the spec's model, and the same with the payload
-added to the last link at the hand), integrated by RK4 from theta0 with the joint rates of
-the path's start (eq 11); the controller runs once per sampling period on the sensed joint
-state and its torques are held over the period. An adaptive controller is run twice, adapting
-and with its identification frozen (adapt = False), so that the plot compares them."""
+The plant is the chain's forward dynamics (the spec's model, and the same with each payload
+added to the last link), integrated by RK4 from theta0 with the joint rates of the path's
+start (eq 11); the controller runs once per sampling period on the sensed joint state and
+its torques are held over the period. An adaptive controller is run three times: adapting,
+with its identification frozen (adapt = False), and replaced by resolved acceleration
+control with its default gains, so that the plot compares them."""
 from __future__ import annotations
 
 import csv
+import dataclasses
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import casadi as ca
 import numpy as np
 
+from robotgen.frontend.control.hand import DEFAULT_KP, DEFAULT_KV
 from robotgen.model.chain import with_payload
-from robotgen.model.laws import RESOLVED_ADAPTIVE
-from robotgen.model.laws.hand import HAND_AXES
+from robotgen.model.laws import RESOLVED_ACCELERATION, RESOLVED_ADAPTIVE
+from robotgen.model.laws.hand import HAND_AXES, HAND_DOF, ResolvedAccelerationSettings
 from robotgen.model.simulation import SimulationSettings
 from robotgen.model.system import RobotSystem
 from robotgen.numeric import exact
@@ -27,6 +30,8 @@ from robotgen.simulate import DIVERGED, SimulationError
 from robotgen.symbolic.control.hand import Hand
 from robotgen.symbolic.rigid_body.chain import ChainGraphs, Symbols
 from robotgen.symbolic.rigid_body.rpy import rpy_of, rpy_rate_map, rpy_rotation
+
+SETTLE_WINDOW = 1.0  # [s]: the RMS just after a change and at the end of the run
 
 
 @dataclass
@@ -43,6 +48,12 @@ class HandRun:
         e = np.linalg.norm(self.position_error[mask], axis=1)
         return float(np.sqrt(np.mean(e ** 2))) if e.size else float("nan")
 
+    def largest_torque_step(self, mask: np.ndarray | None = None) -> float:
+        """max |tau(k+1) - tau(k)| over joints and the periods ending in ``mask`` [N m]."""
+        steps = np.abs(np.diff(self.tau, axis=0)).max(axis=1)
+        steps = steps if mask is None else steps[mask[1:]]
+        return float(steps.max()) if steps.size else 0.0
+
 
 @dataclass
 class HandResult:
@@ -50,8 +61,18 @@ class HandResult:
     p_d: np.ndarray
     joints: list[str]
     runs: list[HandRun] = field(default_factory=list)
-    change: float | None = None  # when the payload changed [s]
-    mass: float = 0.0
+    changes: tuple = ()  # PayloadChange, in time order
+
+    def window(self, start: float, length: float = SETTLE_WINDOW) -> np.ndarray:
+        return (self.t >= start) & (self.t < start + length)
+
+    @property
+    def last_window(self) -> np.ndarray:
+        return self.t > self.t[-1] - SETTLE_WINDOW
+
+    @property
+    def before(self) -> np.ndarray:
+        return self.t < (self.changes[0].at if self.changes else np.inf)
 
 
 class Trajectory:
@@ -78,12 +99,33 @@ class Trajectory:
         return pose, np.r_[xd[:3], omega.ravel()], np.r_[xdd[:3], domega.ravel()]
 
 
-def _forward_dynamics(tree) -> ca.Function:
+def rk4_step(tree, T: float) -> ca.Function:
+    """(q, qd, tau) -> (q, qd) one period T later, tau held: RK4 on the chain's forward dynamics."""
     sym = Symbols.make(tree.nq)
-    return ca.Function("fd", [sym.q, sym.qd, sym.tau], [ChainGraphs(tree, sym).forward_dynamics()])
+    f = ca.Function("fd", [sym.q, sym.qd, sym.tau], [ChainGraphs(tree, sym).forward_dynamics()])
+    q, qd, tau = sym.q, sym.qd, sym.tau
+    k1 = (qd, f(q, qd, tau))
+    k2 = (qd + T / 2 * k1[1], f(q + T / 2 * k1[0], qd + T / 2 * k1[1], tau))
+    k3 = (qd + T / 2 * k2[1], f(q + T / 2 * k2[0], qd + T / 2 * k2[1], tau))
+    k4 = (qd + T * k3[1], f(q + T * k3[0], qd + T * k3[1], tau))
+    return ca.Function("rk4", [q, qd, tau], [q + T / 6 * (k1[0] + 2 * k2[0] + 2 * k3[0] + k4[0]),
+                                             qd + T / 6 * (k1[1] + 2 * k2[1] + 2 * k3[1] + k4[1])])
 
 
-def run(module, system: RobotSystem, s: SimulationSettings) -> HandResult:
+def comparison_system(system: RobotSystem) -> RobotSystem:
+    """An adaptive controller's spec with resolved acceleration control at its root instead,
+    with the same period and hand and that law's default gains: the reference its simulation
+    compares against."""
+    node = system.root_node
+    hand = ResolvedAccelerationSettings(node.hand.period, node.hand.tool, np.full(HAND_DOF, DEFAULT_KP),
+                                        np.full(HAND_DOF, DEFAULT_KV))
+    root = dataclasses.replace(node, law=RESOLVED_ACCELERATION, hand=hand)
+    return dataclasses.replace(system, name=f"{system.name}_rac", nodes={**system.nodes, system.root: root})
+
+
+def run(module, system: RobotSystem, s: SimulationSettings, comparison=None) -> HandResult:
+    """Every run of the spec's controller (``comparison``: the module of comparison_system,
+    run too when the controller is adaptive)."""
     node = system.root_node
     tree = system.nodes[node.robot].leaf
     hand = Hand(tree, node.hand.tool)
@@ -92,33 +134,38 @@ def run(module, system: RobotSystem, s: SimulationSettings) -> HandResult:
     pose_f = ca.Function("pose", [q_sym], [R_sym, p_sym, rpy_of(R_sym)])
     rates_f = ca.Function("rates", [q_sym, hand.sym.qd], [hand.joint_rates(q_sym, hand.sym.qd)])
     q0 = np.asarray(s.theta0 if s.theta0 is not None else np.zeros(tree.nq), float)
-    hand_point = exact.matmul(tree.tool, node.hand.tool)[:3, 3]  # the hand origin in the last joint's frame
-    change = s.payload_change
-    plants = (_forward_dynamics(tree),
-              _forward_dynamics(with_payload(tree, change.mass, hand_point)) if change else None)
+    hand_frame = exact.matmul(tree.tool, node.hand.tool)  # the hand in the last joint's frame
+    period = node.hand.period
+    plants = [rk4_step(tree, period)]
+    for change in s.payload_changes:
+        point = hand_frame[:3, 3] + hand_frame[:3, :3] @ np.asarray(change.com, float)
+        plants.append(rk4_step(with_payload(tree, change.mass, point), period))
     _, p0, rpy0 = (np.array(v) for v in pose_f(q0))
     trajectory = Trajectory(p0.ravel(), rpy0.ravel(), s.amplitude, s.frequency)
-    period = node.hand.period
     steps = int(round(s.duration / period))
     t = np.arange(steps + 1) * period
     p_d = np.array([trajectory.at(tk)[0][:3, 3] for tk in t])
-    cls = getattr(module, "AdaptiveController" if node.law == RESOLVED_ADAPTIVE else "ResolvedAccelerationController")
-    setups = [("adaptive", "adaptive", True), ("frozen", "identification frozen (adapt = False)", False)] \
-        if node.law == RESOLVED_ADAPTIVE else [("rac", node.law.replace("_", " "), None)]
-    result = HandResult(t, p_d, [j.name for j in tree.joints], change=change.at if change else None,
-                        mass=change.mass if change else 0.0)
-    for key, label, adapt in setups:
+    result = HandResult(t, p_d, [j.name for j in tree.joints], changes=s.payload_changes)
+    if node.law == RESOLVED_ADAPTIVE:
+        setups = [("adaptive", "adaptive", module.AdaptiveController, True),
+                  ("frozen", "identification frozen (adapt = False)", module.AdaptiveController, False)]
+        if comparison is not None:
+            setups.append(("rac", f"resolved acceleration (Kp = {DEFAULT_KP:g}, Kv = {DEFAULT_KV:g})",
+                           comparison.ResolvedAccelerationController, None))
+    else:
+        setups = [("rac", node.law.replace("_", " "), module.ResolvedAccelerationController, None)]
+    switch = np.searchsorted([c.at for c in s.payload_changes], t, side="right")  # the plant at each t
+    qd0 = np.array(rates_f(q0, trajectory.at(0.0)[1])).ravel()  # the plant starts on the path (eq 11)
+    for key, label, cls, adapt in setups:
         controller = cls()
         if adapt is not None:
             controller.adapt = adapt
-        qd0 = np.array(rates_f(q0, trajectory.at(0.0)[1])).ravel()  # the plant starts on the path (eq 11)
-        result.runs.append(_closed_loop(controller, trajectory, plants, change, pose_f, q0, qd0, t, key, label))
+        result.runs.append(_closed_loop(controller, trajectory, plants, switch, pose_f, q0, qd0, t, key, label))
     return result
 
 
-def _closed_loop(controller, trajectory: Trajectory, plants, change, pose_f, q0, qd0, t, key, label) -> HandRun:
+def _closed_loop(controller, trajectory: Trajectory, plants, switch, pose_f, q0, qd0, t, key, label) -> HandRun:
     q, qd = q0.copy(), qd0.copy()
-    T = t[1] - t[0] if len(t) > 1 else 1e-3
     P, EP, EO, TAU = [], [], [], []
     for k, tk in enumerate(t):
         pose_d, twist_d, accel_d = trajectory.at(tk)
@@ -132,30 +179,17 @@ def _closed_loop(controller, trajectory: Trajectory, plants, change, pose_f, q0,
         TAU.append(tau)
         if k == len(t) - 1:
             break
-        plant = plants[1] if change is not None and tk >= change.at else plants[0]
-        q, qd = _rk4(plant, q, qd, tau, T)
+        with np.errstate(all="ignore"):
+            q, qd = (np.array(v).ravel() for v in plants[switch[k]](q, qd, tau))
         if not (np.all(np.abs(q) < DIVERGED) and np.all(np.abs(qd) < DIVERGED)):
-            raise SimulationError(f"the {label} loop diverged at t = {tk + T:.4f} s (q = {np.round(q, 4)}); "
+            raise SimulationError(f"the {label} loop diverged at t = {t[k + 1]:.4f} s (q = {np.round(q, 4)}); "
                                   "lower the controller's gains or weights")
     return HandRun(key, label, np.array(P), np.array(EP), np.array(EO), np.array(TAU))
 
 
-def _rk4(f: ca.Function, q, qd, tau, T):
-    def rates(q, qd):
-        return qd, np.array(f(q, qd, tau)).ravel()
-
-    with np.errstate(all="ignore"):
-        k1 = rates(q, qd)
-        k2 = rates(q + T / 2 * k1[0], qd + T / 2 * k1[1])
-        k3 = rates(q + T / 2 * k2[0], qd + T / 2 * k2[1])
-        k4 = rates(q + T * k3[0], qd + T * k3[1])
-        return (q + T / 6 * (k1[0] + 2 * k2[0] + 2 * k3[0] + k4[0]),
-                qd + T / 6 * (k1[1] + 2 * k2[1] + 2 * k3[1] + k4[1]))
-
-
 def write_csv(result: HandResult, path: Path) -> None:
-    """t, the desired hand position, then per run (adaptive, frozen; or rac) its hand position
-    error (x, y, z) [m], orientation error [rad] and joint torques."""
+    """t, the desired hand position, then per run (adaptive, frozen, rac; or rac) its hand
+    position error (x, y, z) [m], orientation error [rad] and joint torques."""
     with open(path, "w", newline="") as f:
         w = csv.writer(f)
         header = ["t"] + [f"xd_{a}" for a in HAND_AXES[:3]]
@@ -172,23 +206,24 @@ def write_csv(result: HandResult, path: Path) -> None:
 
 
 def plot(result: HandResult, path: Path, title: str) -> None:
-    """Hand position error over time for every run on one axis (the payload change marked),
-    the hand path per axis, and the first run's torques."""
+    """Hand position error over time for every run on one log axis (the payload changes
+    marked), the hand path per axis, and the first run's torques."""
     import matplotlib  # deferred: plotting only
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, axes = plt.subplots(3, 1, figsize=(9, 9), sharex=True)
+    fig, axes = plt.subplots(3, 1, figsize=(9, 9.5), sharex=True)
     ax = axes[0]
     for r in result.runs:
-        ax.plot(result.t, 1e3 * np.linalg.norm(r.position_error, axis=1), label=r.label)
-    if result.change is not None:
-        ax.axvline(result.change, color="k", linestyle=":", linewidth=1)
-        ax.annotate(f" payload +{result.mass:g} kg", (result.change, ax.get_ylim()[1] * 0.9), fontsize=8)
+        ax.semilogy(result.t, np.maximum(1e3 * np.linalg.norm(r.position_error, axis=1), 1e-6), label=r.label)
+    for change in result.changes:
+        ax.axvline(change.at, color="k", linestyle=":", linewidth=1)
+        ax.annotate(f" {change.mass:g} kg", (change.at, 0.9), xycoords=("data", "axes fraction"), fontsize=8)
     ax.set_ylabel("hand position error\n|p - p_d| [mm]")
-    ax.legend(loc="upper left", fontsize=8)
-    ax.grid(True, alpha=0.3)
+    ax.set_ylim(bottom=max(ax.get_ylim()[0], 1e-5))
+    ax.legend(loc="lower right", fontsize=8)
+    ax.grid(True, which="both", alpha=0.3)
     ax = axes[1]
     colors = plt.rcParams["axes.prop_cycle"].by_key()["color"]
     first = result.runs[0]
@@ -212,15 +247,20 @@ def plot(result: HandResult, path: Path, title: str) -> None:
 
 
 def summary(result: HandResult) -> str:
-    before = result.t < (result.change if result.change is not None else np.inf)
+    """Per run: the RMS hand position error before the first change, over the first second
+    after each change and over the last second, and the largest torque step per period."""
     lines = [f"simulated {result.t[-1]:.3f} s in {len(result.t) - 1} periods"]
-    if result.change is not None:
-        lines.append(f"payload +{result.mass:g} kg at the hand at t = {result.change:g} s")
-    lines.append("RMS hand position error [m]:" + ("   before the change   after it" if result.change is not None
-                                                   else ""))
+    for change in result.changes:
+        com = "" if not any(change.com) else f", centre of mass ({', '.join(f'{v:g}' for v in change.com)}) m " \
+                                             "in the hand frame"
+        lines.append(f"payload {change.mass:g} kg at the hand from t = {change.at:g} s{com}")
+    columns = ["before"] if result.changes else ["whole run"]
+    columns += [f"{change.at:g}-{change.at + SETTLE_WINDOW:g} s" for change in result.changes] + ["last second"]
+    lines.append("RMS hand position error [mm], and the largest torque step per period [N m]:")
+    lines.append(f"  {'':40} " + " ".join(f"{c:>12}" for c in columns) + f" {'max |dtau|':>11}")
     for r in result.runs:
-        if result.change is not None:
-            lines.append(f"  {r.label:>40}: {r.rms(before):.3e}   {r.rms(~before):.3e}")
-        else:
-            lines.append(f"  {r.label:>40}: {r.rms(np.ones_like(before)):.3e}")
+        windows = [result.before if result.changes else np.ones_like(result.t, bool)]
+        windows += [result.window(change.at) for change in result.changes] + [result.last_window]
+        lines.append(f"  {r.label:>40} " + " ".join(f"{1e3 * r.rms(m):12.4f}" for m in windows)
+                     + f" {r.largest_torque_step():11.2f}")
     return "\n".join(lines)

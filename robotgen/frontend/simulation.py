@@ -33,10 +33,7 @@ class SimulationReader(Collector):
         if "initial_error" in spec and "start" not in spec and "theta0" not in spec:
             self.at_key(path + ("initial_error",), "initial_error offsets the plant from start: give start too")
         if "payload_change" in spec:
-            change = spec["payload_change"]
-            at = path + ("payload_change",)
-            values["payload_change"] = PayloadChange(self.constant(at + ("at",), change["at"], minimum=0.0),
-                                                     self.constant(at + ("mass",), change["mass"], minimum=0.0))
+            values["payload_changes"] = self.payload_changes(path + ("payload_change",), spec["payload_change"])
         root_node = nodes.get(root)
         if isinstance(root_node, ControlNode) and root_node.law in HAND_LAWS:
             return self.hand_simulation(spec, values, nodes, root_node)
@@ -70,6 +67,20 @@ class SimulationReader(Collector):
         locations = {k: self.doc.source.key(path + (k,)) for k in spec}
         return SimulationSettings(**values, locations=locations)
 
+
+    def payload_changes(self, path: Path, spec: dict | list) -> tuple[PayloadChange, ...]:
+        """One change (a mapping) or several (a list of them, in time order)."""
+        entries = [(path, spec)] if isinstance(spec, dict) else [(path + (k,), c) for k, c in enumerate(spec)]
+        changes = []
+        for at, change in entries:
+            com = tuple(self.constant(at + ("com", i), v) for i, v in enumerate(change.get("com", (0, 0, 0))))
+            changes.append(PayloadChange(self.constant(at + ("at",), change["at"], minimum=0.0),
+                                         self.constant(at + ("mass",), change["mass"], minimum=0.0), com))
+        for (at, _), before, after in zip(entries[1:], changes, changes[1:]):
+            if after.at <= before.at:
+                self.at_value(at + ("at",), f"payload changes must be in time order: {after.at:g} s comes after "
+                                            f"{before.at:g} s")
+        return tuple(changes)
 
     def hand_simulation(self, spec: dict, values: dict, nodes: dict[str, Node],
                         root: ControlNode) -> SimulationSettings:

@@ -9,11 +9,12 @@ from robotgen.model.chain import KinematicTree
 
 @dataclass(frozen=True)
 class PayloadChange:
-    """At time ``at`` the plant's hand picks up ``mass`` (a point mass at the hand's origin);
-    the controller is not told."""
+    """From time ``at`` on, the plant's hand holds ``mass`` (a point mass at ``com``, in the
+    hand frame; 0 drops what it held); the controller is not told."""
 
     at: float
     mass: float
+    com: tuple[float, float, float] = (0.0, 0.0, 0.0)
 
 
 @dataclass(frozen=True)
@@ -26,7 +27,7 @@ class SimulationSettings:
     amplitude: tuple[float, ...] = ()  # x_d(t) = start + amplitude sin(2 pi frequency t)
     frequency: tuple[float, ...] = ()
     internal_forces: tuple[float, ...] = ()  # root f_i, if the root leaves some unresolved
-    payload_change: PayloadChange | None = None  # hand laws: the plant's payload changes mid-run
+    payload_changes: tuple[PayloadChange, ...] = ()  # hand laws: the plant's payload changes mid-run, in time order
     # where each field stands in the spec (for messages about values that only the running
     # simulation can judge, such as a theta0 that breaks a grasp)
     locations: dict[str, Location] = field(default_factory=dict, compare=False, repr=False)
