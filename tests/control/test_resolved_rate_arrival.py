@@ -128,7 +128,8 @@ def test_the_hand_arrives_at_T_on_a_straight_line_at_constant_speed(puma):
 def test_arrival_step_is_eq_11_with_the_remaining_time(puma):
     """One call: the hand rates J_hand qd are C7^T (b17(theta_f) - b17(theta)) / T and
     Omega alpha / T (eqs 11, 14-18), T = remaining, against fk and scipy; a remaining time
-    below the minimum (zero, negative, or past the arrival) counts as the minimum."""
+    below the minimum (zero, negative, or past the arrival) counts as the minimum; a NaN or
+    infinite one is refused (status 1)."""
     target = target_pose(puma)
     rng = np.random.default_rng(11)
     worst = 0.0
@@ -149,6 +150,9 @@ def test_arrival_step_is_eq_11_with_the_remaining_time(puma):
         print(f"\nremaining {remaining:+g} s: T {T:g} s, rate_scale {scale[0]:.4g}")
     print(f"|J_hand qd - rate_scale S| / |S| at most {worst:.2e}")
     assert worst < 1e-12
+    for bad in (np.nan, np.inf):  # a checked step: status 1 on a non-finite input
+        with pytest.raises(FloatingPointError, match="status 1"):
+            puma.arrival_step(QN, target, bad)
 
 
 def test_rate_limits_make_the_arrival_late_and_rate_scale_says_so(puma):
