@@ -258,7 +258,7 @@ _DEFS = {
     "resolved_rate": _object(
         "settings of law resolved_rate: resolved motion rate and position control of a chain "
         "(Whitney 1972), or of a composite robot in its own coordinates (then only damping, "
-        "rate_limits and horizon apply)",
+        "rate_limits, horizon and arrival apply)",
         {"frame": {"enum": list(FRAMES),
                    "description": "command coordinates: base, hand (eq 7), tool (axes of a held "
                                   "tool), line_of_sight (eq 10), spherical; default hand"},
@@ -275,7 +275,10 @@ _DEFS = {
          "redundancy": _object(
              "joint rates of a redundant arm",
              {"method": {"enum": list(REDUNDANCY_METHODS),
-                         "description": "pseudo_inverse (default) or extended_jacobian"},
+                         "description": "pseudo_inverse (default), weighted_pseudo_inverse or extended_jacobian"},
+              "joint_weights": {"type": ["number", "string", "array"], "items": {"$ref": "#/$defs/number"},
+                                "description": "weighted_pseudo_inverse: W = diag(joint_weights), a positive "
+                                               "number or one per joint; the rates minimise qdot^T W qdot"},
               "objective": {"enum": list(OBJECTIVES),
                             "description": "secondary objective H to increase (default none)"},
               "gain": _number("gain on grad H, > 0, default 1", exclusiveMinimum=0)}),
@@ -290,6 +293,11 @@ _DEFS = {
                                         "velocity limits); the whole rate vector is scaled"},
          "horizon": _number("T of eqs 11-18: position control time constant [s], > 0, default 0.1",
                             exclusiveMinimum=0),
+         "arrival": _object(
+             "adds arrival_step: position control with T of eq 11 the time remaining until arrival, "
+             "passed at every call",
+             {"minimum_remaining": _number("remaining times below this count as this [s] (one control "
+                                           "period), > 0, default 0.001", exclusiveMinimum=0)}),
          "lqr": _object(
              "optimal regulator about a nominal posture from the linearised dynamics (eq 19)",
              {"nominal": {"type": "array", "minItems": 1, "items": {"$ref": "#/$defs/number"},

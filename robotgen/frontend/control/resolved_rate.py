@@ -1,6 +1,7 @@
 """Settings of law resolved_rate (Whitney 1972) from a spec: command frames, axes, weights,
-redundancy, damping, rate limits, the horizon and the regulator, over a chain; over a
-composite robot only damping, rate limits and the horizon."""
+redundancy (with joint weights), damping, rate limits, the horizon, the arrival and the
+regulator, over a chain; over a composite robot only damping, rate limits, the horizon and
+the arrival."""
 from __future__ import annotations
 
 import dataclasses
@@ -20,6 +21,8 @@ from robotgen.model.laws.resolved_rate import (
     PSEUDO_INVERSE,
     SPHERICAL,
     TOOL,
+    WEIGHTED_PSEUDO_INVERSE,
+    Arrival,
     CommandFrame,
     CompositeRateSettings,
     Damping,
@@ -76,7 +79,7 @@ class ResolvedRateReader(Collector):
     def composite_rate_settings(self, path: Path, spec: dict, system: RobotSystem, name: str,
                                 robot: Signature) -> CompositeRateSettings:
         """Over a composite robot the command coordinates are the robot's own: only damping,
-        rate limits (one per sensed leaf coordinate) and the horizon apply."""
+        rate limits (one per sensed leaf coordinate), the horizon and the arrival apply."""
         for key in spec:
             if key not in COMPOSITE_KEYS:
                 self.at_key(path + (key,), f"'{key}' applies to a chain leaf; over the composite robot '{name}' the "
@@ -96,7 +99,16 @@ class ResolvedRateReader(Collector):
         return CompositeRateSettings(
             robot_names=robot.velocity_names, n_external=robot.n_external,
             angles=angle_coordinates(system, name), damping=self.damping(path, spec), rate_limits=rate_limits,
-            horizon=self.optional(spec, path, "horizon", 0.1, minimum=0.0, exclusive=True))
+            horizon=self.optional(spec, path, "horizon", 0.1, minimum=0.0, exclusive=True),
+            arrival=self.arrival(path, spec))
+
+    def arrival(self, path: Path, spec: dict) -> Arrival | None:
+        """``arrival: {minimum_remaining: s}``: an arrival_step with the remaining time of eq 11."""
+        if "arrival" not in spec:
+            return None
+        raw = spec["arrival"] or {}
+        return Arrival(self.optional(raw, path + ("arrival",), "minimum_remaining", Arrival.minimum_remaining,
+                                     minimum=0.0, exclusive=True))
 
     def damping(self, path: Path, spec: dict) -> Damping | None:
         if "damping" not in spec:
@@ -155,8 +167,20 @@ class ResolvedRateReader(Collector):
         raw = spec.get("redundancy", {})
         rpath = path + ("redundancy",)
         objective = raw.get("objective", "none")
-        redundancy = Redundancy(raw.get("method", PSEUDO_INVERSE), None if objective == "none" else objective,
-                                self.optional(raw, rpath, "gain", 1.0, minimum=0.0, exclusive=True))
+        method = raw.get("method", PSEUDO_INVERSE)
+        joint_weights = None
+        if method == WEIGHTED_PSEUDO_INVERSE:
+            if "joint_weights" in raw:
+                joint_weights = tuple(float(w) for w in self.per_joint(rpath + ("joint_weights",), raw["joint_weights"],
+                                                                       n, "joint weight", positive=True))
+            else:
+                self.at_key(rpath, f"method weighted_pseudo_inverse needs joint_weights: a positive number per "
+                                   f"joint of '{chain.name}' ({n}), the diagonal of W in qdot^T W qdot")
+        elif "joint_weights" in raw:
+            self.at_key(rpath + ("joint_weights",), f"joint_weights belong to method weighted_pseudo_inverse, "
+                                                    f"not {method}")
+        redundancy = Redundancy(method, None if objective == "none" else objective,
+                                self.optional(raw, rpath, "gain", 1.0, minimum=0.0, exclusive=True), joint_weights)
         if redundancy.method == EXTENDED_JACOBIAN:
             if n != m + 1:
                 self.at_value(rpath + ("method",), f"extended_jacobian needs exactly one degree of redundancy: "
@@ -168,6 +192,10 @@ class ResolvedRateReader(Collector):
             self.warnings.append(f"{self.doc.source.key(rpath)}: warning: {format_path(self.doc.data, rpath)}: "
                                  f"'{chain.name}' has no redundancy ({n} joints, {m} task axes); the objective "
                                  "has no effect")
+        if joint_weights is not None and n == m:
+            self.warnings.append(f"{self.doc.source.key(rpath)}: warning: {format_path(self.doc.data, rpath)}: "
+                                 f"'{chain.name}' has no redundancy ({n} joints, {m} task axes); the weighted "
+                                 "pseudo-inverse is J^-1 whatever the weights (they act only where damping does)")
         if redundancy.objective == JOINT_LIMITS:
             if not any(j.limits.lower is not None and j.limits.upper is not None and j.limits.upper > j.limits.lower
                        for j in chain.joints):
@@ -179,7 +207,8 @@ class ResolvedRateReader(Collector):
         horizon = self.optional(spec, path, "horizon", 0.1, minimum=0.0, exclusive=True)
         lqr = self.lqr_settings(path + ("lqr",), spec["lqr"], n) if "lqr" in spec else None
         return RateControlSettings(frame=frame, active=active, free=free, weights=weights, redundancy=redundancy,
-                                   damping=damping, rate_limits=rate_limits, horizon=horizon, lqr=lqr)
+                                   damping=damping, rate_limits=rate_limits, horizon=horizon, lqr=lqr,
+                                   arrival=self.arrival(path, spec))
 
     def rate_limits(self, path: Path, spec: dict, chain: KinematicTree) -> np.ndarray | None:
         if "rate_limits" in spec:

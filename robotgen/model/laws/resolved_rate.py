@@ -2,8 +2,10 @@
 
 A `control` node with ``law: resolved_rate`` is a kinematic controller: it turns hand rates
 commanded along six axes of a chosen coordinate system into joint rates (eqs 2-10), and a
-target pose into hand rates by closed-loop re-planning (eqs 11-18). Optionally it carries an
-optimal regulator about a nominal posture, from the linearised dynamics (eq 19).
+target pose into hand rates by closed-loop re-planning (eqs 11-18), either with a fixed
+horizon (an exponential approach) or with the time remaining until arrival (``Arrival``).
+Optionally it carries an optimal regulator about a nominal posture, from the linearised
+dynamics (eq 19).
 
 The six command axes are ordered (v1 v2 v3 w1 w2 w3): three translation rates, then three
 rotation rates, in the frame's coordinates. Each axis is either *active* (follows the
@@ -12,7 +14,7 @@ or *free* (left out of the task; its rows leave the Jacobian, adding redundancy)
 
 Over a composite robot (an ATTACH tree, Deno et al. 1990) the command coordinates are the
 robot node's own (its rd) and the joint rates come from the tree's velocity map; only
-damping, rate limits and the horizon apply (``CompositeRateSettings``).
+damping, rate limits, the horizon and the arrival apply (``CompositeRateSettings``).
 """
 from __future__ import annotations
 
@@ -41,10 +43,11 @@ AXIS_NAMES = {
 
 # redundancy resolution
 PSEUDO_INVERSE = "pseudo_inverse"
+WEIGHTED_PSEUDO_INVERSE = "weighted_pseudo_inverse"
 EXTENDED_JACOBIAN = "extended_jacobian"
 JOINT_LIMITS = "joint_limits"
 MANIPULABILITY = "manipulability"
-REDUNDANCY_METHODS = (PSEUDO_INVERSE, EXTENDED_JACOBIAN)
+REDUNDANCY_METHODS = (PSEUDO_INVERSE, WEIGHTED_PSEUDO_INVERSE, EXTENDED_JACOBIAN)
 OBJECTIVES = ("none", JOINT_LIMITS, MANIPULABILITY)
 
 
@@ -76,13 +79,38 @@ class CommandFrame:
 class Redundancy:
     """How joint rates are chosen when the task has fewer rows than the arm has joints.
 
-    pseudo_inverse:     qdot = J+ Sdot + (I - J+ J) gain grad H  (Liegeois 1977).
-    extended_jacobian:  J augmented by d/dq (z^T grad H) = -gain z^T grad H, z spanning
-                        null(J) (Baillieul 1985); one degree of redundancy only."""
+    pseudo_inverse:          qdot = J+ Sdot + (I - J+ J) gain grad H  (Liegeois 1977).
+    weighted_pseudo_inverse: qdot = J#W Sdot + (I - J#W J) W^-1 gain grad H with
+                             J#W = W^-1 J^T (J W^-1 J^T)^-1, W = diag(joint_weights): the rate
+                             of least qdot^T W qdot that meets J qdot = Sdot (Whitney 1969).
+    extended_jacobian:       J augmented by d/dq (z^T grad H) = -gain z^T grad H, z spanning
+                             null(J) (Baillieul 1985); one degree of redundancy only."""
 
     method: str = PSEUDO_INVERSE
     objective: str | None = None  # joint_limits | manipulability | None
     gain: float = 1.0
+    joint_weights: tuple[float, ...] | None = None  # (n,) diagonal of W, weighted_pseudo_inverse only
+
+    def summary(self) -> dict:
+        out = {"method": self.method, "objective": self.objective, "gain": self.gain}
+        if self.joint_weights is not None:
+            out["joint_weights"] = list(self.joint_weights)
+        return out
+
+
+@dataclass(frozen=True)
+class Arrival:
+    """Position control with the remaining time of eq 11: the caller passes the time left
+    until the hand is to arrive, and the hand rates are the remaining displacement and
+    rotation over it. Below ``minimum_remaining`` that time is taken as the minimum, so
+    nothing divides by zero: at one control period the last call carries the hand onto the
+    target, and afterwards it is held there as an exponential approach with that time
+    constant."""
+
+    minimum_remaining: float = 0.001
+
+    def summary(self) -> dict:
+        return {"minimum_remaining": self.minimum_remaining}
 
 
 @dataclass(frozen=True)
@@ -114,6 +142,7 @@ class RateControlSettings:
     rate_limits: np.ndarray | None  # (n,) |qdot_i| bounds, the whole vector is scaled
     horizon: float  # T of eqs 11 and 18: closed-loop time constant of position control
     lqr: LQRSettings | None = None
+    arrival: Arrival | None = None  # arrival_step: T of eq 11 the remaining time
 
     @property
     def task_rows(self) -> tuple[int, ...]:
@@ -130,13 +159,14 @@ class RateControlSettings:
             "held": [n for n, a, f in zip(names, self.active, self.free) if not a and not f],
             "free": [n for n, f in zip(names, self.free) if f],
             "weights": [float(w) for w in self.weights],
-            "redundancy": {"method": self.redundancy.method, "objective": self.redundancy.objective,
-                           "gain": self.redundancy.gain},
+            "redundancy": self.redundancy.summary(),
             "damping": None if self.damping is None else
             {"lambda_max": self.damping.lambda_max, "threshold": self.damping.threshold},
             "rate_limits": None if self.rate_limits is None else [float(v) for v in self.rate_limits],
             "horizon": self.horizon,
         }
+        if self.arrival is not None:
+            out["arrival"] = self.arrival.summary()
         if self.frame.point is not None:
             out["eye" if self.frame.kind == LINE_OF_SIGHT else "centre"] = [float(v) for v in self.frame.point]
         if self.frame.tool is not None:
@@ -145,7 +175,7 @@ class RateControlSettings:
 
 
 # the settings a resolved_rate controller of a composite robot takes (the others are a chain's)
-COMPOSITE_KEYS = ("damping", "rate_limits", "horizon")
+COMPOSITE_KEYS = ("damping", "rate_limits", "horizon", "arrival")
 
 
 @dataclass(frozen=True, eq=False)
@@ -155,8 +185,9 @@ class CompositeRateSettings:
     then the internal-motion rates R exposes, a null-space command); the leaves' joint rates
     are the tree's velocity map A(theta) (every ATTACH's A composed down to the leaves)
     applied to it. A target position is reached through rates (x_target - x) / horizon,
-    with the internal-motion rates zero; ``angles`` marks the external coordinates whose
-    error is wrapped to (-pi, pi] (a rigid payload's psi, or roll, pitch, yaw)."""
+    with the internal-motion rates zero (or over the remaining time, ``arrival``); ``angles``
+    marks the external coordinates whose error is wrapped to (-pi, pi] (a rigid payload's
+    psi, or roll, pitch, yaw)."""
 
     robot_names: tuple[str, ...]  # R's velocity coordinates, the command's entries
     n_external: int
@@ -164,11 +195,12 @@ class CompositeRateSettings:
     damping: Damping | None
     rate_limits: np.ndarray | None  # (nq,) over the sensed leaf coordinates
     horizon: float
+    arrival: Arrival | None = None
 
     def summary(self) -> dict:
         """Plain data for info() and the manifest."""
         external = self.robot_names[:self.n_external]
-        return {
+        out = {
             "frame": "node",
             "command": list(self.robot_names),
             "target": list(external),
@@ -179,3 +211,6 @@ class CompositeRateSettings:
             "rate_limits": None if self.rate_limits is None else [float(v) for v in self.rate_limits],
             "horizon": self.horizon,
         }
+        if self.arrival is not None:
+            out["arrival"] = self.arrival.summary()
+        return out

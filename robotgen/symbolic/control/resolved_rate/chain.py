@@ -9,7 +9,14 @@ chain's usual functions (fk, jacobian, ..., forward_dynamics) and:
   a null-space objective on redundant arms, scaled to the rate limits.
 - ``position_step(q, target) -> (qd, error, manipulability, condition)``: closed-loop
   position control through rates (eqs 11-18), re-planned from the current q at every call:
-  hand rates (b17(theta_f) - b17(theta)) / T and Omega alpha / T, resolved as above.
+  hand rates (b17(theta_f) - b17(theta)) / T and Omega alpha / T, resolved as above, with T
+  the fixed horizon: an exponential approach.
+- ``arrival_step(q, target, remaining) -> (qd, error, rate_scale, manipulability,
+  condition)``: the same with T of eq 11 the time remaining until arrival, as Whitney's
+  closed-loop variant takes "a new T" at every re-planning: the hand moves on the straight
+  line at constant speed and turns about a fixed axis at a constant rate, and arrives when
+  ``remaining`` reaches zero; rate_scale < 1 when the rate limits slowed it (it is late).
+  Only when the spec has ``arrival``.
 - ``objective(q)``: the secondary objective H, when the spec names one.
 - ``lqr_step(q, qd) -> tau``: tau0 - K (q - q0, qd), the optimal regulator on the
   linearised dynamics about the nominal (eq 19), when the spec asks for one.
@@ -20,7 +27,13 @@ import casadi as ca
 import numpy as np
 
 from robotgen.model.chain import KinematicTree
-from robotgen.model.laws.resolved_rate import EXTENDED_JACOBIAN, JOINT_LIMITS, MANIPULABILITY, RateControlSettings
+from robotgen.model.laws.resolved_rate import (
+    EXTENDED_JACOBIAN,
+    JOINT_LIMITS,
+    MANIPULABILITY,
+    WEIGHTED_PSEUDO_INVERSE,
+    RateControlSettings,
+)
 from robotgen.model.system import RobotSystem
 from robotgen.symbolic.control.resolved_rate.command_frames import command_jacobian, hand, twist_map
 from robotgen.symbolic.control.resolved_rate.regulator import regulator
@@ -28,6 +41,7 @@ from robotgen.symbolic.control.resolved_rate.resolution import (
     DampedResolver,
     conditioning,
     damping_squared,
+    limited,
     null_vector,
     scale_to_limits,
 )
@@ -68,6 +82,14 @@ class RateLaw:
             self._resolver = DampedResolver(ca.vertcat(self.J, ca.jacobian(g, self.q)), lam2)
             self._extra = -r.gain * g
             self._null = None
+        elif r.method == WEIGHTED_PSEUDO_INVERSE:
+            # qdot = J#W Sdot + (I - J#W J) W^-1 gain grad H, J#W = W^-1 J^T (J W^-1 J^T)^-1
+            # (resolution.py); W^-1 grad H is the ascent of H per unit of qdot^T W qdot.
+            w = np.asarray(r.joint_weights, dtype=float)
+            self._resolver = DampedResolver(self.J, lam2, column_scale=1 / np.sqrt(w))
+            self._extra = None
+            self._null = (self._resolver.project_null(ca.DM(1 / w) * (r.gain * grad))
+                          if grad is not None and self.n > self.m else None)
         else:
             self._resolver = DampedResolver(self.J, lam2)
             self._extra = None
@@ -95,31 +117,47 @@ class RateLaw:
             return w, ca.gradient(det, q) / (2 * ca.fmax(w, 1e-12))
         return None, None
 
+    def unlimited(self, S: ca.SX) -> ca.SX:
+        """Joint rates for task rates S (m,), before the rate limits."""
+        if self._extra is not None:
+            return self._resolver.pinv_times(ca.vertcat(S, self._extra))
+        qd = self._resolver.pinv_times(S)
+        return qd if self._null is None else qd + self._null
+
     def resolve(self, S: ca.SX) -> ca.SX:
         """Joint rates for task rates S (m,), limited."""
-        if self._extra is not None:
-            qd = self._resolver.pinv_times(ca.vertcat(S, self._extra))
-        else:
-            qd = self._resolver.pinv_times(S)
-            if self._null is not None:
-                qd = qd + self._null
-        return scale_to_limits(qd, self.s.rate_limits)
+        return scale_to_limits(self.unlimited(S), self.s.rate_limits)
 
     def rate_step(self, command: ca.SX) -> ca.SX:
         gate = np.array([w if a else 0.0 for w, a in zip(self.s.weights, self.s.active)])
         S6 = ca.SX(ca.DM(gate)) * command
         return self.resolve(S6[self.rows])
 
-    def position_step(self, target: ca.SX) -> tuple[ca.SX, ca.SX]:
-        """target: 16 entries, the 4x4 goal pose of the controlled frame, row-major."""
-        T = self.s.horizon
+    def hand_rates(self, target: ca.SX, T: float | ca.SX) -> tuple[ca.SX, ca.SX]:
+        """Task rates that carry the hand to ``target`` (16 entries, the 4x4 goal pose of the
+        controlled frame, row-major) in time T, and the error (dp; Omega alpha)."""
         R_f = ca.vertcat(*[ca.horzcat(*[target[4 * i + k] for k in range(3)]) for i in range(3)])
         p_f = ca.vertcat(*[target[4 * i + 3] for i in range(3)])
         dp = p_f - self.hand.p  # b17(theta_f) - b17(theta), base coordinates (eq 11)
         rotation = rotation_vector(self.hand.R.T @ R_f)  # C_if (eq 14) -> Omega alpha (eqs 15-18)
         twist = ca.vertcat(dp / T, self.hand.R @ rotation / T)
         S6 = self.M @ twist  # hand frame: C7^T dp / T (eq 11) and Omega alpha / T
-        return self.resolve(S6[self.rows]), ca.vertcat(dp, rotation)
+        return S6[self.rows], ca.vertcat(dp, rotation)
+
+    def position_step(self, target: ca.SX) -> tuple[ca.SX, ca.SX]:
+        """T the fixed horizon: re-planned at every call, an exponential approach."""
+        S, error = self.hand_rates(target, self.s.horizon)
+        return self.resolve(S), error
+
+    def arrival_step(self, target: ca.SX, remaining: ca.SX) -> tuple[ca.SX, ca.SX, ca.SX]:
+        """T of eq 11 the remaining time, at least the minimum: (qd, error, rate_scale).
+        Re-planned with the new T at every call, the rate along the remaining displacement
+        is |dp| / T, and |dp| shrinks as T does: a straight line at constant speed (the
+        rotation about a fixed axis at a constant rate), arriving at T = 0."""
+        T = ca.fmax(remaining, self.s.arrival.minimum_remaining)
+        S, error = self.hand_rates(target, T)
+        qd, scale = limited(self.unlimited(S), self.s.rate_limits)
+        return qd, error, scale
 
 
 def _has_range(joint) -> bool:
@@ -156,6 +194,20 @@ def chain_kernels(system: RobotSystem) -> list[Kernel]:
                  ("manipulability", law.manipulability, (1, 1)), ("condition", law.condition, (1, 1))],
                 guarded=True),
     ]
+    if s.arrival is not None:
+        remaining = ca.SX.sym("remaining")
+        qd_arr, error_arr, scale = law.arrival_step(target, remaining)
+        kernels.append(make_kernel(
+            "arrival_step", "Position control through rates with the remaining time (eq 11 with a new T at "
+            "every call): the hand rates that reach the target pose (4x4, base frame) in the time remaining, "
+            f"max(remaining, {s.arrival.minimum_remaining:g} s), resolved as rate_step does: a straight "
+            "line at constant speed, a fixed rotation axis at a constant rate. error as position_step's; "
+            "rate_scale = 1 / max(1, max_i |qd_i| / limit_i), below 1 when the rate limits slowed the hand "
+            "(it arrives late).",
+            [("q", q, (n, 1)), ("target", target, (4, 4)), ("remaining", remaining)],
+            [("qd", qd_arr, (n, 1)), ("error", error_arr, (6, 1)), ("rate_scale", scale, (1, 1)),
+             ("manipulability", law.manipulability, (1, 1)), ("condition", law.condition, (1, 1))],
+            guarded=True))
     if law.H is not None:
         kernels.append(make_kernel("objective", f"The secondary objective H(q) ({s.redundancy.objective}) that "
                                "the redundancy resolution increases.", [("q", q, (n, 1))],

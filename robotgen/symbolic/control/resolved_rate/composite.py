@@ -16,6 +16,10 @@ servo_step) and:
 - ``position_step(theta, target) -> (theta_dot, error, manipulability, condition)``: the
   external rates (target - x) / T (angles wrapped), internal-motion rates zero, resolved as
   rate_step does.
+- ``arrival_step(theta, target, remaining) -> (theta_dot, error, rate_scale, manipulability,
+  condition)``: the same with T the time remaining until arrival (Whitney's eq 11 with a new
+  T at every call), at least ``arrival.minimum_remaining``: x moves on the straight line in
+  R's coordinates at constant speed. Only when the spec has ``arrival``.
 
 The leaf rates lie in the range of A, so every constraint of the tree holds (fingertips
 stay on the payload) whatever the command, damping and rate limits. The singularity
@@ -31,7 +35,12 @@ import casadi as ca
 
 from robotgen.model.laws.resolved_rate import CompositeRateSettings
 from robotgen.model.system import RobotSystem
-from robotgen.symbolic.control.resolved_rate.resolution import conditioning, damping_squared, scale_to_limits
+from robotgen.symbolic.control.resolved_rate.resolution import (
+    conditioning,
+    damping_squared,
+    limited,
+    scale_to_limits,
+)
 from robotgen.symbolic.kernel import Kernel, make_kernel
 from robotgen.symbolic.plant import leaf_velocities, strip_controls
 from robotgen.symbolic.rigid_body.cholesky import cholesky_solve
@@ -82,20 +91,35 @@ class CompositeRateLaw:
         d = s.damping
         self._lam2 = damping_squared(self.manipulability, d.lambda_max, d.threshold) if d is not None else None
 
-    def resolve(self, command: ca.SX) -> ca.SX:
-        """Leaf joint rates for a velocity of R, damped and limited."""
+    def unlimited(self, command: ca.SX) -> ca.SX:
+        """Leaf joint rates for a velocity of R, damped, before the rate limits."""
         if self._lam2 is None:
             u = command
         else:
             u = cholesky_solve(ca.SX.eye(self.k) + self._lam2 * self._AtA, command)
-        return scale_to_limits(self.A @ u, self.s.rate_limits)
+        return self.A @ u
 
-    def position_step(self, target: ca.SX) -> tuple[ca.SX, ca.SX]:
+    def resolve(self, command: ca.SX) -> ca.SX:
+        """Leaf joint rates for a velocity of R, damped and limited."""
+        return scale_to_limits(self.unlimited(command), self.s.rate_limits)
+
+    def rates(self, target: ca.SX, T: float | ca.SX) -> tuple[ca.SX, ca.SX]:
+        """The velocity of R that reaches the external coordinates ``target`` in time T
+        (internal-motion rates zero), and the error target - x (angles wrapped)."""
         e = target - self.x
         error = ca.vertcat(*[ca.atan2(ca.sin(e[i]), ca.cos(e[i])) if a else e[i]
                              for i, a in enumerate(self.angles)])
-        rates = ca.vertcat(error / self.s.horizon, ca.SX.zeros(self.k - self.n_external))
+        return ca.vertcat(error / T, ca.SX.zeros(self.k - self.n_external)), error
+
+    def position_step(self, target: ca.SX) -> tuple[ca.SX, ca.SX]:
+        rates, error = self.rates(target, self.s.horizon)
         return self.resolve(rates), error
+
+    def arrival_step(self, target: ca.SX, remaining: ca.SX) -> tuple[ca.SX, ca.SX, ca.SX]:
+        """T the remaining time, at least the minimum: (theta_dot, error, rate_scale)."""
+        rates, error = self.rates(target, ca.fmax(remaining, self.s.arrival.minimum_remaining))
+        theta_dot, scale = limited(self.unlimited(rates), self.s.rate_limits)
+        return theta_dot, error, scale
 
 
 def composite_kernels(system: RobotSystem) -> list[Kernel]:
@@ -129,6 +153,18 @@ def composite_kernels(system: RobotSystem) -> list[Kernel]:
                 [("theta", th, (n, 1)), ("target", target, (ne, 1))],
                 [("theta_dot", qd_pos, (n, 1)), ("error", error, (ne, 1))] + measures),
     ]
+    if law.s.arrival is not None:
+        remaining = ca.SX.sym("remaining")
+        qd_arr, error_arr, scale = law.arrival_step(target, remaining)
+        kernels.append(make_kernel(
+            "arrival_step", f"Position control through rates of '{robot}' with the remaining time (eq 11 with a "
+            f"new T at every call): the velocity (target - x) / max(remaining, {law.s.arrival.minimum_remaining:g} "
+            "s) on its external coordinates, internal-motion rates zero, resolved as rate_step does: a straight "
+            "line in those coordinates at constant speed. error as position_step's; rate_scale = "
+            "1 / max(1, max_i |theta_dot_i| / limit_i), below 1 when the rate limits slowed it (it arrives late).",
+            [("theta", th, (n, 1)), ("target", target, (ne, 1)), ("remaining", remaining)],
+            [("theta_dot", qd_arr, (n, 1)), ("error", error_arr, (ne, 1)), ("rate_scale", scale, (1, 1))]
+            + measures))
     return kernels
 
 

@@ -7,6 +7,12 @@ Never an explicit inverse: J is factorised by Householder QR, unrolled.
   ((n + m) x m) = Q [R; 0]: R^T R = J J^T + lambda^2 I, and the damped least-squares rate
   qdot = J^T (J J^T + lambda^2 I)^-1 Sdot = Q_top R^-T Sdot, Q_top the first n rows of Q's
   first m columns. With lambda = 0 this is J^-1 Sdot (square) or J+ Sdot (redundant).
+- Weighted (redundant arm, W = diag(w) > 0): the rate of least qdot^T W qdot with J qdot =
+  Sdot. Lagrange: W qdot = J^T mu, so qdot = W^-1 J^T (J W^-1 J^T)^-1 Sdot = J#W Sdot
+  (Whitney 1969's weighted generalised inverse). With u = W^(1/2) qdot the cost is |u|^2 and
+  the task J_w u = Sdot, J_w = J W^(-1/2): the minimum-norm u = J_w+ Sdot, so the same
+  factorisation of the column-scaled J_w serves, qdot = W^(-1/2) u; damped, W^-1 J^T
+  (J W^-1 J^T + lambda^2 I)^-1 Sdot.
 - Singularities: manipulability w = sqrt(det(J J^T)) (Yoshikawa 1985) and the 2-norm
   condition number from the eigenvalues of J J^T (cyclic Jacobi, a fixed number of sweeps);
   lambda^2 = lambda_max^2 (1 - w / w0)^2 below the threshold w0 (Nakamura & Hanafusa 1986).
@@ -17,6 +23,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import casadi as ca
+import numpy as np
 
 CONDITION_CAP = 1e16  # the condition number reported at (numerically) singular configurations
 JACOBI_SWEEPS = 6  # cyclic Jacobi on an m x m matrix (m <= 6 command axes): converged to rounding
@@ -149,30 +156,51 @@ def damping_squared(w: ca.SX, lambda_max: float, threshold: float) -> ca.SX:
 
 class DampedResolver:
     """One factorisation of [J^T; lambda I] serving the task rates and the null-space
-    projection: J+_lambda b = Q_top R^-T b, (I - J+_lambda J) z = z - J+_lambda (J z)."""
+    projection: J+_lambda b = Q_top R^-T b, (I - J+_lambda J) z = z - J+_lambda (J z).
 
-    def __init__(self, J: ca.SX, lam2: ca.SX | None):
+    With ``column_scale`` s = W^(-1/2) (the diagonal, constants) J_w = J diag(s) is factorised
+    instead and pinv_times is the weighted J#W b = s * J_w+ b. project_null is then
+    z - J#W J z = W^(-1/2) (I - J_w+ J_w) W^(1/2) z: the projection onto null(J) orthogonal in
+    the metric W; applied to W^-1 grad H (the steepest ascent of H in that metric) it is
+    W^(-1/2) (I - J_w+ J_w) W^(-1/2) grad H, the Liegeois term in u = W^(1/2) qdot."""
+
+    def __init__(self, J: ca.SX, lam2: ca.SX | None, column_scale: np.ndarray | None = None):
         self.J = J
         m, n = J.shape
         self.n = n
+        self.scale = None if column_scale is None else ca.DM(column_scale)
+        Jw = J if self.scale is None else J @ ca.diag(self.scale)
         lower = ca.sqrt(lam2) * ca.SX.eye(m) if lam2 is not None else ca.SX.zeros(m, m)
-        self.qr = Householder.factor(ca.vertcat(J.T, lower) if lam2 is not None else J.T)
+        self.qr = Householder.factor(ca.vertcat(Jw.T, lower) if lam2 is not None else Jw.T)
 
     def pinv_times(self, b: ca.SX) -> ca.SX:
         z = self.qr.solve_rt([b[i] for i in range(b.shape[0])])
         y = self.qr.q_times(z + [ca.SX(0)] * (self.qr.rows - len(z)))
-        return ca.vertcat(*y[: self.n])
+        u = ca.vertcat(*y[: self.n])
+        return u if self.scale is None else self.scale * u
 
     def project_null(self, z: ca.SX) -> ca.SX:
         return z - self.pinv_times(self.J @ z)
 
 
+def limit_divisor(qd: ca.SX, limits) -> ca.SX | None:
+    """max(1, max_i |qd_i| / limit_i), or None without limits."""
+    if limits is None:
+        return None
+    ratio = _reduce(ca.fmax, [ca.fabs(qd[i]) / float(limits[i]) for i in range(qd.shape[0])])
+    return ca.fmax(1, ratio)
+
+
 def scale_to_limits(qd: ca.SX, limits) -> ca.SX:
     """qd / max(1, max_i |qd_i| / limit_i): the direction (and so the hand's) is kept."""
-    if limits is None:
-        return qd
-    ratio = _reduce(ca.fmax, [ca.fabs(qd[i]) / float(limits[i]) for i in range(qd.shape[0])])
-    return qd / ca.fmax(1, ratio)
+    divisor = limit_divisor(qd, limits)
+    return qd if divisor is None else qd / divisor
+
+
+def limited(qd: ca.SX, limits) -> tuple[ca.SX, ca.SX]:
+    """(qd scaled to the limits, the factor 1 / max(1, max_i |qd_i| / limit_i) it was scaled by)."""
+    divisor = limit_divisor(qd, limits)
+    return (qd, ca.SX(1)) if divisor is None else (qd / divisor, 1 / divisor)
 
 
 def null_vector(J: ca.SX) -> ca.SX:
