@@ -20,9 +20,11 @@ The paper reports no numbers of its own for chapter 4. What it claims, and what 
   and RobotMass[LowCThand] ("just the box mass") from the compiled node functions, beside
   the closed forms of StyxDefinitions.m.
 
-The references here never call robotgen: the finger and grasp closed forms are written out
-below (StyxDefinitions.m), from the numbers in the specs. Modules are built from copies of
-specs/styx_*.yaml, renamed and with the box's mass set, in a temporary directory.
+The closed forms below (StyxDefinitions.m: the fingers, the grasp map, the box) never call
+robotgen; they take the numbers in the specs. The §4.1 and §4.3 formulas read M_theta and
+C_theta from the compiled leaves (`left_mass` ...), which Appendix A holds to the closed
+forms. Modules are built from copies of specs/styx_*.yaml, renamed and with the box's mass
+set, in a temporary directory.
 """
 from __future__ import annotations
 
@@ -177,8 +179,8 @@ class StyxHand:
         return np.diag([self.mb, self.mb, self.Jb])
 
     def grasp(self, theta, xd_b):
-        """At a grasping posture theta and box velocity xd_b: x_b, G, J, the finger rates
-        theta' = A xd_b, A = J^-1 G^T (eq 3.3), and A' = d/dt(J^-1 G^T)."""
+        """At a grasping posture theta and box velocity xd_b: (x_b, G, J, A = J^-1 G^T,
+        A' = d/dt(J^-1 G^T), the finger rates theta' = A xd_b (eq 3.3))."""
         x = self.box(theta)
         G, J = self.G(x[2]), self.J(theta)
         Ji = np.linalg.inv(J)
@@ -685,6 +687,8 @@ def main() -> None:
                    help=f"{QUICK_DURATION:g} s runs, {len(SWEEP_MASSES[True])} box masses")
     p.add_argument("-o", "--output", type=Path, default=DEFAULT_OUTPUT, help=f"default {DEFAULT_OUTPUT}")
     args = p.parse_args()
+    if args.output.exists() and not args.output.is_dir():
+        p.error(f"-o {args.output}: not a directory")
     numbers = reproduce(args.output, quick=args.quick)
     width = max(map(len, numbers))
     for k, v in numbers.items():
