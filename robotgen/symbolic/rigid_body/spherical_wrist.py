@@ -30,16 +30,18 @@ Solving (R_d, p_d), hand at G_d:
    its axes: q4, q5 from R_w c (subproblem 2), q6 from R_w^T a (subproblem 2 of the inverse
    rotation), two solutions (wrist flip). 2 x 2 x 2 = 8.
 
-`solve` picks a branch by the current angles and writes every angle as q_near plus the
-angle difference wrapped to (-pi, pi] (the 2 pi multiple nearest q_near: a PUMA's q6
-ranges over +-266 degrees); the differences come from one atan2 each, of the solution's
-(cos, sin) turned back by q_near, so the graph is straight-line code. Singularities: a
+`solve` picks a branch by the current angles q_near: of each pair the candidate nearer
+q_near's (in cos of the difference), the shoulder by q1, the elbow by q3, the wrist flip by
+q4 (the flip turns q4 by pi, so q4 tells the two apart even where q5's two values meet).
+It writes every angle as q_near's plus the difference wrapped to (-pi, pi] (the 2 pi
+multiple nearest q_near: a PUMA's q6 ranges over +-266 degrees), from one atan2 each of
+the solution's (cos, sin) turned back by q_near: straight-line code, the choices by
+selection. Singularities: a
 target out of reach gives NaN in all six angles (a checked step then returns status 2);
 a wrist centre on axis 1, on axis 2, or the wrist at q5's singular value keep q1, q2, q4
 at q_near (q6 then takes the wrist's whole turn about axis 4)."""
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import casadi as ca
@@ -80,8 +82,8 @@ class SphericalWristArm:
 
     # -- the run-time graphs --------------------------------------------------------------
     def solve(self, R_d: ca.SX, p_d: ca.SX, q_near: ca.SX) -> ca.SX:
-        """The solution nearest q_near: the shoulder, elbow and wrist pair each chosen by
-        q_near, every angle within pi of q_near's."""
+        """The solution nearest q_near (shoulder by q1, elbow by q3, wrist flip by q4), every
+        angle within pi of q_near's."""
         return self._solve(R_d, p_d, q_near, None)
 
     def solutions(self, R_d: ca.SX, p_d: ca.SX) -> list[ca.SX]:
@@ -104,34 +106,36 @@ class SphericalWristArm:
         B = _dot(exact.cross(w1, w2), x)
         E = self.h - cw * _dot(w1, x) if cw else ca.SX(self.h)
         r2 = A * A + B * B
-        s1_sq = r2 - E * E
-        s1 = ca.sqrt(ca.fmax(s1_sq, 0))
-        # the candidate nearer q_near: cos(phi + b - qn) - cos(phi - b - qn) = -2 sin(phi - qn) sin b,
-        # sin(phi - qn) r = S; then q1 - qn = atan2(B, A) - qn +- atan2(s1, E) in one atan2
+        root1_sq = r2 - E * E
+        root1 = ca.sqrt(ca.fmax(root1_sq, 0))
+        # q1 = phi +- beta, phi = atan2(B, A), beta = atan2(root1, E) in [0, pi]; the candidate
+        # nearer q_near: cos(phi + beta - qn) - cos(phi - beta - qn) = -2 sin(phi - qn) sin(beta),
+        # sin(phi - qn) = S / r. q1 - qn in one atan2 of (C, S) = r (cos, sin)(phi - qn) turned by beta
         C, S = A * cq[0] + B * sq[0], B * cq[0] - A * sq[0]
         sign1 = signs[0] if signs else _sign(S < 0)
-        ss1 = sign1 * s1
-        d1 = ca.if_else(r2 < tol * tol, 0, ca.atan2(E * S + ss1 * C, E * C - ss1 * S))
+        root1 = sign1 * root1
+        d1 = ca.if_else(r2 < tol * tol, 0, ca.atan2(E * S + root1 * C, E * C - root1 * S))
         q1 = qn[0] + d1
-        c1, s1_ = ca.cos(q1), ca.sin(q1)
+        c1, s1 = ca.cos(q1), ca.sin(q1)
         # 3. the wrist centre turned back by q1, in plane coordinates about o2:
         # e . Rot(w1, -q1) x = (Rot(w1, q1) e) . x
-        P = [_turned_dot(w1, self.plane[k], c1, s1_, x) + self.o12[k] for k in range(2)]
+        P = [_turned_dot(w1, self.plane[k], c1, s1, x) + self.o12[k] for k in range(2)]
         dd = P[0] * P[0] + P[1] * P[1]
         # theta3 (subproblem 3): |D + Rot(phi3) U|^2 = dd, phi3 = sign3 q3 about w2;
         # cos(phi3 - psi0) = k, psi0 the angle from U to D
-        nD, nU = math.hypot(*self.D), math.hypot(*self.U)
+        nD, nU = exact.norm(self.D), exact.norm(self.U)
         kappa = 1 / (2 * nD * nU)
         lam = (nD * nD + nU * nU) * kappa
         cpsi = (self.D[0] * self.U[0] + self.D[1] * self.U[1]) * kappa * 2
         spsi = (self.U[0] * self.D[1] - self.U[1] * self.D[0]) * kappa * 2
         k3 = dd * kappa - lam
-        s3_sq = 1 - k3 * k3
-        s3 = ca.sqrt(ca.fmax(s3_sq, 0))
-        # q3 = sign3 (psi0 +- beta): the candidate nearer q_near as for q1
+        root3_sq = 1 - k3 * k3
+        root3 = ca.sqrt(ca.fmax(root3_sq, 0))
+        # phi3 = psi0 +- beta, beta = atan2(root3, k3); q3 = sign3 phi3 nearer q_near as for q1:
+        # the + candidate when sign3 sin(sign3 psi0 - qn3) < 0
         sign3 = signs[1] if signs else _sign(spsi * cq[2] - self.sign3 * cpsi * sq[2] < 0)
-        ss3 = sign3 * s3
-        cphi, sphi = cpsi * k3 - spsi * ss3, spsi * k3 + cpsi * ss3
+        root3 = sign3 * root3
+        cphi, sphi = cpsi * k3 - spsi * root3, spsi * k3 + cpsi * root3
         q3 = qn[2] + _from(cphi, self.sign3 * sphi, cq[2], sq[2])
         # theta2 (subproblem 1): Rot(w2, q2) X = P, X = D + Rot(phi3) U
         Xu = self.D[0] + (cphi * self.U[0] - sphi * self.U[1])
@@ -143,10 +147,10 @@ class SphericalWristArm:
         # 4. the wrist: entries x^T R_w y = (R_123 x) . (R_d R0^T y), R_123 = Rot(w1, q1) Rot(w2, q2 + phi3)
         a, b, c = self.a, self.b, self.c
         ab, cb = exact.cross(a, b), exact.cross(c, b)
-        left = {name: _turned(w1, c1, s1_, _turned(w2, c23, s23, list(v))) for name, v in (("a", a), ("b", b),
-                                                                                          ("ab", ab))}
-        right = {name: [_dot(exact.matmul(self.R0.T, v), [R_d[i, k] for k in range(3)]) for i in range(3)]
-                 for name, v in (("c", c), ("b", b), ("cb", cb))}
+        left = {name: _turned(w1, c1, s1, _turned(w2, c23, s23, list(v))) for name, v in (("a", a), ("b", b),
+                                                                                         ("ab", ab))}
+        right = {name: [_dot(exact.matmul(self.R0.T, y), [R_d[i, k] for k in range(3)]) for i in range(3)]
+                 for name, y in (("c", c), ("b", b), ("cb", cb))}
 
         def entry(u: str, v: str) -> ca.SX:
             return left[u][0] * right[v][0] + left[u][1] * right[v][1] + left[u][2] * right[v][2]
@@ -157,7 +161,7 @@ class SphericalWristArm:
         rho2 = beta * beta + gamma * gamma  # 1 - alpha^2, by its small terms
         rho = ca.sqrt(rho2)
         # theta_a turns c onto a about b (constant): q5 = theta_a + atan2(-s rho, alpha)
-        ca_, sa_ = exact.dot(c, a), exact.dot(b, exact.cross(c, a))
+        cos_a, sin_a = exact.dot(c, a), exact.dot(b, exact.cross(c, a))
         # q4 = atan2(-s beta, s gamma), s = +-1 the wrist flip (subproblem 2 on R_w c, below),
         # turned back by qn4: atan2(s Y4, s X4); the flip turns q4 by pi, so the branch whose
         # q4 is nearer q_near's is the one with s X4 > 0 (held through the singular wrist)
@@ -169,7 +173,7 @@ class SphericalWristArm:
             d4 = ca.atan2(sign5 * Y4, ca.fabs(X4))
         wrist = rho < WRIST_SINGULAR
         d4 = ca.if_else(wrist, 0, d4)
-        q5 = qn[4] + _from(ca_ * alpha + sign5 * (sa_ * rho), sa_ * alpha - sign5 * (ca_ * rho), cq[4], sq[4])
+        q5 = qn[4] + _from(cos_a * alpha + sign5 * (sin_a * rho), sin_a * alpha - sign5 * (cos_a * rho), cq[4], sq[4])
         # at the singular wrist R_w = Rot(a, q4 + t q6) Rot(b, q5), t = sign(alpha) (Rot(b, q5) c = t a):
         # with q4 held, q6 = t (phi - qn4), phi the turn of b onto R_w b about a; alpha stands
         # for t (they differ by rho^2 / 2 there)
@@ -177,7 +181,7 @@ class SphericalWristArm:
         held = _from(C6 * cq[3] + S6 * sq[3], alpha * (S6 * cq[3] - C6 * sq[3]), cq[5], sq[5])
         d6 = ca.if_else(wrist, held, _from(-sign5 * mu, -sign5 * nu, cq[5], sq[5]))
         # out of reach: NaN in every angle
-        unreachable = ca.logic_or(s1_sq < -REACH_TOLERANCE * r2, s3_sq < -REACH_TOLERANCE)
+        unreachable = ca.logic_or(root1_sq < -REACH_TOLERANCE * r2, root3_sq < -REACH_TOLERANCE)
         nan = ca.if_else(unreachable, ca.SX(float("nan")), 0)
         return ca.vertcat(q1, q2, q3, qn[3] + d4, q5, qn[5] + d6) + nan
 
@@ -200,6 +204,7 @@ def _from(X: ca.SX, Y: ca.SX, cq: ca.SX, sq: ca.SX) -> ca.SX:
 
 def _turned(w: np.ndarray, c: ca.SX, s: ca.SX, v: list) -> list:
     """Rot(w, q) v (Rodrigues), (cos q, sin q) = (c, s), constant unit w."""
+    w = [float(x) for x in w]
     k = _dot(w, v)
     cross = [w[1] * v[2] - w[2] * v[1], w[2] * v[0] - w[0] * v[2], w[0] * v[1] - w[1] * v[0]]
     return [w[i] * k + c * (v[i] - w[i] * k) + s * cross[i] for i in range(3)]
@@ -245,7 +250,7 @@ def spherical_wrist_arm(tree: KinematicTree) -> SphericalWristArm | None:
     plane = np.array([exact.cross(e_v, w2), e_v])
     D = exact.matmul(plane, exact.add(o[2], (-1.0, o2)))
     U = exact.matmul(plane, exact.add(c0, (-1.0, o[2])))
-    if math.hypot(*D) <= length_tol or math.hypot(*U) <= length_tol:
+    if exact.norm(D) <= length_tol or exact.norm(U) <= length_tol:
         return None  # axes 2 and 3 one line, or the wrist centre on axis 3: no elbow
     R0, p0 = G0[:3, :3], G0[:3, 3]
     return SphericalWristArm(
