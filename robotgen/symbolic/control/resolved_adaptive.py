@@ -4,8 +4,8 @@ One sampling period k, from the measured joint state (q, qd) and the desired han
 (pose, twist [v; Omega], its derivative):
 
 Feedforward (§4.1, Table 1's four stages)
-  1. q_d by inverse kinematics: Newton steps from the previous period's resolved joint
-     trajectory carried one period on;
+  1. q_d by inverse kinematics (closed form for a spherical wrist, else Newton steps) from the
+     previous period's resolved joint trajectory carried one period on;
   2. qd_d = J^-1 [v_d; Omega_d] (eq 11);
   3. qdd_d = J^-1 ([vdot_d; Omegadot_d] - Jdot qd_d) (eq 13);
   4. u_n by Newton-Euler at (q_d, qd_d, qdd_d).
