@@ -33,7 +33,7 @@ class Solver:
         assert self.arm is not None
         q, qn, R, p = ca.SX.sym("q", 6), ca.SX.sym("qn", 6), ca.SX.sym("R", 3, 3), ca.SX.sym("p", 3)
         self.fk = ca.Function("fk", [q], list(hand.pose(q)))
-        self._solve = ca.Function("solve", [R, p, qn], [self.arm.solve(R, p, qn)])
+        self.solve_pose = ca.Function("solve", [R, p, qn], [self.arm.solve(R, p, qn)])
         self._all = ca.Function("solutions", [R, p], [ca.horzcat(*self.arm.solutions(R, p))])
         self.lower = np.array([j.limits.lower if j.limits.lower is not None else -np.pi for j in tree.joints])
         self.upper = np.array([j.limits.upper if j.limits.upper is not None else np.pi for j in tree.joints])
@@ -43,7 +43,7 @@ class Solver:
         return np.array(R), np.array(p).ravel()
 
     def solve(self, q_pose, q_near):
-        return np.array(self._solve(*self.pose(q_pose), q_near)).ravel()
+        return np.array(self.solve_pose(*self.pose(q_pose), q_near)).ravel()
 
     def solutions(self, q_pose):
         return np.array(self._all(*self.pose(q_pose))).T  # 8 x 6
@@ -178,11 +178,13 @@ def test_singular_wrist_holds_q4(q5):
 
 
 def test_out_of_reach_is_nan_and_the_edge_is_not():
+    """A hand 2 m beyond its pose and a wrist centre on axis 1 are NaN in every angle; the
+    elbow stretched out (the square root at its zero) is solved."""
     solver = rmac_solver()
     R, p = solver.pose(np.zeros(6))
     qn = np.zeros(6)
-    far = np.array(solver._solve(R, p + np.array([2.0, 0, 0]), qn)).ravel()
-    on_axis_1 = np.array(solver._solve(R, np.array([0, 0, 0.3]) - R @ solver.arm.wrist_in_hand, qn)).ravel()
+    far = np.array(solver.solve_pose(R, p + np.array([2.0, 0, 0]), qn)).ravel()
+    on_axis_1 = np.array(solver.solve_pose(R, np.array([0, 0, 0.3]) - R @ solver.arm.wrist_in_hand, qn)).ravel()
     assert np.isnan(far).all() and np.isnan(on_axis_1).all()  # the shoulder offset keeps it 0.15 m away
     # the elbow stretched out: the wrist centre at its farthest from the shoulder
     arm = solver.arm
