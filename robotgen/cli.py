@@ -257,14 +257,6 @@ def _cmd_info(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
-# why a row of Table 1 may cost robotgen more than the paper: what robotgen computes there
-TABLE_1_NOTES = {
-    "joint accelerations (eq 13)": "exact Jdot qd by Newton-Euler's forward pass (the paper differences J "
-                                   "over a period); what it adds to stage 2",
-    "errors and identification (eq 37)": "19 regressors with the affine term c (the paper 18)",
-}
-
-
 def operation_table(hand: dict) -> str:
     """One period of the adaptive controller beside Lee and Lee's Table 1, row by row, with
     the paper's accounting of parallel parts in the totals."""
@@ -278,9 +270,9 @@ def operation_table(hand: dict) -> str:
             part = row["part"]
             lines.append(f"    {part}")
         p, r = row["paper"], row["robotgen"]
-        note = TABLE_1_NOTES.get(row["name"], "") if r["mul"] > p["mul"] or r["add"] > p["add"] else ""
+        more = r["mul"] > p["mul"] or r["add"] > p["add"]
         lines.append(f"      {row['stage'] + ' ' + row['name']:44} {p['mul']:9d} {p['add']:5d}   {r['mul']:12d} "
-                     f"{r['add']:5d} {r['trig']:5d} {r['other']:5d}" + (f"   more: {note}" if note else ""))
+                     f"{r['add']:5d} {r['trig']:5d} {r['other']:5d}" + (f"   more: {row['note']}" if more else ""))
     labels = {"feedforward": "total feedforward", "feedback": "total feedback (stage 1: the larger part)",
               "period": "period: feedforward and feedback in parallel", "sequential": "every stage on one processor"}
     for key, label in labels.items():

@@ -1,7 +1,8 @@
 """The hand of a 6-joint chain in Lee and Lee's terms (1983, §2), as CasADi graphs: its pose
 (eq 1), roll-pitch-yaw (eq 2), twist (eq 8), the Euler-rate map (eqs 6-7), the resolved
-motion maps from hand to joint rates and accelerations (eqs 11, 13), inverse kinematics, and
-the Newton-Euler torques (Luh, Walker, Paul 1980).
+motion maps from hand to joint rates and accelerations (eqs 11, 13), inverse kinematics (in
+closed form for an arm with a spherical wrist, rigid_body/spherical_wrist.py; Newton steps
+otherwise), and the Newton-Euler torques (Luh, Walker, Paul 1980).
 
 Every quantity is a CasADi Function of the chain's joint state, built once from the chain's
 graphs (robotgen.symbolic.rigid_body.chain) and called on whatever joint values a law needs
@@ -19,6 +20,7 @@ from robotgen.symbolic.control.resolved_rate.resolution import DampedResolver
 from robotgen.symbolic.rigid_body.chain import ChainGraphs, Symbols
 from robotgen.symbolic.rigid_body.cholesky import cholesky_solve_matrix
 from robotgen.symbolic.rigid_body.rpy import rpy_of, rpy_rate_map, rpy_rates
+from robotgen.symbolic.rigid_body.spherical_wrist import SphericalWristArm, spherical_wrist_arm
 
 N = 6
 # A 6 x 6 solve refuses a Jacobian whose QR factor R has a pivot below this fraction of its
@@ -63,6 +65,8 @@ class Hand:
     def __init__(self, tree: KinematicTree, tool: np.ndarray):
         tree = dataclasses.replace(tree, tool=exact.matmul(tree.tool, tool))
         self.tree = tree
+        # the PUMA 560 family's inverse kinematics in closed form; None: Newton steps
+        self.closed_form: SphericalWristArm | None = spherical_wrist_arm(tree)
         s = Symbols.make(tree.nq)
         self.sym = s
         g = ChainGraphs(tree, s)
@@ -106,9 +110,12 @@ class Hand:
         return checked_solve(self.jacobian(q), accel - self.bias(q, qd))
 
     def inverse_kinematics(self, R_d: ca.SX, p_d: ca.SX, q0: ca.SX, iterations: int) -> ca.SX:
-        """q with the hand at (R_d, p_d): Newton steps q <- q + J^-1 [p_d - p; e_o] from q0 (a
-        prediction close to the answer: the fixed count is then enough, and the graph stays
-        straight-line code)."""
+        """q with the hand at (R_d, p_d). For an arm with a spherical wrist, in closed form: the
+        solution nearest q0, each angle within pi of q0's (NaN out of reach). Otherwise
+        ``iterations`` Newton steps q <- q + J^-1 [p_d - p; e_o] from q0 (a prediction close to
+        the answer: the fixed count is then enough, and the graph stays straight-line code)."""
+        if self.closed_form is not None:
+            return self.closed_form.solve(R_d, p_d, q0)
         q = q0
         for _ in range(iterations):
             R, p = self.pose(q)

@@ -324,8 +324,16 @@ def stage_counts(system: RobotSystem) -> dict:
     counts = {name: count_operations(*graph) for name, graph in graphs.items()}
     counts["joint accelerations (eq 13)"] = {k: counts["joint accelerations (eq 13)"][k] - counts[
         "joint rates (eq 11)"][k] for k in KINDS}
-    rows = [{"part": part, "stage": stage, "name": name, "paper": {"mul": m, "add": a}, "robotgen": counts[name]}
-            for part, stage, name, (m, a) in TABLE_1]
+    notes = {  # what robotgen computes in a row beyond the paper's quantity
+        "inverse kinematics": "the branch nearest the prediction, each angle unwrapped to it" if hand.closed_form
+        else f"{s.ik_iterations} Newton steps (no closed form for this arm)",
+        "joint rates (eq 11)": "J and a Householder solve with its singularity check (the paper inverts J)",
+        "joint accelerations (eq 13)": "exact Jdot qd by Newton-Euler's forward pass (the paper differences J over a "
+                                       "period); counted as what it adds to stage 2",
+        "errors and identification (eq 37)": f"{s.n_phi} regressors (the paper 18)",
+    }
+    rows = [{"part": part, "stage": stage, "name": name, "paper": {"mul": m, "add": a}, "robotgen": counts[name],
+             "note": notes.get(name, "")} for part, stage, name, (m, a) in TABLE_1]
     out: dict = {"rows": rows}
 
     def total(part: str, key: str) -> dict:
