@@ -340,7 +340,8 @@ _DEFS = {
          "affine": {"type": "boolean", "description": "identify and cancel the model's constant term c "
                                                       "(default true)"},
          "ik_iterations": {"type": "integer", "minimum": 1, "maximum": 10,
-                           "description": "Newton steps of the inverse kinematics per cycle, default 2"},
+                           "description": "Newton steps of the inverse kinematics per cycle, for arms without a "
+                                          "closed form (a spherical wrist), default 2"},
          "gains": {"enum": list(GAIN_MODES),
                    "description": "runtime (default) or folded q, r or torque_weight, forgetting"}}),
     "control": _object(

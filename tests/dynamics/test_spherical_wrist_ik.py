@@ -16,7 +16,7 @@ from robots import UR5, robots_dir
 from robotgen.frontend import load_system
 from robotgen.frontend.urdf import read_urdf
 from robotgen.symbolic.control.hand import Hand
-from robotgen.symbolic.control.resolved_adaptive import OFFSETS, stage_counts
+from robotgen.symbolic.control.resolved_adaptive import StateLayout, stage_counts
 from robotgen.symbolic.op_count import count_operations
 from robotgen.symbolic.rigid_body.spherical_wrist import spherical_wrist_arm
 
@@ -214,7 +214,8 @@ def test_membership_of_the_family(tmp_path):
 def test_stage_1_costs_tens_of_operations():
     """Table 1's stage 1 (Lee and Lee 1983: 39 multiplications, 32 additions) in closed form,
     against the Newton solve's hundreds."""
-    counts = stage_counts(load_system(str(RMAC)))["feedforward"]["inverse kinematics"]
+    rows = stage_counts(load_system(str(RMAC)))["rows"]
+    counts = next(r["robotgen"] for r in rows if r["name"] == "inverse kinematics")
     print(f"\n  stage 1 of puma560_rmac: {counts}")
     assert counts["mul"] < 100 and counts["add"] < 100 and counts["total"] < 250
     hand = rmac_solver().hand
@@ -229,7 +230,8 @@ def test_adaptive_controller_resolves_by_the_closed_form(build_module):
     beyond pi on q6 included; a desired pose out of reach is status 2 (FloatingPointError)."""
     module = build_module(RMAC)
     solver = rmac_solver()
-    o, n, _ = OFFSETS["q_d"]
+    system = load_system(str(RMAC))
+    o, n, _ = StateLayout.of(system.root_node.hand).offsets["q_d"]
     zeros = np.zeros(6)
     for q in ([0.1, 0.6, -0.4, 0.3, 0.5, 0.2], [-0.5, 1.2, -2.0, 1.0, -0.7, 4.2]):
         q = np.array(q)
