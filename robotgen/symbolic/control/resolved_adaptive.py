@@ -385,7 +385,7 @@ def closed_loop(system: RobotSystem, q: np.ndarray | None = None) -> dict:
     moduli = np.sort(np.abs(np.linalg.eigvals(A - B @ K)))[::-1]
     radius = float(moduli[0])
     return {"pose": [float(v) for v in q], "moduli": [float(f"{m:.4g}") for m in moduli],
-            "spectral_radius": float(f"{radius:.4g}"), "margin": float(f"{1 - radius:.4g}"),
+            "spectral_radius": float(f"{radius:.6g}"), "margin": float(f"{1 - radius:.4g}"),
             "time_constant": float(f"{-s.period / np.log(radius):.4g}") if 0 < radius < 1 else float("inf")}
 
 
