@@ -207,7 +207,7 @@ def write_csv(result: HandResult, path: Path) -> None:
 
 def plot(result: HandResult, path: Path, title: str) -> None:
     """Hand position error over time for every run on one log axis (the payload changes
-    marked), the hand path per axis, and the first run's torques."""
+    marked), every run's largest torque step per period, and the first run's torques."""
     import matplotlib  # deferred: plotting only
 
     matplotlib.use("Agg")
@@ -218,22 +218,20 @@ def plot(result: HandResult, path: Path, title: str) -> None:
     for r in result.runs:
         ax.semilogy(result.t, np.maximum(1e3 * np.linalg.norm(r.position_error, axis=1), 1e-6), label=r.label)
     for change in result.changes:
-        ax.axvline(change.at, color="k", linestyle=":", linewidth=1)
-        ax.annotate(f" {change.mass:g} kg", (change.at, 0.9), xycoords=("data", "axes fraction"), fontsize=8)
+        for a in axes:
+            a.axvline(change.at, color="k", linestyle=":", linewidth=1)
+        ax.annotate(f" {change.mass:g} kg", (change.at, 0.04), xycoords=("data", "axes fraction"), fontsize=8)
     ax.set_ylabel("hand position error\n|p - p_d| [mm]")
     ax.set_ylim(bottom=max(ax.get_ylim()[0], 1e-5))
-    ax.legend(loc="lower right", fontsize=8)
+    ax.legend(loc="lower center", bbox_to_anchor=(0.5, 1.0), ncol=3, fontsize=8, frameon=False)
     ax.grid(True, which="both", alpha=0.3)
     ax = axes[1]
-    colors = plt.rcParams["axes.prop_cycle"].by_key()["color"]
-    first = result.runs[0]
-    for i, a in enumerate(HAND_AXES[:3]):
-        ax.plot(result.t, first.p[:, i], color=colors[i], label=f"{a} ({first.label})")
-        ax.plot(result.t, result.p_d[:, i], color=colors[i], linestyle="--", linewidth=1, label=f"{a} desired")
-    ax.set_ylabel("hand position [m]")
-    ax.legend(loc="upper right", fontsize=7, ncol=3)
+    for r in result.runs:
+        ax.plot(result.t[1:], np.abs(np.diff(r.tau, axis=0)).max(axis=1), label=r.label, linewidth=1)
+    ax.set_ylabel("largest torque step\nper period [N m]")
     ax.grid(True, alpha=0.3)
     ax = axes[2]
+    first = result.runs[0]
     for j, name in enumerate(result.joints):
         ax.plot(result.t, first.tau[:, j], label=name)
     ax.set_ylabel(f"torque [N m]\n({first.label})")

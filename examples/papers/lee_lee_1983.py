@@ -114,19 +114,22 @@ def table_1(system) -> tuple[dict, dict[str, float]]:
 def plot_table_1(counts: dict, path: Path) -> None:
     plt = _pyplot()
     rows = counts["rows"]
-    labels = [f"{r['part'][:4]}. {r['stage']}\n{r['name']}" for r in rows] + ["period\n(in parallel)"]
+    labels = [f"{r['part']} {r['stage']}: {r['name']}" for r in rows]
+    labels.append("period (feedforward and feedback in parallel)")
     paper = [r["paper"]["mul"] + r["paper"]["add"] for r in rows] + [sum(counts["paper"]["period"].values())]
     ours = [r["robotgen"]["mul"] + r["robotgen"]["add"] for r in rows]
     ours.append(counts["robotgen"]["period"]["mul"] + counts["robotgen"]["period"]["add"])
-    x = np.arange(len(labels))
-    fig, ax = plt.subplots(figsize=(11, 5))
-    ax.bar(x - 0.2, paper, 0.4, label="Lee and Lee 1983, Table 1")
-    ax.bar(x + 0.2, ours, 0.4, label="robotgen (PUMA 560, puma560_rmac.yaml)")
-    ax.set_xticks(x, labels, fontsize=7)
-    ax.set_ylabel("multiplications + additions per period")
-    ax.legend()
-    ax.grid(True, axis="y", alpha=0.3)
-    ax.set_title("Table 1: operations of one sampling period of resolved motion adaptive control")
+    y = np.arange(len(labels))[::-1]
+    fig, ax = plt.subplots(figsize=(10, 5.5))
+    ax.barh(y + 0.2, paper, 0.4, label="Lee and Lee 1983, Table 1")
+    ax.barh(y - 0.2, ours, 0.4, label="robotgen (PUMA 560, puma560_rmac.yaml)")
+    for yy, value in zip(y, ours):
+        ax.annotate(f" {value}", (value, yy - 0.2), va="center", fontsize=7)
+    ax.set_yticks(y, labels, fontsize=8)
+    ax.set_xlabel("multiplications + additions per sampling period")
+    ax.legend(loc="upper right")
+    ax.grid(True, axis="x", alpha=0.3)
+    ax.set_title("Table 1: one period of resolved motion adaptive control")
     fig.tight_layout()
     fig.savefig(path, dpi=100)
     plt.close(fig)

@@ -120,3 +120,25 @@ def test_simulate_writes_the_comparison(tmp_path):
     bad = subprocess.run([sys.executable, "-m", "robotgen", "simulate", str(RMAC), "-o", str(out), "--dt", "0.01"],
                          capture_output=True, text=True, cwd=ROOT)
     assert bad.returncode == 2 and "runs at its own period" in bad.stderr
+
+
+def test_readme_quotes_what_simulate_and_info_print(tmp_path):
+    """The README's figures for the adaptive PUMA are the ones `robotgen simulate` (the full
+    10 s of the spec) and `robotgen info` print now."""
+    readme = " ".join((ROOT / "README.md").read_text().split())
+    sim = subprocess.run([sys.executable, "-m", "robotgen", "simulate", str(RMAC), "-q", "-o", str(tmp_path)],
+                         capture_output=True, text=True, cwd=ROOT)
+    assert sim.returncode == 0, sim.stderr
+    last = {}
+    for line in sim.stdout.splitlines():
+        for key, label in (("adaptive", "adaptive"), ("frozen", "identification frozen"),
+                           ("rac", "resolved acceleration")):
+            if line.strip().startswith(label):
+                last[key] = line.split()[-2]  # the last second's RMS [mm], then max |dtau|
+    assert set(last) == {"adaptive", "frozen", "rac"}, sim.stdout
+    assert (f"{last['adaptive']} mm adapting, {last['frozen']} mm frozen, {last['rac']} mm under resolved "
+            f"acceleration control") in readme
+    info = subprocess.run([sys.executable, "-m", "robotgen", "info", str(RMAC)], capture_output=True, text=True,
+                          cwd=ROOT)
+    radius = info.stdout.split("spectral radius ")[1].split()[0]
+    assert f"spectral radius at the start pose ({radius})" in readme
