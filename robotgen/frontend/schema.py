@@ -305,7 +305,10 @@ _DEFS = {
               "q": {"type": "array", "minItems": 2, "items": {"$ref": "#/$defs/number"},
                     "description": "state weights: [position, rate] or one per state (2n), default [100, 1]"},
               "r": {"type": ["number", "string", "array"], "items": {"$ref": "#/$defs/number"},
-                    "description": "torque weights: a number or one per joint, default 1"}},
+                    "description": "torque weights: a number or one per joint, default 1"},
+              "servo": {"type": "boolean",
+                        "description": "also emit servo_step(q, qd, v): the optimal linear servo on these "
+                                       "gains, its feedforward v passed in (default false)"}},
              ("nominal",))}),
     "resolved_acceleration": _object(
         "settings of law resolved_acceleration (Luh, Walker, Paul 1980) on a 6-joint chain: "

@@ -454,6 +454,7 @@ def test_module_functions_and_info(puma):
     for name in ("fk", "jacobian", "jacobian_hand", "mass", "forward_dynamics", "command_jacobian",
                  "rate_step", "position_step", "lqr_step"):
         assert name in info["functions"], name
+    assert "servo_step" not in info["functions"]  # only with lqr: {servo: true}
     rc = info["rate_control"]
     assert rc["frame"] == "hand" and rc["axes"] == ["sweep", "reach", "lift", "tilt", "twist", "turn"]
     assert info["nodes"]["rmrc"]["kind"] == "resolved_rate" and info["leaves"] == ["arm"]

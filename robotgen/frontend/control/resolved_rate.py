@@ -236,5 +236,5 @@ class ResolvedRateReader(Collector):
         r = self.per_joint(path + ("r",), spec.get("r", 1), n, "weight", positive=True)
         if len(nominal) != n or len(weights) != 2 * n:
             nominal, weights = np.zeros(n), np.ones(2 * n)
-        return LQRSettings(nominal, weights, r)
+        return LQRSettings(nominal, weights, r, bool(spec.get("servo", False)))
 

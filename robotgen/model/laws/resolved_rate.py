@@ -124,11 +124,14 @@ class Damping:
 
 @dataclass(frozen=True, eq=False)
 class LQRSettings:
-    """An optimal regulator about a nominal posture (eq 19, state (dtheta, dtheta_dot))."""
+    """An optimal regulator about a nominal posture (eq 19, state (dtheta, dtheta_dot));
+    with ``servo`` also the optimal linear servo on the same gains, its feedforward passed in
+    (robotgen.numeric.linear_servo)."""
 
     nominal: np.ndarray  # (n,) joint positions; nominal rates zero
     q_weights: np.ndarray  # (2n,) state weights, diagonal of Q
     r_weights: np.ndarray  # (n,) input weights, diagonal of R
+    servo: bool = False
 
 
 @dataclass(frozen=True, eq=False)

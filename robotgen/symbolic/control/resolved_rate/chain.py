@@ -20,6 +20,8 @@ chain's usual functions (fk, jacobian, ..., forward_dynamics) and:
 - ``objective(q)``: the secondary objective H, when the spec names one.
 - ``lqr_step(q, qd) -> tau``: tau0 - K (q - q0, qd), the optimal regulator on the
   linearised dynamics about the nominal (eq 19), when the spec asks for one.
+- ``servo_step(q, qd, v) -> tau``: lqr_step's torque plus v, the optimal linear servo's
+  feedforward (robotgen.numeric.linear_servo), when ``lqr`` has ``servo: true``.
 """
 from __future__ import annotations
 
@@ -213,20 +215,31 @@ def chain_kernels(system: RobotSystem) -> list[Kernel]:
                                "the redundancy resolution increases.", [("q", q, (n, 1))],
                                [("objective", law.H, (1, 1))]))
     if s.lqr is not None:
-        kernels.append(_lqr_kernel(tree, s))
+        kernels.extend(_lqr_kernels(tree, s))
     return kernels
 
 
-def _lqr_kernel(tree: KinematicTree, s: RateControlSettings) -> Kernel:
+def _lqr_kernels(tree: KinematicTree, s: RateControlSettings) -> list[Kernel]:
     design = regulator(tree, s.lqr)
     n = tree.nq
     q, qd = ca.SX.sym("q", n), ca.SX.sym("qd", n)
     state = ca.vertcat(q - ca.DM(design.model.nominal), qd)
     tau = ca.DM(design.model.tau0) - ca.DM(design.K) @ state
-    return make_kernel("lqr_step", "Optimal regulator about the nominal posture (Whitney 1972, eq 19): "
-                       "tau = tau0 - K (q - q0, qd), K from the continuous Riccati equation of the "
-                       "linearised dynamics (module attribute lqr).",
-                       [("q", q, (n, 1)), ("qd", qd, (n, 1))], [("tau", tau, (n, 1))], guarded=True)
+    kernels = [make_kernel("lqr_step", "Optimal regulator about the nominal posture (Whitney 1972, eq 19): "
+                           "tau = tau0 - K (q - q0, qd), K from the continuous Riccati equation of the "
+                           "linearised dynamics (module attribute lqr).",
+                           [("q", q, (n, 1)), ("qd", qd, (n, 1))], [("tau", tau, (n, 1))], guarded=True)]
+    if s.lqr.servo:
+        # the optimal linear servo u = -K s + v (robotgen.numeric.linear_servo, S1) on eq 19
+        # applied to the whole state: the same K, v = R^-1 B^T g(t) computed offline
+        v = ca.SX.sym("v", n)
+        kernels.append(make_kernel("servo_step", "Optimal linear servo (Whitney 1972, eq 19 applied to the "
+                                   "whole state): tau = tau0 - K (q - q0, qd) + v, K as lqr_step, v = R^-1 B^T "
+                                   "g(t) the feedforward of the reference, from "
+                                   "robotgen.numeric.linear_servo.", [("q", q, (n, 1)), ("qd", qd, (n, 1)),
+                                                                      ("v", v, (n, 1))],
+                                   [("tau", tau + v, (n, 1))], guarded=True))
+    return kernels
 
 
 def chain_report(system: RobotSystem) -> tuple[dict, dict]:
