@@ -123,9 +123,10 @@ def comparison_system(system: RobotSystem) -> RobotSystem:
     return dataclasses.replace(system, name=f"{system.name}_rac", nodes={**system.nodes, system.root: root})
 
 
-def run(module, system: RobotSystem, s: SimulationSettings, comparison=None) -> HandResult:
+def run(module, system: RobotSystem, s: SimulationSettings, comparison=None,
+        keys: tuple[str, ...] | None = None) -> HandResult:
     """Every run of the spec's controller (``comparison``: the module of comparison_system,
-    run too when the controller is adaptive)."""
+    run too when the controller is adaptive), or those of ``keys`` (adaptive, frozen, rac)."""
     node = system.root_node
     tree = system.nodes[node.robot].leaf
     hand = Hand(tree, node.hand.tool)
@@ -157,6 +158,8 @@ def run(module, system: RobotSystem, s: SimulationSettings, comparison=None) -> 
     switch = np.searchsorted([c.at for c in s.payload_changes], t, side="right")  # the plant at each t
     qd0 = np.array(rates_f(q0, trajectory.at(0.0)[1])).ravel()  # the plant starts on the path (eq 11)
     for key, label, cls, adapt in setups:
+        if keys is not None and key not in keys:
+            continue
         controller = cls()
         if adapt is not None:
             controller.adapt = adapt

@@ -26,7 +26,11 @@ What this script does:
 5. solves the same finite-horizon problem on the linear model directly, as one sparse least
    squares over the whole horizon (trapezoidal transcription, Richardson-extrapolated), as an
    independent check of the servo;
-6. writes fig5.png and report.md into the output directory and returns the numbers.
+6. writes fig5.png and report.md into the output directory and returns the numbers;
+7. moves the PUMA 560 of specs/puma560_rmrc.yaml to a pose 0.2 m and 30 degrees away by
+   position control through rates (eqs 11-18), once with today's fixed horizon (an
+   exponential approach) and once with eq 11's remaining time T (arriving at T), and writes
+   eq11.png.
 """
 from __future__ import annotations
 
@@ -42,6 +46,9 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT))
 
+from ruamel.yaml import YAML  # noqa: E402
+
+from robotgen.approach_paths import approach_paths  # noqa: E402
 from robotgen.cli import main as robotgen  # noqa: E402
 from robotgen.numeric.linear_servo import LinearServo, costate, design  # noqa: E402
 
@@ -61,6 +68,14 @@ POSTURES = np.array([[-0.25, 1.2, -1.4],   # hand low in front of the body
                      [-0.25, 1.2, -1.4]])  # back
 MOVE, REST = 3.0, 0.5  # s per move; s still at each posture
 QUICK_MOVES = 1
+# eq 11: the PUMA moved DISTANCE along DIRECTION and turned TURN about AXIS (base axes) in T
+RMRC = ROOT / "specs" / "puma560_rmrc.yaml"
+PUMA_START = np.array([0, np.pi / 4, np.pi, 0, np.pi / 4, 0])
+DISTANCE, TURN = 0.2, np.radians(30)
+DIRECTION = np.array([0.12, -0.08, 0.14]) / np.linalg.norm([0.12, -0.08, 0.14])
+AXIS = np.array([0.3, -0.8, 0.5]) / np.linalg.norm([0.3, -0.8, 0.5])
+ARRIVAL_TIME = {False: 2.0, True: 1.0}  # [s]
+HORIZON = 0.5  # [s] of the exponential approach
 
 
 @dataclass(frozen=True, eq=False)
@@ -329,14 +344,99 @@ def reproduce(out: Path, quick: bool = False) -> dict:
     plot(figure, runs, nodes, n)
     report = out / "report.md"
     hands = arm.fk(path.postures)[:, :3, 3]
-    report.write_text(markdown(numbers, lqr, path.postures, hands, quick))
+    numbers.update(eq11(out, quick))
+    report.write_text(markdown(numbers, lqr, path.postures, hands, quick) + eq11_markdown(numbers))
     return numbers
 
 
-def plot(path: Path, runs: dict, nodes: np.ndarray, n: int) -> None:
+def eq11_markdown(x: dict) -> str:
+    T = x["eq11_arrival_time_s"]
+    return "\n".join([
+        "## Position control through rates: eq 11's remaining time", "",
+        "The paper moves the hand to a pose \"in a time interval T\" by the rates of eq 11 and eqs 13-18, "
+        "re-planned from the current joint angles \"with a new T\" along the way. The PUMA 560 of "
+        f"`specs/puma560_rmrc.yaml` moves {1e3 * DISTANCE:g} mm and turns {np.degrees(TURN):g} degrees, the "
+        f"joints following each period's rates ({1e3 * STEP:g} ms):", "",
+        "| | hand distance from the target at T |", "| --- | ---: |",
+        f"| eq 11 with the remaining time, T = {T:g} s | {x['eq11_arrival_distance_at_T_m']:.2e} m |",
+        f"| fixed horizon {x['eq11_horizon_s']:g} s (exponential approach) | "
+        f"{x['eq11_exponential_distance_at_T_m']:.2e} m (predicted {x['eq11_exponential_predicted_m']:.2e}) |",
+        "", f"With the remaining time the hand stays within {x['eq11_arrival_largest_distance_off_line_m']:.1e} m "
+        f"of the straight line and is {1e3 * x['eq11_arrival_distance_at_half_T_m']:.2f} mm from the target "
+        "at T/2 (half way).", "", "![eq 11](eq11.png)", ""])
+
+
+def rotation(axis: np.ndarray, angle: float) -> np.ndarray:
+    """exp([axis x] angle) by Rodrigues' formula (axis a unit vector)."""
+    k = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
+    return np.eye(3) + np.sin(angle) * k + (1 - np.cos(angle)) * k @ k
+
+
+def eq11(out: Path, quick: bool) -> dict:
+    """Position control through rates to a target pose: the fixed horizon's exponential
+    approach against eq 11 with the remaining time (arrival_step), the joints following the
+    commanded rates one period at a time."""
+    yaml = YAML(typ="safe")
+    yaml.default_flow_style = None
+    data = yaml.load(RMRC)
+    name = data["name"] = "whitney_1972_puma"
+    settings = data["nodes"]["rmrc"]["control"]["resolved_rate"]
+    settings["horizon"] = HORIZON
+    settings["arrival"] = {"minimum_remaining": STEP}
+    spec = out / "module" / f"{name}.yaml"
+    spec.parent.mkdir(parents=True, exist_ok=True)
+    with open(spec, "w") as f:
+        yaml.dump(data, f)
+    if robotgen(["build", str(spec), "-o", str(out / "module" / name), "-q"]) != 0:
+        raise RuntimeError(f"robotgen build {spec} failed")
+    sys.path.insert(0, str(out / "module" / name))
+    try:
+        puma = importlib.import_module(name)
+    finally:
+        sys.path.pop(0)
+    T = ARRIVAL_TIME[quick]
+    start = puma.fk(PUMA_START)
+    target = start.copy()
+    target[:3, 3] += DISTANCE * DIRECTION
+    target[:3, :3] = rotation(AXIS, TURN) @ start[:3, :3]
+    exponential, arrival = approach_paths(puma, PUMA_START, target, T, STEP, duration=1.25 * T)
+    hand = puma.fk(arrival.q)[:, :3, 3]
+    along = (hand - start[:3, 3]) @ DIRECTION
+    off_line = np.linalg.norm(hand - start[:3, 3] - np.outer(along, DIRECTION), axis=1)
+    at_T = int(round(T / STEP))
+    numbers = {"eq11_arrival_time_s": T, "eq11_horizon_s": HORIZON,
+               "eq11_arrival_distance_at_T_m": float(arrival.distance()[at_T]),
+               "eq11_exponential_distance_at_T_m": float(exponential.distance()[at_T]),
+               "eq11_exponential_predicted_m": float(DISTANCE * np.exp(-T / HORIZON)),
+               "eq11_arrival_largest_distance_off_line_m": float(off_line[:at_T + 1].max()),
+               "eq11_arrival_distance_at_half_T_m": float(arrival.distance()[at_T // 2])}
+    plt = _pyplot()
+    fig, ax = plt.subplots(figsize=(8, 4))
+    for path, label in ((exponential, f"fixed horizon {HORIZON:g} s (position_step): exponential approach"),
+                        (arrival, f"eq 11 with the remaining time (arrival_step): arrives at T = {T:g} s")):
+        ax.plot(path.t, 1e3 * path.distance(), label=label)
+    ax.axvline(T, color="k", linestyle=":", linewidth=1)
+    ax.set_xlabel("t [s]")
+    ax.set_ylabel("distance of the hand from the target [mm]")
+    ax.set_title(f"PUMA 560 moved {1e3 * DISTANCE:g} mm and turned {np.degrees(TURN):g} degrees by rates")
+    ax.legend(fontsize=8)
+    ax.grid(alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(out / "eq11.png", dpi=100)
+    plt.close(fig)
+    return numbers
+
+
+def _pyplot():
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+
+    return plt
+
+
+def plot(path: Path, runs: dict, nodes: np.ndarray, n: int) -> None:
+    plt = _pyplot()
 
     servo, regulator = runs["servo"], runs["regulator"]
     t = servo.t
@@ -462,7 +562,7 @@ def main(argv: list[str] | None = None) -> None:
     numbers = reproduce(args.output, quick=args.quick)
     for key, value in numbers.items():
         print(f"{key:45s} {value:.6g}")
-    for file in ("fig5.png", "report.md"):
+    for file in ("fig5.png", "eq11.png", "report.md"):
         print(f"wrote {args.output / file}")
 
 

@@ -95,3 +95,16 @@ def test_main_prints_the_numbers_and_the_files(script, tmp_path, capsys):
     printed = capsys.readouterr().out
     assert "servo_max_error_rad" in printed and f"wrote {tmp_path / 'fig5.png'}" in printed
     assert (tmp_path / "report.md").exists()
+
+
+def test_eq_11_arrives_at_T_where_the_fixed_horizon_approaches(reproduced):
+    """Eq 11 with the remaining time: the hand at the target at T, half way at T/2, on the
+    straight line; the fixed horizon h leaves exp(-T/h) of the distance (to first order in the
+    period)."""
+    out, x = reproduced
+    assert x["eq11_arrival_distance_at_T_m"] < 1e-6
+    assert abs(x["eq11_arrival_distance_at_half_T_m"] - 0.1) < 1e-4
+    assert x["eq11_arrival_largest_distance_off_line_m"] < 1e-4
+    assert abs(x["eq11_exponential_distance_at_T_m"] / x["eq11_exponential_predicted_m"] - 1) < 0.01
+    assert (out / "eq11.png").read_bytes().startswith(b"\x89PNG\r\n\x1a\n")
+    assert "![eq 11](eq11.png)" in (out / "report.md").read_text()
