@@ -66,9 +66,10 @@ class WristCentreJacobian:
     def factor(self, q: ca.SX) -> dict:
         arm = self.arm
         s3 = arm.sign3
+        # (cos, sin) of each turn: q2 + phi3 turns body 3 about w2 (axes 2 and 3 parallel)
         f = {name: (ca.cos(angle), ca.sin(angle)) for name, angle in (
-            ("1", q[0]), ("2", q[1]), ("23", q[1] + s3 * q[2]), ("4", q[3]), ("5", q[4]), ("6", q[5]))}
-        (c2, s2), (c23, s23), (c5, s5) = f["2"], f["23"], f["5"]
+            ("q1", q[0]), ("q2", q[1]), ("q23", q[1] + s3 * q[2]), ("q4", q[3]), ("q5", q[4]), ("q6", q[5]))}
+        (c2, s2), (c23, s23), (c5, s5) = f["q2"], f["q23"], f["q5"]
         Q = plane_turn(c23, s23, float(arm.U[0]), float(arm.U[1]))
         D2 = plane_turn(c2, s2, float(arm.D[0]), float(arm.D[1]))
         P = (D2[0] + Q[0], D2[1] + Q[1])
@@ -77,12 +78,12 @@ class WristCentreJacobian:
         g, e = col1[2], P[0] * Q[1] - P[1] * Q[0]
         W_a, W_ab = self.c_a * c5 + self.c_ab * s5, self.c_ab * c5 - self.c_a * s5
         # r on the wrist basis: Rot(b, q5) Rot(c, q6) r0
-        r = turn(arm.b, c5, s5, turn(arm.c, *f["6"], [ca.SX(float(x)) for x in self.r0]))
+        r = turn(arm.b, c5, s5, turn(arm.c, *f["q6"], [ca.SX(float(x)) for x in self.r0]))
         f.update(P=P, Q=Q, D2=D2, d=d, col1=col1, W=(W_a, W_ab))
         f["r_wrist"] = [dot(arm.a, r), dot(arm.b, r), dot(self.ab, r)]
         f["r_arm"] = self.from_wrist(f, f["r_wrist"])
         # Hadamard's bound on each block: |g e| against |col1| |P| |U|, |W_ab| against 1
-        norms = dot([1] * 3, [x * x for x in col1]) * (P[0] * P[0] + P[1] * P[1])
+        norms = (col1[0] * col1[0] + col1[1] * col1[1] + col1[2] * col1[2]) * (P[0] * P[0] + P[1] * P[1])
         singular = ca.logic_or((g * e) ** 2 < self.hadamard_u * norms, ca.fabs(W_ab) < SINGULAR_DETERMINANT)
         gate = 1 + ca.if_else(singular, ca.SX(float("nan")), 0)  # 1, or NaN in every solve
         f.update(inv_g=gate / g, inv_e=gate / e, inv_W=gate / W_ab)
@@ -91,28 +92,31 @@ class WristCentreJacobian:
     # -- coordinates ------------------------------------------------------------------------
     def to_arm(self, f: dict, x: ca.SX) -> list:
         """A base-frame vector in arm coordinates."""
-        c1, s1 = f["1"]
+        c1, s1 = f["q1"]
         return [turned_dot(self.arm.w1, e, c1, s1, [x[i] for i in range(3)]) for e in self.basis]
 
     def to_wrist(self, f: dict, x: list) -> list:
         """Arm coordinates -> wrist coordinates: turned back by q2 + phi3 about w2, then by q4 about a."""
-        c23, s23 = f["23"]
-        c4, s4 = f["4"]
+        c23, s23 = f["q23"]
+        c4, s4 = f["q4"]
         u, v = plane_turn(c23, -s23, x[0], x[1])
         y = [u, v, x[2]]
         y_a, y_b, y_ab = (dot(k, y) for k in self.wrist_axes)
         return [y_a, *plane_turn(c4, -s4, y_b, y_ab)]
 
     def from_wrist(self, f: dict, x: list) -> list:
-        c23, s23 = f["23"]
-        c4, s4 = f["4"]
+        """Wrist coordinates -> arm coordinates (to_wrist's inverse)."""
+        c23, s23 = f["q23"]
+        c4, s4 = f["q4"]
         y_b, y_ab = plane_turn(c4, s4, x[1], x[2])
         y = [x[0] * k_a + y_b * k_b + y_ab * k_ab for k_a, k_b, k_ab in zip(*self.wrist_axes)]
         return [*plane_turn(c23, s23, y[0], y[1]), y[2]]
 
     # -- the two solves -------------------------------------------------------------------
     def arm_solve(self, f: dict, b: list) -> list:
-        """J11^-1 b, b in arm coordinates."""
+        """J11^-1 b, b in arm coordinates: x1 from the w2 row (g, 0, 0), then the plane rows of
+        columns 2 and 3, w2 x P and w3 x Q = [[-P_v, -s3 Q_v], [P_u, s3 Q_u]] (s3 = +-1 the
+        direction of w3), whose determinant is s3 e."""
         P, Q, col1 = f["P"], f["Q"], f["col1"]
         x1 = b[2] * f["inv_g"]
         bu, bv = b[0] - col1[0] * x1, b[1] - col1[1] * x1
