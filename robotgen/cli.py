@@ -270,9 +270,9 @@ def operation_table(hand: dict) -> str:
             part = row["part"]
             lines.append(f"    {part}")
         p, r = row["paper"], row["robotgen"]
-        more = r["mul"] > p["mul"] or r["add"] > p["add"]
+        more = f"   more: {row['note']}" if row["note"] else ""  # computes more than the paper's quantity
         lines.append(f"      {row['stage'] + ' ' + row['name']:44} {p['mul']:9d} {p['add']:5d}   {r['mul']:12d} "
-                     f"{r['add']:5d} {r['trig']:5d} {r['other']:5d}" + (f"   more: {row['note']}" if more else ""))
+                     f"{r['add']:5d} {r['trig']:5d} {r['other']:5d}{more}")
     labels = {"feedforward": "total feedforward", "feedback": "total feedback (stage 1: the larger part)",
               "period": "period: feedforward and feedback in parallel", "sequential": "every stage on one processor"}
     for key, label in labels.items():

@@ -176,6 +176,29 @@ def random_q(chain: DHChain, rng, n: int) -> np.ndarray:
     return lo + (hi - lo) * rng.random((n, chain.nq))
 
 
+def skew(v) -> np.ndarray:
+    return np.array([[0, -v[2], v[1]], [v[2], 0, -v[0]], [-v[1], v[0], 0]])
+
+
+def wrist_centre_blocks(J: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """(J11, J12, J22, r) of a 6-joint arm whose axes 4-6 meet in the wrist centre c, from its
+    hand Jacobian J (rows v, w) alone: joint i >= 4 moves the hand origin p at w_i x (p - c),
+    so r = p - c solves [w_i x] r = v_i (least squares over the three), and the twist at c,
+    (v - w x r, w), has the linear rows J_v + [r x] J_w. J11, J12 are their columns 1-3 and 4-6
+    (J12 = 0 when the premise holds), J22 the angular rows' columns 4-6."""
+    Jv, Jw = J[:3], J[3:]
+    r = np.linalg.lstsq(np.vstack([skew(Jw[:, i]) for i in range(3, 6)]), Jv[:, 3:].T.ravel(), rcond=None)[0]
+    Jc = Jv + skew(r) @ Jw
+    return Jc[:, :3], Jc[:, 3:], Jw[:, 3:], r
+
+
+def hadamard_ratios(J: np.ndarray) -> tuple[float, float]:
+    """|det| over the product of the column norms (Hadamard's bound) of the two diagonal blocks
+    of J at the wrist centre (wrist_centre_blocks): 1 for orthogonal columns, 0 when singular."""
+    J11, _, J22, _ = wrist_centre_blocks(J)
+    return tuple(abs(np.linalg.det(B)) / np.prod(np.linalg.norm(B, axis=0)) for B in (J11, J22))
+
+
 # ---------------------------------------------------------------------------------------
 # Pinocchio model built from the DH numbers
 # ---------------------------------------------------------------------------------------

@@ -195,7 +195,7 @@ def write_report(path: Path, counts: dict, numbers: dict, variant_rows: list, qu
              "| --- | ---: | ---: | ---: | ---: | ---: | ---: | --- |"]
     for r in counts["rows"]:
         p, g = r["paper"], r["robotgen"]
-        more = r["note"] if g["mul"] > p["mul"] or g["add"] > p["add"] else ""
+        more = r["note"]
         lines.append(f"| {r['part']} {r['stage']}: {r['name']} | {p['mul']} | {p['add']} | {g['mul']} | {g['add']} | "
                      f"{g['trig']} | {g['other']} | {more} |")
     for total, label in (("feedforward", "total feedforward"), ("feedback", "total feedback"),

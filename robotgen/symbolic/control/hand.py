@@ -1,8 +1,10 @@
 """The hand of a 6-joint chain in Lee and Lee's terms (1983, §2), as CasADi graphs: its pose
 (eq 1), roll-pitch-yaw (eq 2), twist (eq 8), the Euler-rate map (eqs 6-7), the resolved
-motion maps from hand to joint rates and accelerations (eqs 11, 13), inverse kinematics (in
-closed form for an arm with a spherical wrist, rigid_body/spherical_wrist.py; Newton steps
-otherwise), and the Newton-Euler torques (Luh, Walker, Paul 1980).
+motion maps from hand to joint rates and accelerations (eqs 11, 13: for an arm with a
+spherical wrist two 3 x 3 solves at the wrist centre, rigid_body/inverse_jacobian.py; a 6 x 6
+solve otherwise), inverse kinematics (in closed form for an arm with a spherical wrist,
+rigid_body/spherical_wrist.py; Newton steps otherwise), and the Newton-Euler torques (Luh,
+Walker, Paul 1980).
 
 Every quantity is a CasADi Function of the chain's joint state, built once from the chain's
 graphs (robotgen.symbolic.rigid_body.chain) and called on whatever joint values a law needs
@@ -19,6 +21,7 @@ from robotgen.numeric import exact
 from robotgen.symbolic.control.resolved_rate.resolution import DampedResolver
 from robotgen.symbolic.rigid_body.chain import ChainGraphs, Symbols
 from robotgen.symbolic.rigid_body.cholesky import cholesky_solve_matrix
+from robotgen.symbolic.rigid_body.inverse_jacobian import WristCentreJacobian
 from robotgen.symbolic.rigid_body.rpy import rpy_of, rpy_rate_map, rpy_rates
 from robotgen.symbolic.rigid_body.spherical_wrist import SphericalWristArm, spherical_wrist_arm
 
@@ -67,6 +70,8 @@ class Hand:
         self.tree = tree
         # the PUMA 560 family's inverse kinematics in closed form; None: Newton steps
         self.closed_form: SphericalWristArm | None = spherical_wrist_arm(tree)
+        # ... and its Jacobian at the wrist centre, block lower triangular (eqs 11, 13)
+        self.wrist_centre = WristCentreJacobian(self.closed_form) if self.closed_form else None
         s = Symbols.make(tree.nq)
         self.sym = s
         g = ChainGraphs(tree, s)
@@ -102,11 +107,17 @@ class Hand:
 
     # -- resolved motion (eqs 11, 13) --------------------------------------------------
     def joint_rates(self, q: ca.SX, twist: ca.SX) -> ca.SX:
-        """qd = J^-1 [v; Omega] (eq 11), by a solve (NaN at a singular J)."""
+        """qd = J^-1 [v; Omega] (eq 11), by a solve (NaN at or near a singular J): two 3 x 3
+        solves at the wrist centre for an arm with a spherical wrist, else checked_solve."""
+        if self.wrist_centre is not None:
+            return self.wrist_centre.rates(q, twist)
         return checked_solve(self.jacobian(q), twist)
 
     def joint_accelerations(self, q: ca.SX, qd: ca.SX, accel: ca.SX) -> ca.SX:
-        """qdd = J^-1 ([vdot; Omegadot] - Jdot qd) (eq 13), by a solve (NaN at a singular J)."""
+        """qdd = J^-1 ([vdot; Omegadot] - Jdot qd) (eq 13), by a solve (NaN at or near a
+        singular J), with joint_rates' factor."""
+        if self.wrist_centre is not None:
+            return self.wrist_centre.accelerations(q, qd, accel)
         return checked_solve(self.jacobian(q), accel - self.bias(q, qd))
 
     def inverse_kinematics(self, R_d: ca.SX, p_d: ca.SX, q0: ca.SX, iterations: int) -> ca.SX:

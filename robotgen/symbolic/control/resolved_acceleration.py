@@ -15,7 +15,7 @@ import casadi as ca
 from robotgen.model.laws import RESOLVED_ACCELERATION
 from robotgen.model.parameter_struct import runtime_parameters
 from robotgen.model.system import RobotSystem
-from robotgen.symbolic.control.hand import Hand, checked_solve, orientation_error, pose_rows
+from robotgen.symbolic.control.hand import Hand, orientation_error, pose_rows
 from robotgen.symbolic.control.law import Controller, RootLaw
 from robotgen.symbolic.kernel import Kernel, ParameterSymbols, make_kernel
 from robotgen.symbolic.leaf_kernels import leaf_kernels
@@ -43,7 +43,7 @@ def kernels(system: RobotSystem) -> list[Kernel]:
     Kp, Kv = gains(node, parameters)
     e = ca.vertcat(p_d - p, orientation_error(R_d, R))
     command = accel_d + Kv * (twist_d - J @ qd) + Kp * e
-    qdd = checked_solve(J, command - hand.bias(q, qd))  # NaN near a singular J: status 2
+    qdd = hand.joint_accelerations(q, qd, command)  # NaN near a singular J: status 2
     tau = hand.torques(q, qd, qdd)
     step = make_kernel(
         STEP, "Resolved acceleration control (Luh, Walker, Paul 1980), one sampling period: joint torques "

@@ -325,11 +325,15 @@ def stage_counts(system: RobotSystem) -> dict:
     counts["joint accelerations (eq 13)"] = {k: counts["joint accelerations (eq 13)"][k] - counts[
         "joint rates (eq 11)"][k] for k in KINDS}
     notes = {  # what robotgen computes in a row beyond the paper's quantity
-        "inverse kinematics": "the branch nearest the prediction, each angle unwrapped to it" if hand.closed_form
+        "inverse kinematics": "the branch nearest the prediction, each angle unwrapped to it, NaN out of reach, "
+                              "the singular wrist held" if hand.closed_form
         else f"{s.ik_iterations} Newton steps (no closed form for this arm)",
-        "joint rates (eq 11)": "J and a Householder solve with its singularity check (the paper inverts J)",
-        "joint accelerations (eq 13)": "exact Jdot qd by Newton-Euler's forward pass (the paper differences J over a "
-                                       "period); counted as what it adds to stage 2",
+        "joint rates (eq 11)": "a singularity check (J^-1 [v; w] by two 3x3 solves at the wrist centre; the paper "
+                               "forms J^-1)" if hand.wrist_centre
+        else "J and a Householder solve with its singularity check (the paper inverts J)",
+        "joint accelerations (eq 13)": ("exact Jdot qd: the wrist centre's and the hand's accelerations at qdd = 0"
+                                        if hand.wrist_centre else "exact Jdot qd by Newton-Euler's forward pass")
+        + " (the paper differences J over a period); counted as what it adds to stage 2",
         "errors and identification (eq 37)": f"{s.n_phi} regressors (the paper 18)",
     }
     rows = [{"part": part, "stage": stage, "name": name, "paper": {"mul": m, "add": a}, "robotgen": counts[name],

@@ -27,21 +27,23 @@ Solving (R_d, p_d), hand at G_d:
 3. theta3 puts the wrist centre at its distance from o2 (subproblem 3), two solutions
    (elbow up, down); theta2 then turns it onto the target (subproblem 1), one.
 4. The wrist's rotation R_w = R_123^T R_d R0^T = Rot(a, q4) Rot(b, q5) Rot(c, q6), a, b, c
-   its axes: q4, q5 from R_w c (subproblem 2), q6 from R_w^T a (subproblem 2 of the inverse
-   rotation), two solutions (wrist flip). 2 x 2 x 2 = 8.
+   its axes: q4 from R_w c (subproblem 2), two solutions (wrist flip); then q5 from
+   Rot(a, -q4) R_w c = Rot(b, q5) c and q6 from R_w^T Rot(a, q4) b = Rot(c, -q6) b, one each.
+   2 x 2 x 2 = 8.
 
 `solve` picks a branch by the current angles q_near: of each pair the candidate nearer
 q_near's (in cos of the difference), the shoulder by q1, the elbow by q3, the wrist flip by
 q4 (the flip turns q4 by pi, so q4 tells the two apart even where q5's two values meet).
-It writes every angle as q_near's plus the difference wrapped to (-pi, pi] (the 2 pi
-multiple nearest q_near: a PUMA's q6 ranges over +-266 degrees), from one atan2 each of
-the solution's (cos, sin) turned back by q_near: straight-line code, the choices by
-selection. Singularities: a
+It writes every angle as q_near's plus the difference wrapped to [-pi, pi] (IEEE remainder
+by 2 pi; the 2 pi multiple nearest q_near: a PUMA's q6 ranges over +-266 degrees), and the
+branches by the sign of a wrapped difference (the wrist flip: the difference wrapped to
+[-pi/2, pi/2], remainder by pi): straight-line code, no sin or cos of q_near. Singularities: a
 target out of reach gives NaN in all six angles (a checked step then returns status 2);
 a wrist centre on axis 1, on axis 2, or the wrist at q5's singular value keep q1, q2, q4
 at q_near (q6 then takes the wrist's whole turn about axis 4)."""
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import casadi as ca
@@ -50,6 +52,7 @@ import numpy as np
 from robotgen.model.chain import REVOLUTE, KinematicTree
 from robotgen.model.snap import SNAP_TOLERANCE, snap_tree
 from robotgen.numeric import exact
+from robotgen.symbolic.rigid_body.axis_turns import dot, turn, turned_dot
 
 # A square root of a negative number within this fraction of its scale is rounding at the
 # edge of the workspace (the arm stretched out), not a target out of reach.
@@ -58,6 +61,7 @@ REACH_TOLERANCE = 1e-12
 # below this: the regular formulas' rounding (1e-16 / that) and the orientation error of
 # holding q4 (about that) are then both below it.
 WRIST_SINGULAR = 1e-8
+TURN, HALF_TURN = 2 * math.pi, math.pi  # remainder(x, TURN): x wrapped to [-pi, pi]
 
 
 @dataclass(frozen=True, eq=False)
@@ -93,127 +97,98 @@ class SphericalWristArm:
                 for s1 in (1.0, -1.0) for s3 in (1.0, -1.0) for s5 in (1.0, -1.0)]
 
     def _solve(self, R_d: ca.SX, p_d: ca.SX, qn: ca.SX, signs: tuple[float, float, float] | None) -> ca.SX:
-        cq, sq = [ca.cos(qn[i]) for i in range(6)], [ca.sin(qn[i]) for i in range(6)]
         tol = SNAP_TOLERANCE * self.scale
+        nan = ca.SX(float("nan"))
         # 1. the wrist centre
-        p_c = [p_d[i] + _dot(self.wrist_in_hand, [R_d[i, k] for k in range(3)]) for i in range(3)]
+        p_c = [p_d[i] + dot(self.wrist_in_hand, [R_d[i, k] for k in range(3)]) for i in range(3)]
         x = [p_c[i] - self.o1[i] for i in range(3)]
         # 2. theta1: (Rot(w1, q1) w2) . x = h (o1 - o2 is normal to w2), i.e.
-        # A cos q1 + B sin q1 = E; q1 = atan2(B, A) +- atan2(s1, E), s1 = sqrt(A^2 + B^2 - E^2)
+        # A cos q1 + B sin q1 = E: q1 = phi +- beta, phi = atan2(B, A), beta = atan2(root1, E) in [0, pi]
         w1, w2 = self.w1, self.w2
         cw = exact.dot(w1, w2)
-        A = _dot(exact.add(w2, (-cw, w1)), x)
-        B = _dot(exact.cross(w1, w2), x)
-        E = self.h - cw * _dot(w1, x) if cw else ca.SX(self.h)
+        A = dot(exact.add(w2, (-cw, w1)), x)
+        B = dot(exact.cross(w1, w2), x)
+        E = self.h - cw * dot(w1, x) if cw else ca.SX(self.h)
         r2 = A * A + B * B
         root1_sq = r2 - E * E
-        root1 = ca.sqrt(ca.fmax(root1_sq, 0))
-        # q1 = phi +- beta, phi = atan2(B, A), beta = atan2(root1, E) in [0, pi]; the candidate
-        # nearer q_near: cos(phi + beta - qn) - cos(phi - beta - qn) = -2 sin(phi - qn) sin(beta),
-        # sin(phi - qn) = S / r. q1 - qn in one atan2 of (C, S) = r (cos, sin)(phi - qn) turned by beta
-        C, S = A * cq[0] + B * sq[0], B * cq[0] - A * sq[0]
-        sign1 = signs[0] if signs else _sign(S < 0)
-        root1 = sign1 * root1
-        d1 = ca.if_else(r2 < tol * tol, 0, ca.atan2(E * S + root1 * C, E * C - root1 * S))
-        q1 = qn[0] + d1
+        phi, beta = ca.atan2(B, A), ca.atan2(ca.sqrt(ca.fmax(root1_sq, 0)), E)
+        if signs:
+            d1 = ca.remainder(phi + signs[0] * beta, TURN)
+        else:
+            # the candidate nearer qn is phi + beta where sin(phi - qn) < 0, i.e. where
+            # delta = qn - phi (wrapped) > 0; q1 - qn = (+-beta - delta) wrapped
+            delta = ca.remainder(qn[0] - phi, TURN)
+            d1 = ca.remainder(ca.copysign(beta, delta) - delta, TURN)
+        # out of reach (shoulder): NaN in q1, hence in every angle after it
+        q1 = qn[0] + ca.if_else(r2 < tol * tol, 0, d1) + ca.if_else(root1_sq < -REACH_TOLERANCE * r2, nan, 0)
         c1, s1 = ca.cos(q1), ca.sin(q1)
         # 3. the wrist centre turned back by q1, in plane coordinates about o2:
         # e . Rot(w1, -q1) x = (Rot(w1, q1) e) . x
-        P = [_turned_dot(w1, self.plane[k], c1, s1, x) + self.o12[k] for k in range(2)]
+        P = [turned_dot(w1, self.plane[k], c1, s1, x) + self.o12[k] for k in range(2)]
         dd = P[0] * P[0] + P[1] * P[1]
         # theta3 (subproblem 3): |D + Rot(phi3) U|^2 = dd, phi3 = sign3 q3 about w2;
-        # cos(phi3 - psi0) = k, psi0 the angle from U to D
+        # cos(phi3 - psi0) = k3, psi0 the angle from U to D: phi3 = psi0 +- beta3
         nD, nU = exact.norm(self.D), exact.norm(self.U)
         kappa = 1 / (2 * nD * nU)
-        lam = (nD * nD + nU * nU) * kappa
-        cpsi = (self.D[0] * self.U[0] + self.D[1] * self.U[1]) * kappa * 2
-        spsi = (self.U[0] * self.D[1] - self.U[1] * self.D[0]) * kappa * 2
-        k3 = dd * kappa - lam
+        psi0 = math.atan2(self.U[0] * self.D[1] - self.U[1] * self.D[0], self.D[0] * self.U[0] + self.D[1] * self.U[1])
+        k3 = dd * kappa - (nD * nD + nU * nU) * kappa
         root3_sq = 1 - k3 * k3
-        root3 = ca.sqrt(ca.fmax(root3_sq, 0))
-        # phi3 = psi0 +- beta, beta = atan2(root3, k3); q3 = sign3 phi3 nearer q_near as for q1:
-        # the + candidate when sign3 sin(sign3 psi0 - qn3) < 0
-        sign3 = signs[1] if signs else _sign(spsi * cq[2] - self.sign3 * cpsi * sq[2] < 0)
-        root3 = sign3 * root3
-        cphi, sphi = cpsi * k3 - spsi * root3, spsi * k3 + cpsi * root3
-        q3 = qn[2] + _from(cphi, self.sign3 * sphi, cq[2], sq[2])
-        # theta2 (subproblem 1): Rot(w2, q2) X = P, X = D + Rot(phi3) U
-        Xu = self.D[0] + (cphi * self.U[0] - sphi * self.U[1])
-        Xv = self.D[1] + (sphi * self.U[0] + cphi * self.U[1])
-        d2 = ca.if_else(dd < tol * tol, 0, _from(Xu * P[0] + Xv * P[1], Xu * P[1] - Xv * P[0], cq[1], sq[1]))
-        q2 = qn[1] + d2
+        elbow_out = root3_sq < -REACH_TOLERANCE  # out of reach (elbow): NaN in every angle
+        flag3 = ca.if_else(elbow_out, nan, 0)
+        root3 = ca.sqrt(ca.fmax(root3_sq, 0) + flag3)
+        beta3 = ca.atan2(root3, k3)
+        if signs:
+            d3 = ca.remainder(self.sign3 * (psi0 + signs[1] * beta3), TURN)
+            sroot3 = signs[1] * root3
+        else:
+            # q3 = sign3 psi0 + sign3 sigma beta3; the nearer qn3 has sign3 sigma = sign(delta3),
+            # delta3 = qn3 - sign3 psi0 (wrapped)
+            delta3 = ca.remainder(qn[2] - self.sign3 * psi0, TURN)
+            d3 = ca.remainder(ca.copysign(beta3, delta3) - delta3, TURN)
+            sroot3 = ca.copysign(root3, self.sign3 * delta3)  # sigma root3
+        q3 = qn[2] + d3
+        # theta2 (subproblem 1): Rot(w2, q2) X = P, X = D + Rot(phi3) U; in D's frame
+        # X = |U| (|D| / |U| + k3, sigma root3) (D . Rot(phi3) U = |D| |U| k3)
+        theta_X = ca.atan2(sroot3, nD / nU + k3) + math.atan2(self.D[1], self.D[0])
+        d2 = ca.remainder(ca.atan2(P[1], P[0]) - theta_X - qn[1], TURN)
+        held = ca.logic_and(dd < tol * tol, ca.logic_not(elbow_out))  # the wrist centre on axis 2
+        q2 = qn[1] + ca.if_else(held, 0, d2)
         q23 = q2 + self.sign3 * q3  # about w2
         c23, s23 = ca.cos(q23), ca.sin(q23)
-        # 4. the wrist: entries x^T R_w y = (R_123 x) . (R_d R0^T y), R_123 = Rot(w1, q1) Rot(w2, q2 + phi3)
+        # 4. the wrist: R_w c = R_123^T R_d R0^T c = alpha a + beta b + gamma (a x b),
+        # R_123 = Rot(w1, q1) Rot(w2, q2 + phi3), turned back from R_d R0^T c
         a, b, c = self.a, self.b, self.c
-        ab, cb = exact.cross(a, b), exact.cross(c, b)
-        left = {name: _turned(w1, c1, s1, _turned(w2, c23, s23, list(v))) for name, v in (("a", a), ("b", b),
-                                                                                         ("ab", ab))}
-        right = {name: [_dot(exact.matmul(self.R0.T, y), [R_d[i, k] for k in range(3)]) for i in range(3)]
-                 for name, y in (("c", c), ("b", b), ("cb", cb))}
-
-        def entry(u: str, v: str) -> ca.SX:
-            return left[u][0] * right[v][0] + left[u][1] * right[v][1] + left[u][2] * right[v][2]
-
-        # R_w c = alpha a + beta b + gamma (a x b); R_w^T a . b = nu, R_w^T a . (c x b) = mu
-        alpha, beta, gamma = entry("a", "c"), entry("b", "c"), entry("ab", "c")
-        nu, mu = entry("a", "b"), entry("a", "cb")
-        rho2 = beta * beta + gamma * gamma  # 1 - alpha^2, by its small terms
-        rho = ca.sqrt(rho2)
-        # theta_a turns c onto a about b (constant): q5 = theta_a + atan2(-s rho, alpha)
-        cos_a, sin_a = exact.dot(c, a), exact.dot(b, exact.cross(c, a))
-        # q4 = atan2(-s beta, s gamma), s = +-1 the wrist flip (subproblem 2 on R_w c, below),
-        # turned back by qn4: atan2(s Y4, s X4); the flip turns q4 by pi, so the branch whose
-        # q4 is nearer q_near's is the one with s X4 > 0 (held through the singular wrist)
-        X4, Y4 = gamma * cq[3] - beta * sq[3], -(beta * cq[3] + gamma * sq[3])
+        u = turn(w2, c23, -s23, turn(w1, c1, -s1, _columns(R_d, exact.matmul(self.R0.T, c))))
+        alpha, beta, gamma = (dot(k, u) for k in (a, b, exact.cross(a, b)))
+        wrist = beta * beta + gamma * gamma < WRIST_SINGULAR ** 2  # rho = |sin(q5 - its singular value)|
         if signs:
-            sign5, d4 = signs[2], ca.atan2(signs[2] * Y4, signs[2] * X4)
+            d4 = ca.remainder(ca.atan2(-signs[2] * beta, signs[2] * gamma), TURN)
         else:
-            sign5 = _sign(X4 > 0)
-            d4 = ca.atan2(sign5 * Y4, ca.fabs(X4))
-        wrist = rho < WRIST_SINGULAR
-        d4 = ca.if_else(wrist, 0, d4)
-        q5 = qn[4] + _from(cos_a * alpha + sign5 * (sin_a * rho), sin_a * alpha - sign5 * (cos_a * rho), cq[4], sq[4])
-        # at the singular wrist R_w = Rot(a, q4 + t q6) Rot(b, q5), t = sign(alpha) (Rot(b, q5) c = t a):
-        # with q4 held, q6 = t (phi - qn4), phi the turn of b onto R_w b about a; alpha stands
-        # for t (they differ by rho^2 / 2 there)
-        C6, S6 = entry("b", "b"), entry("ab", "b")
-        held = _from(C6 * cq[3] + S6 * sq[3], alpha * (S6 * cq[3] - C6 * sq[3]), cq[5], sq[5])
-        d6 = ca.if_else(wrist, held, _from(-sign5 * mu, -sign5 * nu, cq[5], sq[5]))
-        # out of reach: NaN in every angle
-        unreachable = ca.logic_or(root1_sq < -REACH_TOLERANCE * r2, root3_sq < -REACH_TOLERANCE)
-        nan = ca.if_else(unreachable, ca.SX(float("nan")), 0)
-        return ca.vertcat(q1, q2, q3, qn[3] + d4, q5, qn[5] + d6) + nan
+            # q4 = atan2(-s beta, s gamma), s = +-1 the wrist flip, which turns q4 by pi: the
+            # nearer qn4 is qn4 + (atan2(-beta, gamma) - qn4) wrapped to [-pi/2, pi/2]
+            d4 = ca.remainder(ca.atan2(dot(-b, u), gamma) - qn[3], HALF_TURN)
+        q4 = qn[3] + ca.if_else(wrist, 0, d4)  # the singular wrist keeps qn4
+        c4, s4 = ca.cos(q4), ca.sin(q4)
+        # Rot(a, -q4) R_w c = Rot(b, q5) c = Rot(b, q5 + theta_c) a: q5 + theta_c from its
+        # components along a (alpha) and b x a (s4 beta - c4 gamma)
+        theta_c = math.atan2(exact.dot(exact.cross(b, a), c), exact.dot(a, c))
+        q5 = qn[4] + ca.remainder(ca.atan2(s4 * beta - c4 * gamma, alpha) - theta_c - qn[4], TURN)
+        # R_w^T Rot(a, q4) b = Rot(c, -q6) b = cos q6 b + sin q6 (b x c) (b normal to c), also at the
+        # singular wrist, where q6 then takes the turn that q4 keeps: its components are
+        # (R_d R0^T y) . z, y = b and b x c, z = R_123 Rot(a, q4) b (axis 5)
+        z = turn(w1, c1, s1, turn(w2, c23, s23, turn(a, c4, s4, [ca.SX(float(v)) for v in b])))
+        C6, S6 = (_dot3(_columns(R_d, exact.matmul(self.R0.T, y)), z) for y in (b, exact.cross(b, c)))
+        q6 = qn[5] + ca.remainder(ca.atan2(S6, C6) - qn[5], TURN)
+        return ca.vertcat(q1 + flag3, q2, q3, q4, q5, q6)
 
 
-def _sign(condition: ca.SX) -> ca.SX:
-    """+1 where condition holds, else -1."""
-    return 2 * condition - 1
+def _columns(R: ca.SX, k: np.ndarray) -> list:
+    """R k for a constant k, skipping its zeros."""
+    return [dot(k, [R[i, j] for j in range(3)]) for i in range(3)]
 
 
-def _dot(constant, v) -> ca.SX:
-    """constant . v, skipping the constant's zeros."""
-    terms = [float(k) * v[i] for i, k in enumerate(constant) if k]
-    return sum(terms[1:], terms[0]) if terms else ca.SX(0)
-
-
-def _from(X: ca.SX, Y: ca.SX, cq: ca.SX, sq: ca.SX) -> ca.SX:
-    """atan2(Y, X) - q wrapped to (-pi, pi], from (cos q, sin q)."""
-    return ca.atan2(Y * cq - X * sq, X * cq + Y * sq)
-
-
-def _turned(w: np.ndarray, c: ca.SX, s: ca.SX, v: list) -> list:
-    """Rot(w, q) v (Rodrigues), (cos q, sin q) = (c, s), constant unit w."""
-    w = [float(x) for x in w]
-    k = _dot(w, v)
-    cross = [w[1] * v[2] - w[2] * v[1], w[2] * v[0] - w[0] * v[2], w[0] * v[1] - w[1] * v[0]]
-    return [w[i] * k + c * (v[i] - w[i] * k) + s * cross[i] for i in range(3)]
-
-
-def _turned_dot(w: np.ndarray, e: np.ndarray, c: ca.SX, s: ca.SX, x: list) -> ca.SX:
-    """(Rot(w, q) e) . x for constants w, e."""
-    we = exact.dot(w, e)
-    return we * _dot(w, x) + c * _dot(exact.add(e, (-we, w)), x) + s * _dot(exact.cross(w, e), x)
+def _dot3(u: list, v: list) -> ca.SX:
+    return u[0] * v[0] + u[1] * v[1] + u[2] * v[2]
 
 
 # -- the family, at build time ------------------------------------------------------------
