@@ -106,14 +106,23 @@ class _Mjcf:
 
     def loc(self, kind: str, i: int) -> Location:
         """Where the element stands in the file: MuJoCo's line (spec.info), the column of
-        its tag on that line; an element of an included file at the file's start."""
+        its tag on that line; without a line (a <freejoint>), the first tag of its kind with
+        its name; an element of an included file at the file's start."""
         spec_element = next((e for e in getattr(self.spec, _SPEC_LISTS[kind]) if e.id == i), None)
         match = re.search(r"line (\d+)", getattr(spec_element, "info", "") or "")
         line = int(match.group(1)) if match else 0
-        if not 0 < line <= len(self.lines):
-            return self.root_loc()
-        col = self.lines[line - 1].find(f"<{_TAGS.get(kind, kind)}")
-        return Location(self.path, line, col + 1 if col >= 0 else 1)
+        tags = _TAGS.get(kind, kind)
+        if 0 < line <= len(self.lines):
+            col = re.search(rf"<(?:{tags})\b", self.lines[line - 1]) or re.search("<", self.lines[line - 1])
+            return Location(self.path, line, col.start() + 1 if col else 1)
+        name = getattr(self.m, kind)(i).name
+        if name:
+            pattern = re.compile(rf"<(?:{tags})\b[^>]*\bname\s*=\s*[\"']{re.escape(name)}[\"']")
+            for n, text in enumerate(self.lines, 1):
+                found = pattern.search(text)
+                if found:
+                    return Location(self.path, n, found.start() + 1)
+        return self.root_loc()
 
     def root_loc(self) -> Location:
         for n, text in enumerate(self.lines, 1):
@@ -128,7 +137,9 @@ class _Mjcf:
 
 _SPEC_LISTS = {"body": "bodies", "joint": "joints", "site": "sites", "equality": "equalities", "tendon": "tendons",
                "actuator": "actuators", "flex": "flexes"}
-_TAGS = {"equality": "", "tendon": "", "actuator": ""}  # their tags vary (<weld>, <fixed>, <motor>, ...)
+# tags of each kind (regular expressions); equality constraints, tendons and actuators have
+# a tag per type (<weld>, <fixed>, <motor>, ...)
+_TAGS = {"joint": "joint|freejoint", "equality": r"\w+", "tendon": r"\w+", "actuator": r"\w+"}
 
 
 def _compile(path: str) -> _Mjcf:
@@ -166,9 +177,9 @@ def _refused(path: str, lines: list[str], message: str) -> UserError:
     match = re.search(r"[Ll]ine(?: number=| )(\d+)", message)
     line = int(match.group(1)) if match else 1
     col = 1
-    element = re.search(r"Element '(\w+)'|XMLElement name=(\w+)", message)
-    if element and 0 < line <= len(lines):
-        found = lines[line - 1].find(f"<{element.group(1) or element.group(2)}")
+    if 0 < line <= len(lines):  # the element's tag, or the line's first one
+        element = re.search(r"Element '(\w+)'|XMLElement name=(\w+)", message)
+        found = lines[line - 1].find(f"<{element.group(1) or element.group(2)}" if element else "<")
         col = found + 1 if found >= 0 else 1
     text = "; ".join(part.strip() for part in message.strip().splitlines() if part.strip())
     return UserError(Location(path, max(line, 1), col), f"MuJoCo cannot compile this file: {text}")
