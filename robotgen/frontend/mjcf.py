@@ -93,16 +93,21 @@ class MjcfRobot:
 class _Mjcf:
     """The compiled model, its spec (for lines) and the main file's text (for columns)."""
 
-    def __init__(self, mujoco, path: str, spec, model, lines: list[str], said: list[str], disabled: dict[str, bool]):
+    def __init__(self, mujoco, path: str, spec, model, lines: list[str], said: list[str], disabled: dict[str, bool],
+                 drawn: set[str]):
         self.mujoco, self.path, self.spec, self.m, self.lines = mujoco, path, spec, model, lines
         self.warnings = said  # MuJoCo's own warnings, located at the file
         self.disabled = disabled  # <option><flag>s that switch off what robotgen reads
         self.joint_names = _joint_names(model)
+        self.drawn_bodies = drawn  # the bodies of the file, fused ones included
 
     def name(self, kind: str, i: int) -> str:
-        """The element's name, or MuJoCo's own way of naming an unnamed one."""
-        element = getattr(self.m, kind)(i)
-        return element.name or f"{kind} {i}"
+        """The element's name, or "<kind> <id>" for an unnamed one."""
+        return self.given_name(kind, i) or f"{kind} {i}"
+
+    def given_name(self, kind: str, i: int) -> str:
+        obj = getattr(self.mujoco.mjtObj, f"mjOBJ_{kind.upper()}")
+        return self.mujoco.mj_id2name(self.m, obj, i) or ""
 
     def loc(self, kind: str, i: int) -> Location:
         """Where the element stands in the file: MuJoCo's line (spec.info), the column of
@@ -115,7 +120,7 @@ class _Mjcf:
         if 0 < line <= len(self.lines):
             col = re.search(rf"<(?:{tags})\b", self.lines[line - 1]) or re.search("<", self.lines[line - 1])
             return Location(self.path, line, col.start() + 1 if col else 1)
-        name = getattr(self.m, kind)(i).name
+        name = self.given_name(kind, i)
         if name:
             pattern = re.compile(rf"<(?:{tags})\b[^>]*\bname\s*=\s*[\"']{re.escape(name)}[\"']")
             for n, text in enumerate(self.lines, 1):
@@ -139,7 +144,7 @@ _SPEC_LISTS = {"body": "bodies", "joint": "joints", "site": "sites", "equality":
                "actuator": "actuators", "flex": "flexes"}
 # tags of each kind (regular expressions); equality constraints, tendons and actuators have
 # a tag per type (<weld>, <fixed>, <motor>, ...)
-_TAGS = {"joint": "joint|freejoint", "equality": r"\w+", "tendon": r"\w+", "actuator": r"\w+"}
+_TAGS = {"joint": "joint|freejoint", "flex": "flex|flexcomp", "equality": r"\w+", "tendon": r"\w+", "actuator": r"\w+"}
 
 
 def _compile(path: str) -> _Mjcf:
@@ -160,6 +165,7 @@ def _compile(path: str) -> _Mjcf:
         warnings.simplefilter("always")
         try:
             spec = mujoco.MjSpec.from_file(str(path))
+            drawn = {body.name for body in spec.bodies}  # before the compiler fuses any away
             model = spec.compile()
         except ValueError as e:
             raise _refused(path, text.splitlines(), str(e)) from None
@@ -168,7 +174,7 @@ def _compile(path: str) -> _Mjcf:
     flags = int(model.opt.disableflags)
     disabled = {key: bool(flags & int(getattr(bits, f"mjDSBL_{key.upper()}")))
                 for key in ("gravity", "damper", "spring", "frictionloss", "constraint")}
-    return _Mjcf(mujoco, path, spec, model, text.splitlines(), said, disabled)
+    return _Mjcf(mujoco, path, spec, model, text.splitlines(), said, disabled, drawn)
 
 
 def _refused(path: str, lines: list[str], message: str) -> UserError:
@@ -234,7 +240,7 @@ def _body(mj: _Mjcf, b: int) -> Body:
 
 def _check_numbers(mj: _Mjcf) -> None:
     """Every number robotgen reads is finite and at most MAX_MAGNITUDE (MuJoCo accepts 1e300
-    and some NaNs); damping, armature and friction loss are not negative."""
+    and some NaNs); damping, armature and friction loss are not negative; no flex."""
     m = mj.m
     per_kind = {
         "body": ("body_pos", "body_quat", "body_ipos", "body_iquat", "body_inertia", "body_mass"),
@@ -253,6 +259,8 @@ def _check_numbers(mj: _Mjcf) -> None:
                 if field in ("dof_armature", "dof_damping", "dof_frictionloss") and min(values, default=0.0) < 0:
                     raise mj.fail(kind, i, f"joint '{mj.name(kind, i)}': {field.split('_')[1]} "
                                            f"{min(values):g} is negative")
+    if m.nflex:
+        raise mj.fail("flex", 0, f"flex '{mj.name('flex', 0)}': deformable bodies are not part of robotgen's model")
     g = [float(v) for v in m.opt.gravity]
     if not all(math.isfinite(v) and abs(v) <= MAX_MAGNITUDE for v in g):
         raise UserError(mj.root_loc(), f"<option gravity> holds {' '.join(map(str, g))}; robotgen reads finite "
@@ -299,7 +307,7 @@ def _find(mj: _Mjcf, label: str, name: str, sites: bool) -> tuple[int, int | Non
     s = mujoco.mj_name2id(mj.m, mujoco.mjtObj.mjOBJ_SITE, name) if sites else -1
     if s >= 0:
         return int(mj.m.site_bodyid[s]), s
-    fused = any(e.name == name for e in mj.spec.bodies)
+    fused = name in mj.drawn_bodies
     what = "body or site" if sites else "body"
     why = (" (MuJoCo's compiler fused it into its parent: <compiler fusestatic=\"true\">; name a site on it "
            "or its parent)" if fused else "")
@@ -446,11 +454,9 @@ def _tendon_parts(m, t: int) -> tuple[list[int], list[int]]:
 
 
 def _unmodelled(mj: _Mjcf, plan: _Plan, frames: dict) -> tuple[str, ...]:
-    """An error for an active equality constraint that acts on the model, and for a flex;
-    warnings for the forces robotgen leaves out that act on it; notes for the rest."""
+    """An error for an active equality constraint that acts on the model; warnings for the
+    forces robotgen leaves out that act on it; notes for the rest."""
     m = mj.m
-    if m.nflex:
-        raise mj.fail("flex", 0, f"flex '{mj.name('flex', 0)}': deformable bodies are not part of robotgen's model")
     kept = set(plan.kept)
     owner = {b: frames[b][0] if b in frames else None for b in range(m.nbody)}
 

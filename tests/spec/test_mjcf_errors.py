@@ -57,6 +57,10 @@ CASES = {
                         (13, 3), "Error opening file"),
     "unknown_tip": (model(ARM.format("", "hinge")), ["--tip", "hand"], (1, 1),
                     "tip body or site 'hand' is not in the model"),
+    "fused_tip": (model(WELDED).replace("<worldbody>", '<compiler fusestatic="true"/>\n  <worldbody>'),
+                  ["--tip", "knob"], (1, 1), "tip body or site 'knob' is not in the model (MuJoCo's compiler fused "
+                                             "it into its parent: <compiler fusestatic=\"true\">; name a site on it "
+                                             "or its parent)"),
     "unknown_base": (model(ARM.format("", "hinge")), ["--tip", "tip", "--base", "pelvis"], (1, 1),
                      "base body 'pelvis' is not in the model"),
     "ball_on_chain": (model(ARM.format("", "ball")), ["--tip", "tip"], (7, 9),
@@ -80,6 +84,9 @@ CASES = {
                           "constraints inside a chain or tree"),
     "quadruped_legs": ("quadruped.xml", ["--tree", "--base", "torso"], (272, 5),
                        "equality constraint 'coupling_front_left' acts on the joints robotgen keeps"),
+    "flex": (model(ARM.format("", "hinge"), '    <flexcomp name="cloth" type="grid" count="3 3 1" spacing=".1 .1 .1" '
+                                              'dim="2" pos="0 0 1"/>'), ["--tip", "tip"], (12, 5),
+             "flex 'cloth': deformable bodies are not part of robotgen's model"),
     "negative_damping": (model(ARM.format(' damping="-1"', "hinge")), ["--tip", "tip"], (4, 7),
                          "joint 'shoulder': damping -1 is negative"),
     "huge_number": (model(ARM.format("", "hinge").replace('pos="0.5 0 0">', 'pos="1e300 0 0">')), ["--tip", "tip"],
