@@ -147,6 +147,12 @@ _SPEC_LISTS = {"body": "bodies", "joint": "joints", "site": "sites", "equality":
 _TAGS = {"joint": "joint|freejoint", "flex": "flex|flexcomp", "equality": r"\w+", "tendon": r"\w+", "actuator": r"\w+"}
 
 
+# what each <option><flag> switches off; older MuJoCo releases had one flag, PASSIVE, for springs
+# and dampers
+_DISABLE_BITS = {"gravity": ("GRAVITY",), "damper": ("DAMPER", "PASSIVE"), "spring": ("SPRING", "PASSIVE"),
+                 "frictionloss": ("FRICTIONLOSS",), "constraint": ("CONSTRAINT",)}
+
+
 def _compile(path: str) -> _Mjcf:
     """MuJoCo's compiler on ``path``; a file MuJoCo refuses is a UserError with its message,
     at the line MuJoCo names."""
@@ -170,10 +176,9 @@ def _compile(path: str) -> _Mjcf:
         except ValueError as e:
             raise _refused(path, text.splitlines(), str(e)) from None
     said = [f"{Location(path)}: warning: MuJoCo: {w.message}" for w in caught]
-    bits = mujoco.mjtDisableBit
     flags = int(model.opt.disableflags)
-    disabled = {key: bool(flags & int(getattr(bits, f"mjDSBL_{key.upper()}")))
-                for key in ("gravity", "damper", "spring", "frictionloss", "constraint")}
+    disabled = {key: any(flags & int(getattr(mujoco.mjtDisableBit, f"mjDSBL_{bit}", 0)) for bit in bits)
+                for key, bits in _DISABLE_BITS.items()}
     return _Mjcf(mujoco, path, spec, model, text.splitlines(), said, disabled, drawn)
 
 

@@ -223,3 +223,22 @@ def test_the_digest_covers_included_files(tmp_path):
     with pytest.raises(UserError) as error:
         read_mjcf(str(main), "a", base="a")
     assert str(error.value) == f"{main}:1:1: tip 'a' is not below base body 'a'"
+
+
+def test_unnamed_joints_are_named_after_their_body(tmp_path):
+    text = """<mujoco>
+  <worldbody>
+    <body name="arm">
+      <joint axis="0 1 0"/>
+      <joint name="arm_joint1" type="slide" axis="1 0 0"/>
+      <joint type="slide" axis="0 0 1"/>
+      <geom size="0.1" mass="1"/>
+    </body>
+  </worldbody>
+</mujoco>"""
+    tree = read_mjcf_tree(str(write(tmp_path, text))).tree
+    assert [j.name for j in tree.joints] == ["arm_joint0", "arm_joint1", "arm_joint2"]
+    text = text.replace('name="arm_joint1"', 'name="arm_joint2"')
+    tree = read_mjcf_tree(str(write(tmp_path, text))).tree
+    assert [j.name for j in tree.joints] == ["arm_joint0", "arm_joint2", "arm_joint2_1"]
+    assert [j.type for j in tree.joints] == ["revolute", "prismatic", "prismatic"] and tree.tip_link == "arm"
