@@ -75,6 +75,13 @@ URDF_CASES = {
 }
 
 
+@pytest.fixture(autouse=True)
+def _in_tmp_path(tmp_path, monkeypatch):
+    """MuJoCo's C compiler appends its warnings (cheetah's settotalmass, xArm7's empty limits)
+    to MUJOCO_LOG.TXT in the working directory: keep it out of the repository."""
+    monkeypatch.chdir(tmp_path)
+
+
 def mjcf_from_urdf(urdf: Path, folder: Path) -> Path:
     """The URDF loaded by MuJoCo's compiler (<visual> and <collision> removed: no mesh files
     needed, and no geom-derived inertia) and saved as the MJCF MuJoCo wrote for it."""
