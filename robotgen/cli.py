@@ -16,7 +16,7 @@ from pathlib import Path
 import robotgen
 from robotgen.emit.compile import CompilerSetupError
 from robotgen.emit.targets import TARGETS, TargetUnavailable, check_available
-from robotgen.errors import UserError, UserErrors
+from robotgen.errors import MissingDependency, UserError, UserErrors
 from robotgen.model.derivatives import INTEGRATORS, SEMI_IMPLICIT_EULER, DerivativeSettings
 from robotgen.model.describe import system_info, system_nq
 from robotgen.model.laws import HAND_LAWS, RESOLVED_ADAPTIVE
@@ -55,7 +55,7 @@ def _unraisable(hook) -> None:
 
 
 def _load(args: argparse.Namespace):
-    """A RobotSystem from a YAML spec or, with --tip, a URDF file."""
+    """A RobotSystem from a YAML spec, or from a URDF or MJCF file with --tip or --tree."""
     path = args.spec
     name = getattr(args, "name", None)
     if name is not None and name_problem(name):
@@ -64,17 +64,17 @@ def _load(args: argparse.Namespace):
         suggestion = suggestion if not name_problem(suggestion) else suggestion + "_robot"
         raise _Usage(f"--name {name!r} {name_problem(name)} (it names the Python module and prefixes every "
                      f"C function); try --name {suggestion}")
-    if path.lower().endswith(".urdf"):
-        from robotgen.frontend.urdf import load_urdf_system
-
+    reader = _file_reader(path)
+    if reader is not None:
+        kind, load_chain, load_tree = reader
         if getattr(args, "tree", False):
-            from robotgen.frontend.urdf import load_urdf_tree_system
-
-            system = load_urdf_tree_system(path, base=args.base, tip=args.tip, name=args.name)
+            system = load_tree(path, base=args.base, tip=args.tip, name=args.name)
         elif not getattr(args, "tip", None):
-            raise _Usage("a URDF needs --tip LINK (or --tree for every joint below the base)")
+            what = "LINK" if kind == "URDF" else "BODY"
+            raise _Usage(f"a{'n' if kind == 'MJCF' else ''} {kind} file needs --tip {what} (or --tree for every "
+                         "joint below the base)")
         else:
-            system = load_urdf_system(path, tip=args.tip, base=args.base, name=args.name)
+            system = load_chain(path, tip=args.tip, base=args.base, name=args.name)
         if getattr(args, "no_derivatives", False) or getattr(args, "integrator", None):
             settings = DerivativeSettings(False if args.no_derivatives else None,
                                           args.integrator or SEMI_IMPLICIT_EULER)
@@ -87,12 +87,27 @@ def _load(args: argparse.Namespace):
         given += ["--no-derivatives"] if getattr(args, "no_derivatives", False) else []
         given += ["--integrator"] if getattr(args, "integrator", None) else []
         if given:
-            raise _Usage(f"{', '.join(given)} appl{'ies' if len(given) == 1 else 'y'} to a URDF file; a spec "
-                         "says the same with its name:, nodes: and derivatives: keys")
+            raise _Usage(f"{', '.join(given)} appl{'ies' if len(given) == 1 else 'y'} to a URDF file (or an MJCF "
+                         "file); a spec says the same with its name:, nodes: and derivatives: keys")
         system = load_system(path)
     for warning in system.warnings:
         print(warning, file=sys.stderr)
     return system
+
+
+def _file_reader(path: str):
+    """(kind, chain loader, tree loader) of a robot file read without a spec: a URDF
+    (``.urdf``) or an MJCF file (``.xml``, ``.mjcf``, compiled by MuJoCo); None for a spec."""
+    suffix = Path(path).suffix.lower()
+    if suffix == ".urdf":
+        from robotgen.frontend.urdf import load_urdf_system, load_urdf_tree_system
+
+        return "URDF", load_urdf_system, load_urdf_tree_system
+    if suffix in (".xml", ".mjcf"):
+        from robotgen.frontend.mjcf import load_mjcf_system, load_mjcf_tree_system
+
+        return "MJCF", load_mjcf_system, load_mjcf_tree_system
+    return None
 
 
 class _Usage(Exception):
@@ -119,6 +134,7 @@ def _cmd_build(args: argparse.Namespace) -> int:
         return EXIT_USER
     options = {"name": system.name, "precision": args.precision, "compile": not args.no_compile,
                "tip": args.tip, "base": args.base, "tree": getattr(args, "tree", False),
+               "source_sha256": system.source_sha256,  # an MJCF file's: its includes and meshes too
                **({"targets": list(targets)} if targets else {})}
     key = cache.build_key([Path(system.source), *map(Path, system.dependencies)], options)
     if cache.is_current(out, key, not args.no_compile, system.name):
@@ -304,32 +320,35 @@ def _parser() -> argparse.ArgumentParser:
     quiet = argparse.ArgumentParser(add_help=False)
     quiet.add_argument("-q", "--quiet", action="store_true", help="no progress messages on stderr")
     sub = p.add_subparsers(dest="command", required=True)
-    b = sub.add_parser("build", parents=[quiet], help="compile a spec (or a URDF chain) to C and a Python module")
-    b.add_argument("spec", help="SPEC.yaml or ROBOT.urdf")
+    b = sub.add_parser("build", parents=[quiet],
+                       help="compile a spec (or a URDF or MJCF chain) to C and a Python module")
+    b.add_argument("spec", help="SPEC.yaml, ROBOT.urdf or ROBOT.xml (MJCF)")
     b.add_argument("-o", "--output", help="output directory (default generated/<name>/)")
     b.add_argument("--precision", choices=["double", "float"], default="double")
     b.add_argument("--no-compile", action="store_true", help="emit sources only")
     b.add_argument("--target", action="append", choices=sorted(TARGETS), default=[],
                    help="also compile the C for this microcontroller and record each function's code and "
                         "stack bytes in manifest.json (needs its compiler, e.g. arm-none-eabi-gcc)")
-    b.add_argument("--tip", help="URDF: the tip link")
-    b.add_argument("--base", help="URDF: the base link (default: the root link)")
-    b.add_argument("--name", help="URDF: module name (default: the robot's name)")
+    b.add_argument("--tip", help="URDF: the tip link; MJCF: the tip body or site")
+    b.add_argument("--base", help="URDF: the base link (default: the root link); MJCF: the base body "
+                        "(default: the world)")
+    b.add_argument("--name", help="URDF, MJCF: module name (default: the robot's or model's name)")
     b.add_argument("--tree", action="store_true",
-                   help="URDF: keep every movable joint below the base (a branched tree); --tip then "
+                   help="URDF, MJCF: keep every movable joint below the base (a branched tree); --tip then "
                         "only names the frame of fk and jacobian")
     b.add_argument("--no-derivatives", action="store_true",
-                   help="URDF: leave out the derivative functions (a spec says so in its derivatives section)")
+                   help="URDF, MJCF: leave out the derivative functions (a spec says so in its derivatives section)")
     b.add_argument("--integrator", choices=list(INTEGRATORS),
-                   help="URDF: the step of discrete_dynamics (default semi_implicit_euler)")
+                   help="URDF, MJCF: the step of discrete_dynamics (default semi_implicit_euler)")
     b.set_defaults(run=_cmd_build)
     for name, run, text in (("check", _cmd_check, "validate only"), ("info", _cmd_info, "print the robot tree")):
         c = sub.add_parser(name, help=text)
-        c.add_argument("spec", help="SPEC.yaml or ROBOT.urdf")
-        c.add_argument("--tip", help="URDF: the tip link")
-        c.add_argument("--base", help="URDF: the base link (default: the root link)")
-        c.add_argument("--name", help="URDF: module name (default: the robot's name)")
-        c.add_argument("--tree", action="store_true", help="URDF: every movable joint below the base")
+        c.add_argument("spec", help="SPEC.yaml, ROBOT.urdf or ROBOT.xml (MJCF)")
+        c.add_argument("--tip", help="URDF: the tip link; MJCF: the tip body or site")
+        c.add_argument("--base", help="URDF: the base link (default: the root link); MJCF: the base body "
+                            "(default: the world)")
+        c.add_argument("--name", help="URDF, MJCF: module name (default: the robot's or model's name)")
+        c.add_argument("--tree", action="store_true", help="URDF, MJCF: every movable joint below the base")
         c.set_defaults(run=run)
     sim = sub.add_parser("simulate", parents=[quiet], help="run a tree's servo step against its true constrained plant")
     sim.add_argument("spec")
@@ -369,7 +388,7 @@ def main(argv: list[str] | None = None) -> int:
     except _Usage as e:
         print(f"robotgen: error: {e}", file=sys.stderr)
         return EXIT_USAGE
-    except CompilerSetupError as e:
+    except (CompilerSetupError, MissingDependency) as e:
         print(f"robotgen: error: {e}", file=sys.stderr)
         return EXIT_USER
     except KeyboardInterrupt:  # Ctrl-C: the build's staging directory is already cleaned up

@@ -31,3 +31,8 @@ class UserErrors(Exception):
     def __init__(self, errors: list[UserError]):
         super().__init__("\n".join(str(e) for e in errors))
         self.errors = errors
+
+
+class MissingDependency(Exception):
+    """An optional package that the input needs is not installed (MuJoCo for an MJCF file):
+    the user's setup, exit status 1, the message says what to install."""

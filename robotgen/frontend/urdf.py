@@ -555,7 +555,7 @@ def _single_leaf_system(path: str, chain: UrdfChain, named: bool) -> RobotSystem
     """The system of one URDF leaf; its module is named ``chain.tree.name`` made an
     identifier. Without an explicit name (``named``), a module name that differs from the
     robot's name gets a note."""
-    module_name = _identifier(chain.tree.name)
+    module_name = module_identifier(chain.tree.name)
     notes = chain.notes
     if not named and module_name != chain.tree.name:
         source = (f'<robot name="{chain.robot_name}">' if chain.robot_name is not None
@@ -567,7 +567,7 @@ def _single_leaf_system(path: str, chain: UrdfChain, named: bool) -> RobotSystem
     return RobotSystem(module_name, path, sha, {module_name: node}, module_name, warnings=notes)
 
 
-def _identifier(name: str) -> str:
+def module_identifier(name: str) -> str:
     """A module name from a robot's name: ASCII letters, digits and _, and _robot appended
     where the name would be a keyword or hide a standard name (robotgen.model.names)."""
     out = "".join(c if c.isascii() and (c.isalnum() or c == "_") else "_" for c in name.lower())[:MAX_LENGTH - 6]
