@@ -19,11 +19,11 @@ Feedback (§4.2, Table 1's three stages)
      eps = 1 - (1 - mu) / (phi^T P phi): forgetting along phi only (directional forgetting,
      Kulhavy 1987), where eq 37 divides all of P by r. In closed loop du follows dx, the data
      excite only part of Theta, and eq 37's P/r grows without bound in the rest; the next
-     disturbance then moves A and B far (the torque spikes of ±50-130 N m that the first
-     version of this controller showed at a payload step);
-  3. du = u_c - (R + B^T Q B)^-1 B^T Q A dx (eqs 38-39), where u_c = -(B^T Q B)^-1 B^T Q c holds
-     the model at rest at dx = 0 (eq 38 taken about the identified model's equilibrium, so that
-     R does not weigh the torque that carries a payload). The weight rule takes
+     disturbance then moves A and B far, and the torque jumps (docs/papers.md measures it);
+  3. du = u_c - (R + B^T Q B)^-1 B^T Q A dx (eqs 38-39), where u_c = -(B^T Q B + delta R)^-1
+     B^T Q c holds the model at rest at dx = 0 (eq 38 taken about the identified model's
+     equilibrium, so that R does not weigh the torque that carries a payload; delta keeps it
+     bounded where B tends to 0). The weight rule takes
      R = kappa B0^T Q B0, B0 the model's B at the reset: there the control removes
      1 / (1 + kappa) of the predicted rate error per period.
   tau = u_n + du.
