@@ -379,7 +379,7 @@ _DEFS = {
          "kv_internal": _number("damping of internal motion rates, >= 0, default 0", minimum=0),
          "kf_internal": _number("gain on the internal forces the robot senses (its rd force term): write "
                                 "f_d + kf_internal (f_d - f_sensed); the servo step then takes tau_sensed, "
-                                ">= 0, default none (open loop)", minimum=0),
+                                "0 <= kf_internal < 1, default none (open loop)", minimum=0),
          "internal_forces": {"type": "array", "minItems": 1, "items": {"$ref": "#/$defs/number"},
                              "description": "resolve all of the robot's internal forces to these values"},
          "gains": {"enum": list(GAIN_MODES),

@@ -83,6 +83,11 @@ class ControlReader(Collector):
             elif not robot.n_internal_forces:
                 self.at_key(path + ("kf_internal",), f"robot '{node.robot}' has no internal forces to close a "
                                                      "loop on")
+            elif node.kf_internal >= 1:
+                self.at_value(path + ("kf_internal",), f"kf_internal {node.kf_internal:g} must be below 1: the force "
+                                                       "is sensed a period late and a grasp carries a commanded "
+                                                       "internal force at once, so f(k) = f_d + kf (f_d - f(k-1)) "
+                                                       "has its pole at -kf")
         if node.resolve_internal_motion:
             if node.law == PD:
                 self.at_key(path + ("resolve_internal_motion",), "law pd cannot resolve internal motion (it passes "
