@@ -139,14 +139,16 @@ class ContactHistory:
             verdict = (f"LOST at t = {t:.3f} s: the fingertip of '{self.contacts[c].leaf}' left its pad "
                        f"({self.contacts[c].name})")
         lines = [f"grasp {', '.join(grasps)} on MuJoCo's contacts (friction coefficient {friction}): {verdict}",
-                 f"  after {1e3 * SETTLE:g} ms: {'contact':>8} {'leaf':>8} {'max |f_t|/(mu f_n)':>19} "
-                 f"{'f_n min [N]':>11} {'f_n max [N]':>11} {'slip [mm]':>10} {'slid [mm]':>10} {'open':>6}"]
+                 f"  cone usage, f_n and open after the first {1e3 * SETTLE:g} ms; slip (the contact point's largest "
+                 "displacement on the payload) and slid (the distance it slid) over the run:",
+                 f"  {'contact':>10} {'leaf':>10} {'max |f_t|/(mu f_n)':>19} {'f_n min [N]':>12} {'f_n max [N]':>12} "
+                 f"{'slip [mm]':>10} {'slid [mm]':>10} {'open':>6}"]
         settled = self.settled() if self.settled().any() else np.ones(len(self.t), bool)
         normal = self.array("normal")[settled]
         usage, slip, slid = self.worst_usage(), self.largest_slip(), self.array("sliding")[-1]
         for i, c in enumerate(self.contacts):
-            lines.append(f"  {'':10}{c.name:>8} {c.leaf:>8} {usage[i]:19.4f} {normal[:, i].min():11.4f} "
-                         f"{normal[:, i].max():11.4f} {1e3 * slip[i]:10.4f} {1e3 * slid[i]:10.4f} "
+            lines.append(f"  {c.name:>10} {c.leaf:>10} {usage[i]:19.4f} {normal[:, i].min():12.4f} "
+                         f"{normal[:, i].max():12.4f} {1e3 * slip[i]:10.4f} {1e3 * slid[i]:10.4f} "
                          f"{100 * opened[i]:5.1f}%")
         return lines
 
