@@ -182,6 +182,26 @@ def test_styx_demo_grasp_holds_on_mujocos_contacts(spec, build_module):
     assert np.all(gap[:2] < 2e-5) and gap[2] < 5e-4
 
 
+def test_tripod_holds_its_box_up_by_friction(build_module):
+    """The spatial grasp: a free box (MuJoCo's free joint) held at three points by friction
+    alone against its weight. Every contact closes and stays inside its cone, the three squeezes
+    are carried as commanded (robotgen's H: the pair squeezes orthonormalised), and the sensed
+    pose follows robotgen's plant."""
+    spec = SPECS / "tripod_grasp.yaml"
+    system, module = load_system(str(spec)), build_module(spec)
+    robotgen_run, mujoco_run = both_plants(module, system)
+    c = mujoco_run.contacts
+    assert c.holds and np.all(c.worst_usage() < 0.6)
+    assert c.array("normal")[c.settled()].sum(axis=1).min() > 9.81  # friction carries the weight
+    settled = mujoco_run.t > 0.05
+    np.testing.assert_allclose(mujoco_run.f_actual[settled], 10.0, rtol=5e-3)
+    gap = np.abs(robotgen_run.x - mujoco_run.x).max(axis=0)
+    print(f"\n  tripod: max |f_t|/(mu f_n) {np.round(c.worst_usage(), 3)}, slid "
+          f"{np.round(1e3 * c.array('sliding')[-1], 4)} mm, |x_robotgen - x_mujoco| {gap}")
+    assert np.all(gap[:3] < 5e-5) and np.all(gap[3:] < 2e-3)
+    assert np.all(c.array("sliding")[-1] < 5e-5)  # the noslip solver: no creep under the weight
+
+
 def test_too_little_squeeze_loses_the_box(build_module):
     """No squeeze: the fingertip that must pull to accelerate the box cannot, the contacts open
     and the box leaves the fingertips; with the demo's squeeze it stays (above)."""
@@ -283,12 +303,14 @@ def test_missing_mujoco_gives_the_install_hint(monkeypatch, capsys, tmp_path):
 
 
 def test_what_mujoco_cannot_model_is_a_located_error(tmp_path, build_module):
-    """A formulas leaf without a mechanism (the tripod's gantries), a mechanism that is not the
+    """A formulas leaf without a mechanism (a tripod gantry's taken out), a mechanism that is not the
     formulas' (a wrong mass), and coordinates that are not affine in the joints."""
-    r = run_cli("simulate", "specs/tripod_grasp.yaml", "--plant", "mujoco", "-o", str(tmp_path / "t"))
-    line = (SPECS / "tripod_grasp.yaml").read_text().splitlines().index("  f1:") + 1
-    assert r.returncode == 1 and r.stderr.startswith(f"specs/tripod_grasp.yaml:{line}:3: ") and "needs a mechanism" \
-        in r.stderr, r.stderr
+    bare = variant(tmp_path, SPECS / "tripod_grasp.yaml", "tripod_bare",
+                   lambda d: d["nodes"]["f1"]["define"]["formulas"].pop("mechanism"))
+    r = run_cli("simulate", str(bare), "--plant", "mujoco", "-o", str(tmp_path / "t"))
+    line = bare.read_text().splitlines().index("  f1:") + 1
+    assert r.returncode == 1 and r.stderr.startswith(f"{bare}:{line}:3: ") and "needs a mechanism" in r.stderr, \
+        r.stderr
 
     def heavy(data):
         data["nodes"]["left"]["define"]["formulas"]["mechanism"]["joints"][1]["link"]["mass"] = 0.25
