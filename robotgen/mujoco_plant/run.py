@@ -314,9 +314,11 @@ class TreePlant:
         return self.module.plant_position(theta)[:self.n_ext]
 
     def sensed_forces(self, tau_before: np.ndarray) -> np.ndarray:
+        """What the sensors read now: MuJoCo's state already holds the last torques."""
         return self.sim.sensed_forces()
 
     def internal_forces(self, tau: np.ndarray) -> np.ndarray:
+        """The internal forces the contacts carry now (the new torques act from the next step)."""
         return np.array(self.sim.internal_forces(self._readings))
 
     def record(self, t: float) -> None:
