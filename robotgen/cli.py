@@ -169,19 +169,23 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     import dataclasses
     import tempfile
 
-    from robotgen import hand_simulation, simulate
+    from robotgen import hand_simulation, regulator_simulation, simulate
     from robotgen.emit.build import emit
     from robotgen.model.signature import robot_leaves
-    from robotgen.model.simulation import SimulationSettings, rest_posture
+    from robotgen.model.simulation import BOTH_PLANTS, MUJOCO_PLANT, ROBOTGEN_PLANT, SimulationSettings, rest_posture
+    from robotgen.mujoco_plant import MujocoMissing, require_mujoco
+    from robotgen.mujoco_plant.run import tree_plant
     from robotgen.symbolic import controllers_for, kernels_for
 
     progress = _progress(args)
     system = _load(args)
     if system.is_single_leaf:
         raise _Usage("simulate needs a robot tree (attach/control); for one chain see examples/demo.py")
-    if system.is_rate_controlled:
-        raise _Usage("simulate runs torque controllers; a resolved_rate controller outputs joint rates: "
-                     "integrate its rate_step / position_step (docs/python-api.md shows how)")
+    regulated = system.is_rate_controlled
+    if regulated and (system.rate_controls_composite or system.root_node.rate.lqr is None):
+        raise _Usage("simulate runs torque controllers; a resolved_rate controller outputs joint rates (with lqr "
+                     "settings its regulator's lqr_step is simulated): integrate its rate_step / position_step "
+                     "(docs/python-api.md shows how)")
     hand = system.root_law in HAND_LAWS
     if hand and args.dt is not None:
         raise _Usage(f"a {system.root_law} controller runs at its own period "
@@ -192,8 +196,19 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
         if not value > 0:
             raise _Usage(f"--{k} must be positive, got {value:g}")
     settings = dataclasses.replace(settings, **overrides)
+    plant = args.plant or settings.plant
+    plants = (ROBOTGEN_PLANT, MUJOCO_PLANT) if plant == BOTH_PLANTS else (plant,)
+    if MUJOCO_PLANT in plants:
+        try:
+            require_mujoco()
+        except MujocoMissing as e:
+            if args.plant or "plant" not in settings.locations:
+                print(f"robotgen: error: --plant {plant}: {e}", file=sys.stderr)
+                return EXIT_USER
+            raise UserError(settings.locations["plant"], f"simulation.plant: {e}") from None
     out = Path(args.output) if args.output else Path(f"{system.name}_simulation")
     rest = rest_posture([system.nodes[leaf].leaf for leaf in robot_leaves(system)])
+    results, mjcf = [], None
     with tempfile.TemporaryDirectory(prefix="robotgen-sim-") as tmp:
         build = Path(tmp) / system.name
         progress.stage(f"compiling {system.name}'s servo step and plant")
@@ -208,24 +223,44 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
                  extra_info=system_info(twin), spec_sha256=twin.source_sha256, controllers=controllers_for(twin))
             comparison = simulate.load_module(Path(tmp) / twin.name, twin.name)
         step = system.root_node.hand.period if hand else settings.dt
-        progress.stage(f"simulating {settings.duration:g} s at dt = {step:g} s")
-        try:
-            result = (hand_simulation.run(module, system, settings, comparison) if hand
-                      else simulate.run(module, settings, rest))
-        except simulate.SimulationError as e:
-            in_spec = e.field is not None and e.field in settings.locations
-            where = settings.locations[e.field] if in_spec else system.location_of(system.root)
-            raise UserError(where, f"simulation.{e.field}: {e}" if in_spec else str(e)) from None
+        for p in plants:
+            progress.stage(f"simulating {settings.duration:g} s at dt = {step:g} s on the {p} plant")
+            try:
+                if hand:
+                    result = hand_simulation.run(module, system, settings, comparison, plant=p)
+                    mjcf = result.mjcf or mjcf
+                elif regulated:
+                    result, xml = regulator_simulation.run(module, system, settings, p)
+                    mjcf = xml or mjcf
+                elif p == MUJOCO_PLANT:
+                    model, make = tree_plant(system, module, settings.dt)
+                    result, mjcf = simulate.run(module, settings, rest, make), model.xml
+                else:
+                    result = simulate.run(module, settings, rest)
+            except simulate.SimulationError as e:
+                in_spec = e.field is not None and e.field in settings.locations
+                where = settings.locations[e.field] if in_spec else system.location_of(system.root)
+                raise UserError(where, f"simulation.{e.field}: {e}" if in_spec else str(e)) from None
+            results.append(result)
     out.mkdir(parents=True, exist_ok=True)
     kind = hand_simulation if hand else simulate
-    kind.write_csv(result, out / f"{system.name}.csv")
-    try:
-        kind.plot(result, out / f"{system.name}.png", f"{system.name}: {system.root} ({system.root_node.primitive})")
-        plotted = f" and {out / (system.name + '.png')}"
-    except ImportError:
-        plotted = " (no PNG: matplotlib is missing; pip install matplotlib)"
-    print(kind.summary(result))
-    print(f"robotgen: wrote {out / (system.name + '.csv')}{plotted}")
+    written = []
+    for result in results:
+        stem = system.name if result is results[0] else f"{system.name}_{result.plant}"
+        kind.write_csv(result, out / f"{stem}.csv")
+        written.append(out / f"{stem}.csv")
+        try:
+            kind.plot(result, out / f"{stem}.png", f"{system.name}: {system.root} ({system.root_node.primitive}), "
+                                                   f"{result.plant} plant")
+            written.append(out / f"{stem}.png")
+        except ImportError:
+            print("robotgen: no PNG: matplotlib is missing; pip install matplotlib", file=sys.stderr)
+    if mjcf is not None:
+        (out / f"{system.name}.xml").write_text(mjcf)
+        written.append(out / f"{system.name}.xml")
+    print(kind.summary(results[0]) if len(results) == 1 else kind.compare(*results))
+    print(f"robotgen: wrote {', '.join(str(w) for w in written[:-1])} and {written[-1]}"
+          if len(written) > 1 else f"robotgen: wrote {written[0]}")
     return EXIT_OK
 
 
@@ -350,11 +385,17 @@ def _parser() -> argparse.ArgumentParser:
         c.add_argument("--name", help="URDF, MJCF: module name (default: the robot's or model's name)")
         c.add_argument("--tree", action="store_true", help="URDF, MJCF: every movable joint below the base")
         c.set_defaults(run=run)
-    sim = sub.add_parser("simulate", parents=[quiet], help="run a tree's servo step against its true constrained plant")
+    sim = sub.add_parser("simulate", parents=[quiet], help="run a tree's servo step against its true constrained plant "
+                                                           "(or MuJoCo's)")
     sim.add_argument("spec")
-    sim.add_argument("-o", "--output", help="directory for the CSV and PNG (default <name>_simulation/)")
+    sim.add_argument("-o", "--output", help="directory for the CSV, PNG and MJCF (default <name>_simulation/)")
     sim.add_argument("--duration", type=float, help="seconds (default: the spec's simulation section)")
     sim.add_argument("--dt", type=float, help="servo period and RK4 step [s]")
+    sim.add_argument("--plant", choices=["robotgen", "mujoco", "both"],
+                     help="the plant the loop is closed around: robotgen's own model, an independent MuJoCo "
+                          "model of the same system (contacts instead of the bilateral grasp; needs pip install "
+                          "'robotgen[mujoco]'), or both side by side (default: the spec's simulation.plant, else "
+                          "robotgen)")
     sim.set_defaults(run=_cmd_simulate, tip=None, base=None, name=None)
     s = sub.add_parser("schema", help="print the JSON Schema of the spec format")
     s.set_defaults(run=_cmd_schema)

@@ -5,8 +5,9 @@ changing mid-run (the plant's hand picks up point masses the controller is not t
 
 The plant is the chain's forward dynamics (the spec's model, and the same with each payload
 added to the last link), integrated by RK4 from theta0 with the joint rates of the path's
-start (eq 11); the controller runs once per sampling period on the sensed joint state and
-its torques are held over the period. An adaptive controller is run three times: adapting,
+start (eq 11), or a MuJoCo model of the same chain whose hand holds each payload
+(robotgen.mujoco_plant); the controller runs once per sampling period on the sensed joint
+state and its torques are held over the period. An adaptive controller is run three times: adapting,
 with its identification frozen (adapt = False), and replaced by resolved acceleration
 control with its default gains, so that the plot compares them."""
 from __future__ import annotations
@@ -23,8 +24,9 @@ from robotgen.frontend.control.hand import DEFAULT_KP, DEFAULT_KV
 from robotgen.model.chain import with_payload
 from robotgen.model.laws import RESOLVED_ACCELERATION, RESOLVED_ADAPTIVE
 from robotgen.model.laws.hand import HAND_AXES, HAND_DOF, ResolvedAccelerationSettings
-from robotgen.model.simulation import SimulationSettings
+from robotgen.model.simulation import MUJOCO_PLANT, ROBOTGEN_PLANT, SimulationSettings
 from robotgen.model.system import RobotSystem
+from robotgen.mujoco_plant.run import Diverged, chain_steps
 from robotgen.numeric import exact
 from robotgen.simulate import DIVERGED, SimulationError
 from robotgen.symbolic.control.hand import Hand
@@ -62,6 +64,9 @@ class HandResult:
     joints: list[str]
     runs: list[HandRun] = field(default_factory=list)
     changes: tuple = ()  # PayloadChange, in time order
+    plant: str = ROBOTGEN_PLANT
+    mjcf: str | None = None  # the MuJoCo plant's model
+    plant_note: str = "classical RK4 of the chain's forward dynamics, one step per period"
 
     def window(self, start: float, length: float = SETTLE_WINDOW) -> np.ndarray:
         return (self.t >= start) & (self.t < start + length)
@@ -124,9 +129,10 @@ def comparison_system(system: RobotSystem) -> RobotSystem:
 
 
 def run(module, system: RobotSystem, s: SimulationSettings, comparison=None,
-        keys: tuple[str, ...] | None = None) -> HandResult:
+        keys: tuple[str, ...] | None = None, plant: str = ROBOTGEN_PLANT) -> HandResult:
     """Every run of the spec's controller (``comparison``: the module of comparison_system,
-    run too when the controller is adaptive), or those of ``keys`` (adaptive, frozen, rac)."""
+    run too when the controller is adaptive), or those of ``keys`` (adaptive, frozen, rac),
+    against ``plant`` (robotgen or mujoco)."""
     node = system.root_node
     tree = system.nodes[node.robot].leaf
     hand = Hand(tree, node.hand.tool)
@@ -137,16 +143,28 @@ def run(module, system: RobotSystem, s: SimulationSettings, comparison=None,
     q0 = np.asarray(s.theta0 if s.theta0 is not None else np.zeros(tree.nq), float)
     hand_frame = exact.matmul(tree.tool, node.hand.tool)  # the hand in the last joint's frame
     period = node.hand.period
-    plants = [rk4_step(tree, period)]
-    for change in s.payload_changes:
-        point = hand_frame[:3, 3] + hand_frame[:3, :3] @ np.asarray(change.com, float)
-        plants.append(rk4_step(with_payload(tree, change.mass, point), period))
+    mjcf = note = None
+    if plant == MUJOCO_PLANT:
+        stages = [(0.0, np.zeros(3))] + [(c.mass, np.asarray(c.com, float)) for c in s.payload_changes]
+        model, step = chain_steps(system, module, period, q0, hand_frame, stages)
+        mjcf, note = model.xml, step.sim.note
+    else:
+        plants = [rk4_step(tree, period)]
+        for change in s.payload_changes:
+            point = hand_frame[:3, 3] + hand_frame[:3, :3] @ np.asarray(change.com, float)
+            plants.append(rk4_step(with_payload(tree, change.mass, point), period))
+
+        def step(stage, q, qd, tau):
+            with np.errstate(all="ignore"):
+                return tuple(np.array(v).ravel() for v in plants[stage](q, qd, tau))
     _, p0, rpy0 = (np.array(v) for v in pose_f(q0))
     trajectory = Trajectory(p0.ravel(), rpy0.ravel(), s.amplitude, s.frequency)
     steps = int(round(s.duration / period))
     t = np.arange(steps + 1) * period
     p_d = np.array([trajectory.at(tk)[0][:3, 3] for tk in t])
-    result = HandResult(t, p_d, [j.name for j in tree.joints], changes=s.payload_changes)
+    result = HandResult(t, p_d, [j.name for j in tree.joints], changes=s.payload_changes, plant=plant, mjcf=mjcf)
+    if note:
+        result.plant_note = note
     if node.law == RESOLVED_ADAPTIVE:
         setups = [("adaptive", "adaptive", module.AdaptiveController, True),
                   ("frozen", "identification frozen (adapt = False)", module.AdaptiveController, False)]
@@ -163,11 +181,13 @@ def run(module, system: RobotSystem, s: SimulationSettings, comparison=None,
         controller = cls()
         if adapt is not None:
             controller.adapt = adapt
-        result.runs.append(_closed_loop(controller, trajectory, plants, switch, pose_f, q0, qd0, t, key, label))
+        result.runs.append(_closed_loop(controller, trajectory, step, switch, pose_f, q0, qd0, t, key, label))
     return result
 
 
-def _closed_loop(controller, trajectory: Trajectory, plants, switch, pose_f, q0, qd0, t, key, label) -> HandRun:
+def _closed_loop(controller, trajectory: Trajectory, step, switch, pose_f, q0, qd0, t, key, label) -> HandRun:
+    """One run: ``step(stage, q, qd, tau) -> (q, qd)`` one period on, the plant holding the
+    payload of ``stage``; ``switch[k]`` the stage of period k."""
     q, qd = q0.copy(), qd0.copy()
     P, EP, EO, TAU = [], [], [], []
     for k, tk in enumerate(t):
@@ -182,8 +202,10 @@ def _closed_loop(controller, trajectory: Trajectory, plants, switch, pose_f, q0,
         TAU.append(tau)
         if k == len(t) - 1:
             break
-        with np.errstate(all="ignore"):
-            q, qd = (np.array(v).ravel() for v in plants[switch[k]](q, qd, tau))
+        try:
+            q, qd = step(switch[k], q, qd, tau)
+        except Diverged:
+            q = np.full_like(q, np.nan)
         if not (np.all(np.abs(q) < DIVERGED) and np.all(np.abs(qd) < DIVERGED)):
             raise SimulationError(f"the {label} loop diverged at t = {t[k + 1]:.4f} s (q = {np.round(q, 4)}); "
                                   "lower the controller's gains or weights")
@@ -247,21 +269,53 @@ def plot(result: HandResult, path: Path, title: str) -> None:
     plt.close(fig)
 
 
-def summary(result: HandResult) -> str:
-    """Per run: the RMS hand position error before the first change, over the first second
-    after each change and over the last second, and the largest torque step per period."""
-    lines = [f"simulated {result.t[-1]:.3f} s in {len(result.t) - 1} periods"]
+def _windows(result: HandResult) -> tuple[list[str], list[np.ndarray]]:
+    """The RMS windows: before the first change (or the whole run), the first second after
+    each change, the last second."""
+    columns = ["before"] if result.changes else ["whole run"]
+    columns += [f"{change.at:g}-{change.at + SETTLE_WINDOW:g} s" for change in result.changes] + ["last second"]
+    windows = [result.before if result.changes else np.ones_like(result.t, bool)]
+    windows += [result.window(change.at) for change in result.changes] + [result.last_window]
+    return columns, windows
+
+
+def _header(result: HandResult) -> list[str]:
+    lines = []
     for change in result.changes:
         com = "" if not any(change.com) else f", centre of mass ({', '.join(f'{v:g}' for v in change.com)}) m " \
                                              "in the hand frame"
         lines.append(f"payload {change.mass:g} kg at the hand from t = {change.at:g} s{com}")
-    columns = ["before"] if result.changes else ["whole run"]
-    columns += [f"{change.at:g}-{change.at + SETTLE_WINDOW:g} s" for change in result.changes] + ["last second"]
+    return lines
+
+
+def summary(result: HandResult) -> str:
+    """Per run: the RMS hand position error before the first change, over the first second
+    after each change and over the last second, and the largest torque step per period."""
+    lines = [f"simulated {result.t[-1]:.3f} s in {len(result.t) - 1} periods on the {result.plant} plant "
+             f"({result.plant_note})"] + _header(result)
+    columns, windows = _windows(result)
     lines.append("RMS hand position error [mm], and the largest torque step per period [N m]:")
     lines.append(f"  {'':40} " + " ".join(f"{c:>12}" for c in columns) + f" {'max |dtau|':>11}")
     for r in result.runs:
-        windows = [result.before if result.changes else np.ones_like(result.t, bool)]
-        windows += [result.window(change.at) for change in result.changes] + [result.last_window]
         lines.append(f"  {r.label:>40} " + " ".join(f"{1e3 * r.rms(m):12.4f}" for m in windows)
                      + f" {r.largest_torque_step():11.2f}")
+    return "\n".join(lines)
+
+
+def compare(a: HandResult, b: HandResult) -> str:
+    """Both plants' runs side by side, and how closely the hand paths agree."""
+    lines = [f"simulated {a.t[-1]:.3f} s in {len(a.t) - 1} periods on both plants:",
+             f"  {a.plant}: {a.plant_note}", f"  {b.plant}: {b.plant_note}"] + _header(a)
+    columns, windows = _windows(a)
+    lines.append("RMS hand position error [mm], and the largest torque step per period [N m]:")
+    lines.append(f"  {'':40} {'plant':>9} " + " ".join(f"{c:>12}" for c in columns) + f" {'max |dtau|':>11}")
+    for ra, rb in zip(a.runs, b.runs):
+        for plant, r in ((a.plant, ra), (b.plant, rb)):
+            lines.append(f"  {r.label:>40} {plant:>9} " + " ".join(f"{1e3 * r.rms(m):12.4f}" for m in windows)
+                         + f" {r.largest_torque_step():11.2f}")
+    worst = [(ra.label, float(np.abs(ra.p - rb.p).max()), float(np.abs(ra.tau - rb.tau).max()))
+             for ra, rb in zip(a.runs, b.runs)]
+    lines.append(f"the plants agree: largest |p_{a.plant} - p_{b.plant}| over the run (hand position), and "
+                 f"|tau_{a.plant} - tau_{b.plant}|:")
+    lines += [f"  {label:>40} {dp:.3g} m, {dtau:.3g} N m" for label, dp, dtau in worst]
     return "\n".join(lines)

@@ -2,8 +2,10 @@
 
 The plant is the uncontrolled tree's composite dynamics (Deno et al. 1990, eq 2.3) in the
 root's velocity coordinates, integrated by classical RK4 with the leaf joint states carried
-along (Theta_dot = A(Theta) v). The servo step runs once per step on the sensed leaf state,
-and its torques are held over the step (zero-order hold), as on a real servo loop.
+along (Theta_dot = A(Theta) v): ``ModulePlant``. The servo step runs once per step on the
+sensed leaf state, and its torques are held over the step (zero-order hold), as on a real
+servo loop. Another plant with the same methods (robotgen.mujoco_plant.run.TreePlant: a
+MuJoCo model of the same bodies, with contacts) can take its place.
 """
 from __future__ import annotations
 
@@ -16,6 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from robotgen.model.signature import FORCE_UNITS
+from robotgen.model.simulation import ROBOTGEN_PLANT
 from robotgen.model.simulation import SimulationSettings as Settings
 
 # a state entry beyond this is taken as divergence before it overflows
@@ -47,6 +50,15 @@ class Result:
     internal_forces: list[str] = field(default_factory=list)  # every grasp's, as the plant reports
     f_actual: np.ndarray | None = None  # (steps, k) the internal forces the plant carries
     f_commanded: np.ndarray | None = None  # (k,) their commands, NaN where none is known
+    plant: str = ROBOTGEN_PLANT  # what the loop was closed around
+    contacts: object | None = None  # the MuJoCo plant's ContactHistory (robotgen.mujoco_plant.contacts)
+    plant_note: str = ""  # how that plant steps
+
+    @property
+    def payload_pose(self) -> np.ndarray | None:
+        """The true pose of the payload whose coordinates the root's are (MuJoCo's contacts)."""
+        pose = getattr(self.contacts, "payload_pose", None)
+        return np.array(pose) if pose else None
 
     @property
     def error(self) -> np.ndarray:
@@ -68,7 +80,7 @@ def desired(s: Settings, x0: np.ndarray, t: float):
     return x0 + a * np.sin(w * t), a * w * np.cos(w * t), -a * w * w * np.sin(w * t)
 
 
-def _format(values) -> str:
+def format_values(values) -> str:
     return "[" + ", ".join(f"{v:.4g}" for v in np.asarray(values, float).ravel()) + "]"
 
 
@@ -97,7 +109,7 @@ def _check_constraints(module, theta: np.ndarray, source: str | None) -> None:
     r = module.constraint_residual(theta)
     if not np.all(np.isfinite(r)):
         raise SimulationError("the start posture is outside the reach of the inverse kinematics (the "
-                              f"constraint residual is {_format(r)}); give simulation.start inside the "
+                              f"constraint residual is {format_values(r)}); give simulation.start inside the "
                               "workspace, or theta0", source)
     worst = int(np.argmax(np.abs(r)))
     if abs(r[worst]) <= RESIDUAL_TOLERANCE:
@@ -109,12 +121,50 @@ def _check_constraints(module, theta: np.ndarray, source: str | None) -> None:
                   "joints' mid-range (or zero) posture, which violates"}[source]
     advice = "" if source else "; give simulation.start (root positions) or theta0"
     raise SimulationError(f"{what} the constraint of attach '{attach}': residual {r[worst]:.3g} in "
-                          f"'{coordinate}' (y - h^-1(h(y)), largest of {_format(r)}){advice}", source)
+                          f"'{coordinate}' (y - h^-1(h(y)), largest of {format_values(r)}){advice}", source)
 
 
-def run(module, s: Settings, rest: np.ndarray | None = None) -> Result:
+class ModulePlant:
+    """robotgen's own plant: the module's plant_dynamics, RK4 in (theta, v), torques held."""
+
+    name = ROBOTGEN_PLANT
+    note = "classical RK4 of plant_dynamics, one step per period"
+
+    def __init__(self, module, theta: np.ndarray, theta_dot: np.ndarray, v: np.ndarray, n_ext: int):
+        self.module, self.theta, self.v, self.n_ext = module, theta, v, n_ext
+
+    def sensed(self) -> tuple[np.ndarray, np.ndarray]:
+        return self.theta, self.module.plant_dynamics(self.theta, self.v, np.zeros(self.module.nq))[0]
+
+    def position(self, theta: np.ndarray) -> np.ndarray:
+        return self.module.plant_position(theta)[:self.n_ext]
+
+    def internal_forces(self, tau: np.ndarray) -> np.ndarray:
+        return self.module.plant_internal_forces(self.theta, self.v, tau)
+
+    def sensed_forces(self, tau_before: np.ndarray) -> np.ndarray:
+        """What the leaves exert through the grasps now, the last torques still applied."""
+        return self.module.plant_sensed_forces(self.theta, self.v, tau_before)
+
+    def record(self, t: float) -> None:
+        pass
+
+    def step(self, tau: np.ndarray, dt: float, when: str) -> None:
+        """One period on; ``when`` says which, for the message if the loop diverges."""
+        theta_next, v_next = _rk4(self.module, self.theta, self.v, tau, dt)
+        if not (np.all(np.abs(theta_next) < DIVERGED) and np.all(np.abs(v_next) < DIVERGED)):
+            raise SimulationError(
+                f"the closed loop diverged {when}: the state before the blow-up was theta = "
+                f"{format_values(self.theta)}, root velocity = {format_values(self.v)}, torque = "
+                f"{format_values(tau)}; the gains are too high for dt = {dt:g} s or the loop is unstable: lower kp "
+                "and kv, or dt")
+        self.theta, self.v = theta_next, v_next
+
+
+def run(module, s: Settings, rest: np.ndarray | None = None, plant=ModulePlant) -> Result:
     """The closed loop from the settings; ``rest`` is the leaf posture used when the
-    settings give neither theta0 nor start. Raises SimulationError for settings the plant
+    settings give neither theta0 nor start; ``plant(module, theta, theta_dot, v, n_ext)``
+    makes the plant it is closed around. Raises SimulationError for settings the plant
     cannot start from and for a loop that diverges."""
     info = module.info()
     root = info["nodes"][info["root"]]
@@ -127,41 +177,37 @@ def run(module, s: Settings, rest: np.ndarray | None = None) -> Result:
     v[:n_ext] = v_d0
     f_i = np.asarray(s.internal_forces, float) if s.internal_forces else np.zeros(n_fi)
     stateful = hasattr(module, "servo_init")
-
-    def theta_dot(th, vel):
-        return module.plant_dynamics(th, vel, np.zeros(module.nq))[0]
-
-    state = module.servo_init(theta, theta_dot(theta, v)) if stateful else None
+    p = plant(module, theta, module.plant_dynamics(theta, v, np.zeros(module.nq))[0], v, n_ext)
+    state = module.servo_init(*p.sensed()) if stateful else None
+    reads_sensed = hasattr(module, "plant_sensed_forces")  # the servo step takes tau_sensed
     steps = int(round(s.duration / s.dt))
     T, X, XD, TAU, TH, FI = [], [], [], [], [], []
     reads_forces = hasattr(module, "plant_internal_forces")
+    tau = np.zeros(module.nq)
     for k in range(steps + 1):
         t = k * s.dt
+        theta, theta_dot = p.sensed()
         x_d, v_d, a_d = desired(s, x0, t)
-        args = [theta, theta_dot(theta, v), x_d, _pad(v_d, n_v), _pad(a_d, n_v), np.zeros(n_v)]
+        args = [theta, theta_dot, x_d, _pad(v_d, n_v), _pad(a_d, n_v), np.zeros(n_v)]
         if n_fi:
             args.append(f_i)
+        if reads_sensed:
+            args.append(p.sensed_forces(tau))
         if stateful:
             tau, state = module.servo_step(*args, state, np.array([s.dt]))
         else:
             tau = module.servo_step(*args)
         T.append(t)
-        X.append(module.plant_position(theta)[:n_ext])
+        X.append(p.position(theta))
         XD.append(x_d)
         TAU.append(tau)
         TH.append(theta)
         if reads_forces:
-            FI.append(module.plant_internal_forces(theta, v, tau))
+            FI.append(p.internal_forces(tau))
+        p.record(t)
         if k == steps:
             break
-        theta_next, v_next = _rk4(module, theta, v, tau, s.dt)
-        if not (np.all(np.abs(theta_next) < DIVERGED) and np.all(np.abs(v_next) < DIVERGED)):
-            raise SimulationError(
-                f"the closed loop diverged at t = {t + s.dt:.4f} s (step {k + 1} of {steps}): the state "
-                f"before the blow-up was theta = {_format(theta)}, root velocity = {_format(v)}, "
-                f"torque = {_format(tau)}; the gains are too high for dt = {s.dt:g} s or the loop is "
-                "unstable: lower kp and kv, or dt")
-        theta, v = theta_next, v_next
+        p.step(tau, s.dt, f"at t = {t + s.dt:.4f} s (step {k + 1} of {steps})")
     joints = [c for leaf in info["leaves"] for c in info["nodes"][leaf]["coordinates"]]
     joint_units = [u for leaf in info["leaves"] for u in info["nodes"][leaf]["units"]]
     names = info.get("internal_forces", [])
@@ -171,7 +217,8 @@ def run(module, s: Settings, rest: np.ndarray | None = None) -> Result:
     return Result(np.array(T), np.array(X), np.array(XD), np.array(TAU), np.array(TH),
                   list(root["coordinates"]), list(root["units"][:n_ext]), joints, joint_units, names,
                   np.array(FI) if reads_forces else None,
-                  np.array([commands.get(n, np.nan) for n in names]) if reads_forces else None)
+                  np.array([commands.get(n, np.nan) for n in names]) if reads_forces else None,
+                  p.name, getattr(p, "history", None), getattr(p, "note", ""))
 
 
 def _pad(a: np.ndarray, n: int) -> np.ndarray:
@@ -198,16 +245,31 @@ def _rk4(module, theta, v, tau, dt):
 
 def write_csv(result: Result, path: Path) -> None:
     """t, the root coordinates (x_<name>), their reference (xref_<name>), the actuator
-    torques by joint (tau_<joint>) and the internal forces the grasps carry (f_<name>)."""
+    torques by joint (tau_<joint>) and the internal forces the grasps carry (f_<name>); on
+    MuJoCo's contacts also the payload's true pose (xtrue_<name>) and per contact its normal
+    force (fn_), tangential force (ft_), cone usage |f_t|/(mu f_n) (usage_), slip (slip_) and
+    the tip's distance off its pad (gap_)."""
     fi = result.internal_forces if result.f_actual is not None else []
+    c = result.contacts
+    pose = result.payload_pose
+    contact_keys = ("normal", "tangential", "usage", "slip", "gap")
     with open(path, "w", newline="") as f:
         w = csv.writer(f)
-        w.writerow(["t"] + [f"x_{c}" for c in result.names] + [f"xref_{c}" for c in result.names]
-                   + [f"tau_{j}" for j in result.joints] + [f"f_{c}" for c in fi])
+        header = (["t"] + [f"x_{n}" for n in result.names] + [f"xref_{n}" for n in result.names]
+                  + [f"tau_{j}" for j in result.joints] + [f"f_{n}" for n in fi])
+        if pose is not None:
+            header += [f"xtrue_{n}" for n in result.names]
+        if c is not None:
+            header += [f"{key}_{n}" for key in ("fn", "ft", "usage", "slip", "gap") for n in c.names]
+        w.writerow(header)
+        columns = [c.array(key) for key in contact_keys] if c is not None else []
         for k in range(len(result.t)):
-            w.writerow([f"{result.t[k]:.6f}"] + [f"{v:.10g}" for v in result.x[k]]
-                       + [f"{v:.10g}" for v in result.x_d[k]] + [f"{v:.10g}" for v in result.tau[k]]
-                       + [f"{v:.10g}" for v in (result.f_actual[k] if fi else [])])
+            row = ([f"{result.t[k]:.6f}"] + [f"{v:.10g}" for v in result.x[k]]
+                   + [f"{v:.10g}" for v in result.x_d[k]] + [f"{v:.10g}" for v in result.tau[k]]
+                   + [f"{v:.10g}" for v in (result.f_actual[k] if fi else [])])
+            row += [f"{v:.10g}" for v in (pose[k] if pose is not None else [])]
+            row += [f"{v:.10g}" for values in columns for v in values[k]]
+            w.writerow(row)
 
 
 def _unit(unit: str) -> str:
@@ -225,7 +287,9 @@ def plot(result: Result, path: Path, title: str) -> None:
 
     groups = _by_unit(result.names, result.units)
     force_groups = _by_unit(result.joints, [FORCE_UNITS[u] for u in result.joint_units])
-    n_rows = 2 * len(groups) + len(force_groups) + (result.f_actual is not None)
+    contacts = result.contacts
+    pose = result.payload_pose
+    n_rows = 2 * len(groups) + len(force_groups) + (result.f_actual is not None) + 2 * (contacts is not None)
     fig, axes = plt.subplots(n_rows, 1, figsize=(9, 2.3 * n_rows), sharex=True, squeeze=False)
     axes = list(axes[:, 0])
     colors = plt.rcParams["axes.prop_cycle"].by_key()["color"]
@@ -242,6 +306,9 @@ def plot(result: Result, path: Path, title: str) -> None:
         ax = axes.pop(0)
         for n, i in enumerate(indices):
             ax.plot(result.t, result.error[:, i], color=colors[n % len(colors)], label=result.names[i])
+            if pose is not None:
+                ax.plot(result.t, pose[:, i] - result.x_d[:, i], color=colors[n % len(colors)], linestyle=":",
+                        label=f"{result.names[i]}, payload's true pose")
         ax.set_ylabel(f"error x - x_d{_unit(unit)}")
         ax.legend(loc="upper right", fontsize=7, ncol=3)
         ax.grid(True, alpha=0.3)
@@ -264,6 +331,22 @@ def plot(result: Result, path: Path, title: str) -> None:
         ax.set_ylabel("internal force")
         ax.legend(loc="upper right", fontsize=7, ncol=3)
         ax.grid(True, alpha=0.3)
+    if contacts is not None:
+        labels = [f"{c.name} ({c.leaf})" for c in contacts.contacts]
+        ax = axes.pop(0)
+        for n, label in enumerate(labels):
+            ax.plot(result.t, contacts.array("normal")[:, n], color=colors[n % len(colors)], label=label)
+        ax.set_ylabel("contact normal\nforce f_n [N]")
+        ax.legend(loc="upper right", fontsize=7, ncol=3)
+        ax.grid(True, alpha=0.3)
+        ax = axes.pop(0)
+        for n, label in enumerate(labels):
+            ax.plot(result.t, contacts.array("usage")[:, n], color=colors[n % len(colors)], label=label)
+        ax.axhline(1.0, color="k", linestyle="--", linewidth=1, label="cone limit (sliding)")
+        ax.set_ylabel("friction cone use\n|f_t| / (mu f_n)")
+        ax.set_ylim(0, 1.1)
+        ax.legend(loc="upper right", fontsize=7, ncol=3)
+        ax.grid(True, alpha=0.3)
     fig.axes[-1].set_xlabel("t [s]")
     fig.suptitle(title)
     fig.tight_layout()
@@ -279,7 +362,9 @@ def _by_unit(names: list[str], units: list[str]) -> dict[str, list[int]]:
 
 
 def summary(result: Result) -> str:
-    lines = [f"simulated {result.t[-1]:.3f} s in {len(result.t) - 1} steps",
+    lines = [f"simulated {result.t[-1]:.3f} s in {len(result.t) - 1} steps on the {result.plant} plant "
+             f"({result.plant_note})" if result.plant_note else
+             f"simulated {result.t[-1]:.3f} s in {len(result.t) - 1} steps on the {result.plant} plant",
              "tracking error x - x_d (largest over the run, and at the end):"]
     for i, name in enumerate(result.names):
         unit = result.units[i] if i < len(result.units) else ""
@@ -288,4 +373,49 @@ def summary(result: Result) -> str:
     for i, name in enumerate(result.joints):
         unit = FORCE_UNITS[result.joint_units[i]] if i < len(result.joint_units) else ""
         lines.append(f"  {'tau ' + name:>12}: max |.| {np.abs(result.tau[:, i]).max():.4g}{_unit(unit)}")
-    return "\n".join(lines)
+    return "\n".join(lines + _contact_lines(result))
+
+
+def _contact_lines(result: Result) -> list[str]:
+    if result.contacts is None:
+        return []
+    lines = list(result.contacts.summary())
+    pose = result.payload_pose
+    if pose is not None:
+        e = pose - result.x_d
+        lines.append("the payload's true pose (MuJoCo) against x_d, largest over the run and at the end:")
+        for i, name in enumerate(result.names):
+            lines.append(f"  {name:>12}: max {np.abs(e[:, i]).max():.3e}, final {e[-1, i]:+.3e}"
+                         f"{_unit(result.units[i] if i < len(result.units) else '')}")
+    return lines
+
+
+def agreement(a: Result, b: Result) -> dict[str, tuple[float, str, float]]:
+    """Per unit of the root coordinates: (largest |x_a - x_b| over the run, its coordinate,
+    its time)."""
+    out: dict[str, tuple[float, str, float]] = {}
+    difference = np.abs(a.x - b.x)
+    for unit, indices in _by_unit(a.names, a.units).items():
+        k, j = np.unravel_index(np.argmax(difference[:, indices]), (difference.shape[0], len(indices)))
+        out[unit] = (float(difference[k, indices[j]]), a.names[indices[j]], float(a.t[k]))
+    return out
+
+
+def compare(a: Result, b: Result) -> str:
+    """Two plants' runs of one spec side by side: each coordinate's tracking error on both,
+    and how closely the two trajectories agree."""
+    lines = [f"simulated {a.t[-1]:.3f} s in {len(a.t) - 1} steps on both plants:",
+             f"  {a.plant}: {a.plant_note}", f"  {b.plant}: {b.plant_note}",
+             "tracking error x - x_d (largest over the run, and at the end), side by side:",
+             f"  {'':>12}  {a.plant:>30}  {b.plant:>30}  {'|x_' + a.plant + ' - x_' + b.plant + '|':>24}"]
+    for i, name in enumerate(a.names):
+        unit = a.units[i] if i < len(a.units) else ""
+        ea, eb = a.error[:, i], b.error[:, i]
+        lines.append(f"  {name:>12}  max {np.abs(ea).max():.3e}, final {ea[-1]:+.3e}  "
+                     f"max {np.abs(eb).max():.3e}, final {eb[-1]:+.3e}  "
+                     f"{np.abs(a.x[:, i] - b.x[:, i]).max():24.3e}{_unit(unit)}")
+    for unit, (worst, name, t) in agreement(a, b).items():
+        lines.append(f"the plants agree to {worst:.3g}{' ' + unit if unit else ''}: the largest |x_{a.plant} - "
+                     f"x_{b.plant}| over the run ({name} at t = {t:.3f} s)")
+    lines.append(f"largest |tau_{a.plant} - tau_{b.plant}|: {np.abs(a.tau - b.tau).max():.3g}")
+    return "\n".join(lines + _contact_lines(a) + _contact_lines(b))

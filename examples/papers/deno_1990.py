@@ -399,7 +399,11 @@ def appendix_a(high, low, multi, hand: StyxHand, start) -> tuple[dict[str, float
 # ---- simulations ------------------------------------------------------------------------------
 
 def settings_of(path: Path, quick: bool, **changes) -> simulate.Settings:
+    """The spec's simulation section, without its squeeze: chapter 4 leaves the internal
+    forces out (§4.1), and the specs' 1 N squeeze, there for MuJoCo's contacts, moves
+    robotgen's plant too, if only by ~1e-6 m (the held torques act at every RK4 stage)."""
     s = load_system(str(path)).simulation
+    changes.setdefault("internal_forces", ())
     if quick:
         changes.setdefault("duration", min(s.duration, QUICK_DURATION))
     return dataclasses.replace(s, **changes)

@@ -19,6 +19,7 @@ from robotgen.model.signature import (
 from robotgen.model.system import (
     CONSTRAINT_FORMULAS,
     CONTACT_GRASPS,
+    DEFAULT_CONTACT_FRICTION,
     FRAME_CHANGE,
     PAYLOAD_BODIES,
     PLANAR_CONTACTS,
@@ -48,7 +49,8 @@ class AttachReader(Collector):
             at = where + ("planar_contacts", "points")
             contacts = np.array([[self.constant(at + (i, k), v) for k, v in enumerate(point)]
                                  for i, point in enumerate(points)])
-            constraint = Constraint(PLANAR_CONTACTS, contacts=contacts)
+            friction = self.contact_friction(where + ("planar_contacts",), raw["planar_contacts"])
+            constraint = Constraint(PLANAR_CONTACTS, contacts=contacts, friction=friction)
         elif "point_contacts" in raw:
             points = raw["point_contacts"]["points"]
             at = where + ("point_contacts", "points")
@@ -57,7 +59,8 @@ class AttachReader(Collector):
             if np.linalg.norm(np.cross(contacts[1] - contacts[0], contacts[2] - contacts[0])) < 1e-9:
                 self.at_key(at, "the first three contact points are collinear: they cannot fix the "
                                 "payload's orientation")
-            constraint = Constraint(POINT_CONTACTS, contacts=contacts)
+            friction = self.contact_friction(where + ("point_contacts",), raw["point_contacts"])
+            constraint = Constraint(POINT_CONTACTS, contacts=contacts, friction=friction)
         else:
             formulas = raw["formulas"]
             at = where + ("formulas",)
@@ -70,6 +73,12 @@ class AttachReader(Collector):
             rows = tuple(() for _ in formulas["J"]) if "J" in formulas else None
             constraint = Constraint(CONSTRAINT_FORMULAS, coordinates=coordinates, parameters=parameters, J=rows)
         return AttachNode(name, tuple(spec["robots"]), spec.get("payload"), constraint)
+
+    def contact_friction(self, path: Path, spec: dict) -> float:
+        """The fingertips' Coulomb friction coefficient on the payload (> 0, default 1): read
+        by an independent plant with unilateral contacts (robotgen.mujoco_plant), not by
+        robotgen's bilateral grasp model."""
+        return self.optional(spec, path, "friction", DEFAULT_CONTACT_FRICTION, minimum=0.0, exclusive=True)
 
     def leaf_below(self, nodes: dict[str, Node], name: str) -> Node:
         """The node itself, or what a chain of control nodes controls."""

@@ -16,7 +16,7 @@ from robotgen.frontend.urdf import read_urdf
 from robotgen.model.chain import TRIANGLE_INEQUALITY, Body, KinematicTree, Limits, joints_without_inertia
 from robotgen.model.dh import DH_MODIFIED, DH_STANDARD, JOINT_LIST, DHParameters, JointRow, canonical_chain, unit_axis
 from robotgen.model.expression import MATH_LIB, Expr, evaluate
-from robotgen.model.formula import FormulaRobot
+from robotgen.model.formula import FormulaRobot, Mechanism
 from robotgen.model.system import (
     PlanarBody,
     SpatialBody,
@@ -202,7 +202,53 @@ class LeafReader(Collector):
             kinematics=self.vector_of_expressions(path + ("kinematics",), spec["kinematics"], None, in_q)
             if "kinematics" in spec else None,
             outputs=outputs, inverse_kinematics=inverse,
+            mechanism=self.mechanism(name, path + ("mechanism",), spec["mechanism"], coordinates, parameters)
+            if "mechanism" in spec else None,
         )
+
+    def mechanism(self, name: str, path: Path, spec: dict, coordinates: tuple[str, ...],
+                  parameters: dict[str, float]) -> Mechanism | None:
+        """A formulas leaf's bodies: a chain (every key of `chain`) and the leaf's coordinates
+        as affine expressions of the chain's joint positions, theta = T q + offset, T
+        invertible (checked at the unit vectors and at random q)."""
+        tree = self.chain(name, path, {k: v for k, v in spec.items() if k != "coordinates"})
+        joints = tuple(j.name for j in tree.joints)
+        if len(joints) != len(coordinates):
+            self.at_key(path + ("joints",), f"the mechanism has {len(joints)} joints; '{name}' has {len(coordinates)} "
+                                            f"coordinates ({', '.join(coordinates)}), one per joint")
+            return None
+        self.check_names(path, [(j, path + ("joints", i), "joint") for i, j in enumerate(joints)]
+                         + [(p, path + ("coordinates",), "parameter") for p in parameters])
+        at = path + ("coordinates",)
+        before = len(self.errors)
+        exprs = self.vector_of_expressions(at, spec["coordinates"], len(coordinates), set(joints) | set(parameters))
+        if len(self.errors) > before:
+            return None
+        n = len(joints)
+
+        def theta(q: np.ndarray) -> np.ndarray:
+            env = {**parameters, **dict(zip(joints, (float(v) for v in q)))}
+            return np.array([float(evaluate(e, env, MATH_LIB)) for e in exprs])
+
+        try:
+            offset = theta(np.zeros(n))
+            T = np.column_stack([theta(np.eye(n)[j]) - offset for j in range(n)])
+            samples = np.random.default_rng(0).uniform(-np.pi, np.pi, size=(4, n))
+            worst = max(float(np.abs(theta(q) - T @ q - offset).max()) for q in samples)
+        except (ArithmeticError, ValueError):
+            self.at_key(at, "cannot be evaluated at q = 0 and the unit vectors (they must be affine in the "
+                            f"joint positions {', '.join(joints)})")
+            return None
+        scale = 1.0 + float(np.abs(T).max()) * np.pi + float(np.abs(offset).max())
+        if worst > 1e-9 * scale:
+            self.at_key(at, f"must be affine in the joint positions {', '.join(joints)} (theta = T q + offset, "
+                            f"as absolute link angles are of relative joints); off by {worst:.3g} at random q")
+            return None
+        if abs(np.linalg.det(T)) < 1e-12 * max(1.0, float(np.abs(T).max())) ** n:
+            self.at_key(at, f"T = d({', '.join(coordinates)})/d({', '.join(joints)}) is singular: every coordinate "
+                            "of the leaf must come from the joints one to one")
+            return None
+        return Mechanism(tree, exprs, T, offset, self.doc.source.key(path))
 
     def check_mass_matrix(self, path: Path, mass: tuple[tuple[Expr, ...], ...], coordinates: tuple[str, ...],
                           parameters: dict[str, float]) -> None:

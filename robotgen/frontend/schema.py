@@ -18,6 +18,7 @@ from robotgen.model.laws import LAWS
 from robotgen.model.laws.resolved_rate import FRAMES, OBJECTIVES, REDUNDANCY_METHODS
 from robotgen.model.names import SPELLING
 from robotgen.model.signature import UNITS
+from robotgen.model.simulation import PLANTS
 from robotgen.model.system import CHAIN_OUTPUTS, GAIN_MODES
 
 IDENTIFIER = "^[A-Za-z_][A-Za-z0-9_]*$"
@@ -87,6 +88,24 @@ _EXPRESSION = {"type": ["string", "number"],
                "description": "expression: numbers, names, + - * / ** ^, unary -, "
                               "sin cos tan asin acos atan atan2 exp log sqrt abs tanh sinh cosh sign min max"}
 
+_CHAIN = _object(
+    "a serial chain of rigid links",
+    {"convention": {"enum": list(CONVENTIONS),
+                    "description": "how joints are written: dh_standard, dh_modified (Craig) "
+                                   "or joints (URDF-like); no default"},
+     "gravity": _vector3("gravitational acceleration in the base frame [m/s^2], default 0 0 -9.81"),
+     "base": {"$ref": "#/$defs/pose", "description": "base frame -> frame before joint 1"},
+     "tool": {"$ref": "#/$defs/pose", "description": "last link frame -> tip frame"},
+     "coulomb_smoothing": _number("velocity scale of tanh in Coulomb friction, > 0, default 0.01",
+                                  exclusiveMinimum=0),
+     "joints": {"type": "array", "minItems": 1, "items": {"$ref": "#/$defs/joint"},
+                "description": "joints from the base to the tip"}},
+    ("convention", "joints"))
+
+_FRICTION = _number("Coulomb friction coefficient between each fingertip and the payload, > 0, default 1; "
+                    "robotgen's grasp model holds the fingertips bilaterally and does not read it, the "
+                    "MuJoCo plant's contacts do (robotgen simulate --plant mujoco)", exclusiveMinimum=0)
+
 _DEFS = {
     "number": _number("a number, or a constant expression such as \"pi/2\" (names: pi, e)"),
     "expression": _EXPRESSION,
@@ -140,19 +159,7 @@ _DEFS = {
          "friction": {"$ref": "#/$defs/friction"},
          "limits": {"$ref": "#/$defs/limits"}},
         ("type",)),
-    "chain": _object(
-        "a serial chain of rigid links",
-        {"convention": {"enum": list(CONVENTIONS),
-                        "description": "how joints are written: dh_standard, dh_modified (Craig) "
-                                       "or joints (URDF-like); no default"},
-         "gravity": _vector3("gravitational acceleration in the base frame [m/s^2], default 0 0 -9.81"),
-         "base": {"$ref": "#/$defs/pose", "description": "base frame -> frame before joint 1"},
-         "tool": {"$ref": "#/$defs/pose", "description": "last link frame -> tip frame"},
-         "coulomb_smoothing": _number("velocity scale of tanh in Coulomb friction, > 0, default 0.01",
-                                      exclusiveMinimum=0),
-         "joints": {"type": "array", "minItems": 1, "items": {"$ref": "#/$defs/joint"},
-                    "description": "joints from the base to the tip"}},
-        ("convention", "joints")),
+    "chain": _CHAIN,
     "formulas": _object(
         "a leaf robot given by M(q), C(q, qd), N(q, qd) as expressions (Deno et al. 1990, eq 3.1)",
         {"coordinates": {"type": "array", "minItems": 1,
@@ -180,8 +187,18 @@ _DEFS = {
          "units": {"type": "object", "propertyNames": {"pattern": IDENTIFIER},
                    "additionalProperties": {"enum": list(UNITS)},
                    "description": "unit of coordinates and outputs by name (m or rad), for plots "
-                                  "and reports; forces are in N on m, torques in N m on rad"}},
+                                  "and reports; forces are in N on m, torques in N m on rad"},
+         "mechanism": {"$ref": "#/$defs/mechanism"}},
         ("coordinates", "M")),
+    "mechanism": {**_CHAIN, "description": "the rigid bodies behind a formulas leaf, for an independent "
+                                           "simulator (robotgen simulate --plant mujoco): a chain, with the "
+                                           "leaf's coordinates as affine expressions of its joint positions; its "
+                                           "tip frame is the leaf's fingertip",
+                  "properties": {**_CHAIN["properties"],
+                                 "coordinates": _expressions("the leaf's coordinates in the chain's joint names "
+                                                             "(and the leaf's parameters), affine: theta = T q + "
+                                                             "offset with T invertible", minItems=1)},
+                  "required": [*_CHAIN["required"], "coordinates"]},
     "rigid_body": {**_object(
         "a rigid payload body (never actuated), planar or spatial",
         {"planar": _object("a body moving in a plane, coordinates (x, y, psi): M = diag(m, m, I), "
@@ -209,14 +226,16 @@ _DEFS = {
         "fingertips (robot coordinates x, y per contact) held at body-frame points of a planar payload",
         {"points": {"type": "array", "minItems": 2, "items": _vector2("contact point [x, y] in the "
                                                                      "payload's frame [m]"),
-                    "description": "contact points in the payload's frame, one per fingertip"}},
+                    "description": "contact points in the payload's frame, one per fingertip"},
+         "friction": _FRICTION},
         ("points",)),
     "point_contacts": _object(
         "fingertips (robot coordinates x, y, z per contact) held at body-frame points of a spatial payload",
         {"points": {"type": "array", "minItems": 3, "items": _vector3("contact point [x, y, z] in the "
                                                                      "payload's frame [m]"),
                     "description": "contact points in the payload's frame, one per fingertip; the first "
-                                   "three must not be collinear"}},
+                                   "three must not be collinear"},
+         "friction": _FRICTION},
         ("points",)),
     "constraint_formulas": _object(
         "a constraint J(y) ydot = G(x)^T xdot given by expressions",
@@ -358,10 +377,13 @@ _DEFS = {
          "kp": {"$ref": "#/$defs/gain"},
          "kv": {"$ref": "#/$defs/gain"},
          "kv_internal": _number("damping of internal motion rates, >= 0, default 0", minimum=0),
+         "kf_internal": _number("gain on the internal forces the robot senses (its rd force term): write "
+                                "f_d + kf_internal (f_d - f_sensed); the servo step then takes tau_sensed, "
+                                "0 <= kf_internal < 1, default none (open loop)", minimum=0),
          "internal_forces": {"type": "array", "minItems": 1, "items": {"$ref": "#/$defs/number"},
                              "description": "resolve all of the robot's internal forces to these values"},
          "gains": {"enum": list(GAIN_MODES),
-                   "description": "runtime (default): kp, kv, kv_internal are inputs of the emitted code "
+                   "description": "runtime (default): kp, kv, kv_internal, kf_internal are inputs of the emitted code "
                                   "(a parameter struct in C, keyword arguments in Python) with the spec's "
                                   "values as defaults; folded: compiled in as constants (faster, retuning "
                                   "needs a rebuild)"},
@@ -381,7 +403,7 @@ _DEFS = {
                           "rigid_body": {"$ref": "#/$defs/rigid_body"}}),
                "oneOf": _exactly_one_of(("chain", "urdf", "formulas", "rigid_body"))},
     "simulation": _object(
-        "how `robotgen simulate` runs the closed loop (robot trees)",
+        "how `robotgen simulate` runs the closed loop",
         {"duration": _number("simulated time [s], default 2", exclusiveMinimum=0),
          "dt": _number("servo period and RK4 step [s], default 0.001", exclusiveMinimum=0),
          "start": {"type": "array", "items": {"$ref": "#/$defs/number"},
@@ -396,6 +418,10 @@ _DEFS = {
                        "description": "[Hz] per root coordinate"},
          "internal_forces": {"type": "array", "items": {"$ref": "#/$defs/number"},
                              "description": "internal forces commanded at the root"},
+         "plant": {"enum": list(PLANTS),
+                   "description": "what the loop is closed around: robotgen (its own model, default), mujoco "
+                                  "(an independent MuJoCo model of the same system, with real contacts; needs "
+                                  "pip install 'robotgen[mujoco]') or both side by side; --plant overrides"},
          "payload_change": {
              "description": "a hand controller's run: from time at on the plant's hand holds a point mass the "
                             "controller is not told about; one change or a list of them in time order",

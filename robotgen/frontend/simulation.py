@@ -23,6 +23,8 @@ class SimulationReader(Collector):
         the root's unresolved internal forces (internal_forces)."""
         path: Path = ("simulation",)
         values = {k: self.constant(path + (k,), spec[k]) for k in ("duration", "dt") if k in spec}
+        if "plant" in spec:
+            values["plant"] = spec["plant"]  # the schema holds it to PLANTS
         for k in ("start", "theta0", "initial_error", "amplitude", "frequency", "internal_forces"):
             if k in spec:
                 values[k] = tuple(self.constant(path + (k, i), v) for i, v in enumerate(spec[k]))

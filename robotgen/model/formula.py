@@ -5,7 +5,27 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+import numpy as np
+
+from robotgen.errors import Location
+from robotgen.model.chain import KinematicTree
 from robotgen.model.expression import Expr
+
+
+@dataclass(frozen=True, eq=False)
+class Mechanism:
+    """The rigid bodies behind a formulas leaf, for an independent simulator (MuJoCo,
+    robotgen.mujoco_plant): a chain whose joint positions q give the leaf's coordinates
+    affinely, theta = T q + offset (absolute link angles from relative joints, say), and
+    whose tip frame is the point the leaf's ``kinematics`` (or, without them, its
+    coordinates) put the fingertip at. The formulas stay the model robotgen compiles; the
+    simulator checks that the mechanism reproduces them."""
+
+    tree: KinematicTree
+    coordinates: tuple[Expr, ...]  # the leaf's coordinates in the chain's joint names
+    T: np.ndarray  # (nq, nq) d theta / d q, invertible
+    offset: np.ndarray  # (nq,) theta at q = 0
+    location: Location  # where the spec gives it (for the simulator's messages)
 
 
 @dataclass(frozen=True, eq=False)
@@ -36,6 +56,7 @@ class FormulaRobot:
     inverse_kinematics: tuple[Expr, ...] | None = None
     units: dict[str, str] = field(default_factory=dict)
     runtime: frozenset[str] = frozenset()  # parameters read at run time (robotgen.model.parameters)
+    mechanism: Mechanism | None = None  # the bodies an independent simulator builds it from
 
     @property
     def nq(self) -> int:

@@ -61,4 +61,7 @@ def _gains(system: RobotSystem, node: ControlNode) -> list[RuntimeParameter]:
     if robot.n_velocity > n:  # internal motions below: their damping (eq 5.13)
         out.append(RuntimeParameter(gain_parameter_name(node, "kv_internal"), (), (float(node.kv_internal),),
                                     f"damping kv_internal of controller '{node.name}' on internal motions"))
+    if node.kf_internal is not None:  # the loop on sensed internal forces
+        out.append(RuntimeParameter(gain_parameter_name(node, "kf_internal"), (), (float(node.kf_internal),),
+                                    f"gain kf_internal of controller '{node.name}' on the sensed internal forces"))
     return out

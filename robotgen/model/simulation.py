@@ -6,6 +6,11 @@ from dataclasses import dataclass, field
 from robotgen.errors import Location
 from robotgen.model.chain import KinematicTree
 
+# the plant `robotgen simulate` closes the loop around: robotgen's own model (the default), an
+# independent MuJoCo model of the same system (robotgen.mujoco_plant), or both side by side
+ROBOTGEN_PLANT, MUJOCO_PLANT, BOTH_PLANTS = "robotgen", "mujoco", "both"
+PLANTS = (ROBOTGEN_PLANT, MUJOCO_PLANT, BOTH_PLANTS)
+
 
 @dataclass(frozen=True)
 class PayloadChange:
@@ -28,6 +33,7 @@ class SimulationSettings:
     frequency: tuple[float, ...] = ()
     internal_forces: tuple[float, ...] = ()  # root f_i, if the root leaves some unresolved
     payload_changes: tuple[PayloadChange, ...] = ()  # hand laws: the plant's payload changes mid-run, in time order
+    plant: str = ROBOTGEN_PLANT  # one of PLANTS
     # where each field stands in the spec (for messages about values that only the running
     # simulation can judge, such as a theta0 that breaks a grasp)
     locations: dict[str, Location] = field(default_factory=dict, compare=False, repr=False)

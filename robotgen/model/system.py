@@ -82,6 +82,10 @@ CONTACT_GRASPS = {
     POINT_CONTACTS: ContactGrasp(3, 6, "a spatial body (6 coordinates)", "x, y, z"),
 }
 CONSTRAINT_FORMULAS = "formulas"
+# Coulomb friction coefficient between a fingertip and the payload (a contact constraint's
+# `friction`): robotgen's own model holds the fingertips bilaterally and never reads it; an
+# independent simulator with unilateral contacts (robotgen.mujoco_plant) does
+DEFAULT_CONTACT_FRICTION = 1.0
 
 
 @dataclass(frozen=True, eq=False)
@@ -110,6 +114,7 @@ class Constraint:
     J: tuple[tuple[Expr, ...], ...] | None = None
     G: tuple[tuple[Expr, ...], ...] | None = None
     parameters: dict[str, float] = field(default_factory=dict)
+    friction: float = DEFAULT_CONTACT_FRICTION  # contact constraints: fingertip-payload friction coefficient
 
 
 @dataclass(frozen=True, eq=False)
@@ -154,7 +159,9 @@ GAIN_MODES = (RUNTIME_GAINS, FOLDED_GAINS)
 class ControlNode:
     """CONTROL(robot, controller) (§3.4). Gains act on the robot's external coordinates;
     ``kv_internal`` damps internal motions (eq 5.13). ``internal_forces`` resolves the
-    robot's internal forces to constant values (§5.1); ``resolve_internal_motion`` drives
+    robot's internal forces to constant values (§5.1); ``kf_internal`` closes a loop on the
+    internal forces the robot senses (its rd force term, eqs 3.7, 5.4), writing
+    f_d + kf_internal (f_d - f_sensed); ``resolve_internal_motion`` drives
     internal motion rates to zero (§5.2). What a controller resolves is masked from the
     levels above; what it leaves is passed up.
 
@@ -169,10 +176,11 @@ class ControlNode:
     kv: np.ndarray
     kv_internal: float = 0.0
     internal_forces: np.ndarray | None = None
+    kf_internal: float | None = None  # gain on the sensed internal-force error; None: open loop
     resolve_internal_motion: bool = False
     rate: RateControlSettings | CompositeRateSettings | None = None  # law resolved_rate only
     hand: ResolvedAccelerationSettings | AdaptiveSettings | None = None  # the hand laws only
-    runtime_gains: bool = True  # kp, kv, kv_internal are run-time parameters (spec: gains: folded)
+    runtime_gains: bool = True  # kp, kv, kv_internal, kf_internal are run-time parameters (gains: folded)
     gain_forms: tuple[str, str] = (MATRIX_GAIN, MATRIX_GAIN)  # how the spec wrote kp, kv
 
     primitive = "control"

@@ -58,6 +58,24 @@ class Plant:
         self.internal_forces = internal_forces(g, self.v, self.v_dot, leaf_v, self.tau)
 
 
+def sensed_forces(plant: Plant) -> ca.SX:
+    """What each leaf exerts on what it holds, in its own coordinates: tau_sensed = tau -
+    (M theta_ddot + C theta_dot + N) of the leaf alone, = J^T lambda summed over the
+    constraints it acts through (a fingertip force sensor's reading carried to the joints).
+    The leaf rates and accelerations are the plant's: theta_dot = A v and theta_ddot = A vdot
+    + (d theta_dot / d theta) theta_dot. Functions of (theta, v, tau); the servo step's
+    tau_sensed (robotgen.symbolic.servo, rd's force term, eq 3.7)."""
+    g = plant.graphs
+    leaf_v = plant.theta_dot
+    theta_ddot = ca.jtimes(leaf_v, g.theta, leaf_v) + ca.jacobian(leaf_v, plant.v) @ plant.v_dot
+    parts = []
+    for leaf in g.leaves:
+        lg, s = g.graph(leaf), g.leaf_slice(leaf)
+        own = lg.M @ theta_ddot[s] + lg.C @ lg.v + lg.N
+        parts.append(plant.tau[s] - ca.substitute(own, g.theta_dot, leaf_v))
+    return ca.vertcat(*parts)
+
+
 def constraint_residual(g: SystemGraphs) -> ca.SX:
     """y - h^-1(h(y)) at every ATTACH that has h^-1, y its robots' stacked positions: zero
     exactly when the sensed leaf positions satisfy every position-level constraint (a

@@ -4,7 +4,10 @@ ATTACH (eqs 3.8, 5.3, 5.9) to the leaves, whose wr drives the actuators with the
 that reaches them. Every controller in the tree is evaluated on the way, in order.
 
 Each CONTROL node's law (robotgen.symbolic.control) turns what is written at it into the
-force on its robot. Stateful laws (computed torque, feedforward) integrate an expected
+force on its robot. A controller with ``kf_internal`` closes a loop on the internal forces
+its robot senses: rd's force term (eq 3.7), the leaves' sensed forces tau_sensed carried up
+by inverting each ATTACH's force map (eq 5.4), so that it writes f_d + kf (f_d - f_sensed)
+instead of f_d; the step then takes tau_sensed. Stateful laws (computed torque, feedforward) integrate an expected
 trajectory (x_e, xd_e) from xdd_e (§3.4); that is their state, passed in and out of the
 step (the emitted C keeps no state of its own)."""
 from __future__ import annotations
@@ -14,7 +17,7 @@ from dataclasses import dataclass
 import casadi as ca
 
 from robotgen.model.system import AttachNode, ControlNode, DefineNode
-from robotgen.symbolic.control.gains import gain, kv_internal
+from robotgen.symbolic.control.gains import gain, kf_internal, kv_internal
 from robotgen.symbolic.control.law import Command, PositionsUnavailable
 from robotgen.symbolic.control.tree_laws import TREE_LAWS
 from robotgen.symbolic.rows import rows
@@ -54,6 +57,11 @@ class Servo:
         self.dt = ca.SX.sym("dt")
         self.torques: dict[str, ca.SX] = {}
         self.next_state: dict[str, ca.SX] = {}
+        # the leaves' sensed forces (rd of a DEFINE, §3.2), read when a controller below closes
+        # a loop on sensed internal forces
+        self.reads_forces = reads_sensed_forces(graphs, top)
+        self.tau_sensed = ca.SX.sym("tau_sensed", graphs.n)
+        self._sensed: dict[str, tuple[ca.SX, ca.SX]] = {}
 
     def initial_state(self) -> ca.SX:
         """Expected trajectories start at the controlled robots' current state."""
@@ -91,6 +99,8 @@ class Servo:
         F_d = ca.vertcat(t.F, ca.SX.zeros(pad))
         Fi = ca.SX(ca.DM(node.internal_forces)) if node.internal_forces is not None else t.Fi
         parameters = self.g.parameters
+        if node.kf_internal is not None:  # the internal-force loop on the robot's rd force term
+            Fi = Fi + kf_internal(node, parameters) * (Fi - self.sensed(node.robot)[1])
         Kp, Kv, kvi = gain(node, "kp", parameters), gain(node, "kv", parameters), kv_internal(node, parameters)
         e_dot = v_d - child.v
 
@@ -137,3 +147,37 @@ class Servo:
                 rows(w, row, row + nv_c), rows(wa, row, row + nv_c), F_c, rows(Fi_int, fi0, fi0 + nf_c)))
             row, e0, i0, fi0 = row + nv_c, e0 + ne_c, i0 + ni_c, fi0 + nf_c
 
+    # -- rd's force term ----------------------------------------------------------------
+    def sensed(self, name: str) -> tuple[ca.SX, ca.SX]:
+        """(F, F_i): the forces node ``name`` senses, in its velocity coordinates and its
+        internal forces, from the leaves' tau_sensed. A leaf senses its own; a controlled
+        robot the robot's (§3.4: rd passes through, less what the controller resolves); an
+        ATTACH splits its robots' stacked external forces by the inverse of its force map D
+        (eq 5.4; with a square J this is A^T tau_R, eq 3.7, and H J^-T tau_R, eq 5.5) and
+        appends their internal motions' forces and internal forces."""
+        if name not in self._sensed:
+            node = self.g.system.nodes[name]
+            sig = self.g.graph(name).sig
+            if isinstance(node, DefineNode):
+                out = (self.tau_sensed[self.g.leaf_slice(name)], ca.SX(0, 1))
+            elif isinstance(node, ControlNode):
+                F, Fi = self.sensed(node.robot)
+                out = (rows(F, 0, sig.n_velocity), Fi if sig.n_internal_forces else ca.SX(0, 1))
+            else:
+                maps = self.g.graph(name).attach
+                parts = [self.sensed(r) for r in node.robots]
+                kids = [self.g.graph(r).sig for r in node.robots]
+                tau_e = ca.vertcat(*[rows(F, 0, k.n_external) for (F, _), k in zip(parts, kids)])
+                split = ca.solve(maps.D, tau_e)  # [F_e; F_m1; F_i1]
+                f1 = maps.n_created_forces
+                n_motion = sig.n_external + maps.n_created_motions
+                F = ca.vertcat(rows(split, 0, n_motion), *[rows(F, k.n_external) for (F, _), k in zip(parts, kids)])
+                Fi = ca.vertcat(rows(split, n_motion, n_motion + f1), *[Fi for _, Fi in parts])
+                out = (F, Fi)
+            self._sensed[name] = out
+        return self._sensed[name]
+
+
+def reads_sensed_forces(graphs: SystemGraphs, name: str) -> bool:
+    """A controller at or below ``name`` closes a loop on sensed internal forces."""
+    return any(isinstance(n, ControlNode) and n.kf_internal is not None for n in graphs.system.walk(name))

@@ -11,8 +11,8 @@ from robotgen.model.signature import internal_force_names
 from robotgen.model.system import DefineNode, RobotSystem
 from robotgen.symbolic.differentiation import reverse_jacobian
 from robotgen.symbolic.kernel import Kernel, ParameterSymbols, make_kernel
-from robotgen.symbolic.plant import Plant
-from robotgen.symbolic.servo import Servo, Trajectory
+from robotgen.symbolic.plant import Plant, sensed_forces
+from robotgen.symbolic.servo import Servo, Trajectory, reads_sensed_forces
 from robotgen.symbolic.system import SystemGraphs
 
 
@@ -27,6 +27,8 @@ def _write_kernel(g: SystemGraphs, name: str, kernel_name: str, doc: str) -> Ker
               ("xdd_e", xdd_e), ("f_e", f_e)]
     if sig.n_internal_forces:
         inputs.append(("f_i", f_i))
+    if servo.reads_forces:
+        inputs.append(("tau_sensed", servo.tau_sensed))
     outputs = [("tau", servo.tau(), (g.n, 1))]
     if servo.n_state:
         inputs += [("state", servo.state), ("dt", servo.dt)]
@@ -109,6 +111,11 @@ def system_kernels(system: RobotSystem) -> list[Kernel]:
             "plant_internal_forces", f"The internal forces the grasps carry in the plant ({names}): H lambda at "
             "every attach that creates them, lambda the force its robots exert on the constraint, for torques "
             "tau at (theta, v).", [theta, v, tau], [("f", plant.internal_forces, (plant.internal_forces.shape[0], 1))]))
+    if reads_sensed_forces(g, root):
+        kernels.append(kernel(
+            "plant_sensed_forces", "What each leaf exerts on the grasps it acts through, in its coordinates (the "
+            "servo step's tau_sensed): tau - (M theta_ddot + C theta_dot + N) of the leaf alone, for torques tau at "
+            "(theta, v).", [theta, v, tau], [("tau_sensed", sensed_forces(plant), (pg.n, 1))]))
     if plant.residual.shape[0]:
         kernels.append(kernel(
             "constraint_residual", "Position-level constraint residual y - h^-1(h(y)) at every attach with an "

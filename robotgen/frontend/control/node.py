@@ -33,6 +33,7 @@ class ControlReader(Collector):
             kv_internal=self.optional(spec, path, "kv_internal", 0.0, minimum=0.0),
             internal_forces=None if forces is None else
             np.array([self.constant(path + ("internal_forces", i), f) for i, f in enumerate(forces)]),
+            kf_internal=self.optional(spec, path, "kf_internal", None, minimum=0.0),
             resolve_internal_motion=bool(spec.get("resolve_internal_motion", False)),
             runtime_gains=spec.get("gains", RUNTIME_GAINS) == RUNTIME_GAINS,
         )
@@ -75,6 +76,18 @@ class ControlReader(Collector):
                 listed = f" ({', '.join(robot.internal_forces)})" if have else ""
                 self.at_key(path + ("internal_forces",), f"expected {have} values, one per internal force of "
                                                          f"'{node.robot}'{listed}, got {len(node.internal_forces)}")
+        if node.kf_internal is not None:
+            if node.law == PD:
+                self.at_key(path + ("kf_internal",), "law pd passes internal forces up unresolved; close the "
+                                                     "internal-force loop at the controller that commands them")
+            elif not robot.n_internal_forces:
+                self.at_key(path + ("kf_internal",), f"robot '{node.robot}' has no internal forces to close a "
+                                                     "loop on")
+            elif node.kf_internal >= 1:
+                self.at_value(path + ("kf_internal",), f"kf_internal {node.kf_internal:g} must be below 1: the force "
+                                                       "is sensed a period late and a grasp carries a commanded "
+                                                       "internal force at once, so f(k) = f_d + kf (f_d - f(k-1)) "
+                                                       "has its pole at -kf")
         if node.resolve_internal_motion:
             if node.law == PD:
                 self.at_key(path + ("resolve_internal_motion",), "law pd cannot resolve internal motion (it passes "

@@ -28,3 +28,8 @@ def gain(node: ControlNode, key: str, parameters: ParameterSymbols) -> ca.SX | c
 def kv_internal(node: ControlNode, parameters: ParameterSymbols) -> ca.SX | float:
     """The damping of internal motions (eq 5.13)."""
     return parameters.symbols.get(gain_parameter_name(node, "kv_internal"), node.kv_internal)
+
+
+def kf_internal(node: ControlNode, parameters: ParameterSymbols) -> ca.SX | float:
+    """The gain on the sensed internal-force error (None in the node: no loop)."""
+    return parameters.symbols.get(gain_parameter_name(node, "kf_internal"), node.kf_internal)

@@ -1,0 +1,27 @@
+"""MuJoCo as an independent plant for `robotgen simulate --plant mujoco`.
+
+- ``model``: a robotgen system written as MJCF (chains and formulas leaves' mechanisms as
+  nested bodies, payloads free or planar, grasps as fingertip-on-pad contacts with the
+  spec's friction coefficient), with the maps between robotgen's coordinates and MuJoCo's;
+- ``run``: stepping that model under a compiled controller's torques, reading back what a
+  servo loop senses (joint states, and the forces the leaves exert through their contacts);
+- ``contacts``: what the contacts do (normal force, friction-cone usage, slip, separation).
+
+The ``mujoco`` package is an optional dependency (``pip install 'robotgen[mujoco]'``); only
+``run`` imports it, through ``require_mujoco``."""
+from __future__ import annotations
+
+INSTALL_HINT = "pip install 'robotgen[mujoco]'"
+
+
+class MujocoMissing(ImportError):
+    """The mujoco package is not installed."""
+
+
+def require_mujoco():
+    """The mujoco module, or MujocoMissing with the install hint."""
+    try:
+        import mujoco
+    except ImportError as e:
+        raise MujocoMissing(f"the MuJoCo plant needs the mujoco package: {INSTALL_HINT}") from e
+    return mujoco

@@ -1,0 +1,62 @@
+"""`robotgen simulate` for a resolved-rate spec with an optimal regulator (Whitney 1972, eq 19):
+the compiled ``lqr_step`` (tau = tau0 - K (q - q0, qd)) closed around the chain's dynamics.
+
+A resolved-rate controller outputs joint rates, which a plant cannot take; its regulator
+outputs torques. The chain starts at the simulation's theta0 at rest and the regulator
+brings it back to the nominal posture q0: the "tracking error" is q - q0. The plant is the
+chain's forward dynamics integrated by RK4 (hand_simulation.rk4_step) or a MuJoCo model of
+the same chain (robotgen.mujoco_plant), the torque held over each period dt."""
+from __future__ import annotations
+
+import numpy as np
+
+from robotgen.hand_simulation import rk4_step
+from robotgen.model.chain import REVOLUTE
+from robotgen.model.signature import METRE, RADIAN
+from robotgen.model.simulation import MUJOCO_PLANT, ROBOTGEN_PLANT, SimulationSettings
+from robotgen.model.system import RobotSystem
+from robotgen.mujoco_plant.run import Diverged, chain_steps
+from robotgen.simulate import DIVERGED, Result, SimulationError, format_values
+
+
+def run(module, system: RobotSystem, s: SimulationSettings, plant: str = ROBOTGEN_PLANT) -> tuple[Result, str | None]:
+    """(the regulated run, the MuJoCo plant's MJCF or None)."""
+    tree = system.nodes[system.root_node.robot].leaf
+    nominal = np.asarray(system.root_node.rate.lqr.nominal, float)
+    q = np.asarray(s.theta0, float) if s.theta0 is not None else nominal.copy()
+    qd = np.zeros_like(q)
+    mjcf, note = None, "classical RK4 of the chain's forward dynamics, one step per period"
+    if plant == MUJOCO_PLANT:
+        model, step = chain_steps(system, module, s.dt, q)
+        mjcf, note = model.xml, step.sim.note
+    else:
+        rk4 = rk4_step(tree, s.dt)
+
+        def step(stage, q, qd, tau):
+            with np.errstate(all="ignore"):
+                return tuple(np.array(v).ravel() for v in rk4(q, qd, tau))
+    steps = int(round(s.duration / s.dt))
+    T, Q, TAU = [], [], []
+    for k in range(steps + 1):
+        tau = np.asarray(module.lqr_step(q, qd), float)
+        T.append(k * s.dt)
+        Q.append(q)
+        TAU.append(tau)
+        if k == steps:
+            break
+        try:
+            q_next, qd_next = step(0, q, qd, tau)
+        except Diverged:
+            q_next = qd_next = np.full_like(q, np.nan)
+        if not (np.all(np.abs(q_next) < DIVERGED) and np.all(np.abs(qd_next) < DIVERGED)):
+            raise SimulationError(f"the regulated loop diverged at t = {(k + 1) * s.dt:.4f} s (step {k + 1} of "
+                                  f"{steps}): the state before the blow-up was q = {format_values(q)}, qd = "
+                                  f"{format_values(qd)}, torque = {format_values(tau)}; lower dt")
+        q, qd = q_next, qd_next
+    names = [j.name for j in tree.joints]
+    units = [RADIAN if j.type == REVOLUTE else METRE for j in tree.joints]
+    t = np.array(T)
+    result = Result(t, np.array(Q), np.tile(nominal, (t.size, 1)), np.array(TAU), np.array(Q), names, units,
+                    names, units, plant=plant, plant_note=note)
+    return result, mjcf
+
