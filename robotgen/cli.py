@@ -4,6 +4,7 @@ Exit status: 0 success, 1 the user's input is wrong, 2 usage error, 3 a bug in r
 from __future__ import annotations
 
 import argparse
+import math
 import os
 import re
 import signal
@@ -244,7 +245,9 @@ def _cmd_info(args: argparse.Namespace) -> int:
                 print(f"    {key}: {', '.join(value) if isinstance(value, list) else value}")
         for j in node.get("joints", []):
             lim = j["limits"]
-            rng = "" if lim["lower"] is None else f" [{lim['lower']:g}, {lim['upper']:g}]"
+            bounds = (-math.inf if lim["lower"] is None else lim["lower"], math.inf if lim["upper"] is None
+                      else lim["upper"])
+            rng = "" if lim["lower"] is None and lim["upper"] is None else f" [{bounds[0]:g}, {bounds[1]:g}]"
             print(f"    - {j['name']}: {j['type']}, parent {j['parent']}{rng}")
         if node.get("locked_joints"):
             print(f"    locked at q = 0: {', '.join(node['locked_joints'])}")
