@@ -59,6 +59,9 @@ class Kernel:
     # How the C evaluates ``function`` when its work repeats (robotgen.symbolic.schedule):
     # a prologue and loops; None: one straight-line program.
     schedule: Schedule | None = None
+    # Why a guarded kernel's result cannot be finite at any state, when the model says so at
+    # build time (a joint that moves no mass: M singular); its status 2 error names it.
+    singular: str = ""
 
     @cached_property
     def function(self) -> ca.Function:

@@ -3,9 +3,11 @@ M, C, N, inverse and forward dynamics and the fused servo terms, or a formulas l
 N and kinematics, each a CasADi Function with named ports."""
 from __future__ import annotations
 
+from dataclasses import replace
+
 import casadi as ca
 
-from robotgen.model.chain import KinematicTree
+from robotgen.model.chain import KinematicTree, joints_without_inertia
 from robotgen.model.derivatives import SEMI_IMPLICIT_EULER, DerivativeSettings
 from robotgen.model.formula import FormulaRobot
 from robotgen.symbolic.dynamics_derivatives import DynamicsDerivatives
@@ -120,7 +122,27 @@ def leaf_kernels(leaf: KinematicTree | FormulaRobot, prefix: str = "",
         kernels.append(_servo_terms(graphs, sym, n, prefix, loops))
     if derivatives is not None and derivatives.included(n):
         kernels += _derivative_kernels(graphs, derivatives.integrator, n, prefix, parameters)
+    if isinstance(leaf, KinematicTree):
+        return _singular_where_massless(leaf, kernels, prefix)
     return kernels
+
+
+# the kernels that solve with M: a joint that moves no mass leaves them no finite result
+SOLVE_WITH_M = frozenset({"forward_dynamics", "forward_dynamics_derivatives", "mass_inverse", "discrete_dynamics",
+                          "discrete_dynamics_derivatives"})
+
+
+def _singular_where_massless(tree: KinematicTree, kernels: list[Kernel], prefix: str) -> list[Kernel]:
+    """The kernels of SOLVE_WITH_M told (Kernel.singular, and their doc) which joints move no
+    mass, when some do: M is singular at every state (the URDF reader warns about them too)."""
+    massless = [tree.joints[i].name for i in joints_without_inertia(tree)]
+    if not massless:
+        return kernels
+    names = ", ".join(f"'{name}'" for name in massless)
+    cause = (f"joint {names} moves" if len(massless) == 1 else f"joints {names} move") + \
+        " no mass or inertia (massless links after it), so M is singular at every state"
+    return [replace(k, singular=cause, doc=f"{k.doc} Here {cause}.") if k.name[len(prefix):] in SOLVE_WITH_M else k
+            for k in kernels]
 
 
 def _derivative_kernels(graphs, integrator: str, n: int, prefix: str, parameters: ParameterSymbols) -> list[Kernel]:

@@ -244,3 +244,44 @@ def test_a_floating_or_planar_joint_below_the_base_is_an_error_for_a_chain_or_a_
         with pytest.raises(UserError) as e:
             read()
         assert e.value.message == expected and e.value.location.line == 10
+
+
+# --- a joint that moves no mass, in a tree ---------------------------------------------------
+
+def test_a_tree_warns_about_a_joint_that_moves_no_mass_and_forward_dynamics_names_it(tmp_path, capsys):
+    """romeo's hands: a joint whose links are massless. The tree reader warns at the joint as
+    the chain reader does; the module's functions that solve with M say why they fail."""
+    hand = '<joint name="hand" type="revolute"><parent link="l1"/><child link="palm"/><axis xyz="0 0 1"/></joint>'
+    lines = [link("base"), link("l1"), link("l2"), '<link name="palm"/>',
+             joint("j1", "base", "l1"), joint("j2", "l1", "l2"), hand]  # hand: line 9
+    path = write(tmp_path, robot(lines))
+    out = tmp_path / "out"
+    assert main(["build", str(path), "--tree", "--name", "handy", "-o", str(out), "-q"]) == 0
+    warning = (f"{path}:9:1: warning: joint 'hand' moves no mass or inertia (massless links after it): M is singular "
+               "and forward dynamics returns no finite answer")
+    assert capsys.readouterr().err.splitlines() == [warning]
+    assert read_urdf_tree(str(path)).notes == (warning,)
+    import importlib
+    import sys
+
+    sys.path.insert(0, str(out))
+    try:
+        importlib.invalidate_caches()
+        module = importlib.import_module("handy")
+    finally:
+        sys.path.remove(str(out))
+    q, qd, tau = np.zeros(3), np.zeros(3), np.ones(3)
+    assert np.linalg.matrix_rank(module.mass(q)) == 2  # the hand's row and column are 0
+    cause = ("the result is not finite: joint 'hand' moves no mass or inertia (massless links after it), so M is "
+             "singular at every state; the outputs were set to 0 (status 2)")
+    for call in (lambda: module.forward_dynamics(q, qd, tau), lambda: module.mass_inverse(q),
+                 lambda: module.forward_dynamics_derivatives(q, qd, tau),
+                 lambda: module.discrete_dynamics(q, qd, tau, 0.01)):
+        with pytest.raises(FloatingPointError) as e:
+            call()
+        assert str(e.value).endswith(cause), e.value
+    assert "Here joint 'hand' moves no mass" in module.forward_dynamics.__doc__
+    # the functions that do not solve with M are unchanged
+    module.inverse_dynamics_derivatives(q, qd, tau)
+    # without the hand (a tip above it, as a chain) nothing is singular
+    assert read_urdf(str(path), "l2").notes == ()
