@@ -73,7 +73,8 @@ def _load(args: argparse.Namespace):
 
             system = load_urdf_tree_system(path, base=args.base, tip=args.tip, name=args.name)
         elif not getattr(args, "tip", None):
-            raise _Usage("a URDF needs --tip LINK (or --tree for every joint below the base)")
+            raise _Usage(f"a URDF needs --tip LINK (or --tree for every joint below the base); robotgen info "
+                         f"{Path(path).name} lists its links")
         else:
             system = load_urdf_system(path, tip=args.tip, base=args.base, name=args.name)
         if getattr(args, "no_derivatives", False) or getattr(args, "integrator", None):
@@ -228,6 +229,15 @@ def _cmd_schema(args: argparse.Namespace) -> int:
 
 
 def _cmd_info(args: argparse.Namespace) -> int:
+    if args.spec.lower().endswith(".urdf") and not args.tip and not args.tree:  # the file's tree, to choose a tip
+        from robotgen.frontend.urdf import read_urdf_file
+        from robotgen.frontend.urdf_outline import outline
+
+        urdf = read_urdf_file(args.spec)
+        for note in urdf.notes:
+            print(note, file=sys.stderr)
+        print(outline(urdf, args.base))
+        return EXIT_OK
     system = _load(args)
     info = system_info(system)
     print(f"{system.name} (root: {system.root}; sensed joints: {system_nq(system)} in "

@@ -285,3 +285,52 @@ def test_a_tree_warns_about_a_joint_that_moves_no_mass_and_forward_dynamics_name
     module.inverse_dynamics_derivatives(q, qd, tau)
     # without the hand (a tip above it, as a chain) nothing is singular
     assert read_urdf(str(path), "l2").notes == ()
+
+
+# --- info without --tip; an unknown --tip -----------------------------------------------------
+
+def test_info_without_a_tip_lists_the_links_as_a_tree(tmp_path, capsys):
+    gripper = ['<link name="tool"/>', '<link name="finger_a"/>', '<link name="finger_b"/>',
+               '<joint name="flange" type="fixed"><parent link="l2"/><child link="tool"/></joint>',
+               joint("finger_a_joint", "tool", "finger_a", type_="prismatic"),
+               joint("finger_b_joint", "tool", "finger_b", '<mimic joint="finger_a_joint"/>', type_="prismatic")]
+    path = write(tmp_path, robot(FLOATING + gripper).replace('<robot name="r">', '<robot name="Arm-2">'))
+    assert main(["info", str(path)]) == 0
+    out, err = capsys.readouterr()
+    assert err == ""
+    assert out.splitlines() == [
+        "Arm-2 (r.urdf): 8 links, 7 joints below 'world', 5 of them movable; each link with the joint that carries it",
+        "world",
+        "  pelvis            root            floating",
+        "    l1              jl1             revolute",
+        "      l2            jl2             revolute",
+        "        tool        flange          fixed",
+        "          finger_a  finger_a_joint  prismatic",
+        "          finger_b  finger_b_joint  prismatic, mimics finger_a_joint",
+        "    r1              jr1             revolute",
+        "a chain: --tip LINK (the movable joints from 'world' to LINK; the others locked at q = 0); every movable "
+        "joint: --tree",
+    ], out
+    # --base starts the tree there; --tip or --tree give the model's info as before
+    assert main(["info", str(path), "--base", "l1"]) == 0
+    assert capsys.readouterr().out.splitlines()[:3] == [
+        "Arm-2 (r.urdf): 5 links, 4 joints below 'l1', 3 of them movable; each link with the joint that carries it",
+        "l1", "  l2            jl2             revolute"]
+    assert main(["info", str(path), "--tip", "l2", "--base", "pelvis"]) == 0
+    assert "    - jl2: revolute, parent 0 [-1, 1]" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["--tip", "fingr_a"], "tip link 'fingr_a' is not in the URDF; nearest: 'finger_a', 'finger_b'"),
+    (["--tree", "--tip", "tol"], "tip link 'tol' is not in the URDF; nearest: 'tool'"),
+    (["--tip", "l2", "--base", "pelvic"], "base link 'pelvic' is not in the URDF; nearest: 'pelvis'"),
+    (["--tip", "gripper"], "tip link 'gripper' is not in the URDF"),
+])
+def test_an_unknown_link_lists_the_nearest_names(tmp_path, capsys, argv, message):
+    links = FLOATING[:5] + ['<link name="tool"/>', '<link name="finger_a"/>', '<link name="finger_b"/>']
+    joints = [joint("root", "world", "pelvis")] + FLOATING[6:] + [
+        '<joint name="flange" type="fixed"><parent link="l2"/><child link="tool"/></joint>',
+        joint("fa", "tool", "finger_a", type_="prismatic"), joint("fb", "tool", "finger_b", type_="prismatic")]
+    path = write(tmp_path, robot(links + joints))
+    assert main(["check", str(path), *argv]) == 1
+    assert capsys.readouterr().err == f"{path}:2:1: {message} (robotgen info r.urdf lists its links)\n"
