@@ -334,3 +334,21 @@ def test_an_unknown_link_lists_the_nearest_names(tmp_path, capsys, argv, message
     path = write(tmp_path, robot(links + joints))
     assert main(["check", str(path), *argv]) == 1
     assert capsys.readouterr().err == f"{path}:2:1: {message} (robotgen info r.urdf lists its links)\n"
+
+
+def test_the_info_example_of_cli_md_is_what_info_prints(tmp_path, monkeypatch, capsys):
+    import shutil
+    from pathlib import Path
+
+    from robots import UR5, robots_dir
+
+    shutil.copy(robots_dir() / UR5[0], tmp_path / "ur5_robot.urdf")
+    monkeypatch.chdir(tmp_path)
+    docs = (Path(__file__).resolve().parents[2] / "docs" / "cli.md").read_text()
+    block = docs[docs.index("$ robotgen info ur5_robot.urdf\n"):]
+    block = block[:block.index("```")].splitlines()
+    build = block.index("$ robotgen build ur5_robot.urdf --tip tool")
+    assert main(["info", "ur5_robot.urdf"]) == 0
+    assert capsys.readouterr().out.splitlines() == block[1:build]
+    assert main(["build", "ur5_robot.urdf", "--tip", "tool"]) == 1
+    assert capsys.readouterr().err.splitlines() == block[build + 1:]
