@@ -493,11 +493,13 @@ def _limits(r: _Reader, j: Element, markers: _NoLimitMarkers) -> Limits:
     if limit is None:
         return Limits()
     name = j.attrib.get("name")
-    values = {key: r.limit_value(limit, key) for key in ("lower", "upper", "velocity", "effort")}
-    large = [key for key in values if key in limit.attrib and values[key] is None]
+    continuous = j.attrib["type"] == "continuous"  # its lower and upper are not read (URDF)
+    keys = ("velocity", "effort") if continuous else ("lower", "upper", "velocity", "effort")
+    values = {key: r.limit_value(limit, key) for key in keys}
+    large = [key for key in keys if key in limit.attrib and values[key] is None]
     if large:
         markers.large.append((j, limit, large))
-    if j.attrib["type"] == "continuous":
+    if continuous:
         values["lower"] = values["upper"] = None
     else:  # URDF's defaults: 0
         for key in ("lower", "upper"):

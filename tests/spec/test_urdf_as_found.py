@@ -164,6 +164,15 @@ def test_no_limit_markers_read_as_no_limit_with_a_note(tmp_path, capsys):
     assert "    - j1: revolute, parent -1\n" in out and "    - j4: revolute, parent 2 [-inf, 0.5]\n" in out, out
 
 
+def test_a_continuous_joints_lower_and_upper_are_not_read(tmp_path):
+    """URDF ignores them; so does robotgen (no note, no error), and reads its velocity."""
+    j1 = joint("j1", "base", "l1", type_="continuous", limit='lower="nan" upper="-1e16"')
+    chain = read_urdf(str(write(tmp_path, robot([link("base"), link("l1"), j1]))), "l1")
+    assert chain.notes == ()
+    limits = chain.tree.joints[0].limits
+    assert (limits.lower, limits.upper, limits.velocity) == (None, None, 2.0)
+
+
 @pytest.mark.parametrize("limit, words", [
     ('lower="0.5" upper="-0.5"', "lower 0.5 is above upper -0.5"),
     ('lower="2" upper="1"', "lower 2 is above upper 1"),
