@@ -13,7 +13,8 @@ install:
 test: lint
 	$(PYTHON) -m pytest -q
 
-# the long runs (pytest -m slow): 10^4 Hypothesis mutants of the example specs (~10 min)
+# the long runs (pytest -m slow): 10^4 Hypothesis mutants of the example specs (~10 min), every URDF
+# of example-robot-data and pybullet_data against Pinocchio and docs/robots.md (~2 min)
 test-slow:
 	$(PYTHON) -m pytest -q -m slow
 

@@ -4,6 +4,7 @@ Exit status: 0 success, 1 the user's input is wrong, 2 usage error, 3 a bug in r
 from __future__ import annotations
 
 import argparse
+import math
 import os
 import re
 import signal
@@ -71,8 +72,9 @@ def _load(args: argparse.Namespace):
             system = load_tree(path, base=args.base, tip=args.tip, name=args.name)
         elif not getattr(args, "tip", None):
             what = "LINK" if kind == "URDF" else "BODY"
+            hint = f"; robotgen info {Path(path).name} lists its links" if kind == "URDF" else ""
             raise _Usage(f"a{'n' if kind == 'MJCF' else ''} {kind} file needs --tip {what} (or --tree for every "
-                         "joint below the base)")
+                         f"joint below the base){hint}")
         else:
             system = load_chain(path, tip=args.tip, base=args.base, name=args.name)
         if getattr(args, "no_derivatives", False) or getattr(args, "integrator", None):
@@ -278,6 +280,15 @@ def _cmd_schema(args: argparse.Namespace) -> int:
 
 
 def _cmd_info(args: argparse.Namespace) -> int:
+    if args.spec.lower().endswith(".urdf") and not args.tip and not args.tree:  # the file's tree, to choose a tip
+        from robotgen.frontend.urdf import read_urdf_file
+        from robotgen.frontend.urdf_outline import outline
+
+        urdf = read_urdf_file(args.spec)
+        for note in urdf.notes:
+            print(note, file=sys.stderr)
+        print(outline(urdf, args.base))
+        return EXIT_OK
     system = _load(args)
     info = system_info(system)
     print(f"{system.name} (root: {system.root}; sensed joints: {system_nq(system)} in "
@@ -295,7 +306,9 @@ def _cmd_info(args: argparse.Namespace) -> int:
                 print(f"    {key}: {', '.join(value) if isinstance(value, list) else value}")
         for j in node.get("joints", []):
             lim = j["limits"]
-            rng = "" if lim["lower"] is None else f" [{lim['lower']:g}, {lim['upper']:g}]"
+            bounds = (-math.inf if lim["lower"] is None else lim["lower"], math.inf if lim["upper"] is None
+                      else lim["upper"])
+            rng = "" if lim["lower"] is None and lim["upper"] is None else f" [{bounds[0]:g}, {bounds[1]:g}]"
             print(f"    - {j['name']}: {j['type']}, parent {j['parent']}{rng}")
         if node.get("locked_joints"):
             print(f"    locked at q = 0: {', '.join(node['locked_joints'])}")

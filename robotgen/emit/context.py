@@ -99,6 +99,7 @@ class FunctionView:
     guarded: bool = False  # the C checks inputs and results (Kernel.guarded)
     part: int = 0  # which of the module's compile parts holds it (COMPILE_PARTS)
     helpers: tuple[str, ...] = ()  # the stage helpers it calls (HelperView.c_name)
+    singular_error: str = ""  # C string literal: the error of status 2 when Kernel.singular says why
 
 
 @dataclass(frozen=True)
@@ -423,6 +424,8 @@ def _function_view(prefix: str, kernel: Kernel, precision: c_kernel.Precision,
         inputs=inputs, outputs=outputs, py_doc=c_string(_py_doc(kernel, inputs, outputs, keywords)),
         stub_doc=py_string(_summary(kernel.doc, kernel.name)),
         arithmetic_ops=arithmetic, sin_cos_ops=sin_cos, reads_parameters=reads_parameters, guarded=kernel.guarded,
+        singular_error=c_string(f"{kernel.name}(): the result is not finite: {kernel.singular}; the outputs were "
+                                "set to 0 (status 2)") if kernel.guarded and kernel.singular else "",
         helpers=tuple(dict.fromkeys(helper_names[stage] for stage in kernel.schedule.stages))
         if kernel.schedule is not None and helper_names else ())
 

@@ -2,16 +2,20 @@
 tip link (``read_urdf``), or every movable joint below a base link (``read_urdf_tree``, e.g.
 a humanoid's joints below its pelvis).
 
-Parsed with the standard library's expat (to keep line numbers) into plain elements, then
-checked against the subset of URDF robotgen understands:
-- inside <link>, <joint> and <inertial>, an element outside that subset could change the
-  dynamics, so it is an error naming the element, never skipped silently; so is an unknown
-  joint type, and a non-finite number in an origin, axis, inertial or <dynamics>;
-- known URDF elements without dynamic meaning (visual, collision, material, transmission,
-  gazebo, calibration, safety_controller, sensor) are accepted and not used;
+Parsed into plain elements with their positions (``urdf_xml``), then checked against the
+subset of URDF robotgen understands:
+- inside <link>, <joint> and <inertial>, each element is read, accepted unread (URDF's own
+  elements without dynamic meaning: visual, collision, ...), skipped with one located note
+  per element name (pybullet's <contact>, Gazebo's flags: no rigid-body meaning), or
+  refused because misreading it would change the dynamics (``urdf_elements`` lists them);
+  so is an unknown joint type, and a non-finite number in an origin, axis, inertial or
+  <dynamics>;
 - any other element directly under <robot> (<ros2_control>, a vendor's tags) is ignored
   with its children, unchecked, and reported in one note (``UrdfChain.notes``) naming each
-  such tag once with the line of its first occurrence.
+  such tag once with the line of its first occurrence;
+- "no limit" markers in <limit> (a magnitude of 1e15 or more; pybullet's lower="1"
+  upper="-1" and Bullet's default lower="0" upper="-1") read as no limit, with one note per
+  marker; any other lower above upper is an error.
 
 Normalisation (into robotgen.model.chain's canonical form):
 - fixed joints are folded away: the inertia of every link they carry is merged into the
@@ -23,6 +27,8 @@ Normalisation (into robotgen.model.chain's canonical form):
   indices, except mimic joints (robotgen has no coupled coordinates): those are locked at
   q = 0 like a chain's off-path joints, listed in ``KinematicTree.locked_joints`` and
   named in one note;
+- both: only what is below the base is read, so a floating or planar joint above it (a
+  humanoid's world -> pelvis joint) is no error; one below it is;
 - URDF <dynamics damping> becomes viscous friction, <dynamics friction> Coulomb friction.
 
 ``load_urdf_system`` names the module after <robot name> made an identifier (lower case,
@@ -33,9 +39,9 @@ robotgen.numeric.exact, so the emitted C is the same to the bit on every machine
 """
 from __future__ import annotations
 
+import difflib
 import hashlib
 import math
-import xml.parsers.expat
 from dataclasses import dataclass, field
 from fractions import Fraction
 from pathlib import Path
@@ -43,6 +49,8 @@ from pathlib import Path
 import numpy as np
 
 from robotgen.errors import Location, UserError
+from robotgen.frontend.urdf_elements import KNOWN_UNREAD, ElementCheck
+from robotgen.frontend.urdf_xml import Element, declaration_first, parse_xml
 from robotgen.model.chain import PRISMATIC, REVOLUTE, Body, Joint, KinematicTree, Limits, joints_without_inertia
 from robotgen.model.expression import MAX_MAGNITUDE
 from robotgen.model.names import MAX_LENGTH, name_problem
@@ -50,63 +58,17 @@ from robotgen.model.system import DefineNode, RobotSystem
 from robotgen.model.transforms import xyz_rpy
 from robotgen.numeric import exact
 
-# Known URDF elements without dynamic meaning: accepted silently, their content not checked.
-_IGNORED = {"visual", "collision", "material", "transmission", "gazebo", "calibration",
-            "safety_controller", "sensor"}
-# What robotgen reads inside the elements that carry dynamics; anything else there is an
-# error. (Under <robot>, elements other than link, joint and _IGNORED are only noted.)
-_CHILDREN = {
-    "link": {"inertial"} | _IGNORED,
-    "inertial": {"origin", "mass", "inertia"},
-    "joint": {"origin", "parent", "child", "axis", "limit", "dynamics", "mimic"} | _IGNORED,
-}
 _JOINT_TYPES = {"revolute": REVOLUTE, "continuous": REVOLUTE, "prismatic": PRISMATIC, "fixed": None}
 # Bounds read before anything is built: real robot descriptions are far below both (the
 # largest in example-robot-data: 210 kB, 130 links); a file past them is refused, located.
 MAX_BYTES = 16_000_000
 MAX_LINKS = 1000
 _UNSUPPORTED_TYPES = {"floating": "a floating joint", "planar": "a planar joint"}
-
-
-@dataclass
-class Element:
-    tag: str
-    attrib: dict[str, str]
-    line: int
-    col: int
-    children: list[Element] = field(default_factory=list)
-
-    def find(self, tag: str) -> Element | None:
-        return next((c for c in self.children if c.tag == tag), None)
-
-
-def _parse_xml(path: str, data: bytes) -> Element:
-    parser = xml.parsers.expat.ParserCreate()
-    stack: list[Element] = []
-    root: list[Element] = []
-
-    def start(tag, attrib):
-        el = Element(tag, dict(attrib), parser.CurrentLineNumber, parser.CurrentColumnNumber + 1)
-        (stack[-1].children if stack else root).append(el)
-        stack.append(el)
-
-    def entity(name, *_):
-        # no URDF needs one, and expanding them is how a small file becomes gigabytes (the
-        # expat in use may predate its amplification limit)
-        raise UserError(Location(path, parser.CurrentLineNumber, parser.CurrentColumnNumber + 1),
-                        f"the URDF declares an XML entity ('{name}'); robotgen reads URDFs without entities")
-
-    parser.StartElementHandler = start
-    parser.EndElementHandler = lambda tag: stack.pop()
-    parser.EntityDeclHandler = entity
-    try:
-        parser.Parse(data, True)
-    except xml.parsers.expat.ExpatError as e:
-        raise UserError(Location(path, e.lineno, e.offset + 1),
-                        f"not well-formed XML: {xml.parsers.expat.ErrorString(e.code)}") from None
-    if not root or root[0].tag != "robot":
-        raise UserError(Location(path, 1, 1), "a URDF file must have a <robot> root element")
-    return root[0]
+# "No limit" in <limit>: a magnitude of at least this (-1e16 .. 1e16 in exported files) ...
+NO_LIMIT_MAGNITUDE = 1e15
+# ... or lower above upper as pybullet's data writes it (1, -1) and Bullet's parser defaults
+# it (0, -1); any other lower above upper is an error.
+NO_LIMIT_PAIRS = {(1.0, -1.0), (0.0, -1.0)}
 
 
 class _Reader:
@@ -120,26 +82,18 @@ class _Reader:
     def fail(self, el: Element, message: str) -> UserError:
         return UserError(self.loc(el), message)
 
-    def check_robot(self) -> list[Element]:
-        """Check every <link> and <joint>; return the elements directly under <robot> that
-        robotgen does not know (e.g. <ros2_control>), which are ignored unchecked."""
+    def check_robot(self) -> tuple[list[Element], tuple[str, ...]]:
+        """Check every <link> and <joint> (urdf_elements); return the elements directly under
+        <robot> that robotgen does not know (e.g. <ros2_control>), which are ignored
+        unchecked, and the notes on what was skipped inside links and joints."""
         foreign = []
+        check = ElementCheck(self.path)
         for child in self.root.children:
             if child.tag in ("link", "joint"):
-                self.check_children(child)
-            elif child.tag not in _IGNORED:
+                check.check(child)
+            elif child.tag not in KNOWN_UNREAD:
                 foreign.append(child)
-        return foreign
-
-    def check_children(self, el: Element) -> None:
-        allowed = _CHILDREN.get(el.tag)
-        if allowed is None:
-            return
-        for child in el.children:
-            if child.tag not in allowed:
-                raise self.fail(child, f"<{child.tag}> is not supported inside <{el.tag}>")
-            if child.tag not in _IGNORED:
-                self.check_children(child)
+        return foreign, check.notes
 
     def attr(self, el: Element, name: str, default: str | None = None) -> str:
         if name in el.attrib:
@@ -157,7 +111,8 @@ class _Reader:
         except ValueError:
             values = []
         if len(values) != n:
-            raise self.fail(el, f"<{el.tag}> attribute '{name}' must hold {n} numbers, got '{text}'")
+            raise self.fail(el, f"<{el.tag}> attribute '{name}' must hold {n} number{'s' if n > 1 else ''}, "
+                                f"got '{text}'")
         if finite and not all(math.isfinite(v) for v in values):
             raise self.fail(el, f"<{el.tag}> attribute '{name}' must hold finite numbers, got '{text}'")
         if finite and any(abs(v) > MAX_MAGNITUDE for v in values):
@@ -167,6 +122,16 @@ class _Reader:
 
     def number(self, el: Element, name: str, default: str | None = None, finite: bool = True) -> float:
         return float(self.floats(el, name, 1, self.attr(el, name, default), finite)[0])
+
+    def limit_value(self, el: Element, name: str) -> float | None:
+        """A <limit> attribute, None when absent or a "no limit" magnitude (NO_LIMIT_MAGNITUDE
+        or more, infinities included); NaN is an error."""
+        if name not in el.attrib:
+            return None
+        value = float(self.floats(el, name, 1, el.attrib[name], finite=False)[0])
+        if math.isnan(value):
+            raise self.fail(el, f"<{el.tag}> attribute '{name}' must hold finite numbers, got '{el.attrib[name]}'")
+        return None if abs(value) >= NO_LIMIT_MAGNITUDE else value
 
     def origin(self, el: Element) -> np.ndarray:
         o = el.find("origin")
@@ -232,39 +197,30 @@ def read_urdf(path: str, tip: str, base: str | None = None, name: str | None = N
     """The chain of movable joints from ``base`` (default: the root link) to ``tip``; movable
     joints off that path (mimic joints among them) are locked at q = 0. A mimic joint on the
     path is an error (its message suggests a tip above it, or the tree reader)."""
-    r, links, joints, parent_of, _, foreign = _read_links_and_joints(path, floating_ok=False)
-    root = r.root
-    root_link = _single_root(r, links, joints)
-    base = base or root_link
-    for label, link in (("base", base), ("tip", tip)):
-        if link not in links:
-            raise UserError(Location(path, root.line, root.col), f"{label} link '{link}' is not in the URDF")
+    f = read_urdf_file(path)
+    r = f.r
+    base, order = _below_base(f, base)
+    tip = f.known_link("tip", tip)
+    if tip not in order:
+        raise UserError(r.loc(f.links[tip]), f"tip link '{tip}' is not below base link '{base}'")
     path_links = [tip]
     while path_links[-1] != base:
-        up = parent_of.get(path_links[-1])
-        if up is None:
-            raise UserError(r.loc(links[tip]), f"tip link '{tip}' is not below base link '{base}'")
-        if up in path_links:
-            raise r.fail(joints[path_links[-1]], "the joints form a cycle")
-        path_links.append(up)
+        path_links.append(f.parent_of[path_links[-1]])
     path_links.reverse()
-    path_joints = [joints[l] for l in path_links[1:]]
+    path_joints = [f.joints[l] for l in path_links[1:]]
     actuated = [j for j in path_joints if j.attrib["type"] != "fixed"]
     if not actuated:
-        raise UserError(r.loc(links[tip]), f"no movable joint between '{base}' and '{tip}'")
+        raise UserError(r.loc(f.links[tip]), f"no movable joint between '{base}' and '{tip}'")
     _reject_mimic_on_chain(r, actuated)
-    canonical, frames, locked = _normalise(r, links, joints, parent_of, base, actuated)
+    canonical, frames, locked, limit_notes = _normalise(f, base, actuated)
     tip_owner, tool = frames[tip]
-    robot_name = name or root.attrib.get("name", Path(path).stem)
+    robot_name = name or f.root.attrib.get("name", Path(path).stem)
     tree = KinematicTree(
         name=robot_name, joints=tuple(canonical), tip=tip_owner, tool=tool,
         gravity=np.array([0.0, 0.0, -9.81]), base_link=base, tip_link=tip, locked_joints=tuple(locked),
     )
-    notes = _foreign_elements(r, foreign) + _foreign_dynamics_attributes(r, actuated)
-    notes += tuple(f"{r.loc(actuated[i])}: warning: joint '{tree.joints[i].name}' moves no mass or inertia "
-                   "(massless links after it): M is singular and forward dynamics returns no finite answer"
-                   for i in joints_without_inertia(tree))
-    return UrdfChain(tree, notes, r.loc(root), root.attrib.get("name"))
+    notes = f.notes + limit_notes + _foreign_dynamics_attributes(r, actuated) + _massless(r, actuated, tree)
+    return UrdfChain(tree, notes, r.loc(f.root), f.root.attrib.get("name"))
 
 
 def read_urdf_tree(path: str, base: str | None = None, tip: str | None = None,
@@ -284,62 +240,67 @@ def read_urdf_tree(path: str, base: str | None = None, tip: str | None = None,
     Errors (each naming the element): a floating or planar joint below the base. A humanoid
     whose URDF roots it with a floating joint (world -> pelvis) is read with ``base`` = the
     floating joint's child link, which gives the fixed-base tree below it."""
-    r, links, joints, parent_of, floating, foreign = _read_links_and_joints(path, floating_ok=True)
-    root = r.root
-    root_link = _single_root(r, links, joints)
-    children_of = _children_of(parent_of)
-    reachable = _depth_first(root_link, children_of)
-    if len(reachable) < len(links):  # one root, one parent per link: the rest form a cycle
-        seen = set(reachable)
-        stray = next(l for l in links if l not in seen)
-        raise r.fail(joints[stray], "the joints form a cycle")
-    if base is None:
-        base = root_link
-        at_root = [j for j in floating if j.find("parent").attrib["link"] == base]
-        if at_root:
-            j = at_root[0]
-            raise r.fail(j, f"joint '{j.attrib.get('name')}' is a floating joint at the root, which robotgen "
-                            f"does not support; read the tree below it with base='{j.find('child').attrib['link']}'")
-    for label, link in (("base", base), ("tip", tip)):
-        if link is not None and link not in links:
-            raise UserError(Location(path, root.line, root.col), f"{label} link '{link}' is not in the URDF")
-    order = _depth_first(base, children_of)  # links below base, base first
-    for link in order[1:]:
-        j = joints[link]
-        jtype = j.attrib["type"]
-        if jtype in _UNSUPPORTED_TYPES:
-            raise r.fail(j, f"joint '{j.attrib.get('name')}' is {_UNSUPPORTED_TYPES[jtype]}, "
-                            "which robotgen does not support")
-    movable = [joints[l] for l in order[1:] if joints[l].attrib["type"] != "fixed"]
+    f = read_urdf_file(path)
+    r = f.r
+    base, order = _below_base(f, base)
+    if tip is not None:
+        tip = f.known_link("tip", tip)
+    movable = [f.joints[l] for l in order[1:] if f.joints[l].attrib["type"] != "fixed"]
     mimics = [j for j in movable if j.find("mimic") is not None]
     actuated = [j for j in movable if j.find("mimic") is None]
     if not actuated:
-        raise UserError(r.loc(links[base]), f"no movable joint below base link '{base}'")
-    canonical, frames, locked = _normalise(r, links, joints, parent_of, base, actuated)
+        raise UserError(r.loc(f.links[base]), f"no movable joint below base link '{base}'")
+    canonical, frames, locked, limit_notes = _normalise(f, base, actuated)
     assert sorted(locked) == sorted(j.attrib.get("name", j.find("child").attrib["link"]) for j in mimics)
     if tip is None:
-        leaves = [l for l in order if not children_of.get(l) and frames[l][0] >= 0]
+        leaves = [l for l in order if not f.children_of.get(l) and frames[l][0] >= 0]
         tip = leaves[0]  # a movable joint's child link is carried by it, so some leaf is
     elif tip not in frames:
-        raise UserError(r.loc(links[tip]), f"tip link '{tip}' is not below base link '{base}'")
+        raise UserError(r.loc(f.links[tip]), f"tip link '{tip}' is not below base link '{base}'")
     tip_owner, tool = frames[tip]
     if tip_owner < 0:
-        raise UserError(r.loc(links[tip]), f"no movable joint between '{base}' and '{tip}'")
-    robot_name = name or root.attrib.get("name", Path(path).stem)
+        raise UserError(r.loc(f.links[tip]), f"no movable joint between '{base}' and '{tip}'")
+    robot_name = name or f.root.attrib.get("name", Path(path).stem)
     tree = KinematicTree(
         name=robot_name, joints=tuple(canonical), tip=tip_owner, tool=tool,
         gravity=np.array([0.0, 0.0, -9.81]), base_link=base, tip_link=tip, locked_joints=tuple(locked),
     )
-    notes = (_foreign_elements(r, foreign) + _locked_mimics(r, mimics)
-             + _foreign_dynamics_attributes(r, actuated))
-    return UrdfChain(tree, notes, r.loc(root), root.attrib.get("name"))
+    notes = (f.notes + _locked_mimics(r, mimics) + limit_notes + _foreign_dynamics_attributes(r, actuated)
+             + _massless(r, actuated, tree))
+    return UrdfChain(tree, notes, r.loc(f.root), f.root.attrib.get("name"))
 
 
-def _read_links_and_joints(path: str, floating_ok: bool):
-    """(reader, links by name, joint element by child link, parent link by child link,
-    floating joints, unknown elements directly under <robot>). A floating joint is an error
-    unless ``floating_ok`` (then it is returned, for the caller to accept only above its
-    base)."""
+@dataclass(frozen=True, eq=False)
+class UrdfFile:
+    """The links and joints of one URDF file, checked (urdf_elements) and known to form one
+    tree; ``notes`` on what was skipped or read leniently while reading it."""
+
+    r: _Reader
+    links: dict[str, Element]  # by name, in file order
+    joints: dict[str, Element]  # by child link
+    parent_of: dict[str, str]  # parent link by child link
+    children_of: dict[str, list[str]]  # child links in the order of their joints in the file
+    root_link: str
+    notes: tuple[str, ...]
+
+    @property
+    def root(self) -> Element:
+        return self.r.root
+
+    def known_link(self, label: str, link: str) -> str:
+        """``link``, which must be a link of the file; the nearest names are suggested if not."""
+        if link in self.links:
+            return link
+        near = difflib.get_close_matches(link, self.links, n=3, cutoff=0.6)
+        hint = (f"; nearest: {', '.join(repr(n) for n in near)}" if near else "")
+        raise UserError(self.r.loc(self.root), f"{label} link '{link}' is not in the URDF{hint} "
+                                               f"(robotgen info {Path(self.r.path).name} lists its links)")
+
+
+def read_urdf_file(path: str) -> UrdfFile:
+    """Every link and joint of the file at ``path``: duplicate names, unknown links, a link
+    with two parent joints, several roots and cycles are errors, located. Floating and
+    planar joints are accepted here; the readers refuse them below their base."""
     try:
         size = Path(path).stat().st_size
         if size > MAX_BYTES:
@@ -347,9 +308,10 @@ def _read_links_and_joints(path: str, floating_ok: bool):
         data = Path(path).read_bytes()
     except OSError as e:
         raise UserError(Location(path, 1, 1), f"cannot read URDF file: {e.strerror}") from None
-    root = _parse_xml(path, data)
+    data, declaration_notes = declaration_first(path, data)
+    root = parse_xml(path, data)
     r = _Reader(path, root)
-    foreign = r.check_robot()
+    foreign, skipped_notes = r.check_robot()
     links = {}
     for el in root.children:
         if el.tag == "link":
@@ -362,7 +324,6 @@ def _read_links_and_joints(path: str, floating_ok: bool):
     if not links:
         raise r.fail(root, "the URDF has no <link> elements")
     joints = {}  # child link -> joint element
-    floating = []
     joint_names: set[str] = set()
     for el in root.children:
         if el.tag != "joint":
@@ -372,12 +333,7 @@ def _read_links_and_joints(path: str, floating_ok: bool):
             raise r.fail(el, f"duplicate joint '{jname}'")
         joint_names.add(jname)
         jtype = r.attr(el, "type")
-        if jtype == "floating" and floating_ok:
-            floating.append(el)
-        elif jtype in _UNSUPPORTED_TYPES and not floating_ok:
-            raise r.fail(el, f"joint '{el.attrib.get('name')}' is {_UNSUPPORTED_TYPES[jtype]}, "
-                             "which robotgen does not support")
-        elif jtype not in _JOINT_TYPES and jtype not in _UNSUPPORTED_TYPES:
+        if jtype not in _JOINT_TYPES and jtype not in _UNSUPPORTED_TYPES:
             raise r.fail(el, f"joint '{el.attrib.get('name')}' has unknown type '{jtype}'")
         for tag in ("parent", "child"):
             ref = el.find(tag)
@@ -391,7 +347,42 @@ def _read_links_and_joints(path: str, floating_ok: bool):
                              f"and '{el.attrib.get('name')}'): closed loops are not supported")
         joints[child] = el
     parent_of = {c: j.find("parent").attrib["link"] for c, j in joints.items()}
-    return r, links, joints, parent_of, floating, foreign
+    roots = [l for l in links if l not in joints]
+    if len(roots) != 1:
+        raise r.fail(root, f"the links must form one tree; found roots {sorted(roots)}")
+    children_of = _children_of(parent_of)
+    reachable = _depth_first(roots[0], children_of)
+    if len(reachable) < len(links):  # one root, one parent per link: the rest form a cycle
+        seen = set(reachable)
+        stray = next(l for l in links if l not in seen)
+        raise r.fail(joints[stray], "the joints form a cycle")
+    notes = declaration_notes + _foreign_elements(r, foreign) + skipped_notes
+    return UrdfFile(r, links, joints, parent_of, children_of, roots[0], notes)
+
+
+def _below_base(f: UrdfFile, base: str | None) -> tuple[str, list[str]]:
+    """The base link (default: the root link) and the links below it, base first, depth
+    first; a floating or planar joint among them is an error. One at the root, read without
+    a base, is an error that names the base to choose."""
+    r = f.r
+    if base is None:
+        base = f.root_link
+        at_root = [f.joints[c] for c in f.children_of.get(base, []) if f.joints[c].attrib["type"] == "floating"]
+        if at_root:
+            j = at_root[0]
+            child = j.find("child").attrib["link"]
+            raise r.fail(j, f"joint '{j.attrib.get('name')}' is a floating joint at the root, which robotgen "
+                            f"does not support; read the robot below it with base='{child}' (--base {child})")
+    base = f.known_link("base", base)
+    order = _depth_first(base, f.children_of)
+    for link in order[1:]:
+        j = f.joints[link]
+        jtype = j.attrib["type"]
+        if jtype in _UNSUPPORTED_TYPES:
+            raise r.fail(j, f"joint '{j.attrib.get('name')}' is {_UNSUPPORTED_TYPES[jtype]}, which robotgen does "
+                            f"not support below the base ('{base}'); a base at or below its child link "
+                            f"'{link}' leaves it out")
+    return base, order
 
 
 def _reject_mimic_on_chain(r: _Reader, actuated: list[Element]) -> None:
@@ -403,13 +394,6 @@ def _reject_mimic_on_chain(r: _Reader, actuated: list[Element]) -> None:
                                 f"chain: choose a tip at or above link '{j.find('parent').attrib['link']}' "
                                 "(off the chain it is locked at q = 0), or read the whole tree (--tree), "
                                 "where mimic joints are locked at q = 0")
-
-
-def _single_root(r: _Reader, links: dict, joints: dict) -> str:
-    roots = [l for l in links if l not in joints]
-    if len(roots) != 1:
-        raise r.fail(r.root, f"the links must form one tree; found roots {sorted(roots)}")
-    return roots[0]
 
 
 def _depth_first(start: str, children_of: dict[str, list[str]]) -> list[str]:
@@ -430,18 +414,19 @@ def _children_of(parent_of: dict[str, str]) -> dict[str, list[str]]:
     return children_of
 
 
-def _normalise(r: _Reader, links: dict, joints: dict, parent_of: dict, base: str,
-               actuated: list[Element]) -> tuple[list[Joint], dict, list[str]]:
+def _normalise(f: UrdfFile, base: str, actuated: list[Element]
+               ) -> tuple[list[Joint], dict, list[str], tuple[str, ...]]:
     """Canonical joints for the movable joints ``actuated`` (topologically ordered), the
     frame of every link below ``base`` as (owner index or -1 for the base, T owner->link),
-    and the movable joints below base not in ``actuated`` (locked at q = 0)."""
-    children_of = _children_of(parent_of)
+    the movable joints below base not in ``actuated`` (locked at q = 0), and the notes on
+    "no limit" markers read."""
+    r, joints = f.r, f.joints
     actuated_index = {id(j): k for k, j in enumerate(actuated)}
     frames: dict[str, tuple[int, np.ndarray]] = {base: (-1, np.eye(4))}
     locked: list[str] = []
     order = [base]
     for link in order:
-        for child in children_of.get(link, []):
+        for child in f.children_of.get(link, []):
             j = joints[child]
             owner, T = frames[link]
             k = actuated_index.get(id(j))
@@ -457,9 +442,10 @@ def _normalise(r: _Reader, links: dict, joints: dict, parent_of: dict, base: str
     for link in order:
         owner, T = frames[link]
         if owner >= 0:
-            parts[owner].append((T, r.body(links[link])))
+            parts[owner].append((T, r.body(f.links[link])))
 
     canonical = []
+    markers = _NoLimitMarkers()
     for k, j in enumerate(actuated):
         parent_link = j.find("parent").attrib["link"]
         owner, T_parent = frames[parent_link]
@@ -470,20 +456,6 @@ def _normalise(r: _Reader, links: dict, joints: dict, parent_of: dict, base: str
             raise r.fail(j.find("axis"), f"joint '{j.attrib.get('name')}' has a zero axis")
         # scale by a power of two (exact) so that |axis|^2 neither overflows nor underflows
         axis = np.array([math.ldexp(float(a), -math.frexp(largest)[1]) for a in axis])
-        limit = j.find("limit")
-        is_continuous = j.attrib["type"] == "continuous"
-        limits = Limits() if limit is None else Limits(
-            lower=None if is_continuous else r.number(limit, "lower", "0"),
-            upper=None if is_continuous else r.number(limit, "upper", "0"),
-            velocity=r.number(limit, "velocity", "0") if "velocity" in limit.attrib else None,
-            effort=r.number(limit, "effort", "0") if "effort" in limit.attrib else None,
-        )
-        if limits.lower is not None and limits.upper is not None and limits.lower > limits.upper:
-            raise r.fail(limit, f"joint '{j.attrib.get('name')}': <limit> lower {limits.lower:g} is above "
-                                f"upper {limits.upper:g}")
-        for key in ("velocity", "effort"):
-            if (getattr(limits, key) or 0.0) < 0:
-                raise r.fail(limit, f"joint '{j.attrib.get('name')}': <limit> {key} must be >= 0")
         dyn = j.find("dynamics")
         damping = r.number(dyn, "damping", "0") if dyn is not None else 0.0
         friction = r.number(dyn, "friction", "0") if dyn is not None else 0.0
@@ -492,9 +464,65 @@ def _normalise(r: _Reader, links: dict, joints: dict, parent_of: dict, base: str
         canonical.append(Joint(
             name=r.attr(j, "name"), type=_JOINT_TYPES[j.attrib["type"]], parent=owner,
             origin=exact.matmul(T_parent, r.origin(j)), axis=exact.unit(axis), body=merge_bodies(parts[k]),
-            viscous=damping, coulomb=friction, damping=damping, limits=limits,
+            viscous=damping, coulomb=friction, damping=damping, limits=_limits(r, j, markers),
         ))
-    return canonical, frames, locked
+    return canonical, frames, locked, markers.notes(r)
+
+
+@dataclass
+class _NoLimitMarkers:
+    """The joints whose <limit> used a "no limit" marker: (joint, limit element, attributes)."""
+
+    large: list[tuple[Element, Element, list[str]]] = field(default_factory=list)
+    inverted: list[tuple[Element, Element, list[str]]] = field(default_factory=list)
+
+    def notes(self, r: _Reader) -> tuple[str, ...]:
+        out = []
+        for found, marker in ((self.large, "a magnitude of 1e15 or more"),
+                              (self.inverted, 'lower above upper as pybullet writes it (lower="1" upper="-1" '
+                                              'or lower="0" upper="-1")')):
+            if found:
+                listed = ", ".join(f"'{j.attrib.get('name')}' ({' and '.join(names)})" for j, _, names in found)
+                out.append(f"{r.loc(found[0][1])}: note: read as no limit, marked by {marker}: {listed}")
+        return tuple(out)
+
+
+def _limits(r: _Reader, j: Element, markers: _NoLimitMarkers) -> Limits:
+    """A movable joint's <limit>, its "no limit" markers read as None (and recorded)."""
+    limit = j.find("limit")
+    if limit is None:
+        return Limits()
+    name = j.attrib.get("name")
+    continuous = j.attrib["type"] == "continuous"  # its lower and upper are not read (URDF)
+    keys = ("velocity", "effort") if continuous else ("lower", "upper", "velocity", "effort")
+    values = {key: r.limit_value(limit, key) for key in keys}
+    large = [key for key in keys if key in limit.attrib and values[key] is None]
+    if large:
+        markers.large.append((j, limit, large))
+    if continuous:
+        values["lower"] = values["upper"] = None
+    else:  # URDF's defaults: 0
+        for key in ("lower", "upper"):
+            values[key] = 0.0 if key not in limit.attrib else values[key]
+        lower, upper = values["lower"], values["upper"]
+        if lower is not None and upper is not None and lower > upper:
+            if (lower, upper) not in NO_LIMIT_PAIRS:
+                raise r.fail(limit, f"joint '{name}': <limit> lower {lower:g} is above upper {upper:g} (the "
+                                    "\"no limit\" markers robotgen reads are a magnitude of 1e15 or more and "
+                                    "pybullet's lower=\"1\" upper=\"-1\")")
+            markers.inverted.append((j, limit, ["lower", "upper"]))
+            values["lower"] = values["upper"] = None
+    for key in ("velocity", "effort"):
+        if (values[key] or 0.0) < 0:
+            raise r.fail(limit, f"joint '{name}': <limit> {key} must be >= 0")
+    return Limits(**values)
+
+
+def _massless(r: _Reader, actuated: list[Element], tree: KinematicTree) -> tuple[str, ...]:
+    """A warning at each joint that moves no mass or inertia: M is singular there."""
+    return tuple(f"{r.loc(actuated[i])}: warning: joint '{tree.joints[i].name}' moves no mass or inertia "
+                 "(massless links after it): M is singular and forward dynamics returns no finite answer"
+                 for i in joints_without_inertia(tree))
 
 
 def _foreign_elements(r: _Reader, foreign: list[Element]) -> tuple[str, ...]:

@@ -1,49 +1,59 @@
-"""Snap the constants of a kinematic tree that are exact in intent but not in floating point.
+"""Snap the constants of a kinematic tree that are exact in intent and differ from it only in
+their last bits.
 
-A URDF's rpy of 1.5707963 (or a DH alpha of pi/2) gives rotation entries like 4.9e-12 or
-6.1e-17 where the designer meant 0, and 1 - 1e-12 where they meant 1. Left as they are,
+A DH alpha of pi/2 (or a URDF rpy of 1.5707963267948966) gives rotation entries like
+6.1e-17 where the designer meant 0, and 1 - 1.1e-16 where they meant 1. Left as they are,
 every such entry multiplies through the symbolic algorithms as a non-zero and the emitted C
-carries their products. Entries of joint and tool rotations and of joint axes within
-SNAP_TOLERANCE of 0 or +-1 are snapped, and only when the snapped rotation is still
-orthonormal to 1e-15 (so nothing but noise is ever removed). The snapped model differs
-from the unsnapped one by at most the tolerance in any rotation entry;
-tests check every quantity of both against each other (tests/dynamics/test_speed_paths.py).
+carries their products. An entry of a joint or tool rotation or of a joint axis is snapped to
+0 or +-1 when it is within SNAP_ULPS units in the last place of 1 (the scale of a rotation's
+entries) of it, a translation entry to 0 when it is within SNAP_ULPS units in the last place
+of the translation's largest entry; a rotation only when the snapped one is still
+orthonormal to 1e-15. So only the rounding of the arithmetic that made a constant is ever
+removed: a rotation entry of 4.9e-12 (an rpy written as 1.57079632679, as the UR, Panda,
+KUKA, Baxter and TIAGo files have it) or 1e-9 (romeo_laas_small's rpy) is what the file
+says, and robotgen keeps it as every other reader does (Pinocchio to 1e-12 on every file).
 """
 from __future__ import annotations
 
 import dataclasses
+import math
 
 import numpy as np
 
 from robotgen.model.chain import KinematicTree
 from robotgen.numeric import exact
 
-SNAP_TOLERANCE = 1e-9
+SNAP_ULPS = 4
 
 
-def _snap_values(a: np.ndarray, tol: float) -> np.ndarray:
+def noise_bound(scale: float) -> float:
+    """The largest deviation snapped on a constant whose entries have magnitude ``scale``:
+    SNAP_ULPS units in its last place (8.9e-16 for a rotation's entries)."""
+    return SNAP_ULPS * math.ulp(scale)
+
+
+def _snap_values(a: np.ndarray, bound: float, targets: tuple[float, ...]) -> np.ndarray:
     out = a.copy()
-    for target in (0.0, 1.0, -1.0):
-        out[np.abs(out - target) < tol] = target
+    for target in targets:
+        out[np.abs(out - target) <= bound] = target
     return out
 
 
-def snap_rotation(T: np.ndarray, tol: float = SNAP_TOLERANCE) -> np.ndarray:
-    R = _snap_values(T[:3, :3], tol)
+def snap_rotation(T: np.ndarray) -> np.ndarray:
+    R = _snap_values(T[:3, :3], noise_bound(1.0), (0.0, 1.0, -1.0))
     if np.abs(exact.add(exact.matmul(R, R.T), (-1.0, np.eye(3)))).max() > 1e-15:
         return T
     out = T.copy()
     out[:3, :3] = R
-    out[:3, 3] = np.where(np.abs(T[:3, 3]) < tol, 0.0, T[:3, 3])
+    out[:3, 3] = _snap_values(T[:3, 3], noise_bound(float(np.abs(T[:3, 3]).max())), (0.0,))
     return out
 
 
-def snap_axis(axis: np.ndarray, tol: float = SNAP_TOLERANCE) -> np.ndarray:
-    a = _snap_values(axis, tol)
-    return exact.unit(a)
+def snap_axis(axis: np.ndarray) -> np.ndarray:
+    return exact.unit(_snap_values(axis, noise_bound(1.0), (0.0, 1.0, -1.0)))
 
 
-def snap_tree(tree: KinematicTree, tol: float = SNAP_TOLERANCE) -> KinematicTree:
-    joints = tuple(dataclasses.replace(j, origin=snap_rotation(j.origin, tol), axis=snap_axis(j.axis, tol))
+def snap_tree(tree: KinematicTree) -> KinematicTree:
+    joints = tuple(dataclasses.replace(j, origin=snap_rotation(j.origin), axis=snap_axis(j.axis))
                    for j in tree.joints)
-    return dataclasses.replace(tree, joints=joints, tool=snap_rotation(tree.tool, tol))
+    return dataclasses.replace(tree, joints=joints, tool=snap_rotation(tree.tool))

@@ -4,6 +4,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass
 from functools import cached_property
+from typing import NamedTuple
 
 import casadi as ca
 
@@ -25,6 +26,7 @@ class Port:
     rows: int
     cols: int = 1
     parameters: tuple[RuntimeParameter, ...] = ()
+    matrix: bool = False  # two-dimensional even with one column (make_kernel's Matrix)
 
     @property
     def size(self) -> int:
@@ -32,7 +34,7 @@ class Port:
 
     @property
     def is_matrix(self) -> bool:
-        return self.cols > 1
+        return self.matrix or self.cols > 1
 
 
 @dataclass(frozen=True, eq=False)
@@ -57,6 +59,9 @@ class Kernel:
     # How the C evaluates ``function`` when its work repeats (robotgen.symbolic.schedule):
     # a prologue and loops; None: one straight-line program.
     schedule: Schedule | None = None
+    # Why a guarded kernel's result cannot be finite at any state, when the model says so at
+    # build time (a joint that moves no mass: M singular); its status 2 error names it.
+    singular: str = ""
 
     @cached_property
     def function(self) -> ca.Function:
@@ -69,6 +74,14 @@ def row_major(X: ca.SX) -> ca.SX:
 
 
 Shape = tuple[int, int]
+
+
+class Matrix(NamedTuple):
+    """An output shape that stays a matrix with one column: a one-coordinate robot's (1, 1)
+    mass matrix and (6, 1) Jacobian (a plain (n, 1) shape is a vector)."""
+
+    rows: int
+    cols: int
 
 
 @dataclass(frozen=True, eq=False)
@@ -98,9 +111,10 @@ def make_kernel(name: str, doc: str, inputs: list[tuple], outputs: list[tuple[st
                 parameters: ParameterSymbols = NO_PARAMETERS, *, guarded: bool = False,
                 schedule: ScheduleBuilder | None = None) -> Kernel:
     """The one way a kernel is built: ``inputs`` are (port name, SX column[, (rows, cols)
-    the port shows, default a column]), ``outputs`` (port name, SX, (rows, cols)); matrices
-    leave row-major, and CasADi's common-subexpression elimination is on. A kernel whose
-    outputs read a run-time parameter gets the PARAMS port last. ``schedule``: the loops the
+    the port shows, default a column]), ``outputs`` (port name, SX, (rows, cols), a Matrix for
+    one that stays two-dimensional with one column); matrices leave row-major, and CasADi's
+    common-subexpression elimination is on. A kernel whose outputs read a run-time parameter
+    gets the PARAMS port last. ``schedule``: the loops the
     outputs were built by; their SX may be given as None, and are then ``schedule.outputs()``,
     flattened only when the kernel's function is first used."""
     for k, (port, expr, shape) in enumerate(outputs):
@@ -119,6 +133,7 @@ def make_kernel(name: str, doc: str, inputs: list[tuple], outputs: list[tuple[st
     def function() -> ca.Function:
         return ca.Function(name, [i[1] for i in inputs], columns(),
                            [i[0] for i in inputs], [o[0] for o in outputs], {"cse": True})
-    return Kernel(name, doc, ports_in, tuple(Port(o[0], *o[2]) for o in outputs),
+    ports_out = tuple(Port(o[0], *o[2], matrix=isinstance(o[2], Matrix)) for o in outputs)
+    return Kernel(name, doc, ports_in, ports_out,
                   function if schedule is not None else function(), guarded,
                   schedule.finish([i[1] for i in inputs]) if schedule is not None else None)

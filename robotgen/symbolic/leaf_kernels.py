@@ -3,14 +3,16 @@ M, C, N, inverse and forward dynamics and the fused servo terms, or a formulas l
 N and kinematics, each a CasADi Function with named ports."""
 from __future__ import annotations
 
+from dataclasses import replace
+
 import casadi as ca
 
-from robotgen.model.chain import KinematicTree
+from robotgen.model.chain import KinematicTree, joints_without_inertia
 from robotgen.model.derivatives import SEMI_IMPLICIT_EULER, DerivativeSettings
 from robotgen.model.formula import FormulaRobot
 from robotgen.symbolic.dynamics_derivatives import DynamicsDerivatives
 from robotgen.symbolic.formulas import FormulaGraphs
-from robotgen.symbolic.kernel import NO_PARAMETERS, Kernel, ParameterSymbols, make_kernel
+from robotgen.symbolic.kernel import NO_PARAMETERS, Kernel, Matrix, ParameterSymbols, make_kernel
 from robotgen.symbolic.op_count import count_operations
 from robotgen.symbolic.rigid_body.chain import ChainGraphs, Symbols
 from robotgen.symbolic.rigid_body.chain_loops import (
@@ -89,7 +91,10 @@ def _looped(loops: ChainLoops, name: str, doc: str, inputs: str, shape: tuple[in
 
 
 def _resolve(shape, n: int, k: int) -> tuple[int, int]:
-    return tuple({"n": n, "k": k}.get(d, d) for d in shape)
+    """The table's shape for n coordinates and k outputs: a Matrix when its columns are not
+    the literal 1, so that a one-coordinate robot's M is (1, 1) and J (6, 1)."""
+    rows, cols = ({"n": n, "k": k}.get(d, d) for d in shape)
+    return Matrix(rows, cols) if shape[1] != 1 else (rows, cols)
 
 
 def leaf_kernels(leaf: KinematicTree | FormulaRobot, prefix: str = "",
@@ -117,7 +122,27 @@ def leaf_kernels(leaf: KinematicTree | FormulaRobot, prefix: str = "",
         kernels.append(_servo_terms(graphs, sym, n, prefix, loops))
     if derivatives is not None and derivatives.included(n):
         kernels += _derivative_kernels(graphs, derivatives.integrator, n, prefix, parameters)
+    if isinstance(leaf, KinematicTree):
+        return _singular_where_massless(leaf, kernels, prefix)
     return kernels
+
+
+# the kernels that solve with M: a joint that moves no mass leaves them no finite result
+SOLVE_WITH_M = frozenset({"forward_dynamics", "forward_dynamics_derivatives", "mass_inverse", "discrete_dynamics",
+                          "discrete_dynamics_derivatives"})
+
+
+def _singular_where_massless(tree: KinematicTree, kernels: list[Kernel], prefix: str) -> list[Kernel]:
+    """The kernels of SOLVE_WITH_M told (Kernel.singular, and their doc) which joints move no
+    mass, when some do: M is singular at every state (the URDF reader warns about them too)."""
+    massless = [tree.joints[i].name for i in joints_without_inertia(tree)]
+    if not massless:
+        return kernels
+    names = ", ".join(f"'{name}'" for name in massless)
+    cause = (f"joint {names} moves" if len(massless) == 1 else f"joints {names} move") + \
+        " no mass or inertia (massless links after it), so M is singular at every state"
+    return [replace(k, singular=cause, doc=f"{k.doc} Here {cause}.") if k.name[len(prefix):] in SOLVE_WITH_M else k
+            for k in kernels]
 
 
 def _derivative_kernels(graphs, integrator: str, n: int, prefix: str, parameters: ParameterSymbols) -> list[Kernel]:
@@ -126,7 +151,7 @@ def _derivative_kernels(graphs, integrator: str, n: int, prefix: str, parameters
     s = d.sym
     dt = ca.SX.sym("dt")
     state = [("q", s.q), ("qd", s.qd), ("tau", s.tau), ("dt", dt)]
-    square = (n, n)
+    square = Matrix(n, n)
     id_schedule, fd_schedule = d.inverse_dynamics_derivatives_schedule(), d.forward_dynamics_derivatives_schedule()
     # a scheduled kernel's outputs are its schedule's, flattened on first use (make_kernel)
     dq, dqd = (None, None) if id_schedule else d.inverse_dynamics_derivatives()
@@ -152,7 +177,7 @@ def _derivative_kernels(graphs, integrator: str, n: int, prefix: str, parameters
         prefix + "discrete_dynamics", f"One step of length dt, tau held: {step}. Returns q+, qd+.",
         state, [("q_next", q_next, (n, 1)), ("qd_next", qd_next, (n, 1))], parameters, guarded=True))
     step_schedule = d.discrete_dynamics_derivatives_schedule(integrator, dt)
-    shapes = [(n, 1), (n, 1), (2 * n, 2 * n), (2 * n, n)]
+    shapes = [(n, 1), (n, 1), Matrix(2 * n, 2 * n), Matrix(2 * n, n)]
     if step_schedule is not None:
         q_next, qd_next, A, B = None, None, None, None
     else:
@@ -167,14 +192,15 @@ def _derivative_kernels(graphs, integrator: str, n: int, prefix: str, parameters
         kernels.append(make_kernel(
             prefix + "jacobian_derivative",
             "dJ/dt (6 x n): the time derivative of the tip Jacobian; jacobian_derivative qd = jacobian_dot_qd.",
-            [("q", s.q), ("qd", s.qd)], [("jacobian_derivative", graphs.jacobian_derivative(), (6, n))], parameters))
+            [("q", s.q), ("qd", s.qd)], [("jacobian_derivative", graphs.jacobian_derivative(), Matrix(6, n))],
+            parameters))
     return kernels
 
 
 def _servo_terms(graphs: ChainGraphs, sym: Symbols, n: int, prefix: str, loops: ChainLoops | None) -> Kernel:
     """What one computed-torque cycle needs, in one call sharing sin/cos and kinematics."""
-    outputs = [("mass", graphs.mass, (n, n)), ("nonlinear", graphs.nonlinear, (n, 1)),
-               ("jacobian", graphs.jacobian, (6, n)), ("jacobian_dot_qd", graphs.jacobian_dot_qd, (6, 1))]
+    outputs = [("mass", graphs.mass, Matrix(n, n)), ("nonlinear", graphs.nonlinear, (n, 1)),
+               ("jacobian", graphs.jacobian, Matrix(6, n)), ("jacobian_dot_qd", graphs.jacobian_dot_qd, (6, 1))]
     schedule = None
     if loops is not None and _long([sym.q, sym.qd], lambda: [o[1]() for o in outputs], n):
         schedule = ScheduleBuilder([sym.q, sym.qd], [n * n, n, 6 * n, 6])

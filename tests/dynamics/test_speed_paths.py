@@ -13,7 +13,8 @@ from test_tree_pinocchio import pinocchio_model, random_tree
 
 from robotgen.cli import main
 from robotgen.frontend.urdf import read_urdf
-from robotgen.model.snap import SNAP_TOLERANCE, snap_tree
+from robotgen.model.snap import noise_bound, snap_axis, snap_rotation, snap_tree
+from robotgen.numeric import exact
 from robotgen.symbolic.leaf_kernels import leaf_kernels
 from robotgen.symbolic.op_count import count_operations
 from robotgen.symbolic.rigid_body.base_turn import base_axis, turned
@@ -24,12 +25,14 @@ TWO_LINK = Path(__file__).resolve().parents[2] / "specs" / "two_link.yaml"
 
 
 def test_snapping_removes_only_noise():
-    """Panda's rpy of pi/2 leaves 6e-17 in every joint rotation: snapped away, and every
-    quantity of the snapped model equals the unsnapped one to the snap tolerance."""
+    """Panda's rpy of pi/2 (1.5707963267948966) leaves 6e-17 in every joint rotation: snapped
+    away, with fewer operations, and every quantity of the snapped model equals the unsnapped
+    one to the rounding. The UR5's 1.57079632679 leaves 4.9e-12, which is what its file says:
+    kept (model/snap.py)."""
     tree = read_urdf(str(robots_dir() / PANDA[0]), PANDA[1]).tree
     snapped = snap_tree(tree)
     noise = max(np.abs(a.origin - b.origin).max() for a, b in zip(tree.joints, snapped.joints))
-    assert 0 < noise < SNAP_TOLERANCE
+    assert 0 < noise <= noise_bound(1.0) == 4 * 2.0 ** -52
     n = tree.nq
     raw_sym, snap_sym = Symbols.make(n), Symbols.make(n)
     raw = ChainGraphs(tree, raw_sym, snap=False)
@@ -40,7 +43,35 @@ def test_snapping_removes_only_noise():
         assert (count_operations([snap_sym.q], [getattr(new, name)()])["total"]
                 < count_operations([raw_sym.q], [getattr(raw, name)()])["total"]), name
         for q in np.random.default_rng(0).uniform(-2, 2, (20, n)):
-            np.testing.assert_allclose(np.array(f_new(q)), np.array(f_raw(q)), atol=1e-8, err_msg=name)
+            np.testing.assert_allclose(np.array(f_new(q)), np.array(f_raw(q)), rtol=0, atol=1e-14, err_msg=name)
+    ur5 = read_urdf(str(robots_dir() / UR5[0]), UR5[1]).tree
+    small = [j.name for j in ur5.joints if np.any((np.abs(j.origin[:3, :3]) > 0) & (np.abs(j.origin[:3, :3]) < 1e-11))]
+    assert small == ["shoulder_lift_joint", "wrist_1_joint"]  # rpy 1.57079632679: entries of 4.9e-12
+    ur5_snapped = snap_tree(ur5)
+    for a, b in zip(ur5.joints, ur5_snapped.joints):
+        np.testing.assert_array_equal(a.origin, b.origin)
+        np.testing.assert_array_equal(a.axis, b.axis)
+    np.testing.assert_array_equal(ur5.tool, ur5_snapped.tool)
+
+
+def test_snapping_bounds():
+    """Entries within 4 units in the last place of 1 (rotations, axes) or of the translation's
+    largest entry snap to 0 or +-1; a rotation entry of 1e-9 or a translation entry of 1e-9 m
+    beside 0.3 m stays."""
+    c, s = np.cos(np.pi / 2), np.sin(np.pi / 2)  # 6.1e-17, 1.0
+    T = np.eye(4)
+    T[:3, :3] = [[1, 0, 0], [0, c, -s], [0, s, c]]
+    T[:3, 3] = [0.3, 3e-17, 0.0]
+    snapped = snap_rotation(T)
+    np.testing.assert_array_equal(snapped[:3, :3], [[1, 0, 0], [0, 0, -1], [0, 1, 0]])
+    np.testing.assert_array_equal(snapped[:3, 3], [0.3, 0.0, 0.0])
+    t = 1e-9
+    T[:3, :3] = [[1, 0, 0], [0, np.cos(t), -np.sin(t)], [0, np.sin(t), np.cos(t)]]
+    T[:3, 3] = [0.3, 1e-9, 0.0]
+    np.testing.assert_array_equal(snap_rotation(T), T)
+    np.testing.assert_array_equal(snap_axis(np.array([1e-9, 0.0, 1.0])), exact.unit(np.array([1e-9, 0.0, 1.0])))
+    np.testing.assert_array_equal(snap_axis(np.array([4e-16, 0.0, 1.0 - 2 ** -53])), [0.0, 0.0, 1.0])
+    assert noise_bound(0.3) == 4 * np.spacing(0.3)
 
 
 def test_every_coriolis_form_equals_pinocchio():

@@ -79,8 +79,8 @@ def test_urdf_without_tip_is_a_usage_error(tmp_path, capsys):
 
 
 def test_unknown_element_inside_a_joint_fails_beside_ignored_ones_under_robot(tmp_path, capsys):
-    """Elements under <robot> robotgen does not know are ignored; one inside <joint> (it could
-    change the dynamics) stays an error."""
+    """Elements under <robot> robotgen does not know are ignored; one inside <joint> that would
+    change the dynamics (a spring) stays an error, with the reason."""
     text = urdf(OK1, joint("j2", "revolute", "l1", "l2", "<spring k='1'/>"))
     text = text.replace('<robot name="r">\n', '<robot name="r">\n<ros2_control name="hw"/>\n<vendor_tag/>\n')
     path = tmp_path / "r.urdf"
@@ -89,7 +89,8 @@ def test_unknown_element_inside_a_joint_fails_beside_ignored_ones_under_robot(tm
     assert main(["build", str(path), "--tip", "l2", "-o", str(out)]) == 1
     err = messages(capsys.readouterr().err)
     # lines: 3-4 the ignored elements, 5-7 links, 8 j1, 9 j2
-    assert err == f"{path}:9:90: <spring> is not supported inside <joint>\n", err
+    assert err == (f"{path}:9:90: <spring> is not supported inside <joint>: it would change the joint's dynamics, "
+                   "which URDF gives as <dynamics damping=... friction=...> only\n"), err
     assert not out.exists()
 
 

@@ -26,7 +26,7 @@ def urdf(**changes) -> str:
     (dict(mass="nan"), "finite numbers"), (dict(mass="inf"), "finite numbers"), (dict(mass="1e999"), "finite"),
     (dict(ixx="nan"), "finite numbers"), (dict(origin="0 nan 0"), "finite numbers"), (dict(axis="0 0 inf"), "finite"),
     (dict(velocity="nan"), "finite numbers"), (dict(lower="nan"), "finite numbers"),
-    (dict(lower="1", upper="-1"), "lower 1 is above upper -1"), (dict(velocity="-2"), "velocity must be >= 0"),
+    (dict(lower="2", upper="-2"), "lower 2 is above upper -2"), (dict(velocity="-2"), "velocity must be >= 0"),
     (dict(damping="-0.1"), "damping and friction must be >= 0"), (dict(origin="0 0 1e300"), "larger than 1e+15"),
 ])
 def test_bad_numbers_are_located_errors(tmp_path, capsys, changes, words):

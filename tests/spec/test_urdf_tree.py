@@ -120,9 +120,12 @@ def test_floating_root_needs_the_base_below_it(tmp_path):
     tree = read_urdf_tree(path, base="pelvis").tree
     assert [(j.name, j.parent) for j in tree.joints] == [("jl1", -1), ("jl2", 0), ("jr1", -1)]
     assert tree.tip_link == "l2" and tree.tip == 1
-    # the chain reader keeps rejecting a floating joint anywhere in the file
-    with pytest.raises(UserError, match="floating joint"):
-        read_urdf(path, "l2", base="pelvis")
+    # the chain reader reads below its base the same way: the floating joint above it is no error
+    chain = read_urdf(path, "l2", base="pelvis").tree
+    assert [(j.name, j.parent) for j in chain.joints] == [("jl1", -1), ("jl2", 0)]
+    assert chain.locked_joints == ("jr1",)
+    with pytest.raises(UserError, match="'root' is a floating joint at the root.*base='pelvis'"):
+        read_urdf(path, "l2")
 
 
 def test_mimic_joint_is_locked_in_a_tree(tmp_path):

@@ -4,7 +4,7 @@ When the tip's chain starts at a revolute joint whose axis line passes through t
 origin (a vertical first axis, as on most arms), turning that joint by q_0 turns everything
 beyond it about that line: the tip pose, its Jacobian (Whitney 1972, eqs 7-9) and its bias
 acceleration Jdot qd are those at q_0 = 0, turned by R(q_0). Which form CSE leaves smaller
-depends on the arm (UR5 Jacobian: 148 operations directly, 114 turned; Panda: 193 and 224),
+depends on the arm (UR5 Jacobian: 153 operations directly, 121 turned; Panda: 193 and 224),
 so ChainGraphs counts both."""
 from __future__ import annotations
 
@@ -12,20 +12,21 @@ import casadi as ca
 import numpy as np
 
 from robotgen.model.chain import REVOLUTE, KinematicTree
-from robotgen.model.snap import SNAP_TOLERANCE, snap_axis
+from robotgen.model.snap import noise_bound, snap_axis
 from robotgen.symbolic.rigid_body.spatial import axis_rotation
 
 
 def base_axis(tree: KinematicTree) -> tuple[int, np.ndarray] | None:
     """(joint index, unit axis in base coordinates) of the revolute joint at the root of the
-    tip's chain when its axis line passes through the base origin; None otherwise."""
+    tip's chain when its axis line passes through the base origin (to the rounding of its
+    constants, model/snap.py); None otherwise."""
     root = tree.support(tree.tip)[0]
     joint = tree.joints[root]
     if joint.type != REVOLUTE:
         return None
     axis = snap_axis(joint.origin[:3, :3] @ joint.axis)
     offset = joint.origin[:3, 3]
-    if np.linalg.norm(np.cross(axis, offset)) > SNAP_TOLERANCE * max(1.0, float(np.linalg.norm(offset))):
+    if np.linalg.norm(np.cross(axis, offset)) > noise_bound(max(1.0, float(np.linalg.norm(offset)))):
         return None
     return root, axis
 

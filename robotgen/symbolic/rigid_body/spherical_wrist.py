@@ -16,8 +16,9 @@ The family, decided at build time (`spherical_wrist_arm`):
   normal plane (a3 = 0.0203 m) are any;
 - axes 4, 5, 6 meet in one point, the wrist centre c0, with axis 5 perpendicular to axes 4
   and 6 (4 and 6 at any angle to each other).
-Each condition holds to SNAP_TOLERANCE (rad, or m times the arm's size), which accepts the
-exact geometry that snapping leaves; the solution is that of the exact geometry.
+Each condition holds to FAMILY_TOLERANCE (1e-9 rad, or m times the arm's size); the solution
+is that of the exact geometry, so on an arm whose file writes pi/2 to 11 digits (rotation
+entries of 4.9e-12, which snapping keeps) it is within about 1e-11 of the model's own.
 
 Solving (R_d, p_d), hand at G_d:
 1. The wrist does not move c0, so e_1 e_2 e_3 c0 = G_d G0^-1 c0: the wrist centre p_c.
@@ -50,9 +51,11 @@ import casadi as ca
 import numpy as np
 
 from robotgen.model.chain import REVOLUTE, KinematicTree
-from robotgen.model.snap import SNAP_TOLERANCE, snap_tree
+from robotgen.model.snap import snap_tree
 from robotgen.numeric import exact
 from robotgen.symbolic.rigid_body.axis_turns import dot, turn, turned_dot
+
+FAMILY_TOLERANCE = 1e-9  # the family's conditions, and the solve's singular neighbourhoods
 
 # A square root of a negative number within this fraction of its scale is rounding at the
 # edge of the workspace (the arm stretched out), not a target out of reach.
@@ -97,7 +100,7 @@ class SphericalWristArm:
                 for s1 in (1.0, -1.0) for s3 in (1.0, -1.0) for s5 in (1.0, -1.0)]
 
     def _solve(self, R_d: ca.SX, p_d: ca.SX, qn: ca.SX, signs: tuple[float, float, float] | None) -> ca.SX:
-        tol = SNAP_TOLERANCE * self.scale
+        tol = FAMILY_TOLERANCE * self.scale
         nan = ca.SX(float("nan"))
         # 1. the wrist centre
         p_c = [p_d[i] + dot(self.wrist_in_hand, [R_d[i, k] for k in range(3)]) for i in range(3)]
@@ -207,7 +210,7 @@ def spherical_wrist_arm(tree: KinematicTree) -> SphericalWristArm | None:
     o = [T[:3, 3] for T in frames]
     G0 = exact.matmul(frames[5], tree.tool)
     scale = max(1.0, *(exact.norm(p) for p in o), exact.norm(G0[:3, 3]))
-    tol, length_tol = SNAP_TOLERANCE, SNAP_TOLERANCE * scale
+    tol, length_tol = FAMILY_TOLERANCE, FAMILY_TOLERANCE * scale
     w1, w2, w3, a, b, c = w
     if exact.norm(exact.cross(w2, w3)) > tol or exact.norm(exact.cross(w1, w2)) <= tol:
         return None
