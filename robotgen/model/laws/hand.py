@@ -47,6 +47,15 @@ class ResolvedAccelerationSettings:
                                  f"hand velocity gains Kv of '{node}' on {axes}", GAIN)]
 
 
+# The first step after a controller's reset refuses a desired hand pose farther than this from
+# the hand (robotgen.symbolic.control.hand.start_check): a path started in the wrong frame or
+# at the wrong place. The adaptive law closes a start error within a few periods, so its first
+# torques grow with it: on the PUMA at its start pose (specs/puma560_rmac.yaml) about 76 N m per
+# mm and 31 N m per mrad (1566 N m for 2 cm). Start the path at the hand: hand_pose(q).
+START_DISTANCE = 0.01  # m, between the origins
+START_ANGLE = 0.05  # rad, the rotation between the orientations
+
+
 # Lee and Lee's regressor phi = (dx, du, 1): the blocks of the RLS covariance P_0 (eq 37)
 COVARIANCE_BLOCKS = ("A", "B", "c")
 
