@@ -18,6 +18,7 @@ e'' + Kv e' + Kp e = 0, so it decays at the rate the gains set; the demo prints 
 """
 from __future__ import annotations
 
+import argparse
 import importlib
 import sys
 import time
@@ -90,7 +91,11 @@ def check_spec(spec: Path) -> str:
 
 
 def main() -> None:
-    spec = Path(sys.argv[1]) if len(sys.argv) > 1 else ROOT / "specs" / "puma560.yaml"
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("spec", nargs="?", type=Path, default=ROOT / "specs" / "puma560.yaml",
+                        help="a spec whose root is one chain or formulas leaf (default specs/puma560.yaml); the "
+                             "module goes to generated/<name>/ under the current directory")
+    spec = parser.parse_args().spec
     arm = build(spec, check_spec(spec))
     n = arm.nq
     print(f"module '{arm.__name__}' in generated/{arm.__name__} (sys.path.insert(0, "

@@ -176,7 +176,7 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
         if not value > 0:
             raise _Usage(f"--{k} must be positive, got {value:g}")
     settings = dataclasses.replace(settings, **overrides)
-    out = Path(args.output) if args.output else Path(f"{system.name}_simulation")
+    out = Path(args.output) if args.output else Path("generated") / f"{system.name}_simulation"
     rest = rest_posture([system.nodes[leaf].leaf for leaf in robot_leaves(system)])
     with tempfile.TemporaryDirectory(prefix="robotgen-sim-") as tmp:
         build = Path(tmp) / system.name
@@ -333,7 +333,7 @@ def _parser() -> argparse.ArgumentParser:
         c.set_defaults(run=run)
     sim = sub.add_parser("simulate", parents=[quiet], help="run a tree's servo step against its true constrained plant")
     sim.add_argument("spec")
-    sim.add_argument("-o", "--output", help="directory for the CSV and PNG (default <name>_simulation/)")
+    sim.add_argument("-o", "--output", help="directory for the CSV and PNG (default generated/<name>_simulation/)")
     sim.add_argument("--duration", type=float, help="seconds (default: the spec's simulation section)")
     sim.add_argument("--dt", type=float, help="servo period and RK4 step [s]")
     sim.set_defaults(run=_cmd_simulate, tip=None, base=None, name=None)
