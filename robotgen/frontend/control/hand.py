@@ -6,6 +6,7 @@ import dataclasses
 
 import numpy as np
 
+from robotgen.documentation import hint
 from robotgen.frontend.collector import Collector
 from robotgen.frontend.document import Path
 from robotgen.model.chain import KinematicTree
@@ -85,7 +86,7 @@ class HandLawReader(Collector):
         for given, rule in (("q", "bandwidth"), ("r", "torque_weight")):
             if given in settings and rule in settings:
                 self.at_key(where + (rule,), f"give {given} or {rule}, not both: {rule} sets {given.upper()} by the "
-                                             "weight rule (docs/spec-format.md)")
+                                             f"weight rule ({hint('spec-format', 'The weight rule')})")
         bandwidth = self.optional(settings, where, "bandwidth", DEFAULT_BANDWIDTH, minimum=0.0, exclusive=True)
         if "q" in settings:
             q = self.weight_matrix(where + ("q",), settings["q"], 12, Q_MATRIX, groups=4)
