@@ -10,7 +10,8 @@ CORETYPES ?= $(shell $(PYTHON) -c "from tests.emit.test_reproducible import core
 # parameters and the hand controllers' first step, the command line). `make test` runs all.
 QUICK_TESTS ?= tests/spec tests/dynamics/test_closed_form.py tests/dynamics/test_properties.py \
 	tests/dynamics/test_puma_pinocchio.py tests/dynamics/test_urdf_pinocchio.py tests/primitives/test_primitives.py \
-	tests/emit/test_emit.py tests/emit/test_parameter_bounds.py tests/control/test_hand_start.py tests/cli/test_cli.py
+	tests/emit/test_emit.py tests/emit/test_parameter_bounds.py tests/control/test_hand_start.py tests/cli/test_cli.py \
+	tests/cli/test_hints.py
 
 install:
 	$(PYTHON) -m pip install --quiet --upgrade pip
