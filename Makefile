@@ -4,7 +4,14 @@ PYTHON ?= python3
 # OpenBLAS kernels to build under (test-reproducible): those this CPU can run
 CORETYPES ?= $(shell $(PYTHON) -c "from tests.emit.test_reproducible import coretypes; print(' '.join(coretypes()))" 2>/dev/null)
 
-.PHONY: install test test-slow lint test-reproducible demo controller bench golden clean
+.PHONY: install test test-quick test-slow lint test-reproducible demo controller bench golden clean
+# A first check in under 3 minutes: each layer's fast tests (the spec front end and its
+# messages, dynamics against closed forms and Pinocchio, the emitted module, run-time
+# parameters and the hand controllers' first step, the command line). `make test` runs all.
+QUICK_TESTS ?= tests/spec tests/dynamics/test_closed_form.py tests/dynamics/test_properties.py \
+	tests/dynamics/test_puma_pinocchio.py tests/dynamics/test_urdf_pinocchio.py tests/primitives/test_primitives.py \
+	tests/emit/test_emit.py tests/emit/test_parameter_bounds.py tests/control/test_hand_start.py tests/cli/test_cli.py \
+	tests/cli/test_hints.py
 
 install:
 	$(PYTHON) -m pip install --quiet --upgrade pip
@@ -12,6 +19,9 @@ install:
 
 test: lint
 	$(PYTHON) -m pytest -q
+
+test-quick: lint
+	$(PYTHON) -m pytest -q $(QUICK_TESTS)
 
 # the long runs (pytest -m slow): 10^4 Hypothesis mutants of the example specs (~10 min), every URDF
 # of example-robot-data and pybullet_data against Pinocchio and docs/robots.md (~2 min)

@@ -3,6 +3,10 @@ and close a computed-torque loop around the arm's own forward dynamics.
 
     python examples/demo.py [SPEC.yaml]
 
+The module is built where `robotgen build SPEC.yaml` puts it, generated/<name>/ under the
+current directory, and stays there for your own scripts (`sys.path.insert(0,
+"generated/puma560")`); a second run finds it up to date and does not rebuild it.
+
 SPEC is a spec whose root is one chain (puma560, stanford, two_link, a urdf leaf) or one
 formulas leaf (styx_finger): robot trees run with `robotgen simulate SPEC.yaml` instead.
 Every joint follows a sine about the middle of its limits, within them.
@@ -14,9 +18,9 @@ e'' + Kv e' + Kp e = 0, so it decays at the rate the gains set; the demo prints 
 """
 from __future__ import annotations
 
+import argparse
 import importlib
 import sys
-import tempfile
 import time
 from pathlib import Path
 
@@ -28,11 +32,11 @@ sys.path.insert(0, str(ROOT))
 from robotgen.cli import main as robotgen  # noqa: E402
 
 
-def build(spec: Path, out: Path):
-    if robotgen(["build", str(spec), "-o", str(out)]) != 0:
+def build(spec: Path, name: str):
+    """robotgen build SPEC (into generated/<name>/, skipped when it is up to date), imported."""
+    if robotgen(["build", str(spec)]) != 0:
         raise SystemExit(1)
-    sys.path.insert(0, str(out))
-    name = next(out.glob("*.h")).stem
+    sys.path.insert(0, str(Path("generated") / name))
     return importlib.import_module(name)
 
 
@@ -59,7 +63,7 @@ def trajectory(joints: list[dict], n: int) -> tuple[np.ndarray, np.ndarray]:
     return centre, amplitude
 
 
-def check_spec(spec: Path) -> None:
+def check_spec(spec: Path) -> str:
     """Only a spec whose root is one leaf robot has the chain functions this demo uses."""
     from robotgen.errors import UserErrors
     from robotgen.frontend import load_system
@@ -83,63 +87,66 @@ def check_spec(spec: Path) -> None:
     if not hasattr(leaf, "nq") or type(leaf).__name__ in ("PlanarBody", "SpatialBody"):
         print(f"demo: {spec}'s root is a payload body, which has no actuators", file=sys.stderr)
         raise SystemExit(2)
+    return system.name
 
 
 def main() -> None:
-    spec = Path(sys.argv[1]) if len(sys.argv) > 1 else ROOT / "specs" / "puma560.yaml"
-    check_spec(spec)
-    with tempfile.TemporaryDirectory() as tmp:
-        arm = build(spec, Path(tmp) / "out")
-        n = arm.nq
-        print(f"built {spec.name}: module '{arm.__name__}', nq = {n}, functions: "
-              f"{', '.join(arm.info()['functions'])}")
-        wn = 20.0  # closed-loop natural frequency [rad/s], critically damped
-        Kp, Kv = wn * wn, 2 * wn
-        dt, T = 1e-3, 2.0
-        info = arm.info()
-        joints = info["nodes"][info["root"]].get("joints", [])
-        if not joints:  # a formulas leaf: its coordinates, no limits known
-            joints = [{"type": "revolute", "limits": {"lower": None, "upper": None}}] * n
-        q0, amplitude = trajectory(joints, n)
-        q, qd = q0 + OFFSET, desired(0.0, q0, amplitude)[1]  # start OFFSET off the trajectory
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("spec", nargs="?", type=Path, default=ROOT / "specs" / "puma560.yaml",
+                        help="a spec whose root is one chain or formulas leaf (default specs/puma560.yaml); the "
+                             "module goes to generated/<name>/ under the current directory")
+    spec = parser.parse_args().spec
+    arm = build(spec, check_spec(spec))
+    n = arm.nq
+    print(f"module '{arm.__name__}' in generated/{arm.__name__} (sys.path.insert(0, "
+          f"'generated/{arm.__name__}') imports it), nq = {n}, functions: {', '.join(arm.info()['functions'])}")
+    wn = 20.0  # closed-loop natural frequency [rad/s], critically damped
+    Kp, Kv = wn * wn, 2 * wn
+    dt, T = 1e-3, 2.0
+    info = arm.info()
+    joints = info["nodes"][info["root"]].get("joints", [])
+    if not joints:  # a formulas leaf: its coordinates, no limits known
+        joints = [{"type": "revolute", "limits": {"lower": None, "upper": None}}] * n
+    q0, amplitude = trajectory(joints, n)
+    q, qd = q0 + OFFSET, desired(0.0, q0, amplitude)[1]  # start OFFSET off the trajectory
 
-        def control(t, q, qd):
-            q_d, qd_d, qdd_d = desired(t, q0, amplitude)
-            a = qdd_d + Kv * (qd_d - qd) + Kp * (q_d - q)
-            return arm.mass(q) @ a + arm.nonlinear(q, qd)
+    def control(t, q, qd):
+        q_d, qd_d, qdd_d = desired(t, q0, amplitude)
+        a = qdd_d + Kv * (qd_d - qd) + Kp * (q_d - q)
+        return arm.mass(q) @ a + arm.nonlinear(q, qd)
 
-        def f(q, qd, tau):
-            return qd, arm.forward_dynamics(q, qd, tau)
+    def f(q, qd, tau):
+        return qd, arm.forward_dynamics(q, qd, tau)
 
-        steps = int(T / dt)
-        t_ctrl = 0.0
-        print(f"closed loop: computed torque, Kp = {Kp:g}, Kv = {Kv:g}, RK4 at {1/dt:g} Hz for {T:g} s")
-        print(f"{'t [s]':>6} {'|e|':>12} {'predicted':>12} {'|tau|':>11}   (rad or m; N m or N)")
-        e0 = np.linalg.norm(q - q0)
-        for k in range(steps + 1):
-            t = k * dt
-            c0 = time.perf_counter()
-            tau = control(t, q, qd)
-            t_ctrl += time.perf_counter() - c0
-            if k % 250 == 0:
-                e = np.linalg.norm(q - desired(t, q0, amplitude)[0])
-                print(f"{t:6.2f} {e:12.3e} {e0 * (1 + wn * t) * np.exp(-wn * t):12.3e} {np.linalg.norm(tau):11.2f}")
-            if k == steps:
-                break
-            k1q, k1v = f(q, qd, tau)
-            k2q, k2v = f(q + dt / 2 * k1q, qd + dt / 2 * k1v, tau)
-            k3q, k3v = f(q + dt / 2 * k2q, qd + dt / 2 * k2v, tau)
-            k4q, k4v = f(q + dt * k3q, qd + dt * k3v, tau)
-            q = q + dt / 6 * (k1q + 2 * k2q + 2 * k3q + k4q)
-            qd = qd + dt / 6 * (k1v + 2 * k2v + 2 * k3v + k4v)
-        print("(the measured error levels off near 1e-5: tau is held constant over each 1 ms "
-              "step, as a servo loop holds it; the prediction is for a continuous controller)")
-        inside = all(lo is None or lo - 1e-9 <= v <= hi + 1e-9 for v, lo, hi in
-                     ((q[i], j["limits"]["lower"], j["limits"]["upper"]) for i, j in enumerate(joints[:n])))
-        print(f"final joint positions {np.round(q, 4)}: {'inside' if inside else 'OUTSIDE'} the joint limits")
-        if hasattr(arm, "fk"):
-            print(f"tip position at the end: {np.round(arm.fk(q)[:3, 3], 4)} m")
-        print(f"controller (M, C qd + N from the module, plus numpy): {t_ctrl / (steps + 1) * 1e6:.1f} us per step")
+    steps = int(T / dt)
+    t_ctrl = 0.0
+    print(f"closed loop: computed torque, Kp = {Kp:g}, Kv = {Kv:g}, RK4 at {1/dt:g} Hz for {T:g} s")
+    print(f"{'t [s]':>6} {'|e|':>12} {'predicted':>12} {'|tau|':>11}   (rad or m; N m or N)")
+    e0 = np.linalg.norm(q - q0)
+    for k in range(steps + 1):
+        t = k * dt
+        c0 = time.perf_counter()
+        tau = control(t, q, qd)
+        t_ctrl += time.perf_counter() - c0
+        if k % 250 == 0:
+            e = np.linalg.norm(q - desired(t, q0, amplitude)[0])
+            print(f"{t:6.2f} {e:12.3e} {e0 * (1 + wn * t) * np.exp(-wn * t):12.3e} {np.linalg.norm(tau):11.2f}")
+        if k == steps:
+            break
+        k1q, k1v = f(q, qd, tau)
+        k2q, k2v = f(q + dt / 2 * k1q, qd + dt / 2 * k1v, tau)
+        k3q, k3v = f(q + dt / 2 * k2q, qd + dt / 2 * k2v, tau)
+        k4q, k4v = f(q + dt * k3q, qd + dt * k3v, tau)
+        q = q + dt / 6 * (k1q + 2 * k2q + 2 * k3q + k4q)
+        qd = qd + dt / 6 * (k1v + 2 * k2v + 2 * k3v + k4v)
+    print("(the measured error levels off near 1e-5: tau is held constant over each 1 ms "
+          "step, as a servo loop holds it; the prediction is for a continuous controller)")
+    inside = all(lo is None or lo - 1e-9 <= v <= hi + 1e-9 for v, lo, hi in
+                 ((q[i], j["limits"]["lower"], j["limits"]["upper"]) for i, j in enumerate(joints[:n])))
+    print(f"final joint positions {np.round(q, 4)}: {'inside' if inside else 'OUTSIDE'} the joint limits")
+    if hasattr(arm, "fk"):
+        print(f"tip position at the end: {np.round(arm.fk(q)[:3, 3], 4)} m")
+    print(f"controller (M, C qd + N from the module, plus numpy): {t_ctrl / (steps + 1) * 1e6:.1f} us per step")
 
 
 if __name__ == "__main__":

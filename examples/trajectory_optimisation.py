@@ -1,6 +1,6 @@
 """Swing-up of the planar two-link arm by iLQR, with the generated derivatives.
 
-    python examples/trajectory_optimisation.py [--plot FILE.png]
+    python examples/trajectory_optimisation.py [--plot FILE.png]   (default generated/trajectory_optimisation.png)
 
 The arm (specs/two_link.yaml, gravity in the plane of motion) starts hanging still,
 q = (-pi/2, 0), and must be upright and still, q = (pi/2, 0), after 3 s, with at most 10 N m
@@ -163,14 +163,15 @@ def plot(path: Path, X, U, history_exact, history_fd) -> None:
     axes[2].legend(fontsize=8)
     fig.suptitle("two_link swing-up by iLQR")
     fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=90)
     print(f"wrote {path}")
 
 
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--plot", type=Path, default=Path("trajectory_optimisation.png"),
-                        help="where to write the plot (default: ./trajectory_optimisation.png)")
+    parser.add_argument("--plot", type=Path, default=Path("generated") / "trajectory_optimisation.png",
+                        help="where to write the plot (default: generated/trajectory_optimisation.png)")
     args = parser.parse_args(argv)
     with tempfile.TemporaryDirectory() as tmp:
         arm = build(Path(tmp) / "two_link")

@@ -1,4 +1,4 @@
-"""The command line: build, check, schema, info, simulate (docs/cli.md).
+"""The command line: build, check, schema, info, simulate, docs (docs/cli.md).
 
 Exit status: 0 success, 1 the user's input is wrong, 2 usage error, 3 a bug in robotgen."""
 from __future__ import annotations
@@ -171,7 +171,7 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     import dataclasses
     import tempfile
 
-    from robotgen import hand_simulation, regulator_simulation, simulate
+    from robotgen import documentation, hand_simulation, regulator_simulation, simulate
     from robotgen.emit.build import emit
     from robotgen.model.signature import robot_leaves
     from robotgen.model.simulation import BOTH_PLANTS, MUJOCO_PLANT, ROBOTGEN_PLANT, SimulationSettings, rest_posture
@@ -182,12 +182,14 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     progress = _progress(args)
     system = _load(args)
     if system.is_single_leaf:
-        raise _Usage("simulate needs a robot tree (attach/control); for one chain see examples/demo.py")
+        raise _Usage("simulate needs a robot tree (attach/control); a chain's module closes a loop in a few "
+                     f"lines of Python: {documentation.hint('python-api', 'A chain')}")
     regulated = system.is_rate_controlled
     if regulated and (system.rate_controls_composite or system.root_node.rate.lqr is None):
+        where = documentation.hint("python-api", "Resolved-rate controllers")
         raise _Usage("simulate runs torque controllers; a resolved_rate controller outputs joint rates (with lqr "
                      "settings its regulator's lqr_step is simulated): integrate its rate_step / position_step "
-                     "(docs/python-api.md shows how)")
+                     f"({where} shows how)")
     hand = system.root_law in HAND_LAWS
     if hand and args.dt is not None:
         raise _Usage(f"a {system.root_law} controller runs at its own period "
@@ -208,7 +210,7 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
                 print(f"robotgen: error: --plant {plant}: {e}", file=sys.stderr)
                 return EXIT_USER
             raise UserError(settings.locations["plant"], f"simulation.plant: {e}") from None
-    out = Path(args.output) if args.output else Path(f"{system.name}_simulation")
+    out = Path(args.output) if args.output else Path("generated") / f"{system.name}_simulation"
     rest = rest_posture([system.nodes[leaf].leaf for leaf in robot_leaves(system)])
     results, mjcf = [], None
     with tempfile.TemporaryDirectory(prefix="robotgen-sim-") as tmp:
@@ -269,6 +271,26 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
 def _cmd_check(args: argparse.Namespace) -> int:
     system = _load(args)
     print(f"{args.spec}: ok ({len(system.nodes)} node(s), root '{system.root}')")
+    return EXIT_OK
+
+
+def _cmd_docs(args: argparse.Namespace) -> int:
+    from robotgen import documentation
+
+    pages = documentation.pages()
+    if not pages:
+        print("robotgen: error: the documentation pages are missing from this installation", file=sys.stderr)
+        return EXIT_USER
+    if args.page is None:
+        print(f"robotgen's documentation ({documentation.directory()}):")
+        for name, (_, title) in pages.items():
+            print(f"  {name:20} {title}")
+        print("robotgen docs PAGE prints one (Markdown).")
+        return EXIT_OK
+    page = args.page.removesuffix(".md")
+    if page not in pages:
+        raise _Usage(f"no page {args.page!r}; the pages are {', '.join(pages)}")
+    sys.stdout.write(pages[page][0].read_text(encoding="utf-8"))
     return EXIT_OK
 
 
@@ -360,8 +382,8 @@ def closed_loop_line(loop: dict, period: float) -> str:
 def _parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="robotgen", description="Compile robot systems to C and Python.",
                                 epilog="Exit status: 0 success, 1 your input is wrong (FILE:LINE:COL: message), "
-                                       "2 usage error, 3 a bug in robotgen. Documentation: docs/ in the "
-                                       "repository.")
+                                       "2 usage error, 3 a bug in robotgen. Documentation: robotgen docs "
+                                       "(the pages installed with robotgen).")
     p.add_argument("--version", action="version",
                    version=f"robotgen {robotgen.__version__} (casadi {_casadi_version()}, Python "
                            f"{sys.version.split()[0]})")
@@ -401,7 +423,8 @@ def _parser() -> argparse.ArgumentParser:
     sim = sub.add_parser("simulate", parents=[quiet], help="run a tree's servo step against its true constrained plant "
                                                            "(or MuJoCo's)")
     sim.add_argument("spec")
-    sim.add_argument("-o", "--output", help="directory for the CSV, PNG and MJCF (default <name>_simulation/)")
+    sim.add_argument("-o", "--output",
+                     help="directory for the CSV, PNG and MJCF (default generated/<name>_simulation/)")
     sim.add_argument("--duration", type=float, help="seconds (default: the spec's simulation section)")
     sim.add_argument("--dt", type=float, help="servo period and RK4 step [s]")
     sim.add_argument("--plant", choices=["robotgen", "mujoco", "both"],
@@ -412,6 +435,9 @@ def _parser() -> argparse.ArgumentParser:
     sim.set_defaults(run=_cmd_simulate, tip=None, base=None, name=None)
     s = sub.add_parser("schema", help="print the JSON Schema of the spec format")
     s.set_defaults(run=_cmd_schema)
+    d = sub.add_parser("docs", help="list the documentation pages, or print one")
+    d.add_argument("page", nargs="?", help="a page: cli, spec-format, python-api, c-api, ...")
+    d.set_defaults(run=_cmd_docs)
     return p
 
 

@@ -1,8 +1,8 @@
 /* A fixed-rate servo loop around robotgen's emitted C, as a controller binary would run it.
  *
  *   make controller                          (builds ./examples/controller/puma560_ct and styx_ct)
- *   examples/controller/puma560_ct [--rate HZ] [--cycles N]
- *   examples/controller/styx_ct    [--rate HZ] [--cycles N]
+ *   examples/controller/puma560_ct [--rate HZ] [--cycles N] [--help]
+ *   examples/controller/styx_ct    [--rate HZ] [--cycles N] [--help]
  *
  * Each cycle, on an absolute schedule (clock_nanosleep TIMER_ABSTIME, so lateness does not
  * accumulate): read the state of a simulated plant, compute the torques, hand them to the plant,
@@ -98,16 +98,61 @@ static void plant_step(double *theta, double *v, const double *tau, double dt, l
 }
 #endif
 
+static void usage(FILE *to, const char *program) {
+    fprintf(to, "usage: %s [--rate HZ] [--cycles N]\n\n"
+                "A fixed-rate servo loop around robotgen's emitted C (%s) against a simulated plant:\n"
+                "prints the tracking error, the period jitter and the servo computation's time.\n\n"
+                "  --rate HZ     servo rate, > 0 (default 1000)\n"
+                "  --cycles N    cycles to run, >= 1 (default 100000)\n"
+                "  -h, --help    this text\n", program,
+#ifdef CHAIN
+            "the PUMA 560's computed torque"
+#else
+            "the Styx hand's servo_step"
+#endif
+    );
+}
+
+/* Reads the value of option argv[*i] into *value; 0, or 2 (a usage error, said on stderr). */
+static int option_value(int argc, char **argv, int *i, int integer, double *value) {
+    char *end;
+    if (*i + 1 >= argc) {
+        fprintf(stderr, "controller: %s needs a value\n", argv[*i]);
+        return 2;
+    }
+    ++*i;
+    errno = 0;
+    *value = integer ? (double)strtol(argv[*i], &end, 10) : strtod(argv[*i], &end);
+    if (end == argv[*i] || *end != '\0' || errno != 0) {
+        fprintf(stderr, "controller: %s takes %s, got '%s'\n", argv[*i - 1], integer ? "an integer" : "a number",
+                argv[*i]);
+        return 2;
+    }
+    return 0;
+}
+
 int main(int argc, char **argv) {
-    double rate = 1000.0;
+    double rate = 1000.0, value;
     long cycles = 100000, k;
     int i;
-    for (i = 1; i + 1 < argc; i += 2) {
-        if (strcmp(argv[i], "--rate") == 0) rate = atof(argv[i + 1]);
-        else if (strcmp(argv[i], "--cycles") == 0) cycles = atol(argv[i + 1]);
-        else { fprintf(stderr, "usage: %s [--rate HZ] [--cycles N]\n", argv[0]); return 2; }
+    for (i = 1; i < argc; ++i) {
+        if (strcmp(argv[i], "--help") == 0 || strcmp(argv[i], "-h") == 0) { usage(stdout, argv[0]); return 0; }
+        if (strcmp(argv[i], "--rate") == 0) {
+            if (option_value(argc, argv, &i, 0, &value) != 0) return 2;
+            rate = value;
+        } else if (strcmp(argv[i], "--cycles") == 0) {
+            if (option_value(argc, argv, &i, 1, &value) != 0) return 2;
+            cycles = (long)value;
+        } else {
+            fprintf(stderr, "controller: unknown argument '%s'\n", argv[i]);
+            usage(stderr, argv[0]);
+            return 2;
+        }
     }
-    if (rate <= 0 || cycles < 1) { fprintf(stderr, "controller: --rate and --cycles must be positive\n"); return 2; }
+    if (!(rate > 0) || !isfinite(rate) || cycles < 1) {
+        fprintf(stderr, "controller: --rate and --cycles must be positive\n");
+        return 2;
+    }
     const double dt = 1.0 / rate;
     const long long period = (long long)(NS_PER_S / rate);
     long long *late = malloc((size_t)cycles * sizeof *late), *busy = malloc((size_t)cycles * sizeof *busy);

@@ -90,6 +90,14 @@ class ControllerView:
     reads_parameters: bool  # the C step takes params, the class takes parameter keywords
     step_prototype: str
     reset_prototype: str
+    # the first step's check (Controller.start): its kernel's C name ("" without), its limits
+    # (C literals), and the Python message's words (C string literals)
+    start_kernel: str
+    start_size: int
+    start_limits: tuple[str, ...]
+    start_units: tuple[str, ...]
+    start_bounds: str  # "at most 0.05 m and 0.2 rad"
+    start_hint: str
     layout_lines: tuple[str, ...]  # the header's comment on the struct
     step_lines: tuple[str, ...]  # the header's comment on the step function
     doc: str  # the class doc (Python), plain text
@@ -158,6 +166,8 @@ def controller_view(module: str, controller: Controller, functions: dict[str, Fu
         if [p.name for p in init.outputs] != [STATE] or init.outputs[0].size != n:
             raise KernelError(f"{what}: init kernel {init.name!r} must have the one output {STATE!r} of {n}")
 
+    start = _start_check(what, controller, functions, inputs)
+
     # names: Python attributes, struct fields, C locals
     for flag in controller.flags:
         c_kernel.check_identifier(flag, f"{what}: flag")
@@ -201,7 +211,9 @@ def controller_view(module: str, controller: Controller, functions: dict[str, Fu
             "init": init.name if init is not None else None, "period": float(controller.period),
             "state_size": n, "flags": list(controller.flags),
             "views": [{"name": v.name, "offset": v.offset, "shape": list(v.shape), "doc": v.doc} for v in views],
-            "outputs": [o.name for o in others], "reads_parameters": reads}
+            "outputs": [o.name for o in others], "reads_parameters": reads,
+            "start_check": None if start is None else {
+                "function": start.name, "limits": list(controller.start.limits), "units": list(controller.start.units)}}
     keywords = [f"{p.name}={p.py_default}" for p in parameters] if reads else []
     signature = f"{controller.class_name}({', '.join(['*', *keywords]) if keywords else ''})"
     step_signature = f"step($self, {', '.join(p.name for p in inputs)}, *, out=None)"
@@ -215,12 +227,43 @@ def controller_view(module: str, controller: Controller, functions: dict[str, Fu
         outputs=others, step_reads_parameters=step.reads_parameters,
         init_reads_parameters=bool(init is not None and init.reads_parameters), reads_parameters=reads,
         step_prototype=step_prototype, reset_prototype=f"void {c_type}_reset({c_type} *controller)",
+        start_kernel=start.c_name if start else "", start_size=len(controller.start.limits) if start else 0,
+        start_limits=tuple(c_kernel.literal(v, precision) for v in controller.start.limits) if start else (),
+        start_units=tuple(c_string(u) for u in controller.start.units) if start else (),
+        start_bounds=c_string(_start_bounds(controller.start)) if start else "",
+        start_hint=c_string(controller.start.hint) if start else "",
         layout_lines=_layout(controller, step, init, views, others, period_literal),
         step_lines=_step_comment(f"{c_type}_step", controller.class_name, step, init, controller.flags, others, n,
-                                 real),
+                                 real, controller.start, start),
         doc=doc, py_doc=c_string(f"{signature}\n--\n\n{doc}"),
         step_py_doc=c_string(f"{step_signature}\n--\n\n{step_doc}"),
         stub_doc=py_string(doc), step_stub_doc=py_string(_summary(step_doc)), info=info)
+
+
+def _start_check(what: str, controller: Controller, functions: dict, inputs: tuple) -> FunctionView | None:
+    """The kernel of controller.start, checked against the contract: inputs q and pose_d as the
+    step has them, one output of a distance per limit, no parameters."""
+    start = controller.start
+    if start is None:
+        return None
+    kernel = _kernel(functions, start.kernel, f"{what}: start check kernel")
+    wanted = [(p.name, p.shape) for p in inputs if p.name in ("q", "pose_d")]
+    if [(p.name, p.shape) for p in kernel.inputs] != wanted or kernel.reads_parameters:
+        raise KernelError(f"{what}: start check kernel {kernel.name!r} has inputs "
+                          f"{[(p.name, p.shape) for p in kernel.inputs]}; the contract wants {wanted}, no parameters")
+    n = len(start.limits)
+    if len(kernel.outputs) != 1 or kernel.outputs[0].size != n or len(start.units) != n or n == 0:
+        raise KernelError(f"{what}: start check kernel {kernel.name!r} must give one distance per limit "
+                          f"{start.limits} (units {start.units})")
+    if not all(v > 0 for v in start.limits):
+        raise KernelError(f"{what}: start check limits {start.limits} must be positive")
+    return kernel
+
+
+def _start_bounds(start) -> str:
+    """"at most 0.05 m and 0.2 rad"."""
+    parts = [f"{limit:g} {unit}" for limit, unit in zip(start.limits, start.units)]
+    return "at most " + (", ".join(parts[:-1]) + " and " + parts[-1] if len(parts) > 1 else parts[0])
 
 
 def controllers_note(views: tuple[ControllerView, ...]) -> tuple[str, ...]:
@@ -324,8 +367,12 @@ def _layout(controller: Controller, step, init, views, others, period_literal: s
 
 
 def _step_comment(c_step: str, class_name: str, step, init, flags, others, state_size: int,
-                  real: str) -> tuple[str, ...]:
+                  real: str, start=None, start_kernel=None) -> tuple[str, ...]:
     text = f"{c_step}: one period of {class_name}. "
+    if start is not None:
+        text += (f"On the first step after a reset it first runs {start_kernel.c_name}: when one of its distances "
+                 f"is above its limit ({_start_bounds(start)}) it returns 3, having written nothing (the struct "
+                 "stays reset; the desired path must start at the hand). ")
     if init is not None:
         text += f"On the first step after a reset it runs {init.c_name} into controller->state; then it runs "
     else:

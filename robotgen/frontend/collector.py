@@ -10,6 +10,7 @@ import numpy as np
 from robotgen.errors import Location, UserError
 from robotgen.frontend.document import Document, Path, format_path
 from robotgen.model.expression import CONSTANTS, FUNCTIONS, Expr, parse_constant, parse_expression
+from robotgen.model.parameters import Bounds
 from robotgen.model.transforms import xyz_rpy
 
 
@@ -50,11 +51,35 @@ class Collector:
             self.at_value(path, f"{shown} is {relation} the minimum of {minimum:g}")
         return number
 
-    def parameter(self, path: Path, value: object, **bounds) -> tuple[float, bool]:
-        """A number, or ``{runtime: number}``: (its value, whether it is a run-time parameter)."""
+    def parameter(self, path: Path, value: object, bounds: Bounds | None = None) -> tuple[float, bool]:
+        """A number (within ``bounds``, if given), or ``{runtime: number}``: (its value,
+        whether it is a run-time parameter)."""
         if isinstance(value, dict):
-            return self.constant(path + ("runtime",), value["runtime"], **bounds), True
-        return self.constant(path, value, **bounds), False
+            path, value, runtime = path + ("runtime",), value["runtime"], True
+        else:
+            runtime = False
+        return (self.constant(path, value) if bounds is None else self.bounded(path, value, bounds)), runtime
+
+    def bounded(self, path: Path, value: object, bounds: Bounds) -> float:
+        """A number within ``bounds``: outside them, the message a run-time parameter with
+        these bounds gives for the same value (robotgen.model.parameters)."""
+        number = self.constant(path, value)
+        self.within(path, number, bounds)
+        return number
+
+    def within(self, path: Path, value, bounds: Bounds, entry=None) -> bool:
+        """Whether ``value`` (a number, or the array a spec entry gives) is within ``bounds``;
+        if not, the first violation is reported at ``path`` + ``entry(index)`` (an entry's
+        own position; default: its index as given, None: at ``path``'s key)."""
+        violation = bounds.violation(value)
+        if violation is None:
+            return True
+        below = violation.index if entry is None else entry(violation.index)
+        if below is None:
+            self.at_key(path, violation.message)
+        else:
+            self.at_value(path + tuple(below), violation.message)
+        return False
 
     def optional(self, mapping: dict, path: Path, key: str, default: float, **bounds) -> float:
         if key not in mapping:

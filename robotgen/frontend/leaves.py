@@ -18,6 +18,7 @@ from robotgen.model.dh import DH_MODIFIED, DH_STANDARD, JOINT_LIST, DHParameters
 from robotgen.model.expression import MATH_LIB, Expr, evaluate
 from robotgen.model.formula import FormulaRobot, Mechanism
 from robotgen.model.system import (
+    PAYLOAD_MASS,
     PlanarBody,
     SpatialBody,
 )
@@ -307,7 +308,7 @@ class LeafReader(Collector):
             self.at_value(path + ("gravity",), f"a {'spatial' if spatial else 'planar'} body takes "
                                                f"{len(gravity_default)} gravity components, got {len(gravity)}")
         kind = "spatial" if spatial else "planar"
-        mass, runtime = self.parameter(path + (kind, "mass"), spec[kind]["mass"], minimum=0.0)
+        mass, runtime = self.parameter(path + (kind, "mass"), spec[kind]["mass"], PAYLOAD_MASS)
         runtime = frozenset({"mass"} if runtime else ())
         if spatial:
             body = spec["spatial"]

@@ -1,6 +1,9 @@
 """JSON Schema (draft 2020-12) of spec format 1; docs/spec-format.md is the prose version.
 
-The schema checks shape only (types, keys, ranges of plain numbers). What needs the whole
+The schema checks shape only (types, keys, ranges of plain numbers). A number that can
+become a run-time parameter (a gain, a weight, the forgetting factor, a payload's mass) has
+its range in its description only: robotgen.frontend checks it with the message the emitted
+module gives for the same value at run time (robotgen.model.parameters). What needs the whole
 document or arithmetic (root exists, inertia positive semi-definite, formula names,
 constant expressions given as strings) is checked in robotgen.frontend.system.
 
@@ -203,13 +206,13 @@ _DEFS = {
         "a rigid payload body (never actuated), planar or spatial",
         {"planar": _object("a body moving in a plane, coordinates (x, y, psi): M = diag(m, m, I), "
                            "C = 0, N = -m (gx, gy, 0)",
-                           {"mass": _parameter("mass [kg], >= 0", minimum=0),
+                           {"mass": _parameter("mass [kg], >= 0"),
                             "inertia": _number("moment of inertia about the centre of mass "
                                                "[kg m^2], >= 0", minimum=0)},
                            ("mass", "inertia")),
          "spatial": _object("a body in space, coordinates (x, y, z, roll, pitch, yaw) of its frame at "
                             "the centre of mass (R = Rz(yaw) Ry(pitch) Rx(roll))",
-                            {"mass": _parameter("mass [kg], >= 0", minimum=0),
+                            {"mass": _parameter("mass [kg], >= 0"),
                              "inertia": {"$ref": "#/$defs/inertia"}},
                             ("mass", "inertia")),
          "gravity": {"type": "array", "minItems": 2, "maxItems": 3, "items": {"$ref": "#/$defs/number"},
@@ -347,10 +350,10 @@ _DEFS = {
                               exclusiveMinimum=0),
          "q": _weight_matrix("Q of eq 38 instead of the rule: a number, 4 numbers (position, orientation, velocity, "
                              "angular velocity), 12 (the diagonal) or 12 rows of 12 (symmetric positive definite)"),
-         "torque_weight": _number("the weight rule: R = torque_weight B^T Q B, > 0, default 1", exclusiveMinimum=0),
+         "torque_weight": _number("the weight rule: R = torque_weight B^T Q B, > 0, default 1"),
          "r": _weight_matrix("R of eq 38 instead of the rule: a number, 6 (the diagonal) or 6 rows of 6 "
                              "(symmetric positive definite)"),
-         "forgetting": _number("forgetting factor mu of eq 37, 0 < mu <= 1, default 0.99", exclusiveMinimum=0),
+         "forgetting": _number("forgetting factor mu of eq 37, 0 < mu <= 1, default 0.99"),
          "directional": {"type": "boolean", "description": "forget along the regressor only (default true); false is "
                                                            "eq 37 as printed, P divided by mu"},
          "initial_covariance": {"type": ["number", "string", "object"],
@@ -376,10 +379,10 @@ _DEFS = {
          "resolved_adaptive": {"$ref": "#/$defs/resolved_adaptive"},
          "kp": {"$ref": "#/$defs/gain"},
          "kv": {"$ref": "#/$defs/gain"},
-         "kv_internal": _number("damping of internal motion rates, >= 0, default 0", minimum=0),
+         "kv_internal": _number("damping of internal motion rates, >= 0, default 0"),
          "kf_internal": _number("gain on the internal forces the robot senses (its rd force term): write "
                                 "f_d + kf_internal (f_d - f_sensed); the servo step then takes tau_sensed, "
-                                "0 <= kf_internal < 1, default none (open loop)", minimum=0),
+                                "0 <= kf_internal < 1, default none (open loop)"),
          "internal_forces": {"type": "array", "minItems": 1, "items": {"$ref": "#/$defs/number"},
                              "description": "resolve all of the robot's internal forces to these values"},
          "gains": {"enum": list(GAIN_MODES),

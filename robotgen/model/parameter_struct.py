@@ -6,12 +6,16 @@ import numpy as np
 
 from robotgen.model.formula import FormulaRobot
 from robotgen.model.laws import FEEDFORWARD, TREE_LAWS
-from robotgen.model.parameters import RuntimeParameter
+from robotgen.model.parameters import Bounds, RuntimeParameter
 from robotgen.model.signature import signature
 from robotgen.model.system import (
+    DAMPING,
     DIAGONAL_GAIN,
+    GAIN,
+    GAIN_MATRIX,
     MATRIX_GAIN,
     PAYLOAD_BODIES,
+    PAYLOAD_MASS,
     SCALAR_GAIN,
     ControlNode,
     DefineNode,
@@ -35,7 +39,7 @@ def runtime_parameters(system: RobotSystem) -> list[RuntimeParameter]:
                         for p in leaf.parameters if p in leaf.runtime]
             elif isinstance(leaf, PAYLOAD_BODIES) and "mass" in leaf.runtime:
                 out.append(RuntimeParameter(f"{node.name}_mass", (), (float(leaf.mass),),
-                                            f"mass of payload '{node.name}' [kg]"))
+                                            f"mass of payload '{node.name}' [kg]", PAYLOAD_MASS))
     return out
 
 
@@ -57,11 +61,14 @@ def _gains(system: RobotSystem, node: ControlNode) -> list[RuntimeParameter]:
                          MATRIX_GAIN: ((n, n), tuple(K.ravel()))}[form]
         out.append(RuntimeParameter(gain_parameter_name(node, key), shape, tuple(map(float, values)),
                                     f"{'position' if key == 'kp' else 'velocity'} gain {key} of controller "
-                                    f"'{node.name}' on {', '.join(robot.external)}"))
+                                    f"'{node.name}' on {', '.join(robot.external)}",
+                                    GAIN_MATRIX if form == MATRIX_GAIN else GAIN))
     if robot.n_velocity > n:  # internal motions below: their damping (eq 5.13)
         out.append(RuntimeParameter(gain_parameter_name(node, "kv_internal"), (), (float(node.kv_internal),),
-                                    f"damping kv_internal of controller '{node.name}' on internal motions"))
+                                    f"damping kv_internal of controller '{node.name}' on internal motions", DAMPING))
     if node.kf_internal is not None:  # the loop on sensed internal forces
         out.append(RuntimeParameter(gain_parameter_name(node, "kf_internal"), (), (float(node.kf_internal),),
-                                    f"gain kf_internal of controller '{node.name}' on the sensed internal forces"))
+                                    f"gain kf_internal of controller '{node.name}' on the sensed internal forces",
+                                    Bounds("gain kf_internal", minimum=0.0, maximum=1.0, exclusive_maximum=True,
+                                           note="sensed a period late, the loop's pole is at -kf_internal")))
     return out

@@ -17,6 +17,7 @@ from robotgen.model.formula import FormulaRobot
 from robotgen.model.laws import RESOLVED_RATE, ROOT_LAWS
 from robotgen.model.laws.hand import AdaptiveSettings, ResolvedAccelerationSettings
 from robotgen.model.laws.resolved_rate import CompositeRateSettings, RateControlSettings
+from robotgen.model.parameters import Bounds
 from robotgen.model.simulation import SimulationSettings
 
 
@@ -153,6 +154,12 @@ SCALAR_GAIN, DIAGONAL_GAIN, MATRIX_GAIN = "scalar", "diagonal", "matrix"
 # a control node's `gains`: read at run time (the default) or folded into the code
 RUNTIME_GAINS, FOLDED_GAINS = "runtime", "folded"
 GAIN_MODES = (RUNTIME_GAINS, FOLDED_GAINS)
+# The values a tree law's gains and a payload's mass may take: the spec's, and those given at
+# run time to the parameters they become (robotgen.model.parameters)
+GAIN = Bounds.positive("gain", "the gain matrix must be positive definite")  # a number or a diagonal
+GAIN_MATRIX = Bounds.definite("gain matrix")
+DAMPING = Bounds("damping kv_internal", minimum=0.0)  # of internal motions (eq 5.13)
+PAYLOAD_MASS = Bounds("mass", minimum=0.0)
 
 
 @dataclass(frozen=True, eq=False)

@@ -30,3 +30,17 @@ def test_the_controller_loops_build_and_track(tmp_path):
                              out), out
     bad = subprocess.run([str(tmp_path / "puma560_ct"), "--rate", "-1"], capture_output=True, text=True)
     assert bad.returncode == 2 and "must be positive" in bad.stderr
+    for exe in ("puma560_ct", "styx_ct"):
+        for flag in ("--help", "-h"):  # an answer, not 100000 cycles under SCHED_FIFO
+            helped = subprocess.run([str(tmp_path / exe), "--rate", "500", flag], capture_output=True, text=True,
+                                    timeout=5)
+            assert helped.returncode == 0 and helped.stdout.startswith("usage: ") and "--cycles N" in helped.stdout
+            assert "cycles at" not in helped.stdout
+    for args, says in ((["--bogus"], "unknown argument '--bogus'"), (["--rate"], "--rate needs a value"),
+                       (["--cycles", "100", "--rate"], "--rate needs a value"),
+                       (["--rate", "fast"], "--rate takes a number, got 'fast'"),
+                       (["--cycles", "1e3"], "--cycles takes an integer, got '1e3'"),
+                       (["--cycles", "0"], "must be positive"), (["--rate", "nan"], "must be positive"),
+                       (["100"], "unknown argument '100'")):
+        refused = subprocess.run([str(tmp_path / "puma560_ct"), *args], capture_output=True, text=True, timeout=5)
+        assert refused.returncode == 2 and says in refused.stderr and refused.stdout == "", (args, refused.stderr)

@@ -1,6 +1,7 @@
 """A user's first commands after a plain `pip install .` (no extras) into a fresh virtual
 environment: every CLI command the README shows works, simulate included (its plots need
-matplotlib, which is a dependency)."""
+matplotlib, which is a dependency), and the documentation pages error hints name are there
+(`robotgen docs`)."""
 from __future__ import annotations
 
 import subprocess
@@ -45,6 +46,9 @@ def test_plain_install_runs_every_readme_command(tmp_path):
     assert run("check", str(specs / "puma560.yaml")).returncode == 0
     assert "arm: define chain" in run("info", str(specs / "puma560.yaml")).stdout
     assert run("schema").stdout.startswith("{")
+    listed = run("docs").stdout  # the pages came along, installed in the environment, not read from the clone
+    assert listed.startswith(f"robotgen's documentation ({env_dir}") and "spec-format" in listed
+    assert run("docs", "spec-format").stdout == (ROOT / "docs" / "spec-format.md").read_text()
     built, simulated = finish(building), finish(simulating)
     assert built.returncode == 0, built.stderr
     assert (work / "generated" / "puma560" / "puma560.h").is_file()

@@ -365,9 +365,10 @@ def test_a_singular_hand_jacobian_is_status_2_not_huge_torques(rac):
     hand = Hand(rac.system.nodes[node.robot].leaf, node.hand.tool)
     assert hand.wrist_centre is not None
     J = ca.Function("J", [q := ca.SX.sym("q", 6)], [hand.jacobian(q)])
-    rest = (np.zeros(6), rac.module.fk(_wrist(0.5)), np.zeros(6), np.array([0.1, 0, 0, 0, 0, 0.1]))
     tripped = []
     for q5 in [0.0, *np.geomspace(1e-10, 1e-2, 41), -1e-9, 0.5]:
+        # the hand held where it is (a controller's first step refuses a pose_d far from it) and moved
+        rest = (np.zeros(6), rac.module.hand_pose(_wrist(q5)), np.zeros(6), np.array([0.1, 0, 0, 0, 0, 0.1]))
         ratio = min(hadamard_ratios(np.array(J(_wrist(q5)))))
         if abs(ratio / SINGULAR_DETERMINANT - 1) < 0.01:
             continue  # rounding decides at the threshold itself
@@ -483,6 +484,7 @@ def test_docs_info_and_manifest(rmac, rac):
     expected = {"class": "AdaptiveController", "c_type": "puma560_rmac_adaptive_controller", "step": "adaptive_step",
                 "init": "adaptive_init", "period": 0.001, "state_size": 698, "flags": ["adapt"],
                 "outputs": ["dx"], "reads_parameters": True,
+                "start_check": {"function": "hand_distance", "limits": [0.01, 0.05], "units": ["m", "rad"]},
                 "views": [{"name": "A", "offset": 0, "shape": [12, 12]}, {"name": "B", "offset": 144, "shape": [12, 6]},
                           {"name": "c", "offset": 216, "shape": [12]}, {"name": "P", "offset": 228, "shape": [19, 19]}]}
     (info,) = rmac.module.info()["controllers"]
@@ -494,7 +496,8 @@ def test_docs_info_and_manifest(rmac, rac):
     (info,) = rac.module.info()["controllers"]
     assert info == {"class": "ResolvedAccelerationController", "c_type": "puma560_rac_resolved_acceleration_controller",
                     "step": "resolved_acceleration_step", "init": None, "period": 0.001, "state_size": 0,
-                    "flags": [], "outputs": ["error"], "reads_parameters": True, "views": []}
+                    "flags": [], "outputs": ["error"], "reads_parameters": True, "views": [],
+                    "start_check": expected["start_check"]}
     assert "AdaptiveController" in rmac.module.__doc__ and "controllers" in rmac.module.info.__doc__
 
 

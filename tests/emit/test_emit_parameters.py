@@ -377,7 +377,7 @@ def test_parameters_attribute_info_and_manifest(built, module):
     module.parameters["gain"] = -1.0
     np.testing.assert_array_equal(module.servo(q, q)[0], before)
     assert "does not change the defaults" in module.__doc__
-    expected = [{"name": p.name, "shape": list(p.shape), "doc": p.doc,
+    expected = [{"name": p.name, "shape": list(p.shape), "doc": p.doc, "range": None,  # no bounds declared
                  "default": np.array(p.default).reshape(p.shape).tolist()} for p in PARAMETERS]
     assert module.info()["parameters"] == expected
     assert "parameters" in module.info.__doc__

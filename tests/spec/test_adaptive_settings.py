@@ -73,7 +73,9 @@ NOT_PD[0, 1] = NOT_PD[1, 0] = 2  # eigenvalues -1, 1, 1, 1, 1, 3
     ("        r: [1, 1, 1, 1, 1, -1]\n", "        r:", "weight -1 must be positive"),
     ("        q: 1e5\n        bandwidth: 10\n", "        bandwidth:", "give q or bandwidth, not both"),
     ("        bandwidth: 3000\n", "        bandwidth:", "bandwidth 3000 rad/s is at or past 2 / period (2000 rad/s)"),
-    ("        forgetting: 1.5\n", "        forgetting:", "forgetting factor 1.5 must be at most 1 (eq 37)"),
+    ("        forgetting: 1.5\n", "        forgetting:", "forgetting factor 1.5 must be in (0, 1] (eq 37)"),
+        ("        forgetting: 0\n", "        forgetting:", "forgetting factor 0 must be in (0, 1] (eq 37)"),
+        ("        torque_weight: -2\n", "        torque_weight:", "torque weight -2 must be positive"),
     ("        initial_covariance: {c: -1}\n", "        initial_covariance:", "is less than or equal to the minimum"),
     ("        affine: maybe\n", "        affine:", "affine"),
 ])

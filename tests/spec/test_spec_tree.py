@@ -358,12 +358,12 @@ TREE_ERRORS = [
       law: pd_feedforward
       kp: [[1, 0, 0], [0.5, 1, 0], [0, 0, 1]]
       kv: 1
-"""), 19, 7, "nodes.top.control.kp: gain matrix is not symmetric"),
+"""), 19, 16, "nodes.top.control.kp[0][1]: gain matrix must be symmetric: entry (0, 1) = 0 but (1, 0) = 0.5"),
     ("gain matrix not positive definite", control("""\
       law: pd_feedforward
       kp: [[1, 2, 0], [2, 1, 0], [0, 0, 1]]
       kv: 1
-"""), 19, 7, "nodes.top.control.kp: gain matrix is not positive definite (eigenvalues -1, 1, 3)"),
+"""), 19, 7, "nodes.top.control.kp: gain matrix must be positive definite: its smallest eigenvalue is -1"),
     ("gain matrix of the wrong size", control("""\
       law: pd_feedforward
       kp: [[1, 0], [0, 1]]

@@ -6,16 +6,24 @@ import dataclasses
 
 import numpy as np
 
+from robotgen.documentation import hint
 from robotgen.frontend.collector import Collector
 from robotgen.frontend.document import Path
 from robotgen.model.chain import KinematicTree
 from robotgen.model.laws import RESOLVED_ACCELERATION
 from robotgen.model.laws.hand import (
     COVARIANCE_BLOCKS,
+    FORGETTING,
+    GAIN,
     HAND_DOF,
+    Q_MATRIX,
+    R_MATRIX,
+    TORQUE_WEIGHT,
+    WEIGHT,
     AdaptiveSettings,
     ResolvedAccelerationSettings,
 )
+from robotgen.model.parameters import Bounds
 from robotgen.model.signature import Signature
 from robotgen.model.system import RUNTIME_GAINS, ControlNode, RobotSystem
 
@@ -64,8 +72,8 @@ class HandLawReader(Collector):
         runtime = settings.get("gains", RUNTIME_GAINS) == RUNTIME_GAINS
         if law == RESOLVED_ACCELERATION:
             hand = ResolvedAccelerationSettings(
-                period, tool, self.weights(where + ("kp",), settings.get("kp", DEFAULT_KP), HAND_DOF, "gain"),
-                self.weights(where + ("kv",), settings.get("kv", DEFAULT_KV), HAND_DOF, "gain"), runtime)
+                period, tool, self.weights(where + ("kp",), settings.get("kp", DEFAULT_KP), HAND_DOF, GAIN),
+                self.weights(where + ("kv",), settings.get("kv", DEFAULT_KV), HAND_DOF, GAIN), runtime)
         else:
             hand = self.adaptive_settings(where, settings, period, tool, runtime)
         n = robot.n_external
@@ -78,10 +86,10 @@ class HandLawReader(Collector):
         for given, rule in (("q", "bandwidth"), ("r", "torque_weight")):
             if given in settings and rule in settings:
                 self.at_key(where + (rule,), f"give {given} or {rule}, not both: {rule} sets {given.upper()} by the "
-                                             "weight rule (docs/spec-format.md)")
+                                             f"weight rule ({hint('spec-format', 'The weight rule')})")
         bandwidth = self.optional(settings, where, "bandwidth", DEFAULT_BANDWIDTH, minimum=0.0, exclusive=True)
         if "q" in settings:
-            q = self.weight_matrix(where + ("q",), settings["q"], 12, "Q", groups=4)
+            q = self.weight_matrix(where + ("q",), settings["q"], 12, Q_MATRIX, groups=4)
             bandwidth_used = None
         else:
             if bandwidth * period >= 2:
@@ -90,12 +98,9 @@ class HandLawReader(Collector):
                                                       "(2 - bandwidth T) / (2 + bandwidth T) would not be in (0, 1)")
             q = np.repeat([2 * bandwidth / period, 1.0], 6)
             bandwidth_used = bandwidth
-        torque_weight = self.optional(settings, where, "torque_weight", DEFAULT_TORQUE_WEIGHT, minimum=0.0,
-                                      exclusive=True)
-        r = self.weight_matrix(where + ("r",), settings["r"], HAND_DOF, "R") if "r" in settings else None
-        forgetting = self.optional(settings, where, "forgetting", DEFAULT_FORGETTING, minimum=0.0, exclusive=True)
-        if forgetting > 1:
-            self.at_value(where + ("forgetting",), f"forgetting factor {forgetting:g} must be at most 1 (eq 37)")
+        torque_weight = self.setting(settings, where, "torque_weight", DEFAULT_TORQUE_WEIGHT, TORQUE_WEIGHT)
+        r = self.weight_matrix(where + ("r",), settings["r"], HAND_DOF, R_MATRIX) if "r" in settings else None
+        forgetting = self.setting(settings, where, "forgetting", DEFAULT_FORGETTING, FORGETTING)
         p0 = self.initial_covariance(where + ("initial_covariance",), settings.get("initial_covariance"))
         affine = bool(settings.get("affine", True))  # the schema: booleans
         directional = bool(settings.get("directional", True))
@@ -109,6 +114,11 @@ class HandLawReader(Collector):
         return AdaptiveSettings(period, tool, q, r, torque_weight, bandwidth_used, forgetting, p0, limit,
                                 int(iterations), affine, directional, runtime)
 
+    def setting(self, settings: dict, where: Path, key: str, default: float, bounds: Bounds) -> float:
+        """A number of the law's settings, within the bounds of the run-time parameter it
+        becomes (robotgen.model.laws.hand), or its default."""
+        return self.bounded(where + (key,), settings[key], bounds) if key in settings else default
+
     def initial_covariance(self, path: Path, value: object) -> tuple[float, float, float]:
         """P_0's blocks on A's, B's and c's regressors: one positive number for all, or a
         mapping with any of A, B, c (the others keep their defaults)."""
@@ -120,46 +130,31 @@ class HandLawReader(Collector):
         return tuple(self.constant(path + (k,), value[k], minimum=0.0, exclusive=True) if k in value
                      else DEFAULT_INITIAL_COVARIANCE[k] for k in COVARIANCE_BLOCKS)
 
-    def weight_matrix(self, path: Path, value: object, n: int, name: str, groups: int | None = None) -> np.ndarray:
+    def weight_matrix(self, path: Path, value: object, n: int, bounds: Bounds, groups: int | None = None
+                      ) -> np.ndarray:
         """A weight of eq 38: a number (n equal diagonal entries), ``groups`` numbers (each
         repeated n / groups times), n numbers (the diagonal), or an n x n symmetric positive
-        definite matrix (rows as lists). A diagonal is returned as (n,), a matrix as (n, n)."""
+        definite matrix (rows as lists; ``bounds`` names it). A diagonal is returned as (n,), a
+        matrix as (n, n)."""
         if isinstance(value, list) and value and all(isinstance(row, list) for row in value):
             if len(value) != n or any(len(row) != n for row in value):
-                self.at_key(path, f"{name} as a matrix must be {n} x {n}, got {len(value)} rows of "
+                self.at_key(path, f"{bounds.what} as a matrix must be {n} x {n}, got {len(value)} rows of "
                                   f"{sorted({len(row) for row in value})} entries")
                 return np.ones(n)
             M = np.array([[self.constant(path + (i, j), v) for j, v in enumerate(row)]
                           for i, row in enumerate(value)])
-            if not np.array_equal(M, M.T):
-                i, j = np.argwhere(M != M.T)[0]
-                self.at_value(path + (int(i), int(j)), f"{name} must be symmetric: entry ({i}, {j}) = {M[i, j]:g} "
-                                                       f"but ({j}, {i}) = {M[j, i]:g}")
-                return np.ones(n)
-            smallest = float(np.linalg.eigvalsh(M)[0])
-            if not smallest > 0:
-                self.at_key(path, f"{name} must be positive definite (eq 38): its smallest eigenvalue is "
-                                  f"{smallest:.3g}")
-                return np.ones(n)
-            return M
+            return M if self.within(path, M, bounds, lambda index: index or None) else np.ones(n)
         if isinstance(value, list) and groups and len(value) == groups:
-            return np.repeat(self.weights(path, value, groups, "weight"), n // groups)
+            return np.repeat(self.weights(path, value, groups, WEIGHT), n // groups)
         counts = f"{groups} ({', '.join(('position', 'orientation', 'velocity', 'angular velocity'))}), " \
             f"{n} (the diagonal) or {n} rows of {n}" if groups else f"{n} (the diagonal) or {n} rows of {n}"
-        return self.weights(path, value, n, "weight", counts=counts)
+        return self.weights(path, value, n, WEIGHT, counts=counts)
 
-    def weights(self, path: Path, value: object, n: int, kind: str, *, counts: str | None = None) -> np.ndarray:
-        """A positive number (the same on every axis) or a list of n positive numbers."""
+    def weights(self, path: Path, value: object, n: int, bounds: Bounds, *, counts: str | None = None) -> np.ndarray:
+        """A number within ``bounds`` (the same on every axis) or a list of n such numbers."""
         if not isinstance(value, list):
-            v = self.constant(path, value)
-            if v <= 0:
-                self.at_value(path, f"{kind} {v:g} must be positive")
-            return np.full(n, v)
+            return np.full(n, self.bounded(path, value, bounds))
         if len(value) != n:
             self.at_key(path, f"expected a number or {counts or n} entries, got {len(value)}")
             return np.ones(n)
-        values = np.array([self.constant(path + (i,), v) for i, v in enumerate(value)])
-        for i, v in enumerate(values):
-            if v <= 0:
-                self.at_value(path + (i,), f"{kind} {v:g} must be positive")
-        return values
+        return np.array([self.bounded(path + (i,), v, bounds) for i, v in enumerate(value)])

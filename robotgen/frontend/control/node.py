@@ -12,7 +12,10 @@ from robotgen.frontend.document import Path
 from robotgen.model.laws import FEEDFORWARD, HAND_LAWS, PD, RESOLVED_RATE
 from robotgen.model.signature import Signature
 from robotgen.model.system import (
+    DAMPING,
     DIAGONAL_GAIN,
+    GAIN,
+    GAIN_MATRIX,
     MATRIX_GAIN,
     PAYLOAD_BODIES,
     RUNTIME_GAINS,
@@ -30,7 +33,8 @@ class ControlReader(Collector):
         forces = spec.get("internal_forces")
         return ControlNode(
             name=name, robot=spec["robot"], law=spec["law"], kp=None, kv=None,
-            kv_internal=self.optional(spec, path, "kv_internal", 0.0, minimum=0.0),
+            kv_internal=self.bounded(path + ("kv_internal",), spec["kv_internal"], DAMPING)
+            if "kv_internal" in spec else 0.0,
             internal_forces=None if forces is None else
             np.array([self.constant(path + ("internal_forces", i), f) for i, f in enumerate(forces)]),
             kf_internal=self.optional(spec, path, "kf_internal", None, minimum=0.0),
@@ -104,18 +108,11 @@ class ControlReader(Collector):
         n = robot.n_external
         axes = f"'{name}' has {n} external coordinate{'' if n == 1 else 's'}: {', '.join(robot.external)}"
         if not isinstance(value, list):
-            s = self.constant(path, value)
-            if s <= 0:
-                self.at_value(path, f"gain {s:g} must be positive (the gain matrix must be positive definite)")
-            return s * np.eye(n)
+            return self.bounded(path, value, GAIN) * np.eye(n)
         if all(not isinstance(v, list) for v in value):
             if len(value) != n:
                 self.at_key(path, f"expected {n} entries ({axes}), got {len(value)}")
-            diagonal = [self.constant(path + (i,), v) for i, v in enumerate(value)]
-            for i, d in enumerate(diagonal):
-                if d <= 0:
-                    self.at_value(path + (i,), f"gain {d:g} must be positive (the gain matrix must be "
-                                               "positive definite)")
+            diagonal = [self.bounded(path + (i,), v, GAIN) for i, v in enumerate(value)]
             return np.diag(diagonal) if len(diagonal) == n else np.zeros((n, n))
         if not all(isinstance(v, list) for v in value):
             self.at_value(path, "mixes numbers and rows: give a number, a list of numbers or a matrix")
@@ -126,12 +123,7 @@ class ControlReader(Collector):
             return np.zeros((n, n))
         matrix = np.array([[self.constant(path + (i, k), v) for k, v in enumerate(row)]
                            for i, row in enumerate(value)])
-        scale = max(1.0, float(np.abs(matrix).max()))
-        if not np.allclose(matrix, matrix.T, rtol=0, atol=1e-12 * scale):
-            self.at_key(path, "gain matrix is not symmetric")
-        elif np.linalg.eigvalsh(matrix)[0] <= 1e-12 * scale:
-            shown = ", ".join(f"{e:.6g}" for e in np.linalg.eigvalsh(matrix))
-            self.at_key(path, f"gain matrix is not positive definite (eigenvalues {shown})")
+        self.within(path, matrix, GAIN_MATRIX, lambda index: index or None)
         return matrix
 
 

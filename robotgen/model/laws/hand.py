@@ -10,11 +10,19 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from robotgen.model.parameters import RuntimeParameter
+from robotgen.model.parameters import Bounds, RuntimeParameter
 
 HAND_DOF = 6  # the laws resolve hand motion through a square Jacobian
 HAND_AXES = ("x", "y", "z", "roll", "pitch", "yaw")
 STATE_NAMES = ("px", "py", "pz", "roll", "pitch", "yaw", "vx", "vy", "vz", "wx", "wy", "wz")  # eq 20
+
+# The values the laws' settings may take: the spec's (robotgen.frontend.control.hand) and, for
+# those read at run time, a value given to the emitted module (robotgen.model.parameters).
+GAIN = Bounds.positive("gain")  # Kp, Kv per hand axis
+WEIGHT = Bounds.positive("weight")  # an entry of Q's or R's diagonal (eq 38)
+Q_MATRIX, R_MATRIX = Bounds.definite("Q", "eq 38"), Bounds.definite("R", "eq 38")
+TORQUE_WEIGHT = Bounds.positive("torque weight")  # kappa of the rule R = kappa B0^T Q B0
+FORGETTING = Bounds("forgetting factor", minimum=0.0, exclusive=True, maximum=1.0, note="eq 37")
 
 
 @dataclass(frozen=True, eq=False)
@@ -34,9 +42,18 @@ class ResolvedAccelerationSettings:
             return []
         axes = ", ".join(HAND_AXES)
         return [RuntimeParameter(f"{node}_kp", (HAND_DOF,), tuple(map(float, self.kp)),
-                                 f"hand position gains Kp of '{node}' on {axes}"),
+                                 f"hand position gains Kp of '{node}' on {axes}", GAIN),
                 RuntimeParameter(f"{node}_kv", (HAND_DOF,), tuple(map(float, self.kv)),
-                                 f"hand velocity gains Kv of '{node}' on {axes}")]
+                                 f"hand velocity gains Kv of '{node}' on {axes}", GAIN)]
+
+
+# The first step after a controller's reset refuses a desired hand pose farther than this from
+# the hand (robotgen.symbolic.control.hand.start_check): a path started in the wrong frame or
+# at the wrong place. The adaptive law closes a start error within a few periods, so its first
+# torques grow with it: on the PUMA at its start pose (specs/puma560_rmac.yaml) about 76 N m per
+# mm and 31 N m per mrad (1566 N m for 2 cm). Start the path at the hand: hand_pose(q).
+START_DISTANCE = 0.01  # m, between the origins
+START_ANGLE = 0.05  # rad, the rotation between the orientations
 
 
 # Lee and Lee's regressor phi = (dx, du, 1): the blocks of the RLS covariance P_0 (eq 37)
@@ -96,14 +113,16 @@ class AdaptiveSettings:
             return []
         out = [RuntimeParameter(f"{node}_q", self.q.shape, tuple(map(float, self.q.ravel())),
                                 f"state weights Q (eq 38) of '{node}' on {', '.join(STATE_NAMES)}"
-                                + (" (its diagonal)" if self.q.ndim == 1 else " (row-major, symmetric)"))]
+                                + (" (its diagonal)" if self.q.ndim == 1 else " (row-major, symmetric)"),
+                                WEIGHT if self.q.ndim == 1 else Q_MATRIX)]
         if self.r is None:
             out.append(RuntimeParameter(f"{node}_torque_weight", (), (float(self.torque_weight),),
-                                        f"R = torque_weight B0^T Q B0 (eq 38) of '{node}', > 0"))
+                                        f"R = torque_weight B0^T Q B0 (eq 38) of '{node}', > 0", TORQUE_WEIGHT))
         else:
             out.append(RuntimeParameter(f"{node}_r", self.r.shape, tuple(map(float, self.r.ravel())),
                                         f"torque weights R (eq 38) of '{node}'"
-                                        + (" (its diagonal)" if self.r.ndim == 1 else " (row-major, symmetric)")))
+                                        + (" (its diagonal)" if self.r.ndim == 1 else " (row-major, symmetric)"),
+                                        WEIGHT if self.r.ndim == 1 else R_MATRIX))
         out.append(RuntimeParameter(f"{node}_forgetting", (), (float(self.forgetting),),
-                                    f"forgetting factor mu (eq 37) of '{node}', 0 < mu <= 1"))
+                                    f"forgetting factor mu (eq 37) of '{node}', 0 < mu <= 1", FORGETTING))
         return out

@@ -17,8 +17,11 @@ import casadi as ca
 import numpy as np
 
 from robotgen.model.chain import KinematicTree
+from robotgen.model.laws.hand import START_ANGLE, START_DISTANCE
 from robotgen.numeric import exact
+from robotgen.symbolic.control.law import StartCheck
 from robotgen.symbolic.control.resolved_rate.resolution import DampedResolver
+from robotgen.symbolic.kernel import Kernel, make_kernel
 from robotgen.symbolic.rigid_body.chain import ChainGraphs, Symbols
 from robotgen.symbolic.rigid_body.cholesky import cholesky_solve_matrix
 from robotgen.symbolic.rigid_body.inverse_jacobian import WristCentreJacobian
@@ -55,6 +58,13 @@ def orientation_error(R_d: ca.SX, R: ca.SX) -> ca.SX:
     R_d R^T, sin(angle) times the axis that turns R into R_d (base coordinates)."""
     E = R_d @ R.T
     return 0.5 * ca.vertcat(E[2, 1] - E[1, 2], E[0, 2] - E[2, 0], E[1, 0] - E[0, 1])
+
+
+def rotation_angle(R_d: ca.SX, R: ca.SX) -> ca.SX:
+    """The angle in [0, pi] of the rotation R_d R^T, from its sine (the norm of the vector part
+    of orientation_error) and its cosine ((trace - 1) / 2): accurate near 0 and near pi."""
+    E = R_d @ R.T
+    return ca.atan2(ca.norm_2(orientation_error(R_d, R)), 0.5 * (E[0, 0] + E[1, 1] + E[2, 2] - 1))
 
 
 def wrap(angle: ca.SX) -> ca.SX:
@@ -183,6 +193,33 @@ class Hand:
         left = (A1 - right @ W) @ Jinv @ ca.diagcat(ca.SX.eye(3), E)
         top = ca.blockcat([[ca.SX(3, 6), ca.SX.eye(3), ca.SX(3, 3)], [ca.SX(3, 3), D, ca.SX(3, 3), Einv]])
         return ca.vertcat(top, ca.horzcat(left, right)), L
+
+
+HAND_POSE, HAND_DISTANCE = "hand_pose", "hand_distance"
+
+
+def hand_kernels(hand: Hand) -> list[Kernel]:
+    """hand_pose(q): the 4x4 pose of the frame the laws control (tip times tool), what a desired
+    path starts from; hand_distance(q, pose_d): how far pose_d is from it, the distance between
+    the origins [m] and the angle of the rotation between them [rad]."""
+    q, pose_d = ca.SX.sym("q", N), ca.SX.sym("pose_d", 16)
+    R, p = hand.pose(q)
+    R_d, p_d = pose_rows(pose_d)
+    pose = ca.vertcat(ca.horzcat(R, p), ca.SX(ca.DM([[0, 0, 0, 1]])))
+    return [
+        make_kernel(HAND_POSE, "The hand frame the law controls (the chain's tip frame times the law's tool) in "
+                    "the base frame, 4x4: a desired path starts here.", [("q", q)], [("pose", pose, (4, 4))]),
+        make_kernel(HAND_DISTANCE, "How far the desired hand pose (4x4, base frame) is from the hand: the "
+                    "distance between their origins [m] and the angle of the rotation between them [rad].",
+                    [("q", q), ("pose_d", pose_d, (4, 4))],
+                    [("distance", ca.vertcat(ca.norm_2(p_d - p), rotation_angle(R_d, R)), (2, 1))], guarded=True)]
+
+
+def start_check() -> StartCheck:
+    """The first step after a reset refuses a pose_d more than START_DISTANCE or START_ANGLE
+    from the hand (docs/python-api.md, "Controller classes")."""
+    return StartCheck(HAND_DISTANCE, (START_DISTANCE, START_ANGLE), ("m", "rad"),
+                      "start the desired path at hand_pose(q), where the hand is, and move it from there")
 
 
 def discretise(F: ca.SX, L: ca.SX, T: float, terms: int = 4) -> tuple[ca.SX, ca.SX]:

@@ -92,6 +92,19 @@ class StateView:
 
 
 @dataclass(frozen=True)
+class StartCheck:
+    """What the first step after a reset refuses: ``kernel`` (inputs q and pose_d, one output)
+    gives one distance per entry of ``limits`` (in ``units``); when one is above its limit (or
+    NaN) the step returns status 3 having written nothing, and the controller stays reset.
+    ``hint`` says what to do instead, in the Python message."""
+
+    kernel: str
+    limits: tuple[float, ...]
+    units: tuple[str, ...]
+    hint: str
+
+
+@dataclass(frozen=True)
 class Controller:
     """A controller object around one step kernel: a Python class in the module and a state
     struct with step/reset functions in C.
@@ -109,6 +122,7 @@ class Controller:
     init: str | None = None
     flags: tuple[str, ...] = ()  # boolean attributes, True after construction
     views: tuple[StateView, ...] = ()
+    start: StartCheck | None = None  # checked on the first step after a reset
 
 
 @dataclass(frozen=True)

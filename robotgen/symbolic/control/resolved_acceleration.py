@@ -15,7 +15,7 @@ import casadi as ca
 from robotgen.model.laws import RESOLVED_ACCELERATION
 from robotgen.model.parameter_struct import runtime_parameters
 from robotgen.model.system import RobotSystem
-from robotgen.symbolic.control.hand import Hand, orientation_error, pose_rows
+from robotgen.symbolic.control.hand import Hand, hand_kernels, orientation_error, pose_rows, start_check
 from robotgen.symbolic.control.law import Controller, RootLaw
 from robotgen.symbolic.kernel import Kernel, ParameterSymbols, make_kernel
 from robotgen.symbolic.leaf_kernels import leaf_kernels
@@ -52,7 +52,7 @@ def kernels(system: RobotSystem) -> list[Kernel]:
         "hand error e (position, then the orientation error's vector part).",
         [("q", q), ("qd", qd), ("pose_d", pose_d, (4, 4)), ("twist_d", twist_d), ("accel_d", accel_d)],
         [("tau", tau, (6, 1)), ("error", e, (6, 1))], parameters, guarded=True)
-    return leaf_kernels(tree, derivatives=system.derivatives.when_asked()) + [step]
+    return leaf_kernels(tree, derivatives=system.derivatives.when_asked()) + hand_kernels(hand) + [step]
 
 
 def report(system: RobotSystem) -> tuple[dict, dict]:
@@ -65,7 +65,7 @@ def report(system: RobotSystem) -> tuple[dict, dict]:
 
 
 def controller(system: RobotSystem) -> Controller:
-    return Controller("ResolvedAccelerationController", STEP, system.root_node.hand.period)
+    return Controller("ResolvedAccelerationController", STEP, system.root_node.hand.period, start=start_check())
 
 
 LAW = RootLaw(RESOLVED_ACCELERATION, kernels, report, controller)

@@ -45,7 +45,7 @@ from robotgen.model.laws.hand import AdaptiveSettings
 from robotgen.model.parameter_struct import runtime_parameters
 from robotgen.model.simulation import rest_posture
 from robotgen.model.system import RobotSystem
-from robotgen.symbolic.control.hand import Hand, discretise, pose_rows, wrap
+from robotgen.symbolic.control.hand import Hand, discretise, hand_kernels, pose_rows, start_check, wrap
 from robotgen.symbolic.control.law import Controller, RootLaw, StateView
 from robotgen.symbolic.kernel import Kernel, ParameterSymbols, make_kernel
 from robotgen.symbolic.leaf_kernels import leaf_kernels
@@ -256,7 +256,7 @@ def kernels(system: RobotSystem) -> list[Kernel]:
         "(inverse kinematics from the measured q) and the perturbation model linearised there (eqs 24-28) "
         "and discretised at T (eqs 29-32); c = 0 and P = P_0.",
         j.ports(), [("state", initial_state(hand, s, j), (StateLayout.of(s).size, 1))], parameters, guarded=True)
-    return leaf_kernels(tree, derivatives=system.derivatives.when_asked()) + [step, init]
+    return leaf_kernels(tree, derivatives=system.derivatives.when_asked()) + hand_kernels(hand) + [step, init]
 
 
 def _error(x: ca.SX, i: Inputs) -> ca.SX:
@@ -417,7 +417,7 @@ def controller(system: RobotSystem) -> Controller:
     docs = {"A": "the identified A of dx(k+1) = A dx(k) + B du(k) + c (eq 29)", "B": "the identified B (eq 29)",
             "c": "the identified constant term c (the offset a payload makes)", "P": "the RLS covariance P (eq 37)"}
     views = tuple(StateView(name, *layout.offsets[name], doc) for name, doc in docs.items() if name in layout.offsets)
-    return Controller("AdaptiveController", STEP, s.period, layout.size, INIT, ("adapt",), views)
+    return Controller("AdaptiveController", STEP, s.period, layout.size, INIT, ("adapt",), views, start_check())
 
 
 LAW = RootLaw(RESOLVED_ADAPTIVE, kernels, report, controller)

@@ -1,0 +1,45 @@
+"""`make test-quick`, the README's first check: a sample of the suite named by paths in the
+Makefile. Every path must exist and be collected (a renamed test file would silently shrink
+the sample), and the sample must reach every layer."""
+from __future__ import annotations
+
+import os
+import re
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def quick_tests() -> list[str]:
+    text = (ROOT / "Makefile").read_text().replace("\\\n", " ")
+    return re.search(r"^QUICK_TESTS \?= (.*)$", text, re.M).group(1).split()
+
+
+def test_the_quick_sample_exists_and_spans_the_layers():
+    paths = quick_tests()
+    assert all((ROOT / p).exists() for p in paths), [p for p in paths if not (ROOT / p).exists()]
+    layers = {p.split("/")[1] for p in paths}
+    assert {"spec", "dynamics", "emit", "control", "cli"} <= layers
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")]))
+    collected = subprocess.run([sys.executable, "-m", "pytest", "--collect-only", "-q", "-p", "no:cacheprovider",
+                                *paths], capture_output=True, text=True, cwd=ROOT, env=env)
+    assert collected.returncode == 0, collected.stdout[-2000:] + collected.stderr
+    count = int(re.search(r"(\d+)(?:/\d+)? tests? (?:collected|selected)", collected.stdout).group(1))
+    total = subprocess.run([sys.executable, "-m", "pytest", "--collect-only", "-q", "-p", "no:cacheprovider"],
+                           capture_output=True, text=True, cwd=ROOT, env=env)
+    everything = int(re.search(r"(\d+)(?:/\d+)? tests? (?:collected|selected)", total.stdout).group(1))
+    assert 300 <= count < everything, (count, everything)
+
+
+@pytest.mark.skipif(shutil.which("make") is None, reason="needs make")
+def test_make_test_quick_runs_lint_then_the_sample():
+    plan = subprocess.run(["make", "-n", "test-quick", "PYTHON=python"], capture_output=True, text=True, cwd=ROOT)
+    assert plan.returncode == 0, plan.stderr
+    lines = plan.stdout.splitlines()
+    assert lines[0] == "python -m ruff check ."
+    assert lines[1].split() == ["python", "-m", "pytest", "-q", *quick_tests()]
