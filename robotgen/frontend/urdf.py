@@ -43,6 +43,7 @@ from pathlib import Path
 import numpy as np
 
 from robotgen.errors import Location, UserError
+from robotgen.frontend.input_file import read_input
 from robotgen.model.chain import PRISMATIC, REVOLUTE, Body, Joint, KinematicTree, Limits, joints_without_inertia
 from robotgen.model.expression import MAX_MAGNITUDE
 from robotgen.model.names import MAX_LENGTH, name_problem
@@ -104,6 +105,11 @@ def _parse_xml(path: str, data: bytes) -> Element:
     except xml.parsers.expat.ExpatError as e:
         raise UserError(Location(path, e.lineno, e.offset + 1),
                         f"not well-formed XML: {xml.parsers.expat.ErrorString(e.code)}") from None
+    except LookupError as e:  # the XML declaration names an encoding Python does not know
+        first = data.split(b"\n", 1)[0]
+        col = first.find(b"encoding") + 1 if b"encoding" in first else 1
+        raise UserError(Location(path, 1, col), f"the XML declaration names an encoding Python does not know ({e}); "
+                                                "save the URDF as UTF-8") from None
     if not root or root[0].tag != "robot":
         raise UserError(Location(path, 1, 1), "a URDF file must have a <robot> root element")
     return root[0]
@@ -340,14 +346,7 @@ def _read_links_and_joints(path: str, floating_ok: bool):
     floating joints, unknown elements directly under <robot>). A floating joint is an error
     unless ``floating_ok`` (then it is returned, for the caller to accept only above its
     base)."""
-    try:
-        size = Path(path).stat().st_size
-        if size > MAX_BYTES:
-            raise UserError(Location(path, 1, 1), f"URDF file is {size} bytes; robotgen reads at most {MAX_BYTES}")
-        data = Path(path).read_bytes()
-    except OSError as e:
-        raise UserError(Location(path, 1, 1), f"cannot read URDF file: {e.strerror}") from None
-    root = _parse_xml(path, data)
+    root = _parse_xml(path, read_input(path, MAX_BYTES, "URDF file"))
     r = _Reader(path, root)
     foreign = r.check_robot()
     links = {}

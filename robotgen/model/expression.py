@@ -252,7 +252,12 @@ def parse_expression(text: str | int | float, location: Location, names: set[str
     if isinstance(text, bool) or not isinstance(text, (str, int, float)):
         raise UserError(location, f"expected a number or an expression, got {text!r}")
     if not isinstance(text, str):
-        if not math.isfinite(text):
+        try:
+            finite = math.isfinite(text)
+        except OverflowError:  # an integer past the largest double (YAML reads up to 4300 digits)
+            raise UserError(location, f"the integer (about 10^{int(math.log10(abs(text)))}) is out of range (a "
+                                      "double reaches 1.8e308)") from None
+        if not finite:
             raise UserError(location, f"number {text!r} is not finite")
         return Expr(repr(text), ast.Constant(value=text, lineno=1, col_offset=0), location)
     prepared, origin = _prepare(text)
