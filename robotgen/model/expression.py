@@ -24,8 +24,8 @@ FUNCTIONS: dict[str, int] = {
 }
 CONSTANTS: dict[str, float] = {"pi": math.pi, "e": math.e}
 # The largest magnitude of a numeric field: far beyond any robot's lengths, masses, angles or
-# gains in SI units, and small enough that build-time arithmetic (angle reduction to 40
-# digits, products of inertias) stays exact.
+# gains in SI units, and small enough that build-time arithmetic (products of inertias) stays
+# exact.
 MAX_MAGNITUDE = 1e15
 
 _BINARY = (ast.Add, ast.Sub, ast.Mult, ast.Div, ast.Pow)
@@ -268,6 +268,9 @@ def parse_expression(text: str | int | float, location: Location, names: set[str
         index = next(i for i, c in enumerate(prepared) if not c.isascii())
         raise UserError(checker.at(index), f"character {prepared[index]!r} (U+{ord(prepared[index]):04X}) "
                                            "is not allowed in an expression: names and numbers are ASCII")
+    if "#" in prepared:  # Python's parser would drop the rest as a comment: "1 # + q^2" would read as 1
+        raise UserError(checker.at(prepared.index("#")), "'#' is not allowed in an expression (Python would drop "
+                                                         "the text after it as a comment)")
     try:
         tree = ast.parse(prepared, mode="eval")
     except SyntaxError as error:
