@@ -97,6 +97,7 @@ class FunctionView:
     sin_cos_ops: int
     reads_parameters: bool  # the kernel has the PARAMS port: every parameter is a keyword
     guarded: bool = False  # the C checks inputs and results (Kernel.guarded)
+    takes_step: bool = False  # it has a step dt and returns 3 for dt <= 0 (c_kernel.STEP_PORT)
     part: int = 0  # which of the module's compile parts holds it (COMPILE_PARTS)
     helpers: tuple[str, ...] = ()  # the stage helpers it calls (HelperView.c_name)
 
@@ -423,6 +424,7 @@ def _function_view(prefix: str, kernel: Kernel, precision: c_kernel.Precision,
         inputs=inputs, outputs=outputs, py_doc=c_string(_py_doc(kernel, inputs, outputs, keywords)),
         stub_doc=py_string(_summary(kernel.doc, kernel.name)),
         arithmetic_ops=arithmetic, sin_cos_ops=sin_cos, reads_parameters=reads_parameters, guarded=kernel.guarded,
+        takes_step=any(p.name == c_kernel.STEP_PORT and p.size == 1 for p in kernel.inputs),
         helpers=tuple(dict.fromkeys(helper_names[stage] for stage in kernel.schedule.stages))
         if kernel.schedule is not None and helper_names else ())
 
