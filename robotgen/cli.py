@@ -14,6 +14,7 @@ from dataclasses import replace
 from pathlib import Path
 
 import robotgen
+from robotgen import interrupts
 from robotgen.emit.compile import CompilerSetupError
 from robotgen.emit.targets import TARGETS, TargetUnavailable, check_available
 from robotgen.errors import MissingDependency, UserError, UserErrors
@@ -28,12 +29,7 @@ EXIT_OK, EXIT_USER, EXIT_USAGE, EXIT_BUG = 0, 1, 2, 3
 EXIT_INTERRUPTED, EXIT_TERMINATED = 130, 143  # 128 + SIGINT, 128 + SIGTERM, as a shell reports them
 
 
-class _Terminated(BaseException):
-    """SIGTERM, raised where the process is, so that a build cleans up as it does on Ctrl-C."""
-
-
-def _on_sigterm(signum, frame) -> None:
-    raise _Terminated
+_Terminated = interrupts.Terminated
 
 
 def _unraisable(hook) -> None:
@@ -50,8 +46,6 @@ def _unraisable(hook) -> None:
         resend = threading.Timer(0.01, os.kill, (os.getpid(), signum))
         resend.daemon = True
         resend.start()
-
-
 
 
 def _load(args: argparse.Namespace):
@@ -150,7 +144,9 @@ def _cmd_build(args: argparse.Namespace) -> int:
 
     progress.stage(f"building the CasADi graphs of {system.name} ({len(system.nodes)} node(s))")
     kernels = kernels_for(system)
+    interrupts.check()  # a Ctrl-C that CasADi swallowed ends the build here
     extra_info, attributes = module_extras(system)
+    interrupts.check()
     progress.stage(f"printing {len(kernels)} C functions")
     try:
         emit(out, system.name, kernels, nq=system_nq(system), precision=args.precision,
@@ -377,7 +373,14 @@ def main(argv: list[str] | None = None) -> int:
     except SystemExit as e:  # argparse: usage error (2) or --help (0)
         return int(e.code or 0)
     try:
-        return args.run(args)
+        with interrupts.noting():
+            try:
+                status = args.run(args)
+            except Exception:
+                interrupts.check()  # a signal swallowed on the way (and the error it left) ends the command
+                raise
+            interrupts.check()
+        return status
     except UserErrors as e:
         for err in e.errors:
             print(err, file=sys.stderr)
@@ -410,9 +413,10 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def answer_signals() -> None:
-    """SIGTERM raised as _Terminated (SIGINT is Python's KeyboardInterrupt), and either one
-    sent again when it lands where it cannot be raised (_unraisable)."""
-    signal.signal(signal.SIGTERM, _on_sigterm)
+    """SIGTERM raised as _Terminated and SIGINT as KeyboardInterrupt, each noted so that one
+    swallowed on the way is raised again (robotgen.interrupts), and either one sent again when
+    it lands where it cannot be raised (_unraisable)."""
+    interrupts.answer_both()
     sys.unraisablehook = _unraisable
 
 

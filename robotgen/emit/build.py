@@ -10,6 +10,7 @@ import threading
 from contextlib import contextmanager
 from pathlib import Path
 
+from robotgen import interrupts
 from robotgen.emit import compile as compiler
 from robotgen.emit.cache import BUILD_KEY
 from robotgen.emit.context import module_view
@@ -65,6 +66,7 @@ def emit(out_dir: Path, name: str, kernels: list[Kernel], *, nq: int,
         if compile:
             progress.stage(f"compiling the extension ({' '.join(compiler.compiler())})")
             compiler.compile_extension(staging, name, [f"{name}_module.c", f"{name}.c"], parts=view.parts)
+        interrupts.check()  # a signal whose exception was swallowed (CasADi) never lets a build replace its output
         _swap_in(staging, out_dir)
     except BaseException:
         _remove(staging)
