@@ -17,11 +17,12 @@ import robotgen
 from robotgen import interrupts
 from robotgen.emit.compile import CompilerSetupError
 from robotgen.emit.targets import TARGETS, TargetUnavailable, check_available
-from robotgen.errors import MissingDependency, UserError, UserErrors
+from robotgen.errors import MissingDependency, OutputError, UserError, UserErrors
 from robotgen.model.derivatives import INTEGRATORS, SEMI_IMPLICIT_EULER, DerivativeSettings
 from robotgen.model.describe import system_info, system_nq
 from robotgen.model.laws import HAND_LAWS, RESOLVED_ADAPTIVE
 from robotgen.model.names import MAX_LENGTH, PATTERN, name_problem
+from robotgen.output_files import output_errors, write_problem
 from robotgen.progress import Progress
 from robotgen.progress import for_terminal as progress_for_terminal
 
@@ -130,16 +131,17 @@ def _cmd_build(args: argparse.Namespace) -> int:
                "tip": args.tip, "base": args.base, "tree": getattr(args, "tree", False),
                "source_sha256": system.source_sha256,  # an MJCF file's: its includes and meshes too
                **({"targets": list(targets)} if targets else {})}
-    key = cache.build_key([Path(system.source), *map(Path, system.dependencies)], options)
-    if cache.is_current(out, key, not args.no_compile, system.name):
-        print(f"robotgen: {out} is up to date")
-        return EXIT_OK
+    inputs = (Path(system.source), *map(Path, system.dependencies))
+    key = cache.build_key(list(inputs), options)
     from robotgen.emit.build import emit, replace_problem
 
-    problem = replace_problem(out)  # before the graphs are built: say it at once
+    with output_errors(out):
+        if cache.is_current(out, key, not args.no_compile, system.name):
+            print(f"robotgen: {out} is up to date")
+            return EXIT_OK
+        problem = replace_problem(out, inputs)  # before the graphs are built: say it at once
     if problem:
-        print(f"robotgen: error: {problem}", file=sys.stderr)
-        return EXIT_USER
+        raise OutputError(problem)
     from robotgen.symbolic import controllers_for, kernels_for, module_extras
 
     progress.stage(f"building the CasADi graphs of {system.name} ({len(system.nodes)} node(s))")
@@ -148,15 +150,10 @@ def _cmd_build(args: argparse.Namespace) -> int:
     extra_info, attributes = module_extras(system)
     interrupts.check()
     progress.stage(f"printing {len(kernels)} C functions")
-    try:
-        emit(out, system.name, kernels, nq=system_nq(system), precision=args.precision,
-             compile=not args.no_compile, extra_info={**system_info(system), **extra_info},
-             spec_sha256=system.source_sha256, attributes=attributes, progress=progress,
-             controllers=controllers_for(system), targets=targets)
-    except FileExistsError as e:
-        print(f"robotgen: error: {e}", file=sys.stderr)
-        return EXIT_USER
-    cache.record(out, key)
+    emit(out, system.name, kernels, nq=system_nq(system), precision=args.precision,
+         compile=not args.no_compile, extra_info={**system_info(system), **extra_info},
+         spec_sha256=system.source_sha256, attributes=attributes, progress=progress,
+         controllers=controllers_for(system), targets=targets, inputs=inputs, build_key=key)
     print(f"robotgen: built {system.name} ({len(kernels)} functions) in {out}")
     return EXIT_OK
 
@@ -189,6 +186,11 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
             raise _Usage(f"--{k} must be positive, got {value:g}")
     settings = dataclasses.replace(settings, **overrides)
     out = Path(args.output) if args.output else Path(f"{system.name}_simulation")
+    inputs = (Path(system.source), *map(Path, system.dependencies))
+    with output_errors(out):  # before the simulation: say it at once
+        problem = write_problem(out, [f"{system.name}.csv", f"{system.name}.png"], inputs)
+    if problem:
+        raise OutputError(problem)
     rest = rest_posture([system.nodes[leaf].leaf for leaf in robot_leaves(system)])
     with tempfile.TemporaryDirectory(prefix="robotgen-sim-") as tmp:
         build = Path(tmp) / system.name
@@ -212,17 +214,34 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
             in_spec = e.field is not None and e.field in settings.locations
             where = settings.locations[e.field] if in_spec else system.location_of(system.root)
             raise UserError(where, f"simulation.{e.field}: {e}" if in_spec else str(e)) from None
-    out.mkdir(parents=True, exist_ok=True)
     kind = hand_simulation if hand else simulate
-    kind.write_csv(result, out / f"{system.name}.csv")
-    try:
-        kind.plot(result, out / f"{system.name}.png", f"{system.name}: {system.root} ({system.root_node.primitive})")
-        plotted = f" and {out / (system.name + '.png')}"
-    except ImportError:
-        plotted = " (no PNG: matplotlib is missing; pip install matplotlib)"
+    wrote = _write_simulation(out, system, kind, result, inputs)
     print(kind.summary(result))
-    print(f"robotgen: wrote {out / (system.name + '.csv')}{plotted}")
+    print(wrote)
     return EXIT_OK
+
+
+def _write_simulation(out: Path, system, kind, result, inputs: tuple[Path, ...]) -> str:
+    """<name>.csv and <name>.png of a simulation (``kind``: robotgen.simulate or
+    robotgen.hand_simulation) made aside, then put into ``out`` replacing only files robotgen
+    can prove it wrote there (robotgen.output_files); the line that says what was written."""
+    import tempfile
+
+    from robotgen.output_files import write_files
+
+    with tempfile.TemporaryDirectory(prefix="robotgen-results-") as tmp:
+        made = {f"{system.name}.csv": Path(tmp) / f"{system.name}.csv"}
+        kind.write_csv(result, made[f"{system.name}.csv"])
+        try:
+            png = Path(tmp) / f"{system.name}.png"
+            kind.plot(result, png, f"{system.name}: {system.root} ({system.root_node.primitive})")
+            made[png.name] = png
+            plotted = f" and {out / png.name}"
+        except ImportError:
+            plotted = " (no PNG: matplotlib is missing; pip install matplotlib)"
+        interrupts.check()
+        write_files(out, made, inputs)
+    return f"robotgen: wrote {out / (system.name + '.csv')}{plotted}"
 
 
 def _cmd_check(args: argparse.Namespace) -> int:
@@ -391,7 +410,7 @@ def main(argv: list[str] | None = None) -> int:
     except _Usage as e:
         print(f"robotgen: error: {e}", file=sys.stderr)
         return EXIT_USAGE
-    except (CompilerSetupError, MissingDependency) as e:
+    except (CompilerSetupError, MissingDependency, OutputError) as e:
         print(f"robotgen: error: {e}", file=sys.stderr)
         return EXIT_USER
     except KeyboardInterrupt:  # Ctrl-C: the build's staging directory is already cleaned up

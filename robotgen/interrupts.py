@@ -73,3 +73,26 @@ def noting() -> Iterator[None]:
     finally:
         if before is signal.default_int_handler:
             signal.signal(signal.SIGINT, before)
+
+
+@contextmanager
+def held() -> Iterator[None]:
+    """SIGINT and SIGTERM wait until the block is left: the renames of a swap and the removal
+    of the old output happen whole, so an output is never missing and nothing is left beside
+    it. Python runs signal handlers in the main thread, between bytecodes, but the signal
+    itself may reach any thread (OpenBLAS's among them), so masking it in this one is not
+    enough: until the block is left the handlers only note the signal, which is then raised
+    again under the handlers of before."""
+    signals = (signal.SIGINT, signal.SIGTERM)
+    if threading.current_thread() is not threading.main_thread() or None in map(signal.getsignal, signals):
+        yield  # the handlers raise in the main thread only; None: a handler not set from Python
+        return
+    waiting: list[int] = []
+    before = {signum: signal.signal(signum, lambda received, frame: waiting.append(received)) for signum in signals}
+    try:
+        yield
+    finally:
+        for signum, handler in before.items():
+            signal.signal(signum, handler)
+        if waiting:
+            signal.raise_signal(waiting[0])
