@@ -22,7 +22,7 @@ from robotgen.model.derivatives import INTEGRATORS, SEMI_IMPLICIT_EULER, Derivat
 from robotgen.model.describe import system_info, system_nq
 from robotgen.model.laws import HAND_LAWS, RESOLVED_ADAPTIVE
 from robotgen.model.names import MAX_LENGTH, PATTERN, name_problem
-from robotgen.output_files import output_errors, write_problem
+from robotgen.output_files import output_errors, write_files, write_problem
 from robotgen.progress import Progress
 from robotgen.progress import for_terminal as progress_for_terminal
 
@@ -226,8 +226,6 @@ def _write_simulation(out: Path, system, kind, result, inputs: tuple[Path, ...])
     robotgen.hand_simulation) made aside, then put into ``out`` replacing only files robotgen
     can prove it wrote there (robotgen.output_files); the line that says what was written."""
     import tempfile
-
-    from robotgen.output_files import write_files
 
     with tempfile.TemporaryDirectory(prefix="robotgen-results-") as tmp:
         made = {f"{system.name}.csv": Path(tmp) / f"{system.name}.csv"}

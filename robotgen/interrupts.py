@@ -57,22 +57,22 @@ def answer_both() -> None:
 
 @contextmanager
 def noting() -> Iterator[None]:
-    """A command's extent: what was noted before is forgotten, and in the main thread SIGINT
-    is answered by ``answer`` where Python's default handler would raise KeyboardInterrupt
-    (robotgen called in process); SIGTERM only where the robotgen command set ``answer``
-    for it. The handlers of before are put back afterwards."""
+    """A command's extent: signals are noted from its start to its end (and forgotten
+    after, so that a later build in the same process is not stopped by them), and in the
+    main thread SIGINT is answered by ``answer`` where Python's default handler would raise
+    KeyboardInterrupt (robotgen called in process); SIGTERM only where the robotgen command
+    set ``answer`` for it. The handlers of before are put back afterwards."""
     _noted.clear()
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-    before = signal.getsignal(signal.SIGINT)
-    if before is signal.default_int_handler:
+    main = threading.current_thread() is threading.main_thread()
+    before = signal.getsignal(signal.SIGINT) if main else None
+    if main and before is signal.default_int_handler:
         signal.signal(signal.SIGINT, answer)
     try:
         yield
     finally:
-        if before is signal.default_int_handler:
+        if main and before is signal.default_int_handler:
             signal.signal(signal.SIGINT, before)
+        _noted.clear()
 
 
 @contextmanager

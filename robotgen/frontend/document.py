@@ -156,7 +156,7 @@ def _check_bounds(path: str, text: str) -> int:
     """Bounds checked on the text before the YAML parser reads it: flow collections ([ {)
     nested deeper than MAX_DEPTH, block nesting that deep (indentation of more than
     4 * MAX_DEPTH columns), and more than MAX_VALUES entries, each a located error. ruamel's
-    parser takes about 25 us and 1.5 kB per value, so a 1 MB flow list of 480,000 numbers
+    parser takes 25-40 us and about 1.5 kB per value, so a 1 MB flow list of 480,000 numbers
     took minutes and 0.7 GB before the count of values was seen; here it is refused after
     reading the text once. Counted are the entries that are each at least one value: a comma
     inside a flow collection, a block sequence's "- " and a block mapping's "key:" (text in
