@@ -26,10 +26,12 @@ def read_input(path: str, limit: int, what: str, hint: str = "") -> bytes:
     except OSError as error:
         raise UserError(Location(path), f"cannot read {what}: {error.strerror or error}") from None
     try:
-        mode = os.fstat(fd).st_mode
-        if not stat.S_ISREG(mode):
-            kind = next((name for test, name in _KINDS if test(mode)), "not a regular file")
+        info = os.fstat(fd)
+        if not stat.S_ISREG(info.st_mode):
+            kind = next((name for test, name in _KINDS if test(info.st_mode)), "not a regular file")
             raise UserError(Location(path), f"{what} is {kind}; robotgen reads regular files only")
+        if info.st_size > limit:
+            raise UserError(Location(path), f"{what} is {info.st_size} bytes; robotgen reads at most {limit}{hint}")
         chunks, size = [], 0
         while size <= limit:
             chunk = os.read(fd, min(_CHUNK, limit + 1 - size))
@@ -37,10 +39,8 @@ def read_input(path: str, limit: int, what: str, hint: str = "") -> bytes:
                 break
             chunks.append(chunk)
             size += len(chunk)
-        if size > limit:
-            total = os.fstat(fd).st_size
-            shown = f"{total} bytes" if total > limit else f"more than {limit} bytes"
-            raise UserError(Location(path), f"{what} is {shown}; robotgen reads at most {limit}{hint}")
+        if size > limit:  # it grew while it was read
+            raise UserError(Location(path), f"{what} is more than {limit} bytes; robotgen reads at most {limit}{hint}")
         return b"".join(chunks)
     except OSError as error:
         raise UserError(Location(path), f"cannot read {what}: {error.strerror or error}") from None

@@ -102,8 +102,9 @@ def test_special_files_are_refused_before_they_are_read(tmp_path, suffix, option
                                                      "files only\n")
 
 
-def test_a_spec_that_grows_past_the_bound_while_read_is_refused(tmp_path):
-    """The size is checked on what is read, not only on what stat says."""
+def test_the_bound_is_checked_on_what_is_read(tmp_path):
+    """The size stat gives is checked first, and the bytes read as well: a file whose size
+    says 0 (a /proc file, one that grows while it is read) is cut off one byte past the bound."""
     from robotgen.errors import UserError
     from robotgen.frontend.input_file import read_input
 
@@ -112,6 +113,10 @@ def test_a_spec_that_grows_past_the_bound_while_read_is_refused(tmp_path):
     with pytest.raises(UserError, match="spec is 101 bytes; robotgen reads at most 100$"):
         read_input(str(path), 100, "spec")
     assert read_input(str(path), 101, "spec") == b"x" * 101
+    if Path("/proc/self/maps").exists():
+        assert os.stat("/proc/self/maps").st_size == 0
+        with pytest.raises(UserError, match="is more than 100 bytes; robotgen reads at most 100$"):
+            read_input("/proc/self/maps", 100, "spec")
 
 
 @pytest.mark.parametrize("value, column, words", [
