@@ -201,6 +201,8 @@ def _trig(compute):
         x = float(x)
         if not math.isfinite(x):
             raise ValueError(f"math domain error in {compute.__name__}")
+        if x == 0 and compute.__name__ != "cos":
+            return x  # sin(-0.0) and tan(-0.0) are -0.0, as IEEE 754 has them
         with localcontext() as ctx:
             ctx.prec = _TRIG_DIGITS
             return float(compute(*_sin_cos_dec(x)))

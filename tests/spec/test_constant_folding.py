@@ -4,6 +4,7 @@ evaluated, or is not a finite real number, is the user's input, refused where it
 from __future__ import annotations
 
 import importlib
+import math
 import sys
 import time
 
@@ -80,6 +81,7 @@ def test_folded_trigonometric_constants_are_correctly_rounded_at_every_magnitude
     fold = MATH_LIB[function]
     wrong = [(x, fold(x), _reference(function, x)) for x in xs if fold(x) != _reference(function, x)]
     assert not wrong, wrong[:5]
+    assert math.copysign(1, fold(-0.0)) == math.copysign(1, getattr(math, function)(-0.0))  # the sign of zero
 
 
 @pytest.mark.parametrize("function, x", [("sin", 1e40), ("sin", 1e42), ("cos", 1e300), ("tan", 2e46), ("tanh", 1e300),
