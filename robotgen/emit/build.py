@@ -5,7 +5,6 @@ from __future__ import annotations
 import os
 import shutil
 import sys
-import tempfile
 from contextlib import contextmanager
 from pathlib import Path
 
@@ -59,7 +58,8 @@ def emit(out_dir: Path, name: str, kernels: list[Kernel], *, nq: int,
     with output_errors(out_dir):
         _check_replaceable(out_dir, inputs)
         out_dir.parent.mkdir(parents=True, exist_ok=True)
-        staging = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.tmp-", dir=out_dir.parent))
+        staging = sibling(out_dir, "tmp")  # a name of its own: nothing there is deleted to make room
+        staging.mkdir()  # with the umask's permissions, as the output directory will have them
     try:
         with output_errors(out_dir):
             for file_name, text in files.items():
