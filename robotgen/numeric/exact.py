@@ -19,7 +19,7 @@ machine and with every numpy, and no BLAS or libm call can change it.
 from __future__ import annotations
 
 import math
-from decimal import Decimal, Overflow, localcontext
+from decimal import Decimal, DefaultContext, Overflow, localcontext
 from fractions import Fraction
 from functools import cache, lru_cache
 
@@ -178,36 +178,47 @@ def _atan2_dec(y: Decimal, x: Decimal) -> Decimal:
     return Decimal(0)
 
 
+def _cached(function):
+    """``function`` of doubles, cached by each double's value and sign: a spec repeats its
+    constants. (An lru_cache alone would answer f(-0.0) with f(0.0), the two being equal.)"""
+    @lru_cache(maxsize=4096)
+    def by_key(key: tuple[tuple[float, float], ...]) -> float:
+        return function(*(value for value, _ in key))
+
+    def f(*args: float) -> float:
+        return by_key(tuple((a, math.copysign(1.0, a)) for a in map(float, args)))
+    f.__name__ = function.__name__
+    return f
+
+
 def _rounded(compute, digits: int = _DIGITS):
     """``compute`` on the exact decimal values of its double arguments in a context of
-    ``digits`` digits, rounded once to a double; a result past the decimal exponent range is
-    an OverflowError, as the math module's. Cached: a spec repeats its constants."""
-    @lru_cache(maxsize=4096)
+    ``digits`` digits (rounding half to even, whatever the caller's context), rounded once
+    to a double; a result past the decimal exponent range is an OverflowError, as the math
+    module's."""
     def f(*args: float) -> float:
-        with localcontext() as ctx:
+        with localcontext(DefaultContext) as ctx:
             ctx.prec = digits
             try:
                 return float(compute(*(_dec(a) for a in args)))
             except Overflow:
                 raise OverflowError(f"{compute.__name__}: result too large") from None
     f.__name__ = compute.__name__
-    return f
+    return _cached(f)
 
 
 def _trig(compute):
     """sin, cos or tan of a double, correctly rounded (``compute`` takes sin and cos of it)."""
-    @lru_cache(maxsize=4096)
     def f(x: float) -> float:
-        x = float(x)
         if not math.isfinite(x):
             raise ValueError(f"math domain error in {compute.__name__}")
         if x == 0 and compute.__name__ != "cos":
             return x  # sin(-0.0) and tan(-0.0) are -0.0, as IEEE 754 has them
-        with localcontext() as ctx:
+        with localcontext(DefaultContext) as ctx:
             ctx.prec = _TRIG_DIGITS
             return float(compute(*_sin_cos_dec(x)))
     f.__name__ = compute.__name__
-    return f
+    return _cached(f)
 
 
 def _check_domain(ok: bool, name: str) -> None:
