@@ -15,13 +15,15 @@ from dataclasses import replace
 from pathlib import Path
 
 import robotgen
+from robotgen import interrupts
 from robotgen.emit.compile import CompilerSetupError
 from robotgen.emit.targets import TARGETS, TargetUnavailable, check_available
-from robotgen.errors import MissingDependency, UserError, UserErrors
+from robotgen.errors import MissingDependency, OutputError, UserError, UserErrors
 from robotgen.model.derivatives import INTEGRATORS, SEMI_IMPLICIT_EULER, DerivativeSettings
 from robotgen.model.describe import system_info, system_nq
 from robotgen.model.laws import HAND_LAWS, RESOLVED_ADAPTIVE
 from robotgen.model.names import MAX_LENGTH, PATTERN, name_problem
+from robotgen.output_files import output_errors, write_files, write_problem
 from robotgen.progress import Progress
 from robotgen.progress import for_terminal as progress_for_terminal
 
@@ -29,12 +31,7 @@ EXIT_OK, EXIT_USER, EXIT_USAGE, EXIT_BUG = 0, 1, 2, 3
 EXIT_INTERRUPTED, EXIT_TERMINATED = 130, 143  # 128 + SIGINT, 128 + SIGTERM, as a shell reports them
 
 
-class _Terminated(BaseException):
-    """SIGTERM, raised where the process is, so that a build cleans up as it does on Ctrl-C."""
-
-
-def _on_sigterm(signum, frame) -> None:
-    raise _Terminated
+_Terminated = interrupts.Terminated
 
 
 def _unraisable(hook) -> None:
@@ -51,8 +48,6 @@ def _unraisable(hook) -> None:
         resend = threading.Timer(0.01, os.kill, (os.getpid(), signum))
         resend.daemon = True
         resend.start()
-
-
 
 
 def _load(args: argparse.Namespace):
@@ -138,31 +133,29 @@ def _cmd_build(args: argparse.Namespace) -> int:
                "tip": args.tip, "base": args.base, "tree": getattr(args, "tree", False),
                "source_sha256": system.source_sha256,  # an MJCF file's: its includes and meshes too
                **({"targets": list(targets)} if targets else {})}
-    key = cache.build_key([Path(system.source), *map(Path, system.dependencies)], options)
-    if cache.is_current(out, key, not args.no_compile, system.name):
-        print(f"robotgen: {out} is up to date")
-        return EXIT_OK
+    inputs = (Path(system.source), *map(Path, system.dependencies))
+    key = cache.build_key(list(inputs), options)
     from robotgen.emit.build import emit, replace_problem
 
-    problem = replace_problem(out)  # before the graphs are built: say it at once
+    with output_errors(out):
+        if cache.is_current(out, key, not args.no_compile, system.name):
+            print(f"robotgen: {out} is up to date")
+            return EXIT_OK
+        problem = replace_problem(out, inputs)  # before the graphs are built: say it at once
     if problem:
-        print(f"robotgen: error: {problem}", file=sys.stderr)
-        return EXIT_USER
+        raise OutputError(problem)
     from robotgen.symbolic import controllers_for, kernels_for, module_extras
 
     progress.stage(f"building the CasADi graphs of {system.name} ({len(system.nodes)} node(s))")
     kernels = kernels_for(system)
+    interrupts.check()  # a Ctrl-C that CasADi swallowed ends the build here
     extra_info, attributes = module_extras(system)
+    interrupts.check()
     progress.stage(f"printing {len(kernels)} C functions")
-    try:
-        emit(out, system.name, kernels, nq=system_nq(system), precision=args.precision,
-             compile=not args.no_compile, extra_info={**system_info(system), **extra_info},
-             spec_sha256=system.source_sha256, attributes=attributes, progress=progress,
-             controllers=controllers_for(system), targets=targets)
-    except FileExistsError as e:
-        print(f"robotgen: error: {e}", file=sys.stderr)
-        return EXIT_USER
-    cache.record(out, key)
+    emit(out, system.name, kernels, nq=system_nq(system), precision=args.precision,
+         compile=not args.no_compile, extra_info={**system_info(system), **extra_info},
+         spec_sha256=system.source_sha256, attributes=attributes, progress=progress,
+         controllers=controllers_for(system), targets=targets, inputs=inputs, build_key=key)
     print(f"robotgen: built {system.name} ({len(kernels)} functions) in {out}")
     return EXIT_OK
 
@@ -211,6 +204,13 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
                 return EXIT_USER
             raise UserError(settings.locations["plant"], f"simulation.plant: {e}") from None
     out = Path(args.output) if args.output else Path("generated") / f"{system.name}_simulation"
+    inputs = (Path(system.source), *map(Path, system.dependencies))
+    names = [f"{system.name}{'' if p == plants[0] else '_' + p}.{ext}" for p in plants for ext in ("csv", "png")]
+    names += [f"{system.name}.xml"] if MUJOCO_PLANT in plants else []
+    with output_errors(out):  # before the simulation: say it at once
+        problem = write_problem(out, names, inputs)
+    if problem:
+        raise OutputError(problem)
     rest = rest_posture([system.nodes[leaf].leaf for leaf in robot_leaves(system)])
     results, mjcf = [], None
     with tempfile.TemporaryDirectory(prefix="robotgen-sim-") as tmp:
@@ -246,26 +246,42 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
                 where = settings.locations[e.field] if in_spec else system.location_of(system.root)
                 raise UserError(where, f"simulation.{e.field}: {e}" if in_spec else str(e)) from None
             results.append(result)
-    out.mkdir(parents=True, exist_ok=True)
     kind = hand_simulation if hand else simulate
-    written = []
-    for result in results:
-        stem = system.name if result is results[0] else f"{system.name}_{result.plant}"
-        kind.write_csv(result, out / f"{stem}.csv")
-        written.append(out / f"{stem}.csv")
-        try:
-            kind.plot(result, out / f"{stem}.png", f"{system.name}: {system.root} ({system.root_node.primitive}), "
-                                                   f"{result.plant} plant")
-            written.append(out / f"{stem}.png")
-        except ImportError:
-            print("robotgen: no PNG: matplotlib is missing; pip install matplotlib", file=sys.stderr)
-    if mjcf is not None:
-        (out / f"{system.name}.xml").write_text(mjcf)
-        written.append(out / f"{system.name}.xml")
+    wrote = _write_simulation(out, system, kind, results, mjcf, inputs)
     print(kind.summary(results[0]) if len(results) == 1 else kind.compare(*results))
-    print(f"robotgen: wrote {', '.join(str(w) for w in written[:-1])} and {written[-1]}"
-          if len(written) > 1 else f"robotgen: wrote {written[0]}")
+    print(wrote)
     return EXIT_OK
+
+
+def _write_simulation(out: Path, system, kind, results: list, mjcf: str | None, inputs: tuple[Path, ...]) -> str:
+    """<name>.csv and <name>.png of each plant's run (the second plant's as <name>_<plant>.*;
+    ``kind``: robotgen.simulate or robotgen.hand_simulation, whose write_csv and plot these
+    are), and the MJCF simulated as <name>.xml, made aside, then put into ``out`` replacing
+    only files robotgen can prove it wrote there (robotgen.output_files); the line that says
+    what was written."""
+    import tempfile
+
+    with tempfile.TemporaryDirectory(prefix="robotgen-results-") as tmp:
+        made: dict[str, Path] = {}
+        for result in results:
+            stem = system.name if result is results[0] else f"{system.name}_{result.plant}"
+            made[f"{stem}.csv"] = Path(tmp) / f"{stem}.csv"
+            kind.write_csv(result, made[f"{stem}.csv"])
+            try:
+                png = Path(tmp) / f"{stem}.png"
+                kind.plot(result, png, f"{system.name}: {system.root} ({system.root_node.primitive}), "
+                                       f"{result.plant} plant")
+                made[png.name] = png
+            except ImportError:
+                print("robotgen: no PNG: matplotlib is missing; pip install matplotlib", file=sys.stderr)
+        if mjcf is not None:
+            made[f"{system.name}.xml"] = Path(tmp) / f"{system.name}.xml"
+            made[f"{system.name}.xml"].write_text(mjcf)
+        interrupts.check()
+        write_files(out, made, inputs)
+    written = [str(out / name) for name in made]
+    return (f"robotgen: wrote {', '.join(written[:-1])} and {written[-1]}" if len(written) > 1
+            else f"robotgen: wrote {written[0]}")
 
 
 def _cmd_check(args: argparse.Namespace) -> int:
@@ -457,7 +473,14 @@ def main(argv: list[str] | None = None) -> int:
     except SystemExit as e:  # argparse: usage error (2) or --help (0)
         return int(e.code or 0)
     try:
-        return args.run(args)
+        with interrupts.noting():
+            try:
+                status = args.run(args)
+            except Exception:
+                interrupts.check()  # a signal swallowed on the way (and the error it left) ends the command
+                raise
+            interrupts.check()
+        return status
     except UserErrors as e:
         for err in e.errors:
             print(err, file=sys.stderr)
@@ -468,7 +491,7 @@ def main(argv: list[str] | None = None) -> int:
     except _Usage as e:
         print(f"robotgen: error: {e}", file=sys.stderr)
         return EXIT_USAGE
-    except (CompilerSetupError, MissingDependency) as e:
+    except (CompilerSetupError, MissingDependency, OutputError) as e:
         print(f"robotgen: error: {e}", file=sys.stderr)
         return EXIT_USER
     except KeyboardInterrupt:  # Ctrl-C: the build's staging directory is already cleaned up
@@ -490,9 +513,10 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def answer_signals() -> None:
-    """SIGTERM raised as _Terminated (SIGINT is Python's KeyboardInterrupt), and either one
-    sent again when it lands where it cannot be raised (_unraisable)."""
-    signal.signal(signal.SIGTERM, _on_sigterm)
+    """SIGTERM raised as _Terminated and SIGINT as KeyboardInterrupt, each noted so that one
+    swallowed on the way is raised again (robotgen.interrupts), and either one sent again when
+    it lands where it cannot be raised (_unraisable)."""
+    interrupts.answer_both()
     sys.unraisablehook = _unraisable
 
 

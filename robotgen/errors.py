@@ -36,3 +36,9 @@ class UserErrors(Exception):
 class MissingDependency(Exception):
     """An optional package that the input needs is not installed (MuJoCo for an MJCF file):
     the user's setup, exit status 1, the message says what to install."""
+
+
+class OutputError(Exception):
+    """An output directory robotgen may not or cannot write: it holds files robotgen cannot
+    prove it wrote, or the system refuses it (a path through a regular file, a name too long,
+    no permission). The user's to fix: exit status 1, the message names the path."""

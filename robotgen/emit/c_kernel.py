@@ -171,6 +171,7 @@ def kernel_source(prefix: str, kernel: Kernel, precision: Precision,
               if p.name not in used]
     if kernel.guarded:
         lines += _guard_inputs(kernel)
+    lines += _guard_step(kernel, precision)
     lines += ["  " + line for line in body]
     lines += _guard_outputs(kernel, precision) if kernel.guarded else ["  return 0;"]
     lines += ["}"]
@@ -377,6 +378,17 @@ def _guard_inputs(kernel: Kernel) -> list[str]:
             lines.append(f"  for ({GUARD_INDEX} = 0; {GUARD_INDEX} < {port.size}; ++{GUARD_INDEX}) "
                          f"if (!isfinite({port.name}[{GUARD_INDEX}])) return 1;")
     return lines
+
+
+STEP_PORT = "dt"  # a step length: a kernel taking one refuses dt <= 0 (status 3)
+EXIT_BAD_STEP = 3
+
+
+def _guard_step(kernel: Kernel, precision: Precision) -> list[str]:
+    """Status 3 before anything is written when the step dt is not positive (a checked
+    kernel has already returned 1 for a NaN dt)."""
+    return [f"  if ({STEP_PORT}[0] <= {literal(0.0, precision)}) return {EXIT_BAD_STEP};"
+            for port in kernel.inputs if port.name == STEP_PORT and port.size == 1]
 
 
 def _guard_outputs(kernel: Kernel, precision: Precision) -> list[str]:

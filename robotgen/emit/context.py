@@ -116,6 +116,7 @@ class FunctionView:
     sin_cos_ops: int
     reads_parameters: bool  # the kernel has the PARAMS port: every parameter is a keyword
     guarded: bool = False  # the C checks inputs and results (Kernel.guarded)
+    takes_step: bool = False  # it has a step dt and returns 3 for dt <= 0 (c_kernel.STEP_PORT)
     part: int = 0  # which of the module's compile parts holds it (COMPILE_PARTS)
     helpers: tuple[str, ...] = ()  # the stage helpers it calls (HelperView.c_name)
     singular_error: str = ""  # C string literal: the error of status 2 when Kernel.singular says why
@@ -465,6 +466,7 @@ def _function_view(prefix: str, kernel: Kernel, precision: c_kernel.Precision,
         arithmetic_ops=arithmetic, sin_cos_ops=sin_cos, reads_parameters=reads_parameters, guarded=kernel.guarded,
         singular_error=c_string(f"{kernel.name}(): the result is not finite: {kernel.singular}; the outputs were "
                                 "set to 0 (status 2)") if kernel.guarded and kernel.singular else "",
+        takes_step=any(p.name == c_kernel.STEP_PORT and p.size == 1 for p in kernel.inputs),
         helpers=tuple(dict.fromkeys(helper_names[stage] for stage in kernel.schedule.stages))
         if kernel.schedule is not None and helper_names else ())
 

@@ -8,13 +8,17 @@ offending value, at the unknown key, or at the key holding a mapping that lacks 
 from __future__ import annotations
 
 import hashlib
+import re
+import sys
 from dataclasses import dataclass, replace
 
 from jsonschema import Draft202012Validator, ValidationError
 from ruamel.yaml import YAML
+from ruamel.yaml.constructor import ConstructorError, RoundTripConstructor
 from ruamel.yaml.error import MarkedYAMLError, YAMLError
 
 from robotgen.errors import Location, UserError, UserErrors
+from robotgen.frontend.input_file import read_input
 from robotgen.frontend.schema import SCHEMA
 
 Path = tuple[str | int, ...]
@@ -125,13 +129,9 @@ class Document:
 
 def _read(path: str) -> tuple[bytes, str]:
     try:
-        with open(path, "rb") as f:
-            raw = f.read()
-    except OSError as error:
-        raise UserErrors([UserError(Location(path), f"cannot read spec: {error.strerror or error}")]) from None
-    if len(raw) > MAX_BYTES:
-        raise UserErrors([UserError(Location(path), f"spec is {len(raw)} bytes; a spec may have at most "
-                                    f"{MAX_BYTES} (robot models that large belong in a URDF leaf)")])
+        raw = read_input(path, MAX_BYTES, "spec", " (robot models that large belong in a URDF leaf)")
+    except UserError as error:
+        raise UserErrors([error]) from None
     try:
         return raw, raw.decode("utf-8")
     except UnicodeDecodeError as error:
@@ -147,21 +147,49 @@ MAX_VALUES = 100_000
 MAX_BYTES = 1_000_000
 
 
-def _check_nesting(path: str, text: str) -> None:
-    """Flow collections ([ {) nested deeper than MAX_DEPTH, or block nesting that deep
-    (indentation of more than 4 * MAX_DEPTH columns): a located error before parsing."""
-    depth, quote = 0, ""
+# A block scalar's indicator (| or >, with its chomping and indentation indicators) at the end
+# of a line: the lines indented deeper than that line are its text.
+_BLOCK_SCALAR = re.compile(r"(?:^|[\s:-])[|>][+-]?[1-9]?[+-]?\s*$")
+
+
+def _check_bounds(path: str, text: str) -> int:
+    """Bounds checked on the text before the YAML parser reads it: flow collections ([ {)
+    nested deeper than MAX_DEPTH, block nesting that deep (indentation of more than
+    4 * MAX_DEPTH columns), and more than MAX_VALUES entries, each a located error. ruamel's
+    parser takes 25-40 us and about 1.5 kB per value, so a 1 MB flow list of 480,000 numbers
+    took minutes and 0.7 GB before the count of values was seen; here it is refused after
+    reading the text once. Counted are the entries that are each at least one value: a comma
+    inside a flow collection, a block sequence's "- " and a block mapping's "key:" (text in
+    quotes, comments and block scalars is skipped), so the count never exceeds the values the
+    parser would make; _plain counts them exactly afterwards (aliases as often as used).
+    Returns that count."""
+    depth, quote, entries = 0, "", 0
+    block_scalar = None  # indentation of the line that opened a block scalar
     for number, line in enumerate(text.splitlines(), 1):
         indent = len(line) - len(line.lstrip(" "))
+        body = line.strip()
+        if block_scalar is not None:
+            if not body or indent > block_scalar:
+                continue
+            block_scalar = None
         if indent > 4 * MAX_DEPTH:
             raise UserErrors([UserError(Location(path, number, 1), f"YAML: indented {indent} columns: nested "
                                         f"deeper than the {MAX_DEPTH} levels a spec may have")])
-        for column, char in enumerate(line, 1):
+        start, code_end, keyed = indent + 1, len(line), False
+        if depth == 0:  # block sequence items: "- - a: 1" holds two, and a mapping entry
+            rest = body
+            while rest == "-" or rest[:2] in ("- ", "-\t"):
+                entries += 1
+                rest = rest[1:].lstrip()
+            start = len(line) - len(rest) + 1
+        column = start
+        for column, char in enumerate(line[start - 1:], start):
             if quote:
                 quote = "" if char == quote else quote
             elif char in "'\"":
                 quote = char
             elif char == "#" and (column == 1 or line[column - 2] in " \t"):
+                code_end = column - 1
                 break
             elif char in "[{":
                 depth += 1
@@ -170,13 +198,46 @@ def _check_nesting(path: str, text: str) -> None:
                                                 f"deeper than the {MAX_DEPTH} levels a spec may have")])
             elif char in "]}":
                 depth = max(depth - 1, 0)
+            elif char == "," and depth:
+                entries += 1
+            elif char == ":" and not depth and not keyed and line[column:column + 1] in ("", " ", "\t"):
+                entries, keyed = entries + 1, True
+            if entries > MAX_VALUES:
+                break
+        if entries > MAX_VALUES:
+            raise UserErrors([UserError(Location(path, number, column), f"YAML: more than {MAX_VALUES} values (list "
+                                        "and mapping entries); a spec holds a few thousand")])
+        if not depth and not quote and _BLOCK_SCALAR.search(line[:code_end]):
+            block_scalar = indent
         quote = ""  # robotgen's values are one-line scalars; a quote never spans lines here
+    return entries
+
+
+class _Constructor(RoundTripConstructor):
+    """ruamel's round-trip constructor, with a scalar it cannot convert made a located YAML
+    error: an integer of more digits than Python converts from text (4300: a ValueError), a
+    date such as 2001-13-45."""
+
+    def construct_non_recursive_object(self, node, tag=None):
+        try:
+            return super().construct_non_recursive_object(node, tag)
+        except (ValueError, OverflowError) as error:
+            text = node.value if isinstance(node.value, str) else ""
+            digits = sum(c.isdigit() for c in text)
+            if (tag or node.tag).endswith(":int") and digits > sys.get_int_max_str_digits() > 0:
+                reason = (f"an integer of {digits} digits; robotgen reads integers of at most "
+                          f"{sys.get_int_max_str_digits()} digits")
+            else:
+                reason = f"{_quoted(text)} cannot be read: {error}"
+            raise ConstructorError(None, None, reason, node.start_mark) from None
 
 
 def _parse_yaml(path: str, text: str) -> object:
-    _check_nesting(path, text)
+    _check_bounds(path, text)
+    yaml = YAML(typ="rt")
+    yaml.Constructor = _Constructor
     try:
-        return YAML(typ="rt").load(text)
+        return yaml.load(text)
     except RecursionError:
         raise UserErrors([UserError(Location(path), f"YAML: nested deeper than the {MAX_DEPTH} levels a spec "
                                     "may have")]) from None

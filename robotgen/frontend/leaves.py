@@ -326,7 +326,7 @@ class LeafReader(Collector):
     def urdf(self, name: str, path: Path, spec: dict) -> KinematicTree | None:
         """A URDF leaf; its own errors point into the URDF file, a missing file at the spec."""
         file = pathlib.Path(self.doc.path).parent / spec["file"]
-        if not file.is_file():
+        if not file.exists():  # a FIFO or a device is refused by the reader, named as such
             self.at_value(path + ("file",), f"URDF file '{spec['file']}' not found (looked for {file})")
             return None
         self.dependencies.append(str(file))

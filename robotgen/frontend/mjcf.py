@@ -61,6 +61,7 @@ from pathlib import Path
 import numpy as np
 
 from robotgen.errors import Location, MissingDependency, UserError
+from robotgen.frontend.input_file import read_input
 from robotgen.frontend.urdf import merge_bodies, module_identifier
 from robotgen.model.chain import PRISMATIC, REVOLUTE, Body, Joint, KinematicTree, Limits, joints_without_inertia
 from robotgen.model.expression import MAX_MAGNITUDE
@@ -160,13 +161,7 @@ def _compile(path: str) -> _Mjcf:
         import mujoco
     except ImportError:
         raise MissingDependency(f"reading an MJCF file needs MuJoCo: {INSTALL}") from None
-    try:
-        size = Path(path).stat().st_size
-        if size > MAX_BYTES:
-            raise UserError(Location(path), f"MJCF file is {size} bytes; robotgen reads at most {MAX_BYTES}")
-        text = Path(path).read_bytes().decode("utf-8", errors="replace")
-    except OSError as e:
-        raise UserError(Location(path), f"cannot read MJCF file: {e.strerror}") from None
+    text = read_input(path, MAX_BYTES, "MJCF file").decode("utf-8", errors="replace")
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         try:

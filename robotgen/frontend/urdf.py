@@ -49,6 +49,7 @@ from pathlib import Path
 import numpy as np
 
 from robotgen.errors import Location, UserError
+from robotgen.frontend.input_file import read_input
 from robotgen.frontend.urdf_elements import KNOWN_UNREAD, ElementCheck
 from robotgen.frontend.urdf_xml import Element, declaration_first, parse_xml
 from robotgen.model.chain import PRISMATIC, REVOLUTE, Body, Joint, KinematicTree, Limits, joints_without_inertia
@@ -301,14 +302,7 @@ def read_urdf_file(path: str) -> UrdfFile:
     """Every link and joint of the file at ``path``: duplicate names, unknown links, a link
     with two parent joints, several roots and cycles are errors, located. Floating and
     planar joints are accepted here; the readers refuse them below their base."""
-    try:
-        size = Path(path).stat().st_size
-        if size > MAX_BYTES:
-            raise UserError(Location(path, 1, 1), f"URDF file is {size} bytes; robotgen reads at most {MAX_BYTES}")
-        data = Path(path).read_bytes()
-    except OSError as e:
-        raise UserError(Location(path, 1, 1), f"cannot read URDF file: {e.strerror}") from None
-    data, declaration_notes = declaration_first(path, data)
+    data, declaration_notes = declaration_first(path, read_input(path, MAX_BYTES, "URDF file"))
     root = parse_xml(path, data)
     r = _Reader(path, root)
     foreign, skipped_notes = r.check_robot()

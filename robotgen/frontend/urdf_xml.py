@@ -81,6 +81,11 @@ def parse_xml(path: str, data: bytes) -> Element:
     except xml.parsers.expat.ExpatError as e:
         raise UserError(Location(path, e.lineno, e.offset + 1),
                         f"not well-formed XML: {xml.parsers.expat.ErrorString(e.code)}") from None
+    except LookupError as e:  # the XML declaration names an encoding Python does not know
+        first = data.split(b"\n", 1)[0]
+        col = first.find(b"encoding") + 1 if b"encoding" in first else 1
+        raise UserError(Location(path, 1, col), f"the XML declaration names an encoding Python does not know ({e}); "
+                                                "save the URDF as UTF-8") from None
     if not root or root[0].tag != "robot":
         raise UserError(Location(path, 1, 1), "a URDF file must have a <robot> root element")
     return root[0]

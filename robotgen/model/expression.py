@@ -24,8 +24,8 @@ FUNCTIONS: dict[str, int] = {
 }
 CONSTANTS: dict[str, float] = {"pi": math.pi, "e": math.e}
 # The largest magnitude of a numeric field: far beyond any robot's lengths, masses, angles or
-# gains in SI units, and small enough that build-time arithmetic (angle reduction to 40
-# digits, products of inertias) stays exact.
+# gains in SI units, and small enough that build-time arithmetic (products of inertias) stays
+# exact.
 MAX_MAGNITUDE = 1e15
 
 _BINARY = (ast.Add, ast.Sub, ast.Mult, ast.Div, ast.Pow)
@@ -252,7 +252,12 @@ def parse_expression(text: str | int | float, location: Location, names: set[str
     if isinstance(text, bool) or not isinstance(text, (str, int, float)):
         raise UserError(location, f"expected a number or an expression, got {text!r}")
     if not isinstance(text, str):
-        if not math.isfinite(text):
+        try:
+            finite = math.isfinite(text)
+        except OverflowError:  # an integer past the largest double (YAML reads up to 4300 digits)
+            raise UserError(location, f"the integer (about 10^{int(math.log10(abs(text)))}) is out of range (a "
+                                      "double reaches 1.8e308)") from None
+        if not finite:
             raise UserError(location, f"number {text!r} is not finite")
         return Expr(repr(text), ast.Constant(value=text, lineno=1, col_offset=0), location)
     prepared, origin = _prepare(text)
@@ -263,6 +268,9 @@ def parse_expression(text: str | int | float, location: Location, names: set[str
         index = next(i for i, c in enumerate(prepared) if not c.isascii())
         raise UserError(checker.at(index), f"character {prepared[index]!r} (U+{ord(prepared[index]):04X}) "
                                            "is not allowed in an expression: names and numbers are ASCII")
+    if "#" in prepared:  # Python's parser would drop the rest as a comment: "1 # + q^2" would read as 1
+        raise UserError(checker.at(prepared.index("#")), "'#' is not allowed in an expression (Python would drop "
+                                                         "the text after it as a comment)")
     try:
         tree = ast.parse(prepared, mode="eval")
     except SyntaxError as error:

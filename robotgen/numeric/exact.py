@@ -8,7 +8,9 @@ and show in the emitted C. Every constant of the model is therefore computed her
 - products and sums of matrices: each entry is the exact dot product (rational arithmetic on
   the doubles) rounded once to the nearest double;
 - sin, cos, tan, atan2, exp, log and the other functions a spec's constant expressions may
-  use: evaluated in 40-digit decimal arithmetic and rounded once to the nearest double;
+  use: evaluated in 40-digit decimal arithmetic (sin, cos and tan in 50, after an exact
+  reduction of the argument by pi/2: any double, up to 1.8e308) and rounded once to the
+  nearest double;
 - sqrt: IEEE 754 rounds it correctly on every machine.
 
 So each result is the correctly rounded value of its exact definition, the same on every
@@ -17,14 +19,23 @@ machine and with every numpy, and no BLAS or libm call can change it.
 from __future__ import annotations
 
 import math
-from decimal import Decimal, localcontext
+from decimal import Decimal, DefaultContext, Overflow, localcontext
 from fractions import Fraction
+from functools import cache, lru_cache
 
 import numpy as np
 
 _DIGITS = 40
-# pi to 60 digits, for argument reduction of sin and cos
+_TRIG_DIGITS = 50
+# pi to 60 digits, for atan2's quadrants
 _PI = Decimal("3.14159265358979323846264338327950288419716939937510582097494")
+# Bits of pi/2 for the reduction of sin's and cos's argument: a double is below 2^1024, so k,
+# the nearest multiple of pi/2, has at most 1024 bits, and k times pi/2's error of 2^-_PI_BITS
+# leaves the remainder r = x - k pi/2 an absolute error below 2^(1024 - _PI_BITS) = 2^-376. The
+# remainder of a double is never below 2^-62 (the closest double to a multiple of pi/2,
+# 6381956970095103 * 2^797, leaves 4.7e-19: Muller, Elementary Functions, ch. 11), so r keeps
+# more than 300 correct bits whatever the double.
+_PI_BITS = 1400
 
 
 def _exact_sum(products) -> float:
@@ -85,27 +96,57 @@ def _dec(x: float) -> Decimal:
     return Decimal(float(x))
 
 
-def _sin_cos_dec(x: Decimal) -> tuple[Decimal, Decimal]:
-    """sin and cos of x by argument reduction to [-pi/4, pi/4] and Taylor series."""
-    half_pi = _PI / 2
-    k = int((x / half_pi).to_integral_value())
-    r = x - k * half_pi
+@cache
+def _half_pi_scaled(bits: int) -> int:
+    """floor(pi/2 * 2^bits) to within one unit, in integer arithmetic: Machin's formula
+    pi = 16 atan(1/5) - 4 atan(1/239), each atan by its alternating series on integers with
+    32 guard bits (every term is truncated, so the sum is off by at most its number of terms)."""
+    guard = 32
+    one = 1 << (bits + guard)
+
+    def atan_inverse(n: int) -> int:  # atan(1/n) * one
+        total, power, k, sign = 0, one // n, 1, 1
+        while power:
+            total += sign * (power // k)
+            power //= n * n
+            k, sign = k + 2, -sign
+        return total
+
+    return (8 * atan_inverse(5) - 2 * atan_inverse(239)) >> guard
+
+
+def _reduced(x: float) -> tuple[Decimal, int]:
+    """(r, k mod 4) with x = k pi/2 + r, |r| <= pi/4 (up to the rounding of a tie), r to
+    _TRIG_DIGITS digits: the rational value of the double x in fixed point with _PI_BITS
+    fraction bits (exact: a double's fraction has at most 1074 bits), less k times pi/2 in the
+    same fixed point (Payne and Hanek's reduction, here in Python's integers)."""
+    numerator, denominator = float(x).as_integer_ratio()  # denominator a power of two, at most 2^1074
+    X = (numerator << _PI_BITS) // denominator  # exact
+    H = _half_pi_scaled(_PI_BITS)
+    k = (2 * X + H) // (2 * H)  # nearest integer to X / H
+    return Decimal(X - k * H) / Decimal(1 << _PI_BITS), k % 4
+
+
+def _sin_cos_dec(x: float) -> tuple[Decimal, Decimal]:
+    """sin and cos of the double x: exact reduction to [-pi/4, pi/4] and Taylor series, in the
+    caller's decimal context."""
+    r, quadrant = _reduced(x)
     r2 = r * r
     s, term, n = r, r, 1
     while True:
         term = -term * r2 / ((n + 1) * (n + 2))
         n += 2
-        if term == 0 or abs(term) < Decimal(10) ** (-2 * _DIGITS):
+        if term == 0 or abs(term) < Decimal(10) ** (-2 * _TRIG_DIGITS):
             break
         s += term
     c, term, n = Decimal(1), Decimal(1), 0
     while True:
         term = -term * r2 / ((n + 1) * (n + 2))
         n += 2
-        if term == 0 or abs(term) < Decimal(10) ** (-2 * _DIGITS):
+        if term == 0 or abs(term) < Decimal(10) ** (-2 * _TRIG_DIGITS):
             break
         c += term
-    return [(s, c), (c, -s), (-s, -c), (-c, s)][k % 4]
+    return [(s, c), (c, -s), (-s, -c), (-c, s)][quadrant]
 
 
 def _atan_dec(x: Decimal) -> Decimal:
@@ -137,13 +178,47 @@ def _atan2_dec(y: Decimal, x: Decimal) -> Decimal:
     return Decimal(0)
 
 
-def _rounded(compute):
+def _cached(function):
+    """``function`` of doubles, cached by each double's value and sign: a spec repeats its
+    constants. (An lru_cache alone would answer f(-0.0) with f(0.0), the two being equal.)"""
+    @lru_cache(maxsize=4096)
+    def by_key(key: tuple[tuple[float, float], ...]) -> float:
+        return function(*(value for value, _ in key))
+
     def f(*args: float) -> float:
-        with localcontext() as ctx:
-            ctx.prec = _DIGITS
-            return float(compute(*(_dec(a) for a in args)))
-    f.__name__ = compute.__name__
+        return by_key(tuple((a, math.copysign(1.0, a)) for a in map(float, args)))
+    f.__name__ = function.__name__
     return f
+
+
+def _rounded(compute, digits: int = _DIGITS):
+    """``compute`` on the exact decimal values of its double arguments in a context of
+    ``digits`` digits (rounding half to even, whatever the caller's context), rounded once
+    to a double; a result past the decimal exponent range is an OverflowError, as the math
+    module's."""
+    def f(*args: float) -> float:
+        with localcontext(DefaultContext) as ctx:
+            ctx.prec = digits
+            try:
+                return float(compute(*(_dec(a) for a in args)))
+            except Overflow:
+                raise OverflowError(f"{compute.__name__}: result too large") from None
+    f.__name__ = compute.__name__
+    return _cached(f)
+
+
+def _trig(compute):
+    """sin, cos or tan of a double, correctly rounded (``compute`` takes sin and cos of it)."""
+    def f(x: float) -> float:
+        if not math.isfinite(x):
+            raise ValueError(f"math domain error in {compute.__name__}")
+        if x == 0 and compute.__name__ != "cos":
+            return x  # sin(-0.0) and tan(-0.0) are -0.0, as IEEE 754 has them
+        with localcontext(DefaultContext) as ctx:
+            ctx.prec = _TRIG_DIGITS
+            return float(compute(*_sin_cos_dec(x)))
+    f.__name__ = compute.__name__
+    return _cached(f)
 
 
 def _check_domain(ok: bool, name: str) -> None:
@@ -151,19 +226,18 @@ def _check_domain(ok: bool, name: str) -> None:
         raise ValueError(f"math domain error in {name}")
 
 
-@_rounded
-def sin(x: Decimal) -> Decimal:
-    return _sin_cos_dec(x)[0]
+@_trig
+def sin(s: Decimal, c: Decimal) -> Decimal:
+    return s
 
 
-@_rounded
-def cos(x: Decimal) -> Decimal:
-    return _sin_cos_dec(x)[1]
+@_trig
+def cos(s: Decimal, c: Decimal) -> Decimal:
+    return c
 
 
-@_rounded
-def tan(x: Decimal) -> Decimal:
-    s, c = _sin_cos_dec(x)
+@_trig
+def tan(s: Decimal, c: Decimal) -> Decimal:
     return s / c
 
 
@@ -212,8 +286,8 @@ def cosh(x: Decimal) -> Decimal:
 
 @_rounded
 def tanh(x: Decimal) -> Decimal:
-    a, b = x.exp(), (-x).exp()
-    return (a - b) / (a + b)
+    e = (-2 * abs(x)).exp()  # at most 1: no overflow for any x (tanh(1e300) is 1)
+    return (1 - e) / (1 + e) * (1 if x >= 0 else -1)
 
 
 @_rounded

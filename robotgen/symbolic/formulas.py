@@ -3,18 +3,31 @@ from __future__ import annotations
 
 import casadi as ca
 
-from robotgen.model.expression import evaluate
+from robotgen.model.expression import MATH_LIB, evaluate
 from robotgen.model.formula import FormulaRobot
 from robotgen.symbolic.rigid_body.chain import Symbols
 from robotgen.symbolic.rigid_body.cholesky import cholesky_solve
 from robotgen.symbolic.rigid_body.christoffel import coriolis_matrix
 
-CASADI_LIB = {
+
+def _folding(name: str, graph):
+    """``graph`` on symbolic arguments; on numbers only (a formula's constant part, a folded
+    parameter), the correctly rounded value of MATH_LIB (robotgen.numeric.exact): the value
+    the spec's checks saw (M's positive definiteness), the same on every machine. CasADi
+    would fold it with this machine's libm."""
+    fold = MATH_LIB[name]
+
+    def apply(*args):
+        return fold(*args) if all(isinstance(a, float) for a in args) else graph(*args)
+    return apply
+
+
+CASADI_LIB = {name: _folding(name, graph) for name, graph in {
     "sin": ca.sin, "cos": ca.cos, "tan": ca.tan, "asin": ca.asin, "acos": ca.acos,
     "atan": ca.atan, "atan2": ca.atan2, "exp": ca.exp, "log": ca.log, "sqrt": ca.sqrt,
     "abs": ca.fabs, "tanh": ca.tanh, "sinh": ca.sinh, "cosh": ca.cosh, "sign": ca.sign,
-    "min": ca.fmin, "max": ca.fmax,
-}
+    "min": ca.fmin, "max": ca.fmax, "pow": lambda a, b: a ** b,
+}.items()}
 
 
 def expression_column(exprs, env) -> ca.SX:

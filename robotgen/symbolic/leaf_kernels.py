@@ -193,7 +193,7 @@ def _derivative_kernels(graphs, integrator: str, n: int, prefix: str, parameters
             prefix + "jacobian_derivative",
             "dJ/dt (6 x n): the time derivative of the tip Jacobian; jacobian_derivative qd = jacobian_dot_qd.",
             [("q", s.q), ("qd", s.qd)], [("jacobian_derivative", graphs.jacobian_derivative(), Matrix(6, n))],
-            parameters))
+            parameters, guarded=True))
     return kernels
 
 

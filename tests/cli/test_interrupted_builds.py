@@ -4,13 +4,18 @@ exit 130 or 143, never a traceback."""
 from __future__ import annotations
 
 import json
+import os
 import signal
 import subprocess
 import sys
+import threading
 import time
 from pathlib import Path
 
+import numpy as np
 import pytest
+
+from robotgen.cli import main
 
 SPEC = str(Path(__file__).resolve().parents[2] / "specs" / "two_link.yaml")
 
@@ -132,3 +137,126 @@ print(" ".join(events))
 """
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
     assert (done.stdout.strip(), done.stderr) == ("block done handler", "")
+
+
+PUMA = str(Path(__file__).resolve().parents[2] / "specs" / "puma560.yaml")
+
+
+def _signals_in_process(tmp_path: Path, count: int) -> dict:
+    """Builds of the PUMA 560 in this process (its graphs take most of a build), each with
+    one SIGINT sent from another thread at a point spread over a build's duration: the
+    outcomes counted. A SIGINT while main() runs must end it with 130, the output as it was."""
+    out = tmp_path / "gen"
+    build = ["build", PUMA, "-o", str(out), "--no-compile", "-q"]
+    assert main(build) == 0
+    before = {p.name: p.read_bytes() for p in out.iterdir() if p.name != ".robotgen-build"}
+    durations = []
+    for _ in range(2):  # the shorter of two undisturbed builds: the machine is shared
+        (out / ".robotgen-build").unlink()
+        start = time.perf_counter()
+        assert main(build) == 0
+        durations.append(time.perf_counter() - start)
+    duration = 0.8 * min(durations)  # the graphs and the C, before the swap
+    outcomes: dict[str, int] = {}
+    for k in range(count):
+        (out / ".robotgen-build").unlink(missing_ok=True)
+        sent: list[float] = []
+
+        def send() -> None:
+            sent.append(time.perf_counter())
+            os.kill(os.getpid(), signal.SIGINT)
+
+        timer = threading.Timer(duration * (k + 0.5) / count, send)
+        try:
+            timer.start()
+            status = main(build)
+            returned = time.perf_counter()
+            timer.join()
+            time.sleep(0.05)  # a SIGINT after main returned is raised here
+            outcome = "lost" if status == 0 and sent[0] < returned else str(status)
+        except KeyboardInterrupt:
+            outcome = "after the build"
+        timer.join()
+        outcomes[outcome] = outcomes.get(outcome, 0) + 1
+        assert {p.name: p.read_bytes() for p in out.iterdir() if p.name != ".robotgen-build"} == before
+        assert not [p for p in tmp_path.iterdir() if p.name.startswith(".gen.")]
+    return outcomes
+
+
+def test_every_sigint_during_graph_construction_ends_the_build(tmp_path, capsys):
+    """6 of 24 SIGINTs were swallowed by CasADi's argument conversion (robotgen.interrupts),
+    and main() went on to return 0."""
+    outcomes = _signals_in_process(tmp_path, 12)
+    assert "lost" not in outcomes and outcomes.get("130", 0) >= 4, outcomes
+    assert set(capsys.readouterr().err.split("\n")) <= {"robotgen: interrupted", ""}
+
+
+@pytest.mark.slow
+def test_every_sigint_during_graph_construction_ends_the_build_sweep(tmp_path):
+    outcomes = _signals_in_process(tmp_path, 96)
+    assert "lost" not in outcomes and outcomes.get("130", 0) >= 32, outcomes
+
+
+def _during_the_graphs(tmp_path: Path, runs: int, signum: int, status: int) -> list[int]:
+    """`robotgen build` processes, each sent ``signum`` while it builds the CasADi graphs (a
+    random moment of the stage, found by its progress line); the output was built from another
+    version of the spec, so a build that went on would change it."""
+    out = tmp_path / "gen"
+    spec = tmp_path / "puma560.yaml"
+    text = Path(PUMA).read_text()
+    spec.write_text(text.replace("mass: 17.4", "mass: 17.5", 1))
+    assert main(["build", str(spec), "-o", str(out), "--no-compile", "-q"]) == 0
+    spec.write_text(text)
+    before = {p.name: p.read_bytes() for p in out.iterdir()}
+    rng = np.random.default_rng(11)
+    statuses = []
+    for _ in range(runs):
+        proc = subprocess.Popen([sys.executable, "-m", "robotgen", "build", str(spec), "-o", str(out), "--no-compile"],
+                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                                env={**os.environ, "ROBOTGEN_PROGRESS": "1"})
+        for line in proc.stderr:
+            if "building the CasADi graphs" in line:
+                break
+        time.sleep(rng.uniform(0.0, 0.3))  # the PUMA's graphs take 0.3-0.6 s in a fresh process
+        proc.send_signal(signum)
+        _, err = proc.communicate(timeout=120)
+        statuses.append(proc.returncode)
+        assert proc.returncode == status and "Traceback" not in err, err
+        assert {p.name: p.read_bytes() for p in out.iterdir()} == before
+        assert not [p for p in tmp_path.iterdir() if p.name.startswith(".gen.")]
+    return statuses
+
+
+@pytest.mark.parametrize("signum, status", [(signal.SIGINT, 130), (signal.SIGTERM, 143)])
+def test_a_signal_while_the_graphs_are_built_leaves_the_old_output(tmp_path, signum, status):
+    """In 2 of 28 command-line builds a SIGINT sent then was lost and the build replaced the
+    output (exit 0)."""
+    assert _during_the_graphs(tmp_path, 3, signum, status) == [status] * 3
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("signum, status", [(signal.SIGINT, 130), (signal.SIGTERM, 143)])
+def test_a_signal_while_the_graphs_are_built_leaves_the_old_output_sweep(tmp_path, signum, status):
+    assert _during_the_graphs(tmp_path, 28, signum, status) == [status] * 28
+
+
+def test_a_signal_of_one_command_does_not_stop_the_next(tmp_path, monkeypatch):
+    """A SIGINT noted during one main() (exit 130) is forgotten when it returns: a build in
+    the same process afterwards, through main() or emit(), is not stopped by it."""
+    from robotgen import cli
+    from robotgen.emit import build as emit_build
+    from robotgen.frontend import load_system
+    from robotgen.model.describe import system_nq
+    from robotgen.symbolic import kernels_for
+
+    def interrupted(args) -> int:
+        os.kill(os.getpid(), signal.SIGINT)
+        time.sleep(0.1)
+        return 0
+
+    system = load_system(SPEC)
+    monkeypatch.setattr(cli, "_cmd_check", interrupted)
+    assert main(["check", SPEC]) == 130
+    monkeypatch.undo()
+    assert main(["build", SPEC, "-o", str(tmp_path / "a"), "--no-compile", "-q"]) == 0
+    emit_build.emit(tmp_path / "b", system.name, kernels_for(system), nq=system_nq(system), compile=False)

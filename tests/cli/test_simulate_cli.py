@@ -3,12 +3,16 @@ error of §3.4) and the PNG, run as a user runs it (a subprocess in the project 
 from __future__ import annotations
 
 import csv
+import hashlib
+import json
 import math
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
+import pytest
 import yaml
 from reference import const
 
@@ -181,3 +185,52 @@ def test_internal_forces_carried_by_the_grasp(tmp_path):
     f = np.array([row[-1] for row in table[1:]], dtype=float)
     print(f"\n  styx_redundant squeeze over 1 s: min {f.min():.4f}, max {f.max():.4f} N (commanded 1)")
     assert np.abs(f - 1.0).max() < 0.01 and np.abs(f - 1.0).max() > 1e-5
+
+
+def test_simulate_overwrites_only_what_it_wrote(tmp_path):
+    """.robotgen-files holds the sha256 of the CSV and PNG simulate wrote; a later run replaces
+    them (and leaves the user's other files); an edited CSV is the user's and is refused."""
+    from robotgen.output_files import write_files, write_problem
+
+    out = tmp_path / "sim"
+    out.mkdir()
+    (out / "notes.txt").write_text("mine")
+    r = run_cli("simulate", "specs/styx_high_ct.yaml", "-o", str(out), "--duration", "0.01", "-q")
+    assert r.returncode == 0, r.stderr
+    names = ["styx_high_ct.csv", "styx_high_ct.png"]
+    record = json.loads((out / ".robotgen-files").read_text())["files"]
+    assert {n: record[n] for n in names} == {n: [hashlib.sha256((out / n).read_bytes()).hexdigest()] for n in names}
+    assert sorted(p.name for p in out.iterdir()) == sorted([".robotgen-files", "notes.txt", *names])
+    made = tmp_path / "made.csv"
+    made.write_text("t\n0\n")
+    assert write_problem(out, names) is None
+    write_files(out, {"styx_high_ct.csv": made})  # what the next run does with its CSV
+    assert (out / "styx_high_ct.csv").read_text() == "t\n0\n" and (out / "notes.txt").read_text() == "mine"
+    with open(out / "styx_high_ct.csv", "a") as f:
+        f.write("1\n")
+    assert "changed since robotgen wrote them (styx_high_ct.csv)" in write_problem(out, names)
+
+
+@pytest.mark.parametrize("case", ["a user's CSV", "a user's PNG", "-o FILE", "the spec at the CSV's name"])
+def test_simulate_refuses_before_it_simulates(tmp_path, case):
+    """simulate -o DIR overwrote DIR/<name>.csv and .png silently, and -o FILE was an internal
+    error (FileExistsError): now exit 1 naming the path, before anything is built."""
+    out = tmp_path / "sim"
+    out.mkdir()
+    spec = "specs/styx_high_ct.yaml"
+    if case == "a user's CSV":
+        (out / "styx_high_ct.csv").write_text("t,x\n0,1\n")
+    elif case == "a user's PNG":
+        (out / "styx_high_ct.png").write_bytes(b"\x89PNG my holiday")
+    elif case == "-o FILE":
+        out = tmp_path / "results.txt"
+        out.write_text("mine")
+    else:
+        spec = str(out / "styx_high_ct.csv")  # a spec may have any name
+        Path(spec).write_text(HIGH.read_text())
+    before = {p: p.read_bytes() for p in tmp_path.rglob("*") if p.is_file()}
+    start = time.perf_counter()
+    r = run_cli("simulate", spec, "-o", str(out), "-q")
+    assert r.returncode == 1 and r.stderr.startswith(f"robotgen: error: {out}"), r.stderr
+    assert time.perf_counter() - start < 20  # refused before the build and the simulation
+    assert {p: p.read_bytes() for p in tmp_path.rglob("*") if p.is_file()} == before

@@ -22,6 +22,7 @@ from robotgen.emit import build, c_kernel
 from robotgen.emit import compile as emit_compile
 from robotgen.emit.c_kernel import OPERATIONS
 from robotgen.emit.sx_program import KernelError
+from robotgen.errors import OutputError
 from robotgen.symbolic.kernel import Kernel, Port
 
 GCC = shutil.which("gcc")
@@ -741,7 +742,7 @@ def test_failed_emit_keeps_previous_output(tmp_path, monkeypatch):
 def test_refuses_to_replace_a_foreign_directory(tmp_path):
     (tmp_path / "mine").mkdir()
     (tmp_path / "mine" / "notes.txt").write_text("keep me")
-    with pytest.raises(FileExistsError):
+    with pytest.raises(OutputError, match="is not a robotgen output"):
         build.emit(tmp_path / "mine", "bot", KERNELS[:1], nq=3, compile=False)
     assert (tmp_path / "mine" / "notes.txt").read_text() == "keep me"
 

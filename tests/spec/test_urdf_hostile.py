@@ -117,3 +117,15 @@ def test_links_without_inertial_are_massless_and_warned_about(tmp_path, capsys):
     path.write_text(urdf().replace(LINK.format(**GOOD), '<link name="l1"/>'))
     assert main(["check", str(path), "--tip", "l1"]) == 0
     assert "warning: joint 'j1' moves no mass" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("declaration, column", [('<?xml version="1.0" encoding="klingon"?>', 21),
+                                                 ("<?xml version='1.0' encoding='x-unknown-8'?>", 21)])
+def test_an_encoding_python_does_not_know_is_located(tmp_path, capsys, declaration, column):
+    path = tmp_path / "r.urdf"
+    path.write_text(declaration + "\n" + urdf())
+    assert main(["check", str(path), "--tip", "l1"]) == 1
+    err = capsys.readouterr().err
+    assert err.startswith(f"{path}:1:{column}: the XML declaration names an encoding Python does not know"), err
+    path.write_text(declaration.replace("klingon", "utf-8").replace("x-unknown-8", "latin-1") + "\n" + urdf())
+    assert main(["check", str(path), "--tip", "l1"]) == 0
