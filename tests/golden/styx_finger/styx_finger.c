@@ -676,6 +676,7 @@ int styx_finger_discrete_dynamics(const double *q, const double *qd, const doubl
   for (rg_k = 0; rg_k < 2; ++rg_k) if (!isfinite(qd[rg_k])) return 1;
   for (rg_k = 0; rg_k < 2; ++rg_k) if (!isfinite(tau[rg_k])) return 1;
   for (rg_k = 0; rg_k < 1; ++rg_k) if (!isfinite(dt[rg_k])) return 1;
+  if (dt[0] <= 0.0) return 3;
   w60 = q[0];
   w61 = q[1];
   w62 = w60 - w61;
@@ -775,6 +776,7 @@ int styx_finger_discrete_dynamics_derivatives(const double *q, const double *qd,
   for (rg_k = 0; rg_k < 2; ++rg_k) if (!isfinite(qd[rg_k])) return 1;
   for (rg_k = 0; rg_k < 2; ++rg_k) if (!isfinite(tau[rg_k])) return 1;
   for (rg_k = 0; rg_k < 1; ++rg_k) if (!isfinite(dt[rg_k])) return 1;
+  if (dt[0] <= 0.0) return 3;
   w190 = q[0];
   w191 = q[1];
   w192 = w190 - w191;

@@ -9,6 +9,7 @@
  * 0, when a result is not finite (forward dynamics where M is not positive definite, or an
  * overflow): they never hand a NaN to an actuator. (Compiled with -ffast-math, the checks
  * may be optimised away.)
+ * Functions with a step length dt return 3, having written nothing, when dt <= 0.
  */
 #ifndef STYX_FINGER_H
 #define STYX_FINGER_H
@@ -174,6 +175,7 @@ int styx_finger_mass_inverse(const double *q, double *mass_inverse);
  *   out qd_next (2,)
  *   checked: returns 1 on a NaN/Inf input (nothing written), 2 on a result that is not
  *   finite (outputs set to 0)
+ *   returns 3 when dt <= 0 (nothing written)
  */
 #define STYX_FINGER_DISCRETE_DYNAMICS_Q_SIZE 2
 #define STYX_FINGER_DISCRETE_DYNAMICS_QD_SIZE 2
@@ -196,6 +198,7 @@ int styx_finger_discrete_dynamics(const double *q, const double *qd, const doubl
  *   out B (4, 2) row-major
  *   checked: returns 1 on a NaN/Inf input (nothing written), 2 on a result that is not
  *   finite (outputs set to 0)
+ *   returns 3 when dt <= 0 (nothing written)
  */
 #define STYX_FINGER_DISCRETE_DYNAMICS_DERIVATIVES_Q_SIZE 2
 #define STYX_FINGER_DISCRETE_DYNAMICS_DERIVATIVES_QD_SIZE 2

@@ -419,6 +419,9 @@ static PyObject *rg_finish(const char *fn, int status, PyArrayObject **results, 
                                 "the outputs were set to 0 (status 2)",
                                 fn);
         }
+        if (status == 3) {
+            return PyErr_Format(PyExc_ValueError, "%s(): dt must be positive; nothing was computed (status 3)", fn);
+        }
         return PyErr_Format(PyExc_RuntimeError, "%s(): kernel returned %d", fn, status);
     }
     if (n == 1) {

@@ -996,6 +996,7 @@ int two_link_discrete_dynamics(const double *q, const double *qd, const double *
   for (rg_k = 0; rg_k < 2; ++rg_k) if (!isfinite(qd[rg_k])) return 1;
   for (rg_k = 0; rg_k < 2; ++rg_k) if (!isfinite(tau[rg_k])) return 1;
   for (rg_k = 0; rg_k < 1; ++rg_k) if (!isfinite(dt[rg_k])) return 1;
+  if (dt[0] <= 0.0) return 3;
   w74 = q[1];
   w75 = q[0];
   rg_x[0] = w74;
@@ -1110,6 +1111,7 @@ int two_link_discrete_dynamics_derivatives(const double *q, const double *qd, co
   for (rg_k = 0; rg_k < 2; ++rg_k) if (!isfinite(qd[rg_k])) return 1;
   for (rg_k = 0; rg_k < 2; ++rg_k) if (!isfinite(tau[rg_k])) return 1;
   for (rg_k = 0; rg_k < 1; ++rg_k) if (!isfinite(dt[rg_k])) return 1;
+  if (dt[0] <= 0.0) return 3;
   w197 = q[1];
   w198 = q[0];
   rg_x[0] = w197;
@@ -1356,6 +1358,9 @@ int two_link_jacobian_derivative(const double *q, const double *qd, double *jaco
   double w28, w29, w30, w31, w32, w33, w34, w35, w36, w37, w38, w40;
   double w42, w43, w44;
   double rg_x[2], rg_s[2], rg_c[2];
+  int rg_k;
+  for (rg_k = 0; rg_k < 2; ++rg_k) if (!isfinite(q[rg_k])) return 1;
+  for (rg_k = 0; rg_k < 2; ++rg_k) if (!isfinite(qd[rg_k])) return 1;
   w43 = q[0];
   w44 = q[1];
   rg_x[0] = w43;
@@ -1410,5 +1415,23 @@ int two_link_jacobian_derivative(const double *q, const double *qd, double *jaco
   w38 = -w37;
   jacobian_derivative[0] = w24;
   jacobian_derivative[2] = w38;
+  double rg_g0, rg_g1;
+  rg_g0 = ((((jacobian_derivative[0] - jacobian_derivative[0]) + (jacobian_derivative[1] - jacobian_derivative[1])) + ((jacobian_derivative[2] - jacobian_derivative[2]) + (jacobian_derivative[3] - jacobian_derivative[3]))) + (((jacobian_derivative[4] - jacobian_derivative[4]) + (jacobian_derivative[5] - jacobian_derivative[5])) + ((jacobian_derivative[6] - jacobian_derivative[6]) + (jacobian_derivative[7] - jacobian_derivative[7]))));
+  rg_g1 = (((jacobian_derivative[8] - jacobian_derivative[8]) + (jacobian_derivative[9] - jacobian_derivative[9])) + ((jacobian_derivative[10] - jacobian_derivative[10]) + (jacobian_derivative[11] - jacobian_derivative[11])));
+  if ((rg_g0 + rg_g1) != 0.0) goto not_finite;
   return 0;
+not_finite:
+  jacobian_derivative[0] = 0.0;
+  jacobian_derivative[1] = 0.0;
+  jacobian_derivative[2] = 0.0;
+  jacobian_derivative[3] = 0.0;
+  jacobian_derivative[4] = 0.0;
+  jacobian_derivative[5] = 0.0;
+  jacobian_derivative[6] = 0.0;
+  jacobian_derivative[7] = 0.0;
+  jacobian_derivative[8] = 0.0;
+  jacobian_derivative[9] = 0.0;
+  jacobian_derivative[10] = 0.0;
+  jacobian_derivative[11] = 0.0;
+  return 2;
 }

@@ -9,6 +9,7 @@
  * 0, when a result is not finite (forward dynamics where M is not positive definite, or an
  * overflow): they never hand a NaN to an actuator. (Compiled with -ffast-math, the checks
  * may be optimised away.)
+ * Functions with a step length dt return 3, having written nothing, when dt <= 0.
  */
 #ifndef TWO_LINK_H
 #define TWO_LINK_H
@@ -214,6 +215,7 @@ int two_link_mass_inverse(const double *q, double *mass_inverse);
  *   out qd_next (2,)
  *   checked: returns 1 on a NaN/Inf input (nothing written), 2 on a result that is not
  *   finite (outputs set to 0)
+ *   returns 3 when dt <= 0 (nothing written)
  */
 #define TWO_LINK_DISCRETE_DYNAMICS_Q_SIZE 2
 #define TWO_LINK_DISCRETE_DYNAMICS_QD_SIZE 2
@@ -236,6 +238,7 @@ int two_link_discrete_dynamics(const double *q, const double *qd, const double *
  *   out B (4, 2) row-major
  *   checked: returns 1 on a NaN/Inf input (nothing written), 2 on a result that is not
  *   finite (outputs set to 0)
+ *   returns 3 when dt <= 0 (nothing written)
  */
 #define TWO_LINK_DISCRETE_DYNAMICS_DERIVATIVES_Q_SIZE 2
 #define TWO_LINK_DISCRETE_DYNAMICS_DERIVATIVES_QD_SIZE 2
@@ -253,6 +256,8 @@ int two_link_discrete_dynamics_derivatives(const double *q, const double *qd, co
  *   in  q (2,)
  *   in  qd (2,)
  *   out jacobian_derivative (6, 2) row-major
+ *   checked: returns 1 on a NaN/Inf input (nothing written), 2 on a result that is not
+ *   finite (outputs set to 0)
  */
 #define TWO_LINK_JACOBIAN_DERIVATIVE_Q_SIZE 2
 #define TWO_LINK_JACOBIAN_DERIVATIVE_QD_SIZE 2
