@@ -15,6 +15,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from robotgen.model.coupling import Coupling
 from robotgen.numeric import exact
 
 REVOLUTE = "revolute"
@@ -83,10 +84,25 @@ class KinematicTree:
     base_link: str = "base"
     tip_link: str = "tip"
     locked_joints: tuple[str, ...] = ()  # movable joints of the source held at q = 0 (URDF)
+    coupling: Coupling | None = None  # mimic joints: q_joints = S q + c (model/coupling.py)
 
     @property
     def nq(self) -> int:
+        """Number of coordinates: the joints, less those that mimic another."""
+        return len(self.joints) if self.coupling is None else self.coupling.nq
+
+    @property
+    def n_joints(self) -> int:
+        """Number of physical joints, the size the rigid-body algorithms work in."""
         return len(self.joints)
+
+    @property
+    def coordinate_joints(self) -> tuple[Joint, ...]:
+        """The joint of each coordinate (every joint without a coupling): its name, type and
+        limits are the coordinate's."""
+        if self.coupling is None:
+            return self.joints
+        return tuple(self.joints[i] for i in self.coupling.independent)
 
     def support(self, i: int) -> list[int]:
         """Joints from the base to joint i, inclusive, base first."""
@@ -126,11 +142,17 @@ def with_payload(tree: KinematicTree, mass: float, point: np.ndarray) -> Kinemat
 def joints_without_inertia(tree: KinematicTree) -> list[int]:
     """Joints that move no mass and no inertia: their subtree (the joint's body and every body
     after it) is massless with zero rotational inertia, and they have no armature. Their row of
-    M is zero at every configuration, so M is singular and forward dynamics has no answer."""
+    M is zero at every configuration, so M is singular and forward dynamics has no answer.
+    Under a coupling, a joint counts when every joint of its coordinate does (then the
+    coordinate's row of S^T M S is zero)."""
     carried = [0.0] * len(tree.joints)
     for i in reversed(range(len(tree.joints))):
         joint = tree.joints[i]
         carried[i] += joint.body.mass + float(np.abs(joint.body.inertia).sum())
         if joint.parent >= 0:
             carried[joint.parent] += carried[i]
-    return [i for i, joint in enumerate(tree.joints) if carried[i] == 0.0 and joint.armature == 0.0]
+    empty = [carried[i] == 0.0 and joint.armature == 0.0 for i, joint in enumerate(tree.joints)]
+    if tree.coupling is not None:
+        c = tree.coupling.coordinate
+        empty = [all(empty[j] for j in tree.coupling.joints_of(c[i])) for i in range(len(empty))]
+    return [i for i, e in enumerate(empty) if e]

@@ -112,7 +112,7 @@ def origin_parameters(body: Body) -> OriginParameters:
 def regrouped_inertias(tree: KinematicTree) -> list[OriginParameters]:
     """Each joint's regrouped (m, h, Ibar) in its own frame, about its origin."""
     params = [_of_body(j.body) for j in tree.joints]
-    for i in reversed(range(tree.nq)):
+    for i in reversed(range(tree.n_joints)):
         joint = tree.joints[i]
         params[i], moved = _split(params[i], joint.type, np.asarray(joint.axis, dtype=float))
         if joint.parent >= 0:

@@ -148,9 +148,10 @@ class DynamicsDerivatives:
 
     def _looped(self) -> bool:
         """Whether the recursion's loops are used (derivative_loops): a large serial chain on
-        which the recursion has at most RECURSION_LOOPS_WITHIN times the sweeps' operations."""
+        which the recursion has at most RECURSION_LOOPS_WITHIN times the sweeps' operations, and
+        no mimic joints (the recursion runs in the joints)."""
         g = self.graphs
-        if not (self._large() and is_serial(g.tree)):
+        if not (self._large() and is_serial(g.tree) and g.tree.coupling is None):
             return False
         recursion, sweeps = g.id_derivatives_counts()
         return recursion <= RECURSION_LOOPS_WITHIN * sweeps

@@ -1,5 +1,7 @@
 """Every dynamic and kinematic quantity of a KinematicTree as CasADi SX expressions of
-shared symbols q, qd, qdd, tau."""
+shared symbols q, qd, qdd, tau: the tree's coordinates. The algorithms work in its joints;
+a tree with mimic joints maps its coordinates into them and their results back
+(rigid_body/coupled.py)."""
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -11,11 +13,12 @@ from robotgen.model.regrouping import regrouped_inertias
 from robotgen.model.snap import snap_tree
 from robotgen.symbolic.differentiation import reverse_jacobian
 from robotgen.symbolic.op_count import count_operations
-from robotgen.symbolic.rigid_body.base_turn import turned
+from robotgen.symbolic.rigid_body.base_turn import base_axis, turned
 from robotgen.symbolic.rigid_body.chain_loops import LOOPS_ABOVE_DOF
 from robotgen.symbolic.rigid_body.cholesky import cholesky_solve
 from robotgen.symbolic.rigid_body.christoffel import coriolis_from_forces, coriolis_matrix
 from robotgen.symbolic.rigid_body.coriolis import coriolis_spatial
+from robotgen.symbolic.rigid_body.coupled import CoupledCoordinates
 from robotgen.symbolic.rigid_body.crba import crba
 from robotgen.symbolic.rigid_body.friction import friction_torque
 from robotgen.symbolic.rigid_body.inertia import OriginInertia
@@ -48,7 +51,10 @@ class ChainGraphs:
     def __init__(self, tree: KinematicTree, sym: Symbols, snap: bool = True):
         self.tree = tree = snap_tree(tree) if snap else tree
         self.sym = sym
-        self.motions = joint_motions(tree, sym.q)
+        # the joints' q, qd, qdd (sym's own without a coupling); results go back through it
+        self.coordinates = c = CoupledCoordinates(tree)
+        self.q_joints, self.qd_joints, self.qdd_joints = c.positions(sym.q), c.rates(sym.qd), c.rates(sym.qdd)
+        self.motions = joint_motions(tree, self.q_joints)
         # every algorithm below reads the bodies through these (the same torques, fewer terms)
         self.inertias = [OriginInertia.constant(p) for p in regrouped_inertias(tree)]
         self._cache: dict[str, ca.SX] = {}
@@ -65,8 +71,8 @@ class ChainGraphs:
     def fk(self) -> ca.SX:
         """The tip pose directly or with the first joint's turn factored out (base_turn)."""
         def build():
-            direct = forward_kinematics(self.tree, self.sym.q)
-            return self._fewest([self.sym.q], [direct, turned(self.tree, self.sym.q, direct, 0)])
+            direct = forward_kinematics(self.tree, self.q_joints)
+            return self._fewest([self.sym.q], [direct, self._turn(direct, 0)])
         return self._get("fk", build)
 
     def jacobian(self) -> ca.SX:
@@ -74,7 +80,8 @@ class ChainGraphs:
         return self._turned("jacobian") if self.tip_turned() else self._jacobian_direct()
 
     def _jacobian_direct(self) -> ca.SX:
-        return self._get("jacobian_direct", lambda: geometric_jacobian(self.tree, self.sym.q))
+        return self._get("jacobian_direct",
+                         lambda: self.coordinates.columns(geometric_jacobian(self.tree, self.q_joints)))
 
     def _jacobian_dot_qd_direct(self) -> ca.SX:
         return self._get("jdqd_direct", lambda: tip_bias_acceleration(
@@ -83,7 +90,20 @@ class ChainGraphs:
     def _turned(self, name: str) -> ca.SX | None:
         """The Jacobian or Jdot qd at q_root = 0, turned by R(q_root); None if no such turn."""
         direct = self._jacobian_direct() if name == "jacobian" else self._jacobian_dot_qd_direct()
-        return self._get(name + "_turned", lambda: turned(self.tree, self.sym.q, direct, 2))
+        return self._get(name + "_turned", lambda: self._turn(direct, 2))
+
+    def _turn(self, expr: ca.SX, blocks: int) -> ca.SX | None:
+        """base_turn's form of ``expr``; None also when the root joint's coordinate is not its
+        own plain symbol or moves another joint (a mimic of it would turn with it)."""
+        c = self.tree.coupling
+        if c is not None:
+            found = base_axis(self.tree)
+            if found is None:
+                return None
+            root = found[0]
+            if len(c.joints_of(c.coordinate[root])) > 1 or c.multiplier[root] != 1.0 or c.offset[root] != 0.0:
+                return None
+        return turned(self.tree, self.q_joints, expr, blocks)
 
     def tip_turned(self) -> bool:
         """Whether J and Jdot qd are built turned (base_turn), one choice for both, so that the
@@ -96,7 +116,7 @@ class ChainGraphs:
             s = self.sym
             if self._turned("jacobian") is None:
                 return False
-            shared = [self.mass(), self.nonlinear()] if self.tree.nq <= LOOPS_ABOVE_DOF else []
+            shared = [self.mass(), self.nonlinear()] if self.tree.n_joints <= LOOPS_ABOVE_DOF else []
             count = [count_operations([s.q, s.qd], [*shared, J, a])["total"]
                      for J, a in ((self._jacobian_direct(), self._jacobian_dot_qd_direct()),
                                   (self._turned("jacobian"), self._turned("jacobian_dot_qd")))]
@@ -104,7 +124,7 @@ class ChainGraphs:
         return self._get("tip_turned", build)
 
     def jacobian_hand(self) -> ca.SX:
-        return self._get("jacobian_hand", lambda: hand_jacobian(self.tree, self.sym.q))
+        return self._get("jacobian_hand", lambda: self.coordinates.columns(hand_jacobian(self.tree, self.q_joints)))
 
     def jacobian_dot_qd(self) -> ca.SX:
         """From RNEA's forward pass at qdd = 0: directly (the pass nonlinear() uses too) or with
@@ -113,10 +133,11 @@ class ChainGraphs:
 
     def bias_pass(self):
         """RNEA's forward pass at qdd = 0 with gravity, shared by nonlinear and Jdot qd."""
-        return self._get("bias_pass", lambda: forward_pass(self.tree, self.motions, self.sym.qd, None))
+        return self._get("bias_pass", lambda: forward_pass(self.tree, self.motions, self.qd_joints, None))
 
     def mass(self) -> ca.SX:
-        return self._get("mass", lambda: crba(self.tree, self.motions, self.inertias))
+        return self._get("mass", lambda: self.coordinates.matrix(crba(self.tree, self.motions, self.inertias),
+                                                                 symmetric=True))
 
     def axes_and_inertias(self):
         """Each joint's axis and each body's inertia in base coordinates: what every looped
@@ -133,12 +154,12 @@ class ChainGraphs:
         terms, compact for small arms), half the velocity Jacobian of the Coriolis forces,
         and the spatial O(n^2) algorithm (alone past AD_CORIOLIS_MAX_DOF joints). Operations
         after CSE: UR5 1107, 714, 2004; Panda 2663, 3020, 3887."""
-        q, qd = self.sym.q, self.sym.qd
-        spatial = coriolis_spatial(self.tree, self.motions, self.inertias, qd)
-        if self.tree.nq > AD_CORIOLIS_MAX_DOF:
+        q, qd, c = self.sym.q, self.sym.qd, self.coordinates
+        spatial = c.matrix(coriolis_spatial(self.tree, self.motions, self.inertias, self.qd_joints))
+        if self.tree.n_joints > AD_CORIOLIS_MAX_DOF:
             return {"spatial": spatial}
         half = [inertia.scaled(0.5) for inertia in self.inertias]
-        half_forces = rnea(self.tree, self.motions, half, qd, None, gravity=False)
+        half_forces = c.forces(rnea(self.tree, self.motions, half, self.qd_joints, None, gravity=False))
         # C is Christoffel(M): where M reads no q_i (a base joint's, an axisymmetric last
         # body's), neither does C, and the forces' graph may take q_i = 0 (no sin/cos)
         unread = [i for i in range(self.tree.nq) if not ca.depends_on(self.mass(), q[i])]
@@ -148,20 +169,26 @@ class ChainGraphs:
                 "forces": coriolis_from_forces(half_forces, qd), "spatial": spatial}
 
     def friction(self) -> ca.SX:
-        return self._get("friction", lambda: friction_torque(self.tree, self.sym.qd))
+        """Every joint's friction (the mimic joints' too) as coordinate forces."""
+        return self._get("friction", lambda: self.coordinates.forces(friction_torque(self.tree, self.qd_joints)))
 
     def gravity(self) -> ca.SX:
-        return self._get("gravity", lambda: rnea(self.tree, self.motions, self.inertias, None, None))
+        return self._get("gravity",
+                         lambda: self.coordinates.forces(rnea(self.tree, self.motions, self.inertias, None, None)))
 
     def nonlinear(self) -> ca.SX:
         """C(q, qd) qd + N(q, qd): Newton-Euler with qdd = 0, plus friction."""
-        return self._get("nonlinear", lambda: rnea(self.tree, self.motions, self.inertias, self.sym.qd, None,
-                                                   passes=self.bias_pass()) + self.friction())
+        return self._get("nonlinear", lambda: self.coordinates.forces(
+            rnea(self.tree, self.motions, self.inertias, self.qd_joints, None, passes=self.bias_pass()))
+            + self.friction())
 
     def inverse_dynamics(self) -> ca.SX:
+        """S^T tau(q_joints, S qd, S qdd) under a coupling."""
         def build():
-            armature = ca.vertcat(*[j.armature * self.sym.qdd[i] for i, j in enumerate(self.tree.joints)])
-            return rnea(self.tree, self.motions, self.inertias, self.sym.qd, self.sym.qdd) + armature + self.friction()
+            c, qdd = self.coordinates, self.qdd_joints
+            armature = ca.vertcat(*[j.armature * qdd[i] for i, j in enumerate(self.tree.joints)])
+            return (c.forces(rnea(self.tree, self.motions, self.inertias, self.qd_joints, qdd)) + c.forces(armature)
+                    + self.friction())
         return self._get("inverse_dynamics", build)
 
     def forward_dynamics(self) -> ca.SX:
@@ -174,13 +201,27 @@ class ChainGraphs:
         (UR5: the sweeps, 1465 vs 2546; Panda: the recursion, 4888 vs 5170)."""
         def build():
             s = self.sym
-            recursion = rnea_derivatives(self.tree, self.motions, self.inertias, s.qd, s.qdd)
+            recursion = self._rnea_derivatives()
             tau = self.inverse_dynamics()
             sweeps = (reverse_jacobian(tau, s.q), reverse_jacobian(tau, s.qd))
             count = tuple(count_operations([s.q, s.qd, s.qdd], list(d))["total"] for d in (recursion, sweeps))
             self._cache["id_derivatives_counts"] = count
             return recursion if count[0] <= count[1] else sweeps
         return self._get("id_derivatives", build)
+
+    def _rnea_derivatives(self) -> tuple[ca.SX, ca.SX]:
+        """rnea_derivatives' recursion; under a coupling in the joints' own symbols (it
+        differentiates friction by them), then at q_joints = S q + c and taken back by the
+        chain rule, d tau_r/dq = S^T (d tau/dq_joints) S and the same for qd."""
+        s = self.sym
+        if not self.coordinates.coupled:
+            return rnea_derivatives(self.tree, self.motions, self.inertias, s.qd, s.qdd)
+        joints = Symbols.make(self.tree.n_joints)
+        dq, dqd = rnea_derivatives(self.tree, joint_motions(self.tree, joints.q), self.inertias, joints.qd,
+                                   joints.qdd)
+        dq, dqd = ca.substitute([dq, dqd], [joints.q, joints.qd, joints.qdd],
+                                [self.q_joints, self.qd_joints, self.qdd_joints])
+        return self.coordinates.matrix(dq), self.coordinates.matrix(dqd)
 
     def id_derivatives_counts(self) -> tuple[int, int]:
         """Straight-line operations of the recursion and of the reverse sweeps; the fewer is

@@ -15,7 +15,13 @@ u_i = Ic_i S_i, w_i = T_i^T S_i,ang + 2 p_i x S_i,lin and X_j = Ic_j Sdot_j + Bc
 C_ij = u_i . Sdot_j + w_i . S_j,ang / 2 for i > j, S_i . X_j for i <= j.
 
 Chains whose straight-line kernels pass the instruction cache (LOOPS_ABOVE_OPS) use these: the
-code is O(n) in size, not O(n^2), and compiles in a fraction of the time."""
+code is O(n) in size, not O(n^2), and compiles in a fraction of the time.
+
+A tree with mimic joints (rigid_body/coupled.py) runs the same loops in its joints, on
+qd_joints = S qd and qdd_joints = S qdd, into local arrays; one block after them takes the
+results to its coordinates, S^T M S, S^T tau, S^T C S. Its forward dynamics is no
+articulated-body pass (the coupled joints are not a tree's): M and C qd + N so taken to the
+coordinates, then an L D L^T solve in that block."""
 from __future__ import annotations
 
 from collections.abc import Callable
@@ -24,6 +30,8 @@ import casadi as ca
 
 from robotgen.model.chain import KinematicTree
 from robotgen.symbolic.kernel import row_major
+from robotgen.symbolic.rigid_body.cholesky import cholesky_solve
+from robotgen.symbolic.rigid_body.coupled import CoupledCoordinates
 from robotgen.symbolic.rigid_body.friction import friction_torque
 from robotgen.symbolic.rigid_body.inertia import OriginInertia
 from robotgen.symbolic.rigid_body.rnea_derivatives import base_acceleration, body_terms, kinematics_stage
@@ -74,7 +82,8 @@ class ChainLoops:
 
     def __init__(self, tree: KinematicTree, kinematics: Callable[[], tuple[list[ca.SX], list[OriginInertia]]]):
         """``kinematics``: builds (or returns, once built) axes_and_inertias of ``tree``."""
-        self.tree, self.kinematics, self.n = tree, kinematics, tree.nq
+        self.tree, self.kinematics, self.n = tree, kinematics, tree.n_joints
+        self.coordinates = CoupledCoordinates(tree)
         self.parents = [joint.parent for joint in tree.joints]
         if any(p >= i for i, p in enumerate(self.parents)):
             raise ValueError("a tree's joints must come after their parents")
@@ -205,21 +214,62 @@ class ChainLoops:
             extra += friction_torque(self.tree, qd)
         return extra
 
+    # -- a coupled tree's joint results, taken to its coordinates --------------------------------
+
+    def _joint_matrix(self, b: ScheduleBuilder) -> int:
+        """A local for an n x n joint matrix (row-major), zero where the loops write nothing."""
+        array = b.local(size=self.n * self.n)
+        b.prologue(Slice(LOCAL, array), ca.SX.zeros(self.n * self.n, 1))
+        return array
+
+    def _to_coordinates(self, b: ScheduleBuilder, name: str, arrays: list[tuple[int, str]], result, target: Slice,
+                        tau: ca.SX | None = None) -> None:
+        """One block reading the joint results ``arrays`` ((local, kind) each, taken to the
+        coordinates: S^T M S for a "matrix" or "symmetric" one (row-major), S^T tau for a
+        "vector") and the coordinate forces ``tau`` if given, writing ``result`` of them all (a
+        column) into ``target``."""
+        n, c = self.n, self.coordinates
+        inputs, values, reads = [], [], [Slice(LOCAL, array) for array, _ in arrays]
+        for _, kind in arrays:
+            x = ca.SX.sym(kind, n if kind == "vector" else n * n)
+            inputs.append(x)
+            values.append(c.forces(x) if kind == "vector" else
+                          c.matrix(ca.reshape(x, n, n).T, symmetric=kind == "symmetric"))
+        if tau is not None:
+            inputs.append(ca.SX.sym("tau", tau.numel()))
+            values.append(inputs[-1])
+            reads.append(Slice(LOCAL, b.local(tau)))
+        b.loop(body(name, inputs, [result(*values)]), ONCE, 1, reads, [target])
+
     # -- kernels ----------------------------------------------------------------------------
 
     def mass(self, b: ScheduleBuilder) -> None:
         S, BODY = self._kinematics(b)
-        self._mass(b, S, self._composite_inertias(b, BODY), (OUTPUT, 0))
+        if not self.coordinates.coupled:
+            self._mass(b, S, self._composite_inertias(b, BODY), (OUTPUT, 0))
+            return
+        IC = self._composite_inertias(b, BODY)
+        M = self._joint_matrix(b)
+        self._mass(b, S, IC, (LOCAL, M))
+        self._to_coordinates(b, "mass_coordinates", [(M, "symmetric")], row_major, Slice(OUTPUT, 0))
 
     def inverse_dynamics(self, b: ScheduleBuilder, qd: ca.SX, qdd: ca.SX | None) -> None:
         """Newton-Euler torques; qdd None: C qd + N (nonlinear)."""
         S, BODY = self._kinematics(b)
-        self._torques(b, S, BODY, self._velocities(b, S, qd), qdd, self._extra(qd, qdd), Slice(OUTPUT, 0, i_stride=1))
+        c = self.coordinates
+        qd, qdd = c.rates(qd), (None if qdd is None else c.rates(qdd))
+        if not c.coupled:
+            self._torques(b, S, BODY, self._velocities(b, S, qd), qdd, self._extra(qd, qdd),
+                          Slice(OUTPUT, 0, i_stride=1))
+            return
+        TAU = b.local(size=self.n)
+        self._torques(b, S, BODY, self._velocities(b, S, qd), qdd, self._extra(qd, qdd), Slice(LOCAL, TAU, i_stride=1))
+        self._to_coordinates(b, "force_coordinates", [(TAU, "vector")], lambda tau: tau, Slice(OUTPUT, 0))
 
     def coriolis(self, b: ScheduleBuilder, qd: ca.SX) -> None:
         n = self.n
         S, BODY = self._kinematics(b)
-        _, V, SDOT = self._velocities(b, S, qd)
+        _, V, SDOT = self._velocities(b, S, self.coordinates.rates(qd))
         REC = self._zeros(b, 25)  # composites: inertia (13), T (9), p (3)
         inertia, (v, s, sdot, u, x) = ca.SX.sym("I", INERTIA), symbols("v s sdot u x")
         _, T_, p = body_terms(inertia_of(inertia), v, ca.SX.zeros(6, 1))
@@ -233,7 +283,7 @@ class ChainLoops:
                     [Ic.apply6(s), (T.T @ s[:3] + 2 * ca.cross(pc, s[3:])) / 2, Ic.apply6(sdot) + B_S]),
                RANGE, n, [block(REC, 25), block(S, 6), block(SDOT, 6)], [block(U, 6), block(W, 3), block(X, 6)])
         w = ca.SX.sym("w", 3)
-        out = (OUTPUT, 0)
+        out = (LOCAL, self._joint_matrix(b)) if self.coordinates.coupled else (OUTPUT, 0)
         b.loop(body("diagonal_term", [s, x], [ca.dot(s, x)]), RANGE, n, [block(S, 6), block(X, 6)],
                [Slice(*out, i_stride=n + 1)])
         self._pairs(b, "subtree_term", [u, w, sdot, s], [ca.dot(u, sdot) + ca.dot(w, s[:3])],
@@ -241,6 +291,8 @@ class ChainLoops:
                     [Slice(*out, i_stride=n, j_stride=1)], ancestor=False)
         self._pairs(b, "ancestor_term", [s, x], [ca.dot(s, x)], [block(S, 6), block(X, 6, "j")],
                     [Slice(*out, i_stride=n, j_stride=1)], ancestor=True)
+        if self.coordinates.coupled:
+            self._to_coordinates(b, "coriolis_coordinates", [(out[1], "matrix")], row_major, Slice(OUTPUT, 0))
 
     def forward_dynamics(self, b: ScheduleBuilder, qd: ca.SX, tau: ca.SX) -> None:
         """qdd by the articulated-body algorithm (Featherstone 2008, Table 7.1) in base-frame
@@ -248,7 +300,10 @@ class ChainLoops:
         I^A_i = I_i + sum of I^a over its children, p^A_i = v_i x* I_i v_i + sum of p^a, U = I^A S, D = S . U +
         armature, u = tau - friction - S . p^A, I^a = I^A - U U^T / D, p^a = p^A + I^a c + U u / D
         (c = Sdot qd); then from the base, a'_i = a_parent + c_i, qdd_i = (u_i - U_i . a'_i) / D_i
-        and a_i = a'_i + S_i qdd_i, the base's a = -g."""
+        and a_i = a'_i + S_i qdd_i, the base's a = -g. A coupled tree: _coupled_forward_dynamics."""
+        if self.coordinates.coupled:
+            self._coupled_forward_dynamics(b, qd, tau)
+            return
         n = self.n
         S, BODY = self._kinematics(b)
         QD, V, SDOT = self._velocities(b, S, qd)
@@ -292,10 +347,32 @@ class ChainLoops:
         x = ca.SX.sym("qdd", n)
         b.loop(body("copy", [x], [x]), ONCE, 1, [Slice(LOCAL, QDD)], [Slice(OUTPUT, 0)])
 
+    def _coupled_forward_dynamics(self, b: ScheduleBuilder, qd: ca.SX, tau: ca.SX) -> None:
+        """qdd = (S^T M S)^-1 (tau - S^T (C qd + N)) by L D L^T: M and the bias forces by the
+        loops in the joints, the rest in one block."""
+        M, H = self._joint_mass_and_bias(b, qd)
+        self._to_coordinates(b, "coupled_forward_dynamics", [(M, "symmetric"), (H, "vector")],
+                             lambda m, h, t: cholesky_solve(m, t - h), Slice(OUTPUT, 0), tau)
+
+    def _joint_mass_and_bias(self, b: ScheduleBuilder, qd: ca.SX) -> tuple[int, int]:
+        """Locals of a coupled tree's joint M and C qd + N (with friction) at qd_joints = S qd."""
+        S, BODY = self._kinematics(b)
+        qd = self.coordinates.rates(qd)
+        H = b.local(size=self.n)
+        self._torques(b, S, BODY, self._velocities(b, S, qd), None, self._extra(qd, None), Slice(LOCAL, H, i_stride=1))
+        M = self._joint_matrix(b)
+        self._mass(b, S, self._composite_inertias(b, BODY), (LOCAL, M))
+        return M, H
+
     def servo_terms(self, b: ScheduleBuilder, qd: ca.SX, jacobian: ca.SX, jacobian_dot_qd: ca.SX) -> None:
         """M, C qd + N, and the tip's J and Jdot qd (straight-line, O(n)) in one call."""
         b.prologue(Slice(OUTPUT, 2), row_major(jacobian))
         b.prologue(Slice(OUTPUT, 3), jacobian_dot_qd)
+        if self.coordinates.coupled:
+            M, H = self._joint_mass_and_bias(b, qd)
+            self._to_coordinates(b, "mass_coordinates", [(M, "symmetric")], row_major, Slice(OUTPUT, 0))
+            self._to_coordinates(b, "force_coordinates", [(H, "vector")], lambda h: h, Slice(OUTPUT, 1))
+            return
         S, BODY = self._kinematics(b)
         self._torques(b, S, BODY, self._velocities(b, S, qd), None, self._extra(qd, None), Slice(OUTPUT, 1, i_stride=1))
         self._mass(b, S, self._composite_inertias(b, BODY), (OUTPUT, 0))

@@ -42,7 +42,7 @@ def _world_inertia(inertia: OriginInertia, R: ca.SX, p: ca.SX) -> ca.SX:
 
 def coriolis_spatial(tree: KinematicTree, motions: list[JointMotion], inertias: list[OriginInertia],
                      qd: ca.SX) -> ca.SX:
-    n = tree.nq
+    n = tree.n_joints
     poses = joint_poses(tree, motions)
     S, v, dS, I = [], [], [], []
     for i, (joint, (R, p)) in enumerate(zip(tree.joints, poses)):

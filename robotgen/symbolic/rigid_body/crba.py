@@ -12,7 +12,7 @@ from robotgen.symbolic.rigid_body.spatial import force_transform_to_parent
 
 def crba(tree: KinematicTree, motions: list[JointMotion], inertias: list[OriginInertia]) -> ca.SX:
     """``inertias``: each body's, about its joint's origin (regrouped or not)."""
-    n = tree.nq
+    n = tree.n_joints
     composite = list(inertias)
     for i in reversed(range(n)):
         p = tree.joints[i].parent

@@ -59,7 +59,7 @@ class _Chain:
 
     def __init__(self, b: ScheduleBuilder, tree: KinematicTree, kinematics: tuple[list[ca.SX], list[OriginInertia]],
                  qd: ca.SX):
-        self.b, self.n = b, tree.nq
+        self.b, self.n = b, tree.n_joints
         n = self.n
         self.S, self.BODY = kinematics_stage(b, *kinematics)  # BODY: each body's own inertia
         self.REC = b.local(size=RECORD * (n + 1))

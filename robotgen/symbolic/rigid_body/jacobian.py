@@ -16,7 +16,7 @@ def geometric_jacobian(tree: KinematicTree, q: ca.SX) -> ca.SX:
     Joints that do not support the tip give zero columns."""
     poses = joint_poses(tree, joint_motions(tree, q))
     _, p_tip = tip_pose(tree, poses)
-    columns = [ca.SX.zeros(6, 1) for _ in range(tree.nq)]
+    columns = [ca.SX.zeros(6, 1) for _ in range(tree.n_joints)]
     for i in tree.support(tree.tip):
         R, p = poses[i]
         z = R @ const(tree.joints[i].axis)

@@ -87,7 +87,7 @@ def rnea(tree: KinematicTree, motions: list[JointMotion], inertias: list[OriginI
     """Rigid-body joint torques M qdd + C qd + g (no armature, no friction). ``qd`` or
     ``qdd`` None means zero, so that gravity alone and C qd + g stay small graphs.
     ``passes``: the forward pass if already built (shared with the tip acceleration)."""
-    n = tree.nq
+    n = tree.n_joints
     passes = passes or forward_pass(tree, motions, qd, qdd, gravity)
     force = [list(body_force(I, b)) for I, b in zip(inertias, passes)]
     tau = [ca.SX(0)] * n

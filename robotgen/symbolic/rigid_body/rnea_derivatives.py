@@ -119,7 +119,7 @@ def joint_outputs(Ic: OriginInertia, T: ca.SX, p: ca.SX, S: ca.SX, Sdot: ca.SX, 
 def joint_terms(tree: KinematicTree, motions: list[JointMotion], inertias: list[OriginInertia], qd: ca.SX,
                 qdd: ca.SX) -> JointTerms:
     """The O(n) part of the recursion: everything the joint-pair terms read."""
-    n = tree.nq
+    n = tree.n_joints
     S, Ic = axes_and_inertias(tree, motions, inertias)
     a_base = base_acceleration(tree)
     Sdot, v, a, alpha, F, T, p = [], [], [], [], [], [], []
@@ -160,7 +160,7 @@ def rnea_derivatives(tree: KinematicTree, motions: list[JointMotion], inertias: 
                      qdd: ca.SX) -> tuple[ca.SX, ca.SX]:
     """(d tau / dq, d tau / dqd) of inverse dynamics with friction (the armature term
     depends on qdd only)."""
-    n = tree.nq
+    n = tree.n_joints
     t = joint_terms(tree, motions, inertias, qd, qdd)
     dq = ca.SX.zeros(n, n)
     dqd = ca.SX.zeros(n, n)

@@ -199,7 +199,7 @@ def spherical_wrist_arm(tree: KinematicTree) -> SphericalWristArm | None:
     """The arm's closed-form constants when it belongs to the family (module docstring),
     else None."""
     tree = snap_tree(tree)
-    if tree.nq != 6 or tree.support(tree.tip) != list(range(6)):
+    if tree.coupling is not None or tree.nq != 6 or tree.support(tree.tip) != list(range(6)):
         return None
     if any(j.type != REVOLUTE for j in tree.joints):
         return None
