@@ -19,6 +19,7 @@ from robotgen import interrupts
 from robotgen.emit.compile import CompilerSetupError
 from robotgen.emit.targets import TARGETS, TargetUnavailable, check_available
 from robotgen.errors import MissingDependency, OutputError, UserError, UserErrors
+from robotgen.model.coupling import affine
 from robotgen.model.derivatives import INTEGRATORS, SEMI_IMPLICIT_EULER, DerivativeSettings
 from robotgen.model.describe import system_info, system_nq
 from robotgen.model.laws import HAND_LAWS, RESOLVED_ADAPTIVE
@@ -350,6 +351,8 @@ def _cmd_info(args: argparse.Namespace) -> int:
             print(f"    - {j['name']}: {j['type']}, parent {j['parent']}{rng}")
         if node.get("locked_joints"):
             print(f"    locked at q = 0: {', '.join(node['locked_joints'])}")
+        for c in node.get("coupled_joints", []):
+            print(f"    mimic: {c['joint']} = {affine(c['multiplier'], c['coordinate'], c['offset'])}")
     if system.root_law == RESOLVED_ADAPTIVE:
         from robotgen.symbolic import module_extras  # lazy: CasADi only where it is needed
         from robotgen.symbolic.control.resolved_adaptive import closed_loop

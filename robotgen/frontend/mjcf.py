@@ -62,6 +62,14 @@ import numpy as np
 
 from robotgen.errors import Location, MissingDependency, UserError
 from robotgen.frontend.input_file import read_input
+from robotgen.frontend.mjcf_equality import (
+    JointEquality,
+    coupled_note,
+    coupling_of,
+    joint_equalities,
+    leading_joints,
+    refuse_touching,
+)
 from robotgen.frontend.urdf import merge_bodies, module_identifier
 from robotgen.model.chain import PRISMATIC, REVOLUTE, Body, Joint, KinematicTree, Limits, joints_without_inertia
 from robotgen.model.expression import MAX_MAGNITUDE
@@ -316,11 +324,12 @@ def _find(mj: _Mjcf, label: str, name: str, sites: bool) -> tuple[int, int | Non
 
 @dataclass
 class _Plan:
-    """The base body, the joints robotgen keeps (MuJoCo's order) and the bodies below the
-    base (MuJoCo's topological order)."""
+    """The base body, the joints robotgen keeps (MuJoCo's order), the bodies below the base
+    (MuJoCo's topological order) and the joint equality constraints read as couplings."""
     base: int
     kept: list[int]
     below: list[int]
+    equalities: tuple[JointEquality, ...] = ()
 
 
 def _frames(mj: _Mjcf, plan: _Plan) -> tuple[list[Joint], dict[int, tuple[int, np.ndarray]], list[int]]:
@@ -458,6 +467,7 @@ def _unmodelled(mj: _Mjcf, plan: _Plan, frames: dict) -> tuple[str, ...]:
     forces robotgen leaves out that act on it; notes for the rest."""
     m = mj.m
     kept = set(plan.kept)
+    coupled = {q.equality for q in _couplings(plan)}
     owner = {b: frames[b][0] if b in frames else None for b in range(m.nbody)}
 
     def tendon_acts(t: int) -> bool:
@@ -471,6 +481,8 @@ def _unmodelled(mj: _Mjcf, plan: _Plan, frames: dict) -> tuple[str, ...]:
             body = (lambda i: int(m.site_bodyid[i])) if int(m.eq_objtype[e]) == _OBJ_SITE else (lambda i: i)
             acts = _acts_on([owner[body(i)] if i >= 0 else owner[0] for i in (a, b)])
         elif kind == _JOINT_EQ:  # a joint held fixed cannot move, whatever the polynomial says
+            if e in coupled:
+                continue
             acts = a in kept or b in kept
         elif kind == _TENDON_EQ:
             acts = any(tendon_acts(t) for t in (a, b) if t >= 0)
@@ -511,6 +523,26 @@ def _unmodelled(mj: _Mjcf, plan: _Plan, frames: dict) -> tuple[str, ...]:
         notes.append(f"{mj.loc('actuator', 0)}: note: ignored {m.nu} actuator{'s' if m.nu != 1 else ''}: "
                      "robotgen's inputs are the joint forces tau (MuJoCo's qfrc_applied)")
     return tuple(notes)
+
+
+def _couplings(plan: _Plan) -> list[JointEquality]:
+    """The joint equality constraints read as couplings of kept joints."""
+    kept = set(plan.kept)
+    return [q for q in plan.equalities if q.problem is None and q.joint in kept]
+
+
+def _with_coupled(mj: _Mjcf, base: int, below: list[int], moving: list[int]) -> _Plan:
+    """The plan of the joints ``moving`` (MuJoCo's order) and every hinge and slide joint below
+    the base coupled to them by joint equality constraints (mjcf_equality): the other finger of
+    a chain to one finger, the leader off the chain of a joint on it."""
+    m = mj.m
+    hinges = {j for b in below for j in _joints_of(m, b) if int(m.jnt_type[j]) in (HINGE, SLIDE)}
+    equalities = joint_equalities(mj, hinges, mj.name("body", base))
+    ends = leading_joints(mj, equalities)
+    coordinates = {ends.get(j, j) for j in moving}
+    kept = sorted(set(moving) | {j for j in hinges if ends.get(j, j) in coordinates})
+    refuse_touching(mj, equalities, set(kept))
+    return _Plan(base, kept, below, tuple(equalities))
 
 
 def _friction_note(mj: _Mjcf, tree: KinematicTree, kept: list[int]) -> tuple[str, ...]:
@@ -556,7 +588,7 @@ def _robot(mj: _Mjcf, plan: _Plan, tip: tuple[int, int | None] | None, name: str
     tree = KinematicTree(
         name=name or model_name or Path(mj.path).stem, joints=tuple(joints), tip=owner, tool=tool,
         gravity=_gravity(mj, plan.base), base_link=mj.name("body", plan.base), tip_link=tip_name,
-        locked_joints=tuple(mj.joint_names[j] for j in locked),
+        locked_joints=tuple(mj.joint_names[j] for j in locked), coupling=coupling_of(plan.kept, plan.equalities),
     )
     notes = tuple(mj.warnings)
     left_out = [j for b in plan.below if frames[b][0] < 0 for j in _joints_of(m, b)]
@@ -564,11 +596,11 @@ def _robot(mj: _Mjcf, plan: _Plan, tip: tuple[int, int | None] | None, name: str
         notes += (f"{mj.loc('joint', left_out[0])}: note: left out {len(left_out)} joint"
                   f"{'s' if len(left_out) != 1 else ''} of bodies that do not move with the chain: "
                   + ", ".join(f"'{mj.joint_names[j]}'" for j in left_out),)
-    notes += _unmodelled(mj, plan, frames) + _friction_note(mj, tree, plan.kept)
+    notes += coupled_note(mj, _couplings(plan)) + _unmodelled(mj, plan, frames) + _friction_note(mj, tree, plan.kept)
     notes += tuple(f"{mj.loc('joint', plan.kept[i])}: warning: joint '{tree.joints[i].name}' moves no mass or "
                    "inertia (massless bodies after it): M is singular and forward dynamics returns no finite answer"
                    for i in joints_without_inertia(tree))
-    return MjcfRobot(tree, notes, model_name, mj.root_loc(), _digest(mj))
+    return MjcfRobot(tree, notes, model_name, mj.root_loc(), _digest(mj, bool(_couplings(plan))))
 
 
 def read_mjcf(path: str, tip: str, base: str | None = None, name: str | None = None) -> MjcfRobot:
@@ -589,7 +621,7 @@ def read_mjcf(path: str, tip: str, base: str | None = None, name: str | None = N
             raise _refuse_joint(mj, j, f"on the chain from '{mj.name('body', base_body)}' to '{tip}'")
     if not on_path:
         raise mj.fail("body", tip_body, f"no joint between '{mj.name('body', base_body)}' and '{tip}'")
-    return _robot(mj, _Plan(base_body, on_path, _below(m, base_body)), (tip_body, site), name, chain=True)
+    return _robot(mj, _with_coupled(mj, base_body, _below(m, base_body), on_path), (tip_body, site), name, chain=True)
 
 
 def read_mjcf_tree(path: str, base: str | None = None, tip: str | None = None,
@@ -612,19 +644,22 @@ def read_mjcf_tree(path: str, base: str | None = None, tip: str | None = None,
         raise UserError(mj.root_loc() if base_body == 0 else mj.loc("body", base_body),
                         f"no joint below base body '{mj.name('body', base_body)}'")
     tip_at = _find(mj, "tip", tip, sites=True) if tip is not None else None
-    return _robot(mj, _Plan(base_body, kept, below), tip_at, name, chain=False)
+    return _robot(mj, _with_coupled(mj, base_body, below, kept), tip_at, name, chain=False)
 
 
-def _digest(mj: _Mjcf) -> str:
+def _digest(mj: _Mjcf, equalities: bool) -> str:
     """sha256 of the file and of every compiled array robotgen reads: an included file or a
     mesh that changes the model changes it (the build cache's key and the manifest's
-    spec_sha256)."""
+    spec_sha256). ``equalities``: joint equality constraints were read as couplings."""
     m = mj.m
     h = hashlib.sha256(Path(mj.path).read_bytes())
     for field in ("body_parentid", "body_jntadr", "body_jntnum", "body_pos", "body_quat", "body_ipos", "body_iquat",
                   "body_inertia", "body_mass", "jnt_type", "jnt_pos", "jnt_axis", "qpos0", "jnt_limited", "jnt_range",
                   "dof_armature", "dof_damping", "dof_frictionloss", "site_bodyid", "site_pos", "site_quat"):
         h.update(field.encode() + np.ascontiguousarray(getattr(m, field)).tobytes())
+    if equalities:
+        for field_name in ("eq_type", "eq_obj1id", "eq_obj2id", "eq_active0", "eq_data"):
+            h.update(field_name.encode() + np.ascontiguousarray(getattr(m, field_name)).tobytes())
     h.update(np.ascontiguousarray(m.opt.gravity).tobytes() + int(m.opt.disableflags).to_bytes(8, "little"))
     h.update("\0".join(mj.joint_names).encode() + "\0".join(m.body(b).name for b in range(m.nbody)).encode())
     return h.hexdigest()

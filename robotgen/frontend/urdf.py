@@ -20,13 +20,16 @@ subset of URDF robotgen understands:
 Normalisation (into robotgen.model.chain's canonical form):
 - fixed joints are folded away: the inertia of every link they carry is merged into the
   body of the nearest movable joint above it (or dropped when it is fixed to the base);
-- chain: movable joints that are not on the base -> tip path (a gripper's fingers, mimic
-  joints among them) are locked at q = 0 and treated as fixed; they are listed in
-  ``KinematicTree.locked_joints``. A mimic joint on the path is an error;
+- chain: movable joints that are not on the base -> tip path (a gripper's fingers) are
+  locked at q = 0 and treated as fixed; they are listed in ``KinematicTree.locked_joints``.
+  Off the path, the joints coupled to a path joint's coordinate move with the chain, as
+  branches: a mimic joint following a path joint, and the leader of a mimic joint on the
+  path (the coordinate is then the leader's);
 - tree: all movable joints below the base are kept, in depth-first order with parent
-  indices, except mimic joints (robotgen has no coupled coordinates): those are locked at
-  q = 0 like a chain's off-path joints, listed in ``KinematicTree.locked_joints`` and
-  named in one note;
+  indices;
+- both: a mimic joint (``urdf_mimic``) stays a joint of the tree and is coupled to the
+  coordinate of the joint it follows (``KinematicTree.coupling``, q = multiplier q_leader +
+  offset), so the robot has one coordinate fewer per mimic joint; one note names them;
 - both: only what is below the base is read, so a floating or planar joint above it (a
   humanoid's world -> pelvis joint) is no error; one below it is;
 - URDF <dynamics damping> becomes viscous friction, <dynamics friction> Coulomb friction.
@@ -51,6 +54,7 @@ import numpy as np
 from robotgen.errors import Location, UserError
 from robotgen.frontend.input_file import read_input
 from robotgen.frontend.urdf_elements import KNOWN_UNREAD, ElementCheck
+from robotgen.frontend.urdf_mimic import coupled_note, coupling_of, independent_joints, read_mimics
 from robotgen.frontend.urdf_xml import Element, declaration_first, parse_xml
 from robotgen.model.chain import PRISMATIC, REVOLUTE, Body, Joint, KinematicTree, Limits, joints_without_inertia
 from robotgen.model.expression import MAX_MAGNITUDE
@@ -195,9 +199,9 @@ class UrdfChain:
 
 
 def read_urdf(path: str, tip: str, base: str | None = None, name: str | None = None) -> UrdfChain:
-    """The chain of movable joints from ``base`` (default: the root link) to ``tip``; movable
-    joints off that path (mimic joints among them) are locked at q = 0. A mimic joint on the
-    path is an error (its message suggests a tip above it, or the tree reader)."""
+    """The chain of movable joints from ``base`` (default: the root link) to ``tip``, and off
+    that path the joints coupled to theirs (a mimic joint following one of them, the leader of
+    a mimic joint on the path); other movable joints off the path are locked at q = 0."""
     f = read_urdf_file(path)
     r = f.r
     base, order = _below_base(f, base)
@@ -212,15 +216,25 @@ def read_urdf(path: str, tip: str, base: str | None = None, name: str | None = N
     actuated = [j for j in path_joints if j.attrib["type"] != "fixed"]
     if not actuated:
         raise UserError(r.loc(f.links[tip]), f"no movable joint between '{base}' and '{tip}'")
-    _reject_mimic_on_chain(r, actuated)
-    canonical, frames, locked, limit_notes = _normalise(f, base, actuated)
+    movable = [f.joints[l] for l in order[1:] if f.joints[l].attrib["type"] != "fixed"]
+    mimics = read_mimics(r, f.joint_names(), movable, base)
+    ends = independent_joints(r, mimics)
+    end = {j.attrib["name"]: ends.get(j.attrib["name"], j.attrib["name"]) for j in movable}
+    moving = {end[j.attrib["name"]] for j in actuated}
+    # with the path, every joint of its coordinates: the other finger of a chain to one finger,
+    # as a branch, and the leader off the path of a mimic joint on it
+    kept = [j for j in movable if end[j.attrib["name"]] in moving]
+    canonical, frames, locked, limit_notes = _normalise(f, base, kept)
     tip_owner, tool = frames[tip]
     robot_name = name or f.root.attrib.get("name", Path(path).stem)
+    names = [j.attrib["name"] for j in kept]
     tree = KinematicTree(
         name=robot_name, joints=tuple(canonical), tip=tip_owner, tool=tool,
         gravity=np.array([0.0, 0.0, -9.81]), base_link=base, tip_link=tip, locked_joints=tuple(locked),
+        coupling=coupling_of(names, mimics),
     )
-    notes = f.notes + limit_notes + _foreign_dynamics_attributes(r, actuated) + _massless(r, actuated, tree)
+    notes = (f.notes + coupled_note(r, [m for m in mimics.values() if end[m.name] in moving])
+             + limit_notes + _foreign_dynamics_attributes(r, kept) + _massless(r, kept, tree))
     return UrdfChain(tree, notes, r.loc(f.root), f.root.attrib.get("name"))
 
 
@@ -231,9 +245,8 @@ def read_urdf_tree(path: str, base: str | None = None, tip: str | None = None,
 
     Joints are in depth-first order (children in the order their joints appear in the file),
     so a joint's parent index is always smaller than its own; fixed joints are folded as in
-    ``read_urdf``. A mimic joint (typically a gripper's second finger) is locked at q = 0,
-    since robotgen has no coupled coordinates: folded like a fixed joint, listed in
-    ``locked_joints`` and named in one note; joints below it stay movable. Links and joints
+    ``read_urdf``. A mimic joint (typically a gripper's second finger) is kept, coupled to the
+    coordinate of the joint it follows (``urdf_mimic``), and named in one note. Links and joints
     not below ``base`` are not read (their inertia does not move with any joint). The
     fk/Jacobian tip is the link ``tip``, or, if none is given, the first leaf link (a link
     without child joints) in that order that some movable joint carries.
@@ -246,13 +259,13 @@ def read_urdf_tree(path: str, base: str | None = None, tip: str | None = None,
     base, order = _below_base(f, base)
     if tip is not None:
         tip = f.known_link("tip", tip)
-    movable = [f.joints[l] for l in order[1:] if f.joints[l].attrib["type"] != "fixed"]
-    mimics = [j for j in movable if j.find("mimic") is not None]
-    actuated = [j for j in movable if j.find("mimic") is None]
+    actuated = [f.joints[l] for l in order[1:] if f.joints[l].attrib["type"] != "fixed"]
     if not actuated:
         raise UserError(r.loc(f.links[base]), f"no movable joint below base link '{base}'")
+    mimics = read_mimics(r, f.joint_names(), actuated, base)
+    independent_joints(r, mimics)  # no cycle
     canonical, frames, locked, limit_notes = _normalise(f, base, actuated)
-    assert sorted(locked) == sorted(j.attrib.get("name", j.find("child").attrib["link"]) for j in mimics)
+    assert not locked
     if tip is None:
         leaves = [l for l in order if not f.children_of.get(l) and frames[l][0] >= 0]
         tip = leaves[0]  # a movable joint's child link is carried by it, so some leaf is
@@ -264,10 +277,11 @@ def read_urdf_tree(path: str, base: str | None = None, tip: str | None = None,
     robot_name = name or f.root.attrib.get("name", Path(path).stem)
     tree = KinematicTree(
         name=robot_name, joints=tuple(canonical), tip=tip_owner, tool=tool,
-        gravity=np.array([0.0, 0.0, -9.81]), base_link=base, tip_link=tip, locked_joints=tuple(locked),
+        gravity=np.array([0.0, 0.0, -9.81]), base_link=base, tip_link=tip,
+        coupling=coupling_of([j.attrib["name"] for j in actuated], mimics),
     )
-    notes = (f.notes + _locked_mimics(r, mimics) + limit_notes + _foreign_dynamics_attributes(r, actuated)
-             + _massless(r, actuated, tree))
+    notes = (f.notes + coupled_note(r, list(mimics.values())) + limit_notes
+             + _foreign_dynamics_attributes(r, actuated) + _massless(r, actuated, tree))
     return UrdfChain(tree, notes, r.loc(f.root), f.root.attrib.get("name"))
 
 
@@ -287,6 +301,10 @@ class UrdfFile:
     @property
     def root(self) -> Element:
         return self.r.root
+
+    def joint_names(self) -> dict[str, Element]:
+        """Every joint by its name."""
+        return {j.attrib["name"]: j for j in self.joints.values()}
 
     def known_link(self, label: str, link: str) -> str:
         """``link``, which must be a link of the file; the nearest names are suggested if not."""
@@ -377,17 +395,6 @@ def _below_base(f: UrdfFile, base: str | None) -> tuple[str, list[str]]:
                             f"not support below the base ('{base}'); a base at or below its child link "
                             f"'{link}' leaves it out")
     return base, order
-
-
-def _reject_mimic_on_chain(r: _Reader, actuated: list[Element]) -> None:
-    for j in actuated:
-        mimic = j.find("mimic")
-        if mimic is not None:
-            raise r.fail(mimic, f"joint '{j.attrib.get('name')}' is a mimic joint (it follows "
-                                f"'{mimic.attrib.get('joint', '?')}'), which robotgen does not support on the "
-                                f"chain: choose a tip at or above link '{j.find('parent').attrib['link']}' "
-                                "(off the chain it is locked at q = 0), or read the whole tree (--tree), "
-                                "where mimic joints are locked at q = 0")
 
 
 def _depth_first(start: str, children_of: dict[str, list[str]]) -> list[str]:
@@ -531,19 +538,6 @@ def _foreign_elements(r: _Reader, foreign: list[Element]) -> tuple[str, ...]:
     n = len(foreign)
     return (f"{r.loc(foreign[0])}: note: ignored {n} element{'s' if n != 1 else ''} robotgen does not use "
             f"under <robot>: {listed}",)
-
-
-def _locked_mimics(r: _Reader, mimics: list[Element]) -> tuple[str, ...]:
-    """One note for the mimic joints a tree locks, in file order, at the first one's <mimic>."""
-    if not mimics:
-        return ()
-    mimics = sorted(mimics, key=lambda j: (j.line, j.col))
-    listed = ", ".join(f"'{j.attrib.get('name')}' (mimics '{j.find('mimic').attrib.get('joint', '?')}')"
-                       for j in mimics)
-    n = len(mimics)
-    which = "the joint that mimics" if n == 1 else f"the {n} joints that mimic"
-    return (f"{r.loc(mimics[0].find('mimic'))}: note: locked at q = 0 {which} another joint "
-            f"(robotgen has no coupled coordinates): {listed}",)
 
 
 def _foreign_dynamics_attributes(r: _Reader, joints: list[Element]) -> tuple[str, ...]:

@@ -139,6 +139,12 @@ def with_payload(tree: KinematicTree, mass: float, point: np.ndarray) -> Kinemat
     return replace(tree, joints=tuple(joints))
 
 
+def mimic_joints(tree: KinematicTree) -> str:
+    """The joints that follow another's coordinate, named and quoted for a message."""
+    followers = tree.coupling.followers() if tree.coupling is not None else []
+    return ", ".join(f"'{tree.joints[i].name}'" for i in followers)
+
+
 def joints_without_inertia(tree: KinematicTree) -> list[int]:
     """Joints that move no mass and no inertia: their subtree (the joint's body and every body
     after it) is massless with zero rotational inertia, and they have no armature. Their row of

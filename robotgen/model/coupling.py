@@ -76,6 +76,12 @@ class Coupling:
         return [i for i in range(len(self.coordinate)) if i not in own]
 
 
+def affine(multiplier: float, leader: str, offset: float) -> str:
+    """``multiplier * leader + offset`` as a reader writes it: -1 * 'a' - 0.2, 'a' alone for 1 and 0."""
+    text = leader if multiplier == 1.0 else f"{multiplier:g} * {leader}"
+    return text if offset == 0.0 else f"{text} {'-' if offset < 0 else '+'} {abs(offset):g}"
+
+
 def couple(n_joints: int, mimics: list[Mimic]) -> Coupling | None:
     """The coupling of ``n_joints`` joints of which ``mimics`` follow others (at most one mimic
     per joint); None without mimics. Raises MimicCycle when following the leaders returns to a

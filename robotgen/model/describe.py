@@ -33,6 +33,8 @@ def system_info(system: RobotSystem) -> dict:
                 entry["joints"] = [_joint_info(j) for j in leaf.joints]
                 entry["base_link"], entry["tip_link"] = leaf.base_link, leaf.tip_link
                 entry["locked_joints"] = list(leaf.locked_joints)
+                if leaf.coupling is not None:
+                    entry["coupled_joints"] = coupled_joints(leaf)
             elif entry["kind"] == "FormulaRobot":
                 entry["kind"] = "formulas"
             else:
@@ -53,6 +55,14 @@ def system_info(system: RobotSystem) -> dict:
     if forces:
         info["internal_forces"] = forces
     return info
+
+
+def coupled_joints(tree: KinematicTree) -> list[dict]:
+    """Each mimic joint and how it moves: q_joint = multiplier q_coordinate + offset, the
+    coordinate named after its own joint (model/coupling.py)."""
+    c = tree.coupling
+    return [{"joint": tree.joints[i].name, "coordinate": tree.joints[c.independent[c.coordinate[i]]].name,
+             "multiplier": c.multiplier[i], "offset": c.offset[i]} for i in c.followers()]
 
 
 def _joint_info(joint) -> dict:

@@ -58,8 +58,8 @@ class SignatureError(ValueError):
 
 
 def leaf_coordinates(leaf) -> tuple[str, ...]:
-    if isinstance(leaf, KinematicTree):
-        return tuple(j.name for j in leaf.joints)
+    if isinstance(leaf, KinematicTree):  # a mimic joint has no coordinate of its own
+        return tuple(j.name for j in leaf.coordinate_joints)
     return tuple(leaf.coordinates)
 
 
@@ -72,7 +72,7 @@ def leaf_units(leaf) -> tuple[str, ...]:
     """Unit of each coordinate of a leaf: a chain's revolute joints rad, prismatic m; a
     payload's pose m then rad; a formulas leaf's as its spec gives (else unknown, '')."""
     if isinstance(leaf, KinematicTree):
-        return tuple(RADIAN if j.type == REVOLUTE else METRE for j in leaf.joints)
+        return tuple(RADIAN if j.type == REVOLUTE else METRE for j in leaf.coordinate_joints)
     if isinstance(leaf, PlanarBody):
         return (METRE, METRE, RADIAN)
     if isinstance(leaf, SpatialBody):

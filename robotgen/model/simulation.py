@@ -45,7 +45,7 @@ def rest_posture(leaves) -> tuple[float, ...]:
     posture: list[float] = []
     for leaf in leaves:
         if isinstance(leaf, KinematicTree):
-            for j in leaf.joints:
+            for j in leaf.coordinate_joints:
                 lo, hi = j.limits.lower, j.limits.upper
                 posture.append(0.5 * (lo + hi) if lo is not None and hi is not None else 0.0)
         else:

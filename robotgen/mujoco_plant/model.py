@@ -55,7 +55,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from robotgen.errors import Location, UserError
-from robotgen.model.chain import PRISMATIC, KinematicTree
+from robotgen.model.chain import PRISMATIC, KinematicTree, mimic_joints
 from robotgen.model.formula import FormulaRobot
 from robotgen.model.signature import robot_leaves
 from robotgen.model.system import (
@@ -274,6 +274,11 @@ def _chain_bodies(world: ET.Element, leaf: str, tree: KinematicTree) -> tuple[li
 def _leaf_tree(system: RobotSystem, name: str) -> tuple[KinematicTree, np.ndarray, np.ndarray, Location]:
     leaf = system.nodes[name].leaf
     if isinstance(leaf, KinematicTree):
+        if leaf.coupling is not None:
+            raise UserError(system.location_of(name), f"the MuJoCo plant couples no joints exactly: chain leaf "
+                                                      f"'{name}' has mimic joints ({mimic_joints(leaf)}), which MuJoCo "
+                                                      "would hold by a soft equality constraint; simulate it on "
+                                                      "robotgen's plant")
         return leaf, np.eye(leaf.nq), np.zeros(leaf.nq), system.location_of(name)
     if isinstance(leaf, FormulaRobot) and leaf.mechanism is not None:
         m = leaf.mechanism

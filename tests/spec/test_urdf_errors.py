@@ -30,9 +30,8 @@ OK1 = joint("j1", "revolute", "base", "l1", '<limit lower="-1" upper="1" effort=
 CASES = {
     "floating": ([OK1, joint("j2", "floating", "l1", "l2")], "l2", "j2' is a floating joint"),
     "planar": ([OK1, joint("j2", "planar", "l1", "l2")], "l2", "j2' is a planar joint"),
-    "mimic": ([OK1, joint("j2", "revolute", "l1", "l2", '<mimic joint="j1"/>')], "l2",
-              "joint 'j2' is a mimic joint (it follows 'j1'), which robotgen does not support on the chain: "
-              "choose a tip at or above link 'l1'"),
+    "mimic_of_nothing": ([OK1, joint("j2", "revolute", "l1", "l2", '<mimic joint="j9"/>')], "l2",
+                         "joint 'j2' mimics 'j9', which is not a joint of the URDF"),
     "closed_loop": ([OK1, joint("j2", "revolute", "l1", "l2"), joint("j3", "revolute", "base", "l2")],
                     "l2", "closed loops are not supported"),
     "tip_not_below_base": ([OK1, joint("j2", "revolute", "base", "l2")], "l2", "is not below base link"),
@@ -94,18 +93,27 @@ def test_unknown_element_inside_a_joint_fails_beside_ignored_ones_under_robot(tm
     assert not out.exists()
 
 
-def test_mimic_joint_off_the_chain_is_locked(tmp_path):
-    """A chain locks every movable joint off its path at q = 0, a mimic joint like any other:
+def test_mimic_joint_off_the_chain_moves_with_its_leader_or_is_locked_with_it(tmp_path):
+    """A mimic joint off the chain whose leader is on it moves with the chain (a branch coupled to
+    the leader's coordinate); one whose leader is locked off the chain is locked at q = 0 with it:
     its link's inertia joins the body of the joint carrying it."""
     from robotgen.frontend.urdf import read_urdf
 
-    off = joint("j3", "revolute", "l1", "l3", '<origin xyz="0 0.5 0"/><mimic joint="j1"/>')
+    off = joint("j3", "revolute", "l1", "l3", '<origin xyz="0 0.5 0"/><mimic joint="j1" multiplier="-2"/>')
     path = tmp_path / "r.urdf"
     path.write_text(urdf(OK1, joint("j2", "revolute", "l1", "l2"), off, links=("base", "l1", "l2", "l3")))
     tree = read_urdf(str(path), "l2").tree
-    assert [j.name for j in tree.joints] == ["j1", "j2"]
-    assert tree.locked_joints == ("j3",)
-    body = tree.joints[0].body  # l1 and l3, 0.5 apart along y
-    assert body.mass == 2.0
-    np.testing.assert_array_equal(body.com, [0.0, 0.25, 0.0])
-    np.testing.assert_allclose(body.inertia, np.diag([0.325, 0.2, 0.325]), rtol=0, atol=1e-15)
+    assert [(j.name, j.parent) for j in tree.joints] == [("j1", -1), ("j2", 0), ("j3", 0)]
+    assert tree.nq == 2 and tree.locked_joints == ()
+    assert (tree.coupling.coordinate, tree.coupling.multiplier) == ((0, 1, 0), (1.0, 1.0, -2.0))
+    # following j2, which a chain to l1 locks: locked with it
+    path.write_text(urdf(OK1, joint("j2", "revolute", "l1", "l2"), off.replace('joint="j1"', 'joint="j2"'),
+                         links=("base", "l1", "l2", "l3")))
+    tree = read_urdf(str(path), "l1").tree
+    assert [j.name for j in tree.joints] == ["j1"] and tree.coupling is None
+    assert tree.locked_joints == ("j2", "j3")
+    body = tree.joints[0].body  # l1 and l2 at the origin, l3 0.5 along y: com 1/6 along y
+    assert body.mass == 3.0
+    np.testing.assert_allclose(body.com, [0.0, 0.5 / 3, 0.0], rtol=0, atol=1e-16)
+    # 0.1 each plus m d^2 off y: 2 (1/6)^2 + (1/3)^2 = 1/6
+    np.testing.assert_allclose(body.inertia, np.diag([0.3 + 1 / 6, 0.3, 0.3 + 1 / 6]), rtol=0, atol=1e-15)

@@ -128,40 +128,32 @@ def test_floating_root_needs_the_base_below_it(tmp_path):
         read_urdf(path, "l2")
 
 
-def test_mimic_joint_is_locked_in_a_tree(tmp_path):
-    """A mimic joint is locked at q = 0: its link folds into the body of the joint above it
-    (as a fixed joint would), joints below it stay movable, one note names it."""
+def test_mimic_joint_is_coupled_in_a_tree(tmp_path):
+    """A mimic joint stays a joint of the tree, its link its own body, coupled to the coordinate
+    of the joint it follows (one coordinate fewer); joints below it stay movable; one note names it."""
     links = ("world", "pelvis", "l1", "l2", "r1", "r2")
-    mimic = joint("jm", "revolute", "l1", "r1", '<origin xyz="0 0.5 0"/><mimic joint="jl1" multiplier="-1"/>')
+    mimic = joint("jm", "revolute", "l1", "r1",
+                  '<origin xyz="0 0.5 0"/><mimic joint="jl1" multiplier="-1" offset="0.25"/>')
     below = joint("jr2", "revolute", "r1", "r2", '<origin xyz="0.25 0 0"/>')
     path = write(tmp_path, *TREE[:3], mimic, below, links=links)
     chain = read_urdf_tree(path, base="pelvis")
     tree = chain.tree
-    assert [(j.name, j.parent) for j in tree.joints] == [("jl1", -1), ("jl2", 0), ("jr2", 0)]
-    assert tree.locked_joints == ("jm",)
-    body = tree.joints[0].body  # l1 and r1, 0.5 apart along y
-    assert body.mass == 2.0
-    np.testing.assert_array_equal(body.com, [0.0, 0.25, 0.0])
-    np.testing.assert_allclose(body.inertia, np.diag([0.325, 0.2, 0.325]), rtol=0, atol=1e-15)
-    np.testing.assert_array_equal(tree.joints[2].origin[:3, 3], [0.25, 0.5, 0.0])
+    assert [(j.name, j.parent) for j in tree.joints] == [("jl1", -1), ("jl2", 0), ("jm", 0), ("jr2", 2)]
+    assert tree.nq == 3 and [j.name for j in tree.coordinate_joints] == ["jl1", "jl2", "jr2"]
+    assert tree.locked_joints == ()
+    c = tree.coupling
+    assert (c.coordinate, c.multiplier, c.offset) == ((0, 1, 0, 2), (1.0, 1.0, -1.0, 1.0), (0.0, 0.0, 0.25, 0.0))
+    assert tree.joints[0].body.mass == 1.0 and tree.joints[2].body.mass == 1.0
+    np.testing.assert_array_equal(tree.joints[2].origin[:3, 3], [0.0, 0.5, 0.0])
     # the <mimic> element is on line 12 of the file (links on 3-8, joints from 9)
-    assert chain.notes == (f"{path}:12:{mimic.index('<mimic') + 1}: note: locked at q = 0 the joint that mimics "
-                           "another joint (robotgen has no coupled coordinates): 'jm' (mimics 'jl1')",)
-    # the same tree as with a fixed joint in its place
-    fixed = write(tmp_path, *TREE[:3], joint("jm", "fixed", "l1", "r1", '<origin xyz="0 0.5 0"/>'), below,
-                  links=links)
-    as_fixed = read_urdf_tree(fixed, base="pelvis").tree
-    assert as_fixed.locked_joints == ()
-    for a, b in zip(tree.joints, as_fixed.joints, strict=True):
-        np.testing.assert_array_equal(a.origin, b.origin)
-        np.testing.assert_array_equal(a.body.com, b.body.com)
-        np.testing.assert_array_equal(a.body.inertia, b.body.inertia)
+    assert chain.notes == (f"{path}:12:{mimic.index('<mimic') + 1}: note: a mimic joint moves with the coordinate "
+                           "of the joint it follows (no coordinate of its own): 'jm' = -1 * 'jl1' + 0.25",)
     # two mimic joints: one note naming both, at the first
     second = joint("jm2", "prismatic", "l2", "r2", '<mimic joint="jl2"/>')
     path = write(tmp_path, *TREE[:3], mimic, second, links=links)
     notes = read_urdf_tree(path, base="pelvis").notes
-    assert len(notes) == 1 and "the 2 joints that mimic" in notes[0], notes
-    assert "'jm' (mimics 'jl1'), 'jm2' (mimics 'jl2')" in notes[0] and notes[0].startswith(f"{path}:12:"), notes
+    assert len(notes) == 1 and "2 mimic joints move with the coordinates" in notes[0], notes
+    assert "'jm' = -1 * 'jl1' + 0.25, 'jm2' = 'jl2'" in notes[0] and notes[0].startswith(f"{path}:12:"), notes
 
 
 def test_floating_or_planar_joint_below_the_base_is_an_error(tmp_path):

@@ -1,5 +1,5 @@
 """URDFs as they come from robot vendors: <ros2_control> and vendor tags under <robot> are
-ignored with one located note, mimic joints are locked in a tree, the module name derived
+ignored with one located note, mimic joints are coupled coordinates, the module name derived
 from <robot name> is reported when it differs. Real files (example-robot-data's xArm7 and
 Panda) are built with the CLI and checked against Pinocchio; the rules themselves on small
 files. Plus: merged inertias are correctly rounded (robotgen.numeric.exact, not BLAS)."""
@@ -119,7 +119,7 @@ def test_xarm7_matches_pinocchio(xarm7):
     assert max(worst.values()) <= TOL, worst
 
 
-# --- Panda as a tree: the mimic finger joint is locked -------------------------------------
+# --- Panda as a tree: the mimic finger joint moves with the other finger's coordinate ---------
 
 @pytest.fixture(scope="module")
 def panda_tree(tmp_path_factory):
@@ -129,30 +129,61 @@ def panda_tree(tmp_path_factory):
     return path, module, err
 
 
-def test_panda_tree_locks_the_mimic_finger(panda_tree):
+def test_panda_tree_couples_the_mimic_finger(panda_tree):
     path, module, err = panda_tree
     node = module.info()["nodes"]["panda_tree"]
-    assert node["locked_joints"] == ["panda_finger_joint2"]
-    assert [j["name"] for j in node["joints"]] == [f"panda_joint{i}" for i in range(1, 8)] + ["panda_finger_joint1"]
+    assert node["locked_joints"] == [] and module.nq == node["nq"] == 8
+    assert [j["name"] for j in node["joints"]] == [f"panda_joint{i}" for i in range(1, 8)] + \
+        ["panda_finger_joint1", "panda_finger_joint2"]
+    assert node["coordinates"] == [f"panda_joint{i}" for i in range(1, 8)] + ["panda_finger_joint1"]
+    assert node["coupled_joints"] == [{"joint": "panda_finger_joint2", "coordinate": "panda_finger_joint1",
+                                       "multiplier": 1.0, "offset": 0.0}]
     notes = [l for l in err.splitlines() if "mimic" in l]
-    assert notes == [f"{path}:348:9: note: locked at q = 0 the joint that mimics another joint (robotgen has "
-                     "no coupled coordinates): 'panda_finger_joint2' (mimics 'panda_finger_joint1')"], err
+    assert notes == [f"{path}:348:9: note: a mimic joint moves with the coordinate of the joint it follows (no "
+                     "coordinate of its own): 'panda_finger_joint2' = 'panda_finger_joint1'"], err
     assert "module name" not in err  # --name given
 
 
-def test_panda_tree_matches_pinocchio_with_the_mimic_joint_locked(panda_tree):
+def test_panda_tree_matches_pinocchio_projected_on_the_fingers_coordinate(panda_tree):
+    """The compiled module (8 coordinates) against Pinocchio's model of both fingers as joints
+    (buildModelFromUrdf reads <mimic> as an ordinary joint), evaluated at q_full = S q (the second
+    finger at the first's q) and projected: S^T M S, S^T g, S^T tau(S qd, S qdd) with the file's
+    damping and friction, S^T C S and J S."""
     path, module, _ = panda_tree
-    full = pin.buildModelFromUrdf(str(path))  # mimic=False: both fingers are joints
-    model = pin.buildReducedModel(full, [full.getJointId("panda_finger_joint2")], pin.neutral(full))
-    assert model.nq == module.nq == 8
-    worst = compare_with_pinocchio(module, model, seed=9)
+    model = pin.buildModelFromUrdf(str(path))
+    data = model.createData()
+    assert model.nq == 9 and module.nq == 8
+    S = np.zeros((model.nv, 8))  # Pinocchio's joints x robotgen's coordinates, by name
+    for k, name in enumerate(module.info()["nodes"]["panda_tree"]["coordinates"]):
+        S[model.joints[model.getJointId(name)].idx_v, k] = 1.0
+    S[model.joints[model.getJointId("panda_finger_joint2")].idx_v, 7] = 1.0
+    tip = model.getFrameId(module.info()["nodes"]["panda_tree"]["tip_link"])
+    rng = np.random.default_rng(9)
+    lo, hi = S.T @ model.lowerPositionLimit, S.T @ model.upperPositionLimit
+    q = rng.uniform(lo, hi, size=(N_STATES, 8))
+    q[:, 7] = rng.uniform(0.0, 0.04, N_STATES)  # S^T doubled the finger's limits
+    qd, qdd = rng.normal(size=q.shape) * 2.0, rng.normal(size=q.shape) * 5.0
+    M, g, tau = module.mass(q), module.gravity(q), module.inverse_dynamics(q, qd, qdd)
+    C, J = module.coriolis(q, qd), module.jacobian(q)
+    worst: dict[str, float] = {}
+    for k in range(N_STATES):
+        qf, vf, af = S @ q[k], S @ qd[k], S @ qdd[k]
+        Mp = pin.crba(model, data, qf)
+        Mp = np.triu(Mp) + np.triu(Mp, 1).T
+        friction = model.damping * vf + model.friction * np.tanh(vf / KinematicTree.coulomb_smoothing)
+        Jp = pin.computeFrameJacobian(model, data, qf, tip, pin.LOCAL_WORLD_ALIGNED)
+        errs = {"mass": rel_err(M[k], S.T @ Mp @ S),
+                "gravity": rel_err(g[k], S.T @ pin.computeGeneralizedGravity(model, data, qf)),
+                "inverse_dynamics": rel_err(tau[k], S.T @ (pin.rnea(model, data, qf, vf, af) + friction)),
+                "coriolis": rel_err(C[k], S.T @ pin.computeCoriolisMatrix(model, data, qf, vf) @ S),
+                "jacobian": rel_err(J[k], Jp @ S)}
+        for key, e in errs.items():
+            worst[key] = max(worst.get(key, 0.0), e)
     print({k: f"{v:.1e}" for k, v in worst.items()})
     assert max(worst.values()) <= TOL, worst
-    # locking the finger at another position would not match: its mass moves with panda_joint7
-    q_open = pin.neutral(full)
-    q_open[full.joints[full.getJointId("panda_finger_joint2")].idx_q] = 0.04
-    shifted = pin.buildReducedModel(full, [full.getJointId("panda_finger_joint2")], q_open)
-    assert max(compare_with_pinocchio(module, shifted, seed=9).values()) > 1e-6
+    # the fingers' coordinate translates both fingers (0.015 kg each, siblings on the hand): M's
+    # entry is their total mass, where the finger locked at q = 0 left one finger's
+    np.testing.assert_allclose(M[:, 7, 7], 0.03, rtol=1e-12)
 
 
 # --- the rules on small files ----------------------------------------------------------------

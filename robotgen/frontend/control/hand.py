@@ -9,7 +9,7 @@ import numpy as np
 from robotgen.documentation import hint
 from robotgen.frontend.collector import Collector
 from robotgen.frontend.document import Path
-from robotgen.model.chain import KinematicTree
+from robotgen.model.chain import KinematicTree, mimic_joints
 from robotgen.model.laws import RESOLVED_ACCELERATION
 from robotgen.model.laws.hand import (
     COVARIANCE_BLOCKS,
@@ -56,6 +56,10 @@ class HandLawReader(Collector):
         if not isinstance(chain, KinematicTree):
             self.at_value(path + ("robot",), f"law {law} controls a chain or urdf leaf; '{node.robot}' is a "
                                              f"{system.nodes[node.robot].primitive} node")
+            return node
+        if chain.coupling is not None:
+            self.at_value(path + ("robot",), f"law {law} resolves a chain's own joints; '{node.robot}' has mimic "
+                                             f"joints ({mimic_joints(chain)}): a tip above them leaves them out")
             return node
         if chain.nq != HAND_DOF:
             self.at_value(path + ("robot",), f"law {law} resolves hand motion through a square Jacobian: it needs "

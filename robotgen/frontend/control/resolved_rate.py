@@ -10,7 +10,7 @@ import numpy as np
 
 from robotgen.frontend.collector import Collector
 from robotgen.frontend.document import Path, format_path
-from robotgen.model.chain import KinematicTree
+from robotgen.model.chain import KinematicTree, mimic_joints
 from robotgen.model.laws.resolved_rate import (
     COMPOSITE_KEYS,
     EXTENDED_JACOBIAN,
@@ -64,6 +64,10 @@ class ResolvedRateReader(Collector):
                                              f"robot (an attach node, possibly under control nodes); "
                                              f"'{node.robot}' is {what}")
             return node
+        if isinstance(chain, KinematicTree) and chain.coupling is not None:
+            self.at_value(path + ("robot",), f"law resolved_rate resolves a chain's own joints; '{node.robot}' has "
+                                             f"mimic joints ({mimic_joints(chain)}): a tip above them leaves them out")
+            return node
         if node.name != system.root:
             self.at_key(("nodes", node.name), f"a resolved_rate controller must be the root (it outputs joint "
                                               f"rates, which no node above can use); the root is '{system.root}'")
@@ -93,7 +97,7 @@ class ResolvedRateReader(Collector):
         else:
             # the joints' velocity limits, when every leaf is a chain and every joint has one
             chains = all(isinstance(leaf, KinematicTree) for leaf in leaves)
-            velocities = [j.limits.velocity for leaf in leaves for j in leaf.joints] if chains else []
+            velocities = [j.limits.velocity for leaf in leaves for j in leaf.coordinate_joints] if chains else []
             limited = chains and all(v is not None and v > 0 for v in velocities)
             rate_limits = np.array(velocities, dtype=float) if limited else None
         return CompositeRateSettings(
@@ -213,7 +217,7 @@ class ResolvedRateReader(Collector):
     def rate_limits(self, path: Path, spec: dict, chain: KinematicTree) -> np.ndarray | None:
         if "rate_limits" in spec:
             return self.per_joint(path, spec["rate_limits"], chain.nq, "rate limit", positive=True)
-        velocities = [j.limits.velocity for j in chain.joints]
+        velocities = [j.limits.velocity for j in chain.coordinate_joints]
         if all(v is not None and v > 0 for v in velocities):
             return np.array(velocities, dtype=float)
         return None
