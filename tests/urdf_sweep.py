@@ -5,7 +5,9 @@ robotgen as a tree and as a chain to its deepest link, and read by Pinocchio.
   system robotgen builds) — fast, no graphs;
 - ``compare(system, file)``: M, gravity, inverse dynamics (with the URDF's damping and
   friction), C and the tip Jacobian of the built system's kernels (the CasADi functions the C
-  is printed from) against Pinocchio's model of the same file with the same joints locked;
+  is printed from) against Pinocchio's model of the same file with the same joints locked,
+  and with each mimic joint at multiplier * its leader + offset, projected on the leaders'
+  coordinates (Pinocchio reads <mimic> as an ordinary joint);
 - ``tables(reads)``: the Markdown tables of docs/robots.md (every refusal with its reason),
   so that ``python tests/urdf_sweep.py --write`` regenerates them and a test checks that
   they are current.
@@ -62,10 +64,11 @@ def files(source: str) -> list[Path]:
 
 @dataclass
 class Structure:
-    """Joints by child link: (name, type, parent link, is a mimic joint), links in file order."""
+    """Joints by child link: (name, type, parent link, its <mimic> as (leader, multiplier,
+    offset) or None), links in file order."""
 
     links: list[str] = field(default_factory=list)
-    joints: dict[str, tuple[str, str, str, bool]] = field(default_factory=dict)
+    joints: dict[str, tuple[str, str, str, tuple[str, float, float] | None]] = field(default_factory=dict)
 
     def root(self) -> str:
         return next(l for l in self.links if l not in self.joints)
@@ -79,8 +82,8 @@ class Structure:
         return out[::-1]
 
     def deepest(self) -> str | None:
-        """The link with the most movable joints above it whose path has no mimic joint (a
-        chain cannot have one), the first in file order among equals; None without any."""
+        """The link with the most movable joints above it whose path has no mimic joint, the
+        first in file order among equals; None without any."""
         best, most = None, 0
         for link in self.links:
             path = self.path(link)
@@ -92,10 +95,25 @@ class Structure:
         return best
 
     def tree_joints(self) -> set[str]:
-        return {name for name, kind, _, mimic in self.joints.values() if kind in MOVABLE and not mimic}
+        return {name for name, kind, _, _ in self.joints.values() if kind in MOVABLE}
 
     def chain_joints(self, tip: str) -> set[str]:
-        return {name for name, kind, _, _ in self.path(tip) if kind in MOVABLE}
+        """The path's movable joints and every movable joint whose line of mimic leaders ends
+        where a path joint's does."""
+        ends = {self.coupled(name)[0] for name, kind, _, _ in self.path(tip) if kind in MOVABLE}
+        return {name for name, kind, _, _ in self.joints.values() if kind in MOVABLE and self.coupled(name)[0] in ends}
+
+    def coupled(self, joint: str) -> tuple[str, float, float]:
+        """(the joint at the end of its line of mimic leaders, multiplier, offset): its position
+        is multiplier * that joint's + offset."""
+        by_name = {name: mimic for name, _, _, mimic in self.joints.values()}
+        m, c = 1.0, 0.0
+        for _ in by_name:  # q = m q_joint + c, one leader further each step (a cycle ends too)
+            if by_name.get(joint) is None:
+                break
+            joint, mk, ck = by_name[joint]
+            m, c = m * mk, m * ck + c
+        return joint, m, c
 
 
 def structure(path: Path) -> Structure | None:
@@ -110,11 +128,11 @@ def structure(path: Path) -> Structure | None:
             s.links.append(attrib.get("name"))
         elif stack == ["robot"] and tag == "joint":
             joint.clear()
-            joint.update(name=attrib.get("name"), type=attrib.get("type"), mimic=False)
+            joint.update(name=attrib.get("name"), type=attrib.get("type"), mimic=None)
         elif stack[1:] == ["joint"] and stack[0] == "robot" and tag in ("parent", "child"):
             joint[tag] = attrib.get("link")
         elif stack[1:] == ["joint"] and tag == "mimic":
-            joint["mimic"] = True
+            joint["mimic"] = (attrib.get("joint"), float(attrib.get("multiplier", "1")), float(attrib.get("offset", "0")))
         stack.append(tag)
 
     def end(tag):
@@ -207,13 +225,16 @@ def rel_err(a, b) -> float:
     return float(np.abs(a - b).max() / max(1.0, np.abs(b).max()))
 
 
-def compare(system, path: Path, expected: set[str], seed: int = 0) -> dict[str, float]:
+def compare(system, path: Path, expected: set[str], structure: Structure, seed: int = 0) -> dict[str, float]:
     """Worst relative error of M, g, inverse dynamics, C and J of ``system`` against
     Pinocchio's model of ``path`` at N_STATES random states, every joint outside ``expected``
     locked at 0 (a continuous joint at its neutral (1, 0)) with no velocity: the full model's
     rows and columns of the kept joints are then the locked model's. robotgen's joints must be
     exactly ``expected``; its friction is Pinocchio's damping as viscous and Pinocchio's
-    friction as smoothed Coulomb friction (spec-format.md); gravity -9.81 along the base's z."""
+    friction as smoothed Coulomb friction (spec-format.md); gravity -9.81 along the base's z.
+    A mimic joint (``structure.coupled``) is put at multiplier * q + offset of the joint its
+    leaders end at, and Pinocchio's results are taken to those joints' coordinates:
+    S^T M S, S^T tau, S^T C S, J S."""
     import pinocchio as pin
 
     from robotgen.symbolic import kernels_for
@@ -221,6 +242,13 @@ def compare(system, path: Path, expected: set[str], seed: int = 0) -> dict[str, 
     leaf = system.nodes[system.root].leaf
     names = [j.name for j in leaf.joints]
     assert set(names) == expected, (sorted(names), sorted(expected))
+    ends = [structure.coupled(name) for name in names]
+    coordinates = [j.name for j in leaf.coordinate_joints]  # robotgen's order of them
+    assert sorted(coordinates) == sorted({end for end, _, _ in ends}), (coordinates, ends)
+    S = np.zeros((len(names), len(coordinates)))
+    for i, (end, m, _) in enumerate(ends):
+        S[i, coordinates.index(end)] = m
+    offset = np.array([c for _, _, c in ends])
     model = pinocchio_model(path)
     data = model.createData()
     pin.framesForwardKinematics(model, data, pin.neutral(model))
@@ -232,25 +260,27 @@ def compare(system, path: Path, expected: set[str], seed: int = 0) -> dict[str, 
     damping, friction = model.damping[idx], model.friction[idx]
     f = {k.name: k.function for k in kernels_for(system)
          if k.name in ("mass", "gravity", "inverse_dynamics", "coriolis", "jacobian")}
-    n = len(names)
+    n = len(coordinates)
     rng = np.random.default_rng(seed)
     worst: dict[str, float] = {}
     for _ in range(N_STATES):
         q, qd, qdd = rng.uniform(-np.pi, np.pi, n), rng.normal(size=n) * 2.0, rng.normal(size=n) * 5.0
         v, a, w = np.zeros(model.nv), np.zeros(model.nv), np.zeros(model.nv)
-        v[idx], a[idx], w[idx] = q, qd, qdd
+        v[idx], a[idx], w[idx] = S @ q + offset, S @ qd, S @ qdd
         qp = pin.integrate(model, pin.neutral(model), v)  # a continuous joint: (cos q, sin q)
         M = np.array(pin.crba(model, data, qp)).reshape(model.nv, model.nv)  # (6,) and (1, 1) when nv = 1
         M = np.triu(M) + np.triu(M, 1).T
-        tau = pin.rnea(model, data, qp, a, w)[idx] + damping * qd + friction * np.tanh(qd / leaf.coulomb_smoothing)
+        vj = S @ qd
+        tau = pin.rnea(model, data, qp, a, w)[idx] + damping * vj + friction * np.tanh(vj / leaf.coulomb_smoothing)
         J = np.array(pin.computeFrameJacobian(model, data, qp, tip, pin.LOCAL_WORLD_ALIGNED)).reshape(6, -1)[:, idx]
+        C = np.array(pin.computeCoriolisMatrix(model, data, qp, a)).reshape(model.nv, model.nv)[np.ix_(idx, idx)]
         errs = {
-            "mass": rel_err(np.array(f["mass"](q)).reshape(n, n), M[np.ix_(idx, idx)]),
-            "gravity": rel_err(np.array(f["gravity"](q)).ravel(), pin.computeGeneralizedGravity(model, data, qp)[idx]),
-            "inverse_dynamics": rel_err(np.array(f["inverse_dynamics"](q, qd, qdd)).ravel(), tau),
-            "coriolis": rel_err(np.array(f["coriolis"](q, qd)).reshape(n, n), np.array(
-                pin.computeCoriolisMatrix(model, data, qp, a)).reshape(model.nv, model.nv)[np.ix_(idx, idx)]),
-            "jacobian": rel_err(np.array(f["jacobian"](q)).reshape(6, n), np.vstack([R.T @ J[:3], R.T @ J[3:]])),
+            "mass": rel_err(np.array(f["mass"](q)).reshape(n, n), S.T @ M[np.ix_(idx, idx)] @ S),
+            "gravity": rel_err(np.array(f["gravity"](q)).ravel(),
+                               S.T @ pin.computeGeneralizedGravity(model, data, qp)[idx]),
+            "inverse_dynamics": rel_err(np.array(f["inverse_dynamics"](q, qd, qdd)).ravel(), S.T @ tau),
+            "coriolis": rel_err(np.array(f["coriolis"](q, qd)).reshape(n, n), S.T @ C @ S),
+            "jacobian": rel_err(np.array(f["jacobian"](q)).reshape(6, n), np.vstack([R.T @ J[:3], R.T @ J[3:]]) @ S),
         }
         for key, e in errs.items():
             worst[key] = max(worst.get(key, 0.0), e)

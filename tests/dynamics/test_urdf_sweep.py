@@ -42,7 +42,7 @@ def _agrees(r: sweep.Read, builds) -> dict[str, float]:
         system = r.tree if kind == "tree" else r.chain
         assert not isinstance(system, str) and system is not None, (kind, system)
         expected = r.structure.tree_joints() if kind == "tree" else r.structure.chain_joints(r.tip)
-        for key, e in sweep.compare(system, r.path, expected).items():
+        for key, e in sweep.compare(system, r.path, expected, r.structure).items():
             worst[f"{kind} {key}"] = e
     return worst
 
