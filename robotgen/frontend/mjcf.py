@@ -39,9 +39,13 @@ Normalisation:
 - jnt_range is the joint's limits when jnt_limited; a symmetric actuator force range is its
   effort limit.
 
+A joint equality constraint with a linear polynomial is read as a mimic joint, exactly
+(``mjcf_equality``): joint1 stays a joint, moved by joint2's coordinate; a chain keeps the joints
+so coupled to its path.
+
 Refused, naming the element: a ball or free joint that robotgen would have to keep (on the
 chain, or below the base of a tree), a free joint carried by the chain, an active equality
-constraint that acts on the kept joints, a flex, a tip or base that is not in the model, a
+constraint that acts on the kept joints and is not such a coupling, a flex, a tip or base that is not in the model, a
 tip not below the base, non-finite or huge numbers, negative damping, armature or friction
 loss. Ignored with a warning naming them: joint stiffness, gravity compensation, fluid
 forces and tendons' stiffness, damping and friction loss acting on the kept joints; with a

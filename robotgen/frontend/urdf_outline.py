@@ -34,6 +34,7 @@ def outline(f: UrdfFile, base: str | None = None) -> str:
     width = max(len(r[0]) for r in rows) + 2
     joint_width = max(len(r[1]) for r in rows) + 2
     lines = [head] + [f"{r[0]:{width}}{r[1]:{joint_width}}{r[2]}".rstrip() for r in rows]
-    lines.append(f"a chain: --tip LINK (the movable joints from '{start}' to LINK; the others locked at q = 0); "
-                 "every movable joint: --tree")
+    coupled = " and the joints <mimic> couples to them" if any(j.find("mimic") is not None for j in below) else ""
+    lines.append(f"a chain: --tip LINK (the movable joints from '{start}' to LINK{coupled}; the others locked at "
+                 "q = 0); every movable joint: --tree")
     return "\n".join(lines)

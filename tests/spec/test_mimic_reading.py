@@ -231,3 +231,11 @@ def test_the_mujoco_plant_refuses_a_coupled_chain(tmp_path):
     with pytest.raises(UserError, match="the MuJoCo plant couples no joints exactly: chain leaf 'arm' has mimic "
                                         "joints \\('j2'\\)"):
         plant_model(load_system(str(spec)), 0.001)
+
+
+def test_info_prints_each_mimic_joint(tmp_path, capsys):
+    path = urdf(tmp_path, J1, joint("j2", "revolute", "l1", "l2", '<mimic joint="j1" multiplier="-1" offset="0.25"/>'))
+    assert main(["info", path, "--tree"]) == 0
+    out = capsys.readouterr().out.splitlines()
+    assert out[1:] == ["  r: define chain, nq = 1", "    coordinates: j1 [rad]", "    - j1: revolute, parent -1",
+                       "    - j2: revolute, parent 0", "    mimic: j2 = -1 * j1 + 0.25"], out

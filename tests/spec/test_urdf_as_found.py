@@ -317,8 +317,8 @@ def test_info_without_a_tip_lists_the_links_as_a_tree(tmp_path, capsys):
         "          finger_a  finger_a_joint  prismatic",
         "          finger_b  finger_b_joint  prismatic, mimics finger_a_joint",
         "    r1              jr1             revolute",
-        "a chain: --tip LINK (the movable joints from 'world' to LINK; the others locked at q = 0); every movable "
-        "joint: --tree",
+        "a chain: --tip LINK (the movable joints from 'world' to LINK and the joints <mimic> couples to them; the "
+        "others locked at q = 0); every movable joint: --tree",
     ], out
     # --base starts the tree there; --tip or --tree give the model's info as before
     assert main(["info", str(path), "--base", "l1"]) == 0
