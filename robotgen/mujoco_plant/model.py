@@ -54,6 +54,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from robotgen.documentation import hint
 from robotgen.errors import Location, UserError
 from robotgen.model.chain import PRISMATIC, KinematicTree, mimic_joints
 from robotgen.model.formula import FormulaRobot
@@ -278,7 +279,7 @@ def _leaf_tree(system: RobotSystem, name: str) -> tuple[KinematicTree, np.ndarra
             raise UserError(system.location_of(name), f"the MuJoCo plant couples no joints exactly: chain leaf "
                                                       f"'{name}' has mimic joints ({mimic_joints(leaf)}), which MuJoCo "
                                                       "would hold by a soft equality constraint; simulate it on "
-                                                      "robotgen's plant")
+                                                      f"robotgen's plant ({hint('spec-format', 'Mimic joints')})")
         return leaf, np.eye(leaf.nq), np.zeros(leaf.nq), system.location_of(name)
     if isinstance(leaf, FormulaRobot) and leaf.mechanism is not None:
         m = leaf.mechanism

@@ -221,7 +221,8 @@ def test_tree_laws_take_a_coupled_chain_and_the_root_laws_refuse_it(tmp_path, ca
         assert main(["check", str(spec)]) == 1
         err = messages(capsys.readouterr().err)
         assert err == (f"{spec}:7:14: nodes.top.control.robot: law {law} resolves a chain's own joints; 'arm' "
-                       "has mimic joints ('j2'): a tip above them leaves them out\n"), err
+                       "has mimic joints ('j2'): a tip above them leaves them out (`robotgen docs spec-format`, "
+                       "\"Mimic joints\")\n"), err
 
 
 def test_the_mujoco_plant_refuses_a_coupled_chain(tmp_path):
@@ -229,7 +230,7 @@ def test_the_mujoco_plant_refuses_a_coupled_chain(tmp_path):
     spec = tmp_path / "s.yaml"
     spec.write_text(SPEC.format(law="computed_torque", gains="\n      kp: 100\n      kv: 20"))
     with pytest.raises(UserError, match="the MuJoCo plant couples no joints exactly: chain leaf 'arm' has mimic "
-                                        "joints \\('j2'\\)"):
+                                        "joints \\('j2'\\).*`robotgen docs spec-format`, \"Mimic joints\""):
         plant_model(load_system(str(spec)), 0.001)
 
 

@@ -59,7 +59,8 @@ class HandLawReader(Collector):
             return node
         if chain.coupling is not None:
             self.at_value(path + ("robot",), f"law {law} resolves a chain's own joints; '{node.robot}' has mimic "
-                                             f"joints ({mimic_joints(chain)}): a tip above them leaves them out")
+                                             f"joints ({mimic_joints(chain)}): a tip above them leaves them out "
+                                             f"({hint('spec-format', 'Mimic joints')})")
             return node
         if chain.nq != HAND_DOF:
             self.at_value(path + ("robot",), f"law {law} resolves hand motion through a square Jacobian: it needs "

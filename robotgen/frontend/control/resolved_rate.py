@@ -8,6 +8,7 @@ import dataclasses
 
 import numpy as np
 
+from robotgen.documentation import hint
 from robotgen.frontend.collector import Collector
 from robotgen.frontend.document import Path, format_path
 from robotgen.model.chain import KinematicTree, mimic_joints
@@ -66,7 +67,8 @@ class ResolvedRateReader(Collector):
             return node
         if isinstance(chain, KinematicTree) and chain.coupling is not None:
             self.at_value(path + ("robot",), f"law resolved_rate resolves a chain's own joints; '{node.robot}' has "
-                                             f"mimic joints ({mimic_joints(chain)}): a tip above them leaves them out")
+                                             f"mimic joints ({mimic_joints(chain)}): a tip above them leaves them out "
+                                             f"({hint('spec-format', 'Mimic joints')})")
             return node
         if node.name != system.root:
             self.at_key(("nodes", node.name), f"a resolved_rate controller must be the root (it outputs joint "
