@@ -286,7 +286,7 @@ def _leaf_tree(system: RobotSystem, name: str) -> tuple[KinematicTree, np.ndarra
         return m.tree, m.T, m.offset, m.location
     raise UserError(system.location_of(name), f"the MuJoCo plant builds every leaf from bodies: formulas leaf "
                                               f"'{name}' needs a mechanism (a chain whose joints give its "
-                                              "coordinates, docs/spec-format.md)")
+                                              f"coordinates: {hint('spec-format', 'mechanism')})")
 
 
 def fingertips(system: RobotSystem, attach: AttachNode) -> list[str]:
@@ -358,7 +358,7 @@ def plant_model(system: RobotSystem, period: float, hand_frame: np.ndarray | Non
     substeps = CONTACT_SUBSTEPS if grasps else 1
     root = ET.Element("mujoco", model=system.name)
     root.append(ET.Comment(f" written by robotgen from {system.source}: the plant of `robotgen simulate "
-                           "--plant mujoco`, docs/spec-format.md says how each part maps "))
+                           f"--plant mujoco`; {hint('spec-format', 'The MuJoCo plant')} says how each part maps "))
     ET.SubElement(root, "compiler", angle="radian", inertiafromgeom="false", boundmass=repr(MIN_INERTIA),
                   boundinertia=repr(MIN_INERTIA))
     option = ET.SubElement(root, "option", timestep=repr(period / substeps), integrator="RK4", cone="elliptic",

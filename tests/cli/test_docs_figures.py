@@ -5,6 +5,7 @@ leaving the docs stale. (The README's adaptive-PUMA figures: tests/control/test_
 from __future__ import annotations
 
 import contextlib
+import importlib.util
 import io
 import os
 import re
@@ -19,6 +20,7 @@ import yaml
 
 from robotgen.cli import main
 from robotgen.frontend import load_system
+from robotgen.frontend.mjcf import load_mjcf_system, load_mjcf_tree_system
 from robotgen.frontend.urdf import load_urdf_system, load_urdf_tree_system
 from robotgen.symbolic import kernels_for
 
@@ -85,13 +87,22 @@ def modules(build_module) -> dict:
     return {name: build_module(SPECS[name]) for name in ("puma560", "puma560_rmrc", "styx_high_ct", "puma560_rmac")}
 
 
+def dm_control_suite() -> Path:
+    """dm_control's suite of MJCF models (a test dependency), as cli.md's MJCF example uses it."""
+    return Path(importlib.util.find_spec("dm_control").submodule_search_locations[0]) / "suite"
+
+
 def test_function_counts_are_what_build_prints(tmp_path):
     """Every "robotgen: built NAME (N functions)" the docs show: N is the number of functions
     robotgen build prints for that spec (or for cli.md's arm2.urdf)."""
     (tmp_path / "arm2.urdf").write_text(ARM2)
     urdf = str(tmp_path / "arm2.urdf")
     systems = {"arm_2": lambda: load_urdf_system(urdf, tip="tool"),
-               "arm2_tree": lambda: load_urdf_tree_system(urdf, name="arm2_tree")}
+               "arm2_tree": lambda: load_urdf_tree_system(urdf, name="arm2_tree"),
+               "planar_manipulator": lambda: load_mjcf_system(str(dm_control_suite() / "manipulator.xml"),
+                                                              tip="grasp"),
+               "cheetah_legs": lambda: load_mjcf_tree_system(str(dm_control_suite() / "cheetah.xml"), base="torso",
+                                                             name="cheetah_legs")}
     quoted = [(page.name, name, int(n)) for page in sorted(DOCS.glob("*.md"))
               for name, n in re.findall(r"robotgen: built (\w+) \((\d+) functions\)", page.read_text())]
     assert len(quoted) >= 6, quoted

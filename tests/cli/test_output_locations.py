@@ -31,7 +31,8 @@ def test_simulate_writes_under_generated(tmp_path):
                         "--duration", "0.05", "-q"], capture_output=True, text=True, cwd=tmp_path, env=env)
     assert r.returncode == 0, r.stderr
     written = sorted(str(p.relative_to(tmp_path)) for p in tmp_path.rglob("*") if p.is_file())
-    assert written == ["generated/styx_high_ct_simulation/styx_high_ct.csv",
+    assert written == ["generated/styx_high_ct_simulation/.robotgen-files",  # the record of what it wrote
+                       "generated/styx_high_ct_simulation/styx_high_ct.csv",
                        "generated/styx_high_ct_simulation/styx_high_ct.png"]
     assert "robotgen: wrote generated/styx_high_ct_simulation/styx_high_ct.csv" in r.stdout
 

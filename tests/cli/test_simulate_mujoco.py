@@ -284,7 +284,8 @@ def test_plant_flag_and_spec_setting(tmp_path):
     out2 = tmp_path / "sim2"
     r = run_cli("simulate", str(spec), "-o", str(out2), "--plant", "robotgen", "-q")
     assert r.returncode == 0 and "on the robotgen plant" in r.stdout
-    assert sorted(p.name for p in out2.iterdir()) == ["styx_both.csv", "styx_both.png"]
+    # and the record of what simulate wrote (robotgen.output_files)
+    assert sorted(p.name for p in out2.iterdir()) == [".robotgen-files", "styx_both.csv", "styx_both.png"]
     r = run_cli("simulate", str(spec), "--plant", "bullet")
     assert r.returncode == 2 and "invalid choice: 'bullet'" in r.stderr
 
