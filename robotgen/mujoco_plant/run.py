@@ -135,6 +135,15 @@ class MujocoPlant:
         self.data.qpos[a:a + 7] = np.r_[x[:3], quat]
         self.data.qvel[v:v + 6] = np.r_[xd[:3], R.T @ rpy_rate_map(x[3:6]) @ xd[3:6]]
 
+    def set_mass(self, node: str, mass: float) -> None:
+        """Payload ``node``'s mass from now on (MuJoCo's derived constants recomputed), the
+        state evaluated again."""
+        state = self.data.qpos.copy(), self.data.qvel.copy(), self.data.ctrl.copy()
+        self.model.body_mass[self.payload_body[node]] = mass
+        self.mj.mj_setConst(self.model, self.data)  # works in data at qpos0: the state is put back
+        self.data.qpos[:], self.data.qvel[:], self.data.ctrl[:] = state
+        self.forward()
+
     def payload_pose(self, node: str) -> np.ndarray:
         a = self.payload_qpos[node]
         if self.payload_planar[node]:
@@ -321,6 +330,11 @@ class TreePlant:
         """The internal forces the contacts carry now (the new torques act from the next step)."""
         return np.array(self.sim.internal_forces(self._readings))
 
+    def set_payload_mass(self, payload: str, mass: float) -> None:
+        """From now on payload ``payload`` has ``mass`` (its inertia kept)."""
+        self.sim.set_mass(payload, mass)
+        self._readings = self.sim.readings() if self.sim.plant.contacts else []
+
     def record(self, t: float) -> None:
         if self.history is not None:
             pose = self.sim.payload_pose(self.root_payload) if self.root_payload else None
@@ -367,7 +381,7 @@ def tree_plant(system: RobotSystem, module, dt: float) -> tuple[PlantModel, obje
             out += [(leaf, y[dim * k:dim * k + dim]) for k, leaf in enumerate(fingertips(system, node))]
         return out
 
-    def make(module, theta, theta_dot, v, n_ext):
+    def make(module, theta, theta_dot, v, n_ext, settings=None):
         check_agreement(MujocoPlant(plant), leaf_dynamics, theta, np.random.default_rng(0), tips)
         return TreePlant(MujocoPlant(plant), module, theta, theta_dot, n_ext, payload)
 
