@@ -497,4 +497,7 @@ def compare(a: Result, b: Result) -> str:
         lines.append(f"the plants agree to {worst:.3g}{' ' + unit if unit else ''}: the largest |x_{a.plant} - "
                      f"x_{b.plant}| over the run ({name} at t = {t:.3f} s)")
     lines.append(f"largest |tau_{a.plant} - tau_{b.plant}|: {np.abs(a.tau - b.tau).max():.3g}")
+    for r in (a, b):
+        forces = _force_lines(r)
+        lines += [f"on the {r.plant} plant:"] + ["  " + line for line in forces] if forces else []
     return "\n".join(lines + _contact_lines(a) + _contact_lines(b))

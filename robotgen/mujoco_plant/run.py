@@ -87,6 +87,9 @@ class MujocoPlant:
         self.payload_dofs = {p.node: int(m.jnt_dofadr[joint(p.joints[0])]) for p in plant.payloads}
         self.payload_body = {p.node: mj.mj_name2id(m, mj.mjtObj.mjOBJ_BODY, p.body) for p in plant.payloads}
         self.payload_planar = {p.node: p.planar for p in plant.payloads}
+        self.wall_geoms = ({mj.mj_name2id(m, mj.mjtObj.mjOBJ_GEOM, g) for g in (plant.wall.tip_geom,
+                                                                               plant.wall.plane_geom)}
+                           if plant.wall is not None else set())
         self.tip_geoms = [mj.mj_name2id(m, mj.mjtObj.mjOBJ_GEOM, c.tip_geom) for c in plant.contacts]
         self.pad_geoms = [mj.mj_name2id(m, mj.mjtObj.mjOBJ_GEOM, c.pad_geom) for c in plant.contacts]
         self.pad_half_width = [float(m.geom_size[g][0]) for g in self.pad_geoms]
@@ -210,6 +213,17 @@ class MujocoPlant:
                                speeds[k] if f_n > 0 else 0.0))
         return out
 
+    def wall_force(self) -> float:
+        """The normal force the wall carries now (mj_forward done): its contacts' normal
+        components (the first of each contact frame's force)."""
+        wrench, total = np.zeros(6), 0.0
+        for i in range(self.data.ncon):
+            c = self.data.contact[i]
+            if {int(c.geom[0]), int(c.geom[1])} == self.wall_geoms and c.efc_address >= 0:
+                self.mj.mj_contactForce(self.model, self.data, i, wrench)
+                total += float(wrench[0])
+        return total
+
     def internal_forces(self, readings: list[Reading]) -> list[float]:
         return internal_forces(self.plant.contacts, readings, self.rotation)
 
@@ -330,6 +344,9 @@ class TreePlant:
         """The internal forces the contacts carry now (the new torques act from the next step)."""
         return np.array(self.sim.internal_forces(self._readings))
 
+    def wall_force(self) -> float:
+        return self.sim.wall_force()
+
     def set_payload_mass(self, payload: str, mass: float) -> None:
         """From now on payload ``payload`` has ``mass`` (its inertia kept)."""
         self.sim.set_mass(payload, mass)
@@ -374,6 +391,9 @@ def tree_plant(system: RobotSystem, module, dt: float) -> tuple[PlantModel, obje
     def tips(theta):
         theta_dot = np.zeros_like(theta)
         out = []
+        if plant.wall is not None:  # the wall's point: where the node's rd puts it
+            out.append((plant.wall.leaf, np.asarray(getattr(module, f"{system.simulation.wall.node}_read")(
+                theta, theta_dot)[0])))
         for attach in {c.attach for c in plant.contacts}:
             node = system.nodes[attach]
             y = np.concatenate([getattr(module, f"{r}_read")(theta, theta_dot)[0] for r in node.robots])
