@@ -9,6 +9,9 @@ K p k_w / (K + k_w) on robotgen's spring (p the desired point's depth in the wal
 from __future__ import annotations
 
 import dataclasses
+import os
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -166,3 +169,15 @@ def test_squeeze_loop_holds_after_a_payload_step(open_squeeze, build_module, pla
     else:
         assert abs(open_after) > 0.1
         assert abs(pi_after) < 0.1 * abs(open_after) and abs(pi_after - pi_before) < 0.02
+
+
+def test_cli_md_shows_what_simulate_prints(tmp_path):
+    """docs/cli.md's run of specs/hybrid_arm.yaml is what simulate prints."""
+    cli = (ROOT / "docs" / "cli.md").read_text()
+    rest = cli[cli.index("$ robotgen simulate specs/hybrid_arm.yaml -o sim -q\n"):]
+    shown = rest[rest.index("\n") + 1:rest.index("```")].splitlines()
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")]))
+    printed = subprocess.run([sys.executable, "-m", "robotgen", "simulate", str(HYBRID), "-o", str(tmp_path), "-q"],
+                             capture_output=True, text=True, env=env, check=True).stdout.splitlines()
+    assert printed[:-1] == shown[:-1]
+    assert printed[-1] == shown[-1].replace("sim/", f"{tmp_path}/")

@@ -299,3 +299,16 @@ def test_force_law_parameters_are_bounded_at_run_time(build_module):
     with pytest.raises(ValueError, match="gain ki_internal -1 must be at least 0"):
         squeeze.servo_step(theta, np.zeros(4), np.zeros(3), np.zeros(3), np.zeros(3), np.zeros(3), np.zeros(4),
                            squeeze.servo_init(theta, np.zeros(4)), np.array([1e-3]), ct_hand_ki_internal=-1.0)
+
+
+def test_python_api_hybrid_snippet_prints_what_it_says(build_module):
+    """docs/python-api.md's step of the hybrid arm: the state and torques its comment gives."""
+    build_module(HYBRID)  # imported as hybrid_arm, which the snippet imports
+    api = (ROOT / "docs" / "python-api.md").read_text()
+    snippet = next(part.partition("```")[0] for part in api.split("```python\n")[1:] if "import hybrid_arm" in part)
+    names: dict = {}
+    exec(compile(snippet, "<python-api.md>", "exec"), names)
+    state, tau = names["state"], names["tau"]
+    said = snippet.split("# state = ")[1]
+    assert said.startswith(f"[{state[0]:g}, {state[1]:g}]")
+    assert f"tau = [{tau[0]:.4f}, {tau[1]:.4f}]" in said
