@@ -5,7 +5,7 @@ import math
 
 from robotgen.frontend.collector import Collector
 from robotgen.frontend.document import Path
-from robotgen.model.laws import HAND_LAWS
+from robotgen.model.laws import HAND_LAWS, RESOLVED_RATE
 from robotgen.model.laws.hand import HAND_AXES, HAND_DOF
 from robotgen.model.signature import (
     METRE,
@@ -45,6 +45,13 @@ class SimulationReader(Collector):
             return self.hand_simulation(spec, values, nodes, root_node)
         system = RobotSystem(name=self.doc.data["name"], source=self.doc.path, source_sha256=self.doc.sha256,
                              nodes=nodes, root=root)
+        if isinstance(root_node, ControlNode) and root_node.law == RESOLVED_RATE:
+            for key in ("force", "wall", "payload_change"):
+                if key in spec:
+                    self.at_key(path + (key,), f"'{key}' applies to robot trees of torque controllers; a resolved_rate "
+                                               "root is simulated through its regulator from theta0")
+                    spec = {k: v for k, v in spec.items() if k != key}
+                    values.pop({"payload_change": "payload_changes"}.get(key, key), None)
         if "payload_change" in spec:
             values["payload_changes"] = self.tree_payload_changes(path + ("payload_change",), spec["payload_change"],
                                                                   values["payload_changes"], system)
@@ -173,10 +180,16 @@ class SimulationReader(Collector):
         if "dt" in spec:
             self.at_key(path + ("dt",), "a hand controller runs at its own period (its settings' period); "
                                         "the simulation steps with it")
-        for key in ("start", "initial_error", "internal_forces"):
+        for key in ("start", "initial_error", "internal_forces", "force", "wall"):
             if key in spec:
                 self.at_key(path + (key,), f"'{key}' applies to robot trees; a hand controller starts at theta0 "
                                            "and follows its start pose plus amplitude sin(2 pi frequency t)")
+        changes = spec.get("payload_change", [])
+        for k, change in enumerate([changes] if isinstance(changes, dict) else changes):
+            if "payload" in change:
+                at = path + ("payload_change",) + (() if isinstance(changes, dict) else (k,))
+                self.at_key(at + ("payload",), "a hand controller's payload is a point mass in its hand (mass, com); "
+                                               "payload names a robot tree's rigid_body")
         chain = getattr(nodes.get(root.robot), "leaf", None)
         expected = {"theta0": (getattr(chain, "nq", HAND_DOF), f"one per joint of '{root.robot}'"),
                     "amplitude": (HAND_DOF, f"one per hand axis: {', '.join(HAND_AXES)}"),

@@ -280,6 +280,14 @@ def check_fails(tmp_path: Path, base: Path, name: str, change, *expected: str) -
      ["expected 2 entries, one per coordinate of 'tip': arm_x, arm_y; got 3"]),
     ("force_size", HYBRID, lambda d: d["simulation"].update(force=[10]),
      ["expected 2 entries (one per velocity coordinate of 'slide': arm_x, arm_y), got 1"]),
+    ("hand_wall", ROOT / "specs" / "puma560_rmac.yaml",
+     lambda d: d["simulation"].update(wall={"node": "arm", "point": [0, 0], "normal": [1, 0]}),
+     ["simulation.wall: 'wall' applies to robot trees"]),
+    ("hand_payload", ROOT / "specs" / "puma560_rmac.yaml",
+     lambda d: d["simulation"]["payload_change"].update(payload="arm"),
+     ["a hand controller's payload is a point mass in its hand"]),
+    ("rate_force", ROOT / "specs" / "puma560_rmrc.yaml", lambda d: d["simulation"].update(force=[1.0]),
+     ["simulation.force: 'force' applies to robot trees of torque controllers"]),
 ], ids=lambda c: c[0])
 def test_force_settings_are_checked(tmp_path, case):
     name, base, change, expected = case
