@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from robotgen.model.signature import FORCE_UNITS
-from robotgen.model.simulation import ROBOTGEN_PLANT
+from robotgen.model.simulation import ROBOTGEN_PLANT, Wall
 from robotgen.model.simulation import SimulationSettings as Settings
 from robotgen.wall_contact import WallContact
 
@@ -139,12 +139,13 @@ class ModulePlant:
     name = ROBOTGEN_PLANT
     note = "classical RK4 of plant_dynamics, one step per period"
 
-    def __init__(self, module, theta: np.ndarray, theta_dot: np.ndarray, v: np.ndarray, n_ext: int,
-                 settings: Settings | None = None):
+    def __init__(self, module, theta: np.ndarray, theta_dot: np.ndarray, v: np.ndarray, n_ext: int):
         self.module, self.theta, self.v, self.n_ext = module, theta, v, n_ext
-        wall = settings.wall if settings is not None else None
-        self.wall = WallContact(module, wall) if wall is not None else None
+        self.wall: WallContact | None = None
         self.masses: dict[str, float] = {}  # run-time payload masses, by parameter name
+
+    def set_wall(self, wall: Wall) -> None:
+        self.wall = WallContact(self.module, wall)
 
     def set_payload_mass(self, payload: str, mass: float) -> None:
         self.masses[f"{payload}_mass"] = mass
@@ -195,10 +196,10 @@ class ModulePlant:
 
 def run(module, s: Settings, rest: np.ndarray | None = None, plant=ModulePlant) -> Result:
     """The closed loop from the settings; ``rest`` is the leaf posture used when the
-    settings give neither theta0 nor start; ``plant(module, theta, theta_dot, v, n_ext,
-    settings)`` makes the plant it is closed around (its wall, its payloads' masses as they
-    change: set_payload_mass). Raises SimulationError for settings the plant cannot start
-    from and for a loop that diverges."""
+    settings give neither theta0 nor start; ``plant(module, theta, theta_dot, v, n_ext)``
+    makes the plant it is closed around, given the settings' wall (set_wall) and its payloads'
+    masses as they change (set_payload_mass). Raises SimulationError for settings the plant
+    cannot start from and for a loop that diverges."""
     info = module.info()
     root = info["nodes"][info["root"]]
     n_ext, n_v = len(root["coordinates"]), root["nq"]
@@ -211,7 +212,9 @@ def run(module, s: Settings, rest: np.ndarray | None = None, plant=ModulePlant) 
     f_i = np.asarray(s.internal_forces, float) if s.internal_forces else np.zeros(n_fi)
     f_e = np.asarray(s.force, float) if s.force else np.zeros(n_v)
     stateful = hasattr(module, "servo_init")
-    p = plant(module, theta, module.plant_dynamics(theta, v, np.zeros(module.nq))[0], v, n_ext, s)
+    p = plant(module, theta, module.plant_dynamics(theta, v, np.zeros(module.nq))[0], v, n_ext)
+    if s.wall is not None:
+        p.set_wall(s.wall)
     state = module.servo_init(*p.sensed()) if stateful else None
     reads_sensed = hasattr(module, "plant_sensed_forces")  # the servo step takes tau_sensed
     steps = int(round(s.duration / s.dt))

@@ -344,6 +344,12 @@ class TreePlant:
         """The internal forces the contacts carry now (the new torques act from the next step)."""
         return np.array(self.sim.internal_forces(self._readings))
 
+    def set_wall(self, wall) -> None:
+        """The wall is in the MJCF already: the spec's (robotgen.mujoco_plant.model)."""
+        if self.sim.plant.wall is None:
+            raise SimulationError("the MuJoCo model was written without a wall: give it in the spec's simulation "
+                                  "section", "wall")
+
     def wall_force(self) -> float:
         return self.sim.wall_force()
 
@@ -401,7 +407,7 @@ def tree_plant(system: RobotSystem, module, dt: float) -> tuple[PlantModel, obje
             out += [(leaf, y[dim * k:dim * k + dim]) for k, leaf in enumerate(fingertips(system, node))]
         return out
 
-    def make(module, theta, theta_dot, v, n_ext, settings=None):
+    def make(module, theta, theta_dot, v, n_ext):
         check_agreement(MujocoPlant(plant), leaf_dynamics, theta, np.random.default_rng(0), tips)
         return TreePlant(MujocoPlant(plant), module, theta, theta_dot, n_ext, payload)
 

@@ -51,7 +51,8 @@ def test_a_leaf_senses_the_wall(build_module):
         J = np.array([[-l1 * np.sin(q[0]) - l2 * np.sin(q.sum()), -l2 * np.sin(q.sum())],
                       [l1 * np.cos(q[0]) + l2 * np.cos(q.sum()), l2 * np.cos(q.sum())]])
         qd = rng.normal(size=2) * 0.05
-        plant = simulate.ModulePlant(module, q, qd, module.plant_velocity(q, qd), 2, system.simulation)
+        plant = simulate.ModulePlant(module, q, qd, module.plant_velocity(q, qd), 2)
+        plant.set_wall(wall)
         tau = rng.normal(size=2) * 5
         tip_rate = (J @ qd)[0]  # d(depth)/dt: the tip goes in along +x
         push = wall.stiffness * depth + wall.damping * tip_rate
