@@ -139,6 +139,10 @@ class SimulationReader(Collector):
         if name not in system.nodes:
             self.at_value(path + ("node",), f"'{name}' is not a node (nodes: {', '.join(system.nodes)})")
             return None
+        if isinstance(system.nodes[name], DefineNode) and name not in robot_leaves(system):
+            self.at_value(path + ("node",), f"'{name}' is a payload; a wall touches a robot's point (a frame change's "
+                                            "tip)")
+            return None
         try:
             sig = signature(system, name)
             units = coordinate_units(system, name)[:sig.n_external]

@@ -30,7 +30,7 @@ def setting(c: Command, key: str) -> ca.SX | ca.DM | float:
     """The selection (as a diagonal matrix), kf or ki: run-time parameters or folded."""
     p = c.parameters.symbols.get(gain_parameter_name(c.node, key))
     if key == "selection":
-        return ca.diag(p) if p is not None else ca.DM(ca.diag(ca.DM(c.node.force.selection)))
+        return ca.diag(p) if p is not None else ca.diag(ca.DM(c.node.force.selection))
     return p if p is not None else getattr(c.node.force, key)
 
 
