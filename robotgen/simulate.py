@@ -313,7 +313,8 @@ def write_csv(result: Result, path: Path) -> None:
             row = ([f"{result.t[k]:.6f}"] + [f"{v:.10g}" for v in result.x[k]]
                    + [f"{v:.10g}" for v in result.x_d[k]] + [f"{v:.10g}" for v in result.tau[k]]
                    + [f"{v:.10g}" for v in (result.f_actual[k] if fi else [])])
-            row += [f"{result.wall_force[k]:.10g}"] if result.wall_force is not None else []
+            if result.wall_force is not None:
+                row.append(f"{result.wall_force[k]:.10g}")
             row += [f"{v:.10g}" for v in (pose[k] if pose is not None else [])]
             row += [f"{v:.10g}" for values in columns for v in values[k]]
             w.writerow(row)
@@ -437,8 +438,8 @@ def summary(result: Result) -> str:
 
 
 def _force_lines(result: Result) -> list[str]:
-    """The internal forces and the wall's force: largest and final error against the command,
-    over the run and, after a payload change, after the last one."""
+    """The plant's payload changes; each commanded internal force's error (largest over the run,
+    and at the end); the wall's normal force (largest, final) and what was commanded into it."""
     lines = []
     if result.changes:
         lines.append("the plant's payload: " + ", ".join(f"{c.payload or 'hand'} {c.mass:g} kg from t = {c.at:g} s"

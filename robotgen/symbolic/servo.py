@@ -76,7 +76,7 @@ class Servo:
         self.torques: dict[str, ca.SX] = {}
         self.next_state: dict[tuple[str, str], ca.SX] = {}
         # the leaves' sensed forces (rd of a DEFINE, §3.2), read when a controller below closes
-        # a loop on sensed internal forces
+        # a loop on sensed internal forces or has a law that reads forces
         self.reads_forces = reads_sensed_forces(graphs, top)
         self.tau_sensed = ca.SX.sym("tau_sensed", graphs.n)
         self._sensed: dict[str, tuple[ca.SX, ca.SX]] = {}
