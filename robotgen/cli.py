@@ -24,6 +24,7 @@ from robotgen.model.derivatives import INTEGRATORS, SEMI_IMPLICIT_EULER, Derivat
 from robotgen.model.describe import system_info, system_nq
 from robotgen.model.laws import HAND_LAWS, RESOLVED_ADAPTIVE
 from robotgen.model.names import MAX_LENGTH, PATTERN, name_problem
+from robotgen.model.system import ControlNode
 from robotgen.output_files import output_errors, write_files, write_problem
 from robotgen.progress import Progress
 from robotgen.progress import for_terminal as progress_for_terminal
@@ -194,6 +195,12 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
         if not value > 0:
             raise _Usage(f"--{k} must be positive, got {value:g}")
     settings = dataclasses.replace(settings, **overrides)
+    for node in system.nodes.values():  # each internal-force PI loop stable at the period run
+        problem = node.internal_force_loop_problem(settings.dt) if isinstance(node, ControlNode) else None
+        if problem and "dt" in overrides:
+            raise _Usage(f"--dt {settings.dt:g}: controller '{node.name}': {problem}")
+        if problem:
+            raise UserError(system.location_of(node.name), f"controller '{node.name}': {problem}")
     plant = args.plant or settings.plant
     plants = (ROBOTGEN_PLANT, MUJOCO_PLANT) if plant == BOTH_PLANTS else (plant,)
     if MUJOCO_PLANT in plants:

@@ -2,10 +2,13 @@
 
 The plant is the uncontrolled tree's composite dynamics (Deno et al. 1990, eq 2.3) in the
 root's velocity coordinates, integrated by classical RK4 with the leaf joint states carried
-along (Theta_dot = A(Theta) v): ``ModulePlant``. The servo step runs once per step on the
-sensed leaf state, and its torques are held over the step (zero-order hold), as on a real
-servo loop. Another plant with the same methods (robotgen.mujoco_plant.run.TreePlant: a
-MuJoCo model of the same bodies, with contacts) can take its place.
+along (Theta_dot = A(Theta) v): ``ModulePlant``, with the spec's wall pushing on it
+(robotgen.wall_contact) and its payloads' masses changing mid-run where the spec says. The
+servo step runs once per step on the sensed leaf state (and, when it reads them, the forces
+the leaves exert, as a period's end senses them), and its torques are held over the step
+(zero-order hold), as on a real servo loop. Another plant with the same methods
+(robotgen.mujoco_plant.run.TreePlant: a MuJoCo model of the same bodies, with contacts) can
+take its place.
 """
 from __future__ import annotations
 
@@ -18,8 +21,9 @@ from pathlib import Path
 import numpy as np
 
 from robotgen.model.signature import FORCE_UNITS
-from robotgen.model.simulation import ROBOTGEN_PLANT
+from robotgen.model.simulation import ROBOTGEN_PLANT, Wall
 from robotgen.model.simulation import SimulationSettings as Settings
+from robotgen.wall_contact import WallContact
 
 # a state entry beyond this is taken as divergence before it overflows
 DIVERGED = 1e8
@@ -53,6 +57,9 @@ class Result:
     plant: str = ROBOTGEN_PLANT  # what the loop was closed around
     contacts: object | None = None  # the MuJoCo plant's ContactHistory (robotgen.mujoco_plant.contacts)
     plant_note: str = ""  # how that plant steps
+    wall_force: np.ndarray | None = None  # (steps,) the normal force the wall carries, with a wall
+    wall_commanded: float = float("nan")  # the force written at the root, along the wall's normal
+    changes: tuple = ()  # the payload changes (PayloadChange), in time order
 
     @property
     def payload_pose(self) -> np.ndarray | None:
@@ -125,33 +132,59 @@ def _check_constraints(module, theta: np.ndarray, source: str | None) -> None:
 
 
 class ModulePlant:
-    """robotgen's own plant: the module's plant_dynamics, RK4 in (theta, v), torques held."""
+    """robotgen's own plant: the module's plant_dynamics, RK4 in (theta, v), torques held; the
+    wall's push (if any) added to them at every stage, and the payload masses it is given
+    passed to every plant function (run-time parameters)."""
 
     name = ROBOTGEN_PLANT
     note = "classical RK4 of plant_dynamics, one step per period"
 
     def __init__(self, module, theta: np.ndarray, theta_dot: np.ndarray, v: np.ndarray, n_ext: int):
         self.module, self.theta, self.v, self.n_ext = module, theta, v, n_ext
+        self.wall: WallContact | None = None
+        self.masses: dict[str, float] = {}  # run-time payload masses, by parameter name
+
+    def set_wall(self, wall: Wall) -> None:
+        self.wall = WallContact(self.module, wall)
+
+    def set_payload_mass(self, payload: str, mass: float) -> None:
+        self.masses[f"{payload}_mass"] = mass
+
+    def _rates(self, theta: np.ndarray, v: np.ndarray) -> np.ndarray:
+        return self.module.plant_dynamics(theta, v, np.zeros(self.module.nq), **self.masses)[0]
+
+    def _pushed(self, theta: np.ndarray, v: np.ndarray, tau: np.ndarray) -> np.ndarray:
+        """The actuators' torques plus the wall's push at (theta, v)."""
+        return tau if self.wall is None else tau + self.wall.torque(theta, self._rates(theta, v))
 
     def sensed(self) -> tuple[np.ndarray, np.ndarray]:
-        return self.theta, self.module.plant_dynamics(self.theta, self.v, np.zeros(self.module.nq))[0]
+        return self.theta, self._rates(self.theta, self.v)
 
     def position(self, theta: np.ndarray) -> np.ndarray:
         return self.module.plant_position(theta)[:self.n_ext]
 
     def internal_forces(self, tau: np.ndarray) -> np.ndarray:
-        return self.module.plant_internal_forces(self.theta, self.v, tau)
+        return self.module.plant_internal_forces(self.theta, self.v, self._pushed(self.theta, self.v, tau),
+                                                 **self.masses)
 
     def sensed_forces(self, tau_before: np.ndarray) -> np.ndarray:
-        """What the leaves exert through the grasps now, the last torques still applied."""
-        return self.module.plant_sensed_forces(self.theta, self.v, tau_before)
+        """What the leaves exert through the grasps and on the wall now, the last torques still
+        applied: plant_sensed_forces under the actuators' and the wall's torques, less the
+        wall's push (the leaves exert its opposite)."""
+        pushed = self._pushed(self.theta, self.v, tau_before)
+        return self.module.plant_sensed_forces(self.theta, self.v, pushed, **self.masses) - (pushed - tau_before)
+
+    def wall_force(self) -> float:
+        return self.wall.normal_force(*self.sensed())
 
     def record(self, t: float) -> None:
         pass
 
     def step(self, tau: np.ndarray, dt: float, when: str) -> None:
         """One period on; ``when`` says which, for the message if the loop diverges."""
-        theta_next, v_next = _rk4(self.module, self.theta, self.v, tau, dt)
+        theta_next, v_next = _rk4(lambda th, vel: self.module.plant_dynamics(th, vel, self._pushed(th, vel, tau),
+                                                                             **self.masses),
+                                  self.theta, self.v, dt)
         if not (np.all(np.abs(theta_next) < DIVERGED) and np.all(np.abs(v_next) < DIVERGED)):
             raise SimulationError(
                 f"the closed loop diverged {when}: the state before the blow-up was theta = "
@@ -164,7 +197,8 @@ class ModulePlant:
 def run(module, s: Settings, rest: np.ndarray | None = None, plant=ModulePlant) -> Result:
     """The closed loop from the settings; ``rest`` is the leaf posture used when the
     settings give neither theta0 nor start; ``plant(module, theta, theta_dot, v, n_ext)``
-    makes the plant it is closed around. Raises SimulationError for settings the plant
+    makes the plant it is closed around, given the settings' wall (set_wall) and its payloads'
+    masses as they change (set_payload_mass). Raises SimulationError for settings the plant
     cannot start from and for a loop that diverges."""
     info = module.info()
     root = info["nodes"][info["root"]]
@@ -176,19 +210,26 @@ def run(module, s: Settings, rest: np.ndarray | None = None, plant=ModulePlant) 
     v = np.zeros(module.plant_velocity(theta, np.zeros(module.nq)).shape[0])
     v[:n_ext] = v_d0
     f_i = np.asarray(s.internal_forces, float) if s.internal_forces else np.zeros(n_fi)
+    f_e = np.asarray(s.force, float) if s.force else np.zeros(n_v)
     stateful = hasattr(module, "servo_init")
     p = plant(module, theta, module.plant_dynamics(theta, v, np.zeros(module.nq))[0], v, n_ext)
+    if s.wall is not None:
+        p.set_wall(s.wall)
     state = module.servo_init(*p.sensed()) if stateful else None
     reads_sensed = hasattr(module, "plant_sensed_forces")  # the servo step takes tau_sensed
     steps = int(round(s.duration / s.dt))
-    T, X, XD, TAU, TH, FI = [], [], [], [], [], []
+    T, X, XD, TAU, TH, FI, WALL = [], [], [], [], [], [], []
     reads_forces = hasattr(module, "plant_internal_forces")
     tau = np.zeros(module.nq)
+    changes = list(s.payload_changes)
     for k in range(steps + 1):
         t = k * s.dt
+        while changes and t >= changes[0].at - 1e-9 * s.dt:  # the plant's payload from now on
+            change = changes.pop(0)
+            p.set_payload_mass(change.payload, change.mass)
         theta, theta_dot = p.sensed()
         x_d, v_d, a_d = desired(s, x0, t)
-        args = [theta, theta_dot, x_d, _pad(v_d, n_v), _pad(a_d, n_v), np.zeros(n_v)]
+        args = [theta, theta_dot, x_d, _pad(v_d, n_v), _pad(a_d, n_v), f_e]
         if n_fi:
             args.append(f_i)
         if reads_sensed:
@@ -204,6 +245,8 @@ def run(module, s: Settings, rest: np.ndarray | None = None, plant=ModulePlant) 
         TH.append(theta)
         if reads_forces:
             FI.append(p.internal_forces(tau))
+        if s.wall is not None:
+            WALL.append(p.wall_force())
         p.record(t)
         if k == steps:
             break
@@ -214,11 +257,14 @@ def run(module, s: Settings, rest: np.ndarray | None = None, plant=ModulePlant) 
     commands = dict(zip(root["internal_forces"], f_i))  # left to the root: the simulation's values
     for node in info["nodes"].values():
         commands.update(node.get("internal_force_setpoints", {}))
+    on_root = bool(s.force) and s.wall is not None and info["nodes"][s.wall.node]["coordinates"] == root["coordinates"]
+    commanded = float(-f_e[:n_ext] @ np.asarray(s.wall.normal)) if on_root else float("nan")  # pushed into the wall
     return Result(np.array(T), np.array(X), np.array(XD), np.array(TAU), np.array(TH),
                   list(root["coordinates"]), list(root["units"][:n_ext]), joints, joint_units, names,
                   np.array(FI) if reads_forces else None,
                   np.array([commands.get(n, np.nan) for n in names]) if reads_forces else None,
-                  p.name, getattr(p, "history", None), getattr(p, "note", ""))
+                  p.name, getattr(p, "history", None), getattr(p, "note", ""),
+                  np.array(WALL) if s.wall is not None else None, commanded, tuple(s.payload_changes))
 
 
 def _pad(a: np.ndarray, n: int) -> np.ndarray:
@@ -227,10 +273,8 @@ def _pad(a: np.ndarray, n: int) -> np.ndarray:
     return out
 
 
-def _rk4(module, theta, v, tau, dt):
-    def f(th, vel):
-        return module.plant_dynamics(th, vel, tau)
-
+def _rk4(f, theta, v, dt):
+    """One classical RK4 step of (theta_dot, v_dot) = f(theta, v)."""
     with np.errstate(all="ignore"):  # a diverging loop overflows; run() reports it
         try:
             k1 = f(theta, v)
@@ -245,10 +289,10 @@ def _rk4(module, theta, v, tau, dt):
 
 def write_csv(result: Result, path: Path) -> None:
     """t, the root coordinates (x_<name>), their reference (xref_<name>), the actuator
-    torques by joint (tau_<joint>) and the internal forces the grasps carry (f_<name>); on
-    MuJoCo's contacts also the payload's true pose (xtrue_<name>) and per contact its normal
-    force (fn_), tangential force (ft_), cone usage |f_t|/(mu f_n) (usage_), slip (slip_) and
-    the tip's distance off its pad (gap_)."""
+    torques by joint (tau_<joint>), the internal forces the grasps carry (f_<name>) and the
+    normal force the wall carries (fn_wall); on MuJoCo's contacts also the payload's true pose
+    (xtrue_<name>) and per contact its normal force (fn_), tangential force (ft_), cone usage
+    |f_t|/(mu f_n) (usage_), slip (slip_) and the tip's distance off its pad (gap_)."""
     fi = result.internal_forces if result.f_actual is not None else []
     c = result.contacts
     pose = result.payload_pose
@@ -257,6 +301,8 @@ def write_csv(result: Result, path: Path) -> None:
         w = csv.writer(f)
         header = (["t"] + [f"x_{n}" for n in result.names] + [f"xref_{n}" for n in result.names]
                   + [f"tau_{j}" for j in result.joints] + [f"f_{n}" for n in fi])
+        if result.wall_force is not None:
+            header.append("fn_wall")
         if pose is not None:
             header += [f"xtrue_{n}" for n in result.names]
         if c is not None:
@@ -267,6 +313,8 @@ def write_csv(result: Result, path: Path) -> None:
             row = ([f"{result.t[k]:.6f}"] + [f"{v:.10g}" for v in result.x[k]]
                    + [f"{v:.10g}" for v in result.x_d[k]] + [f"{v:.10g}" for v in result.tau[k]]
                    + [f"{v:.10g}" for v in (result.f_actual[k] if fi else [])])
+            if result.wall_force is not None:
+                row.append(f"{result.wall_force[k]:.10g}")
             row += [f"{v:.10g}" for v in (pose[k] if pose is not None else [])]
             row += [f"{v:.10g}" for values in columns for v in values[k]]
             w.writerow(row)
@@ -289,7 +337,8 @@ def plot(result: Result, path: Path, title: str) -> None:
     force_groups = _by_unit(result.joints, [FORCE_UNITS[u] for u in result.joint_units])
     contacts = result.contacts
     pose = result.payload_pose
-    n_rows = 2 * len(groups) + len(force_groups) + (result.f_actual is not None) + 2 * (contacts is not None)
+    n_rows = (2 * len(groups) + len(force_groups) + (result.f_actual is not None) + 2 * (contacts is not None)
+              + (result.wall_force is not None))
     fig, axes = plt.subplots(n_rows, 1, figsize=(9, 2.3 * n_rows), sharex=True, squeeze=False)
     axes = list(axes[:, 0])
     colors = plt.rcParams["axes.prop_cycle"].by_key()["color"]
@@ -331,6 +380,18 @@ def plot(result: Result, path: Path, title: str) -> None:
         ax.set_ylabel("internal force")
         ax.legend(loc="upper right", fontsize=7, ncol=3)
         ax.grid(True, alpha=0.3)
+    if result.wall_force is not None:
+        ax = axes.pop(0)
+        ax.plot(result.t, result.wall_force, color=colors[0], label="normal force on the wall")
+        if np.isfinite(result.wall_commanded):
+            ax.plot(result.t, np.full_like(result.t, result.wall_commanded), color=colors[0], linestyle="--",
+                    linewidth=1, label="commanded (f_e along the normal)")
+        ax.set_ylabel("wall force\nf_n [N]")
+        ax.legend(loc="upper right", fontsize=7, ncol=2)
+        ax.grid(True, alpha=0.3)
+    for ax in fig.axes:  # the plant's payload changes
+        for change in result.changes:
+            ax.axvline(change.at, color="k", linestyle=":", linewidth=1)
     if contacts is not None:
         labels = [f"{c.name} ({c.leaf})" for c in contacts.contacts]
         ax = axes.pop(0)
@@ -373,7 +434,29 @@ def summary(result: Result) -> str:
     for i, name in enumerate(result.joints):
         unit = FORCE_UNITS[result.joint_units[i]] if i < len(result.joint_units) else ""
         lines.append(f"  {'tau ' + name:>12}: max |.| {np.abs(result.tau[:, i]).max():.4g}{_unit(unit)}")
-    return "\n".join(lines + _contact_lines(result))
+    return "\n".join(lines + _force_lines(result) + _contact_lines(result))
+
+
+def _force_lines(result: Result) -> list[str]:
+    """The plant's payload changes; each commanded internal force's error (largest over the run,
+    and at the end); the wall's normal force (largest, final) and what was commanded into it."""
+    lines = []
+    if result.changes:
+        lines.append("the plant's payload: " + ", ".join(f"{c.payload or 'hand'} {c.mass:g} kg from t = {c.at:g} s"
+                                                         for c in result.changes))
+    if result.f_actual is not None and np.any(np.isfinite(result.f_commanded)):
+        lines.append("internal forces f - f_commanded (largest over the run, and at the end):")
+        for n, name in enumerate(result.internal_forces):
+            if np.isfinite(result.f_commanded[n]):
+                e = result.f_actual[:, n] - result.f_commanded[n]
+                lines.append(f"  {name:>12}: max {np.abs(e).max():.3e}, final {e[-1]:+.3e}")
+    if result.wall_force is not None:
+        f = result.wall_force
+        line = f"wall: normal force max {f.max():.4g} N, final {f[-1]:.4g} N"
+        if np.isfinite(result.wall_commanded):
+            line += f" (commanded {result.wall_commanded:.4g} N)"
+        lines.append(line)
+    return lines
 
 
 def _contact_lines(result: Result) -> list[str]:
@@ -418,4 +501,7 @@ def compare(a: Result, b: Result) -> str:
         lines.append(f"the plants agree to {worst:.3g}{' ' + unit if unit else ''}: the largest |x_{a.plant} - "
                      f"x_{b.plant}| over the run ({name} at t = {t:.3f} s)")
     lines.append(f"largest |tau_{a.plant} - tau_{b.plant}|: {np.abs(a.tau - b.tau).max():.3g}")
+    for r in (a, b):
+        forces = _force_lines(r)
+        lines += [f"on the {r.plant} plant:"] + ["  " + line for line in forces] if forces else []
     return "\n".join(lines + _contact_lines(a) + _contact_lines(b))

@@ -369,6 +369,27 @@ _DEFS = {
                                           "closed form (a spherical wrist), default 2"},
          "gains": {"enum": list(GAIN_MODES),
                    "description": "runtime (default) or folded q, r or torque_weight, forgetting"}}),
+    "impedance": _object(
+        "settings of law impedance (Hogan 1985) on the robot's coordinates x: the target "
+        "M_d (xdd - xdd_d) + D (xd - xd_d) + K (x - x_d) = F_ext + f_e, F_ext the sensed force of what it touches",
+        {"stiffness": {"$ref": "#/$defs/gain", "description": "K [N/m or N m/rad]: a number (times I), a list "
+                                                               "(the diagonal, >= 0) or a matrix (symmetric "
+                                                               "positive definite)"},
+         "damping": {"$ref": "#/$defs/gain", "description": "D [N s/m or N m s/rad], > 0, as K"},
+         "inertia": {"$ref": "#/$defs/gain", "description": "M_d [kg or kg m^2], > 0, as K; optional: with it the "
+                                                             "law reads the sensed force (the servo step takes "
+                                                             "tau_sensed), without it M_d is the robot's own M"}},
+        ("stiffness", "damping")),
+    "hybrid": _object(
+        "settings of law hybrid, hybrid force/position control (Raibert and Craig 1981): coordinates with "
+        "selection 1 follow x_d (kp, kv), those with 0 exert the force f_e written at the node, with a PI "
+        "loop on the sensed force",
+        {"selection": {"type": "array", "minItems": 1, "items": {"$ref": "#/$defs/number"},
+                       "description": "S, one entry per coordinate in [0, 1]: 1 position-controlled, 0 "
+                                      "force-controlled"},
+         "kf": _number("gain on the force error f_e - F_s, >= 0, default 0"),
+         "ki": _number("gain on the force error's integral [1/s], >= 0, default 0")},
+        ("selection",)),
     "control": _object(
         "CONTROL: a controller on a robot (Deno et al. 1990, 3.4)",
         {"robot": {"type": "string", "pattern": IDENTIFIER, "description": "the controlled node"},
@@ -377,16 +398,22 @@ _DEFS = {
          "resolved_rate": {"$ref": "#/$defs/resolved_rate"},
          "resolved_acceleration": {"$ref": "#/$defs/resolved_acceleration"},
          "resolved_adaptive": {"$ref": "#/$defs/resolved_adaptive"},
+         "impedance": {"$ref": "#/$defs/impedance"},
+         "hybrid": {"$ref": "#/$defs/hybrid"},
          "kp": {"$ref": "#/$defs/gain"},
          "kv": {"$ref": "#/$defs/gain"},
          "kv_internal": _number("damping of internal motion rates, >= 0, default 0"),
          "kf_internal": _number("gain on the internal forces the robot senses (its rd force term): write "
                                 "f_d + kf_internal (f_d - f_sensed); the servo step then takes tau_sensed, "
                                 "0 <= kf_internal < 1, default none (open loop)"),
+         "ki_internal": _number("gain on the integral of that error [1/s]: write f_d + kf_internal e + "
+                                "ki_internal z, z the integral of e = f_d - f_sensed (controller state), "
+                                ">= 0, with ki_internal dt < 2 (1 - kf_internal); default none"),
          "internal_forces": {"type": "array", "minItems": 1, "items": {"$ref": "#/$defs/number"},
                              "description": "resolve all of the robot's internal forces to these values"},
          "gains": {"enum": list(GAIN_MODES),
-                   "description": "runtime (default): kp, kv, kv_internal, kf_internal are inputs of the emitted code "
+                   "description": "runtime (default): kp, kv, kv_internal, kf_internal, ki_internal and a force "
+                                  "law's settings are inputs of the emitted code "
                                   "(a parameter struct in C, keyword arguments in Python) with the spec's "
                                   "values as defaults; folded: compiled in as constants (faster, retuning "
                                   "needs a rebuild)"},
@@ -425,17 +452,40 @@ _DEFS = {
                    "description": "what the loop is closed around: robotgen (its own model, default), mujoco "
                                   "(an independent MuJoCo model of the same system, with real contacts; needs "
                                   "pip install 'robotgen[mujoco]') or both side by side; --plant overrides"},
+         "force": {"type": "array", "items": {"$ref": "#/$defs/number"},
+                   "description": "f_e written at the root, one per root velocity coordinate (default zeros): "
+                                  "the force a hybrid law's force-controlled coordinates exert"},
          "payload_change": {
-             "description": "a hand controller's run: from time at on the plant's hand holds a point mass the "
-                            "controller is not told about; one change or a list of them in time order",
+             "description": "from time at on the plant's payload has another mass, which the controller is not "
+                            "told about (a hand controller's hand holds a point mass; a robot tree's rigid_body "
+                            "payload, its mass a run-time parameter, takes mass); one change or a list of them "
+                            "in time order",
              "anyOf": [{"$ref": "#/$defs/payload_change"},
-                       {"type": "array", "minItems": 1, "items": {"$ref": "#/$defs/payload_change"}}]}}),
-    "payload_change": _object("from time at on, the plant's hand holds mass at com",
+                       {"type": "array", "minItems": 1, "items": {"$ref": "#/$defs/payload_change"}}]},
+         "wall": {"$ref": "#/$defs/wall"}}),
+    "payload_change": _object("from time at on, the plant's hand holds mass at com (a robot tree: its payload has "
+                              "mass)",
                               {"at": _number("time of the change [s], >= 0", minimum=0),
                                "mass": _number("the payload's mass [kg], >= 0 (0 drops it)", minimum=0),
                                "com": _vector3("the payload's centre of mass in the hand frame [m], "
-                                               "default the hand's origin")},
+                                               "default the hand's origin (a hand controller's run)"),
+                               "payload": {"type": "string", "pattern": IDENTIFIER,
+                                           "description": "a robot tree's rigid_body node whose mass changes "
+                                                          "(default: the tree's one rigid_body)"}},
                               ("at", "mass")),
+    "wall": _object("a flat frictionless wall in the plant, touched by the point a node's coordinates are",
+                    {"node": {"type": "string", "pattern": IDENTIFIER,
+                              "description": "a node whose 2 or 3 coordinates are a point in metres (a frame "
+                                             "change's tip)"},
+                     "point": {"type": "array", "items": {"$ref": "#/$defs/number"},
+                               "description": "a point of the wall's face, in the node's coordinates [m]"},
+                     "normal": {"type": "array", "items": {"$ref": "#/$defs/number"},
+                                "description": "the face's outward normal (any length): the wall fills "
+                                               "(x - point) . normal < 0"},
+                     "stiffness": _number("robotgen's plant: the wall's spring [N/m], > 0, default 1e5",
+                                          exclusiveMinimum=0),
+                     "damping": _number("robotgen's plant: its damper [N s/m], >= 0, default 300", minimum=0)},
+                    ("node", "point", "normal")),
     "derivatives": _object(
         "the derivative functions of a module whose root is a define leaf (or a hand or "
         "resolved-rate law on a chain): inverse_dynamics_derivatives, "

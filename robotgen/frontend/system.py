@@ -6,6 +6,7 @@ from __future__ import annotations
 
 from robotgen.errors import UserErrors
 from robotgen.frontend.attach import AttachReader
+from robotgen.frontend.control.force import ForceLawReader
 from robotgen.frontend.control.hand import HandLawReader
 from robotgen.frontend.control.node import ControlReader
 from robotgen.frontend.control.resolved_rate import ResolvedRateReader
@@ -28,7 +29,8 @@ from robotgen.model.system import (
 )
 
 
-class SpecReader(LeafReader, AttachReader, ControlReader, ResolvedRateReader, HandLawReader, SimulationReader):
+class SpecReader(LeafReader, AttachReader, ControlReader, ForceLawReader, ResolvedRateReader, HandLawReader,
+                 SimulationReader):
     """The whole spec: every part's reader over one collector."""
 
     def node(self, name: str, node: dict) -> Node:

@@ -5,22 +5,25 @@ from __future__ import annotations
 import numpy as np
 
 from robotgen.model.formula import FormulaRobot
-from robotgen.model.laws import FEEDFORWARD, TREE_LAWS
-from robotgen.model.parameters import Bounds, RuntimeParameter
+from robotgen.model.laws import FEEDFORWARD, IMPEDANCE, TREE_LAWS
+from robotgen.model.parameters import MATRIX_GAIN, Bounds, RuntimeParameter, written_shape
 from robotgen.model.signature import signature
 from robotgen.model.system import (
     DAMPING,
-    DIAGONAL_GAIN,
     GAIN,
     GAIN_MATRIX,
-    MATRIX_GAIN,
     PAYLOAD_BODIES,
     PAYLOAD_MASS,
-    SCALAR_GAIN,
     ControlNode,
     DefineNode,
     RobotSystem,
 )
+
+# the internal-force loop's gains (robotgen.symbolic.servo: its poles); ki_internal dt < 2 (1 -
+# kf_internal) as well, checked against the simulation's dt (robotgen.frontend.simulation)
+KF_INTERNAL = Bounds("gain kf_internal", minimum=0.0, maximum=1.0, exclusive_maximum=True,
+                     note="sensed a period late, the loop's pole is at -kf_internal")
+KI_INTERNAL = Bounds("gain ki_internal", minimum=0.0, note="[1/s]; stable for ki_internal dt < 2 (1 - kf_internal)")
 
 
 def runtime_parameters(system: RobotSystem) -> list[RuntimeParameter]:
@@ -54,12 +57,10 @@ def _gains(system: RobotSystem, node: ControlNode) -> list[RuntimeParameter]:
     for key, form, K in (("kp", node.gain_forms[0], node.kp), ("kv", node.gain_forms[1], node.kv)):
         if node.law == FEEDFORWARD and key == "kp":
             continue  # feedforward reads no position error
-        if node.law == FEEDFORWARD and not np.any(K):
-            continue  # zero velocity gain: nothing to tune
-        K = np.asarray(K, dtype=float)
-        shape, values = {SCALAR_GAIN: ((), (K[0, 0],)), DIAGONAL_GAIN: ((n,), tuple(np.diag(K))),
-                         MATRIX_GAIN: ((n, n), tuple(K.ravel()))}[form]
-        out.append(RuntimeParameter(gain_parameter_name(node, key), shape, tuple(map(float, values)),
+        if (node.law == FEEDFORWARD and not np.any(K)) or node.law == IMPEDANCE:
+            continue  # zero velocity gain: nothing to tune; an impedance has its own matrices
+        shape, values = written_shape(form, K)
+        out.append(RuntimeParameter(gain_parameter_name(node, key), shape, values,
                                     f"{'position' if key == 'kp' else 'velocity'} gain {key} of controller "
                                     f"'{node.name}' on {', '.join(robot.external)}",
                                     GAIN_MATRIX if form == MATRIX_GAIN else GAIN))
@@ -69,6 +70,11 @@ def _gains(system: RobotSystem, node: ControlNode) -> list[RuntimeParameter]:
     if node.kf_internal is not None:  # the loop on sensed internal forces
         out.append(RuntimeParameter(gain_parameter_name(node, "kf_internal"), (), (float(node.kf_internal),),
                                     f"gain kf_internal of controller '{node.name}' on the sensed internal forces",
-                                    Bounds("gain kf_internal", minimum=0.0, maximum=1.0, exclusive_maximum=True,
-                                           note="sensed a period late, the loop's pole is at -kf_internal")))
+                                    KF_INTERNAL))
+    if node.ki_internal is not None:
+        out.append(RuntimeParameter(gain_parameter_name(node, "ki_internal"), (), (float(node.ki_internal),),
+                                    f"gain ki_internal of controller '{node.name}' on the integral of the sensed "
+                                    "internal forces' error [1/s]", KI_INTERNAL))
+    if node.force is not None:  # an impedance's or a hybrid law's own
+        out += node.force.parameters(node.name, ", ".join(robot.external))
     return out

@@ -145,6 +145,20 @@ def definite_message(bounds: Bounds, smallest: float) -> str:
     return f"{bounds.what} must be positive definite{bounds.suffix}: its smallest eigenvalue is {smallest:.3g}"
 
 
+# How a spec writes a matrix gain on n coordinates (kp, kv, an impedance's stiffness): a number
+# (times I), a list (the diagonal) or n rows; its run-time parameter has that shape
+SCALAR_GAIN, DIAGONAL_GAIN, MATRIX_GAIN = "scalar", "diagonal", "matrix"
+
+
+def written_shape(form: str, K: np.ndarray) -> tuple[tuple[int, ...], tuple[float, ...]]:
+    """(shape, row-major values) of the run-time parameter of matrix ``K`` (n x n) written in
+    ``form``: () its [0, 0], (n,) its diagonal, (n, n) all of it."""
+    K = np.asarray(K, dtype=float)
+    shape, values = {SCALAR_GAIN: ((), (K[0, 0],)), DIAGONAL_GAIN: ((K.shape[0],), tuple(np.diag(K))),
+                     MATRIX_GAIN: (K.shape, tuple(K.ravel()))}[form]
+    return shape, tuple(map(float, values))
+
+
 @dataclass(frozen=True)
 class RuntimeParameter:
     """One field of the parameter struct.

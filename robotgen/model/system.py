@@ -15,9 +15,10 @@ from robotgen.model.derivatives import DerivativeSettings
 from robotgen.model.expression import Expr
 from robotgen.model.formula import FormulaRobot
 from robotgen.model.laws import RESOLVED_RATE, ROOT_LAWS
+from robotgen.model.laws.force import HybridSettings, ImpedanceSettings
 from robotgen.model.laws.hand import AdaptiveSettings, ResolvedAccelerationSettings
 from robotgen.model.laws.resolved_rate import CompositeRateSettings, RateControlSettings
-from robotgen.model.parameters import Bounds
+from robotgen.model.parameters import MATRIX_GAIN, Bounds
 from robotgen.model.simulation import SimulationSettings
 
 
@@ -149,8 +150,6 @@ class AttachNode:
         return self.robots + ((self.payload,) if self.payload else ())
 
 
-# How a spec writes a gain (robotgen.model.parameters shapes its run-time parameter so)
-SCALAR_GAIN, DIAGONAL_GAIN, MATRIX_GAIN = "scalar", "diagonal", "matrix"
 # a control node's `gains`: read at run time (the default) or folded into the code
 RUNTIME_GAINS, FOLDED_GAINS = "runtime", "folded"
 GAIN_MODES = (RUNTIME_GAINS, FOLDED_GAINS)
@@ -166,9 +165,10 @@ PAYLOAD_MASS = Bounds("mass", minimum=0.0)
 class ControlNode:
     """CONTROL(robot, controller) (§3.4). Gains act on the robot's external coordinates;
     ``kv_internal`` damps internal motions (eq 5.13). ``internal_forces`` resolves the
-    robot's internal forces to constant values (§5.1); ``kf_internal`` closes a loop on the
-    internal forces the robot senses (its rd force term, eqs 3.7, 5.4), writing
-    f_d + kf_internal (f_d - f_sensed); ``resolve_internal_motion`` drives
+    robot's internal forces to constant values (§5.1); ``kf_internal`` and ``ki_internal``
+    close a PI loop on the internal forces the robot senses (its rd force term, eqs 3.7,
+    5.4-5.5), writing f_d + kf e + ki z, e = f_d - f_sensed, z its integral (controller
+    state); ``resolve_internal_motion`` drives
     internal motion rates to zero (§5.2). What a controller resolves is masked from the
     levels above; what it leaves is passed up.
 
@@ -183,11 +183,14 @@ class ControlNode:
     kv: np.ndarray
     kv_internal: float = 0.0
     internal_forces: np.ndarray | None = None
-    kf_internal: float | None = None  # gain on the sensed internal-force error; None: open loop
+    kf_internal: float | None = None  # gain on the sensed internal-force error; None: no such term
+    ki_internal: float | None = None  # gain on its integral [1/s]; None: no integral (no state)
     resolve_internal_motion: bool = False
     rate: RateControlSettings | CompositeRateSettings | None = None  # law resolved_rate only
     hand: ResolvedAccelerationSettings | AdaptiveSettings | None = None  # the hand laws only
-    runtime_gains: bool = True  # kp, kv, kv_internal, kf_internal are run-time parameters (gains: folded)
+    force: ImpedanceSettings | HybridSettings | None = None  # the force laws only (impedance, hybrid)
+    runtime_gains: bool = True  # the gains (kp, kv, kv_internal, kf_internal, ki_internal, a force law's) are
+    # run-time parameters; `gains: folded` compiles them in
     gain_forms: tuple[str, str] = (MATRIX_GAIN, MATRIX_GAIN)  # how the spec wrote kp, kv
 
     primitive = "control"
@@ -195,6 +198,19 @@ class ControlNode:
     @property
     def children(self) -> tuple[str, ...]:
         return (self.robot,)
+
+    def internal_force_loop_problem(self, dt: float) -> str | None:
+        """Why the internal-force PI loop is unstable at servo period ``dt`` (None: it is not, or
+        there is no integral): its poles are inside the unit circle when ki_internal dt <
+        2 (1 - kf_internal) (robotgen.symbolic.servo, Jury's test)."""
+        if self.ki_internal is None:
+            return None
+        kf = self.kf_internal or 0.0
+        if self.ki_internal * dt < 2 * (1 - kf):
+            return None
+        return (f"ki_internal {self.ki_internal:g} with dt = {dt:g} s: the internal-force loop needs ki_internal dt "
+                f"< 2 (1 - kf_internal) = {2 * (1 - kf):g}, got {self.ki_internal * dt:g} (its poles leave the unit "
+                f"circle); lower ki_internal below {2 * (1 - kf) / dt:g} or dt")
 
 
 Node = DefineNode | AttachNode | ControlNode

@@ -14,6 +14,10 @@ What becomes what:
 - every leaf coordinate gets a motor (gear 1) on its joint or tendon: ctrl is robotgen's tau;
 - a planar payload: slide x, slide y, hinge z (its coordinates x, y, psi); a spatial one
   a free joint (its frame at the centre of mass, as robotgen's);
+- the simulation's wall: a plane in the world whose face lies FINGERTIP_RADIUS inside the
+  wall's, touched only by a sphere of that radius centred on the tip of the leaf whose point
+  the wall's node is (a frame change of one leaf, or the leaf itself); frictionless (condim
+  1), MuJoCo's soft contact with the grasps' time constant, not robotgen's spring;
 - a planar_contacts or point_contacts grasp: a sphere of radius FINGERTIP_RADIUS centred
   on each fingertip (the leaf's tip frame) and a flat pad on the payload whose face lies
   FINGERTIP_RADIUS inside the contact point, facing out along the line from the payload's
@@ -134,6 +138,15 @@ class ContactMap:
 
 
 @dataclass(frozen=True, eq=False)
+class WallMap:
+    """The wall: the tip sphere of ``leaf`` against the plane, both geoms by name."""
+
+    leaf: str
+    tip_geom: str
+    plane_geom: str
+
+
+@dataclass(frozen=True, eq=False)
 class PlantModel:
     name: str
     xml: str
@@ -144,6 +157,7 @@ class PlantModel:
     substeps: int  # MuJoCo steps per servo period
     gravity: np.ndarray
     hand_payload: str | None = None  # hand laws: the body that takes the payload changes
+    wall: WallMap | None = None  # the simulation's wall
 
     @property
     def nq(self) -> int:
@@ -355,7 +369,8 @@ def plant_model(system: RobotSystem, period: float, hand_frame: np.ndarray | Non
                                                            "rigid_body (a formulas payload has no bodies)")
     trees = {name: _leaf_tree(system, name) for name in leaves}
     gravity = _gravity(system, [(n, t[0], t[3]) for n, t in trees.items()], [a.payload for a in grasps])
-    substeps = CONTACT_SUBSTEPS if grasps else 1
+    wall = system.simulation.wall if system.simulation is not None and hand_frame is None else None
+    substeps = CONTACT_SUBSTEPS if grasps or wall is not None else 1
     root = ET.Element("mujoco", model=system.name)
     root.append(ET.Comment(f" written by robotgen from {system.source}: the plant of `robotgen simulate "
                            f"--plant mujoco`; {hint('spec-format', 'The MuJoCo plant')} says how each part maps "))
@@ -412,6 +427,7 @@ def plant_model(system: RobotSystem, period: float, hand_frame: np.ndarray | Non
         for k, (point, leaf) in enumerate(zip(np.asarray(a.constraint.contacts, float), tips)):
             contacts.append(_contact(contact, world, body, a, k, np.r_[point, 0.0] if planar else point, leaf,
                                      payload_map, planar, system))
+    wall_map = _wall(contact, world, system, wall) if wall is not None else None
     hand_payload = None
     if hand_frame is not None:
         tip = world.find(f".//body[@name='{maps[0].tip_body}']")
@@ -427,7 +443,38 @@ def plant_model(system: RobotSystem, period: float, hand_frame: np.ndarray | Non
     ET.indent(root)
     xml = ET.tostring(root, encoding="unicode") + "\n"
     return PlantModel(system.name, xml, tuple(maps), tuple(payloads), tuple(contacts), period / substeps, substeps,
-                      gravity, hand_payload)
+                      gravity, hand_payload, wall_map)
+
+
+def wall_leaf(system: RobotSystem, node: str) -> str:
+    """The leaf whose tip the wall's node is: the node itself (below its controllers), or the one
+    robot of a frame change. Raises UserError otherwise."""
+    below = below_controls(system, node)
+    if isinstance(below, DefineNode):
+        return below.name
+    if isinstance(below, AttachNode) and below.constraint.kind == FRAME_CHANGE and len(below.robots) == 1:
+        leaf = below_controls(system, below.robots[0])
+        if isinstance(leaf, DefineNode):
+            return leaf.name
+    where = system.simulation.locations.get("wall", system.location_of(node))
+    raise UserError(where, f"the MuJoCo plant puts the wall against one leaf's tip: node '{node}' must be a leaf or a "
+                           "frame change of one leaf (its tip position)")
+
+
+def _wall(contact: ET.Element, world: ET.Element, system: RobotSystem, wall) -> WallMap:
+    """The plane (its face FINGERTIP_RADIUS inside the wall's, so that the sphere on the tip
+    touches it when the tip reaches the wall) and the pair of it with that sphere."""
+    leaf = wall_leaf(system, wall.node)
+    point, normal = (np.r_[np.asarray(v, float), np.zeros(3 - len(v))] for v in (wall.point, wall.normal))
+    ET.SubElement(world, "geom", name="wall", type="plane", size="0 0 1", pos=_vec(point - FINGERTIP_RADIUS * normal),
+                  zaxis=_vec(normal), rgba="0.6 0.6 0.6 0.5")
+    tip_site = world.find(f".//site[@name='{leaf}/tip']")
+    holder = next(b for b in world.iter("body") if tip_site in list(b))
+    ET.SubElement(holder, "geom", name="wall/tip", type="sphere", size=repr(FINGERTIP_RADIUS),
+                  pos=tip_site.get("pos", "0 0 0"), rgba="0.2 0.4 0.8 1")
+    ET.SubElement(contact, "pair", name="wall", geom1="wall/tip", geom2="wall", condim="1",
+                  solref=f"{CONTACT_TIMECONST!r} 1")
+    return WallMap(leaf, "wall/tip", "wall")
 
 
 def _payload(world: ET.Element, system: RobotSystem, attach: AttachNode) -> PayloadMap:

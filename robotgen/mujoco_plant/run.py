@@ -87,6 +87,9 @@ class MujocoPlant:
         self.payload_dofs = {p.node: int(m.jnt_dofadr[joint(p.joints[0])]) for p in plant.payloads}
         self.payload_body = {p.node: mj.mj_name2id(m, mj.mjtObj.mjOBJ_BODY, p.body) for p in plant.payloads}
         self.payload_planar = {p.node: p.planar for p in plant.payloads}
+        self.wall_geoms = ({mj.mj_name2id(m, mj.mjtObj.mjOBJ_GEOM, g) for g in (plant.wall.tip_geom,
+                                                                               plant.wall.plane_geom)}
+                           if plant.wall is not None else set())
         self.tip_geoms = [mj.mj_name2id(m, mj.mjtObj.mjOBJ_GEOM, c.tip_geom) for c in plant.contacts]
         self.pad_geoms = [mj.mj_name2id(m, mj.mjtObj.mjOBJ_GEOM, c.pad_geom) for c in plant.contacts]
         self.pad_half_width = [float(m.geom_size[g][0]) for g in self.pad_geoms]
@@ -134,6 +137,15 @@ class MujocoPlant:
         self.mj.mju_mat2Quat(quat, R.ravel())
         self.data.qpos[a:a + 7] = np.r_[x[:3], quat]
         self.data.qvel[v:v + 6] = np.r_[xd[:3], R.T @ rpy_rate_map(x[3:6]) @ xd[3:6]]
+
+    def set_mass(self, node: str, mass: float) -> None:
+        """Payload ``node``'s mass from now on (MuJoCo's derived constants recomputed), the
+        state evaluated again."""
+        state = self.data.qpos.copy(), self.data.qvel.copy(), self.data.ctrl.copy()
+        self.model.body_mass[self.payload_body[node]] = mass
+        self.mj.mj_setConst(self.model, self.data)  # works in data at qpos0: the state is put back
+        self.data.qpos[:], self.data.qvel[:], self.data.ctrl[:] = state
+        self.forward()
 
     def payload_pose(self, node: str) -> np.ndarray:
         a = self.payload_qpos[node]
@@ -200,6 +212,17 @@ class MujocoPlant:
             out.append(Reading(forces[k], f_n, f_t, offset, c.normal, self.pad_half_width[k], c.friction,
                                speeds[k] if f_n > 0 else 0.0))
         return out
+
+    def wall_force(self) -> float:
+        """The normal force the wall carries now (mj_forward done): its contacts' normal
+        components (the first of each contact frame's force)."""
+        wrench, total = np.zeros(6), 0.0
+        for i in range(self.data.ncon):
+            c = self.data.contact[i]
+            if {int(c.geom[0]), int(c.geom[1])} == self.wall_geoms and c.efc_address >= 0:
+                self.mj.mj_contactForce(self.model, self.data, i, wrench)
+                total += float(wrench[0])
+        return total
 
     def internal_forces(self, readings: list[Reading]) -> list[float]:
         return internal_forces(self.plant.contacts, readings, self.rotation)
@@ -321,6 +344,20 @@ class TreePlant:
         """The internal forces the contacts carry now (the new torques act from the next step)."""
         return np.array(self.sim.internal_forces(self._readings))
 
+    def set_wall(self, wall) -> None:
+        """The wall is in the MJCF already: the spec's (robotgen.mujoco_plant.model)."""
+        if self.sim.plant.wall is None:
+            raise SimulationError("the MuJoCo model was written without a wall: give it in the spec's simulation "
+                                  "section", "wall")
+
+    def wall_force(self) -> float:
+        return self.sim.wall_force()
+
+    def set_payload_mass(self, payload: str, mass: float) -> None:
+        """From now on payload ``payload`` has ``mass`` (its inertia kept)."""
+        self.sim.set_mass(payload, mass)
+        self._readings = self.sim.readings() if self.sim.plant.contacts else []
+
     def record(self, t: float) -> None:
         if self.history is not None:
             pose = self.sim.payload_pose(self.root_payload) if self.root_payload else None
@@ -360,6 +397,9 @@ def tree_plant(system: RobotSystem, module, dt: float) -> tuple[PlantModel, obje
     def tips(theta):
         theta_dot = np.zeros_like(theta)
         out = []
+        if plant.wall is not None:  # the wall's point: where the node's rd puts it
+            out.append((plant.wall.leaf, np.asarray(getattr(module, f"{system.simulation.wall.node}_read")(
+                theta, theta_dot)[0])))
         for attach in {c.attach for c in plant.contacts}:
             node = system.nodes[attach]
             y = np.concatenate([getattr(module, f"{r}_read")(theta, theta_dot)[0] for r in node.robots])

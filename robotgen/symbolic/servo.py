@@ -4,12 +4,16 @@ ATTACH (eqs 3.8, 5.3, 5.9) to the leaves, whose wr drives the actuators with the
 that reaches them. Every controller in the tree is evaluated on the way, in order.
 
 Each CONTROL node's law (robotgen.symbolic.control) turns what is written at it into the
-force on its robot. A controller with ``kf_internal`` closes a loop on the internal forces
-its robot senses: rd's force term (eq 3.7), the leaves' sensed forces tau_sensed carried up
-by inverting each ATTACH's force map (eq 5.4), so that it writes f_d + kf (f_d - f_sensed)
-instead of f_d; the step then takes tau_sensed. Stateful laws (computed torque, feedforward) integrate an expected
-trajectory (x_e, xd_e) from xdd_e (§3.4); that is their state, passed in and out of the
-step (the emitted C keeps no state of its own)."""
+force on its robot. rd's force term (eq 3.7) reaches a controller that asks for it: the
+leaves' sensed forces tau_sensed (what each leaf exerts on what it touches, in its joint
+coordinates) carried up by inverting each ATTACH's force map (eq 5.4), so that a node senses
+F_s on its velocity coordinates and F_i,s on its internal forces (eq 5.5); the step then
+takes tau_sensed. A controller with ``kf_internal`` or ``ki_internal`` closes a PI loop on
+its robot's internal forces: it writes f_d + kf e + ki z, e = f_d - F_i,s, z the integral of
+e; a law may read F_s (impedance, hybrid force/position control). Stateful laws integrate
+an expected trajectory (x_e, xd_e) from xdd_e (§3.4) or a force error; that state and the
+internal-force integrals are the controller state, passed in and out of the step (the
+emitted C keeps no state of its own)."""
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -17,7 +21,7 @@ from dataclasses import dataclass
 import casadi as ca
 
 from robotgen.model.system import AttachNode, ControlNode, DefineNode
-from robotgen.symbolic.control.gains import gain, kf_internal, kv_internal
+from robotgen.symbolic.control.gains import gain, internal_force_gain, kv_internal
 from robotgen.symbolic.control.law import Command, PositionsUnavailable
 from robotgen.symbolic.control.tree_laws import TREE_LAWS
 from robotgen.symbolic.rows import rows
@@ -35,9 +39,24 @@ class Trajectory:
     Fi: ca.SX  # internal forces
 
 
-def stateful_controllers(graphs: SystemGraphs, name: str) -> list[ControlNode]:
-    """Controllers with an integrated expected trajectory below ``name``, in walk order."""
-    return [n for n in graphs.system.walk(name) if isinstance(n, ControlNode) and TREE_LAWS[n.law].stateful]
+LAW_STATE, FORCE_INTEGRAL = "law", "internal_force_integral"
+
+
+def state_blocks(graphs: SystemGraphs, name: str) -> list[tuple[ControlNode, str, ca.SX]]:
+    """The controller state below ``name``, block by block in walk order: (controller, kind,
+    the block's value after a reset). A stateful law's own state (LAW_STATE), then the
+    integral of the internal-force error of a controller with ki_internal (FORCE_INTEGRAL,
+    zero after a reset)."""
+    out = []
+    for n in graphs.system.walk(name):
+        if not isinstance(n, ControlNode):
+            continue
+        law = TREE_LAWS[n.law]
+        if law.stateful:
+            out.append((n, LAW_STATE, law.state(graphs.graph(n.robot))))
+        if n.ki_internal is not None:
+            out.append((n, FORCE_INTEGRAL, ca.SX.zeros(graphs.graph(n.robot).sig.n_internal_forces)))
+    return out
 
 
 class Servo:
@@ -45,38 +64,39 @@ class Servo:
 
     def __init__(self, graphs: SystemGraphs, top: str):
         self.g = graphs
-        self.controllers = stateful_controllers(graphs, top)
-        self.layout: dict[str, tuple[int, int, int]] = {}  # name -> (offset, n_x, n_v)
+        self.blocks = state_blocks(graphs, top)
+        self.layout: dict[tuple[str, str], tuple[int, int]] = {}  # (controller, kind) -> (offset, size)
         o = 0
-        for c in self.controllers:
-            sig = graphs.graph(c.robot).sig
-            self.layout[c.name] = (o, sig.n_external, sig.n_velocity)
-            o += sig.n_external + sig.n_velocity
+        for node, kind, start in self.blocks:
+            self.layout[node.name, kind] = (o, start.shape[0])
+            o += start.shape[0]
         self.n_state = o
         self.state = ca.SX.sym("state", o)
         self.dt = ca.SX.sym("dt")
         self.torques: dict[str, ca.SX] = {}
-        self.next_state: dict[str, ca.SX] = {}
+        self.next_state: dict[tuple[str, str], ca.SX] = {}
         # the leaves' sensed forces (rd of a DEFINE, §3.2), read when a controller below closes
-        # a loop on sensed internal forces
+        # a loop on sensed internal forces or has a law that reads forces
         self.reads_forces = reads_sensed_forces(graphs, top)
         self.tau_sensed = ca.SX.sym("tau_sensed", graphs.n)
         self._sensed: dict[str, tuple[ca.SX, ca.SX]] = {}
 
     def initial_state(self) -> ca.SX:
-        """Expected trajectories start at the controlled robots' current state."""
-        parts = []
-        for c in self.controllers:
-            child = self.g.graph(c.robot)
-            parts += [child.x, child.v]
-        return ca.vertcat(*parts) if parts else ca.SX(0, 1)
+        """Expected trajectories start at the controlled robots' current state, integrals at zero."""
+        return ca.vertcat(*[start for _, _, start in self.blocks]) if self.blocks else ca.SX(0, 1)
+
+    def block(self, node: ControlNode, kind: str) -> ca.SX:
+        o, n = self.layout[node.name, kind]
+        return rows(self.state, o, o + n)
 
     def tau(self) -> ca.SX:
         return ca.vertcat(*[self.torques.get(leaf, ca.SX.zeros(self.g.sizes[leaf]))
                             for leaf in self.g.leaves])
 
     def state_next(self) -> ca.SX:
-        return ca.vertcat(*[self.next_state[c.name] for c in self.controllers]) if self.controllers else ca.SX(0, 1)
+        if not self.blocks:
+            return ca.SX(0, 1)
+        return ca.vertcat(*[self.next_state[node.name, kind] for node, kind, _ in self.blocks])
 
     def write(self, name: str, t: Trajectory) -> None:
         node = self.g.system.nodes[name]
@@ -99,8 +119,8 @@ class Servo:
         F_d = ca.vertcat(t.F, ca.SX.zeros(pad))
         Fi = ca.SX(ca.DM(node.internal_forces)) if node.internal_forces is not None else t.Fi
         parameters = self.g.parameters
-        if node.kf_internal is not None:  # the internal-force loop on the robot's rd force term
-            Fi = Fi + kf_internal(node, parameters) * (Fi - self.sensed(node.robot)[1])
+        if node.kf_internal is not None or node.ki_internal is not None:
+            Fi = self._internal_force_loop(node, Fi)
         Kp, Kv, kvi = gain(node, "kp", parameters), gain(node, "kv", parameters), kv_internal(node, parameters)
         e_dot = v_d - child.v
 
@@ -117,14 +137,31 @@ class Servo:
             return t.x - child.x
 
         law = TREE_LAWS[node.law]
-        expected = None
+        state = self.block(node, LAW_STATE) if law.stateful else None
+        out = law.write(Command(child, v_d, a_d, F_d, feedback, position_error, t.x, state, self.dt, node,
+                                parameters, lambda: self.sensed(node.robot)))
         if law.stateful:
-            o, nx, nv = self.layout[node.name]
-            expected = (rows(self.state, o, o + nx), rows(self.state, o + nx, o + nx + nv))
-        out = law.write(Command(child, v_d, a_d, F_d, feedback, position_error, t.x, expected, self.dt))
-        if law.stateful:
-            self.next_state[node.name] = out.next_expected
+            self.next_state[node.name, LAW_STATE] = out.next_state
         self.write(node.robot, Trajectory(out.x, out.v, out.a, out.F, Fi))
+
+    def _internal_force_loop(self, node: ControlNode, f_d: ca.SX) -> ca.SX:
+        """The internal forces a controller writes with its PI loop on those its robot senses
+        (eq 5.5's H J^-T tau_R part, carried up): f_d + kf e + ki z_next, e = f_d - F_i,s and
+        z_next = z + dt e; the correction goes down through the force maps of eqs 5.2-5.3
+        like any internal force. F_i,s is the force carried during the last period, so with a
+        grasp that carries what it is sent at once, f(k) = f_d + kf e(k) + ki z(k+1) + d with
+        e(k) = f_d - f(k-1): characteristic polynomial q^2 + (kf - 1 + ki dt) q - kf, stable
+        for 0 <= kf < 1 and 0 < ki dt < 2 (1 - kf) (Jury), and a constant disturbance d is
+        removed when ki > 0."""
+        kf, ki = internal_force_gain(node, "kf_internal", self.g.parameters), \
+            internal_force_gain(node, "ki_internal", self.g.parameters)
+        error = f_d - self.sensed(node.robot)[1]
+        out = f_d + kf * error if kf is not None else f_d
+        if ki is not None:
+            z_next = self.block(node, FORCE_INTEGRAL) + self.dt * error
+            self.next_state[node.name, FORCE_INTEGRAL] = z_next
+            out = out + ki * z_next
+        return out
 
     # -- ATTACH ----------------------------------------------------------------------
     def _attach(self, node: AttachNode, t: Trajectory) -> None:
@@ -179,5 +216,8 @@ class Servo:
 
 
 def reads_sensed_forces(graphs: SystemGraphs, name: str) -> bool:
-    """A controller at or below ``name`` closes a loop on sensed internal forces."""
-    return any(isinstance(n, ControlNode) and n.kf_internal is not None for n in graphs.system.walk(name))
+    """A controller at or below ``name`` reads sensed forces: a loop on internal forces, or a
+    law that reads its robot's (the servo step then takes tau_sensed)."""
+    return any(isinstance(n, ControlNode) and (n.kf_internal is not None or n.ki_internal is not None
+                                               or TREE_LAWS[n.law].reads_forces(n))
+               for n in graphs.system.walk(name))

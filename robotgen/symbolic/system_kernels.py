@@ -9,10 +9,12 @@ import casadi as ca
 from robotgen.model.parameter_struct import runtime_parameters
 from robotgen.model.signature import internal_force_names
 from robotgen.model.system import DefineNode, RobotSystem
+from robotgen.symbolic.control.law import expected_start
+from robotgen.symbolic.control.tree_laws import TREE_LAWS
 from robotgen.symbolic.differentiation import reverse_jacobian
 from robotgen.symbolic.kernel import Kernel, ParameterSymbols, make_kernel
 from robotgen.symbolic.plant import Plant, sensed_forces
-from robotgen.symbolic.servo import Servo, Trajectory, reads_sensed_forces
+from robotgen.symbolic.servo import LAW_STATE, Servo, Trajectory, reads_sensed_forces
 from robotgen.symbolic.system import SystemGraphs
 
 
@@ -89,9 +91,12 @@ def system_kernels(system: RobotSystem) -> list[Kernel]:
     kernels.append(step)
     servo = Servo(g, root)
     if servo.n_state:
+        integrals = any(kind != LAW_STATE or TREE_LAWS[node.law].state is not expected_start
+                        for node, kind, _ in servo.blocks)
         kernels.append(kernel(
-            "servo_init", "Controller state that starts every expected trajectory at the current state.",
-            [th, thd], [("state", servo.initial_state(), (servo.n_state, 1))]))
+            "servo_init", "Controller state after a reset: every expected trajectory at the current state, every "
+            "integral at zero." if integrals else "Controller state that starts every expected trajectory at the "
+            "current state.", [th, thd], [("state", servo.initial_state(), (servo.n_state, 1))]))
     plant = Plant(system, parameters)
     pg = plant.graphs
     theta, v, tau = ("theta", pg.theta), ("v", plant.v), ("tau", plant.tau)

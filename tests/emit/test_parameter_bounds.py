@@ -20,8 +20,10 @@ from robotgen.emit import build
 from robotgen.emit import compile as emit_compile
 from robotgen.errors import UserErrors
 from robotgen.frontend import load_system
+from robotgen.model.laws import force
 from robotgen.model.laws.hand import FORGETTING, Q_MATRIX, R_MATRIX, TORQUE_WEIGHT, WEIGHT
 from robotgen.model.laws.hand import GAIN as HAND_GAIN
+from robotgen.model.parameter_struct import KF_INTERNAL, KI_INTERNAL
 from robotgen.model.parameters import Bounds, RuntimeParameter
 from robotgen.model.system import DAMPING, GAIN, GAIN_MATRIX, PAYLOAD_MASS
 from robotgen.symbolic.kernel import ParameterSymbols, make_kernel
@@ -257,6 +259,8 @@ def test_the_docs_quote_the_messages_the_bounds_give():
     table = docs.split("## Run-time parameters")[1].split("\n## ")[0]
     quoted = re.findall(r"^\| .* \| `([^`]+)` \|$", table, re.M)
     said = [bounds.violation(value).message for bounds, value in (
-        (GAIN, -2.0), (GAIN_MATRIX, [[1, 2, 0], [2, 1, 0], [0, 0, 1]]), (DAMPING, -1.0), (PAYLOAD_MASS, -1.0),
+        (GAIN, -2.0), (GAIN_MATRIX, [[1, 2, 0], [2, 1, 0], [0, 0, 1]]), (DAMPING, -1.0), (KF_INTERNAL, 1.5),
+        (KI_INTERNAL, -1.0), (force.STIFFNESS[0], -1.0), (force.DAMPING[0], 0.0), (force.INERTIA[1], [[1, 2], [2, 1]]),
+        (force.SELECTION, 1.5), (force.FORCE_INTEGRAL_GAIN, -1.0), (PAYLOAD_MASS, -1.0),
         (HAND_GAIN, -1.0), (WEIGHT, -2.0), (Q_MATRIX, [[1, 0], [0.5, 1]]), (TORQUE_WEIGHT, -1.0), (FORGETTING, 2.0))]
     assert quoted == said

@@ -9,17 +9,15 @@ import numpy as np
 
 from robotgen.frontend.collector import Collector
 from robotgen.frontend.document import Path
-from robotgen.model.laws import FEEDFORWARD, HAND_LAWS, PD, RESOLVED_RATE
+from robotgen.model.laws import FEEDFORWARD, FORCE_LAWS, HAND_LAWS, IMPEDANCE, PD, RESOLVED_RATE
+from robotgen.model.parameters import DIAGONAL_GAIN, MATRIX_GAIN, SCALAR_GAIN, Bounds
 from robotgen.model.signature import Signature
 from robotgen.model.system import (
     DAMPING,
-    DIAGONAL_GAIN,
     GAIN,
     GAIN_MATRIX,
-    MATRIX_GAIN,
     PAYLOAD_BODIES,
     RUNTIME_GAINS,
-    SCALAR_GAIN,
     ControlNode,
     RobotSystem,
 )
@@ -38,6 +36,7 @@ class ControlReader(Collector):
             internal_forces=None if forces is None else
             np.array([self.constant(path + ("internal_forces", i), f) for i, f in enumerate(forces)]),
             kf_internal=self.optional(spec, path, "kf_internal", None, minimum=0.0),
+            ki_internal=self.optional(spec, path, "ki_internal", None, minimum=0.0),
             resolve_internal_motion=bool(spec.get("resolve_internal_motion", False)),
             runtime_gains=spec.get("gains", RUNTIME_GAINS) == RUNTIME_GAINS,
         )
@@ -54,6 +53,9 @@ class ControlReader(Collector):
             return self.check_rate_control(system, node, spec, robot)
         if "resolved_rate" in spec:
             self.at_key(path + ("resolved_rate",), f"settings of law resolved_rate; this node's law is {node.law}")
+        for law in FORCE_LAWS:
+            if law in spec and law != node.law:
+                self.at_key(path + (law,), f"settings of law {law}; this node's law is {node.law}")
         target = system.nodes[node.robot]
         if isinstance(getattr(target, "leaf", None), PAYLOAD_BODIES):
             self.at_value(path + ("robot",), f"'{node.robot}' is a rigid_body, a payload without actuators; "
@@ -65,6 +67,11 @@ class ControlReader(Collector):
                 if key in spec:
                     self.at_key(path + (key,), f"law feedforward takes no {key} (it is computed torque with "
                                                "Kp = Kv = 0)")
+                gains[key] = np.zeros((n, n))
+            elif node.law == IMPEDANCE:
+                if key in spec:
+                    self.at_key(path + (key,), f"law impedance takes no {key} (its stiffness and damping go "
+                                               "under impedance)")
                 gains[key] = np.zeros((n, n))
             elif key not in spec:
                 self.at_key(path, f"missing required key '{key}' (law {node.law})")
@@ -80,14 +87,16 @@ class ControlReader(Collector):
                 listed = f" ({', '.join(robot.internal_forces)})" if have else ""
                 self.at_key(path + ("internal_forces",), f"expected {have} values, one per internal force of "
                                                          f"'{node.robot}'{listed}, got {len(node.internal_forces)}")
-        if node.kf_internal is not None:
+        for key in ("kf_internal", "ki_internal"):
+            if getattr(node, key) is None:
+                continue
             if node.law == PD:
-                self.at_key(path + ("kf_internal",), "law pd passes internal forces up unresolved; close the "
-                                                     "internal-force loop at the controller that commands them")
+                self.at_key(path + (key,), "law pd passes internal forces up unresolved; close the "
+                                           "internal-force loop at the controller that commands them")
             elif not robot.n_internal_forces:
-                self.at_key(path + ("kf_internal",), f"robot '{node.robot}' has no internal forces to close a "
-                                                     "loop on")
-            elif node.kf_internal >= 1:
+                self.at_key(path + (key,), f"robot '{node.robot}' has no internal forces to close a loop on")
+        if node.kf_internal is not None and node.law != PD and robot.n_internal_forces:
+            if node.kf_internal >= 1:
                 self.at_value(path + ("kf_internal",), f"kf_internal {node.kf_internal:g} must be below 1: the force "
                                                        "is sensed a period late and a grasp carries a commanded "
                                                        "internal force at once, so f(k) = f_d + kf (f_d - f(k-1)) "
@@ -100,19 +109,24 @@ class ControlReader(Collector):
                 self.at_key(path + ("resolve_internal_motion",), f"robot '{node.robot}' has no internal motions "
                                                                  "to resolve")
         forms = tuple(gain_form(spec.get(key, 0)) for key in ("kp", "kv"))
-        return dataclasses.replace(node, kp=gains["kp"], kv=gains["kv"], gain_forms=forms)
+        node = dataclasses.replace(node, kp=gains["kp"], kv=gains["kv"], gain_forms=forms)
+        if node.law in FORCE_LAWS:
+            return self.check_force_law(node, spec, robot)
+        return node
 
-    def gain(self, path: Path, value: object, robot: Signature, name: str) -> np.ndarray:
+    def gain(self, path: Path, value: object, robot: Signature, name: str,
+             bounds: tuple[Bounds, Bounds] = (GAIN, GAIN_MATRIX)) -> np.ndarray:
         """A scalar (times I), a per-axis list (diagonal) or a symmetric positive definite
-        matrix, on the robot's n external coordinates."""
+        matrix, on the robot's n external coordinates; ``bounds``: those of an entry of a
+        number or a diagonal, and those of a matrix."""
         n = robot.n_external
         axes = f"'{name}' has {n} external coordinate{'' if n == 1 else 's'}: {', '.join(robot.external)}"
         if not isinstance(value, list):
-            return self.bounded(path, value, GAIN) * np.eye(n)
+            return self.bounded(path, value, bounds[0]) * np.eye(n)
         if all(not isinstance(v, list) for v in value):
             if len(value) != n:
                 self.at_key(path, f"expected {n} entries ({axes}), got {len(value)}")
-            diagonal = [self.bounded(path + (i,), v, GAIN) for i, v in enumerate(value)]
+            diagonal = [self.bounded(path + (i,), v, bounds[0]) for i, v in enumerate(value)]
             return np.diag(diagonal) if len(diagonal) == n else np.zeros((n, n))
         if not all(isinstance(v, list) for v in value):
             self.at_value(path, "mixes numbers and rows: give a number, a list of numbers or a matrix")
@@ -123,7 +137,7 @@ class ControlReader(Collector):
             return np.zeros((n, n))
         matrix = np.array([[self.constant(path + (i, k), v) for k, v in enumerate(row)]
                            for i, row in enumerate(value)])
-        self.within(path, matrix, GAIN_MATRIX, lambda index: index or None)
+        self.within(path, matrix, bounds[1], lambda index: index or None)
         return matrix
 
 

@@ -4,7 +4,7 @@ to the robot, whose attributes it absorbs (the node above sees M = C = N = 0).""
 from __future__ import annotations
 
 from robotgen.model.laws import COMPUTED_TORQUE
-from robotgen.symbolic.control.law import Command, TreeLaw, Written, integrate
+from robotgen.symbolic.control.law import Command, TreeLaw, Written, expected_start, integrate
 
 
 def write(c: Command) -> Written:
@@ -15,4 +15,4 @@ def write(c: Command) -> Written:
     return Written(F, x_e, v_e, a_e, integrate(c, a_e))
 
 
-LAW = TreeLaw(COMPUTED_TORQUE, stateful=True, transparent=False, write=write)
+LAW = TreeLaw(COMPUTED_TORQUE, transparent=False, write=write, state=expected_start)

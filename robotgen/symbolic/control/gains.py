@@ -6,18 +6,24 @@ from __future__ import annotations
 import casadi as ca
 
 from robotgen.model.parameter_struct import gain_parameter_name
-from robotgen.model.system import DIAGONAL_GAIN, SCALAR_GAIN, ControlNode
+from robotgen.model.parameters import DIAGONAL_GAIN, SCALAR_GAIN
+from robotgen.model.system import ControlNode
 from robotgen.symbolic.kernel import ParameterSymbols
 
 
 def gain(node: ControlNode, key: str, parameters: ParameterSymbols) -> ca.SX | ca.DM:
     """kp or kv (n x n) of ``node``."""
     K = node.kp if key == "kp" else node.kv
-    p = parameters.symbols.get(gain_parameter_name(node, key))
+    return written_matrix(parameters.symbols.get(gain_parameter_name(node, key)), K,
+                          node.gain_forms[0 if key == "kp" else 1])
+
+
+def written_matrix(p: ca.SX | None, K, form: str) -> ca.SX | ca.DM:
+    """Matrix ``K`` (n x n) as written in ``form``: its run-time parameter ``p`` (a number times
+    I, a diagonal or the rows), or the constant K when it is folded (p None)."""
     if p is None:
         return ca.DM(K)
     n = K.shape[0]
-    form = node.gain_forms[0 if key == "kp" else 1]
     if form == SCALAR_GAIN:
         return p * ca.SX.eye(n)
     if form == DIAGONAL_GAIN:
@@ -30,6 +36,7 @@ def kv_internal(node: ControlNode, parameters: ParameterSymbols) -> ca.SX | floa
     return parameters.symbols.get(gain_parameter_name(node, "kv_internal"), node.kv_internal)
 
 
-def kf_internal(node: ControlNode, parameters: ParameterSymbols) -> ca.SX | float:
-    """The gain on the sensed internal-force error (None in the node: no loop)."""
-    return parameters.symbols.get(gain_parameter_name(node, "kf_internal"), node.kf_internal)
+def internal_force_gain(node: ControlNode, key: str, parameters: ParameterSymbols) -> ca.SX | float | None:
+    """kf_internal or ki_internal: the proportional or integral gain on the sensed
+    internal-force error (None in the node: that term is absent)."""
+    return parameters.symbols.get(gain_parameter_name(node, key), getattr(node, key))

@@ -7,11 +7,13 @@ A root law is the root of its spec and makes the module's functions itself: its 
 a report (info() keys and module attributes).
 
 A law sees the controlled robot's graphs (its M, C, N, positions x and velocity v in its
-own coordinates) and the trajectory written at the control node (desired positions if any
-ATTACH above has h^-1, velocity, acceleration, force); it returns the force on the robot's
-coordinates and the trajectory it passes down, and, if it integrates an expected trajectory
-(x_e, xd_e), that trajectory's next value: the controller state the servo step carries in
-and out (the emitted C keeps none of its own)."""
+own coordinates), the trajectory written at the control node (desired positions if any
+ATTACH above has h^-1, velocity, acceleration, force) and, if it asks, the robot's rd force
+term (what the robot exerts on what it touches, eqs 3.7, 5.4-5.5, sensed a period late); it
+returns the force on the robot's coordinates and the trajectory it passes down, and, if it
+keeps state (an expected trajectory (x_e, xd_e) it integrates, a force integral), that
+state's next value: the controller state the servo step carries in and out (the emitted C
+keeps none of its own)."""
 from __future__ import annotations
 
 from collections.abc import Callable
@@ -19,8 +21,8 @@ from dataclasses import dataclass
 
 import casadi as ca
 
-from robotgen.model.system import RobotSystem
-from robotgen.symbolic.kernel import Kernel
+from robotgen.model.system import ControlNode, RobotSystem
+from robotgen.symbolic.kernel import Kernel, ParameterSymbols
 from robotgen.symbolic.node import NodeGraph
 from robotgen.symbolic.rows import rows
 
@@ -41,37 +43,59 @@ class Command:
     feedback: Callable[[ca.SX | None], ca.SX]  # e -> Kv e' + Kp e (+ kv_internal on internal motions)
     position_error: Callable[[], ca.SX]  # x_d - x; raises PositionsUnavailable without x_d
     x_d: ca.SX | None  # desired positions, None when no h^-1 above lets them through
-    expected: tuple[ca.SX, ca.SX] | None  # (x_e, xd_e): the integrated trajectory, stateful laws
+    state: ca.SX | None  # the law's own block of the controller state, stateful laws
     dt: ca.SX  # the servo period, stateful laws
+    node: ControlNode  # the control node, for the law's own settings
+    parameters: ParameterSymbols  # the module's run-time parameters (the law's gains among them)
+    sensed: Callable[[], tuple[ca.SX, ca.SX]]  # rd's force term (F_s, F_i,s) of the robot; laws that read forces
+
+    @property
+    def expected(self) -> tuple[ca.SX, ca.SX]:
+        """(x_e, xd_e): the expected trajectory a computed-torque or feedforward law integrates."""
+        nx = self.robot.sig.n_external
+        return rows(self.state, 0, nx), rows(self.state, nx)
 
 
 @dataclass(frozen=True, eq=False)
 class Written:
-    """What a law writes to its robot: the force and the trajectory passed down, and the
-    expected trajectory's next value (stateful laws)."""
+    """What a law writes to its robot: the force and the trajectory passed down, and its
+    state's next value (stateful laws)."""
 
     F: ca.SX
     x: ca.SX | None
     v: ca.SX
     a: ca.SX
-    next_expected: ca.SX | None = None
+    next_state: ca.SX | None = None
+
+
+def reads_no_forces(node: ControlNode) -> bool:
+    return False
 
 
 @dataclass(frozen=True)
 class TreeLaw:
     """A CONTROL law that composes in a robot tree.
 
-    name:        the spec's ``law``.
-    stateful:    integrates an expected trajectory (x_e, xd_e) from xdd_e (§3.4).
-    transparent: the control node shows the robot's own M, C, N to the node above (a
-                 stiffness, §4.3); otherwise its attributes are zero (the controller
-                 absorbs the robot's dynamics).
-    write:       Command -> Written."""
+    name:         the spec's ``law``.
+    transparent:  the control node shows the robot's own M, C, N to the node above (a
+                  stiffness, §4.3); otherwise its attributes are zero (the controller
+                  absorbs the robot's dynamics).
+    write:        Command -> Written.
+    state:        the law's state after a reset (servo_init), from the controlled robot's
+                  graphs: an expected trajectory (x_e, xd_e) integrated from xdd_e starts at
+                  (x, v) (§3.4), an integral at zero; None: the law keeps no state.
+    reads_forces: whether the law at this node reads its robot's sensed forces (the servo
+                  step then takes tau_sensed)."""
 
     name: str
-    stateful: bool
     transparent: bool
     write: Callable[[Command], Written]
+    state: Callable[[NodeGraph], ca.SX] | None = None
+    reads_forces: Callable[[ControlNode], bool] = reads_no_forces
+
+    @property
+    def stateful(self) -> bool:
+        return self.state is not None
 
     def attributes(self, robot: NodeGraph, n: int) -> tuple[ca.SX, ca.SX, ca.SX]:
         """M, C, N of the control node, n its velocity dimension."""
@@ -135,6 +159,11 @@ class RootLaw:
     kernels: Callable[[RobotSystem], list[Kernel]]
     report: Callable[[RobotSystem], tuple[dict, dict]]
     controller: Callable[[RobotSystem], Controller] | None = None
+
+
+def expected_start(robot: NodeGraph) -> ca.SX:
+    """An expected trajectory starts at the robot's current state."""
+    return ca.vertcat(robot.x, robot.v)
 
 
 def integrate(c: Command, a_e: ca.SX) -> ca.SX:

@@ -10,4 +10,4 @@ def write(c: Command) -> Written:
     return Written(c.F_d + c.feedback(c.position_error()), c.x_d, c.v_d, c.a_d)
 
 
-LAW = TreeLaw(PD, stateful=False, transparent=True, write=write)
+LAW = TreeLaw(PD, transparent=True, write=write)

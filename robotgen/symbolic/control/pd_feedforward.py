@@ -12,4 +12,4 @@ def write(c: Command) -> Written:
     return Written(F, c.x_d, c.v_d, c.a_d)
 
 
-LAW = TreeLaw(PD_FEEDFORWARD, stateful=False, transparent=False, write=write)
+LAW = TreeLaw(PD_FEEDFORWARD, transparent=False, write=write)
