@@ -49,7 +49,8 @@ class HandLawReader(Collector):
     def check_hand_control(self, system: RobotSystem, node: ControlNode, spec: dict, robot: Signature) -> ControlNode:
         path: Path = ("nodes", node.name, "control")
         law = node.law
-        for key in ("kp", "kv", "kv_internal", "kf_internal", "internal_forces", "resolve_internal_motion", "gains"):
+        for key in ("kp", "kv", "kv_internal", "kf_internal", "internal_forces", "resolve_internal_motion", "gains",
+                    "period"):
             if key in spec:
                 self.at_key(path + (key,), f"law {law} takes no {key} here (its settings go under {law})")
         chain = getattr(system.nodes[node.robot], "leaf", None)

@@ -50,7 +50,8 @@ class ResolvedRateReader(Collector):
         """A resolved_rate controller: the root, over a chain or urdf leaf or over a composite
         robot (an attach node, possibly under control nodes)."""
         path: Path = ("nodes", node.name, "control")
-        for key in ("kp", "kv", "kv_internal", "kf_internal", "internal_forces", "resolve_internal_motion", "gains"):
+        for key in ("kp", "kv", "kv_internal", "kf_internal", "internal_forces", "resolve_internal_motion", "gains",
+                    "period"):
             if key in spec:
                 self.at_key(path + (key,), f"law resolved_rate takes no {key} (it outputs joint rates; "
                                            "its settings go under resolved_rate)")
