@@ -41,11 +41,16 @@ def stateful_controllers(graphs: SystemGraphs, name: str) -> list[ControlNode]:
 
 
 class Servo:
-    """Builds the write of one node: the leaf torques and next controller states."""
+    """Builds the write of one node: the leaf torques and next controller states.
 
-    def __init__(self, graphs: SystemGraphs, top: str):
+    ``controllers`` (default: every stateful one below ``top``) are those whose states this
+    step carries; ``period`` folds the servo period in as a constant instead of the input dt
+    (a rate group's step, robotgen.symbolic.rate_steps)."""
+
+    def __init__(self, graphs: SystemGraphs, top: str, controllers: list[ControlNode] | None = None,
+                 period: float | None = None):
         self.g = graphs
-        self.controllers = stateful_controllers(graphs, top)
+        self.controllers = stateful_controllers(graphs, top) if controllers is None else controllers
         self.layout: dict[str, tuple[int, int, int]] = {}  # name -> (offset, n_x, n_v)
         o = 0
         for c in self.controllers:
@@ -54,7 +59,7 @@ class Servo:
             o += sig.n_external + sig.n_velocity
         self.n_state = o
         self.state = ca.SX.sym("state", o)
-        self.dt = ca.SX.sym("dt")
+        self.dt = ca.SX.sym("dt") if period is None else ca.SX(period)
         self.torques: dict[str, ca.SX] = {}
         self.next_state: dict[str, ca.SX] = {}
         # the leaves' sensed forces (rd of a DEFINE, §3.2), read when a controller below closes
