@@ -24,6 +24,7 @@ from robotgen.model.derivatives import INTEGRATORS, SEMI_IMPLICIT_EULER, Derivat
 from robotgen.model.describe import system_info, system_nq
 from robotgen.model.laws import HAND_LAWS, RESOLVED_ADAPTIVE
 from robotgen.model.names import MAX_LENGTH, PATTERN, name_problem
+from robotgen.model.rate_groups import multi_rate_groups, servo_period
 from robotgen.output_files import output_errors, write_files, write_problem
 from robotgen.progress import Progress
 from robotgen.progress import for_terminal as progress_for_terminal
@@ -167,7 +168,6 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
 
     from robotgen import documentation, hand_simulation, multirate_simulation, regulator_simulation, simulate
     from robotgen.emit.build import emit
-    from robotgen.model.rate_groups import multi_rate_groups, servo_period
     from robotgen.model.signature import robot_leaves
     from robotgen.model.simulation import BOTH_PLANTS, MUJOCO_PLANT, ROBOTGEN_PLANT, SimulationSettings, rest_posture
     from robotgen.mujoco_plant import MujocoMissing, require_mujoco
@@ -376,6 +376,12 @@ def _cmd_info(args: argparse.Namespace) -> int:
             print(f"    locked at q = 0: {', '.join(node['locked_joints'])}")
         for c in node.get("coupled_joints", []):
             print(f"    mimic: {c['joint']} = {affine(c['multiplier'], c['coordinate'], c['offset'])}")
+    groups = multi_rate_groups(system)
+    if groups is not None:
+        from robotgen.symbolic.lifted_loop import lifted_loop  # lazy: CasADi only where it is needed
+
+        print(rate_group_lines(groups))
+        print(lifted_loop_line(lifted_loop(system, groups)))
     if system.root_law == RESOLVED_ADAPTIVE:
         from robotgen.symbolic import module_extras  # lazy: CasADi only where it is needed
         from robotgen.symbolic.control.resolved_adaptive import closed_loop
@@ -411,6 +417,27 @@ def operation_table(hand: dict) -> str:
     lines.append(f"    {'emitted step (every stage fused, terms shared)':46} {'':9} {'':5}   {step['mul']:12d} "
                  f"{step['add']:5d} {step['trig']:5d} {step['other']:5d}")
     return "\n".join(lines)
+
+
+def rate_group_lines(groups) -> str:
+    """The rate groups of a multi-rate tree, fastest first."""
+    lines = [f"  rate groups (one step function each, run on ticks of {groups.base_period:g} s):"]
+    for g in groups.groups:
+        lines.append(f"    servo_step_g{g.index}: every {g.period:g} s ({g.rate:g} Hz, {g.ticks} tick"
+                     f"{'s' if g.ticks > 1 else ''}): {', '.join(g.controllers)}"
+                     + (f"; holds what it writes to {', '.join(g.writes)}" if g.writes else ""))
+    return "\n".join(lines)
+
+
+def lifted_loop_line(loop) -> str:
+    """The lifted closed loop's spectral radius at the start pose."""
+    x = ", ".join(f"{v:.4g}" for v in loop.x)
+    verdict = (f"stable: an error decays by that factor per {1e3 * loop.frame:g} ms (time constant "
+               f"{1e3 * loop.time_constant:.3g} ms)" if loop.stable else
+               f"UNSTABLE: an error grows by that factor per {1e3 * loop.frame:g} ms; run the slower groups faster "
+               "or lower their gains")
+    return (f"  lifted closed loop over one slowest period ({1e3 * loop.frame:g} ms, {loop.ticks} ticks) at the start "
+            f"pose x = ({x}), at rest: spectral radius {loop.spectral_radius:.4f}, {verdict}")
 
 
 def closed_loop_line(loop: dict, period: float) -> str:

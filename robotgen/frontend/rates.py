@@ -7,7 +7,7 @@ import math
 from robotgen.frontend.collector import Collector
 from robotgen.frontend.document import Path
 from robotgen.model.laws import TREE_LAWS
-from robotgen.model.rate_groups import DEFAULT_PERIOD, MAX_TICKS, ticks_of
+from robotgen.model.rate_groups import DEFAULT_PERIOD, MAX_TICKS, PERIOD_TOLERANCE, ticks_of
 from robotgen.model.simulation import SimulationSettings
 from robotgen.model.system import ControlNode, Node
 
@@ -60,40 +60,45 @@ class RateReader(Collector):
         slowest = max(periods, key=periods.__getitem__)
         f, s = periods[fastest], periods[slowest]
 
+        def owner(name: str | None) -> str | None:
+            """The controller whose own period ``name`` runs at (None: simulation.dt's or the default)."""
+            while name is not None and nodes[name].period is None:
+                name = parent[name]
+            return name
+
         def source(name: str) -> str:
             """Where a controller's period comes from, for messages."""
-            if nodes[name].period is not None:
+            own = owner(name)
+            if own == name:
                 return f"'{name}'"
-            owner = name
-            while parent[owner] is not None and nodes[owner].period is None:
-                owner = parent[owner]
-            if nodes[owner].period is not None:
-                return f"'{name}', from '{owner}'"
-            return f"'{name}', from simulation.dt" if dt_given else f"'{name}', by default"
+            return f"'{name}', from " + (f"'{own}'" if own else "simulation.dt" if dt_given else "the default")
 
-        for name, p in periods.items():
+        wrong: set[str] = set()  # periods reported: not checked again through the ones that take them
+        for name, p in periods.items():  # the walk from the root: a controller after the ones above it
             if nodes[name].period is None:
                 continue  # inherited: its owner's period is checked where it is set
             path = self._path(name)
+            wrong.add(name)
             ratio = p / f
             if not ratio < MAX_TICKS + 0.5:
                 self.at_value(path, f"{p:g} s is {ratio:.4g} times the fastest period in the tree ({f:g} s of "
                                     f"{source(fastest)}); a group may span at most {MAX_TICKS} fastest periods")
-                continue
-            if ticks_of(p, f) is None:
+            elif ticks_of(p, f) is None:
                 self.at_value(path, f"{p:g} s is not an integer multiple of the fastest period in the tree ({f:g} s "
                                     f"of {source(fastest)}): the groups run on ticks of the fastest")
-                continue
-            above = parent[name]
-            if above is not None and ticks_of(periods[above], p) is None:
+            elif (above := parent[name]) is not None and owner(above) not in wrong and not divides(p, periods[above]):
                 slower = "longer than" if periods[above] < p else "not a divisor of"
                 self.at_value(path, f"{p:g} s is {slower} the period of '{above}' above it ({periods[above]:g} s of "
                                     f"{source(above)}): a controller runs at the rate of the one above it or an "
                                     "integer multiple of it, whose writes it holds between their ticks")
-                continue
-            if ticks_of(s, p) is None:
-                self.at_value(path, f"{p:g} s does not divide the slowest period in the tree ({s:g} s of "
-                                    f"{source(slowest)}): the groups' ticks must line up once per slowest period")
+            else:
+                wrong.discard(name)
+        for name, p in periods.items():
+            if nodes[name].period is not None and name not in wrong and owner(slowest) not in wrong \
+                    and not divides(p, s):
+                self.at_value(self._path(name), f"{p:g} s does not divide the slowest period in the tree ({s:g} s of "
+                                                f"{source(slowest)}): the groups' ticks must line up once per slowest "
+                                                "period")
         tops = [name for name in periods if parent[name] is None]
         if dt_given and all(nodes[name].period is not None for name in tops) and ticks_of(simulation.dt, f) != 1:
             self.at_value(("simulation", "dt"), f"{simulation.dt:g} s is not the fastest controller period "
@@ -104,3 +109,12 @@ class RateReader(Collector):
     @staticmethod
     def _path(name: str) -> Path:
         return ("nodes", name, "control", "period")
+
+
+def divides(small: float, large: float) -> bool:
+    """large / small is a whole number (to PERIOD_TOLERANCE)."""
+    ratio = large / small
+    if not math.isfinite(ratio):
+        return False
+    n = round(ratio)
+    return n >= 1 and abs(ratio - n) <= PERIOD_TOLERANCE * n
