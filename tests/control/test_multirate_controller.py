@@ -156,15 +156,37 @@ def test_the_lifted_loop_of_one_rate_is_the_single_rate_servo_steps():
     multi = lifted_loop(system, rate_groups(system))
     assert multi.spectral_radius == pytest.approx(one.spectral_radius ** 10, abs=0.01)
     assert 0.94 < multi.spectral_radius < 0.97
+    slower = {period: lifted_loop(system, partition(system, {"pd_left": 0, "pd_right": 0, "ff": 1, "ct_hand": 1},
+                                                    (0.0005, period))).spectral_radius for period in (0.02, 0.1)}
+    said = f"the radius is {slower[0.1]:.3f} (UNSTABLE, per 100 ms), at 0.02 s {slower[0.02]:.4f}"
+    assert said in " ".join((ROOT / "docs" / "cli.md").read_text().split()), said
+
+
+def _block(page: str, marker: str) -> str:
+    """The body of the first fenced block after ``marker`` in docs/``page``."""
+    text = (ROOT / "docs" / page).read_text()
+    rest = text[text.index(marker):]
+    body = rest[rest.index("\n", rest.index("```")) + 1:]
+    return body[:body.index("```")]
+
+
+def _output(page: str, command: str) -> list[str]:
+    """The lines a console block of docs/``page`` shows after ``command``, to the block's end."""
+    text = (ROOT / "docs" / page).read_text()
+    rest = text[text.index(command):]
+    return rest[rest.index("\n") + 1:rest.index("```")].splitlines()
 
 
 def test_simulate_runs_both_and_reports_their_cost(tmp_path, hand):
+    """The run cli.md shows, its figures as shown; each cost is operations times rate."""
     out = tmp_path / "sim"
-    r = subprocess.run([sys.executable, "-m", "robotgen", "simulate", str(SPEC), "--duration", "0.5", "-o", str(out),
-                        "-q"], capture_output=True, text=True, cwd=ROOT)
+    r = subprocess.run([sys.executable, "-m", "robotgen", "simulate", str(SPEC), "-o", str(out), "-q"],
+                       capture_output=True, text=True, cwd=ROOT)
     assert r.returncode == 0, r.stderr
     text = r.stdout
-    assert "simulated 0.500 s in 1000 steps of 0.0005 s on the robotgen plant" in text, text
+    shown = _output("cli.md", "$ robotgen simulate specs/styx_multirate.yaml")
+    assert text.splitlines()[:len(shown) - 1] == shown[:-1], text  # the last names the files
+    assert "simulated 3.000 s in 6000 steps of 0.0005 s on the robotgen plant" in text, text
     info = hand.info()["multirate"]
     rows = re.findall(r"multi-rate\s+(servo_step_g\d): +(\d+) x +([\d.]+) Hz = +(\d+)", text)
     assert [(step, int(ops), float(hz)) for step, ops, hz, _ in rows] == \
@@ -180,7 +202,7 @@ def test_simulate_runs_both_and_reports_their_cost(tmp_path, hand):
         assert (out / f"{stem}.csv").is_file() and (out / f"{stem}.png").is_file()
     multi = np.loadtxt(out / "styx_multirate.csv", delimiter=",", skiprows=1)
     single_run = np.loadtxt(out / "styx_multirate_single_rate.csv", delimiter=",", skiprows=1)
-    assert multi.shape == single_run.shape == (1001, 1 + 3 + 3 + 4 + 1)
+    assert multi.shape == single_run.shape == (6001, 1 + 3 + 3 + 4 + 1)
     tau = multi[:, 7:11]  # the ZOH of the 200 Hz level: the torque's steps fall every 10 ticks
     jumps = np.abs(np.diff(tau, axis=0)).max(axis=1)
     assert np.median(jumps[9::10]) > 3 * np.median(np.delete(jumps, np.s_[9::10]))
@@ -196,6 +218,37 @@ def test_info_prints_the_groups_and_the_lifted_radius():
     assert r.returncode == 0, r.stderr
     system = load_system(str(SPEC))
     radius = lifted_loop(system, rate_groups(system)).spectral_radius
-    assert "servo_step_g1: every 0.005 s (200 Hz, 10 ticks): ff, ct_hand; holds what it writes to pd_left, pd_right" \
-        in r.stdout
     assert f"spectral radius {radius:.4f}, stable" in r.stdout, r.stdout
+    shown = _output("cli.md", "$ robotgen info specs/styx_multirate.yaml")[1:]  # after "..."
+    assert r.stdout.splitlines()[-len(shown):] == shown, r.stdout
+
+
+def test_the_c_struct_and_the_python_class_agree_as_the_docs_say(tmp_path, hand):
+    """c-api.md's program against the emitted C (under AddressSanitizer and UBSan where gcc has
+    them), python-api.md's lines against the module: the same torques, as the pages print them."""
+    import shutil
+
+    source = _block("c-api.md", "A program that holds the box")
+    (tmp_path / "multirate_app.c").write_text(source)
+    out = Path(hand.__file__).parent
+    sanitize = ["-fsanitize=address,undefined", "-fno-sanitize-recover=all"] if shutil.which("gcc") else []
+    cc = "gcc" if sanitize else "cc"
+    subprocess.run([cc, "-std=c99", "-Wall", "-Wextra", "-Werror", *sanitize, "-O1", str(tmp_path / "multirate_app.c"),
+                    f"-I{out}", str(out / "styx_multirate.c"), "-lm", "-o", str(tmp_path / "app")], check=True)
+    printed = subprocess.run([str(tmp_path / "app")], capture_output=True, text=True, check=True).stdout
+    assert printed.splitlines() == _output("c-api.md", "$ ./multirate_app")
+    c = hand.MultiRateController()
+    theta, zero = hand.plant_inverse([0.0, 0.12, 0.0]), np.zeros(3)
+    for _ in range(12):
+        tau = c.step(theta, np.zeros(4), [0.01, 0.12, 0.0], zero, zero, zero, [1.0])
+    assert printed == f"tick {c.tick}: tau = " + " ".join(f"{v:.5f}" for v in tau) + "\n"
+    comment = f"# tau = {np.array2string(tau, precision=5)}, c.tick = {c.tick}"
+    assert comment in (ROOT / "docs" / "python-api.md").read_text(), comment
+
+
+def test_a_period_error_is_reported_as_spec_format_shows(tmp_path):
+    shown = _block("spec-format.md", "refused, and so is `simulation.dt`").strip()
+    path = tmp_path / "styx_multirate.yaml"
+    path.write_text(SPEC.read_text().replace("kv: 0.1, period: 0.0005}", "kv: 0.1, period: 0.01}", 1))
+    r = subprocess.run([sys.executable, "-m", "robotgen", "check", str(path)], capture_output=True, text=True, cwd=ROOT)
+    assert r.returncode == 1 and r.stderr.strip() == str(path) + shown[len("styx_multirate.yaml"):], r.stderr
