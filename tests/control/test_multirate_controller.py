@@ -6,6 +6,7 @@ the upper level's period; `robotgen simulate` and `robotgen info` on it."""
 from __future__ import annotations
 
 import dataclasses
+import inspect
 import re
 import subprocess
 import sys
@@ -252,3 +253,52 @@ def test_a_period_error_is_reported_as_spec_format_shows(tmp_path):
     path.write_text(SPEC.read_text().replace("kv: 0.1, period: 0.0005}", "kv: 0.1, period: 0.01}", 1))
     r = subprocess.run([sys.executable, "-m", "robotgen", "check", str(path)], capture_output=True, text=True, cwd=ROOT)
     assert r.returncode == 1 and r.stderr.strip() == str(path) + shown[len("styx_multirate.yaml"):], r.stderr
+
+
+def test_groups_below_an_attach_root_without_holds_or_state(tmp_path, build_module):
+    """Fig 4.2's fingers under PD loops at 500 Hz and 1 kHz: both groups read the root trajectory,
+    nothing is held, no group keeps a state; the torques are each group's last, summed."""
+    left = "control: {robot: left, law: computed_torque, kp: 100, kv: 20, gains: folded}"
+    right = "control: {robot: right, law: computed_torque, kp: 100, kv: 20, gains: folded}"
+    text = (ROOT / "specs" / "styx_low_ct.yaml").read_text().replace("name: styx_low_ct", "name: styx_low_pd_rates")
+    text = text.replace(left, "control: {robot: left, law: pd, kp: 1, kv: 0.1, period: 0.002}")
+    text = text.replace(right, "control: {robot: right, law: pd, kp: 1, kv: 0.1}")
+    path = tmp_path / "styx_low_pd_rates.yaml"
+    path.write_text(text)
+    m = build_module(path)
+    c, rng = m.MultiRateController(), np.random.default_rng(4)
+    assert c.ticks == (1, 2) and c.held == {} and c.state == {}
+    assert m.info()["multirate"]["held"] == []
+    slow = None
+    for k in range(7):
+        args = _inputs(m, rng, k)
+        tau = c.step(*args)
+        if k % 2 == 0:
+            slow = m.servo_step_g1(*args)
+        fast = m.servo_step_g0(*args)
+        np.testing.assert_array_equal(tau, fast + slow)
+        assert np.any(fast[2:]) and not np.any(fast[:2]) and np.any(slow[:2]) and not np.any(slow[2:])
+
+
+def test_a_loop_on_the_sensed_squeeze_takes_tau_sensed(tmp_path, build_module):
+    """ct_hand with kf_internal: the slow group reads the leaves' sensed forces at its ticks,
+    and the controller takes them after f_i."""
+    text = SPEC.read_text().replace("name: styx_multirate", "name: styx_rates_squeeze")
+    text = text.replace("      period: 0.005  ", "      kf_internal: 0.5\n      period: 0.005  ")
+    path = tmp_path / "styx_rates_squeeze.yaml"
+    path.write_text(text)
+    m = build_module(path)
+    assert list(inspect.signature(m.MultiRateController.step).parameters)[-2:] == ["tau_sensed", "out"]
+    c, rng = m.MultiRateController(), np.random.default_rng(5)
+    for k in range(12):
+        args = (*_inputs(m, rng, k), 0.1 * rng.standard_normal(4))
+        tau = c.step(*args)
+        if k == 0:
+            state = m.servo_init_g1(args[0], args[1])
+        if k % 10 == 0:
+            slow, left, right, state = m.servo_step_g1(*args, state)
+        np.testing.assert_array_equal(tau, m.servo_step_g0(args[0], args[1], left, right) + slow)
+    unloaded, squeezed = (m.servo_step_g1(*args[:7], sensed, state)[1] for sensed in (np.zeros(4), np.ones(4)))
+    # the squeeze loop changes the force written to the fingers (F_e), not their trajectory (x_e, xd_e, xdd_e)
+    np.testing.assert_array_equal(unloaded[:6], squeezed[:6])
+    assert np.abs(unloaded[6:] - squeezed[6:]).max() > 1e-5
