@@ -378,10 +378,13 @@ def _cmd_info(args: argparse.Namespace) -> int:
             print(f"    mimic: {c['joint']} = {affine(c['multiplier'], c['coordinate'], c['offset'])}")
     groups = multi_rate_groups(system)
     if groups is not None:
-        from robotgen.symbolic.lifted_loop import lifted_loop  # lazy: CasADi only where it is needed
+        from robotgen.symbolic.lifted_loop import OperatingPointError, lifted_loop  # lazy: CasADi where needed
 
         print(rate_group_lines(groups))
-        print(lifted_loop_line(lifted_loop(system, groups)))
+        try:
+            print(lifted_loop_line(lifted_loop(system, groups)))
+        except OperatingPointError as e:
+            print(f"  lifted closed loop: not linearised: {e}")
     if system.root_law == RESOLVED_ADAPTIVE:
         from robotgen.symbolic import module_extras  # lazy: CasADi only where it is needed
         from robotgen.symbolic.control.resolved_adaptive import closed_loop

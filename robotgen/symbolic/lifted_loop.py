@@ -30,7 +30,7 @@ import numpy as np
 
 from robotgen.model.parameter_struct import runtime_parameters
 from robotgen.model.rate_groups import RateGroups
-from robotgen.model.signature import robot_leaves, signature
+from robotgen.model.signature import robot_leaves
 from robotgen.model.simulation import SimulationSettings, rest_posture
 from robotgen.model.system import RobotSystem
 from robotgen.symbolic.kernel import PARAMS, ParameterSymbols
@@ -40,6 +40,13 @@ from robotgen.symbolic.system import SystemGraphs
 
 # relative size of a singular value below which a direction counts as absent (rank decisions)
 RANK_TOLERANCE = 1e-9
+# the largest constraint residual |y - h^-1(h(y))| of a start pose the loop is linearised at
+# [m or rad], as robotgen simulate accepts a start
+RESIDUAL_TOLERANCE = 1e-6
+
+
+class OperatingPointError(ValueError):
+    """The start pose cannot be linearised at: it breaks a grasp, or the map is not finite there."""
 
 
 @dataclass(frozen=True)
@@ -65,26 +72,34 @@ class LiftedLoop:
 
 class TickMaps:
     """The per-tick map z -> z' of a multi-rate tree as CasADi Functions, one per set of
-    groups due, and the layout of z."""
+    groups due, and the layout of z. The run-time parameters take the spec's values. ``root``
+    is the desired root trajectory every group that starts at the root reads (held constant)."""
 
-    def __init__(self, system: RobotSystem, groups: RateGroups, x_d: np.ndarray, f_i: np.ndarray):
+    def __init__(self, system: RobotSystem, groups: RateGroups):
         parameters = ParameterSymbols.of(runtime_parameters(system))
-        self.values = np.concatenate([np.asarray(p.default, float).ravel() for p in parameters.parameters]) \
-            if parameters.parameters else np.zeros(0)
+        self.values = ca.DM([v for p in parameters.parameters for v in np.ravel(p.default)])
         g = SystemGraphs(system, parameters)
         self.groups = groups
         self.kernels = {k.name: k for k in rate_kernels(g, groups)}
-        self.plant = Plant(system, parameters)
-        pg = self.plant.graphs
-        self.n, self.n_v = pg.n, self.plant.n_v
+        self.plant = plant = Plant(system, parameters)
+        pg = plant.graphs
+        self.n, self.n_v = pg.n, plant.n_v
         root = g.graph(system.root).sig
-        self.root = {"x_e": x_d, "xd_e": np.zeros(root.n_velocity), "xdd_e": np.zeros(root.n_velocity),
-                     "f_e": np.zeros(root.n_velocity), "f_i": f_i}
-        p_in = [parameters.vector] if parameters.parameters else []
-        self._plant = ca.Function("plant", [pg.theta, self.plant.v, self.plant.tau, *p_in],
-                                  [self.plant.theta_dot, self.plant.v_dot])
-        self._sensed = ca.Function("sensed", [pg.theta, self.plant.v, self.plant.tau, *p_in],
-                                   [sensed_forces(self.plant)])
+        self.root = {"x_e": np.zeros(root.n_external), "xd_e": np.zeros(root.n_velocity),
+                     "xdd_e": np.zeros(root.n_velocity), "f_e": np.zeros(root.n_velocity),
+                     "f_i": np.zeros(root.n_internal_forces)}
+
+        def known(name: str, inputs: list[ca.SX], outputs: list[ca.SX]) -> ca.Function:
+            """A Function of ``inputs`` with the parameters at their values."""
+            return ca.Function(name, inputs, [ca.substitute(o, parameters.vector, self.values) for o in outputs])
+
+        theta, v, tau = pg.theta, plant.v, plant.tau
+        self.plant_rates = known("plant", [theta, v, tau], [plant.theta_dot, plant.v_dot])
+        self.sensed_forces = known("sensed", [theta, v, tau], [sensed_forces(plant)])
+        self.rate_map = known("A", [theta], [ca.jacobian(plant.theta_dot, v)])  # eqs 3.3, 5.8
+        self.position = known("x", [theta], [plant.x])
+        self.inverse = known("inverse", [plant.x_sym], [plant.inverse]) if plant.inverse is not None else None
+        self.residual = known("residual", [theta], [plant.residual]) if plant.residual.shape[0] else None
         # the layout of z: Theta, v, states, held trajectories, torques
         sizes = [("theta", self.n), ("v", self.n_v)]
         for grp in groups.groups:
@@ -106,18 +121,8 @@ class TickMaps:
 
     def _call(self, name: str, args: dict[str, ca.SX]) -> dict[str, ca.SX]:
         kernel = self.kernels[name]
-        values = [args[p.name] if p.name != PARAMS else ca.DM(self.values) for p in kernel.inputs]
+        values = [args[p.name] if p.name != PARAMS else self.values for p in kernel.inputs]
         return dict(zip((p.name for p in kernel.outputs), kernel.function.call(values)))
-
-    def rate_map(self, theta: np.ndarray) -> np.ndarray:
-        """A(Theta) = d Theta_dot / d v: the leaf rates of a root velocity (eqs 3.3, 5.8)."""
-        pg = self.plant.graphs
-        p_in = [self.plant.graphs.parameters.vector] if self.values.size else []
-        A = ca.Function("A", [pg.theta, *p_in], [ca.jacobian(self.plant.theta_dot, self.plant.v)])
-        return np.asarray(A(theta, *([self.values] if self.values.size else [])))
-
-    def plant_rates(self, theta, v, tau):
-        return self._plant(theta, v, tau, *([self.values] if self.values.size else []))
 
     def tick(self, due: tuple[int, ...], dt: float) -> tuple[ca.Function, ca.Function]:
         """(F, dF/dz) of one tick at which the groups ``due`` run (slowest first)."""
@@ -133,7 +138,7 @@ class TickMaps:
             args = {"theta": theta, "theta_dot": theta_dot, **{key: ca.DM(val) for key, val in self.root.items()}}
             args.update({key: new[key] for key in new if key.startswith(HELD.format(""))})
             args["state"] = new.get(f"state_g{k}")
-            args["tau_sensed"] = self._sensed(theta, v, tau_before, *([self.values] if self.values.size else []))
+            args["tau_sensed"] = self.sensed_forces(theta, v, tau_before)  # the last torques still applied
             out = self._call(STEP.format(k), args)
             new[f"tau_g{k}"] = out["tau"]
             if "state_next" in out:
@@ -168,28 +173,37 @@ def _rk4(f, theta, v, tau, dt):
             v + dt / 6 * (k1[1] + 2 * k2[1] + 2 * k3[1] + k4[1]))
 
 
-def operating_point(system: RobotSystem, plant: Plant) -> tuple[np.ndarray, np.ndarray]:
+def operating_point(system: RobotSystem, maps: TickMaps) -> tuple[np.ndarray, np.ndarray]:
     """(Theta, x) of the start pose: simulation.theta0, else the inverse kinematics of
     simulation.start (without initial_error), else the rest posture."""
     s = system.simulation or SimulationSettings()
-    pg = plant.graphs
-    position = ca.Function("x", [pg.theta], [plant.x])
     if s.theta0 is not None:
         theta = np.asarray(s.theta0, float)
-    elif s.start is not None and plant.inverse is not None:
-        theta = np.asarray(ca.Function("inverse", [plant.x_sym], [plant.inverse])(s.start)).ravel()
+    elif s.start is not None and maps.inverse is not None:
+        theta = np.asarray(maps.inverse(s.start)).ravel()
     else:
         theta = np.asarray(rest_posture([system.nodes[leaf].leaf for leaf in robot_leaves(system)]), float)
-    return theta, np.asarray(position(theta)).ravel()
+    return theta, np.asarray(maps.position(theta)).ravel()
 
 
 def lifted_loop(system: RobotSystem, groups: RateGroups) -> LiftedLoop:
-    """The lifted closed loop of ``system`` run in ``groups`` at its start pose."""
+    """The lifted closed loop of ``system`` run in ``groups`` at its start pose; raises
+    OperatingPointError where it cannot be linearised."""
     s = system.simulation or SimulationSettings()
-    theta0, x0 = operating_point(system, Plant(system))
-    n_fi = signature(system, system.root).n_internal_forces
-    f_i = np.asarray(s.internal_forces, float) if s.internal_forces else np.zeros(n_fi)
-    maps = TickMaps(system, groups, x0, f_i)
+    maps = TickMaps(system, groups)
+    theta0, x0 = operating_point(system, maps)
+    if maps.residual is not None:
+        residual = np.abs(np.asarray(maps.residual(theta0)).ravel())
+        if not np.all(residual <= RESIDUAL_TOLERANCE):  # also NaN: out of the inverse kinematics' reach
+            where = ("simulation.theta0" if s.theta0 is not None else "simulation.start" if s.start is not None
+                     else "the rest posture (no simulation.start or theta0)")
+            how = (f"constraint residual up to {residual.max():.3g}" if np.all(np.isfinite(residual))
+                   else "out of the inverse kinematics' reach")
+            raise OperatingPointError(f"the start pose, from {where}, breaks a grasp ({how}); give simulation.start "
+                                      "or theta0 on every grasp")
+    maps.root["x_e"] = x0
+    if s.internal_forces:
+        maps.root["f_i"] = np.asarray(s.internal_forces, float)
     dt = groups.base_period
     z = maps.start(theta0)
     phi = np.eye(maps.size)
@@ -197,6 +211,8 @@ def lifted_loop(system: RobotSystem, groups: RateGroups) -> LiftedLoop:
         step, jacobian = maps.tick(groups.due(tick), dt)
         phi = np.asarray(jacobian(z)) @ phi
         z = np.asarray(step(z)).ravel()
+    if not np.all(np.isfinite(phi)):
+        raise OperatingPointError("the closed loop is not finite over one slowest period from the start pose")
     eigenvalues = observable_eigenvalues(phi, maps, theta0)
     radius = float(np.abs(eigenvalues).max()) if eigenvalues.size else 0.0
     return LiftedLoop(radius, groups.frame_ticks * dt, groups.frame_ticks, x0, theta0, eigenvalues, maps.size, phi)
@@ -207,7 +223,7 @@ def observable_eigenvalues(phi: np.ndarray, maps: TickMaps, theta0: np.ndarray) 
     ``theta0`` (the range of A = d Theta_dot / d v) and to the part observable from
     (Theta, v), largest modulus first."""
     theta, v = maps.slices["theta"], maps.slices["v"]
-    A = np.asarray(maps.rate_map(theta0))
+    A = np.asarray(maps.rate_map(theta0))  # Theta_dot = A(Theta) v
     u, sigma, _ = np.linalg.svd(A, full_matrices=False)
     tangent = u[:, sigma > RANK_TOLERANCE * max(sigma.max(initial=0.0), 1.0)]
     m, n = tangent.shape[1], maps.size

@@ -224,6 +224,16 @@ def test_info_prints_the_groups_and_the_lifted_radius():
     assert r.stdout.splitlines()[-len(shown):] == shown, r.stdout
 
 
+def test_info_says_why_a_start_off_the_grasp_is_not_linearised(tmp_path):
+    """Without a simulation section the start is the rest posture, every finger angle 0: no grasp there."""
+    path = tmp_path / "unposed.yaml"
+    path.write_text(SPEC.read_text().split("simulation:")[0])
+    r = subprocess.run([sys.executable, "-m", "robotgen", "info", str(path)], capture_output=True, text=True, cwd=ROOT)
+    assert r.returncode == 0 and r.stdout.splitlines()[-1] == (
+        "  lifted closed loop: not linearised: the start pose, from the rest posture (no simulation.start or theta0), "
+        "breaks a grasp (out of the inverse kinematics' reach); give simulation.start or theta0 on every grasp"), r.stdout
+
+
 def test_the_c_struct_and_the_python_class_agree_as_the_docs_say(tmp_path, hand):
     """c-api.md's program against the emitted C (under AddressSanitizer and UBSan where gcc has
     them), python-api.md's lines against the module: the same torques, as the pages print them."""
