@@ -84,7 +84,9 @@ class GroupServo(Servo):
             self._attach(node, t)
 
 
-def _group_kernels(g: SystemGraphs, groups: RateGroups) -> tuple[list[Kernel], dict[str, HeldLayout]]:
+def rate_kernels(g: SystemGraphs, groups: RateGroups) -> list[Kernel]:
+    """servo_step_g<k> for every group, fastest first, then servo_init_g<k> for every group
+    with a stateful controller."""
     system = g.system
     root_sig = g.graph(system.root).sig
     layouts: dict[str, HeldLayout] = {}
@@ -118,34 +120,23 @@ def _group_kernels(g: SystemGraphs, groups: RateGroups) -> tuple[list[Kernel], d
         if servo.n_state:
             inputs.append(("state", servo.state))
             outputs.append(("state_next", servo.state_next(), (servo.n_state, 1)))
-        names = ", ".join(group.controllers)
+        read = ["sensed leaf states"] + (["the desired root trajectory"] if group.reads_root else []) \
+            + ([f"the trajectories held at {', '.join(group.reads)}"] if group.reads else [])
+        given = [f"the torques of the leaves it drives ({', '.join(group.drives)}; 0 for the others)" if group.drives
+                 else "tau 0 (faster groups drive the leaves below it)"] \
+            + ([f"the trajectories it writes to {', '.join(group.writes)}"] if group.writes else []) \
+            + (["its controllers' next state"] if servo.n_state else [])
+        every = f"{group.ticks} periods of group 0" if k else "the fastest"
         steps.append(make_kernel(
-            STEP.format(k), f"One step of rate group {k} ({names}), every {group.period:g} s"
-            + (f" ({group.ticks} periods of group 0)" if k else " (the fastest)") + ": sensed leaf states"
-            + (", the desired root trajectory" if group.reads_root else "")
-            + (f", the trajectories held at {', '.join(group.reads)}" if group.reads else "")
-            + (f" in; the torques of the leaves it drives ({', '.join(group.drives)}; 0 for the others), "
-               if group.drives else " in; tau 0 (faster groups drive the leaves below it), ")
-            + (f"the trajectories it writes to {', '.join(group.writes)}, " if group.writes else "")
-            + ("its controllers' next state " if servo.n_state else "") + "out.",
-            inputs, outputs, g.parameters, guarded=True))
+            STEP.format(k), f"One step of rate group {k} ({', '.join(group.controllers)}), every {group.period:g} s "
+            f"({every}): {', '.join(read)} in; {', '.join(given)} out.", inputs, outputs, g.parameters,
+            guarded=True))
         if servo.n_state:
             inits.append(make_kernel(
                 INIT.format(k), f"Controller state of rate group {k} that starts its expected trajectories at "
                                 "the current state.", [("theta", g.theta), ("theta_dot", g.theta_dot)],
                 [("state", servo.initial_state(), (servo.n_state, 1))], g.parameters))
-    return [*reversed(steps), *reversed(inits)], layouts
-
-
-def rate_kernels(g: SystemGraphs, groups: RateGroups) -> list[Kernel]:
-    """servo_step_g<k> for every group, fastest first, then servo_init_g<k> for every group
-    with a stateful controller."""
-    return _group_kernels(g, groups)[0]
-
-
-def held_layouts(g: SystemGraphs, groups: RateGroups) -> dict[str, HeldLayout]:
-    """The layout of every held trajectory, by the controller it is written to."""
-    return _group_kernels(g, groups)[1]
+    return [*reversed(steps), *reversed(inits)]
 
 
 @dataclass(frozen=True)
