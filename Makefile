@@ -43,7 +43,8 @@ demo:
 	$(PYTHON) examples/demo.py
 
 # examples/controller: fixed-rate servo loops in C around the emitted code (PUMA 560 computed
-# torque, the Styx hand tree); run them with --rate HZ --cycles N for jitter and servo times.
+# torque, the Styx hand tree); run them with --rate HZ --cycles N for jitter and servo times;
+# styx_multirate runs the multi-rate hand's groups (--schedule threads|cyclic, --cycles N).
 controller:
 	$(MAKE) -C examples/controller ROBOTGEN="$(PYTHON) -m robotgen"
 

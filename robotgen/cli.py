@@ -24,6 +24,7 @@ from robotgen.model.derivatives import INTEGRATORS, SEMI_IMPLICIT_EULER, Derivat
 from robotgen.model.describe import system_info, system_nq
 from robotgen.model.laws import HAND_LAWS, RESOLVED_ADAPTIVE
 from robotgen.model.names import MAX_LENGTH, PATTERN, name_problem
+from robotgen.model.rate_groups import multi_rate_groups, servo_period
 from robotgen.model.system import ControlNode
 from robotgen.output_files import output_errors, write_files, write_problem
 from robotgen.progress import Progress
@@ -166,7 +167,7 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     import dataclasses
     import tempfile
 
-    from robotgen import documentation, hand_simulation, regulator_simulation, simulate
+    from robotgen import documentation, hand_simulation, multirate_simulation, regulator_simulation, simulate
     from robotgen.emit.build import emit
     from robotgen.model.signature import robot_leaves
     from robotgen.model.simulation import BOTH_PLANTS, MUJOCO_PLANT, ROBOTGEN_PLANT, SimulationSettings, rest_posture
@@ -190,6 +191,13 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
         raise _Usage(f"a {system.root_law} controller runs at its own period "
                      f"({system.root_node.hand.period:g} s); --dt applies to robot trees")
     settings = system.simulation or SimulationSettings()
+    groups = multi_rate_groups(system)
+    if groups is not None and args.dt is not None:
+        raise _Usage(f"a multi-rate tree runs at its controllers' periods (the fastest {groups.base_period:g} s, the "
+                     "plant's step); --dt applies to single-rate trees")
+    period = groups.base_period if groups is not None else servo_period(system)
+    if period is not None:  # the controllers' period (the plant steps at the fastest)
+        settings = dataclasses.replace(settings, dt=period)
     overrides = {k: getattr(args, k) for k in ("duration", "dt") if getattr(args, k) is not None}
     for k, value in overrides.items():
         if not value > 0:
@@ -202,6 +210,9 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
         if problem:
             raise UserError(system.location_of(node.name), f"controller '{node.name}': {problem}")
     plant = args.plant or settings.plant
+    if groups is not None and plant == BOTH_PLANTS:
+        raise _Usage("a multi-rate tree is simulated beside its single-rate run on one plant; choose --plant robotgen "
+                     "or --plant mujoco")
     plants = (ROBOTGEN_PLANT, MUJOCO_PLANT) if plant == BOTH_PLANTS else (plant,)
     if MUJOCO_PLANT in plants:
         try:
@@ -213,7 +224,9 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
             raise UserError(settings.locations["plant"], f"simulation.plant: {e}") from None
     out = Path(args.output) if args.output else Path("generated") / f"{system.name}_simulation"
     inputs = (Path(system.source), *map(Path, system.dependencies))
-    names = [f"{system.name}{'' if p == plants[0] else '_' + p}.{ext}" for p in plants for ext in ("csv", "png")]
+    stems = ([(system.name, " (multi-rate)"), (f"{system.name}_{multirate_simulation.SINGLE_RATE}", " (single rate)")]
+             if groups is not None else [(f"{system.name}{'' if p == plants[0] else '_' + p}", "") for p in plants])
+    names = [f"{stem}.{ext}" for stem, _ in stems for ext in ("csv", "png")]
     names += [f"{system.name}.xml"] if MUJOCO_PLANT in plants else []
     with output_errors(out):  # before the simulation: say it at once
         problem = write_problem(out, names, inputs)
@@ -246,39 +259,49 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
                     mjcf = xml or mjcf
                 elif p == MUJOCO_PLANT:
                     model, make = tree_plant(system, module, settings.dt)
-                    result, mjcf = simulate.run(module, settings, rest, make), model.xml
+                    if groups is not None:
+                        both, mjcf = multirate_simulation.run(module, settings, rest, make), model.xml
+                    else:
+                        result, mjcf = simulate.run(module, settings, rest, make), model.xml
+                elif groups is not None:
+                    both = multirate_simulation.run(module, settings, rest)
                 else:
                     result = simulate.run(module, settings, rest)
             except simulate.SimulationError as e:
                 in_spec = e.field is not None and e.field in settings.locations
                 where = settings.locations[e.field] if in_spec else system.location_of(system.root)
                 raise UserError(where, f"simulation.{e.field}: {e}" if in_spec else str(e)) from None
-            results.append(result)
+            results += list(both) if groups is not None else [result]
+        info = module.info()
     kind = hand_simulation if hand else simulate
-    wrote = _write_simulation(out, system, kind, results, mjcf, inputs)
-    print(kind.summary(results[0]) if len(results) == 1 else kind.compare(*results))
+    wrote = _write_simulation(out, system, kind, results, mjcf, inputs, stems)
+    if groups is not None:
+        print(multirate_simulation.compare(*results, info))
+    else:
+        print(kind.summary(results[0]) if len(results) == 1 else kind.compare(*results))
     print(wrote)
     return EXIT_OK
 
 
-def _write_simulation(out: Path, system, kind, results: list, mjcf: str | None, inputs: tuple[Path, ...]) -> str:
-    """<name>.csv and <name>.png of each plant's run (the second plant's as <name>_<plant>.*;
-    ``kind``: robotgen.simulate or robotgen.hand_simulation, whose write_csv and plot these
-    are), and the MJCF simulated as <name>.xml, made aside, then put into ``out`` replacing
-    only files robotgen can prove it wrote there (robotgen.output_files); the line that says
-    what was written."""
+def _write_simulation(out: Path, system, kind, results: list, mjcf: str | None, inputs: tuple[Path, ...],
+                      stems: list[tuple[str, str]]) -> str:
+    """<stem>.csv and <stem>.png of each run (``stems``, one (stem, what the plot's title adds)
+    per result: the first plant's <name>, a second plant's <name>_<plant>, a multi-rate tree's
+    single-rate run <name>_single_rate; ``kind``: robotgen.simulate or robotgen.hand_simulation, whose
+    write_csv and plot these are), and the MJCF simulated as <name>.xml, made aside, then put
+    into ``out`` replacing only files robotgen can prove it wrote there
+    (robotgen.output_files); the line that says what was written."""
     import tempfile
 
     with tempfile.TemporaryDirectory(prefix="robotgen-results-") as tmp:
         made: dict[str, Path] = {}
-        for result in results:
-            stem = system.name if result is results[0] else f"{system.name}_{result.plant}"
+        for result, (stem, note) in zip(results, stems):
             made[f"{stem}.csv"] = Path(tmp) / f"{stem}.csv"
             kind.write_csv(result, made[f"{stem}.csv"])
             try:
                 png = Path(tmp) / f"{stem}.png"
                 kind.plot(result, png, f"{system.name}: {system.root} ({system.root_node.primitive}), "
-                                       f"{result.plant} plant")
+                                       f"{result.plant} plant{note}")
                 made[png.name] = png
             except ImportError:
                 print("robotgen: no PNG: matplotlib is missing; pip install matplotlib", file=sys.stderr)
@@ -360,6 +383,15 @@ def _cmd_info(args: argparse.Namespace) -> int:
             print(f"    locked at q = 0: {', '.join(node['locked_joints'])}")
         for c in node.get("coupled_joints", []):
             print(f"    mimic: {c['joint']} = {affine(c['multiplier'], c['coordinate'], c['offset'])}")
+    groups = multi_rate_groups(system)
+    if groups is not None:
+        from robotgen.symbolic.lifted_loop import OperatingPointError, lifted_loop  # lazy: CasADi where needed
+
+        print(rate_group_lines(groups))
+        try:
+            print(lifted_loop_line(lifted_loop(system, groups)))
+        except OperatingPointError as e:
+            print(f"  lifted closed loop: not linearised: {e}")
     if system.root_law == RESOLVED_ADAPTIVE:
         from robotgen.symbolic import module_extras  # lazy: CasADi only where it is needed
         from robotgen.symbolic.control.resolved_adaptive import closed_loop
@@ -395,6 +427,27 @@ def operation_table(hand: dict) -> str:
     lines.append(f"    {'emitted step (every stage fused, terms shared)':46} {'':9} {'':5}   {step['mul']:12d} "
                  f"{step['add']:5d} {step['trig']:5d} {step['other']:5d}")
     return "\n".join(lines)
+
+
+def rate_group_lines(groups) -> str:
+    """The rate groups of a multi-rate tree, fastest first."""
+    lines = [f"  rate groups (one step function each, run on ticks of {groups.base_period:g} s):"]
+    for g in groups.groups:
+        lines.append(f"    servo_step_g{g.index}: every {g.period:g} s ({g.rate:g} Hz, {g.ticks} tick"
+                     f"{'s' if g.ticks > 1 else ''}): {', '.join(g.controllers)}"
+                     + (f"; holds what it writes to {', '.join(g.writes)}" if g.writes else ""))
+    return "\n".join(lines)
+
+
+def lifted_loop_line(loop) -> str:
+    """The lifted closed loop's spectral radius at the start pose."""
+    x = ", ".join(f"{v:.4g}" for v in loop.x)
+    verdict = (f"stable: an error decays by that factor per {1e3 * loop.frame:g} ms (time constant "
+               f"{1e3 * loop.time_constant:.3g} ms)" if loop.stable else
+               f"UNSTABLE: an error grows by that factor per {1e3 * loop.frame:g} ms; run the slower groups faster "
+               "or lower their gains")
+    return (f"  lifted closed loop over one slowest period ({1e3 * loop.frame:g} ms, {loop.ticks} ticks) at the start "
+            f"pose x = ({x}), at rest: spectral radius {loop.spectral_radius:.4f}, {verdict}")
 
 
 def closed_loop_line(loop: dict, period: float) -> str:

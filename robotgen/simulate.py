@@ -194,12 +194,14 @@ class ModulePlant:
         self.theta, self.v = theta_next, v_next
 
 
-def run(module, s: Settings, rest: np.ndarray | None = None, plant=ModulePlant) -> Result:
+def run(module, s: Settings, rest: np.ndarray | None = None, plant=ModulePlant, multirate: bool = False) -> Result:
     """The closed loop from the settings; ``rest`` is the leaf posture used when the
     settings give neither theta0 nor start; ``plant(module, theta, theta_dot, v, n_ext)``
     makes the plant it is closed around, given the settings' wall (set_wall) and its payloads'
-    masses as they change (set_payload_mass). Raises SimulationError for settings the plant
-    cannot start from and for a loop that diverges."""
+    masses as they change (set_payload_mass). ``multirate``: the module's MultiRateController
+    runs the rate groups at their own periods, one step per s.dt (the fastest period), instead
+    of servo_step at s.dt. Raises SimulationError for settings the plant cannot start from and
+    for a loop that diverges."""
     info = module.info()
     root = info["nodes"][info["root"]]
     n_ext, n_v = len(root["coordinates"]), root["nq"]
@@ -211,11 +213,12 @@ def run(module, s: Settings, rest: np.ndarray | None = None, plant=ModulePlant) 
     v[:n_ext] = v_d0
     f_i = np.asarray(s.internal_forces, float) if s.internal_forces else np.zeros(n_fi)
     f_e = np.asarray(s.force, float) if s.force else np.zeros(n_v)
-    stateful = hasattr(module, "servo_init")
+    stateful = hasattr(module, "servo_init") and not multirate
     p = plant(module, theta, module.plant_dynamics(theta, v, np.zeros(module.nq))[0], v, n_ext)
     if s.wall is not None:
         p.set_wall(s.wall)
     state = module.servo_init(*p.sensed()) if stateful else None
+    controller = module.MultiRateController() if multirate else None
     reads_sensed = hasattr(module, "plant_sensed_forces")  # the servo step takes tau_sensed
     steps = int(round(s.duration / s.dt))
     T, X, XD, TAU, TH, FI, WALL = [], [], [], [], [], [], []
@@ -234,7 +237,9 @@ def run(module, s: Settings, rest: np.ndarray | None = None, plant=ModulePlant) 
             args.append(f_i)
         if reads_sensed:
             args.append(p.sensed_forces(tau))
-        if stateful:
+        if controller is not None:
+            tau = controller.step(*args)
+        elif stateful:
             tau, state = module.servo_step(*args, state, np.array([s.dt]))
         else:
             tau = module.servo_step(*args)
@@ -434,7 +439,7 @@ def summary(result: Result) -> str:
     for i, name in enumerate(result.joints):
         unit = FORCE_UNITS[result.joint_units[i]] if i < len(result.joint_units) else ""
         lines.append(f"  {'tau ' + name:>12}: max |.| {np.abs(result.tau[:, i]).max():.4g}{_unit(unit)}")
-    return "\n".join(lines + _force_lines(result) + _contact_lines(result))
+    return "\n".join(lines + _force_lines(result) + contact_lines(result))
 
 
 def _force_lines(result: Result) -> list[str]:
@@ -459,7 +464,8 @@ def _force_lines(result: Result) -> list[str]:
     return lines
 
 
-def _contact_lines(result: Result) -> list[str]:
+def contact_lines(result: Result) -> list[str]:
+    """MuJoCo's contacts over the run and the payload's true pose against x_d, when the plant reports them."""
     if result.contacts is None:
         return []
     lines = list(result.contacts.summary())
@@ -504,4 +510,4 @@ def compare(a: Result, b: Result) -> str:
     for r in (a, b):
         forces = _force_lines(r)
         lines += [f"on the {r.plant} plant:"] + ["  " + line for line in forces] if forces else []
-    return "\n".join(lines + _contact_lines(a) + _contact_lines(b))
+    return "\n".join(lines + contact_lines(a) + contact_lines(b))

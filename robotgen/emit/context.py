@@ -12,11 +12,13 @@ from robotgen.emit import c_kernel, sincos
 from robotgen.emit.c_kernel import PRECISIONS, KernelError, check_identifier, is_parameter_port
 from robotgen.emit.controllers import PARAMETERS_CLASS, ControllerView, controller_view, controllers_note
 from robotgen.emit.literals import c_string, py_string
+from robotgen.emit.multirate import MultiRateView, multirate_view
 from robotgen.emit.sx_program import Program, read_program
 from robotgen.model.parameters import PIVOT_TOLERANCE, SYMMETRY_TOLERANCE, Bounds, RuntimeParameter
 from robotgen.progress import QUIET, Progress
 from robotgen.symbolic.control.law import Controller
 from robotgen.symbolic.kernel import PARAMS, Kernel, Port
+from robotgen.symbolic.rate_steps import MultiRate
 
 # Module attributes the extension defines itself.
 MODULE_NAMES = frozenset({"nq", "info"})
@@ -41,6 +43,9 @@ PARAMETERS_ATTRIBUTE_DOC = (
 # A module with controller classes also has the info() key "controllers" (and the stub imports
 # these names).
 CONTROLLER_STUB_NAMES = frozenset({"Iterator", "Mapping", "final"})
+MULTIRATE_DOC = ("{name}: the rate groups' steps ({groups}) run on one tick count of the fastest period, "
+                 "what slower groups write held for faster ones: construct it, call step(theta, theta_dot, x_e, "
+                 "...) once per fastest period for the torques; help() on the class tells more.")
 CONTROLLERS_DOC = ("Controllers: {names}. Each is a class holding one arm's controller state: "
                    "construct it, call step(q, qd, pose_d, twist_d, accel_d) once per period "
                    "for the torques, reset() to restart; help() on the class tells more.")
@@ -184,12 +189,15 @@ class ModuleView:
     sincos_helper: str = ""
     sincos_parts: tuple[int, ...] = ()
     helpers: tuple[HelperView, ...] = ()  # after the sin and cos routine, before the functions
+    # A multi-rate tree's MultiRateController (None: nothing emitted differs from a module
+    # built before it)
+    multirate: MultiRateView | None = None
 
 
 def module_view(name: str, kernels: list[Kernel], *, nq: int, precision: str,
                 spec_sha256: str, extra_info: dict | None, attributes: dict | None,
-                progress: Progress = QUIET, controllers: list[Controller] | tuple[Controller, ...] = ()
-                ) -> ModuleView:
+                progress: Progress = QUIET,
+                controllers: list[Controller | MultiRate] | tuple[Controller | MultiRate, ...] = ()) -> ModuleView:
     if precision not in PRECISIONS:
         raise ValueError(f"precision must be one of {sorted(PRECISIONS)}, got {precision!r}")
     check_identifier(name, "module name")
@@ -200,13 +208,17 @@ def module_view(name: str, kernels: list[Kernel], *, nq: int, precision: str,
     attributes = dict(attributes or {})
     for attribute in attributes:
         check_identifier(attribute, "module attribute")
-    classes = [c.class_name for c in controllers]
-    parameters_class = PARAMETERS_CLASS if parameters and controllers else ""
+    rates = [c for c in controllers if isinstance(c, MultiRate)]
+    controllers = [c for c in controllers if not isinstance(c, MultiRate)]
+    if len(rates) > 1:
+        raise KernelError(f"module {name!r}: {len(rates)} multi-rate controllers; a tree has one")
+    classes = [c.class_name for c in controllers] + [r.class_name for r in rates]
+    parameters_class = PARAMETERS_CLASS if parameters and classes else ""
     taken = [*MODULE_NAMES, *(PARAMETER_MODULE_NAMES if parameters else ()), *names, *attributes, *classes,
              *([parameters_class] if parameters_class else [])]
     if len(set(taken)) != len(taken):
         raise KernelError(f"module {name!r}: names repeat among {sorted(taken)}")
-    stub_names = STUB_NAMES | (CONTROLLER_STUB_NAMES if controllers else set())
+    stub_names = STUB_NAMES | (CONTROLLER_STUB_NAMES if classes else set())
     if stub_names & set(taken):
         raise KernelError(f"module {name!r}: {sorted(stub_names & set(taken))} are reserved "
                           "(the module's .pyi stub imports them)")
@@ -214,7 +226,8 @@ def module_view(name: str, kernels: list[Kernel], *, nq: int, precision: str,
         raise KernelError(f"module {name!r}: a function named {PARAMS!r} or {PARAMS_CHECK!r} would clash with "
                           f"the C type {c_kernel.params_type(name)} or its check")
     extra_info = dict(extra_info or {})
-    info_keys = INFO_KEYS | ({"parameters"} if parameters else set()) | ({"controllers"} if controllers else set())
+    info_keys = (INFO_KEYS | ({"parameters"} if parameters else set()) | ({"controllers"} if controllers else set())
+                 | ({"multirate"} if rates else set()))
     if info_keys & extra_info.keys():
         raise KernelError(f"extra_info may not set {sorted(info_keys & extra_info.keys())}")
     helpers, helper_names = _stage_helpers(kernels, PRECISIONS[precision])
@@ -228,8 +241,9 @@ def module_view(name: str, kernels: list[Kernel], *, nq: int, precision: str,
                     for parts in [tuple(sorted({f.part for f in functions if h.c_name in f.helpers}))])
     by_name = {f.name: f for f in functions}
     views = tuple(controller_view(name, c, by_name, PRECISIONS[precision], parameters) for c in controllers)
-    _check_controller_names(name, functions, views, helpers)
-    _check_macros_unique(name, functions, views)
+    multirate = multirate_view(name, rates[0], by_name, PRECISIONS[precision], parameters) if rates else None
+    _check_controller_names(name, functions, views, helpers, multirate)
+    _check_macros_unique(name, functions, views, multirate)
     info = {"nodes": [], **extra_info, "name": name, "nq": nq, "functions": names,
             "robotgen_version": robotgen.__version__, "spec_sha256": spec_sha256,
             "precision": precision}
@@ -238,6 +252,8 @@ def module_view(name: str, kernels: list[Kernel], *, nq: int, precision: str,
                                "doc": p.doc, "range": p.bounds.text if p.bounds else None} for p in parameters]
     if views:
         info["controllers"] = [v.info for v in views]
+    if multirate is not None:
+        info["multirate"] = multirate.info
     module_doc = (f"{name}: robot functions generated by robotgen {robotgen.__version__}.\n\n"
                   f"Functions: {', '.join(names)}. Arrays are float64, matrices row-major; "
                   "a leading batch axis B on every argument gives results with that axis.")
@@ -246,9 +262,14 @@ def module_view(name: str, kernels: list[Kernel], *, nq: int, precision: str,
             names=", ".join(p.name for p in parameters))
     if views:
         module_doc += "\n\n" + CONTROLLERS_DOC.format(names=", ".join(v.class_name for v in views))
+    if multirate is not None:
+        module_doc += "\n\n" + MULTIRATE_DOC.format(
+            name=multirate.class_name, groups=", ".join(f"{g.step} ({g.rate_text})" for g in multirate.groups))
     info_doc = PARAMETERS_INFO_DOC if parameters else INFO_DOC
     if views:
         info_doc = info_doc[:-1] + ", controllers."
+    if multirate is not None:
+        info_doc = info_doc[:-1] + ", multirate."
     keyword_names = {p.name for f in functions for p in f.inputs} | {p.name for p in parameters}
     if OUT_KEYWORD in keyword_names:
         raise KernelError(f"module {name!r}: an input or run-time parameter is named {OUT_KEYWORD!r}, "
@@ -271,7 +292,9 @@ def module_view(name: str, kernels: list[Kernel], *, nq: int, precision: str,
         bounds_order=max((p.bounds.order for p in parameters if p.bounds), default=0),
         symmetry_tolerance=c_kernel.literal(SYMMETRY_TOLERANCE, PRECISIONS[precision]),
         pivot_tolerance=c_kernel.literal(PIVOT_TOLERANCE, PRECISIONS[precision]),
-        controllers=views, parameters_class=parameters_class if any(v.reads_parameters for v in views) else "",
+        controllers=views, multirate=multirate,
+        parameters_class=parameters_class if any(v.reads_parameters for v in views)
+        or (multirate is not None and multirate.reads_parameters) else "",
         controllers_note=controllers_note(views), parts=max(f.part for f in functions) + 1,
         zero=c_kernel.literal(0.0, PRECISIONS[precision]), one=c_kernel.literal(1.0, PRECISIONS[precision]),
         sincos_helper=sincos.helper_source() if sincos_parts else "", sincos_parts=sincos_parts,
@@ -542,21 +565,26 @@ def _count_scheduled(kernel: Kernel, stages: dict[str, tuple[int, int]] | None =
 
 
 def _check_controller_names(name: str, functions: tuple[FunctionView, ...],
-                            controllers: tuple[ControllerView, ...], helpers: tuple[HelperView, ...] = ()) -> None:
+                            controllers: tuple[ControllerView, ...], helpers: tuple[HelperView, ...] = (),
+                            multirate: MultiRateView | None = None) -> None:
     """The controllers' C names (struct types, reset and step) clash neither with each other
     nor with the kernels, the stage helpers and the parameter struct."""
     c_names = [f.c_name for f in functions] + [h.c_name for h in helpers] + [c_kernel.params_type(name)]
-    for c in controllers:
+    for c in (*controllers, *([multirate] if multirate is not None else [])):
         c_names += [c.c_type, c.c_reset, c.c_step]
     if len(set(c_names)) != len(c_names):
         raise KernelError(f"module {name!r}: C names of the controllers clash: {sorted(c_names)}")
 
 
 def _check_macros_unique(name: str, functions: tuple[FunctionView, ...],
-                         controllers: tuple[ControllerView, ...] = ()) -> None:
+                         controllers: tuple[ControllerView, ...] = (), multirate: MultiRateView | None = None) -> None:
     macros = [p.size_macro for f in functions for p in (*f.inputs, *f.outputs)]
     macros.append(f"{name.upper()}_NQ")
     for c in controllers:
         macros += [f"{c.macro}_PERIOD", f"{c.macro}_STATE_SIZE", *(v.offset_macro for v in c.views)]
+    if multirate is not None:
+        macros += [f"{multirate.macro}_GROUPS", f"{multirate.macro}_FRAME_TICKS", *(h.macro for h in multirate.held)]
+        macros += [f"{g.macro}_{what}" for g in multirate.groups for what in ("PERIOD", "TICKS")]
+        macros += [f"{g.macro}_STATE_SIZE" for g in multirate.groups if g.state_size]
     if len(set(macros)) != len(macros):
         raise KernelError(f"module {name!r}: size macros clash: {sorted(macros)}")

@@ -418,7 +418,12 @@ _DEFS = {
                                   "values as defaults; folded: compiled in as constants (faster, retuning "
                                   "needs a rebuild)"},
          "resolve_internal_motion": {"type": "boolean",
-                                     "description": "drive internal motion rates to zero and mask them"}},
+                                     "description": "drive internal motion rates to zero and mask them"},
+         "period": _number("sampling period of this controller [s], > 0; default its nearest controller "
+                           "ancestor's, the topmost ones simulation.dt (else 0.001). Controllers of one period "
+                           "form a rate group with a step function of its own: every period an integer "
+                           "multiple of the fastest, a controller at least as fast as the one above it, and "
+                           "every period dividing the slowest", exclusiveMinimum=0)},
         ("robot", "law")),
     "urdf": _object(
         "a serial chain read from a URDF file, from a base link to a tip link",

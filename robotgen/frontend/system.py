@@ -12,6 +12,7 @@ from robotgen.frontend.control.node import ControlReader
 from robotgen.frontend.control.resolved_rate import ResolvedRateReader
 from robotgen.frontend.document import Document, Path, format_path, sort_errors
 from robotgen.frontend.leaves import LeafReader
+from robotgen.frontend.rates import RateReader
 from robotgen.frontend.simulation import SimulationReader
 from robotgen.model.derivatives import SEMI_IMPLICIT_EULER, DerivativeSettings
 from robotgen.model.names import name_problem
@@ -30,7 +31,7 @@ from robotgen.model.system import (
 
 
 class SpecReader(LeafReader, AttachReader, ControlReader, ForceLawReader, ResolvedRateReader, HandLawReader,
-                 SimulationReader):
+                 SimulationReader, RateReader):
     """The whole spec: every part's reader over one collector."""
 
     def node(self, name: str, node: dict) -> Node:
@@ -180,6 +181,7 @@ class SpecReader(LeafReader, AttachReader, ControlReader, ForceLawReader, Resolv
         whole = self.check_tree(nodes, root)
         nodes = self.signatures(nodes, root, whole)
         simulation = self.simulation(data["simulation"], nodes, root) if "simulation" in data else None
+        self.check_periods(nodes, root, simulation)
         derivatives = self.derivatives(data.get("derivatives", {}))
         return RobotSystem(name=data["name"], source=self.doc.path, source_sha256=self.doc.sha256,
                            nodes=nodes, root=root, warnings=tuple(self.warnings), simulation=simulation,

@@ -174,7 +174,10 @@ class ControlNode:
 
     ``law: resolved_rate`` (Whitney 1972) is a kinematic controller of a chain leaf or of a
     composite robot (an ATTACH node, possibly under control nodes): it has ``rate``
-    settings and no gains (kp, kv are zero)."""
+    settings and no gains (kp, kv are zero).
+
+    ``period`` is the spec's sampling period of a tree law's controller, None where it takes
+    its parent's (robotgen.model.rate_groups)."""
 
     name: str
     robot: str
@@ -192,6 +195,7 @@ class ControlNode:
     runtime_gains: bool = True  # the gains (kp, kv, kv_internal, kf_internal, ki_internal, a force law's) are
     # run-time parameters; `gains: folded` compiles them in
     gain_forms: tuple[str, str] = (MATRIX_GAIN, MATRIX_GAIN)  # how the spec wrote kp, kv
+    period: float | None = None  # seconds; None: the parent's (robotgen.model.rate_groups)
 
     primitive = "control"
 

@@ -4,11 +4,13 @@ robot tree's (robotgen.symbolic.system_kernels)."""
 from __future__ import annotations
 
 from robotgen.model.parameter_struct import runtime_parameters
+from robotgen.model.rate_groups import multi_rate_groups
 from robotgen.model.system import RobotSystem
 from robotgen.symbolic.control.law import Controller
 from robotgen.symbolic.control.root_laws import ROOT_LAWS
 from robotgen.symbolic.kernel import Kernel, ParameterSymbols
 from robotgen.symbolic.leaf_kernels import leaf_kernels
+from robotgen.symbolic.rate_steps import MultiRate, multi_rate
 from robotgen.symbolic.system import leaf_values
 from robotgen.symbolic.system_kernels import system_kernels
 
@@ -32,8 +34,11 @@ def module_extras(system: RobotSystem) -> tuple[dict, dict]:
     return {}, {}
 
 
-def controllers_for(system: RobotSystem) -> list[Controller]:
-    """The controller classes the module offers (a hand law's), each around one of the
-    kernels."""
+def controllers_for(system: RobotSystem) -> list[Controller | MultiRate]:
+    """The controller classes the module offers (a hand law's, each around one of the
+    kernels; a multi-rate tree's MultiRateController, around its rate groups' steps)."""
     law = ROOT_LAWS.get(system.root_law) if system.root_law else None
-    return [law.controller(system)] if law is not None and law.controller is not None else []
+    if law is not None and law.controller is not None:
+        return [law.controller(system)]
+    groups = multi_rate_groups(system)
+    return [multi_rate(system, groups)] if groups is not None else []

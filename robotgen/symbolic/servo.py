@@ -60,11 +60,16 @@ def state_blocks(graphs: SystemGraphs, name: str) -> list[tuple[ControlNode, str
 
 
 class Servo:
-    """Builds the write of one node: the leaf torques and next controller states."""
+    """Builds the write of one node: the leaf torques and next controller states.
 
-    def __init__(self, graphs: SystemGraphs, top: str):
+    ``controllers`` (default: every one below ``top``) are the names of those whose states
+    this step carries; ``period`` folds the servo period in as a constant instead of the input dt
+    (a rate group's step, robotgen.symbolic.rate_steps)."""
+
+    def __init__(self, graphs: SystemGraphs, top: str, controllers: set[str] | None = None,
+                 period: float | None = None):
         self.g = graphs
-        self.blocks = state_blocks(graphs, top)
+        self.blocks = [b for b in state_blocks(graphs, top) if controllers is None or b[0].name in controllers]
         self.layout: dict[tuple[str, str], tuple[int, int]] = {}  # (controller, kind) -> (offset, size)
         o = 0
         for node, kind, start in self.blocks:
@@ -72,7 +77,7 @@ class Servo:
             o += start.shape[0]
         self.n_state = o
         self.state = ca.SX.sym("state", o)
-        self.dt = ca.SX.sym("dt")
+        self.dt = ca.SX.sym("dt") if period is None else ca.SX(period)
         self.torques: dict[str, ca.SX] = {}
         self.next_state: dict[tuple[str, str], ca.SX] = {}
         # the leaves' sensed forces (rd of a DEFINE, §3.2), read when a controller below closes
@@ -218,6 +223,9 @@ class Servo:
 def reads_sensed_forces(graphs: SystemGraphs, name: str) -> bool:
     """A controller at or below ``name`` reads sensed forces: a loop on internal forces, or a
     law that reads its robot's (the servo step then takes tau_sensed)."""
-    return any(isinstance(n, ControlNode) and (n.kf_internal is not None or n.ki_internal is not None
-                                               or TREE_LAWS[n.law].reads_forces(n))
-               for n in graphs.system.walk(name))
+    return any(isinstance(n, ControlNode) and reads_forces(n) for n in graphs.system.walk(name))
+
+
+def reads_forces(node: ControlNode) -> bool:
+    """The controller closes a loop on internal forces or its law reads its robot's forces."""
+    return node.kf_internal is not None or node.ki_internal is not None or TREE_LAWS[node.law].reads_forces(node)

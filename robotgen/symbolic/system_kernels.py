@@ -7,6 +7,7 @@ import functools
 import casadi as ca
 
 from robotgen.model.parameter_struct import runtime_parameters
+from robotgen.model.rate_groups import multi_rate_groups
 from robotgen.model.signature import internal_force_names
 from robotgen.model.system import DefineNode, RobotSystem
 from robotgen.symbolic.control.law import expected_start
@@ -14,6 +15,7 @@ from robotgen.symbolic.control.tree_laws import TREE_LAWS
 from robotgen.symbolic.differentiation import reverse_jacobian
 from robotgen.symbolic.kernel import Kernel, ParameterSymbols, make_kernel
 from robotgen.symbolic.plant import Plant, sensed_forces
+from robotgen.symbolic.rate_steps import rate_kernels
 from robotgen.symbolic.servo import LAW_STATE, Servo, Trajectory, reads_sensed_forces
 from robotgen.symbolic.system import SystemGraphs
 
@@ -97,6 +99,9 @@ def system_kernels(system: RobotSystem) -> list[Kernel]:
             "servo_init", "Controller state after a reset: every expected trajectory at the current state, every "
             "integral at zero." if integrals else "Controller state that starts every expected trajectory at the "
             "current state.", [th, thd], [("state", servo.initial_state(), (servo.n_state, 1))]))
+    groups = multi_rate_groups(system)
+    if groups is not None:
+        kernels += rate_kernels(g, groups)
     plant = Plant(system, parameters)
     pg = plant.graphs
     theta, v, tau = ("theta", pg.theta), ("v", plant.v), ("tau", plant.tau)

@@ -1,6 +1,7 @@
-"""examples/controller: the Makefile builds both loops from the specs, and each runs its
+"""examples/controller: the Makefile builds the loops from the specs, and each runs its
 fixed-rate loop, tracks (the computed-torque error decays to well below a millimetre or
-milliradian), and reports jitter and servo time."""
+milliradian), and reports jitter and servo time; the multi-rate hand's runs its two rate groups
+in both fixed-priority schedules and reports each group's."""
 from __future__ import annotations
 
 import re
@@ -44,3 +45,25 @@ def test_the_controller_loops_build_and_track(tmp_path):
                        (["100"], "unknown argument '100'")):
         refused = subprocess.run([str(tmp_path / "puma560_ct"), *args], capture_output=True, text=True, timeout=5)
         assert refused.returncode == 2 and says in refused.stderr and refused.stdout == "", (args, refused.stderr)
+    for schedule, says in (("threads", "one thread per rate group"), ("cyclic", "a cyclic executive")):
+        run = subprocess.run([str(tmp_path / "styx_multirate"), "--schedule", schedule, "--cycles", "2000"],
+                             capture_output=True, text=True, timeout=60, check=True)
+        out = run.stdout
+        assert f"2000 cycles at 2000 Hz and 200 at 200 Hz, {says}" in out, out
+        error = float(re.search(r"tracking error, second half: max (\S+)", out).group(1))
+        assert error < 1e-3, out
+        for group in ("g0", "g1"):
+            for what in ("period jitter", "servo computation"):
+                line = re.search(f"{group} {what}" + r"\s+min\s+([\d.]+)\s+median\s+([\d.]+)\s+p99\s+([\d.]+)\s+max\s+([\d.]+) us",
+                                 out)
+                assert line, out
+                low, median, p99, high = map(float, line.groups())
+                assert low <= median <= p99 <= high, out
+    for args, says in ((["--schedule", "round_robin"], "--schedule takes threads or cyclic, got 'round_robin'"),
+                       (["--cycles", "10"], "--cycles takes an integer >= 20, got '10'"),
+                       (["--cycles"], "--cycles needs a value")):
+        refused = subprocess.run([str(tmp_path / "styx_multirate"), *args], capture_output=True, text=True, timeout=5)
+        assert refused.returncode == 2 and says in refused.stderr and refused.stdout == "", (args, refused.stderr)
+    helped = subprocess.run([str(tmp_path / "styx_multirate"), "--cycles", "100", "--help"], capture_output=True,
+                            text=True, timeout=5)
+    assert helped.returncode == 0 and helped.stdout.startswith("usage: ") and "--schedule" in helped.stdout

@@ -59,7 +59,7 @@ def _size(port: dict) -> int:
 
 @pytest.mark.skipif(not COMPILERS, reason="no C compiler")
 @pytest.mark.parametrize("spec", ["two_link", "puma560", "styx_finger", "styx_high_ct", "styx_redundant",
-                                  "puma560_rmrc", "tripod_grasp"])
+                                  "puma560_rmrc", "tripod_grasp", "styx_multirate"])
 def test_emitted_c_is_clean_under_sanitizers(tmp_path, spec):
     out = tmp_path / spec
     assert main(["build", str(SPECS / f"{spec}.yaml"), "-o", str(out), "--no-compile", "-q"]) == 0

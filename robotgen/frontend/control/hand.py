@@ -50,7 +50,7 @@ class HandLawReader(Collector):
         path: Path = ("nodes", node.name, "control")
         law = node.law
         for key in ("kp", "kv", "kv_internal", "kf_internal", "ki_internal", "internal_forces",
-                    "resolve_internal_motion", "gains", "impedance", "hybrid"):
+                    "resolve_internal_motion", "gains", "impedance", "hybrid", "period"):
             if key in spec:
                 self.at_key(path + (key,), f"law {law} takes no {key} here (its settings go under {law})")
         chain = getattr(system.nodes[node.robot], "leaf", None)

@@ -39,6 +39,7 @@ class ControlReader(Collector):
             ki_internal=self.optional(spec, path, "ki_internal", None, minimum=0.0),
             resolve_internal_motion=bool(spec.get("resolve_internal_motion", False)),
             runtime_gains=spec.get("gains", RUNTIME_GAINS) == RUNTIME_GAINS,
+            period=self.optional(spec, path, "period", None, minimum=0.0, exclusive=True),
         )
 
     def check_control(self, system: RobotSystem, node: ControlNode, robot: Signature) -> ControlNode:

@@ -51,7 +51,7 @@ class ResolvedRateReader(Collector):
         robot (an attach node, possibly under control nodes)."""
         path: Path = ("nodes", node.name, "control")
         for key in ("kp", "kv", "kv_internal", "kf_internal", "ki_internal", "internal_forces",
-                    "resolve_internal_motion", "gains", "impedance", "hybrid"):
+                    "resolve_internal_motion", "gains", "impedance", "hybrid", "period"):
             if key in spec:
                 self.at_key(path + (key,), f"law resolved_rate takes no {key} (it outputs joint rates; "
                                            "its settings go under resolved_rate)")
