@@ -290,15 +290,21 @@ def test_groups_below_an_attach_root_without_holds_or_state(tmp_path, build_modu
         assert np.any(fast[2:]) and not np.any(fast[:2]) and np.any(slow[:2]) and not np.any(slow[2:])
 
 
-def test_a_loop_on_the_sensed_squeeze_takes_tau_sensed(tmp_path, build_module):
-    """ct_hand with kf_internal: the slow group reads the leaves' sensed forces at its ticks,
-    and the controller takes them after f_i."""
-    text = SPEC.read_text().replace("name: styx_multirate", "name: styx_rates_squeeze")
-    text = text.replace("      period: 0.005  ", "      kf_internal: 0.5\n      period: 0.005  ")
-    path = tmp_path / "styx_rates_squeeze.yaml"
+@pytest.mark.parametrize("loop", ["kf_internal: 0.5", "kf_internal: 0.5\n      ki_internal: 20"])
+def test_a_loop_on_the_sensed_squeeze_takes_tau_sensed(tmp_path, build_module, loop):
+    """ct_hand with kf_internal (and ki_internal): the slow group reads the leaves' sensed forces
+    at its ticks, and the controller takes them after f_i; the PI loop's integral is one more
+    block of the slow group's state, integrated over the slow group's period."""
+    integrates = "ki_internal" in loop
+    name = "styx_rates_pi" if integrates else "styx_rates_squeeze"
+    text = SPEC.read_text().replace("name: styx_multirate", f"name: {name}")
+    text = text.replace("      period: 0.005  ", f"      {loop}\n      period: 0.005  ")
+    path = tmp_path / f"{name}.yaml"
     path.write_text(text)
     m = build_module(path)
     assert list(inspect.signature(m.MultiRateController.step).parameters)[-2:] == ["tau_sensed", "out"]
+    n_fi = len(m.info()["nodes"][m.info()["root"]]["internal_forces"])
+    assert m.servo_init_g1(np.zeros(m.nq), np.zeros(m.nq)).shape == (14 + n_fi * integrates,)
     c, rng = m.MultiRateController(), np.random.default_rng(5)
     for k in range(12):
         args = (*_inputs(m, rng, k), 0.1 * rng.standard_normal(4))
@@ -306,7 +312,11 @@ def test_a_loop_on_the_sensed_squeeze_takes_tau_sensed(tmp_path, build_module):
         if k == 0:
             state = m.servo_init_g1(args[0], args[1])
         if k % 10 == 0:
+            before = state
             slow, left, right, state = m.servo_step_g1(*args, state)
+            if integrates:  # z grows by the slow period times the error, whichever way it points
+                assert np.all(np.abs(state[14:] - before[14:]) > 0)
+                np.testing.assert_array_equal(c.state[1], state)
         np.testing.assert_array_equal(tau, m.servo_step_g0(args[0], args[1], left, right) + slow)
     unloaded, squeezed = (m.servo_step_g1(*args[:7], sensed, state)[1] for sensed in (np.zeros(4), np.ones(4)))
     # the squeeze loop changes the force written to the fingers (F_e), not their trajectory (x_e, xd_e, xdd_e)
