@@ -398,17 +398,15 @@ def _summary(doc: str, fallback: str) -> str:
 
 # A source past COMPILE_PARTS_ABOVE characters is compiled in COMPILE_PARTS processes at once
 # (robotgen.emit.compile): each kernel is in one part (#if RG_PART == k in <name>.c), and each
-# stage helper in one part, its home, which the other parts that call it link to (RG_SHARED;
-# the iCub's kinematics, 6700 lines and 1.4 s of gcc, was compiled in both parts before). The
+# stage helper in one part, its home, which the other parts that call it link to (RG_SHARED),
+# so that a large tree's kinematics is not compiled in every part. The
 # number is fixed, not the machine's cores, so that the emitted text is the same everywhere; a
 # user's own build of <name>.c (no RG_PART) takes every kernel.
 COMPILE_PARTS = 2
 COMPILE_PARTS_ABOVE = 300_000
 # gcc -O2 spends more time on a statement inside a loop body than on one of straight-line code,
-# most of it in SLP vectorisation of the body's stores (the iCub's kernels compiled one by one:
-# 0.08-0.19 s per 1000 straight-line statements, 0.23-1.18 s per 1000 in loops, more in larger
-# bodies). Counting loop statements 5 times, the iCub's two parts take 3.96 and 3.60 s (summed
-# from those times; 4.3 and 3.2 s at a count of 1, and 3.8 at best).
+# most of it in SLP vectorisation of the body's stores; counting loop statements this many
+# times balances the parts' compile times best (docs/performance-log.md).
 LOOP_STATEMENT_COST = 5
 
 

@@ -1,15 +1,15 @@
 """A kernel whose work repeats, printed as loops: a straight-line prologue fills local arrays,
 then loops apply one small body to slices of them, so the emitted C holds each repeated part
-once. Straight-line code costs ~13 bytes per operation; a 7-dof arm's dynamics derivatives
-unrolled (~75-115 KB) overflow the instruction cache, and a kernel that streams its code from
-L2 runs ~2.5x slower than one that fits. The loops here: the derivative recursion
+once. Straight-line code grows with its operations; a 7-dof arm's dynamics derivatives
+unrolled overflow the instruction cache, and a kernel that streams its code from L2 runs
+slower than one that fits (docs/performance-log.md). The loops here: the derivative recursion
 (rigid_body/derivative_loops), a long chain's or tree's dynamics (rigid_body/chain_loops) and
 products with M^-1 (rigid_body/cholesky).
 
 The schedule is the one source of the kernel's graph: ``outputs()`` applies each loop's body to
 SX slices in order, and is the kernel's CasADi function, so the graph and the loops cannot
 differ. Adding a loop only checks that what it reads was written: a build prints the loops and
-never needs the flattened graph (the iCub's took 0.8 s to apply)."""
+never needs the flattened graph, which takes a large tree's build noticeable time."""
 from __future__ import annotations
 
 from dataclasses import dataclass, field

@@ -109,7 +109,7 @@ class ChainGraphs:
         """Whether J and Jdot qd are built turned (base_turn), one choice for both, so that the
         fused servo terms compute the separate functions' bits: the form that leaves M, C qd + N,
         J and Jdot qd together with fewer operations (direct, Jdot qd shares nonlinear's forward
-        pass; UR5 701 turned against 732, Panda 1314 direct against 1357). Past LOOPS_ABOVE_DOF
+        pass; which form wins depends on the arm). Past LOOPS_ABOVE_DOF
         joints M and C qd + N are loops, not built straight-line to count, and J and Jdot qd are
         counted alone."""
         def build():
@@ -152,8 +152,8 @@ class ChainGraphs:
     def coriolis_candidates(self) -> dict[str, ca.SX]:
         """The Christoffel-consistent C three ways: Christoffel symbols of M by AD (O(n^3)
         terms, compact for small arms), half the velocity Jacobian of the Coriolis forces,
-        and the spatial O(n^2) algorithm (alone past AD_CORIOLIS_MAX_DOF joints). Operations
-        after CSE: UR5 1107, 714, 2004; Panda 2663, 3020, 3887."""
+        and the spatial O(n^2) algorithm (alone past AD_CORIOLIS_MAX_DOF joints). Which is
+        smallest after CSE depends on the arm."""
         q, qd, c = self.sym.q, self.sym.qd, self.coordinates
         spatial = c.matrix(coriolis_spatial(self.tree, self.motions, self.inertias, self.qd_joints))
         if self.tree.n_joints > AD_CORIOLIS_MAX_DOF:
@@ -198,7 +198,7 @@ class ChainGraphs:
     def inverse_dynamics_derivatives(self) -> tuple[ca.SX, ca.SX]:
         """(d tau/dq, d tau/dqd): the recursion of rnea_derivatives or reverse sweeps of
         Newton-Euler (one per joint), whichever CasADi's CSE leaves with fewer operations
-        (UR5: the sweeps, 1465 vs 2546; Panda: the recursion, 4888 vs 5170)."""
+        (the sweeps on small arms, the recursion on longer ones)."""
         def build():
             s = self.sym
             recursion = self._rnea_derivatives()

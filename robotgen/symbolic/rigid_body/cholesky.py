@@ -120,8 +120,7 @@ def schedule_inverse_product(b: ScheduleBuilder, n: int, inverse: int, rows: int
     """M^-1 R for the local ``rows`` (n x width, row-major) with M^-1 already formed (the local
     ``inverse``, n x n row-major): row i of the result is sum_k (M^-1)_ik R_k, one loop step
     per row. The rows are independent, so the processor overlaps them, where a row-wise solve
-    waits at every row for the rows before it (forward dynamics' derivatives, A/B on a Zen 3
-    core, 4-5 rounds: UR5 787 -> 737 ns, Panda 1783 -> 1694). Each block (target, first
+    waits at every row for the rows before it (docs/performance-log.md). Each block (target, first
     column, scale) writes scale times columns first..first+n-1 of the product to an n x n
     row-major array."""
     m, R = ca.SX.sym("m", n), ca.SX.sym("R", n * width)
