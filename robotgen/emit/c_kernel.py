@@ -38,6 +38,8 @@ from robotgen.symbolic.schedule import (
 
 @dataclass(frozen=True)
 class Precision:
+    """A C floating type the kernels are printed in: its name, the C type, and the suffixes of its literals and
+    <math.h> functions."""
     name: str
     real: str  # C type
     literal_suffix: str  # on floating constants
@@ -113,6 +115,7 @@ def check_identifier(name: str, what: str) -> None:
 
 
 def function_name(prefix: str, kernel: Kernel) -> str:
+    """The C name of a kernel in a module: <prefix>_<kernel name>."""
     return f"{prefix}_{kernel.name}"
 
 
@@ -138,6 +141,8 @@ def parameter_elements(port: Port) -> list[str]:
 
 
 def prototype(prefix: str, kernel: Kernel, precision: Precision) -> str:
+    """A kernel's C prototype: its inputs as const pointers (the parameter struct for a params port), then its
+    outputs."""
     params = [f"const {params_type(prefix)} *{p.name}" if is_parameter_port(p)
               else f"const {precision.real} *{p.name}" for p in kernel.inputs]
     params += [f"{precision.real} *{p.name}" for p in kernel.outputs]
@@ -336,6 +341,7 @@ _STORE = re.compile(r"(\w+)\[(\d+)\] = ([\w.+-]+);")
 
 
 def fills(statements: list[str]) -> list[str]:
+    """The statements with every run of FILL_RUN or more stores of one value into consecutive elements as a loop."""
     out, k = [], 0
     while k < len(statements):
         first = _STORE.fullmatch(statements[k])

@@ -55,6 +55,7 @@ _NOT_ARITHMETIC = frozenset({ca.OP_INPUT, ca.OP_OUTPUT, ca.OP_CONST, ca.OP_ASSIG
 
 @dataclass(frozen=True)
 class PortView:
+    """A kernel port as the templates show it: its rows x cols, numpy shape (one value, and batched), size macro."""
     name: str
     rows: int
     cols: int
@@ -107,6 +108,8 @@ class ParameterView:
 
 @dataclass(frozen=True)
 class FunctionView:
+    """A kernel as the templates show it: its Python and C names, doc, prototype and C definition, ports, Python
+    docstring."""
     name: str  # Python name and kernel name
     c_name: str  # <module>_<name>
     doc: str
@@ -146,11 +149,13 @@ class HelperView:
 
     @property
     def prototype(self) -> str:
+        """The helper's declaration for the compile parts that link to it (RG_SHARED, not static)."""
         return "RG_SHARED " + self.definition.removeprefix("static ").split(" {", 1)[0] + ";"
 
 
 @dataclass(frozen=True)
 class ModuleView:
+    """What the templates render for a module: its name, precision, nq, versions, functions, parameters, controllers."""
     name: str
     macro_prefix: str  # NAME
     precision: str
@@ -198,6 +203,8 @@ def module_view(name: str, kernels: list[Kernel], *, nq: int, precision: str,
                 spec_sha256: str, extra_info: dict | None, attributes: dict | None,
                 progress: Progress = QUIET,
                 controllers: list[Controller | MultiRate] | tuple[Controller | MultiRate, ...] = ()) -> ModuleView:
+    """The ModuleView of kernels built for module ``name`` (names checked as C identifiers, precision double or
+    float)."""
     if precision not in PRECISIONS:
         raise ValueError(f"precision must be one of {sorted(PRECISIONS)}, got {precision!r}")
     check_identifier(name, "module name")

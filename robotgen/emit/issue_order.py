@@ -35,6 +35,8 @@ _DEFAULT_LATENCY = 3  # add, subtract, multiply, compare, select
 
 
 def latency(op: int) -> int:
+    """Modelled latency of an operation in cycles of a current x86-64 core (0 for inputs, constants, outputs,
+    copies)."""
     return 0 if op in _FREE else _LATENCY.get(op, _DEFAULT_LATENCY)
 
 

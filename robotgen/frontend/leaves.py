@@ -40,6 +40,8 @@ class LeafReader(Collector):
     """DEFINE leaves."""
 
     def inertia(self, path: Path, tensor: dict) -> np.ndarray:
+        """A (3, 3) inertia tensor [kg m^2] about the centre of mass: an error unless positive semi-definite, a
+        warning off the triangle inequality."""
         ixx, iyy, izz = (self.constant(path + (k,), tensor[k]) for k in ("ixx", "iyy", "izz"))
         ixy, ixz, iyz = (self.optional(tensor, path, k, 0.0) for k in ("ixy", "ixz", "iyz"))
         inertia = np.array([[ixx, ixy, ixz], [ixy, iyy, iyz], [ixz, iyz, izz]])
@@ -64,6 +66,8 @@ class LeafReader(Collector):
         return inertia
 
     def body(self, path: Path, link: dict | None) -> Body:
+        """A link's Body: mass [kg], centre of mass (3,) [m], inertia (3, 3) [kg m^2]; a massless body without the
+        link."""
         if link is None:
             return Body.zero()
         mass = self.constant(path + ("mass",), link["mass"], minimum=0.0)
@@ -72,6 +76,7 @@ class LeafReader(Collector):
         return Body(mass, com, inertia)
 
     def limits(self, path: Path, limits: dict | None) -> Limits:
+        """A joint's Limits (lower, upper, velocity, effort), upper not below lower."""
         limits = limits or {}
         values = {k: self.constant(path + (k,), limits[k], minimum=0.0 if k in ("velocity", "effort") else None)
                   for k in ("lower", "upper", "velocity", "effort") if k in limits}
