@@ -192,6 +192,7 @@ class UrdfChain:
     """A tree read from a URDF, with the located notes and warnings for the user (what was
     ignored or locked); ``robot`` is where <robot> starts and ``robot_name`` its name
     attribute (None if absent), for the module-name note."""
+
     tree: KinematicTree
     notes: tuple[str, ...]
     robot: Location | None = None
@@ -300,6 +301,7 @@ class UrdfFile:
 
     @property
     def root(self) -> Element:
+        """The file's <robot> element."""
         return self.r.root
 
     def joint_names(self) -> dict[str, Element]:
@@ -558,6 +560,7 @@ def _foreign_dynamics_attributes(r: _Reader, joints: list[Element]) -> tuple[str
 
 
 def load_urdf_system(path: str, tip: str, base: str | None = None, name: str | None = None) -> RobotSystem:
+    """A URDF file's chain from its base (or ``base``) to the link ``tip`` as a one-leaf RobotSystem."""
     return _single_leaf_system(path, read_urdf(path, tip, base, name), name is not None)
 
 
