@@ -40,6 +40,7 @@ from robotgen.symbolic.schedule import (
 class Precision:
     """A C floating type the kernels are printed in: its name, the C type, and the suffixes of its literals and
     <math.h> functions."""
+
     name: str
     real: str  # C type
     literal_suffix: str  # on floating constants

@@ -56,6 +56,7 @@ _NOT_ARITHMETIC = frozenset({ca.OP_INPUT, ca.OP_OUTPUT, ca.OP_CONST, ca.OP_ASSIG
 @dataclass(frozen=True)
 class PortView:
     """A kernel port as the templates show it: its rows x cols, numpy shape (one value, and batched), size macro."""
+
     name: str
     rows: int
     cols: int
@@ -110,6 +111,7 @@ class ParameterView:
 class FunctionView:
     """A kernel as the templates show it: its Python and C names, doc, prototype and C definition, ports, Python
     docstring."""
+
     name: str  # Python name and kernel name
     c_name: str  # <module>_<name>
     doc: str
@@ -156,6 +158,7 @@ class HelperView:
 @dataclass(frozen=True)
 class ModuleView:
     """What the templates render for a module: its name, precision, nq, versions, functions, parameters, controllers."""
+
     name: str
     macro_prefix: str  # NAME
     precision: str

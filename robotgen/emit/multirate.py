@@ -34,6 +34,7 @@ WIDTH = 92  # of the header's comment lines
 class GroupView:
     """One rate group as the templates show it: its step and init kernels, its period [s] and its ticks of the
     fastest period."""
+
     index: int
     step: str  # kernel name
     c_step: str  # its C function
@@ -54,6 +55,7 @@ class GroupView:
 @dataclass(frozen=True)
 class HeldView:
     """A held trajectory wr_<node>: the slower group that writes it, the faster one that reads it, its size."""
+
     name: str  # the port and struct field, wr_<node>
     node: str
     size: int
@@ -66,6 +68,7 @@ class HeldView:
 class MultiRateView:
     """A MultiRateController as the templates show it: the C struct, reset and step, the groups and held
     trajectories, the step's ports."""
+
     class_name: str
     c_type: str  # <module>_multirate
     macro: str  # <MODULE>_MULTIRATE

@@ -43,6 +43,7 @@ class Instruction:
 @dataclass(frozen=True)
 class Program:
     """A kernel's CasADi SX algorithm as a list of instructions, with the output elements it never writes."""
+
     instructions: tuple[Instruction, ...]
     unwritten_outputs: tuple[tuple[int, tuple[int, ...]], ...]
     """Per output port with structural zeros: (port index, dense elements never written)."""

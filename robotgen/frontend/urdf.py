@@ -192,7 +192,6 @@ class UrdfChain:
     """A tree read from a URDF, with the located notes and warnings for the user (what was
     ignored or locked); ``robot`` is where <robot> starts and ``robot_name`` its name
     attribute (None if absent), for the module-name note."""
-
     tree: KinematicTree
     notes: tuple[str, ...]
     robot: Location | None = None
