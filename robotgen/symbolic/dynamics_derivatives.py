@@ -60,6 +60,7 @@ class DynamicsDerivatives:
         self._fd_derivatives: tuple[ca.SX, ca.SX, ca.SX, ca.SX] | None = None
 
     def inverse_dynamics_derivatives(self) -> tuple[ca.SX, ca.SX]:
+        """(d tau/dq, d tau/dqd), each (n, n), of inverse dynamics at (q, qd, qdd)."""
         s = self.sym
         dq, dqd = self._id(s.q, s.qd, s.qdd)
         return dq, dqd
@@ -156,6 +157,7 @@ class DynamicsDerivatives:
         return recursion <= RECURSION_LOOPS_WITHIN * sweeps
 
     def mass_inverse(self) -> ca.SX:
+        """M^-1 (n, n) by L D L^T solves of the identity."""
         n = self.sym.q.shape[0]
         return cholesky_solve_matrix(self.graphs.mass(), ca.SX.eye(n))
 

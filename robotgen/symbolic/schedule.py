@@ -40,12 +40,15 @@ class Slice:
     i_table: tuple[int, ...] = ()  # when given, i_table[i] takes i's place (a tree's parent)
 
     def elements(self, count: int, i: int, j: int) -> list[int]:
+        """The array elements of iteration (i, j): ``count`` of them, ``step`` apart."""
         start = self.offset + (self.i_table[i] if self.i_table else i) * self.i_stride + j * self.j_stride
         return [start + e * self.step for e in range(count)]
 
 
 @dataclass(frozen=True, eq=False)
 class Loop:
+    """One loop: a body applied to slices of local arrays over an index space (RANGE, PAIRS, ONCE)."""
+
     body: ca.Function  # SX; dense column inputs and outputs
     space: str
     n: int
@@ -54,6 +57,7 @@ class Loop:
     pairs: tuple[tuple[int, int], ...] = ()  # the space PAIRS
 
     def iterations(self) -> list[tuple[int, int]]:
+        """The (i, j) of each iteration, in order."""
         n = self.n
         if self.space == PAIRS:
             return list(self.pairs)
@@ -86,6 +90,8 @@ class Stage:
 
 @dataclass(frozen=True, eq=False)
 class Schedule:
+    """A kernel as a prologue and loops over local arrays, with stages before them and its outputs' unwritten zeros."""
+
     local_sizes: tuple[int, ...]
     prologue: ca.Function  # the kernel's inputs -> one column per prologue write
     prologue_writes: tuple[Slice, ...]
@@ -164,6 +170,7 @@ class ScheduleBuilder:
 
     def loop(self, body: ca.Function, space: str, n: int, reads: list[Slice], writes: list[Slice],
              pairs: list[tuple[int, int]] = ()) -> None:
+        """Add a loop, checking that every element it reads was written before."""
         loop = Loop(body, space, n, tuple(reads), tuple(writes), tuple(pairs))
         if (space == PAIRS) != bool(pairs):
             raise ValueError("the space PAIRS, and it alone, lists its pairs")

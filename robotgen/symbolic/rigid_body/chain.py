@@ -30,6 +30,8 @@ from robotgen.symbolic.rigid_body.rnea_derivatives import axes_and_inertias, rne
 
 @dataclass(frozen=True, eq=False)
 class Symbols:
+    """The shared symbols of a leaf: q, qd, qdd, tau, each (n,)."""
+
     q: ca.SX
     qd: ca.SX
     qdd: ca.SX
@@ -37,6 +39,7 @@ class Symbols:
 
     @staticmethod
     def make(n: int) -> Symbols:
+        """Fresh symbols q, qd, qdd, tau of size n."""
         return Symbols(ca.SX.sym("q", n), ca.SX.sym("qd", n), ca.SX.sym("qdd", n), ca.SX.sym("tau", n))
 
 
@@ -124,6 +127,7 @@ class ChainGraphs:
         return self._get("tip_turned", build)
 
     def jacobian_hand(self) -> ca.SX:
+        """The tip Jacobian (6, n) in tip-frame coordinates (Whitney 1972, eq 7): blockdiag(R^T, R^T) J."""
         return self._get("jacobian_hand", lambda: self.coordinates.columns(hand_jacobian(self.tree, self.q_joints)))
 
     def jacobian_dot_qd(self) -> ca.SX:
@@ -136,6 +140,7 @@ class ChainGraphs:
         return self._get("bias_pass", lambda: forward_pass(self.tree, self.motions, self.qd_joints, None))
 
     def mass(self) -> ca.SX:
+        """M(q) (n, n) by the composite rigid-body algorithm, in the tree's coordinates."""
         return self._get("mass", lambda: self.coordinates.matrix(crba(self.tree, self.motions, self.inertias),
                                                                  symmetric=True))
 
@@ -173,6 +178,7 @@ class ChainGraphs:
         return self._get("friction", lambda: self.coordinates.forces(friction_torque(self.tree, self.qd_joints)))
 
     def gravity(self) -> ca.SX:
+        """Gravity torques N(q) (n,) by Newton-Euler at qd = qdd = 0."""
         return self._get("gravity",
                          lambda: self.coordinates.forces(rnea(self.tree, self.motions, self.inertias, None, None)))
 
@@ -192,6 +198,7 @@ class ChainGraphs:
         return self._get("inverse_dynamics", build)
 
     def forward_dynamics(self) -> ca.SX:
+        """qdd = M^-1 (tau - C qd - N) (n,), by L D L^T."""
         return self._get("forward_dynamics",
                          lambda: cholesky_solve(self.mass(), self.sym.tau - self.nonlinear()))
 

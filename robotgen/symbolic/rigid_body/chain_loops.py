@@ -240,6 +240,7 @@ class ChainLoops:
     # -- kernels ----------------------------------------------------------------------------
 
     def mass(self, b: ScheduleBuilder) -> None:
+        """Schedule M (n, n) as loops: composite inertias from the tip, then each joint pair."""
         S, BODY = self._kinematics(b)
         if not self.coordinates.coupled:
             self._mass(b, S, self._composite_inertias(b, BODY), (OUTPUT, 0))
@@ -263,6 +264,7 @@ class ChainLoops:
         self._to_coordinates(b, "force_coordinates", [(TAU, "vector")], lambda tau: tau, Slice(OUTPUT, 0))
 
     def coriolis(self, b: ScheduleBuilder, qd: ca.SX) -> None:
+        """Schedule C(q, qd) (n, n) as loops: the spatial algorithm's composites from the tip."""
         n = self.n
         S, BODY = self._kinematics(b)
         _, V, SDOT = self._velocities(b, S, self.coordinates.rates(qd))

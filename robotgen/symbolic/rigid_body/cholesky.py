@@ -20,6 +20,8 @@ from robotgen.symbolic.schedule import LOCAL, RANGE, ScheduleBuilder, Slice, bod
 
 @dataclass(frozen=True, eq=False)
 class Cholesky:
+    """M = L D L^T (no square roots): L unit lower triangular, d and 1/d, as lists of SX."""
+
     L: list[list[ca.SX]]  # unit lower triangular (the diagonal is 1 and not read), M = L D L^T
     diagonal: list[ca.SX]  # d_i (every one NaN when M is not positive definite)
     inverse_diagonal: list[ca.SX]  # 1 / d_i (likewise)
@@ -69,6 +71,7 @@ def _minus_terms(value: ca.SX, terms: list[ca.SX]) -> ca.SX:
 
 
 def cholesky_solve(M: ca.SX, b: ca.SX) -> ca.SX:
+    """M^-1 b for a symmetric positive definite M (n, n) and b (n,) or (n, k), by L D L^T."""
     return cholesky_substitute(cholesky_factor(M), b)
 
 
