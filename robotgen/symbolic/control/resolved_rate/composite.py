@@ -112,7 +112,7 @@ class CompositeRateLaw:
         return ca.vertcat(error / T, ca.SX.zeros(self.k - self.n_external)), error
 
     def position_step(self, target: ca.SX) -> tuple[ca.SX, ca.SX]:
-        """(rates, error) of position control toward ``target``: the error over the horizon, resolved."""
+        """(joint rates, error) of position control toward ``target``: the error over the horizon, resolved."""
         rates, error = self.rates(target, self.s.horizon)
         return self.resolve(rates), error
 
