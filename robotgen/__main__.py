@@ -10,6 +10,7 @@ import sys
 
 
 def main() -> None:
+    """`python -m robotgen`: the command line, a Ctrl-C before it has set its own handlers ends with status 130."""
     try:
         _start()
     except KeyboardInterrupt:

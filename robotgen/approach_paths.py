@@ -23,6 +23,9 @@ ARRIVAL = "arrival"
 
 @dataclass
 class ApproachPath:
+    """One approach to a target as sampled: times t [s], joint positions q, the step's error output and the rate
+    scale at each sample."""
+
     approach: str  # exponential | arrival
     t: np.ndarray  # (steps + 1,) [s]
     q: np.ndarray  # (steps + 1, n) joint positions at t

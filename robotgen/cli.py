@@ -530,6 +530,7 @@ def _casadi_version() -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
+    """Run the robotgen command with ``argv`` (default sys.argv[1:]); return its exit status 0/1/2/3."""
     parser = _parser()
     try:
         args = parser.parse_args(argv)
@@ -584,6 +585,7 @@ def answer_signals() -> None:
 
 
 def entry() -> None:
+    """The console script: main() with SIGINT and SIGTERM answered, its status passed to sys.exit."""
     answer_signals()
     try:
         status = main()

@@ -38,6 +38,9 @@ SETTLE_WINDOW = 1.0  # [s]: the RMS just after a change and at the end of the ru
 
 @dataclass
 class HandRun:
+    """One hand controller's run: hand position p, its position and orientation errors (steps, 3) [m, rad], torques
+    (steps, 6) [N m]."""
+
     key: str  # the CSV's column prefix
     label: str
     p: np.ndarray  # (steps, 3) hand position
@@ -59,6 +62,9 @@ class HandRun:
 
 @dataclass
 class HandResult:
+    """A hand simulation: times t [s], desired positions p_d (steps, 3) [m], each controller's run, the payload
+    changes, the plant."""
+
     t: np.ndarray
     p_d: np.ndarray
     joints: list[str]
@@ -69,14 +75,17 @@ class HandResult:
     plant_note: str = "classical RK4 of the chain's forward dynamics, one step per period"
 
     def window(self, start: float, length: float = SETTLE_WINDOW) -> np.ndarray:
+        """Mask of the samples in [start, start + length) [s]."""
         return (self.t >= start) & (self.t < start + length)
 
     @property
     def last_window(self) -> np.ndarray:
+        """Mask of the last SETTLE_WINDOW seconds."""
         return self.t > self.t[-1] - SETTLE_WINDOW
 
     @property
     def before(self) -> np.ndarray:
+        """Mask of the samples before the first payload change."""
         return self.t < (self.changes[0].at if self.changes else np.inf)
 
 
@@ -95,6 +104,7 @@ class Trajectory:
         self._angular = ca.Function("angular", [phi, dphi, ddphi], [rpy_rotation(phi), omega, domega])
 
     def at(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(pose (4, 4), twist (6,) [m/s, rad/s], its derivative (6,)) of the desired hand path at t [s]."""
         s, c = np.sin(self.w * t), np.cos(self.w * t)
         x = np.r_[self.p0, self.rpy0] + self.a * s
         xd, xdd = self.a * self.w * c, -self.a * self.w ** 2 * s

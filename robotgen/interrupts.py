@@ -25,6 +25,7 @@ _noted: list[int] = []
 
 
 def exception_for(signum: int) -> BaseException:
+    """The exception a signal is raised as: KeyboardInterrupt for SIGINT, Terminated for SIGTERM."""
     return KeyboardInterrupt() if signum == signal.SIGINT else Terminated()
 
 

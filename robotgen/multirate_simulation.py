@@ -17,6 +17,8 @@ SINGLE_RATE = "single_rate"  # the file stem's suffix of the single-rate run
 
 @dataclass(frozen=True)
 class GroupCost:
+    """One rate group's step: its controllers, period [s] and operations per step."""
+
     step: str
     controllers: tuple[str, ...]
     period: float
@@ -24,6 +26,7 @@ class GroupCost:
 
     @property
     def per_second(self) -> float:
+        """Operations per second: one step's over the period."""
         return self.operations / self.period
 
 
@@ -36,6 +39,7 @@ class Cost:
 
     @property
     def multi_rate(self) -> float:
+        """Operations per second of the MultiRateController: every group's summed."""
         return sum(g.per_second for g in self.groups)
 
 

@@ -45,6 +45,7 @@ def sha256_of(path: Path) -> str | None:
 
 
 def shown(names: list[str]) -> str:
+    """Up to five names, then how many more."""
     return ", ".join(names[:5]) + (f" and {len(names) - 5} more" if len(names) > 5 else "")
 
 

@@ -9,12 +9,15 @@ import time
 
 
 class Progress:
+    """Progress of a build on stderr: each stage with the seconds since the start, when enabled."""
+
     def __init__(self, enabled: bool = True, stream=None):
         self.enabled = enabled
         self.stream = stream
         self.started = time.monotonic()
 
     def stage(self, text: str) -> None:
+        """Print a stage's line, with the seconds since the start."""
         if self.enabled:
             stream = self.stream or sys.stderr
             print(f"robotgen: [{time.monotonic() - self.started:5.1f} s] {text}", file=stream, flush=True)

@@ -42,6 +42,8 @@ class SimulationError(ValueError):
 
 @dataclass
 class Result:
+    """A servo simulation: times t [s], root positions x and x_d, torques tau, leaf positions theta, names and units."""
+
     t: np.ndarray
     x: np.ndarray  # root positions
     x_d: np.ndarray
@@ -69,10 +71,12 @@ class Result:
 
     @property
     def error(self) -> np.ndarray:
+        """The tracking error x - x_d (steps, root coordinates)."""
         return self.x - self.x_d
 
 
 def load_module(out_dir: Path, name: str):
+    """Import the built module ``name`` from out_dir."""
     sys.path.insert(0, str(out_dir))
     try:
         importlib.invalidate_caches()
@@ -82,12 +86,14 @@ def load_module(out_dir: Path, name: str):
 
 
 def desired(s: Settings, x0: np.ndarray, t: float):
+    """(x_d, xd_d, xdd_d) at t [s]: x0 plus the settings' sine, amplitude a and frequency f [Hz] per coordinate."""
     a = np.zeros_like(x0) if not s.amplitude else np.asarray(s.amplitude, float)
     w = 2 * np.pi * (np.zeros_like(x0) if not s.frequency else np.asarray(s.frequency, float))
     return x0 + a * np.sin(w * t), a * w * np.cos(w * t), -a * w * w * np.sin(w * t)
 
 
 def format_values(values) -> str:
+    """Values as [v1, v2, ...] to 4 significant digits."""
     return "[" + ", ".join(f"{v:.4g}" for v in np.asarray(values, float).ravel()) + "]"
 
 
@@ -145,9 +151,11 @@ class ModulePlant:
         self.masses: dict[str, float] = {}  # run-time payload masses, by parameter name
 
     def set_wall(self, wall: Wall) -> None:
+        """Put the simulation's wall in the plant."""
         self.wall = WallContact(self.module, wall)
 
     def set_payload_mass(self, payload: str, mass: float) -> None:
+        """Change a run-time payload's mass [kg] from now on."""
         self.masses[f"{payload}_mass"] = mass
 
     def _rates(self, theta: np.ndarray, v: np.ndarray) -> np.ndarray:
@@ -158,12 +166,15 @@ class ModulePlant:
         return tau if self.wall is None else tau + self.wall.torque(theta, self._rates(theta, v))
 
     def sensed(self) -> tuple[np.ndarray, np.ndarray]:
+        """Leaf positions theta (nq,) and rates theta_dot (nq,) of the plant now."""
         return self.theta, self._rates(self.theta, self.v)
 
     def position(self, theta: np.ndarray) -> np.ndarray:
+        """The root's external positions at leaf positions theta (nq,), by the module's plant_position."""
         return self.module.plant_position(theta)[:self.n_ext]
 
     def internal_forces(self, tau: np.ndarray) -> np.ndarray:
+        """The plant's internal forces under leaf torques tau (nq,), the wall's push included."""
         return self.module.plant_internal_forces(self.theta, self.v, self._pushed(self.theta, self.v, tau),
                                                  **self.masses)
 
@@ -175,9 +186,11 @@ class ModulePlant:
         return self.module.plant_sensed_forces(self.theta, self.v, pushed, **self.masses) - (pushed - tau_before)
 
     def wall_force(self) -> float:
+        """The wall's normal force [N] on its point now."""
         return self.wall.normal_force(*self.sensed())
 
     def record(self, t: float) -> None:
+        """robotgen's plant records no contacts."""
         pass
 
     def step(self, tau: np.ndarray, dt: float, when: str) -> None:
@@ -428,6 +441,7 @@ def _by_unit(names: list[str], units: list[str]) -> dict[str, list[int]]:
 
 
 def summary(result: Result) -> str:
+    """The lines simulate prints: the run, then each root coordinate's largest and final tracking error."""
     lines = [f"simulated {result.t[-1]:.3f} s in {len(result.t) - 1} steps on the {result.plant} plant "
              f"({result.plant_note})" if result.plant_note else
              f"simulated {result.t[-1]:.3f} s in {len(result.t) - 1} steps on the {result.plant} plant",

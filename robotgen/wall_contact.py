@@ -19,6 +19,8 @@ from robotgen.model.simulation import Wall
 
 
 class WallContact:
+    """A wall in robotgen's plant: a frictionless spring-damper half-space acting on one node's point."""
+
     def __init__(self, module, wall: Wall):
         self.wall = wall
         self.read = getattr(module, f"{wall.node}_read")
@@ -33,6 +35,7 @@ class WallContact:
         return float((self.point - x) @ self.normal), float(-xd @ self.normal), columns @ self.normal
 
     def normal_force(self, theta: np.ndarray, theta_dot: np.ndarray) -> float:
+        """The wall's normal force [N] at leaf positions theta and rates theta_dot (nq,)."""
         d, d_dot, _ = self.depth(theta, theta_dot)
         return self._force(d, d_dot)
 

@@ -38,6 +38,9 @@ from robotgen.symbolic.schedule import (
 
 @dataclass(frozen=True)
 class Precision:
+    """A C floating type the kernels are printed in: its name, the C type, and the suffixes of its literals and
+    <math.h> functions."""
+
     name: str
     real: str  # C type
     literal_suffix: str  # on floating constants
@@ -113,6 +116,7 @@ def check_identifier(name: str, what: str) -> None:
 
 
 def function_name(prefix: str, kernel: Kernel) -> str:
+    """The C name of a kernel in a module: <prefix>_<kernel name>."""
     return f"{prefix}_{kernel.name}"
 
 
@@ -138,6 +142,8 @@ def parameter_elements(port: Port) -> list[str]:
 
 
 def prototype(prefix: str, kernel: Kernel, precision: Precision) -> str:
+    """A kernel's C prototype: its inputs as const pointers (the parameter struct for a params port), then its
+    outputs."""
     params = [f"const {params_type(prefix)} *{p.name}" if is_parameter_port(p)
               else f"const {precision.real} *{p.name}" for p in kernel.inputs]
     params += [f"{precision.real} *{p.name}" for p in kernel.outputs]
@@ -325,20 +331,18 @@ def _scheduled_body(kernel: Kernel, precision: Precision, read, helpers: dict[St
 
 # A run of at least FILL_RUN statements storing one value into consecutive elements of an array
 # is printed as a loop. A schedule's prologue zeroes the arrays its loops add into and the
-# outputs they leave alone, up to a thousand stores in a row (the iCub's mass matrix), and gcc's
-# dead-store and alias passes take time quadratic in such a block: the iCub's mass compiled in
-# 1.6 s, forward dynamics in 3.7 s; with every run of 16 or more as a loop, 0.28 and 0.59 s,
-# but M then ran 7% slower (its outputs' zero runs of 18-32 as loops). With runs of 64 or more
-# as loops, the iCub's compile step took 4.3 s against 6.5 s and its kernels ran as fast (5
-# alternating rounds, a Zen 2 guest). The loop stores two elements per step (an odd run's last
-# store follows it): gcc -O2 makes that one 16-byte store per step, where a loop of single
-# stores of zero became `rep stosq` (an inline memset, slow to start) and of another value
-# stayed scalar.
+# outputs they leave alone, up to a thousand stores in a row on a large tree, and gcc's
+# dead-store and alias passes take time quadratic in such a block. Shorter runs stay stores:
+# as loops they made a mass matrix slower (docs/performance-log.md). The loop stores two
+# elements per step (an odd run's last store follows it): gcc -O2 makes that one 16-byte store
+# per step, where a loop of single stores of zero became `rep stosq` (an inline memset, slow to
+# start) and of another value stayed scalar.
 FILL_RUN = 64
 _STORE = re.compile(r"(\w+)\[(\d+)\] = ([\w.+-]+);")
 
 
 def fills(statements: list[str]) -> list[str]:
+    """The statements with every run of FILL_RUN or more stores of one value into consecutive elements as a loop."""
     out, k = [], 0
     while k < len(statements):
         first = _STORE.fullmatch(statements[k])

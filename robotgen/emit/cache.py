@@ -23,6 +23,8 @@ def _code_files() -> list[Path]:
 
 
 def build_key(inputs: list[Path], options: dict) -> str:
+    """sha256 of everything a build depends on: its input files, options, robotgen's code and templates, CasADi, $CC
+    and $CFLAGS."""
     h = hashlib.sha256()
     for path in inputs + _code_files():
         h.update(str(path.name).encode() + b"\0" + path.read_bytes() + b"\0")
@@ -34,6 +36,7 @@ def build_key(inputs: list[Path], options: dict) -> str:
 
 
 def is_current(out_dir: Path, key: str, compiled: bool, name: str) -> bool:
+    """Whether out_dir holds a build stamped with ``key`` (and, when ``compiled``, its extension module)."""
     stamp = out_dir / BUILD_KEY
     if not stamp.is_file() or stamp.read_text().strip() != key:
         return False
@@ -42,4 +45,5 @@ def is_current(out_dir: Path, key: str, compiled: bool, name: str) -> bool:
 
 
 def record(out_dir: Path, key: str) -> None:
+    """Stamp out_dir with the build key it was built under."""
     (out_dir / BUILD_KEY).write_text(key + "\n")

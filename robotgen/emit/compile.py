@@ -35,6 +35,7 @@ class FlagsRejected(CompilerSetupError):
 
 
 def extension_suffix() -> str:
+    """The file suffix of a Python extension module on this interpreter (e.g. .cpython-311-x86_64-linux-gnu.so)."""
     return sysconfig.get_config_var("EXT_SUFFIX") or ".so"
 
 

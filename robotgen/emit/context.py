@@ -55,6 +55,8 @@ _NOT_ARITHMETIC = frozenset({ca.OP_INPUT, ca.OP_OUTPUT, ca.OP_CONST, ca.OP_ASSIG
 
 @dataclass(frozen=True)
 class PortView:
+    """A kernel port as the templates show it: its rows x cols, numpy shape (one value, and batched), size macro."""
+
     name: str
     rows: int
     cols: int
@@ -107,6 +109,9 @@ class ParameterView:
 
 @dataclass(frozen=True)
 class FunctionView:
+    """A kernel as the templates show it: its Python and C names, doc, prototype and C definition, ports, Python
+    docstring."""
+
     name: str  # Python name and kernel name
     c_name: str  # <module>_<name>
     doc: str
@@ -146,11 +151,14 @@ class HelperView:
 
     @property
     def prototype(self) -> str:
+        """The helper's declaration for the compile parts that link to it (RG_SHARED, not static)."""
         return "RG_SHARED " + self.definition.removeprefix("static ").split(" {", 1)[0] + ";"
 
 
 @dataclass(frozen=True)
 class ModuleView:
+    """What the templates render for a module: its name, precision, nq, versions, functions, parameters, controllers."""
+
     name: str
     macro_prefix: str  # NAME
     precision: str
@@ -198,6 +206,8 @@ def module_view(name: str, kernels: list[Kernel], *, nq: int, precision: str,
                 spec_sha256: str, extra_info: dict | None, attributes: dict | None,
                 progress: Progress = QUIET,
                 controllers: list[Controller | MultiRate] | tuple[Controller | MultiRate, ...] = ()) -> ModuleView:
+    """The ModuleView of kernels built for module ``name`` (names checked as C identifiers, precision double or
+    float)."""
     if precision not in PRECISIONS:
         raise ValueError(f"precision must be one of {sorted(PRECISIONS)}, got {precision!r}")
     check_identifier(name, "module name")
@@ -398,17 +408,15 @@ def _summary(doc: str, fallback: str) -> str:
 
 # A source past COMPILE_PARTS_ABOVE characters is compiled in COMPILE_PARTS processes at once
 # (robotgen.emit.compile): each kernel is in one part (#if RG_PART == k in <name>.c), and each
-# stage helper in one part, its home, which the other parts that call it link to (RG_SHARED;
-# the iCub's kinematics, 6700 lines and 1.4 s of gcc, was compiled in both parts before). The
+# stage helper in one part, its home, which the other parts that call it link to (RG_SHARED),
+# so that a large tree's kinematics is not compiled in every part. The
 # number is fixed, not the machine's cores, so that the emitted text is the same everywhere; a
 # user's own build of <name>.c (no RG_PART) takes every kernel.
 COMPILE_PARTS = 2
 COMPILE_PARTS_ABOVE = 300_000
 # gcc -O2 spends more time on a statement inside a loop body than on one of straight-line code,
-# most of it in SLP vectorisation of the body's stores (the iCub's kernels compiled one by one:
-# 0.08-0.19 s per 1000 straight-line statements, 0.23-1.18 s per 1000 in loops, more in larger
-# bodies). Counting loop statements 5 times, the iCub's two parts take 3.96 and 3.60 s (summed
-# from those times; 4.3 and 3.2 s at a count of 1, and 3.8 at best).
+# most of it in SLP vectorisation of the body's stores; counting loop statements this many
+# times balances the parts' compile times best (docs/performance-log.md).
 LOOP_STATEMENT_COST = 5
 
 

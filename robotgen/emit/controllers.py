@@ -66,6 +66,9 @@ class OutputField:
 
 @dataclass(frozen=True)
 class ControllerView:
+    """A root law's controller as the templates show it: the Python class, the C struct with its reset and step,
+    their kernels."""
+
     class_name: str
     snake: str  # "adaptive"
     c_type: str  # <module>_<snake>_controller

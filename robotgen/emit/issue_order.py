@@ -2,21 +2,19 @@
 
 CasADi lists a program's steps in the order its expression graph was built: one recursion
 after the other. A kernel with few operations per step of its longest chain of dependent
-operations (the Panda's mass matrix: 434 operations, a chain 142 cycles long) is bound by that chain,
+operations (a mass matrix, a Jacobian, gravity) is bound by that chain,
 and the processor overlaps the independent chains only as far as its window reaches. For
 such a kernel the statements are printed in the order of a list schedule instead: cycle by
 cycle, up to ISSUE_WIDTH ready operations, the one heading the longest remaining chain
 first. The values, and so the results, are the same bit for bit; only the order differs.
 Kernels with many operations per chain step (fused, derivative kernels) are bound by the
 processor's throughput, and a list schedule holds too many values live for them (it made
-the Panda's fused servo terms slower, 197 against 214 ns). Those without loops are printed
+fused servo terms slower). Those without loops are printed
 in an order that frees values early instead (pressure_scheduled): a constant or an input
 just before the step that reads it, and of the steps ready, the one reading the most values
 for the last time. gcc at -O2 on x86-64 does not reorder before allocating registers, so
-the printed order is the one it spills by. Measured (A/B, 4-6 alternating rounds, ns): the
-Panda's servo terms 173 -> 164, forward dynamics 187 -> 182; the UR5's servo terms
-105 -> 97, Coriolis matrix 121 -> 115, derivatives of forward dynamics 613 -> 593, of
-inverse dynamics 195 -> 194.
+the printed order is the one it spills by (the timings behind both orders:
+docs/performance-log.md).
 
 The latencies are a model (cycles of a current x86-64 core), used only to rank; the order
 is computed from them alone, so it is the same on every machine.
@@ -37,6 +35,8 @@ _DEFAULT_LATENCY = 3  # add, subtract, multiply, compare, select
 
 
 def latency(op: int) -> int:
+    """Modelled latency of an operation in cycles of a current x86-64 core (0 for inputs, constants, outputs,
+    copies)."""
     return 0 if op in _FREE else _LATENCY.get(op, _DEFAULT_LATENCY)
 
 

@@ -32,6 +32,9 @@ WIDTH = 92  # of the header's comment lines
 
 @dataclass(frozen=True)
 class GroupView:
+    """One rate group as the templates show it: its step and init kernels, its period [s] and its ticks of the
+    fastest period."""
+
     index: int
     step: str  # kernel name
     c_step: str  # its C function
@@ -51,6 +54,8 @@ class GroupView:
 
 @dataclass(frozen=True)
 class HeldView:
+    """A held trajectory wr_<node>: the slower group that writes it, the faster one that reads it, its size."""
+
     name: str  # the port and struct field, wr_<node>
     node: str
     size: int
@@ -61,6 +66,9 @@ class HeldView:
 
 @dataclass(frozen=True)
 class MultiRateView:
+    """A MultiRateController as the templates show it: the C struct, reset and step, the groups and held
+    trajectories, the step's ports."""
+
     class_name: str
     c_type: str  # <module>_multirate
     macro: str  # <MODULE>_MULTIRATE

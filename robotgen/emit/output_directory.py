@@ -71,6 +71,7 @@ class Manifest:
         return {file.format(name=self.name) for file in TEMPLATES}
 
     def is_extension(self, entry: str) -> bool:
+        """Whether ``entry`` is the module's extension (<name>.so or .pyd, with or without an ABI tag)."""
         return bool(re.fullmatch(re.escape(self.name) + r"\.[A-Za-z0-9_.-]+\.(so|pyd)|" + re.escape(self.name)
                                  + r"\.(so|pyd)", entry))
 

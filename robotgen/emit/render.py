@@ -25,6 +25,7 @@ TEMPLATES = {
 
 
 def template_dir() -> Path:
+    """The directory of the jinja2 templates: robotgen/templates when installed, templates/ in a checkout."""
     for candidate in _TEMPLATE_DIRS:
         if (candidate / "header.h.jinja").is_file():
             return candidate
@@ -34,6 +35,7 @@ def template_dir() -> Path:
 
 @lru_cache(maxsize=1)
 def environment() -> jinja2.Environment:
+    """The jinja2 environment every template renders in: strict undefined names, no escaping, trimmed blocks."""
     return jinja2.Environment(
         loader=jinja2.FileSystemLoader(str(template_dir())),
         undefined=jinja2.StrictUndefined,

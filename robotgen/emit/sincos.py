@@ -129,6 +129,7 @@ def helper_source() -> str:
 
 
 def uses_helper(program: Program) -> bool:
+    """Whether the program calls rg_sincos2 (so the source must define it)."""
     return any(step.op == SINCOS for step in program.instructions)
 
 

@@ -36,11 +36,14 @@ class Instruction:
 
     @property
     def op_name(self) -> str:
+        """The CasADi operation's name (e.g. OP_MUL), for messages."""
         return OP_NAMES.get(self.op, f"op {self.op}")
 
 
 @dataclass(frozen=True)
 class Program:
+    """A kernel's CasADi SX algorithm as a list of instructions, with the output elements it never writes."""
+
     instructions: tuple[Instruction, ...]
     unwritten_outputs: tuple[tuple[int, tuple[int, ...]], ...]
     """Per output port with structural zeros: (port index, dense elements never written)."""

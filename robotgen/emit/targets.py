@@ -29,6 +29,7 @@ class TargetUnavailable(Exception):
 
 
 def check_available(target: str) -> None:
+    """Raise TargetUnavailable unless the target's compiler, nm, size and objdump are on PATH."""
     compiler, _ = TARGETS[target]
     for tool in (compiler, *(_sibling(compiler, t) for t in ("nm", "size", "objdump"))):
         if shutil.which(tool) is None:

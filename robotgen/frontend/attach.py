@@ -88,6 +88,8 @@ class AttachReader(Collector):
         return node
 
     def check_attach(self, system: RobotSystem, node: AttachNode, robots: list[Signature]) -> AttachNode:
+        """Check an ATTACH node against its robots' signatures (robots, payload, constraint); return it with its
+        constraint read."""
         nodes = system.nodes
         path: Path = ("nodes", node.name, "attach")
         for i, r in enumerate(node.robots):

@@ -24,21 +24,27 @@ class Collector:
         self.dependencies: list[str] = []
 
     def error(self, location: Location, path: Path, message: str) -> None:
+        """Record an error at ``location``, prefixed with the spec path of the value it concerns."""
         self.errors.append(UserError(location, f"{format_path(self.doc.data, path)}: {message}"))
 
     def at_key(self, path: Path, message: str) -> None:
+        """Record an error located at the key of ``path``."""
         self.error(self.doc.source.key(path), path, message)
 
     def at_value(self, path: Path, message: str) -> None:
+        """Record an error located at the value of ``path``."""
         self.error(self.doc.source.value(path), path, message)
 
     def text_location(self, path: Path, value: object) -> tuple[Location, bool]:
+        """Where a value's text starts, and whether its columns are exact (a plain string) or only its line's."""
         if isinstance(value, str):
             return self.doc.source.text_start(path, value)
         return self.doc.source.value(path), True
 
     def constant(self, path: Path, value: object, *, minimum: float | None = None,
                  exclusive: bool = False) -> float:
+        """A constant (a number or a constant expression such as pi/2), checked against ``minimum``; 0.0 after an
+        error."""
         location, exact = self.text_location(path, value)
         try:
             number = parse_constant(value, location, exact_columns=exact)
@@ -82,21 +88,25 @@ class Collector:
         return False
 
     def optional(self, mapping: dict, path: Path, key: str, default: float, **bounds) -> float:
+        """mapping[key] read as a constant, or ``default`` when the key is absent."""
         if key not in mapping:
             return default
         return self.constant(path + (key,), mapping[key], **bounds)
 
     def vector(self, path: Path, values: list | None, default) -> np.ndarray:
+        """A vector of constants, or ``default`` when absent."""
         if values is None:
             return np.array(default, dtype=float)
         return np.array([self.constant(path + (i,), v) for i, v in enumerate(values)])
 
     def pose(self, path: Path, pose: dict | None) -> np.ndarray:
+        """A pose {xyz [m], rpy [rad]} as a (4, 4) homogeneous transform; a missing part is zero."""
         pose = pose or {}
         return xyz_rpy(self.vector(path + ("xyz",), pose.get("xyz"), (0, 0, 0)),
                        self.vector(path + ("rpy",), pose.get("rpy"), (0, 0, 0)))
 
     def expression(self, path: Path, value: object, names: set[str]) -> Expr | None:
+        """A formula expression over ``names``, parsed and located; None after an error."""
         location, exact = self.text_location(path, value)
         try:
             return parse_expression(value, location, names, exact_columns=exact)
@@ -119,11 +129,13 @@ class Collector:
 
     def vector_of_expressions(self, path: Path, values: list, length: int | None,
                               names: set[str]) -> tuple[Expr, ...]:
+        """A list of formula expressions, checked to have ``length`` entries (nq) when given."""
         if length is not None and len(values) != length:
             self.at_key(path, f"expected {length} entries (nq = {length}), got {len(values)}")
         return tuple(self.expression(path + (i,), v, names) for i, v in enumerate(values))
 
     def check_unique(self, owner: dict[str, str], names, robot: str, path: Path, kind: str, fix: str) -> None:
+        """Check that ``names`` of ``robot`` belong to no other robot (owner: name -> robot), then claim them."""
         for n in names:
             if n in owner and owner[n] != robot:
                 self.at_value(path, f"{kind} '{n}' of '{robot}' is also one of '{owner[n]}'; "
@@ -134,6 +146,7 @@ class Collector:
 
     def rectangle(self, path: Path, rows: list, n_rows: int | None, n_cols: int, names: set[str],
                   columns: str) -> tuple[tuple[Expr, ...], ...]:
+        """A matrix of formula expressions: n_rows rows (when given) of n_cols entries each."""
         if n_rows is not None and len(rows) != n_rows:
             self.at_key(path, f"expected {n_rows} rows (one per node coordinate), got {len(rows)}")
         for i, row in enumerate(rows):

@@ -40,6 +40,8 @@ class LeafReader(Collector):
     """DEFINE leaves."""
 
     def inertia(self, path: Path, tensor: dict) -> np.ndarray:
+        """A (3, 3) inertia tensor [kg m^2] about the centre of mass: an error unless positive semi-definite, a
+        warning off the triangle inequality."""
         ixx, iyy, izz = (self.constant(path + (k,), tensor[k]) for k in ("ixx", "iyy", "izz"))
         ixy, ixz, iyz = (self.optional(tensor, path, k, 0.0) for k in ("ixy", "ixz", "iyz"))
         inertia = np.array([[ixx, ixy, ixz], [ixy, iyy, iyz], [ixz, iyz, izz]])
@@ -64,6 +66,8 @@ class LeafReader(Collector):
         return inertia
 
     def body(self, path: Path, link: dict | None) -> Body:
+        """A link's Body: mass [kg], centre of mass (3,) [m], inertia (3, 3) [kg m^2]; a massless body without the
+        link."""
         if link is None:
             return Body.zero()
         mass = self.constant(path + ("mass",), link["mass"], minimum=0.0)
@@ -72,6 +76,7 @@ class LeafReader(Collector):
         return Body(mass, com, inertia)
 
     def limits(self, path: Path, limits: dict | None) -> Limits:
+        """A joint's Limits (lower, upper, velocity, effort), upper not below lower."""
         limits = limits or {}
         values = {k: self.constant(path + (k,), limits[k], minimum=0.0 if k in ("velocity", "effort") else None)
                   for k in ("lower", "upper", "velocity", "effort") if k in limits}
@@ -81,6 +86,7 @@ class LeafReader(Collector):
         return Limits(**values)
 
     def check_convention_keys(self, path: Path, joint: dict, convention: str) -> None:
+        """Check a joint's keys against its convention: none of another convention's, all of its own."""
         needed, foreign = _CONVENTION_KEYS[convention]
         for key in foreign:
             if key in joint:
@@ -91,6 +97,7 @@ class LeafReader(Collector):
                 self.at_key(path, f"missing required key '{key}' (convention {convention})")
 
     def axis(self, path: Path, values: list | None) -> np.ndarray:
+        """A joint axis (3,) as a unit vector (default z); a zero axis is a located error."""
         try:
             return unit_axis(self.vector(path, values, (0, 0, 1)))
         except ValueError as error:
@@ -98,6 +105,8 @@ class LeafReader(Collector):
             return np.array([0.0, 0.0, 1.0])  # placeholder; the error stops the build
 
     def joint_row(self, path: Path, joint: dict, index: int, convention: str) -> JointRow:
+        """One joint of a chain spec as a JointRow: its geometry in the chain's convention, type, body, limits,
+        motor, friction."""
         self.check_convention_keys(path, joint, convention)
         motor = joint.get("motor") or {}
         friction = joint.get("friction") or {}
@@ -122,6 +131,8 @@ class LeafReader(Collector):
         )
 
     def chain(self, name: str, path: Path, chain: dict) -> KinematicTree:
+        """A chain leaf as a KinematicTree: its joints in its convention (DH or joint list), base and tool, names
+        unique."""
         convention = chain["convention"]
         rows = [self.joint_row(path + ("joints", i), joint, i, convention)
                 for i, joint in enumerate(chain["joints"])]
@@ -146,6 +157,7 @@ class LeafReader(Collector):
         )
 
     def matrix(self, path: Path, rows: list, nq: int, names: set[str]) -> tuple[tuple[Expr, ...], ...]:
+        """An nq x nq matrix of formula expressions (a formulas leaf's M), its shape checked."""
         if len(rows) != nq:
             self.at_key(path, f"expected {nq} x {nq} (nq = {nq}), got {len(rows)} rows")
         for i, row in enumerate(rows):
@@ -154,6 +166,8 @@ class LeafReader(Collector):
         return tuple(self.vector_of_expressions(path + (i,), row, None, names) for i, row in enumerate(rows))
 
     def formulas(self, name: str, path: Path, spec: dict) -> FormulaRobot:
+        """A formulas leaf as a FormulaRobot: its coordinates and velocities, M, C, N and kinematics as checked
+        expressions."""
         coordinates = tuple(spec["coordinates"])
         nq = len(coordinates)
         entries = [(c, path + ("coordinates", i), "coordinate") for i, c in enumerate(coordinates)]
@@ -294,6 +308,7 @@ class LeafReader(Collector):
         return outputs
 
     def rigid_body(self, name: str, path: Path, spec: dict) -> PlanarBody | SpatialBody:
+        """A rigid_body leaf (a payload): planar (x, y, angle) or spatial (6 coordinates), with its mass and inertia."""
         spatial = "spatial" in spec
         default = DEFAULT_SPATIAL_COORDINATES if spatial else DEFAULT_BODY_COORDINATES
         coordinates = tuple(spec.get("coordinates", default))

@@ -32,14 +32,19 @@ JOINT_EQUALITY = 2  # mjtEq's mjEQ_JOINT
 
 
 class Compiled(Protocol):
+    """What the equality readers need of a compiled MJCF model: the mjModel, joint names, names and locations."""
+
     m: object
     joint_names: list[str]
 
-    def name(self, kind: str, i: int) -> str: ...
+    def name(self, kind: str, i: int) -> str:
+        """The MJCF name of element i of ``kind`` (joint, body, equality)."""
 
-    def loc(self, kind: str, i: int) -> Location: ...
+    def loc(self, kind: str, i: int) -> Location:
+        """Where element i of ``kind`` is written in the file."""
 
-    def fail(self, kind: str, i: int, message: str) -> UserError: ...
+    def fail(self, kind: str, i: int, message: str) -> UserError:
+        """A UserError located at element i of ``kind``."""
 
 
 @dataclass(frozen=True)

@@ -35,6 +35,7 @@ class SpecReader(LeafReader, AttachReader, ControlReader, ForceLawReader, Resolv
     """The whole spec: every part's reader over one collector."""
 
     def node(self, name: str, node: dict) -> Node:
+        """One entry of the spec's nodes as a DefineNode, AttachNode or ControlNode."""
         if "attach" in node:
             return self.attach(name, ("nodes", name, "attach"), node["attach"])
         if "control" in node:
@@ -169,6 +170,8 @@ class SpecReader(LeafReader, AttachReader, ControlReader, ForceLawReader, Resolv
         return DerivativeSettings(spec.get("include"), spec.get("integrator", SEMI_IMPLICIT_EULER))
 
     def system(self) -> RobotSystem:
+        """The whole spec as a RobotSystem: name, nodes, root, the tree below it, simulation and derivatives
+        sections."""
         data = self.doc.data
         problem = name_problem(data["name"])
         if problem:

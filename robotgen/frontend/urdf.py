@@ -300,6 +300,7 @@ class UrdfFile:
 
     @property
     def root(self) -> Element:
+        """The file's <robot> element."""
         return self.r.root
 
     def joint_names(self) -> dict[str, Element]:
@@ -558,6 +559,7 @@ def _foreign_dynamics_attributes(r: _Reader, joints: list[Element]) -> tuple[str
 
 
 def load_urdf_system(path: str, tip: str, base: str | None = None, name: str | None = None) -> RobotSystem:
+    """A URDF file's chain from its base (or ``base``) to the link ``tip`` as a one-leaf RobotSystem."""
     return _single_leaf_system(path, read_urdf(path, tip, base, name), name is not None)
 
 

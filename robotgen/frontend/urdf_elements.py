@@ -107,9 +107,11 @@ class ElementCheck:
     skipped: dict[tuple[str, str], list[Element]] = field(default_factory=dict)
 
     def fail(self, el: Element, message: str) -> UserError:
+        """A UserError located at ``el``."""
         return UserError(Location(self.path, el.line, el.col), message)
 
     def check(self, el: Element) -> None:
+        """Check one <link> or <joint> (or an element in it): children read, refused, or skipped and noted."""
         read = READ[el.tag]
         seen: dict[str, Element] = {}
         for child in el.children:
@@ -130,6 +132,7 @@ class ElementCheck:
                 self.skipped.setdefault((el.tag, tag), []).append(child)
 
     def refusal(self, parent: str, el: Element) -> str | None:
+        """Why a child ``el`` of <parent> is refused (it would change the dynamics if skipped), or None."""
         local = _local(el.tag)
         if parent == "inertial":
             return "<inertial> holds <origin>, <mass> and <inertia>"
@@ -144,6 +147,7 @@ class ElementCheck:
 
     @property
     def notes(self) -> tuple[str, ...]:
+        """One located note per (parent, element name) skipped, in the order first met."""
         notes = []
         for (parent, tag), elements in self.skipped.items():
             first = elements[0]

@@ -20,13 +20,19 @@ from robotgen.model.coupling import Coupling, Mimic, affine, couple
 
 
 class Reader(Protocol):
-    def loc(self, el: Element) -> Location: ...
+    """What the mimic reader needs of the URDF reader: locations, failures, attributes and numbers of elements."""
 
-    def fail(self, el: Element, message: str) -> UserError: ...
+    def loc(self, el: Element) -> Location:
+        """Where ``el`` is written in the file."""
 
-    def attr(self, el: Element, name: str, default: str | None = None) -> str: ...
+    def fail(self, el: Element, message: str) -> UserError:
+        """A UserError located at ``el``."""
 
-    def number(self, el: Element, name: str, default: str | None = None, finite: bool = True) -> float: ...
+    def attr(self, el: Element, name: str, default: str | None = None) -> str:
+        """The attribute ``name`` of ``el`` (``default`` when absent, else an error)."""
+
+    def number(self, el: Element, name: str, default: str | None = None, finite: bool = True) -> float:
+        """The attribute ``name`` of ``el`` as a number, finite unless told otherwise."""
 
 
 @dataclass(frozen=True, eq=False)

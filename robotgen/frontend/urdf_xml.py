@@ -21,6 +21,8 @@ _LATE_DECLARATION = re.compile(rb"((?:\s|<!--.*?-->)+)(<\?xml\s[^?]*\?>)", re.DO
 
 @dataclass
 class Element:
+    """A URDF element with its file position (line, column), attributes, children and text."""
+
     tag: str
     attrib: dict[str, str]
     line: int
@@ -29,6 +31,7 @@ class Element:
     text: str = ""  # character data directly inside the element (e.g. <gravity>1</gravity>)
 
     def find(self, tag: str) -> Element | None:
+        """The first child with tag ``tag``, or None."""
         return next((c for c in self.children if c.tag == tag), None)
 
 

@@ -38,11 +38,14 @@ class Body:
 
     @staticmethod
     def zero() -> Body:
+        """A massless body."""
         return Body(0.0, np.zeros(3), np.zeros((3, 3)))
 
 
 @dataclass(frozen=True)
 class Limits:
+    """A joint's limits as the file gives them: lower, upper [rad or m], velocity [rad/s or m/s], effort [N m or N]."""
+
     lower: float | None = None
     upper: float | None = None
     velocity: float | None = None
@@ -114,6 +117,7 @@ class KinematicTree:
 
     @property
     def has_friction(self) -> bool:
+        """Whether any joint has viscous or Coulomb friction."""
         return any(j.viscous or j.coulomb for j in self.joints)
 
 

@@ -55,6 +55,7 @@ class Coupling:
 
     @property
     def nq(self) -> int:
+        """The number of coordinates (independent joints)."""
         return len(self.independent)
 
     def matrix(self) -> np.ndarray:
@@ -64,6 +65,7 @@ class Coupling:
         return S
 
     def offsets(self) -> np.ndarray:
+        """c of q_joints = S q + c: (n_joints,) offsets [rad or m]."""
         return np.array(self.offset, dtype=float)
 
     def joints_of(self, k: int) -> list[int]:

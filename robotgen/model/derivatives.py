@@ -23,6 +23,7 @@ class DerivativeSettings:
     integrator: str = SEMI_IMPLICIT_EULER
 
     def included(self, nq: int) -> bool:
+        """Whether the derivative functions are built for a leaf of ``nq`` coordinates."""
         return self.include if self.include is not None else nq <= DEFAULT_MAX_DOF
 
     def when_asked(self) -> DerivativeSettings | None:

@@ -18,6 +18,7 @@ def system_nq(system: RobotSystem) -> int:
 
 
 def system_info(system: RobotSystem) -> dict:
+    """The system's info(): each node's primitive, coordinates, internal motions and forces, nq and units."""
     nodes = {}
     for node in system.walk():
         sig = signature(system, node.name)

@@ -36,6 +36,8 @@ Z_AXIS = np.array([0.0, 0.0, 1.0])
 
 @dataclass(frozen=True)
 class DHParameters:
+    """One joint's DH parameters: a [m], alpha [rad], d [m], theta [rad] (the joint variable's offset)."""
+
     a: float = 0.0
     alpha: float = 0.0
     d: float = 0.0
@@ -104,6 +106,7 @@ def _joint(row: JointRow, index: int, origin: np.ndarray, axis: np.ndarray, body
 
 def dh_standard_chain(rows: Sequence[JointRow], base: np.ndarray,
                       tool: np.ndarray) -> tuple[tuple[Joint, ...], np.ndarray]:
+    """Canonical joints of a standard-DH chain (Denavit-Hartenberg 1955) after ``base``, and the tip with ``tool``."""
     joints = []
     before = base  # P_{i-1}, with P_0 = base
     for i, row in enumerate(rows):
@@ -115,6 +118,7 @@ def dh_standard_chain(rows: Sequence[JointRow], base: np.ndarray,
 
 def dh_modified_chain(rows: Sequence[JointRow], base: np.ndarray,
                       tool: np.ndarray) -> tuple[tuple[Joint, ...], np.ndarray]:
+    """Canonical joints of a modified-DH chain (Craig's convention) after ``base``, and the tool."""
     joints = tuple(
         _joint(row, i, exact.matmul(base if i == 0 else np.eye(4), dh_modified_origin(row.dh)), Z_AXIS.copy(),
                row.body)
@@ -124,6 +128,7 @@ def dh_modified_chain(rows: Sequence[JointRow], base: np.ndarray,
 
 def joint_list_chain(rows: Sequence[JointRow], base: np.ndarray,
                      tool: np.ndarray) -> tuple[tuple[Joint, ...], np.ndarray]:
+    """Canonical joints of a joint list (origin and axis per joint) after ``base``, and the tool."""
     joints = tuple(
         _joint(row, i, exact.matmul(base if i == 0 else np.eye(4), row.origin), unit_axis(row.axis), row.body)
         for i, row in enumerate(rows))

@@ -60,4 +60,5 @@ class FormulaRobot:
 
     @property
     def nq(self) -> int:
+        """The number of coordinates."""
         return len(self.coordinates)

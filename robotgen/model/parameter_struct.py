@@ -47,6 +47,7 @@ def runtime_parameters(system: RobotSystem) -> list[RuntimeParameter]:
 
 
 def gain_parameter_name(node: ControlNode, key: str) -> str:
+    """The parameter name of gain ``key`` of a CONTROL node: <node>_<key>."""
     return f"{node.name}_{key}"
 
 

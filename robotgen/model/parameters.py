@@ -53,14 +53,17 @@ class Bounds:
 
     @staticmethod
     def positive(what: str, note: str = "") -> Bounds:
+        """Bounds of a value that must be above 0."""
         return Bounds(what, minimum=0.0, exclusive=True, note=note)
 
     @staticmethod
     def definite(what: str, note: str = "") -> Bounds:
+        """Bounds of a matrix that must be symmetric positive definite."""
         return Bounds(what, positive_definite=True, note=note)
 
     @property
     def suffix(self) -> str:
+        """The note as a message's suffix: " (note)", or empty."""
         return f" ({self.note})" if self.note else ""
 
     @property
@@ -142,6 +145,7 @@ def _definite(bounds: Bounds, a: np.ndarray) -> Violation | None:
 
 
 def definite_message(bounds: Bounds, smallest: float) -> str:
+    """The message for a matrix that is not positive definite, with its smallest eigenvalue."""
     return f"{bounds.what} must be positive definite{bounds.suffix}: its smallest eigenvalue is {smallest:.3g}"
 
 
@@ -178,6 +182,7 @@ class RuntimeParameter:
 
     @property
     def size(self) -> int:
+        """The number of values (1 for a scalar)."""
         return int(np.prod(self.shape)) if self.shape else 1
 
     def __post_init__(self):

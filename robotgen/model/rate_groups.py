@@ -50,16 +50,20 @@ class RateGroup:
 
     @property
     def rate(self) -> float:
+        """Its rate [Hz]."""
         return 1.0 / self.period
 
 
 @dataclass(frozen=True)
 class RateGroups:
+    """A tree's controllers grouped by period (fastest first), and the group of each CONTROL node."""
+
     groups: tuple[RateGroup, ...]  # fastest first
     group_of: dict[str, int] = field(default_factory=dict)  # CONTROL node -> its group
 
     @property
     def multi_rate(self) -> bool:
+        """Whether the tree has more than one period."""
         return len(self.groups) > 1
 
     @property
@@ -69,6 +73,7 @@ class RateGroups:
 
     @property
     def base_period(self) -> float:
+        """The fastest period [s], the tick of every group."""
         return self.groups[0].period
 
     @property

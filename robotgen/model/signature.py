@@ -31,12 +31,15 @@ from robotgen.model.system import (
 
 @dataclass(frozen=True)
 class Signature:
+    """A node's interface: its coordinates with positions, its rate-only internal motions, its internal forces."""
+
     external: tuple[str, ...]  # coordinates with positions
     internal_motions: tuple[str, ...] = ()  # rate-only coordinates
     internal_forces: tuple[str, ...] = ()
 
     @property
     def n_external(self) -> int:
+        """The number of coordinates with positions."""
         return len(self.external)
 
     @property
@@ -46,10 +49,12 @@ class Signature:
 
     @property
     def n_internal_forces(self) -> int:
+        """The number of internal forces."""
         return len(self.internal_forces)
 
     @property
     def velocity_names(self) -> tuple[str, ...]:
+        """The velocity coordinates: the external ones, then the internal motions."""
         return self.external + self.internal_motions
 
 
@@ -58,6 +63,7 @@ class SignatureError(ValueError):
 
 
 def leaf_coordinates(leaf) -> tuple[str, ...]:
+    """A leaf's coordinate names (a chain's coordinate joints; a mimic joint has none of its own)."""
     if isinstance(leaf, KinematicTree):  # a mimic joint has no coordinate of its own
         return tuple(j.name for j in leaf.coordinate_joints)
     return tuple(leaf.coordinates)
@@ -127,11 +133,13 @@ def kinematic_outputs(system: RobotSystem, name: str) -> tuple[str, ...]:
 
 
 def chain_outputs(name: str, output: str) -> tuple[str, ...]:
+    """A chain output's coordinate names: <name>_x, _y (planar) and _z."""
     axes = ("x", "y") if output == PLANAR_OUTPUT else ("x", "y", "z")
     return tuple(f"{name}_{a}" for a in axes)
 
 
 def signature(system: RobotSystem, name: str) -> Signature:
+    """The signature of node ``name``: a leaf's coordinates, or what its constraint or controller leaves unresolved."""
     node = system.nodes[name]
     if isinstance(node, DefineNode):
         return Signature(leaf_coordinates(node.leaf))

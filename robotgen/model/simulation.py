@@ -48,6 +48,9 @@ class Wall:
 
 @dataclass(frozen=True)
 class SimulationSettings:
+    """The spec's simulation section: duration and dt [s], start, the desired path's sine, forces, wall and payload
+    changes."""
+
     duration: float = 2.0
     dt: float = 1e-3
     start: tuple[float, ...] | None = None  # root positions at t = 0 (needs inverse kinematics)

@@ -40,6 +40,8 @@ def _snap_values(a: np.ndarray, bound: float, targets: tuple[float, ...]) -> np.
 
 
 def snap_rotation(T: np.ndarray) -> np.ndarray:
+    """A (4, 4) transform with its rotation's near-0 and near-±1 entries snapped (if it stays orthonormal) and its
+    translation's."""
     R = _snap_values(T[:3, :3], noise_bound(1.0), (0.0, 1.0, -1.0))
     if np.abs(exact.add(exact.matmul(R, R.T), (-1.0, np.eye(3)))).max() > 1e-15:
         return T
@@ -50,10 +52,12 @@ def snap_rotation(T: np.ndarray) -> np.ndarray:
 
 
 def snap_axis(axis: np.ndarray) -> np.ndarray:
+    """A (3,) joint axis with its near-0 and near-±1 entries snapped, made unit."""
     return exact.unit(_snap_values(axis, noise_bound(1.0), (0.0, 1.0, -1.0)))
 
 
 def snap_tree(tree: KinematicTree) -> KinematicTree:
+    """The tree with every joint origin, axis and the tool snapped."""
     joints = tuple(dataclasses.replace(j, origin=snap_rotation(j.origin), axis=snap_axis(j.axis))
                    for j in tree.joints)
     return dataclasses.replace(tree, joints=joints, tool=snap_rotation(tree.tool))

@@ -36,6 +36,7 @@ class PlanarBody:
 
     @property
     def nq(self) -> int:
+        """3: x, y [m] and the angle [rad]."""
         return 3
 
 
@@ -55,6 +56,7 @@ class SpatialBody:
 
     @property
     def nq(self) -> int:
+        """6: position [m] and orientation [rad]."""
         return 6
 
 
@@ -131,6 +133,7 @@ class DefineNode:
 
     @property
     def children(self) -> tuple[str, ...]:
+        """A DEFINE node has none."""
         return ()
 
 
@@ -147,6 +150,7 @@ class AttachNode:
 
     @property
     def children(self) -> tuple[str, ...]:
+        """The robots, then the payload."""
         return self.robots + ((self.payload,) if self.payload else ())
 
 
@@ -201,6 +205,7 @@ class ControlNode:
 
     @property
     def children(self) -> tuple[str, ...]:
+        """The one robot it controls."""
         return (self.robot,)
 
     def internal_force_loop_problem(self, dt: float) -> str | None:
@@ -222,6 +227,8 @@ Node = DefineNode | AttachNode | ControlNode
 
 @dataclass(frozen=True, eq=False)
 class RobotSystem:
+    """A robot system: the primitive tree of nodes by name, its root, the spec's settings and where it came from."""
+
     name: str
     source: str  # path of the spec (or URDF) it came from
     source_sha256: str
@@ -239,10 +246,12 @@ class RobotSystem:
 
     @property
     def root_node(self) -> Node:
+        """The root node."""
         return self.nodes[self.root]
 
     @property
     def is_single_leaf(self) -> bool:
+        """Whether the system is one DEFINE leaf (a chain or formulas robot alone)."""
         return isinstance(self.root_node, DefineNode)
 
     @property

@@ -16,18 +16,22 @@ def _rotation(c: float, s: float, axis: int) -> np.ndarray:
 
 
 def rot_x(angle: float) -> np.ndarray:
+    """(4, 4) homogeneous rotation about x by ``angle`` [rad] (sin and cos correctly rounded)."""
     return _rotation(*exact.sin_cos(angle)[::-1], 0)
 
 
 def rot_y(angle: float) -> np.ndarray:
+    """(4, 4) homogeneous rotation about y by ``angle`` [rad] (sin and cos correctly rounded)."""
     return _rotation(*exact.sin_cos(angle)[::-1], 1)
 
 
 def rot_z(angle: float) -> np.ndarray:
+    """(4, 4) homogeneous rotation about z by ``angle`` [rad] (sin and cos correctly rounded)."""
     return _rotation(*exact.sin_cos(angle)[::-1], 2)
 
 
 def trans(x: float, y: float, z: float) -> np.ndarray:
+    """(4, 4) homogeneous translation by (x, y, z) [m]."""
     T = np.eye(4)
     T[:3, 3] = (x, y, z)
     return T

@@ -54,6 +54,7 @@ class Reading:
 
     @property
     def lost(self) -> bool:
+        """Whether the fingertip has left its pad: apart by more than its radius, or slid off the pad's half-width."""
         return self.gap > FINGERTIP_RADIUS or self.slip > self.pad_half_width
 
 
@@ -73,6 +74,7 @@ class ContactHistory:
     payload_pose: list[np.ndarray] = field(default_factory=list)  # the root's payload, when it is the root's
 
     def add(self, t: float, readings: list[Reading], pose: np.ndarray | None) -> None:
+        """Append the readings at t [s] (and the payload pose, if any), integrating each contact's sliding distance."""
         speed = np.array([r.sliding_speed for r in readings])
         before = self.sliding[-1] if self.sliding else np.zeros(len(readings))
         self.sliding.append(before + (t - self.t[-1]) * speed if self.t else before)
@@ -88,9 +90,11 @@ class ContactHistory:
 
     @property
     def names(self) -> list[str]:
+        """The contacts' names, as the CSV's columns use them."""
         return [f"{c.name}" for c in self.contacts]
 
     def array(self, key: str) -> np.ndarray:
+        """The recorded series ``key`` as an array (steps, contacts)."""
         return np.array(getattr(self, key))
 
     @property
@@ -103,10 +107,12 @@ class ContactHistory:
         return self.t[k], int(c)
 
     def settled(self) -> np.ndarray:
+        """Mask of the samples after the first SETTLE seconds."""
         return np.asarray(self.t) >= SETTLE
 
     @property
     def holds(self) -> bool:
+        """Whether the grasp held: no contact lost and none open after settling."""
         return self.first_loss is None and not self.open_fraction().any()
 
     def worst_usage(self) -> np.ndarray:
@@ -121,9 +127,11 @@ class ContactHistory:
         return (normal <= 0).mean(axis=0) if normal.size else np.zeros(len(self.contacts))
 
     def largest_slip(self) -> np.ndarray:
+        """Each contact's largest slip [m] over the run."""
         return self.array("slip").max(axis=0)
 
     def summary(self) -> list[str]:
+        """The lines simulate prints about the contacts: whether the grasp held, forces, friction-cone usage, slip."""
         loss = self.first_loss
         grasps = sorted({c.attach for c in self.contacts})
         friction = ", ".join(sorted({f"{c.friction:g}" for c in self.contacts}))

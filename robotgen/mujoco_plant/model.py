@@ -109,6 +109,8 @@ class LeafMap:
 
 @dataclass(frozen=True, eq=False)
 class PayloadMap:
+    """A payload node as MJCF: its ATTACH, planar or spatial, its joints (x, y, psi or a free joint) and body."""
+
     node: str
     attach: str
     planar: bool
@@ -134,6 +136,7 @@ class ContactMap:
 
     @property
     def name(self) -> str:
+        """The contact's name: <attach>.c<k>."""
         return f"{self.attach}.c{self.index + 1}"
 
 
@@ -148,6 +151,8 @@ class WallMap:
 
 @dataclass(frozen=True, eq=False)
 class PlantModel:
+    """A system as an MJCF plant: the XML, maps of leaves, payloads and contacts, MuJoCo's timestep [s] and substeps."""
+
     name: str
     xml: str
     leaves: tuple[LeafMap, ...]
@@ -161,10 +166,12 @@ class PlantModel:
 
     @property
     def nq(self) -> int:
+        """The number of leaf coordinates the plant maps."""
         return sum(leaf.T.shape[0] for leaf in self.leaves)
 
 
 def below_controls(system: RobotSystem, name: str):
+    """The leaf or ATTACH node below any controllers of ``name``."""
     node = system.nodes[name]
     while isinstance(node, ControlNode):
         node = system.nodes[node.robot]

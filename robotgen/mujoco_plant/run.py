@@ -45,6 +45,7 @@ def rpy_rotation(rpy: np.ndarray) -> np.ndarray:
 
 
 def rpy_of(R: np.ndarray) -> np.ndarray:
+    """Roll, pitch, yaw [rad] (Lee and Lee eq 2) of a rotation R (3, 3)."""
     return np.array([np.arctan2(R[2, 1], R[2, 2]), np.arctan2(-R[2, 0], np.hypot(R[2, 1], R[2, 2])),
                      np.arctan2(R[1, 0], R[0, 0])])
 
@@ -120,6 +121,7 @@ class MujocoPlant:
 
     # -- state in robotgen's coordinates --------------------------------------------------
     def set_leaves(self, theta: np.ndarray, theta_dot: np.ndarray) -> None:
+        """Set MuJoCo's qpos and qvel from leaf positions theta (nq,) [rad or m] and rates theta_dot (nq,)."""
         for leaf, T_inv, qpos, dofs in zip(self.plant.leaves, self.T_inv, self.leaf_qpos, self.leaf_dofs):
             self.data.qpos[qpos] = T_inv @ (theta[leaf.theta] - leaf.offset)
             self.data.qvel[dofs] = T_inv @ theta_dot[leaf.theta]
@@ -148,15 +150,18 @@ class MujocoPlant:
         self.forward()
 
     def payload_pose(self, node: str) -> np.ndarray:
+        """A payload's pose: (x, y, psi) when planar, else position (3,) [m] and roll, pitch, yaw (3,) [rad]."""
         a = self.payload_qpos[node]
         if self.payload_planar[node]:
             return self.data.qpos[a:a + 3].copy()
         return np.r_[self.data.qpos[a:a + 3], rpy_of(self.rotation(node))]
 
     def rotation(self, node: str) -> np.ndarray:
+        """A payload's rotation (3, 3) in world axes."""
         return self.data.xmat[self.payload_body[node]].reshape(3, 3).copy()
 
     def sensed(self) -> tuple[np.ndarray, np.ndarray]:
+        """Leaf positions theta (nq,) and rates theta_dot (nq,) from MuJoCo's state, in robotgen's coordinates."""
         theta, theta_dot = np.zeros(self.plant.nq), np.zeros(self.plant.nq)
         for leaf, qpos, dofs in zip(self.plant.leaves, self.leaf_qpos, self.leaf_dofs):
             theta[leaf.theta] = leaf.T @ self.data.qpos[qpos] + leaf.offset
@@ -164,6 +169,7 @@ class MujocoPlant:
         return theta, theta_dot
 
     def forward(self) -> None:
+        """mj_forward with the smooth Coulomb friction applied."""
         with self.friction():
             self.mj.mj_forward(self.model, self.data)
 
@@ -225,6 +231,7 @@ class MujocoPlant:
         return total
 
     def internal_forces(self, readings: list[Reading]) -> list[float]:
+        """The grasp's internal forces [N] from the contact readings."""
         return internal_forces(self.plant.contacts, readings, self.rotation)
 
     # -- the model's dynamics in robotgen's coordinates ------------------------------------
@@ -245,6 +252,7 @@ class MujocoPlant:
         return M, bias
 
     def tips(self) -> list[np.ndarray]:
+        """Each fingertip site's position (3,) [m] in world axes."""
         return [self.data.site_xpos[s].copy() for s in self.sites]
 
 
@@ -294,6 +302,7 @@ class ChainSteps:
         self._stage = None
 
     def __call__(self, stage: int, q: np.ndarray, qd: np.ndarray, tau: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(q, qd) one period on: MuJoCo steps under tau (n,) [N m], the hand carrying stage ``stage``'s payload."""
         if stage != self._stage and self.sim.plant.hand_payload is not None:
             body = self.sim.mj.mj_name2id(self.sim.model, self.sim.mj.mjtObj.mjOBJ_BODY, self.sim.plant.hand_payload)
             mass, com = self.stages[stage]
@@ -328,12 +337,15 @@ class TreePlant:
 
     @property
     def note(self) -> str:
+        """How the plant is integrated, for the report."""
         return self.sim.note
 
     def sensed(self) -> tuple[np.ndarray, np.ndarray]:
+        """Leaf positions and rates (nq,) as the sensors read them."""
         return self.sim.sensed()
 
     def position(self, theta: np.ndarray) -> np.ndarray:
+        """The root's external positions at leaf positions theta (nq,), by the module's plant_position."""
         return self.module.plant_position(theta)[:self.n_ext]
 
     def sensed_forces(self, tau_before: np.ndarray) -> np.ndarray:
@@ -351,6 +363,7 @@ class TreePlant:
                                   "section", "wall")
 
     def wall_force(self) -> float:
+        """The wall's normal force [N] on its point now."""
         return self.sim.wall_force()
 
     def set_payload_mass(self, payload: str, mass: float) -> None:
@@ -359,11 +372,13 @@ class TreePlant:
         self._readings = self.sim.readings() if self.sim.plant.contacts else []
 
     def record(self, t: float) -> None:
+        """Record the contacts at t [s], when a contact history is kept."""
         if self.history is not None:
             pose = self.sim.payload_pose(self.root_payload) if self.root_payload else None
             self.history.add(t, self._readings, pose)
 
     def step(self, tau: np.ndarray, dt: float, when: str) -> None:
+        """Advance one servo period dt [s] under leaf torques tau (nq,); a divergence is a SimulationError."""
         theta = self.sim.sensed()[0]
         try:
             self.sim.step(tau)

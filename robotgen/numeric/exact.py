@@ -61,21 +61,25 @@ def matmul(*factors) -> np.ndarray:
 
 
 def norm(v) -> float:
+    """|v|, the Euclidean norm of a vector from an exact dot product (sqrt correctly rounded)."""
     return math.sqrt(dot(v, v))
 
 
 def unit(v) -> np.ndarray:
+    """v / |v|: (3,) unit vector along v, each entry the exact quotient rounded once."""
     v = np.asarray(v, dtype=float)
     n = norm(v)
     return np.array([float(Fraction(float(x)) / Fraction(n)) for x in v])
 
 
 def cross(a, b) -> np.ndarray:
+    """a x b for (3,) vectors, each entry an exact two-term dot product rounded once."""
     return np.array([dot((a[1], -a[2]), (b[2], b[1])), dot((a[2], -a[0]), (b[0], b[2])),
                      dot((a[0], -a[1]), (b[1], b[0]))])
 
 
 def outer(a, b) -> np.ndarray:
+    """a b^T: the (len(a), len(b)) outer product, each entry exact and rounded once."""
     return np.array([[float(Fraction(float(x)) * Fraction(float(y))) for y in b] for x in a])
 
 
@@ -228,70 +232,83 @@ def _check_domain(ok: bool, name: str) -> None:
 
 @_trig
 def sin(s: Decimal, c: Decimal) -> Decimal:
+    """sin x, correctly rounded; the decorator reduces x by pi/2 exactly and passes sin and cos of it as (s, c)."""
     return s
 
 
 @_trig
 def cos(s: Decimal, c: Decimal) -> Decimal:
+    """cos x, correctly rounded; the decorator passes sin and cos of x as (s, c)."""
     return c
 
 
 @_trig
 def tan(s: Decimal, c: Decimal) -> Decimal:
+    """tan x = s / c, correctly rounded; the decorator passes sin and cos of x as (s, c)."""
     return s / c
 
 
 @_rounded
 def atan(x: Decimal) -> Decimal:
+    """atan x [rad] in (-pi/2, pi/2), correctly rounded."""
     return _atan_dec(x)
 
 
 @_rounded
 def atan2(y: Decimal, x: Decimal) -> Decimal:
+    """atan2(y, x) [rad] in [-pi, pi], the quadrant from the signs of y and x, correctly rounded."""
     return _atan2_dec(y, x)
 
 
 @_rounded
 def asin(x: Decimal) -> Decimal:
+    """asin x [rad] for |x| <= 1 (else a math domain error), as atan2(x, sqrt(1 - x^2)), correctly rounded."""
     _check_domain(abs(x) <= 1, "asin")
     return _atan2_dec(x, (1 - x * x).sqrt())
 
 
 @_rounded
 def acos(x: Decimal) -> Decimal:
+    """acos x [rad] for |x| <= 1 (else a math domain error), as atan2(sqrt(1 - x^2), x), correctly rounded."""
     _check_domain(abs(x) <= 1, "acos")
     return _atan2_dec((1 - x * x).sqrt(), x)
 
 
 @_rounded
 def exp(x: Decimal) -> Decimal:
+    """e^x, correctly rounded; an OverflowError past the double range."""
     return x.exp()
 
 
 @_rounded
 def log(x: Decimal) -> Decimal:
+    """The natural logarithm of x > 0 (else a math domain error), correctly rounded."""
     _check_domain(x > 0, "log")
     return x.ln()
 
 
 @_rounded
 def sinh(x: Decimal) -> Decimal:
+    """sinh x = (e^x - e^-x) / 2, correctly rounded."""
     return (x.exp() - (-x).exp()) / 2
 
 
 @_rounded
 def cosh(x: Decimal) -> Decimal:
+    """cosh x = (e^x + e^-x) / 2, correctly rounded."""
     return (x.exp() + (-x).exp()) / 2
 
 
 @_rounded
 def tanh(x: Decimal) -> Decimal:
+    """tanh x, from e^(-2|x|) so that no x overflows, correctly rounded."""
     e = (-2 * abs(x)).exp()  # at most 1: no overflow for any x (tanh(1e300) is 1)
     return (1 - e) / (1 + e) * (1 if x >= 0 else -1)
 
 
 @_rounded
 def power(x: Decimal, y: Decimal) -> Decimal:
+    """x^y, correctly rounded: an integral y by exact powers (0^y needs y >= 0), else x > 0 (or x = 0, y > 0)."""
     if y == y.to_integral_value():
         _check_domain(x != 0 or y >= 0, "pow")
         return x ** int(y)
@@ -300,10 +317,12 @@ def power(x: Decimal, y: Decimal) -> Decimal:
 
 
 def sin_cos(angle: float) -> tuple[float, float]:
+    """(sin, cos) of an angle [rad], each correctly rounded."""
     return sin(angle), cos(angle)
 
 
 def sqrt(x: float) -> float:
+    """The square root, which IEEE 754 already rounds correctly on every machine."""
     return math.sqrt(x)  # IEEE 754: correctly rounded everywhere
 
 

@@ -19,6 +19,8 @@ from robotgen.symbolic.rigid_body.spatial import const
 
 @dataclass(frozen=True, eq=False)
 class LeafAttributes:
+    """A leaf's M, C, N and its kinematics (output kind -> x(q)) and inverse kinematics, as SX."""
+
     M: ca.SX
     C: ca.SX
     N: ca.SX

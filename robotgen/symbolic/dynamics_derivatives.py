@@ -31,16 +31,15 @@ from robotgen.symbolic.rigid_body.derivative_loops import (
 from robotgen.symbolic.rigid_body.rnea_derivatives import is_serial
 from robotgen.symbolic.schedule import LOCAL, OUTPUT, RANGE, ScheduleBuilder, Slice, body
 
-# Straight-line code takes ~13 bytes per operation: past ~3000 operations of d tau/dq, dqd
-# (forward dynamics' derivatives are ~1.6 times that) the kernels are emitted with loops
-# (robotgen.symbolic.schedule). With regrouped inertial parameters the UR5 (1465, reverse
-# sweeps) and the PUMA (2211) stay straight-line, where CSE makes them small; the Panda
-# (4888, the recursion) takes the recursion's loops.
+# Straight-line code grows with its operations: past this many operations of d tau/dq, dqd
+# (forward dynamics' derivatives have more) the kernels are emitted with loops
+# (robotgen.symbolic.schedule), so that they fit the instruction cache. Small arms, where CSE
+# makes the derivatives small, stay straight-line.
 DERIVATIVE_LOOPS_ABOVE_OPS = 3000
 # Loops run an operation faster than straight-line code this long, so the recursion's loops
-# are taken while they have at most 10% more operations than the straight-line sweeps (before
-# regrouping, the PUMA: 3583 against 3459). Past that the sweeps stay straight-line and forward
-# dynamics' derivatives end in the loop over the rows of M^-1.
+# are taken while they have at most 10% more operations than the straight-line sweeps. Past
+# that the sweeps stay straight-line and forward dynamics' derivatives end in the loop over the
+# rows of M^-1. (The figures behind both: docs/performance-log.md.)
 RECURSION_LOOPS_WITHIN = 1.1
 
 
@@ -61,6 +60,7 @@ class DynamicsDerivatives:
         self._fd_derivatives: tuple[ca.SX, ca.SX, ca.SX, ca.SX] | None = None
 
     def inverse_dynamics_derivatives(self) -> tuple[ca.SX, ca.SX]:
+        """(d tau/dq, d tau/dqd), each (n, n), of inverse dynamics at (q, qd, qdd)."""
         s = self.sym
         dq, dqd = self._id(s.q, s.qd, s.qdd)
         return dq, dqd
@@ -140,8 +140,8 @@ class DynamicsDerivatives:
 
     def _forward_large(self) -> bool:
         """Whether forward dynamics' derivatives (about twice the inverse's operations) are too
-        large for straight-line code: on a Zen 5 core the UR5's 3088 ran in 693-701 ns, with
-        the solve as loops in 628-633 (A/B, 3 rounds)."""
+        large for straight-line code: past DERIVATIVE_LOOPS_ABOVE_OPS their solve runs faster as
+        loops."""
         s = self.sym
         return self._large() or (isinstance(self.graphs, ChainGraphs) and count_operations(
             [s.q, s.qd, s.tau], list(self.forward_dynamics_derivatives()[1:]))["total"] > DERIVATIVE_LOOPS_ABOVE_OPS)
@@ -157,6 +157,7 @@ class DynamicsDerivatives:
         return recursion <= RECURSION_LOOPS_WITHIN * sweeps
 
     def mass_inverse(self) -> ca.SX:
+        """M^-1 (n, n) by L D L^T solves of the identity."""
         n = self.sym.q.shape[0]
         return cholesky_solve_matrix(self.graphs.mass(), ca.SX.eye(n))
 

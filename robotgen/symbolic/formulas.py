@@ -36,6 +36,7 @@ def expression_column(exprs, env) -> ca.SX:
 
 
 def expression_matrix(rows, env) -> ca.SX:
+    """A matrix of formula expressions as SX, rows evaluated in ``env``."""
     return ca.vertcat(*[expression_column(row, env).T for row in rows])
 
 
@@ -50,6 +51,8 @@ def expression_map(exprs, names, parameters):
 
 
 class FormulaGraphs:
+    """A formulas leaf's graphs: M, C, N and kinematics from its expressions in the shared symbols q, qd, qdd, tau."""
+
     def __init__(self, robot: FormulaRobot, sym: Symbols, values: dict[str, ca.SX] | None = None):
         """``values``: run-time parameters as symbols, by name (the others are numbers)."""
         self.robot = robot
@@ -63,33 +66,42 @@ class FormulaGraphs:
         return expression_matrix(rows, self._env)
 
     def mass(self) -> ca.SX:
+        """M(q) (n, n)."""
         return self._matrix(self.robot.mass)
 
     def coriolis(self) -> ca.SX:
+        """C(q, qd) (n, n): the formula's, else the Christoffel symbols of M."""
         if self.robot.coriolis is None:
             return coriolis_matrix(self.mass(), self.sym.q, self.sym.qd)
         return self._matrix(self.robot.coriolis)
 
     def n_term(self, qd: ca.SX) -> ca.SX:
+        """N at velocity ``qd`` (n,), zero when the leaf has none."""
         if self.robot.nonlinear is None:
             return ca.SX.zeros(self.robot.nq, 1)
         N = expression_column(self.robot.nonlinear, self._env)
         return ca.substitute(N, self.sym.qd, qd)
 
     def gravity(self) -> ca.SX:
+        """Gravity: N at qd = 0 (n,)."""
         return self.n_term(ca.SX.zeros(self.robot.nq, 1))
 
     def nonlinear(self) -> ca.SX:
+        """C(q, qd) qd + N(q, qd) (n,)."""
         return self.coriolis() @ self.sym.qd + self.n_term(self.sym.qd)
 
     def inverse_dynamics(self) -> ca.SX:
+        """tau = M qdd + C qd + N (n,)."""
         return self.mass() @ self.sym.qdd + self.nonlinear()
 
     def forward_dynamics(self) -> ca.SX:
+        """qdd = M^-1 (tau - C qd - N) (n,), by L D L^T."""
         return cholesky_solve(self.mass(), self.sym.tau - self.nonlinear())
 
     def kinematics(self) -> ca.SX:
+        """The output x(q), as the leaf's kinematics formulas give it."""
         return expression_column(self.robot.kinematics, self._env)
 
     def kinematics_jacobian(self) -> ca.SX:
+        """dx/dq of the output: (outputs, n)."""
         return ca.jacobian(self.kinematics(), self.sym.q)

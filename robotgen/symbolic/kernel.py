@@ -30,10 +30,12 @@ class Port:
 
     @property
     def size(self) -> int:
+        """rows x cols."""
         return self.rows * self.cols
 
     @property
     def is_matrix(self) -> bool:
+        """Whether the port is shown as a matrix (declared so, or more than one column)."""
         return self.matrix or self.cols > 1
 
 
@@ -65,6 +67,7 @@ class Kernel:
 
     @cached_property
     def function(self) -> ca.Function:
+        """The kernel's CasADi Function, built on first use when it is a schedule's."""
         return self.graph if isinstance(self.graph, ca.Function) else self.graph()
 
 
@@ -93,10 +96,12 @@ class ParameterSymbols:
 
     @staticmethod
     def of(parameters: list[RuntimeParameter]) -> ParameterSymbols:
+        """One SX symbol per run-time parameter, sized as the parameter."""
         return ParameterSymbols(tuple(parameters), {p.name: ca.SX.sym(p.name, p.size) for p in parameters})
 
     @property
     def vector(self) -> ca.SX:
+        """Every parameter symbol stacked, in the parameters' order (the params port)."""
         return ca.vertcat(*[self.symbols[p.name] for p in self.parameters]) if self.parameters else ca.SX(0, 1)
 
     def port(self) -> tuple:

@@ -51,6 +51,9 @@ class OperatingPointError(ValueError):
 
 @dataclass(frozen=True)
 class LiftedLoop:
+    """A multi-rate tree's closed loop over one slowest period, linearised at the start pose: its spectrum and
+    transition."""
+
     spectral_radius: float  # of the observable part on the constraint manifold
     frame: float  # the lifted period [s]: one period of the slowest group
     ticks: int  # fastest periods in it
@@ -62,6 +65,7 @@ class LiftedLoop:
 
     @property
     def stable(self) -> bool:
+        """Whether the spectral radius is below 1."""
         return self.spectral_radius < 1.0
 
     @property

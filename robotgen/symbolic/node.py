@@ -30,6 +30,9 @@ class AttachMaps:
 
 @dataclass(eq=False)
 class NodeGraph:
+    """A node's graphs: signature, positions x, velocity v = [external; internal motions], M, C, N, leaf or ATTACH
+    maps."""
+
     name: str
     sig: Signature
     x: ca.SX  # external positions

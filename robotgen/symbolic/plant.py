@@ -34,6 +34,8 @@ def strip_controls(system: RobotSystem) -> RobotSystem:
 
 
 class Plant:
+    """The true constrained plant of a system: its velocity v and the leaves' dynamics under the constraints."""
+
     def __init__(self, system: RobotSystem, parameters: ParameterSymbols = NO_PARAMETERS):
         """``parameters``: the module's run-time parameters (a payload's mass, if run-time,
         is read from them as the controller's graphs read it)."""

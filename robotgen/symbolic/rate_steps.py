@@ -41,12 +41,15 @@ class HeldLayout:
 
     @property
     def size(self) -> int:
+        """The held vector's length: x, v, a, F and the internal forces."""
         return self.n_x + 3 * self.n_v + self.n_fi
 
     def vector(self, t: Trajectory) -> ca.SX:
+        """A trajectory as the held vector."""
         return ca.vertcat(*([t.x] if self.n_x else []), t.v, t.a, t.F, t.Fi)
 
     def trajectory(self, held: ca.SX) -> Trajectory:
+        """The trajectory a held vector holds."""
         x, v0 = (rows(held, 0, self.n_x), self.n_x) if self.n_x else (None, 0)
         v, a, F = (rows(held, v0 + i * self.n_v, v0 + (i + 1) * self.n_v) for i in range(3))
         return Trajectory(x, v, a, F, rows(held, v0 + 3 * self.n_v))
@@ -67,6 +70,7 @@ class GroupServo(Servo):
                                 if isinstance(n, ControlNode) and n.name in own)
 
     def write(self, name: str, t: Trajectory) -> None:
+        """Write ``t`` to node ``name``; a faster group's controller gets it held, another group's work is skipped."""
         node = self.g.system.nodes[name]
         if isinstance(node, ControlNode):
             g = self.groups.group_of[name]
@@ -167,6 +171,7 @@ class MultiRate:
 
     @property
     def frame_ticks(self) -> int:
+        """The slowest group's ticks: fastest periods in one frame."""
         return self.groups[-1].ticks
 
 

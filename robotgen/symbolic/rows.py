@@ -6,6 +6,7 @@ import casadi as ca
 
 
 def rows(x: ca.SX, start: int, stop: int | None = None) -> ca.SX:
+    """Rows start..stop of x (a column or a matrix); an empty column when none."""
     stop = x.shape[0] if stop is None else stop
     if stop <= start:
         return ca.SX(0, 1)

@@ -1,15 +1,15 @@
 """A kernel whose work repeats, printed as loops: a straight-line prologue fills local arrays,
 then loops apply one small body to slices of them, so the emitted C holds each repeated part
-once. Straight-line code costs ~13 bytes per operation; a 7-dof arm's dynamics derivatives
-unrolled (~75-115 KB) overflow the instruction cache, and a kernel that streams its code from
-L2 runs ~2.5x slower than one that fits. The loops here: the derivative recursion
+once. Straight-line code grows with its operations; a 7-dof arm's dynamics derivatives
+unrolled overflow the instruction cache, and a kernel that streams its code from L2 runs
+slower than one that fits (docs/performance-log.md). The loops here: the derivative recursion
 (rigid_body/derivative_loops), a long chain's or tree's dynamics (rigid_body/chain_loops) and
 products with M^-1 (rigid_body/cholesky).
 
 The schedule is the one source of the kernel's graph: ``outputs()`` applies each loop's body to
 SX slices in order, and is the kernel's CasADi function, so the graph and the loops cannot
 differ. Adding a loop only checks that what it reads was written: a build prints the loops and
-never needs the flattened graph (the iCub's took 0.8 s to apply)."""
+never needs the flattened graph, which takes a large tree's build noticeable time."""
 from __future__ import annotations
 
 from dataclasses import dataclass, field
@@ -40,12 +40,15 @@ class Slice:
     i_table: tuple[int, ...] = ()  # when given, i_table[i] takes i's place (a tree's parent)
 
     def elements(self, count: int, i: int, j: int) -> list[int]:
+        """The array elements of iteration (i, j): ``count`` of them, ``step`` apart."""
         start = self.offset + (self.i_table[i] if self.i_table else i) * self.i_stride + j * self.j_stride
         return [start + e * self.step for e in range(count)]
 
 
 @dataclass(frozen=True, eq=False)
 class Loop:
+    """One loop: a body applied to slices of local arrays over an index space (RANGE, PAIRS, ONCE)."""
+
     body: ca.Function  # SX; dense column inputs and outputs
     space: str
     n: int
@@ -54,6 +57,7 @@ class Loop:
     pairs: tuple[tuple[int, int], ...] = ()  # the space PAIRS
 
     def iterations(self) -> list[tuple[int, int]]:
+        """The (i, j) of each iteration, in order."""
         n = self.n
         if self.space == PAIRS:
             return list(self.pairs)
@@ -86,6 +90,8 @@ class Stage:
 
 @dataclass(frozen=True, eq=False)
 class Schedule:
+    """A kernel as a prologue and loops over local arrays, with stages before them and its outputs' unwritten zeros."""
+
     local_sizes: tuple[int, ...]
     prologue: ca.Function  # the kernel's inputs -> one column per prologue write
     prologue_writes: tuple[Slice, ...]
@@ -164,6 +170,7 @@ class ScheduleBuilder:
 
     def loop(self, body: ca.Function, space: str, n: int, reads: list[Slice], writes: list[Slice],
              pairs: list[tuple[int, int]] = ()) -> None:
+        """Add a loop, checking that every element it reads was written before."""
         loop = Loop(body, space, n, tuple(reads), tuple(writes), tuple(pairs))
         if (space == PAIRS) != bool(pairs):
             raise ValueError("the space PAIRS, and it alone, lists its pairs")

@@ -91,19 +91,23 @@ class Servo:
         return ca.vertcat(*[start for _, _, start in self.blocks]) if self.blocks else ca.SX(0, 1)
 
     def block(self, node: ControlNode, kind: str) -> ca.SX:
+        """A controller's state block ``kind`` (integral, expected trajectory) in the step's state vector."""
         o, n = self.layout[node.name, kind]
         return rows(self.state, o, o + n)
 
     def tau(self) -> ca.SX:
+        """Every leaf's torques, stacked in leaf order (zero for a leaf nothing drives)."""
         return ca.vertcat(*[self.torques.get(leaf, ca.SX.zeros(self.g.sizes[leaf]))
                             for leaf in self.g.leaves])
 
     def state_next(self) -> ca.SX:
+        """The next controller state, block by block in the state's order."""
         if not self.blocks:
             return ca.SX(0, 1)
         return ca.vertcat(*[self.next_state[node.name, kind] for node, kind, _ in self.blocks])
 
     def write(self, name: str, t: Trajectory) -> None:
+        """Write trajectory ``t`` to node ``name``: a leaf's torques, a controller's law, an ATTACH's distribution."""
         node = self.g.system.nodes[name]
         if isinstance(node, DefineNode):
             self.torques[name] = t.F  # a torque-driven leaf applies the force it is sent

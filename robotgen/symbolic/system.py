@@ -38,10 +38,12 @@ class SystemGraphs:
         self._graphs: dict[str, NodeGraph] = {}
 
     def leaf_slice(self, name: str) -> slice:
+        """The slice of leaf ``name``'s coordinates in the stacked leaf vector."""
         o = self.offsets[name]
         return slice(o, o + self.sizes[name])
 
     def graph(self, name: str) -> NodeGraph:
+        """The graphs of node ``name``, built once."""
         if name not in self._graphs:
             node = self.system.nodes[name]
             if isinstance(node, DefineNode):
@@ -53,6 +55,7 @@ class SystemGraphs:
         return self._graphs[name]
 
     def underlying_leaf(self, name: str) -> NodeGraph:
+        """The graphs of the leaf or ATTACH node below any controllers of ``name``."""
         node = self.system.nodes[name]
         while isinstance(node, ControlNode):
             node = self.system.nodes[node.robot]

@@ -30,6 +30,8 @@ class ForceLawReader(Collector):
     """Laws impedance and hybrid."""
 
     def check_force_law(self, node: ControlNode, spec: dict, robot: Signature) -> ControlNode:
+        """Check a force law's node (impedance or hybrid) against its robot's signature; return it with its settings
+        read."""
         path: Path = ("nodes", node.name, "control")
         law = node.law
         if robot.internal_motions:

@@ -47,6 +47,8 @@ class HandLawReader(Collector):
     """Laws resolved_acceleration and resolved_adaptive."""
 
     def check_hand_control(self, system: RobotSystem, node: ControlNode, spec: dict, robot: Signature) -> ControlNode:
+        """Check a hand law's node (resolved acceleration or adaptive) on its 6-joint chain; return it with its
+        settings read."""
         path: Path = ("nodes", node.name, "control")
         law = node.law
         for key in ("kp", "kv", "kv_internal", "kf_internal", "ki_internal", "internal_forces",

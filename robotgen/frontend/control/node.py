@@ -43,6 +43,8 @@ class ControlReader(Collector):
         )
 
     def check_control(self, system: RobotSystem, node: ControlNode, robot: Signature) -> ControlNode:
+        """Check a CONTROL node against its robot's signature: law, gains, internal forces and motions; return it
+        completed."""
         path: Path = ("nodes", node.name, "control")
         spec = self.doc.data["nodes"][node.name]["control"]
         if node.law in HAND_LAWS:

@@ -118,6 +118,7 @@ class ResolvedRateReader(Collector):
                                      minimum=0.0, exclusive=True))
 
     def damping(self, path: Path, spec: dict) -> Damping | None:
+        """The damped least-squares settings (lambda_max, threshold > 0), or None when the spec has none."""
         if "damping" not in spec:
             return None
         d = spec["damping"]
@@ -126,6 +127,7 @@ class ResolvedRateReader(Collector):
                        self.constant(dpath + ("threshold",), d["threshold"], minimum=0.0, exclusive=True))
 
     def rate_settings(self, path: Path, spec: dict, chain: KinematicTree) -> RateControlSettings:
+        """The resolved-rate settings of a chain: its command frame, gains, rate limits, damping and lqr."""
         n = chain.nq
         kind = spec.get("frame", HAND)
         needs = {LINE_OF_SIGHT: "eye", SPHERICAL: "centre", TOOL: "tool"}
@@ -218,6 +220,7 @@ class ResolvedRateReader(Collector):
                                    arrival=self.arrival(path, spec))
 
     def rate_limits(self, path: Path, spec: dict, chain: KinematicTree) -> np.ndarray | None:
+        """(nq,) joint rate limits [rad/s or m/s]: the spec's, else the chain's velocity limits, else None."""
         if "rate_limits" in spec:
             return self.per_joint(path, spec["rate_limits"], chain.nq, "rate limit", positive=True)
         velocities = [j.limits.velocity for j in chain.coordinate_joints]
@@ -226,6 +229,8 @@ class ResolvedRateReader(Collector):
         return None
 
     def lqr_settings(self, path: Path, spec: dict, n: int) -> LQRSettings:
+        """The lqr settings: nominal (n,) joint positions, state weights (2n,) (two entries repeated per joint), r
+        (n,), all positive."""
         nominal = spec["nominal"]
         if len(nominal) != n:
             self.at_key(path + ("nominal",), f"expected {n} joint positions, got {len(nominal)}")

@@ -41,6 +41,7 @@ class WrittenMatrix:
     form: str
 
     def parameter(self, name: str, doc: str, bounds: tuple[Bounds, Bounds]) -> RuntimeParameter:
+        """This matrix as a run-time parameter, bounded as a gain (number, diagonal) or a definite matrix (rows)."""
         shape, values = written_shape(self.form, self.value)
         return RuntimeParameter(name, shape, values, doc, bounds[1] if self.form == MATRIX_GAIN else bounds[0])
 
@@ -57,6 +58,7 @@ class ImpedanceSettings:
     runtime: bool = True  # read at run time (the node's gains: folded compiles them in)
 
     def parameters(self, node: str, axes: str) -> list[RuntimeParameter]:
+        """The run-time parameters of an impedance node: stiffness K, damping D and, when set, inertia M_d."""
         if not self.runtime:
             return []
         out = [self.stiffness.parameter(f"{node}_stiffness", f"stiffness K of impedance controller '{node}' "
@@ -81,6 +83,7 @@ class HybridSettings:
     runtime: bool = True
 
     def parameters(self, node: str, axes: str) -> list[RuntimeParameter]:
+        """The run-time parameters of a hybrid node: selection S and the force loop's gains kf and ki."""
         if not self.runtime:
             return []
         return [RuntimeParameter(f"{node}_selection", (len(self.selection),), tuple(map(float, self.selection)),

@@ -38,6 +38,7 @@ class ResolvedAccelerationSettings:
     runtime: bool = True  # kp, kv read at run time
 
     def parameters(self, node: str) -> list[RuntimeParameter]:
+        """Run-time parameters of a resolved acceleration node: hand gains Kp and Kv (6,)."""
         if not self.runtime:
             return []
         axes = ", ".join(HAND_AXES)
@@ -102,13 +103,16 @@ class AdaptiveSettings:
 
     @property
     def trace_limit(self) -> float | None:
+        """The bound on the covariance's trace, or None when directional forgetting on an affine model needs none."""
         return None if self.affine and self.directional else self.covariance_limit
 
     @property
     def n_phi(self) -> int:
+        """Parameters per output of the RLS model: 12 states, 6 inputs and the constant term."""
         return 12 + HAND_DOF + (1 if self.affine else 0)
 
     def parameters(self, node: str) -> list[RuntimeParameter]:
+        """Run-time parameters of a resolved adaptive node: weights Q, R, the torque weight and forgetting."""
         if not self.runtime:
             return []
         out = [RuntimeParameter(f"{node}_q", self.q.shape, tuple(map(float, self.q.ravel())),

@@ -72,6 +72,7 @@ class CommandFrame:
 
     @property
     def axis_names(self) -> tuple[str, ...]:
+        """The command frame's axis names."""
         return AXIS_NAMES[self.kind]
 
 
@@ -92,6 +93,7 @@ class Redundancy:
     joint_weights: tuple[float, ...] | None = None  # (n,) diagonal of W, weighted_pseudo_inverse only
 
     def summary(self) -> dict:
+        """The settings as info() reports them."""
         out = {"method": self.method, "objective": self.objective, "gain": self.gain}
         if self.joint_weights is not None:
             out["joint_weights"] = list(self.joint_weights)
@@ -110,6 +112,7 @@ class Arrival:
     minimum_remaining: float = 0.001
 
     def summary(self) -> dict:
+        """The settings as info() reports them."""
         return {"minimum_remaining": self.minimum_remaining}
 
 
@@ -136,6 +139,9 @@ class LQRSettings:
 
 @dataclass(frozen=True, eq=False)
 class RateControlSettings:
+    """Settings of a resolved-rate node (Whitney 1972): frame, axes followed, redundancy, damping, limits, horizon,
+    lqr."""
+
     frame: CommandFrame
     active: tuple[bool, ...]  # (6,) follows the command
     free: tuple[bool, ...]  # (6,) left out of the task

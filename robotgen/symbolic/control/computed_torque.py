@@ -8,6 +8,7 @@ from robotgen.symbolic.control.law import Command, TreeLaw, Written, expected_st
 
 
 def write(c: Command) -> Written:
+    """Computed torque (eq 2.10): F = M (a_d + Kv e' + Kp e) + C v + N + F_d on the robot's coordinates."""
     a_e = c.a_d + c.feedback(c.position_error())
     r = c.robot
     F = r.M @ a_e + r.C @ r.v + r.N + c.F_d

@@ -8,6 +8,7 @@ from robotgen.symbolic.control.law import Command, TreeLaw, Written, expected_st
 
 
 def write(c: Command) -> Written:
+    """Feedforward: F = M a_d + C v + N + F_d, no feedback on the error."""
     a_e = c.a_d + c.feedback(None)
     r = c.robot
     F = r.M @ a_e + r.C @ r.v + r.N + c.F_d

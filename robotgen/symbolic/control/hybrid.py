@@ -35,6 +35,7 @@ def setting(c: Command, key: str) -> ca.SX | ca.DM | float:
 
 
 def write(c: Command) -> Written:
+    """Hybrid control (Raibert and Craig 1981): computed torque on S's coordinates, F_d with a PI loop on I - S's."""
     r = c.robot
     S = setting(c, "selection")
     free = ca.DM.eye(S.shape[0]) - S  # I - S: the force-controlled coordinates
@@ -52,6 +53,7 @@ def force_integral_start(robot: NodeGraph) -> ca.SX:
 
 
 def reads_forces(node: ControlNode) -> bool:
+    """A hybrid node always reads the force its robot senses."""
     return True
 
 

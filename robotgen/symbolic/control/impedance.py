@@ -33,6 +33,8 @@ def matrix(c: Command, key: str) -> ca.SX | ca.DM:
 
 
 def write(c: Command) -> Written:
+    """Impedance control (Hogan 1985): M_d e'' + D e' + K e = F_ext + F_d, the sensed force cancelled when M_d is
+    set."""
     r = c.robot
     spring = matrix(c, "damping") @ (c.v_d - r.v) + matrix(c, "stiffness") @ c.position_error()
     if c.node.force.inertia is None:
@@ -43,6 +45,7 @@ def write(c: Command) -> Written:
 
 
 def reads_forces(node: ControlNode) -> bool:
+    """Whether the node reads the sensed force: only with a target inertia M_d."""
     return node.force.inertia is not None
 
 

@@ -69,6 +69,7 @@ class Written:
 
 
 def reads_no_forces(node: ControlNode) -> bool:
+    """The reads_forces of a law that never reads a sensed force."""
     return False
 
 
@@ -95,6 +96,7 @@ class TreeLaw:
 
     @property
     def stateful(self) -> bool:
+        """Whether the law carries a state from one servo step to the next."""
         return self.state is not None
 
     def attributes(self, robot: NodeGraph, n: int) -> tuple[ca.SX, ca.SX, ca.SX]:

@@ -7,6 +7,7 @@ from robotgen.symbolic.control.law import Command, TreeLaw, Written
 
 
 def write(c: Command) -> Written:
+    """PD: F = F_d + Kv e' + Kp e, no model of the robot."""
     return Written(c.F_d + c.feedback(c.position_error()), c.x_d, c.v_d, c.a_d)
 
 

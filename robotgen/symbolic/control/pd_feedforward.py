@@ -7,6 +7,7 @@ from robotgen.symbolic.control.law import Command, TreeLaw, Written
 
 
 def write(c: Command) -> Written:
+    """PD + feedforward: F = M a_d + C v_d + N + Kv e' + Kp e + F_d (the model at the desired velocity)."""
     r = c.robot
     F = r.M @ c.a_d + r.C @ c.v_d + r.N + c.feedback(c.position_error()) + c.F_d
     return Written(F, c.x_d, c.v_d, c.a_d)

@@ -24,6 +24,7 @@ STEP = "resolved_acceleration_step"
 
 
 def gains(node, parameters: ParameterSymbols) -> tuple[ca.SX, ca.SX]:
+    """Kp and Kv (6,) of the node: run-time parameter symbols, or its folded constants."""
     s = node.hand
     if f"{node.name}_kp" in parameters.symbols:
         return parameters.symbols[f"{node.name}_kp"], parameters.symbols[f"{node.name}_kv"]
@@ -31,6 +32,7 @@ def gains(node, parameters: ParameterSymbols) -> tuple[ca.SX, ca.SX]:
 
 
 def kernels(system: RobotSystem) -> list[Kernel]:
+    """The resolved acceleration control kernels (Luh, Walker, Paul 1980) of the root's 6-joint chain."""
     node = system.root_node
     tree = system.nodes[node.robot].leaf
     parameters = ParameterSymbols.of(runtime_parameters(system))
@@ -56,6 +58,7 @@ def kernels(system: RobotSystem) -> list[Kernel]:
 
 
 def report(system: RobotSystem) -> tuple[dict, dict]:
+    """(info entries, module attributes) of a resolved acceleration spec: its gains, period and tool."""
     node = system.root_node
     s = node.hand
     info = {"controller": system.root, "robot": node.robot, "law": RESOLVED_ACCELERATION, "period": s.period,
@@ -65,6 +68,7 @@ def report(system: RobotSystem) -> tuple[dict, dict]:
 
 
 def controller(system: RobotSystem) -> Controller:
+    """The module's ResolvedAccelerationController: its step kernel, period [s] and first step's check."""
     return Controller("ResolvedAccelerationController", STEP, system.root_node.hand.period, start=start_check())
 
 

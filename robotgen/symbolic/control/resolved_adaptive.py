@@ -67,12 +67,15 @@ class StateLayout:
 
     @staticmethod
     def of(s: AdaptiveSettings) -> StateLayout:
+        """The controller state's blocks for these settings: A, B, (c), P, phi, B0 and the previous desired joint
+        state."""
         n = s.n_phi
         return StateLayout((("A", NX, NX), ("B", NX, NU), *((("c", NX, 1),) if s.affine else ()), ("P", n, n),
                             ("phi", n, 1), ("B0", NX, NU), ("q_d", NU, 1), ("qd_d", NU, 1), ("qdd_d", NU, 1)))
 
     @property
     def offsets(self) -> dict[str, tuple[int, int, int]]:
+        """name -> (offset, rows, cols) of each block in the state vector."""
         out, o = {}, 0
         for name, r, c in self.blocks:
             out[name] = (o, r, c)
@@ -81,9 +84,11 @@ class StateLayout:
 
     @property
     def size(self) -> int:
+        """The state vector's length."""
         return sum(r * c for _, r, c in self.blocks)
 
     def unpack(self, state: ca.SX) -> dict[str, ca.SX]:
+        """The blocks of a state vector, matrices row-major."""
         out = {}
         for name, (o, r, c) in self.offsets.items():
             block = state[o:o + r * c]
@@ -91,6 +96,7 @@ class StateLayout:
         return out
 
     def pack(self, blocks: dict[str, ca.SX]) -> ca.SX:
+        """The state vector of its blocks, matrices row-major."""
         return ca.vertcat(*[ca.reshape(blocks[name].T, r * c, 1) for name, r, c in self.blocks])
 
 
@@ -112,12 +118,15 @@ class Weights:
 
 
 class Inputs:
+    """The step's input symbols: q, qd (6,), pose_d (16,: a (4, 4) row-major), twist_d and accel_d (6,)."""
+
     def __init__(self):
         self.q, self.qd = ca.SX.sym("q", NU), ca.SX.sym("qd", NU)
         self.pose_d = ca.SX.sym("pose_d", 16)
         self.twist_d, self.accel_d = ca.SX.sym("twist_d", 6), ca.SX.sym("accel_d", 6)
 
     def ports(self) -> list[tuple]:
+        """The input ports as make_kernel takes them (name, symbol[, shape])."""
         return [("q", self.q), ("qd", self.qd), ("pose_d", self.pose_d, (4, 4)), ("twist_d", self.twist_d),
                 ("accel_d", self.accel_d)]
 
@@ -239,6 +248,7 @@ def initial_state(hand: Hand, s: AdaptiveSettings, i: Inputs) -> ca.SX:
 
 
 def kernels(system: RobotSystem) -> list[Kernel]:
+    """The resolved motion adaptive control kernels (Lee and Lee 1983) of the root's 6-joint chain."""
     node = system.root_node
     s: AdaptiveSettings = node.hand
     tree = system.nodes[node.robot].leaf
@@ -394,6 +404,7 @@ def closed_loop(system: RobotSystem, q: np.ndarray | None = None) -> dict:
 
 
 def report(system: RobotSystem) -> tuple[dict, dict]:
+    """(info entries, module attributes) of a resolved adaptive spec: its weights, forgetting and Table 1's counts."""
     node = system.root_node
     s: AdaptiveSettings = node.hand
 
@@ -412,6 +423,7 @@ def report(system: RobotSystem) -> tuple[dict, dict]:
 
 
 def controller(system: RobotSystem) -> Controller:
+    """The module's AdaptiveController: step and init kernels, period [s], state size, and views of A, B, c, P."""
     s: AdaptiveSettings = system.root_node.hand
     layout = StateLayout.of(s)
     docs = {"A": "the identified A of dx(k+1) = A dx(k) + B du(k) + c (eq 29)", "B": "the identified B (eq 29)",

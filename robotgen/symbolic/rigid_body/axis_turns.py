@@ -16,6 +16,7 @@ def dot(constant, v) -> ca.SX:
 
 
 def cross(u, v) -> list:
+    """u x v of (3,) vectors as a list of entries."""
     return [u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]]
 
 

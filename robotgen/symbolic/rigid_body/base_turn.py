@@ -4,8 +4,7 @@ When the tip's chain starts at a revolute joint whose axis line passes through t
 origin (a vertical first axis, as on most arms), turning that joint by q_0 turns everything
 beyond it about that line: the tip pose, its Jacobian (Whitney 1972, eqs 7-9) and its bias
 acceleration Jdot qd are those at q_0 = 0, turned by R(q_0). Which form CSE leaves smaller
-depends on the arm (UR5 Jacobian: 153 operations directly, 121 turned; Panda: 193 and 224),
-so ChainGraphs counts both."""
+depends on the arm, so ChainGraphs counts both."""
 from __future__ import annotations
 
 import casadi as ca

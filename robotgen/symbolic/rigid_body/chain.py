@@ -30,6 +30,8 @@ from robotgen.symbolic.rigid_body.rnea_derivatives import axes_and_inertias, rne
 
 @dataclass(frozen=True, eq=False)
 class Symbols:
+    """The shared symbols of a leaf: q, qd, qdd, tau, each (n,)."""
+
     q: ca.SX
     qd: ca.SX
     qdd: ca.SX
@@ -37,6 +39,7 @@ class Symbols:
 
     @staticmethod
     def make(n: int) -> Symbols:
+        """Fresh symbols q, qd, qdd, tau of size n."""
         return Symbols(ca.SX.sym("q", n), ca.SX.sym("qd", n), ca.SX.sym("qdd", n), ca.SX.sym("tau", n))
 
 
@@ -109,7 +112,7 @@ class ChainGraphs:
         """Whether J and Jdot qd are built turned (base_turn), one choice for both, so that the
         fused servo terms compute the separate functions' bits: the form that leaves M, C qd + N,
         J and Jdot qd together with fewer operations (direct, Jdot qd shares nonlinear's forward
-        pass; UR5 701 turned against 732, Panda 1314 direct against 1357). Past LOOPS_ABOVE_DOF
+        pass; which form wins depends on the arm). Past LOOPS_ABOVE_DOF
         joints M and C qd + N are loops, not built straight-line to count, and J and Jdot qd are
         counted alone."""
         def build():
@@ -124,6 +127,7 @@ class ChainGraphs:
         return self._get("tip_turned", build)
 
     def jacobian_hand(self) -> ca.SX:
+        """The tip Jacobian (6, n) in tip-frame coordinates (Whitney 1972, eq 7): blockdiag(R^T, R^T) J."""
         return self._get("jacobian_hand", lambda: self.coordinates.columns(hand_jacobian(self.tree, self.q_joints)))
 
     def jacobian_dot_qd(self) -> ca.SX:
@@ -136,6 +140,7 @@ class ChainGraphs:
         return self._get("bias_pass", lambda: forward_pass(self.tree, self.motions, self.qd_joints, None))
 
     def mass(self) -> ca.SX:
+        """M(q) (n, n) by the composite rigid-body algorithm, in the tree's coordinates."""
         return self._get("mass", lambda: self.coordinates.matrix(crba(self.tree, self.motions, self.inertias),
                                                                  symmetric=True))
 
@@ -152,8 +157,8 @@ class ChainGraphs:
     def coriolis_candidates(self) -> dict[str, ca.SX]:
         """The Christoffel-consistent C three ways: Christoffel symbols of M by AD (O(n^3)
         terms, compact for small arms), half the velocity Jacobian of the Coriolis forces,
-        and the spatial O(n^2) algorithm (alone past AD_CORIOLIS_MAX_DOF joints). Operations
-        after CSE: UR5 1107, 714, 2004; Panda 2663, 3020, 3887."""
+        and the spatial O(n^2) algorithm (alone past AD_CORIOLIS_MAX_DOF joints). Which is
+        smallest after CSE depends on the arm."""
         q, qd, c = self.sym.q, self.sym.qd, self.coordinates
         spatial = c.matrix(coriolis_spatial(self.tree, self.motions, self.inertias, self.qd_joints))
         if self.tree.n_joints > AD_CORIOLIS_MAX_DOF:
@@ -173,6 +178,7 @@ class ChainGraphs:
         return self._get("friction", lambda: self.coordinates.forces(friction_torque(self.tree, self.qd_joints)))
 
     def gravity(self) -> ca.SX:
+        """Gravity torques N(q) (n,) by Newton-Euler at qd = qdd = 0."""
         return self._get("gravity",
                          lambda: self.coordinates.forces(rnea(self.tree, self.motions, self.inertias, None, None)))
 
@@ -192,13 +198,14 @@ class ChainGraphs:
         return self._get("inverse_dynamics", build)
 
     def forward_dynamics(self) -> ca.SX:
+        """qdd = M^-1 (tau - C qd - N) (n,), by L D L^T."""
         return self._get("forward_dynamics",
                          lambda: cholesky_solve(self.mass(), self.sym.tau - self.nonlinear()))
 
     def inverse_dynamics_derivatives(self) -> tuple[ca.SX, ca.SX]:
         """(d tau/dq, d tau/dqd): the recursion of rnea_derivatives or reverse sweeps of
         Newton-Euler (one per joint), whichever CasADi's CSE leaves with fewer operations
-        (UR5: the sweeps, 1465 vs 2546; Panda: the recursion, 4888 vs 5170)."""
+        (the sweeps on small arms, the recursion on longer ones)."""
         def build():
             s = self.sym
             recursion = self._rnea_derivatives()

@@ -57,12 +57,8 @@ from robotgen.symbolic.schedule import (
 LOOPS_ABOVE_OPS = 5000
 # The Coriolis matrix's loops cost few operations more than its straight-line form (O(n^2) terms
 # against the Christoffel symbols' O(n^3)), so it turns to loops sooner, past 2500 operations.
-# Which runs faster depends on the core: the Panda's 2663 straight-line operations (31 kB of
-# code) against the loops' 3752 (5 kB), gcc -O2, calls back to back in alternating rounds:
-# 719-1092 ns against 940-1544 on a Zen 2 guest; 482-503 against 375-391 on a Zen 5 one, where
-# with two other large kernels called between them (their code sharing the caches) they tied,
-# 454-537 against 488-512. Loops it is, for the smaller code: on a Cortex-M7 (gcc -O2) 2.9 kB
-# against 19 kB, where common parts have a 4-16 kB instruction cache.
+# Which form runs faster depends on the core; the loops are taken for their code, several times
+# smaller, where a microcontroller has a 4-16 kB instruction cache (docs/performance-log.md).
 CORIOLIS_LOOPS_ABOVE_OPS = 2500
 # Past this many joints every kernel built here is (Coriolis alone is ~36 n^2 operations).
 LOOPS_ABOVE_DOF = 12
@@ -244,6 +240,7 @@ class ChainLoops:
     # -- kernels ----------------------------------------------------------------------------
 
     def mass(self, b: ScheduleBuilder) -> None:
+        """Schedule M (n, n) as loops: composite inertias from the tip, then each joint pair."""
         S, BODY = self._kinematics(b)
         if not self.coordinates.coupled:
             self._mass(b, S, self._composite_inertias(b, BODY), (OUTPUT, 0))
@@ -267,6 +264,7 @@ class ChainLoops:
         self._to_coordinates(b, "force_coordinates", [(TAU, "vector")], lambda tau: tau, Slice(OUTPUT, 0))
 
     def coriolis(self, b: ScheduleBuilder, qd: ca.SX) -> None:
+        """Schedule C(q, qd) (n, n) as loops: the spatial algorithm's composites from the tip."""
         n = self.n
         S, BODY = self._kinematics(b)
         _, V, SDOT = self._velocities(b, S, self.coordinates.rates(qd))

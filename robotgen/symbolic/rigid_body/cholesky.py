@@ -20,6 +20,8 @@ from robotgen.symbolic.schedule import LOCAL, RANGE, ScheduleBuilder, Slice, bod
 
 @dataclass(frozen=True, eq=False)
 class Cholesky:
+    """M = L D L^T (no square roots): L unit lower triangular, d and 1/d, as lists of SX."""
+
     L: list[list[ca.SX]]  # unit lower triangular (the diagonal is 1 and not read), M = L D L^T
     diagonal: list[ca.SX]  # d_i (every one NaN when M is not positive definite)
     inverse_diagonal: list[ca.SX]  # 1 / d_i (likewise)
@@ -69,6 +71,7 @@ def _minus_terms(value: ca.SX, terms: list[ca.SX]) -> ca.SX:
 
 
 def cholesky_solve(M: ca.SX, b: ca.SX) -> ca.SX:
+    """M^-1 b for a symmetric positive definite M (n, n) and b (n,) or (n, k), by L D L^T."""
     return cholesky_substitute(cholesky_factor(M), b)
 
 
@@ -120,8 +123,7 @@ def schedule_inverse_product(b: ScheduleBuilder, n: int, inverse: int, rows: int
     """M^-1 R for the local ``rows`` (n x width, row-major) with M^-1 already formed (the local
     ``inverse``, n x n row-major): row i of the result is sum_k (M^-1)_ik R_k, one loop step
     per row. The rows are independent, so the processor overlaps them, where a row-wise solve
-    waits at every row for the rows before it (forward dynamics' derivatives, A/B on a Zen 3
-    core, 4-5 rounds: UR5 787 -> 737 ns, Panda 1783 -> 1694). Each block (target, first
+    waits at every row for the rows before it (docs/performance-log.md). Each block (target, first
     column, scale) writes scale times columns first..first+n-1 of the product to an n x n
     row-major array."""
     m, R = ca.SX.sym("m", n), ca.SX.sym("R", n * width)

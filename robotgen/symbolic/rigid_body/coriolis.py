@@ -42,6 +42,7 @@ def _world_inertia(inertia: OriginInertia, R: ca.SX, p: ca.SX) -> ca.SX:
 
 def coriolis_spatial(tree: KinematicTree, motions: list[JointMotion], inertias: list[OriginInertia],
                      qd: ca.SX) -> ca.SX:
+    """C(q, qd) (n, n) by the O(n^2) spatial algorithm, Christoffel-consistent."""
     n = tree.n_joints
     poses = joint_poses(tree, motions)
     S, v, dS, I = [], [], [], []

@@ -20,12 +20,15 @@ def _scaled(x: ca.SX, m: float) -> ca.SX:
 
 
 class CoupledCoordinates:
+    """A tree's coordinates mapped into its joints and back: q_joints = S q + c, S^T tau, S^T M S, J S."""
+
     def __init__(self, tree: KinematicTree):
         self.coupling = tree.coupling
         self.n_joints = tree.n_joints
 
     @property
     def coupled(self) -> bool:
+        """Whether mimic joints couple the joints (else every map is the identity)."""
         return self.coupling is not None
 
     def positions(self, q: ca.SX) -> ca.SX:

@@ -9,6 +9,7 @@ from robotgen.model.chain import KinematicTree
 
 
 def friction_torque(tree: KinematicTree, qd: ca.SX) -> ca.SX:
+    """Joint friction torques (n_joints,): viscous b qd plus Coulomb f tanh(qd / smoothing)."""
     terms = []
     for i, joint in enumerate(tree.joints):
         tau = ca.SX(0)

@@ -13,24 +13,30 @@ from robotgen.symbolic.rigid_body.spatial import const, rotate_symmetric
 
 @dataclass(frozen=True, eq=False)
 class OriginInertia:
+    """A body's inertia about a frame origin: mass m [kg], first moment h = m c (3,) [kg m], Ibar (3, 3) [kg m^2]."""
+
     m: ca.SX
     h: ca.SX  # (3,) first mass moment m c
     Ibar: ca.SX  # (3, 3) rotational inertia about the frame origin
 
     @staticmethod
     def constant(p: OriginParameters) -> OriginInertia:
+        """The SX form of constant origin parameters."""
         return OriginInertia(ca.SX(p.mass), const(p.first_moment), const(p.inertia))
 
     SIZE = 13  # as a column: m, h, Ibar (by columns)
 
     def vector(self) -> ca.SX:
+        """(13,): m, h, then Ibar by columns."""
         return ca.vertcat(self.m, self.h, ca.vec(self.Ibar))
 
     @staticmethod
     def of_vector(x: ca.SX) -> OriginInertia:
+        """The inertia a (13,) column holds (inverse of vector)."""
         return OriginInertia(x[0], x[1:4], ca.reshape(x[4:13], 3, 3))
 
     def scaled(self, k: float) -> OriginInertia:
+        """The inertia scaled by k (mass, moment and Ibar)."""
         return OriginInertia(k * self.m, k * self.h, k * self.Ibar)
 
     def apply6(self, x: ca.SX) -> ca.SX:

@@ -64,6 +64,7 @@ class WristCentreJacobian:
 
     # -- the factor: everything that depends on q alone (stages 2 and 3 share it) --------
     def factor(self, q: ca.SX) -> dict:
+        """Everything of q (6,) [rad] the two 3 x 3 solves need: turns, the blocks of J at the wrist centre."""
         arm = self.arm
         s3 = arm.sign3
         # (cos, sin) of each turn: q2 + phi3 turns body 3 about w2 (axes 2 and 3 parallel)

@@ -30,10 +30,12 @@ class JointMotion:
 
     @property
     def R(self) -> ca.SX:
+        """The joint's rotation R = R0 Rm (3, 3) in its parent."""
         return self.R0 if self.Rm is None else self.R0 @ self.Rm
 
     @property
     def E(self) -> ca.SX:
+        """R^T, which maps parent coordinates into the joint's."""
         return self.R.T
 
     def to_child(self, v: ca.SX) -> ca.SX:
@@ -105,6 +107,7 @@ def joint_poses(tree: KinematicTree, motions: list[JointMotion]) -> list[tuple[c
 
 
 def tip_pose(tree: KinematicTree, poses: list[tuple[ca.SX, ca.SX]]) -> tuple[ca.SX, ca.SX]:
+    """The tip pose with the tool: (R (3, 3), p (3,)) in the base frame."""
     R, p = poses[tree.tip]
     return R @ const(tree.tool[:3, :3]), p + R @ const(tree.tool[:3, 3])
 

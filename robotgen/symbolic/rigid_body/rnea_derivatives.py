@@ -79,6 +79,7 @@ def kinematics_stage(b: ScheduleBuilder, axes: list[ca.SX], inertias: list[Origi
 
 
 def base_acceleration(tree: KinematicTree) -> ca.SX:
+    """The base's spatial acceleration (6,): gravity as an upward acceleration, [0; -g]."""
     return ca.vertcat(ca.SX.zeros(3, 1), -const(tree.gravity))
 
 

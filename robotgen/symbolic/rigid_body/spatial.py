@@ -10,10 +10,12 @@ import numpy as np
 
 
 def const(a: np.ndarray) -> ca.SX:
+    """A numpy array as a constant SX."""
     return ca.SX(ca.DM(np.asarray(a, dtype=float)))
 
 
 def skew(v: ca.SX) -> ca.SX:
+    """[v x] (3, 3): the skew-symmetric matrix with [v x] w = v x w."""
     return ca.vertcat(
         ca.horzcat(0, -v[2], v[1]),
         ca.horzcat(v[2], 0, -v[0]),
@@ -49,6 +51,7 @@ def rotate_symmetric(R: ca.SX, X: ca.SX) -> ca.SX:
 
 
 def homogeneous(R: ca.SX, p: ca.SX) -> ca.SX:
+    """(4, 4) homogeneous transform of rotation R (3, 3) and translation p (3,)."""
     return ca.vertcat(ca.horzcat(R, p), ca.horzcat(ca.SX.zeros(1, 3), ca.SX.ones(1, 1)))
 
 

@@ -12,10 +12,12 @@ from robotgen.symbolic.kernel import Kernel
 
 
 def kernels(system: RobotSystem) -> list[Kernel]:
+    """The resolved motion rate control kernels (Whitney 1972) of a chain or a composite root."""
     return composite_kernels(system) if system.rate_controls_composite else chain_kernels(system)
 
 
 def report(system: RobotSystem) -> tuple[dict, dict]:
+    """(info entries, module attributes) of a resolved-rate spec."""
     return composite_report(system) if system.rate_controls_composite else chain_report(system)
 
 

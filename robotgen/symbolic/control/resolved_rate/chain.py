@@ -53,6 +53,7 @@ from robotgen.symbolic.rigid_body.axis_angle import rotation_vector
 
 
 def chain_and_settings(system: RobotSystem) -> tuple[KinematicTree, RateControlSettings]:
+    """The root's chain and its resolved-rate settings."""
     node = system.root_node
     return system.nodes[node.robot].leaf, node.rate
 
@@ -131,6 +132,7 @@ class RateLaw:
         return scale_to_limits(self.unlimited(S), self.s.rate_limits)
 
     def rate_step(self, command: ca.SX) -> ca.SX:
+        """Joint rates (n,) resolving a (6,) hand-rate command on the active axes, weighted."""
         gate = np.array([w if a else 0.0 for w, a in zip(self.s.weights, self.s.active)])
         S6 = ca.SX(ca.DM(gate)) * command
         return self.resolve(S6[self.rows])
@@ -168,6 +170,7 @@ def _has_range(joint) -> bool:
 
 
 def chain_kernels(system: RobotSystem) -> list[Kernel]:
+    """The resolved-rate kernels of a chain: rate, position and arrival steps, conditioning, lqr when set."""
     tree, s = chain_and_settings(system)
     law = RateLaw(tree, s)
     n, q = law.n, law.q

@@ -41,6 +41,7 @@ class Hand:
 
 
 def hand(tree: KinematicTree, frame: CommandFrame, q: ca.SX) -> Hand:
+    """The command frame's pose and Jacobian rows (Jv, Jw) at joint positions q (n,)."""
     R, p = tip_pose(tree, joint_poses(tree, joint_motions(tree, q)))
     J = geometric_jacobian(tree, q)
     Jv, Jw = J[:3, :], J[3:, :]

@@ -112,6 +112,7 @@ class CompositeRateLaw:
         return ca.vertcat(error / T, ca.SX.zeros(self.k - self.n_external)), error
 
     def position_step(self, target: ca.SX) -> tuple[ca.SX, ca.SX]:
+        """(joint rates, error) of position control toward ``target``: the error over the horizon, resolved."""
         rates, error = self.rates(target, self.s.horizon)
         return self.resolve(rates), error
 
@@ -123,6 +124,7 @@ class CompositeRateLaw:
 
 
 def composite_kernels(system: RobotSystem) -> list[Kernel]:
+    """The resolved-rate kernels of a composite root (robots joined through an ATTACH)."""
     law = CompositeRateLaw(system)
     robot = system.root_node.robot
     th, n, k, ne = law.theta, law.n, law.k, law.n_external

@@ -34,6 +34,8 @@ from robotgen.symbolic.rigid_body.chain import ChainGraphs, Symbols
 
 @dataclass(frozen=True, eq=False)
 class Linearisation:
+    """The chain's dynamics linearised at a nominal pose: A (2n, 2n), B (2n, n), nominal (n,) [rad], tau0 (n,) [N m]."""
+
     A: np.ndarray  # (2n, 2n)
     B: np.ndarray  # (2n, n)
     nominal: np.ndarray  # (n,)
@@ -42,6 +44,8 @@ class Linearisation:
 
 @dataclass(frozen=True, eq=False)
 class RegulatorDesign:
+    """An LQR design on eq 19 (Whitney 1972): the model, K (n, 2n), the weights Q and R, its report."""
+
     model: Linearisation
     K: np.ndarray  # (n, 2n), dtau = -K s
     Q: np.ndarray
@@ -50,6 +54,7 @@ class RegulatorDesign:
 
 
 def linearise(tree: KinematicTree, nominal: np.ndarray) -> Linearisation:
+    """The chain's dynamics linearised at ``nominal`` (n,) joint positions, qd = 0, with the holding torque."""
     n = tree.nq
     sym = Symbols.make(n)
     g = ChainGraphs(tree, sym)
@@ -76,6 +81,7 @@ def pbh_rank(A: np.ndarray, M: np.ndarray, *, rows: bool) -> int:
 
 @functools.lru_cache(maxsize=8)
 def regulator(tree: KinematicTree, settings: LQRSettings) -> RegulatorDesign:
+    """The LQR of the linearised chain: K from the continuous Riccati equation, its closed-loop poles."""
     n = tree.nq
     model = linearise(tree, settings.nominal)
     Q, R = np.diag(settings.q_weights), np.diag(settings.r_weights)

@@ -45,6 +45,7 @@ class Householder:
 
     @staticmethod
     def factor(A: ca.SX) -> Householder:
+        """Householder QR of A (r x c, r >= c) as reflections and R."""
         r, c = A.shape
         assert r >= c, (r, c)
         a = _entries(A)
@@ -69,6 +70,7 @@ class Householder:
 
     @property
     def cols(self) -> int:
+        """The number of columns of the factored matrix."""
         return len(self.R)
 
     def q_times(self, y: list[ca.SX]) -> list[ca.SX]:
@@ -121,11 +123,14 @@ def symmetric_eigenvalues(G: ca.SX, sweeps: int = JACOBI_SWEEPS) -> list[ca.SX]:
 
 @dataclass(frozen=True, eq=False)
 class Conditioning:
+    """Conditioning of J: the manipulability w = sqrt(det(J J^T)) and the capped condition number."""
+
     manipulability: ca.SX  # w = sqrt(det(J J^T)) = product of singular values
     condition: ca.SX  # sigma_max / sigma_min, capped at CONDITION_CAP
 
 
 def conditioning(J: ca.SX) -> Conditioning:
+    """Conditioning of a task Jacobian J (m, n) from the eigenvalues of J J^T."""
     mu = [ca.fmax(e, 0) for e in symmetric_eigenvalues(J @ J.T)]
     w = ca.sqrt(_product(mu))
     big = _reduce(ca.fmax, mu)
@@ -174,12 +179,14 @@ class DampedResolver:
         self.qr = Householder.factor(ca.vertcat(Jw.T, lower) if lam2 is not None else Jw.T)
 
     def pinv_times(self, b: ca.SX) -> ca.SX:
+        """J+_lambda b (weighted when columns are scaled) for a task-rate vector b (m,)."""
         z = self.qr.solve_rt([b[i] for i in range(b.shape[0])])
         y = self.qr.q_times(z + [ca.SX(0)] * (self.qr.rows - len(z)))
         u = ca.vertcat(*y[: self.n])
         return u if self.scale is None else self.scale * u
 
     def project_null(self, z: ca.SX) -> ca.SX:
+        """(I - J+_lambda J) z: z (n,) projected onto the null space of J."""
         return z - self.pinv_times(self.J @ z)
 
 
