@@ -394,7 +394,7 @@ def _cmd_info(args: argparse.Namespace) -> int:
             print(f"  lifted closed loop: not linearised: {e}")
     if system.root_law == RESOLVED_ADAPTIVE:
         from robotgen.symbolic import module_extras  # lazy: CasADi only where it is needed
-        from robotgen.symbolic.control.resolved_adaptive import closed_loop
+        from robotgen.symbolic.root_laws.resolved_adaptive import closed_loop
 
         print(closed_loop_line(closed_loop(system), system.root_node.hand.period))
         print(operation_table(module_extras(system)[0]["hand_control"]))

@@ -29,9 +29,9 @@ from robotgen.model.system import RobotSystem
 from robotgen.mujoco_plant.run import Diverged, chain_steps
 from robotgen.numeric import exact
 from robotgen.simulate import DIVERGED, SimulationError
-from robotgen.symbolic.control.hand import Hand
 from robotgen.symbolic.rigid_body.chain import ChainGraphs, Symbols
 from robotgen.symbolic.rigid_body.rpy import rpy_of, rpy_rate_map, rpy_rotation
+from robotgen.symbolic.root_laws.hand import Hand
 
 SETTLE_WINDOW = 1.0  # [s]: the RMS just after a change and at the end of the run
 
