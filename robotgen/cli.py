@@ -167,12 +167,17 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     import dataclasses
     import tempfile
 
-    from robotgen import documentation, hand_simulation, multirate_simulation, regulator_simulation, simulate
+    from robotgen import documentation
     from robotgen.emit.build import emit
     from robotgen.model.signature import robot_leaves
     from robotgen.model.simulation import BOTH_PLANTS, MUJOCO_PLANT, ROBOTGEN_PLANT, SimulationSettings, rest_posture
-    from robotgen.mujoco_plant import MujocoMissing, require_mujoco
-    from robotgen.mujoco_plant.run import tree_plant
+    from robotgen.simulation import hand as hand_simulation
+    from robotgen.simulation import multirate as multirate_simulation
+    from robotgen.simulation import regulator as regulator_simulation
+    from robotgen.simulation import tree as simulate
+    from robotgen.simulation.failures import SimulationError
+    from robotgen.simulation.mujoco import MujocoMissing, require_mujoco
+    from robotgen.simulation.mujoco.run import tree_plant
     from robotgen.symbolic import controllers_for, kernels_for
 
     progress = _progress(args)
@@ -267,7 +272,7 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
                     both = multirate_simulation.run(module, settings, rest)
                 else:
                     result = simulate.run(module, settings, rest)
-            except simulate.SimulationError as e:
+            except SimulationError as e:
                 in_spec = e.field is not None and e.field in settings.locations
                 where = settings.locations[e.field] if in_spec else system.location_of(system.root)
                 raise UserError(where, f"simulation.{e.field}: {e}" if in_spec else str(e)) from None
@@ -287,7 +292,7 @@ def _write_simulation(out: Path, system, kind, results: list, mjcf: str | None, 
                       stems: list[tuple[str, str]]) -> str:
     """<stem>.csv and <stem>.png of each run (``stems``, one (stem, what the plot's title adds)
     per result: the first plant's <name>, a second plant's <name>_<plant>, a multi-rate tree's
-    single-rate run <name>_single_rate; ``kind``: robotgen.simulate or robotgen.hand_simulation, whose
+    single-rate run <name>_single_rate; ``kind``: robotgen.simulation.tree or robotgen.simulation.hand, whose
     write_csv and plot these are), and the MJCF simulated as <name>.xml, made aside, then put
     into ``out`` replacing only files robotgen can prove it wrote there
     (robotgen.output_files); the line that says what was written."""

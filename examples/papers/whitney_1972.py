@@ -48,9 +48,9 @@ sys.path.insert(0, str(ROOT))
 
 from ruamel.yaml import YAML  # noqa: E402
 
-from robotgen.approach_paths import approach_paths  # noqa: E402
 from robotgen.cli import main as robotgen  # noqa: E402
 from robotgen.numeric.linear_servo import LinearServo, costate, design  # noqa: E402
+from robotgen.simulation.approach_paths import approach_paths  # noqa: E402
 
 SPEC = Path(__file__).with_name("whitney_1972_arm.yaml")
 NAME = "whitney_1972_arm"

@@ -86,7 +86,7 @@ CONTACT_GRASPS = {
 CONSTRAINT_FORMULAS = "formulas"
 # Coulomb friction coefficient between a fingertip and the payload (a contact constraint's
 # `friction`): robotgen's own model holds the fingertips bilaterally and never reads it; an
-# independent simulator with unilateral contacts (robotgen.mujoco_plant) does
+# independent simulator with unilateral contacts (robotgen.simulation.mujoco) does
 DEFAULT_CONTACT_FRICTION = 1.0
 
 

@@ -18,8 +18,8 @@ import pytest
 import yaml
 
 from robotgen.frontend import load_system
-from robotgen.hand_simulation import run
 from robotgen.model.simulation import PayloadChange
+from robotgen.simulation.hand import run
 
 ROOT = Path(__file__).resolve().parents[2]
 RMAC = ROOT / "specs" / "puma560_rmac.yaml"

@@ -6,7 +6,7 @@ changing mid-run (the plant's hand picks up point masses the controller is not t
 The plant is the chain's forward dynamics (the spec's model, and the same with each payload
 added to the last link), integrated by RK4 from theta0 with the joint rates of the path's
 start (eq 11), or a MuJoCo model of the same chain whose hand holds each payload
-(robotgen.mujoco_plant); the controller runs once per sampling period on the sensed joint
+(robotgen.simulation.mujoco); the controller runs once per sampling period on the sensed joint
 state and its torques are held over the period. An adaptive controller is run three times: adapting,
 with its identification frozen (adapt = False), and replaced by resolved acceleration
 control with its default gains, so that the plot compares them."""
@@ -26,9 +26,9 @@ from robotgen.model.laws import RESOLVED_ACCELERATION, RESOLVED_ADAPTIVE
 from robotgen.model.laws.hand import HAND_AXES, HAND_DOF, ResolvedAccelerationSettings
 from robotgen.model.simulation import MUJOCO_PLANT, ROBOTGEN_PLANT, SimulationSettings
 from robotgen.model.system import RobotSystem
-from robotgen.mujoco_plant.run import Diverged, chain_steps
 from robotgen.numeric import exact
-from robotgen.simulate import DIVERGED, SimulationError
+from robotgen.simulation.failures import DIVERGED, SimulationError
+from robotgen.simulation.mujoco.run import Diverged, chain_steps
 from robotgen.symbolic.rigid_body.chain import ChainGraphs, Symbols
 from robotgen.symbolic.rigid_body.rpy import rpy_of, rpy_rate_map, rpy_rotation
 from robotgen.symbolic.root_laws.hand import Hand

@@ -5,18 +5,19 @@ A resolved-rate controller outputs joint rates, which a plant cannot take; its r
 outputs torques. The chain starts at the simulation's theta0 at rest and the regulator
 brings it back to the nominal posture q0: the "tracking error" is q - q0. The plant is the
 chain's forward dynamics integrated by RK4 (hand_simulation.rk4_step) or a MuJoCo model of
-the same chain (robotgen.mujoco_plant), the torque held over each period dt."""
+the same chain (robotgen.simulation.mujoco), the torque held over each period dt."""
 from __future__ import annotations
 
 import numpy as np
 
-from robotgen.hand_simulation import rk4_step
 from robotgen.model.chain import REVOLUTE
 from robotgen.model.signature import METRE, RADIAN
 from robotgen.model.simulation import MUJOCO_PLANT, ROBOTGEN_PLANT, SimulationSettings
 from robotgen.model.system import RobotSystem
-from robotgen.mujoco_plant.run import Diverged, chain_steps
-from robotgen.simulate import DIVERGED, Result, SimulationError, format_values
+from robotgen.simulation.failures import DIVERGED, SimulationError, format_values
+from robotgen.simulation.hand import rk4_step
+from robotgen.simulation.mujoco.run import Diverged, chain_steps
+from robotgen.simulation.tree import Result
 
 
 def run(module, system: RobotSystem, s: SimulationSettings, plant: str = ROBOTGEN_PLANT) -> tuple[Result, str | None]:
