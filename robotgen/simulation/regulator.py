@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from robotgen.documentation import hint
 from robotgen.model.chain import REVOLUTE
 from robotgen.model.signature import METRE, RADIAN
 from robotgen.model.simulation import MUJOCO_PLANT, ROBOTGEN_PLANT, SimulationSettings
@@ -18,6 +19,33 @@ from robotgen.simulation.failures import DIVERGED, SimulationError, format_value
 from robotgen.simulation.hand import rk4_step
 from robotgen.simulation.mujoco.run import Diverged, chain_steps
 from robotgen.simulation.tree import Result
+from robotgen.simulation.tree import compare as compare  # its records are a tree run's
+from robotgen.simulation.tree import plot as plot
+from robotgen.simulation.tree import summary as summary
+from robotgen.simulation.tree import write_csv as write_csv
+
+
+def refusal(system: RobotSystem) -> str | None:
+    """Why ``robotgen simulate`` cannot run this resolved-rate controller: it outputs joint
+    rates, so only a chain's regulator (lqr settings) is simulated."""
+    if system.rate_controls_composite or system.root_node.rate.lqr is None:
+        where = hint("python-api", "Resolved-rate controllers")
+        return ("simulate runs torque controllers; a resolved_rate controller outputs joint rates (with lqr "
+                "settings its regulator's lqr_step is simulated): integrate its rate_step / position_step "
+                f"({where} shows how)")
+    return None
+
+
+def comparison_system(system: RobotSystem) -> None:
+    """A regulator is simulated alone."""
+    return None
+
+
+def simulate(module, system: RobotSystem, s: SimulationSettings, plant: str, comparison=None
+             ) -> tuple[Result, str | None]:
+    """The laws' simulation entry (robotgen.model.laws.registry): ``run``; ``comparison`` is
+    always None."""
+    return run(module, system, s, plant)
 
 
 def run(module, system: RobotSystem, s: SimulationSettings, plant: str = ROBOTGEN_PLANT) -> tuple[Result, str | None]:
