@@ -4,7 +4,7 @@ the compiled ``lqr_step`` (tau = tau0 - K (q - q0, qd)) closed around the chain'
 A resolved-rate controller outputs joint rates, which a plant cannot take; its regulator
 outputs torques. The chain starts at the simulation's theta0 at rest and the regulator
 brings it back to the nominal posture q0: the "tracking error" is q - q0. The plant is the
-chain's forward dynamics integrated by RK4 (hand_simulation.rk4_step) or a MuJoCo model of
+chain's forward dynamics integrated by RK4 (robotgen.simulation.hand.rk4_step) or a MuJoCo model of
 the same chain (robotgen.simulation.mujoco), the torque held over each period dt."""
 from __future__ import annotations
 
