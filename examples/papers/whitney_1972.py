@@ -5,7 +5,7 @@ the optimal linear servo of "Dynamic Control of Arms" and its three-link arm (Fi
 
 The paper linearises the arm's dynamics about a nominal (eq 19, state s = (dtheta,
 dtheta_dot); its printed blocks are garbled in our copy, re-derived as in
-robotgen/symbolic/control/resolved_rate/regulator.py: sdot = [0 I; -M^-1 K  -M^-1 B] s +
+robotgen/symbolic/root_laws/resolved_rate/regulator.py: sdot = [0 I; -M^-1 K  -M^-1 B] s +
 [0; M^-1] dtau, K gravity stiffness, B damping), assumes that model holds for the whole
 state, designs feedback gains and "control functions" by optimal linear servo theory, and
 applies them to the full nonlinear dynamics. Fig 5 shows the three joint angles against

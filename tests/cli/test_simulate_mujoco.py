@@ -1,4 +1,4 @@
-"""`robotgen simulate --plant mujoco`: MuJoCo as an independent plant (robotgen/mujoco_plant).
+"""`robotgen simulate --plant mujoco`: MuJoCo as an independent plant (robotgen/simulation/mujoco).
 
 Without contacts the two plants integrate the same ODE by the same classical RK4 step (MuJoCo's
 RK4 at the servo period, the torque held): only the floating-point rounding of M, C, N differs
