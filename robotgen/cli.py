@@ -22,7 +22,8 @@ from robotgen.errors import MissingDependency, OutputError, UserError, UserError
 from robotgen.model.coupling import affine
 from robotgen.model.derivatives import INTEGRATORS, SEMI_IMPLICIT_EULER, DerivativeSettings
 from robotgen.model.describe import system_info, system_nq
-from robotgen.model.laws import HAND_LAWS, RESOLVED_ADAPTIVE
+from robotgen.model.laws.hand import AdaptiveSettings
+from robotgen.model.laws.registry import LAWS
 from robotgen.model.names import MAX_LENGTH, PATTERN, name_problem
 from robotgen.model.rate_groups import multi_rate_groups, servo_period
 from robotgen.model.system import ControlNode
@@ -167,12 +168,15 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     import dataclasses
     import tempfile
 
-    from robotgen import documentation, hand_simulation, multirate_simulation, regulator_simulation, simulate
+    from robotgen import documentation
     from robotgen.emit.build import emit
     from robotgen.model.signature import robot_leaves
     from robotgen.model.simulation import BOTH_PLANTS, MUJOCO_PLANT, ROBOTGEN_PLANT, SimulationSettings, rest_posture
-    from robotgen.mujoco_plant import MujocoMissing, require_mujoco
-    from robotgen.mujoco_plant.run import tree_plant
+    from robotgen.simulation import multirate as multirate_simulation
+    from robotgen.simulation import tree as simulate
+    from robotgen.simulation.failures import SimulationError
+    from robotgen.simulation.mujoco import MujocoMissing, require_mujoco
+    from robotgen.simulation.mujoco.run import tree_plant
     from robotgen.symbolic import controllers_for, kernels_for
 
     progress = _progress(args)
@@ -180,13 +184,14 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     if system.is_single_leaf:
         raise _Usage("simulate needs a robot tree (attach/control); a chain's module closes a loop in a few "
                      f"lines of Python: {documentation.hint('python-api', 'A chain')}")
-    regulated = system.is_rate_controlled
-    if regulated and (system.rate_controls_composite or system.root_node.rate.lqr is None):
-        where = documentation.hint("python-api", "Resolved-rate controllers")
-        raise _Usage("simulate runs torque controllers; a resolved_rate controller outputs joint rates (with lqr "
-                     "settings its regulator's lqr_step is simulated): integrate its rate_step / position_step "
-                     f"({where} shows how)")
-    hand = system.root_law in HAND_LAWS
+    law = LAWS[system.root_law] if system.root_law is not None else None
+    own = law.part("simulation") if law is not None else None  # a root law's own simulation
+    if law is not None and own is None:
+        raise _Usage(f"simulate has no run for a {law.name} controller")
+    refusal = own.refusal(system) if own is not None else None
+    if refusal:
+        raise _Usage(refusal)
+    hand = law is not None and law.hand_frame
     if hand and args.dt is not None:
         raise _Usage(f"a {system.root_law} controller runs at its own period "
                      f"({system.root_node.hand.period:g} s); --dt applies to robot trees")
@@ -241,9 +246,9 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
              spec_sha256=system.source_sha256, controllers=controllers_for(system))
         module = simulate.load_module(build, system.name)
         comparison = None
-        if system.root_law == RESOLVED_ADAPTIVE:  # resolved acceleration control on the same path
-            twin = hand_simulation.comparison_system(system)
-            progress.stage(f"compiling {twin.name}, resolved acceleration control for comparison")
+        twin = own.comparison_system(system) if own is not None else None
+        if twin is not None:  # another law on the same path
+            progress.stage(f"compiling {twin.name}, {twin.root_law.replace('_', ' ')} control for comparison")
             emit(Path(tmp) / twin.name, twin.name, kernels_for(twin), nq=system_nq(twin),
                  extra_info=system_info(twin), spec_sha256=twin.source_sha256, controllers=controllers_for(twin))
             comparison = simulate.load_module(Path(tmp) / twin.name, twin.name)
@@ -251,11 +256,8 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
         for p in plants:
             progress.stage(f"simulating {settings.duration:g} s at dt = {step:g} s on the {p} plant")
             try:
-                if hand:
-                    result = hand_simulation.run(module, system, settings, comparison, plant=p)
-                    mjcf = result.mjcf or mjcf
-                elif regulated:
-                    result, xml = regulator_simulation.run(module, system, settings, p)
+                if own is not None:
+                    result, xml = own.simulate(module, system, settings, p, comparison)
                     mjcf = xml or mjcf
                 elif p == MUJOCO_PLANT:
                     model, make = tree_plant(system, module, settings.dt)
@@ -267,13 +269,13 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
                     both = multirate_simulation.run(module, settings, rest)
                 else:
                     result = simulate.run(module, settings, rest)
-            except simulate.SimulationError as e:
+            except SimulationError as e:
                 in_spec = e.field is not None and e.field in settings.locations
                 where = settings.locations[e.field] if in_spec else system.location_of(system.root)
                 raise UserError(where, f"simulation.{e.field}: {e}" if in_spec else str(e)) from None
             results += list(both) if groups is not None else [result]
         info = module.info()
-    kind = hand_simulation if hand else simulate
+    kind = own if own is not None else simulate
     wrote = _write_simulation(out, system, kind, results, mjcf, inputs, stems)
     if groups is not None:
         print(multirate_simulation.compare(*results, info))
@@ -287,7 +289,7 @@ def _write_simulation(out: Path, system, kind, results: list, mjcf: str | None, 
                       stems: list[tuple[str, str]]) -> str:
     """<stem>.csv and <stem>.png of each run (``stems``, one (stem, what the plot's title adds)
     per result: the first plant's <name>, a second plant's <name>_<plant>, a multi-rate tree's
-    single-rate run <name>_single_rate; ``kind``: robotgen.simulate or robotgen.hand_simulation, whose
+    single-rate run <name>_single_rate; ``kind``: robotgen.simulation.tree or a root law's simulation, whose
     write_csv and plot these are), and the MJCF simulated as <name>.xml, made aside, then put
     into ``out`` replacing only files robotgen can prove it wrote there
     (robotgen.output_files); the line that says what was written."""
@@ -392,9 +394,9 @@ def _cmd_info(args: argparse.Namespace) -> int:
             print(lifted_loop_line(lifted_loop(system, groups)))
         except OperatingPointError as e:
             print(f"  lifted closed loop: not linearised: {e}")
-    if system.root_law == RESOLVED_ADAPTIVE:
+    if system.root_law is not None and isinstance(system.root_node.hand, AdaptiveSettings):
         from robotgen.symbolic import module_extras  # lazy: CasADi only where it is needed
-        from robotgen.symbolic.control.resolved_adaptive import closed_loop
+        from robotgen.symbolic.root_laws.resolved_adaptive import closed_loop
 
         print(closed_loop_line(closed_loop(system), system.root_node.hand.period))
         print(operation_table(module_extras(system)[0]["hand_control"]))

@@ -45,9 +45,9 @@ sys.path.insert(0, str(ROOT))
 
 from ruamel.yaml import YAML  # noqa: E402
 
-from robotgen import simulate  # noqa: E402
 from robotgen.cli import main as robotgen  # noqa: E402
 from robotgen.frontend import load_system  # noqa: E402
+from robotgen.simulation import tree as simulate  # noqa: E402
 
 SPECS = ROOT / "specs"
 DEFAULT_OUTPUT = Path("generated/papers/deno_1990")

@@ -30,14 +30,15 @@ sys.path.insert(0, str(ROOT))
 
 from ruamel.yaml import YAML  # noqa: E402
 
-from robotgen import hand_simulation, simulate  # noqa: E402
 from robotgen.cli import main as robotgen  # noqa: E402
 from robotgen.emit.build import emit  # noqa: E402
 from robotgen.frontend import load_system  # noqa: E402
 from robotgen.model.describe import system_info, system_nq  # noqa: E402
 from robotgen.model.simulation import PayloadChange  # noqa: E402
+from robotgen.simulation import hand as hand_simulation  # noqa: E402
+from robotgen.simulation import tree as simulate  # noqa: E402
 from robotgen.symbolic import controllers_for, kernels_for, module_extras  # noqa: E402
-from robotgen.symbolic.control.resolved_adaptive import closed_loop  # noqa: E402
+from robotgen.symbolic.root_laws.resolved_adaptive import closed_loop  # noqa: E402
 
 SPEC = ROOT / "specs" / "puma560_rmac.yaml"
 DEFAULT_OUTPUT = Path("generated/papers/lee_lee_1983")

@@ -5,7 +5,7 @@ the optimal linear servo of "Dynamic Control of Arms" and its three-link arm (Fi
 
 The paper linearises the arm's dynamics about a nominal (eq 19, state s = (dtheta,
 dtheta_dot); its printed blocks are garbled in our copy, re-derived as in
-robotgen/symbolic/control/resolved_rate/regulator.py: sdot = [0 I; -M^-1 K  -M^-1 B] s +
+robotgen/symbolic/root_laws/resolved_rate/regulator.py: sdot = [0 I; -M^-1 K  -M^-1 B] s +
 [0; M^-1] dtau, K gravity stiffness, B damping), assumes that model holds for the whole
 state, designs feedback gains and "control functions" by optimal linear servo theory, and
 applies them to the full nonlinear dynamics. Fig 5 shows the three joint angles against
@@ -48,9 +48,9 @@ sys.path.insert(0, str(ROOT))
 
 from ruamel.yaml import YAML  # noqa: E402
 
-from robotgen.approach_paths import approach_paths  # noqa: E402
 from robotgen.cli import main as robotgen  # noqa: E402
 from robotgen.numeric.linear_servo import LinearServo, costate, design  # noqa: E402
+from robotgen.simulation.approach_paths import approach_paths  # noqa: E402
 
 SPEC = Path(__file__).with_name("whitney_1972_arm.yaml")
 NAME = "whitney_1972_arm"

@@ -19,8 +19,8 @@ from robotgen.emit.targets import measure as measure_target
 from robotgen.errors import OutputError
 from robotgen.output_files import output_errors, sibling
 from robotgen.progress import QUIET, Progress
-from robotgen.symbolic.control.law import Controller
 from robotgen.symbolic.kernel import Kernel
+from robotgen.symbolic.root_laws.law import Controller
 
 try:
     import fcntl

@@ -16,9 +16,9 @@ from robotgen.emit.multirate import MultiRateView, multirate_view
 from robotgen.emit.sx_program import Program, read_program
 from robotgen.model.parameters import PIVOT_TOLERANCE, SYMMETRY_TOLERANCE, Bounds, RuntimeParameter
 from robotgen.progress import QUIET, Progress
-from robotgen.symbolic.control.law import Controller
 from robotgen.symbolic.kernel import PARAMS, Kernel, Port
 from robotgen.symbolic.rate_steps import MultiRate
+from robotgen.symbolic.root_laws.law import Controller
 
 # Module attributes the extension defines itself.
 MODULE_NAMES = frozenset({"nq", "info"})

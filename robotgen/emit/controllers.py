@@ -1,4 +1,4 @@
-"""The controller classes of a module (robotgen.symbolic.control.law.Controller), checked
+"""The controller classes of a module (robotgen.symbolic.root_laws.law.Controller), checked
 against their kernels and gathered for the templates: a state struct with reset and step
 functions in C, a class in the Python extension.
 
@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING
 from robotgen.emit import c_kernel
 from robotgen.emit.literals import c_string, py_string
 from robotgen.emit.sx_program import KernelError
-from robotgen.symbolic.control.law import Controller
+from robotgen.symbolic.root_laws.law import Controller
 
 if TYPE_CHECKING:
     from robotgen.emit.context import FunctionView, ParameterView, PortView

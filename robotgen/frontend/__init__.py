@@ -2,11 +2,11 @@
 from __future__ import annotations
 
 from robotgen.frontend.document import load_document
-from robotgen.frontend.schema import SCHEMA, schema_json
+from robotgen.frontend.schema import schema_json, spec_schema
 from robotgen.frontend.system import to_system
 from robotgen.model.system import RobotSystem
 
-__all__ = ["SCHEMA", "load_system", "schema_json"]
+__all__ = ["load_system", "schema_json", "spec_schema"]
 
 
 def load_system(path: str) -> RobotSystem:

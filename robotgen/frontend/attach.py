@@ -76,7 +76,7 @@ class AttachReader(Collector):
 
     def contact_friction(self, path: Path, spec: dict) -> float:
         """The fingertips' Coulomb friction coefficient on the payload (> 0, default 1): read
-        by an independent plant with unilateral contacts (robotgen.mujoco_plant), not by
+        by an independent plant with unilateral contacts (robotgen.simulation.mujoco), not by
         robotgen's bilateral grasp model."""
         return self.optional(spec, path, "friction", DEFAULT_CONTACT_FRICTION, minimum=0.0, exclusive=True)
 

@@ -7,6 +7,7 @@ offending value, at the unknown key, or at the key holding a mapping that lacks 
 """
 from __future__ import annotations
 
+import functools
 import hashlib
 import re
 import sys
@@ -19,11 +20,17 @@ from ruamel.yaml.error import MarkedYAMLError, YAMLError
 
 from robotgen.errors import Location, UserError, UserErrors
 from robotgen.frontend.input_file import read_input
-from robotgen.frontend.schema import SCHEMA
+from robotgen.frontend.schema import spec_schema
+from robotgen.model.laws.registry import LAWS
 
 Path = tuple[str | int, ...]
 
-_VALIDATOR = Draft202012Validator(SCHEMA)
+
+@functools.cache
+def _validator(laws: tuple) -> Draft202012Validator:
+    """The schema's validator, made once for the laws of the registry (``laws``, its entries)."""
+    return Draft202012Validator(spec_schema())
+
 _TYPE_NAMES = {"object": "a mapping", "array": "a list", "string": "a string", "number": "a number",
                "integer": "an integer", "boolean": "true or false", "null": "nothing"}
 
@@ -353,7 +360,7 @@ def load_document(path: str) -> Document:
     source = SourceMap(path, root, text.splitlines())
     errors: list[UserError] = []
     data = _plain(root, (), source, errors)
-    for error in _VALIDATOR.iter_errors(data):
+    for error in _validator(tuple(LAWS.values())).iter_errors(data):
         errors += _schema_errors(error, data, source)
     if errors:
         raise UserErrors(sort_errors(errors))

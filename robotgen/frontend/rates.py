@@ -6,7 +6,7 @@ import math
 
 from robotgen.frontend.collector import Collector
 from robotgen.frontend.document import Path
-from robotgen.model.laws import TREE_LAWS
+from robotgen.model.laws.registry import LAWS, tree_laws
 from robotgen.model.rate_groups import DEFAULT_PERIOD, MAX_TICKS, PERIOD_TOLERANCE, ticks_of
 from robotgen.model.simulation import SimulationSettings
 from robotgen.model.system import ControlNode, Node
@@ -24,12 +24,12 @@ class RateReader(Collector):
         if any(n.period is not None and not (math.isfinite(n.period) and n.period > 0) for n in controls.values()):
             return  # a period that is no positive number is reported where it was read
         root_node = nodes.get(root)
-        if isinstance(root_node, ControlNode) and root_node.law not in TREE_LAWS:
+        if isinstance(root_node, ControlNode) and LAWS[root_node.law].is_root:
             for name, n in controls.items():
                 if n.period is not None and name != root:  # the root law's own is refused by its reader
                     self.at_key(self._path(name), f"the root '{root}' is law {root_node.law}, which makes the "
                                                   "module's functions itself; a period applies to a tree of "
-                                                  f"tree laws ({', '.join(TREE_LAWS)}) compiled into servo steps")
+                                                  f"tree laws ({', '.join(tree_laws())}) compiled into servo steps")
             return
         dt_given = simulation is not None and "dt" in simulation.locations
         default = simulation.dt if simulation is not None else DEFAULT_PERIOD
@@ -43,7 +43,7 @@ class RateReader(Collector):
             if node is None or name in seen:
                 return  # a dangling reference or a cycle: reported by the tree check
             seen = seen | {name}
-            if isinstance(node, ControlNode) and node.law in TREE_LAWS:
+            if isinstance(node, ControlNode) and not LAWS[node.law].is_root:
                 own = node.period
                 periods[name] = own if own is not None else periods[above] if above else default
                 parent[name] = above

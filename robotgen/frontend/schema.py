@@ -8,83 +8,35 @@ document or arithmetic (root exists, inertia positive semi-definite, formula nam
 constant expressions given as strings) is checked in robotgen.frontend.system.
 
 A node holds exactly one primitive key; ``PRIMITIVES`` lists them, so a new primitive is
-one more entry there and in ``$defs``.
+one more entry there and in ``$defs``. A control law's settings block is its own ``$defs``
+entry, written beside its reader (its ``schema`` in robotgen.model.laws.registry), so the
+schema is made from the registry when asked for (``spec_schema``).
 """
 from __future__ import annotations
 
 import json
 
+from robotgen.frontend.schema_types import IDENTIFIER
+from robotgen.frontend.schema_types import closed_object as _object
+from robotgen.frontend.schema_types import exactly_one_of as _exactly_one_of
+from robotgen.frontend.schema_types import expression_matrix as _expression_matrix
+from robotgen.frontend.schema_types import expressions as _expressions
+from robotgen.frontend.schema_types import names as _names
+from robotgen.frontend.schema_types import number as _number
+from robotgen.frontend.schema_types import parameter as _parameter
+from robotgen.frontend.schema_types import vector2 as _vector2
+from robotgen.frontend.schema_types import vector3 as _vector3
 from robotgen.model.chain import ACCEPTABLE_DEVIATIONS, JOINT_TYPES
 from robotgen.model.derivatives import DEFAULT_MAX_DOF, INTEGRATORS
 from robotgen.model.dh import CONVENTIONS
-from robotgen.model.laws import LAWS
-from robotgen.model.laws.resolved_rate import FRAMES, OBJECTIVES, REDUNDANCY_METHODS
+from robotgen.model.laws.registry import LAWS
 from robotgen.model.names import SPELLING
 from robotgen.model.signature import UNITS
 from robotgen.model.simulation import PLANTS
 from robotgen.model.system import CHAIN_OUTPUTS, GAIN_MODES
 
-IDENTIFIER = "^[A-Za-z_][A-Za-z0-9_]*$"
 MODULE_NAME = f"^{SPELLING}$"
 PRIMITIVES = ("define", "attach", "control")
-
-
-def _number(description: str, **bounds: float) -> dict:
-    """A YAML number or a string holding a constant expression; bounds apply to numbers."""
-    return {"type": ["number", "string"], "description": description, **bounds}
-
-
-def _parameter(description: str, **bounds: float) -> dict:
-    """A number, or {runtime: number}: a run-time parameter with that default."""
-    return {"type": ["number", "string", "object"],
-            "description": f"{description}; {{runtime: value}} makes it a run-time parameter",
-            "properties": {"runtime": {"$ref": "#/$defs/number"}}, "required": ["runtime"],
-            "additionalProperties": False, **bounds}
-
-
-def _weights(description: str) -> dict:
-    return {"type": ["number", "string", "array"], "items": {"$ref": "#/$defs/number"}, "description": description}
-
-
-def _weight_matrix(description: str) -> dict:
-    return {"type": ["number", "string", "array"], "description": description,
-            "items": {"anyOf": [{"$ref": "#/$defs/number"}, {"type": "array", "items": {"$ref": "#/$defs/number"}}]}}
-
-
-def _vector3(description: str) -> dict:
-    return {"type": "array", "description": description, "minItems": 3, "maxItems": 3,
-            "items": {"$ref": "#/$defs/number"}}
-
-
-def _vector2(description: str) -> dict:
-    return {"type": "array", "description": description, "minItems": 2, "maxItems": 2,
-            "items": {"$ref": "#/$defs/number"}}
-
-
-def _names(description: str, **bounds: int) -> dict:
-    return {"type": "array", "description": description,
-            "items": {"type": "string", "pattern": IDENTIFIER}, **bounds}
-
-
-def _expressions(description: str, **bounds: int) -> dict:
-    return {"type": "array", "description": description, "items": {"$ref": "#/$defs/expression"}, **bounds}
-
-
-def _expression_matrix(description: str) -> dict:
-    return {"type": "array", "description": description, "minItems": 1,
-            "items": {"type": "array", "items": {"$ref": "#/$defs/expression"}}}
-
-
-def _object(description: str, properties: dict, required: tuple[str, ...] = ()) -> dict:
-    schema = {"type": "object", "description": description, "additionalProperties": False,
-              "properties": properties}
-    if required:
-        schema["required"] = list(required)
-    return schema
-
-
-def _exactly_one_of(keys: tuple[str, ...]) -> list[dict]:
-    return [{"required": [key]} for key in keys]
 
 
 _EXPRESSION = {"type": ["string", "number"],
@@ -277,129 +229,11 @@ _DEFS = {
              "minItems": 1,
              "items": {"type": ["number", "string", "array"], "minItems": 1,
                        "items": {"$ref": "#/$defs/number"}}},
-    "resolved_rate": _object(
-        "settings of law resolved_rate: resolved motion rate and position control of a chain "
-        "(Whitney 1972), or of a composite robot in its own coordinates (then only damping, "
-        "rate_limits, horizon and arrival apply)",
-        {"frame": {"enum": list(FRAMES),
-                   "description": "command coordinates: base, hand (eq 7), tool (axes of a held "
-                                  "tool), line_of_sight (eq 10), spherical; default hand"},
-         "eye": _vector3("line_of_sight: the eye point in base coordinates [m]"),
-         "centre": _vector3("spherical: the centre in base coordinates [m]"),
-         "tool": {"$ref": "#/$defs/pose", "description": "tool: the tool frame in the hand frame"},
-         "active": {"type": "array", "items": {"type": "string"}, "uniqueItems": True,
-                    "description": "command axes that follow the command (default all); the "
-                                   "others are held at rate zero"},
-         "free": {"type": "array", "items": {"type": "string"}, "uniqueItems": True,
-                  "description": "command axes left out of the task (neither commanded nor held)"},
-         "weights": {"type": "array", "minItems": 6, "maxItems": 6, "items": {"$ref": "#/$defs/number"},
-                     "description": "proportion of each command axis, default 1"},
-         "redundancy": _object(
-             "joint rates of a redundant arm",
-             {"method": {"enum": list(REDUNDANCY_METHODS),
-                         "description": "pseudo_inverse (default), weighted_pseudo_inverse or extended_jacobian"},
-              "joint_weights": {"type": ["number", "string", "array"], "items": {"$ref": "#/$defs/number"},
-                                "description": "weighted_pseudo_inverse: W = diag(joint_weights), a positive "
-                                               "number or one per joint; the rates minimise qdot^T W qdot"},
-              "objective": {"enum": list(OBJECTIVES),
-                            "description": "secondary objective H to increase (default none)"},
-              "gain": _number("gain on grad H, > 0, default 1", exclusiveMinimum=0)}),
-         "damping": _object(
-             "damped least squares near singularities",
-             {"lambda_max": _number("damping at a singularity, > 0", exclusiveMinimum=0),
-              "threshold": _number("manipulability below which damping rises, > 0", exclusiveMinimum=0)},
-             ("lambda_max", "threshold")),
-         "rate_limits": {"type": ["number", "string", "array"], "items": {"$ref": "#/$defs/number"},
-                         "description": "joint-rate bounds: a number or one per joint (of every leaf, "
-                                        "in tree order, for a composite robot; default the joints' "
-                                        "velocity limits); the whole rate vector is scaled"},
-         "horizon": _number("T of eqs 11-18: position control time constant [s], > 0, default 0.1",
-                            exclusiveMinimum=0),
-         "arrival": _object(
-             "adds arrival_step: position control with T of eq 11 the time remaining until arrival, "
-             "passed at every call",
-             {"minimum_remaining": _number("remaining times below this count as this [s] (one control "
-                                           "period), > 0, default 0.001", exclusiveMinimum=0)}),
-         "lqr": _object(
-             "optimal regulator about a nominal posture from the linearised dynamics (eq 19)",
-             {"nominal": {"type": "array", "minItems": 1, "items": {"$ref": "#/$defs/number"},
-                          "description": "nominal joint positions (rates zero)"},
-              "q": {"type": "array", "minItems": 2, "items": {"$ref": "#/$defs/number"},
-                    "description": "state weights: [position, rate] or one per state (2n), default [100, 1]"},
-              "r": {"type": ["number", "string", "array"], "items": {"$ref": "#/$defs/number"},
-                    "description": "torque weights: a number or one per joint, default 1"},
-              "servo": {"type": "boolean",
-                        "description": "also emit servo_step(q, qd, v): the optimal linear servo on these "
-                                       "gains, its feedforward v passed in (default false)"}},
-             ("nominal",))}),
-    "resolved_acceleration": _object(
-        "settings of law resolved_acceleration (Luh, Walker, Paul 1980) on a 6-joint chain: "
-        "xdd* = xdd_d + Kv (xd_d - xd) + Kp e, qdd = J^-1 (xdd* - Jdot qd), Newton-Euler torques",
-        {"period": _number("sampling period T [s], > 0, default 0.001", exclusiveMinimum=0),
-         "tool": {"$ref": "#/$defs/pose", "description": "the hand frame in the tip frame, default identity"},
-         "kp": _weights("hand position gains on x, y, z, roll, pitch, yaw: a number or 6, default 400"),
-         "kv": _weights("hand velocity gains: a number or 6, default 40"),
-         "gains": {"enum": list(GAIN_MODES), "description": "runtime (default) or folded kp, kv"}}),
-    "resolved_adaptive": _object(
-        "settings of law resolved_adaptive (Lee and Lee 1983) on a 6-joint chain: Newton-Euler "
-        "feedforward and the one-step optimal control (eq 39) of an RLS-identified perturbation model",
-        {"period": _number("sampling period T [s], > 0, default 0.001", exclusiveMinimum=0),
-         "tool": {"$ref": "#/$defs/pose", "description": "the hand frame in the tip frame, default identity"},
-         "bandwidth": _number("the weight rule: positions and orientations decay at this rate [rad/s], "
-                              "> 0, default 20 (Q = diag(2 bandwidth / period on p and Phi, 1 on v and Omega))",
-                              exclusiveMinimum=0),
-         "q": _weight_matrix("Q of eq 38 instead of the rule: a number, 4 numbers (position, orientation, velocity, "
-                             "angular velocity), 12 (the diagonal) or 12 rows of 12 (symmetric positive definite)"),
-         "torque_weight": _number("the weight rule: R = torque_weight B^T Q B, > 0, default 1"),
-         "r": _weight_matrix("R of eq 38 instead of the rule: a number, 6 (the diagonal) or 6 rows of 6 "
-                             "(symmetric positive definite)"),
-         "forgetting": _number("forgetting factor mu of eq 37, 0 < mu <= 1, default 0.99"),
-         "directional": {"type": "boolean", "description": "forget along the regressor only (default true); false is "
-                                                           "eq 37 as printed, P divided by mu"},
-         "initial_covariance": {"type": ["number", "string", "object"],
-                                "description": "P_0 of eq 37: one number, or per regressor block "
-                                               "{A: 1, B: 1e-8, c: 1e-2} (the defaults)",
-                                "properties": {k: {"$ref": "#/$defs/number"} for k in ("A", "B", "c")},
-                                "additionalProperties": False},
-         "covariance_limit": _number("largest trace of P, default 1e6", exclusiveMinimum=0),
-         "affine": {"type": "boolean", "description": "identify and cancel the model's constant term c "
-                                                      "(default true)"},
-         "ik_iterations": {"type": "integer", "minimum": 1, "maximum": 10,
-                           "description": "Newton steps of the inverse kinematics per cycle, for arms without a "
-                                          "closed form (a spherical wrist), default 2"},
-         "gains": {"enum": list(GAIN_MODES),
-                   "description": "runtime (default) or folded q, r or torque_weight, forgetting"}}),
-    "impedance": _object(
-        "settings of law impedance (Hogan 1985) on the robot's coordinates x: the target "
-        "M_d (xdd - xdd_d) + D (xd - xd_d) + K (x - x_d) = F_ext + f_e, F_ext the sensed force of what it touches",
-        {"stiffness": {"$ref": "#/$defs/gain", "description": "K [N/m or N m/rad]: a number (times I), a list "
-                                                               "(the diagonal, >= 0) or a matrix (symmetric "
-                                                               "positive definite)"},
-         "damping": {"$ref": "#/$defs/gain", "description": "D [N s/m or N m s/rad], > 0, as K"},
-         "inertia": {"$ref": "#/$defs/gain", "description": "M_d [kg or kg m^2], > 0, as K; optional: with it the "
-                                                             "law reads the sensed force (the servo step takes "
-                                                             "tau_sensed), without it M_d is the robot's own M"}},
-        ("stiffness", "damping")),
-    "hybrid": _object(
-        "settings of law hybrid, hybrid force/position control (Raibert and Craig 1981): coordinates with "
-        "selection 1 follow x_d (kp, kv), those with 0 exert the force f_e written at the node, with a PI "
-        "loop on the sensed force",
-        {"selection": {"type": "array", "minItems": 1, "items": {"$ref": "#/$defs/number"},
-                       "description": "S, one entry per coordinate in [0, 1]: 1 position-controlled, 0 "
-                                      "force-controlled"},
-         "kf": _number("gain on the force error f_e - F_s, >= 0, default 0"),
-         "ki": _number("gain on the force error's integral [1/s], >= 0, default 0")},
-        ("selection",)),
     "control": _object(
         "CONTROL: a controller on a robot (Deno et al. 1990, 3.4)",
         {"robot": {"type": "string", "pattern": IDENTIFIER, "description": "the controlled node"},
          "law": {"enum": list(LAWS),
                  "description": "control law"},
-         "resolved_rate": {"$ref": "#/$defs/resolved_rate"},
-         "resolved_acceleration": {"$ref": "#/$defs/resolved_acceleration"},
-         "resolved_adaptive": {"$ref": "#/$defs/resolved_adaptive"},
-         "impedance": {"$ref": "#/$defs/impedance"},
-         "hybrid": {"$ref": "#/$defs/hybrid"},
          "kp": {"$ref": "#/$defs/gain"},
          "kv": {"$ref": "#/$defs/gain"},
          "kv_internal": _number("damping of internal motion rates, >= 0, default 0"),
@@ -508,7 +342,7 @@ _DEFS = {
              "oneOf": _exactly_one_of(PRIMITIVES)},
 }
 
-SCHEMA: dict = {
+_HEAD: dict = {
     "$schema": "https://json-schema.org/draft/2020-12/schema",
     "$id": "https://robotgen.dev/schema/spec-1.json",
     "title": "robotgen spec, format 1",
@@ -523,10 +357,20 @@ SCHEMA: dict = {
                "simulation": {"$ref": "#/$defs/simulation"},
                "derivatives": {"$ref": "#/$defs/derivatives"}},
               ("robotgen", "name", "root", "nodes")),
-    "$defs": _DEFS,
 }
+
+
+def spec_schema() -> dict:
+    """The schema, every law of the registry in it: its name among the laws a control node may
+    carry, and its settings block under its name."""
+    blocks = {name: law.part("schema") for name, law in LAWS.items() if law.schema is not None}
+    control = _DEFS["control"]
+    control = {**control, "properties": {**control["properties"], "law": {**control["properties"]["law"],
+                                                                          "enum": list(LAWS)},
+                                         **{name: {"$ref": f"#/$defs/{name}"} for name in blocks}}}
+    return {**_HEAD, "$defs": {**_DEFS, **blocks, "control": control}}
 
 
 def schema_json() -> str:
     """The schema as deterministic JSON (sorted keys, indent 2)."""
-    return json.dumps(SCHEMA, sort_keys=True, indent=2) + "\n"
+    return json.dumps(spec_schema(), sort_keys=True, indent=2) + "\n"

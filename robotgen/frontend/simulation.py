@@ -5,8 +5,8 @@ import math
 
 from robotgen.frontend.collector import Collector
 from robotgen.frontend.document import Path
-from robotgen.model.laws import HAND_LAWS, RESOLVED_RATE
 from robotgen.model.laws.hand import HAND_AXES, HAND_DOF
+from robotgen.model.laws.registry import LAWS
 from robotgen.model.signature import (
     METRE,
     SignatureError,
@@ -41,11 +41,11 @@ class SimulationReader(Collector):
         if "payload_change" in spec:
             values["payload_changes"] = self.payload_changes(path + ("payload_change",), spec["payload_change"])
         root_node = nodes.get(root)
-        if isinstance(root_node, ControlNode) and root_node.law in HAND_LAWS:
+        if isinstance(root_node, ControlNode) and LAWS[root_node.law].hand_frame:
             return self.hand_simulation(spec, values, nodes, root_node)
         system = RobotSystem(name=self.doc.data["name"], source=self.doc.path, source_sha256=self.doc.sha256,
                              nodes=nodes, root=root)
-        if isinstance(root_node, ControlNode) and root_node.law == RESOLVED_RATE:
+        if system.is_rate_controlled:
             for key in ("force", "wall", "payload_change"):
                 if key in spec:
                     self.at_key(path + (key,), f"'{key}' applies to robot trees of torque controllers; a resolved_rate "

@@ -15,7 +15,7 @@ from robotgen.model.expression import Expr
 @dataclass(frozen=True, eq=False)
 class Mechanism:
     """The rigid bodies behind a formulas leaf, for an independent simulator (MuJoCo,
-    robotgen.mujoco_plant): a chain whose joint positions q give the leaf's coordinates
+    robotgen.simulation.mujoco): a chain whose joint positions q give the leaf's coordinates
     affinely, theta = T q + offset (absolute link angles from relative joints, say), and
     whose tip frame is the point the leaf's ``kinematics`` (or, without them, its
     coordinates) put the fingertip at. The formulas stay the model robotgen compiles; the

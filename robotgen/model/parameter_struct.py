@@ -2,10 +2,8 @@
 (robotgen.model.parameters says what a run-time parameter is)."""
 from __future__ import annotations
 
-import numpy as np
-
 from robotgen.model.formula import FormulaRobot
-from robotgen.model.laws import FEEDFORWARD, IMPEDANCE, TREE_LAWS
+from robotgen.model.laws.registry import LAWS
 from robotgen.model.parameters import MATRIX_GAIN, Bounds, RuntimeParameter, written_shape
 from robotgen.model.signature import signature
 from robotgen.model.system import (
@@ -30,7 +28,7 @@ def runtime_parameters(system: RobotSystem) -> list[RuntimeParameter]:
     """The module's parameter struct, in walk order (children before parents)."""
     out: list[RuntimeParameter] = []
     for node in system.walk():
-        if isinstance(node, ControlNode) and node.law in TREE_LAWS and node.runtime_gains:
+        if isinstance(node, ControlNode) and not LAWS[node.law].is_root and node.runtime_gains:
             out += _gains(system, node)
         elif isinstance(node, ControlNode) and node.hand is not None:
             out += node.hand.parameters(node.name)
@@ -56,10 +54,8 @@ def _gains(system: RobotSystem, node: ControlNode) -> list[RuntimeParameter]:
     robot = signature(system, node.robot)
     n = robot.n_external
     for key, form, K in (("kp", node.gain_forms[0], node.kp), ("kv", node.gain_forms[1], node.kv)):
-        if node.law == FEEDFORWARD and key == "kp":
-            continue  # feedforward reads no position error
-        if (node.law == FEEDFORWARD and not np.any(K)) or node.law == IMPEDANCE:
-            continue  # zero velocity gain: nothing to tune; an impedance has its own matrices
+        if not LAWS[node.law].gains:
+            continue  # the law reads no kp, kv (feedforward: both zero; an impedance has its own matrices)
         shape, values = written_shape(form, K)
         out.append(RuntimeParameter(gain_parameter_name(node, key), shape, values,
                                     f"{'position' if key == 'kp' else 'velocity'} gain {key} of controller "

@@ -21,7 +21,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from robotgen.model.laws import TREE_LAWS
+from robotgen.model.laws.registry import LAWS
 from robotgen.model.signature import robot_leaves
 from robotgen.model.simulation import SimulationSettings
 from robotgen.model.system import AttachNode, ControlNode, DefineNode, RobotSystem
@@ -91,7 +91,7 @@ def tree_controllers(system: RobotSystem) -> list[ControlNode]:
     """The tree-law controllers, in walk order (a root law's tree has none that run here)."""
     if system.root_law is not None or system.is_single_leaf:
         return []
-    return [n for n in system.walk() if isinstance(n, ControlNode) and n.law in TREE_LAWS]
+    return [n for n in system.walk() if isinstance(n, ControlNode) and not LAWS[n.law].is_root]
 
 
 def controller_periods(system: RobotSystem) -> dict[str, float]:

@@ -7,7 +7,7 @@ from robotgen.errors import Location
 from robotgen.model.chain import KinematicTree
 
 # the plant `robotgen simulate` closes the loop around: robotgen's own model (the default), an
-# independent MuJoCo model of the same system (robotgen.mujoco_plant), or both side by side
+# independent MuJoCo model of the same system (robotgen.simulation.mujoco), or both side by side
 ROBOTGEN_PLANT, MUJOCO_PLANT, BOTH_PLANTS = "robotgen", "mujoco", "both"
 PLANTS = (ROBOTGEN_PLANT, MUJOCO_PLANT, BOTH_PLANTS)
 
@@ -37,7 +37,7 @@ class Wall:
     coordinates are the point (a frame change's fingertip or tip, in metres), the wall fills
     the half-space (x - point) . normal < 0 and pushes the point out along ``normal`` (a unit
     vector) with stiffness * depth + damping * d(depth)/dt, never pulling (robotgen's plant,
-    robotgen.wall_contact; MuJoCo's plant has its own soft contact)."""
+    robotgen.simulation.wall_contact; MuJoCo's plant has its own soft contact)."""
 
     node: str
     point: tuple[float, ...]

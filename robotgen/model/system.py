@@ -14,9 +14,9 @@ from robotgen.model.chain import KinematicTree
 from robotgen.model.derivatives import DerivativeSettings
 from robotgen.model.expression import Expr
 from robotgen.model.formula import FormulaRobot
-from robotgen.model.laws import RESOLVED_RATE, ROOT_LAWS
 from robotgen.model.laws.force import HybridSettings, ImpedanceSettings
 from robotgen.model.laws.hand import AdaptiveSettings, ResolvedAccelerationSettings
+from robotgen.model.laws.registry import LAWS
 from robotgen.model.laws.resolved_rate import CompositeRateSettings, RateControlSettings
 from robotgen.model.parameters import MATRIX_GAIN, Bounds
 from robotgen.model.simulation import SimulationSettings
@@ -88,7 +88,7 @@ CONTACT_GRASPS = {
 CONSTRAINT_FORMULAS = "formulas"
 # Coulomb friction coefficient between a fingertip and the payload (a contact constraint's
 # `friction`): robotgen's own model holds the fingertips bilaterally and never reads it; an
-# independent simulator with unilateral contacts (robotgen.mujoco_plant) does
+# independent simulator with unilateral contacts (robotgen.simulation.mujoco) does
 DEFAULT_CONTACT_FRICTION = 1.0
 
 
@@ -257,14 +257,14 @@ class RobotSystem:
     @property
     def root_law(self) -> str | None:
         """The law of a root controller that makes the module's functions itself (a root law,
-        robotgen.model.laws), else None (a leaf, or a tree of tree laws)."""
+        robotgen.model.laws.registry), else None (a leaf, or a tree of tree laws)."""
         root = self.root_node
-        return root.law if isinstance(root, ControlNode) and root.law in ROOT_LAWS else None
+        return root.law if isinstance(root, ControlNode) and LAWS[root.law].is_root else None
 
     @property
     def is_rate_controlled(self) -> bool:
         """The root is a resolved-rate controller: joint rates out, not torques."""
-        return self.root_law == RESOLVED_RATE
+        return self.root_law is not None and self.root_node.rate is not None
 
     @property
     def rate_controls_composite(self) -> bool:

@@ -168,7 +168,7 @@ class TickMaps:
 
 
 def _rk4(f, theta, v, tau, dt):
-    """One classical RK4 step of the plant, as robotgen.simulate takes it."""
+    """One classical RK4 step of the plant, as robotgen.simulation.tree takes it."""
     k1 = f(theta, v, tau)
     k2 = f(theta + dt / 2 * k1[0], v + dt / 2 * k1[1], tau)
     k3 = f(theta + dt / 2 * k2[0], v + dt / 2 * k2[1], tau)

@@ -1,16 +1,16 @@
 """What a system's module holds, by its root: one leaf robot's functions
-(robotgen.symbolic.leaf_kernels), a root law's (robotgen.symbolic.control.root_laws), or a
+(robotgen.symbolic.leaf_kernels), a root law's (robotgen.symbolic.root_laws), or a
 robot tree's (robotgen.symbolic.system_kernels)."""
 from __future__ import annotations
 
+from robotgen.model.laws.registry import LAWS
 from robotgen.model.parameter_struct import runtime_parameters
 from robotgen.model.rate_groups import multi_rate_groups
 from robotgen.model.system import RobotSystem
-from robotgen.symbolic.control.law import Controller
-from robotgen.symbolic.control.root_laws import ROOT_LAWS
 from robotgen.symbolic.kernel import Kernel, ParameterSymbols
 from robotgen.symbolic.leaf_kernels import leaf_kernels
 from robotgen.symbolic.rate_steps import MultiRate, multi_rate
+from robotgen.symbolic.root_laws.law import Controller, RootLaw
 from robotgen.symbolic.system import leaf_values
 from robotgen.symbolic.system_kernels import system_kernels
 
@@ -22,7 +22,7 @@ def kernels_for(system: RobotSystem) -> list[Kernel]:
         return leaf_kernels(system.root_node.leaf, parameters=parameters,
                             values=leaf_values(parameters, system.root_node), derivatives=system.derivatives)
     if system.root_law is not None:
-        return ROOT_LAWS[system.root_law].kernels(system)
+        return _root_law(system).kernels(system)
     return system_kernels(system)
 
 
@@ -30,15 +30,20 @@ def module_extras(system: RobotSystem) -> tuple[dict, dict]:
     """(extra info() and manifest keys, module attributes) worked out in the symbolic layer:
     a root law's settings and reports (a resolved-rate controller's regulator gains)."""
     if system.root_law is not None:
-        return ROOT_LAWS[system.root_law].report(system)
+        return _root_law(system).report(system)
     return {}, {}
 
 
 def controllers_for(system: RobotSystem) -> list[Controller | MultiRate]:
     """The controller classes the module offers (a hand law's, each around one of the
     kernels; a multi-rate tree's MultiRateController, around its rate groups' steps)."""
-    law = ROOT_LAWS.get(system.root_law) if system.root_law else None
+    law = _root_law(system) if system.root_law else None
     if law is not None and law.controller is not None:
         return [law.controller(system)]
     groups = multi_rate_groups(system)
     return [multi_rate(system, groups)] if groups is not None else []
+
+
+def _root_law(system: RobotSystem) -> RootLaw:
+    """The symbolic part of the root's law (robotgen.model.laws.registry)."""
+    return LAWS[system.root_law].part("kernels")

@@ -183,7 +183,7 @@ def _to_leaves(g: SystemGraphs, value: ca.SX, step, share) -> ca.SX | None:
 def leaf_velocities(g: SystemGraphs, v: ca.SX) -> ca.SX:
     """Leaf joint rates for root velocity v: w = A v at each ATTACH, down to the leaves (the
     tree's velocity map, linear in v; also what a resolved-rate controller of a composite
-    robot resolves its command through, robotgen.symbolic.control.resolved_rate.composite)."""
+    robot resolves its command through, robotgen.symbolic.root_laws.resolved_rate.composite)."""
     return _to_leaves(g, v, lambda maps, vel: maps.A @ vel, lambda sig: sig.n_velocity)
 
 

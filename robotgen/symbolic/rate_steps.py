@@ -21,7 +21,7 @@ import casadi as ca
 
 from robotgen.model.rate_groups import RateGroups
 from robotgen.model.system import ControlNode, DefineNode, RobotSystem
-from robotgen.symbolic.control.tree_laws import TREE_LAWS
+from robotgen.symbolic.control.tree_laws import tree_law
 from robotgen.symbolic.kernel import Kernel, make_kernel
 from robotgen.symbolic.rows import rows
 from robotgen.symbolic.servo import Servo, Trajectory, reads_forces
@@ -182,7 +182,7 @@ def multi_rate(system: RobotSystem, groups: RateGroups) -> MultiRate:
     """The MultiRateController of ``system`` with these groups."""
     def stateful(k: int) -> bool:
         nodes = [system.nodes[name] for name in groups.groups[k].controllers]  # a stateful law, or an integral
-        return any(isinstance(n, ControlNode) and (TREE_LAWS[n.law].stateful or n.ki_internal is not None)
+        return any(isinstance(n, ControlNode) and (tree_law(n.law).stateful or n.ki_internal is not None)
                    for n in nodes)
 
     return MultiRate(MULTI_RATE_CLASS, tuple(

@@ -23,7 +23,7 @@ import casadi as ca
 from robotgen.model.system import AttachNode, ControlNode, DefineNode
 from robotgen.symbolic.control.gains import gain, internal_force_gain, kv_internal
 from robotgen.symbolic.control.law import Command, PositionsUnavailable
-from robotgen.symbolic.control.tree_laws import TREE_LAWS
+from robotgen.symbolic.control.tree_laws import tree_law
 from robotgen.symbolic.rows import rows
 from robotgen.symbolic.system import SystemGraphs
 
@@ -51,7 +51,7 @@ def state_blocks(graphs: SystemGraphs, name: str) -> list[tuple[ControlNode, str
     for n in graphs.system.walk(name):
         if not isinstance(n, ControlNode):
             continue
-        law = TREE_LAWS[n.law]
+        law = tree_law(n.law)
         if law.stateful:
             out.append((n, LAW_STATE, law.state(graphs.graph(n.robot))))
         if n.ki_internal is not None:
@@ -145,7 +145,7 @@ class Servo:
                     "inverse kinematics (give the robots inverse_kinematics or the constraint h_inverse)")
             return t.x - child.x
 
-        law = TREE_LAWS[node.law]
+        law = tree_law(node.law)
         state = self.block(node, LAW_STATE) if law.stateful else None
         out = law.write(Command(child, v_d, a_d, F_d, feedback, position_error, t.x, state, self.dt, node,
                                 parameters, lambda: self.sensed(node.robot)))
@@ -232,4 +232,4 @@ def reads_sensed_forces(graphs: SystemGraphs, name: str) -> bool:
 
 def reads_forces(node: ControlNode) -> bool:
     """The controller closes a loop on internal forces or its law reads its robot's forces."""
-    return node.kf_internal is not None or node.ki_internal is not None or TREE_LAWS[node.law].reads_forces(node)
+    return node.kf_internal is not None or node.ki_internal is not None or tree_law(node.law).reads_forces(node)

@@ -14,7 +14,7 @@ import numpy as np
 from robotgen.model.signature import robot_leaves, signature
 from robotgen.model.system import AttachNode, ControlNode, DefineNode, RobotSystem
 from robotgen.symbolic.attach import attach_graph
-from robotgen.symbolic.control.tree_laws import TREE_LAWS
+from robotgen.symbolic.control.tree_laws import tree_law
 from robotgen.symbolic.define import leaf_attributes
 from robotgen.symbolic.kernel import NO_PARAMETERS, ParameterSymbols
 from robotgen.symbolic.node import NodeGraph
@@ -71,7 +71,7 @@ class SystemGraphs:
         child = self.graph(node.robot)
         sig = signature(self.system, node.name)
         v = rows(child.v, 0, sig.n_velocity)  # resolved internal motions are the trailing ones
-        M, C, N = TREE_LAWS[node.law].attributes(child, sig.n_velocity)
+        M, C, N = tree_law(node.law).attributes(child, sig.n_velocity)
         return NodeGraph(node.name, sig, child.x, v, M, C, N)
 
     def _attach(self, node: AttachNode) -> NodeGraph:

@@ -11,7 +11,7 @@ from robotgen.model.rate_groups import multi_rate_groups
 from robotgen.model.signature import internal_force_names
 from robotgen.model.system import DefineNode, RobotSystem
 from robotgen.symbolic.control.law import expected_start
-from robotgen.symbolic.control.tree_laws import TREE_LAWS
+from robotgen.symbolic.control.tree_laws import tree_law
 from robotgen.symbolic.differentiation import reverse_jacobian
 from robotgen.symbolic.kernel import Kernel, ParameterSymbols, make_kernel
 from robotgen.symbolic.plant import Plant, sensed_forces
@@ -93,7 +93,7 @@ def system_kernels(system: RobotSystem) -> list[Kernel]:
     kernels.append(step)
     servo = Servo(g, root)
     if servo.n_state:
-        integrals = any(kind != LAW_STATE or TREE_LAWS[node.law].state is not expected_start
+        integrals = any(kind != LAW_STATE or tree_law(node.law).state is not expected_start
                         for node, kind, _ in servo.blocks)
         kernels.append(kernel(
             "servo_init", "Controller state after a reset: every expected trajectory at the current state, every "

@@ -19,9 +19,10 @@ import pytest
 import yaml
 from scipy.optimize import brentq
 
-from robotgen import simulate
 from robotgen.frontend import load_system
-from robotgen.mujoco_plant.run import tree_plant
+from robotgen.simulation import tree as simulate
+from robotgen.simulation.model_plant import ModulePlant
+from robotgen.simulation.mujoco.run import tree_plant
 
 ROOT = Path(__file__).resolve().parents[2]
 IMPEDANCE, HYBRID, SQUEEZE = (ROOT / "specs" / f"{n}.yaml" for n in ("impedance_arm", "hybrid_arm", "styx_squeeze"))
@@ -51,7 +52,7 @@ def test_a_leaf_senses_the_wall(build_module):
         J = np.array([[-l1 * np.sin(q[0]) - l2 * np.sin(q.sum()), -l2 * np.sin(q.sum())],
                       [l1 * np.cos(q[0]) + l2 * np.cos(q.sum()), l2 * np.cos(q.sum())]])
         qd = rng.normal(size=2) * 0.05
-        plant = simulate.ModulePlant(module, q, qd, module.plant_velocity(q, qd), 2)
+        plant = ModulePlant(module, q, qd, module.plant_velocity(q, qd), 2)
         plant.set_wall(wall)
         tau = rng.normal(size=2) * 5
         tip_rate = (J @ qd)[0]  # d(depth)/dt: the tip goes in along +x

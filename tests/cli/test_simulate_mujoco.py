@@ -1,4 +1,4 @@
-"""`robotgen simulate --plant mujoco`: MuJoCo as an independent plant (robotgen/mujoco_plant).
+"""`robotgen simulate --plant mujoco`: MuJoCo as an independent plant (robotgen/simulation/mujoco).
 
 Without contacts the two plants integrate the same ODE by the same classical RK4 step (MuJoCo's
 RK4 at the servo period, the torque held): only the floating-point rounding of M, C, N differs
@@ -23,13 +23,14 @@ import pytest
 import yaml
 from reference import const
 
-from robotgen import hand_simulation, simulate
 from robotgen.cli import main
 from robotgen.errors import UserError
 from robotgen.frontend import load_system
-from robotgen.mujoco_plant import INSTALL_HINT
-from robotgen.mujoco_plant.model import plant_model
-from robotgen.mujoco_plant.run import MujocoPlant, TreePlant, check_agreement, root_payload, tree_plant
+from robotgen.simulation import hand as hand_simulation
+from robotgen.simulation import tree as simulate
+from robotgen.simulation.mujoco import INSTALL_HINT
+from robotgen.simulation.mujoco.model import plant_model
+from robotgen.simulation.mujoco.run import MujocoPlant, TreePlant, check_agreement, root_payload, tree_plant
 
 ROOT = Path(__file__).resolve().parents[2]
 SPECS = ROOT / "specs"

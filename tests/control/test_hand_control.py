@@ -18,8 +18,8 @@ import pytest
 import yaml
 
 from robotgen.frontend import load_system
-from robotgen.hand_simulation import run
 from robotgen.model.simulation import PayloadChange
+from robotgen.simulation.hand import run
 
 ROOT = Path(__file__).resolve().parents[2]
 RMAC = ROOT / "specs" / "puma560_rmac.yaml"
@@ -82,7 +82,7 @@ def test_weight_rule_gives_the_bandwidth(loops):
     six near (2 - bandwidth T) / (2 + bandwidth T) (positions and orientations), six within a
     few periods (the rates); the first defaults of this law (Q = diag(1e6, 1e6, 1e4, 1e4),
     R = 1e-5) left six poles at 0.9999 or above."""
-    from robotgen.symbolic.control.resolved_adaptive import closed_loop
+    from robotgen.symbolic.root_laws.resolved_adaptive import closed_loop
 
     system, _, _ = loops
     s = system.root_node.hand

@@ -11,10 +11,10 @@ from scipy.linalg import expm
 from scipy.optimize import minimize
 
 from robotgen.frontend import load_system
-from robotgen.symbolic.control.hand import Hand, discretise, orientation_error
-from robotgen.symbolic.control.resolved_adaptive import HOLD_REGULARISATION, identify, one_step_control, torque_weight
 from robotgen.symbolic.rigid_body.rpy import rpy_of, rpy_rates, rpy_rotation
 from robotgen.symbolic.rigid_body.spatial import skew
+from robotgen.symbolic.root_laws.hand import Hand, discretise, orientation_error
+from robotgen.symbolic.root_laws.resolved_adaptive import HOLD_REGULARISATION, identify, one_step_control, torque_weight
 
 ROOT = Path(__file__).resolve().parents[2]
 RMAC = ROOT / "specs" / "puma560_rmac.yaml"

@@ -15,10 +15,10 @@ from reference import hadamard_ratios, wrist_centre_blocks
 from scipy.optimize import brentq
 
 from robotgen.frontend import load_system
-from robotgen.symbolic.control.hand import Hand, checked_solve
-from robotgen.symbolic.control.resolved_adaptive import stage_counts
 from robotgen.symbolic.op_count import count_operations
 from robotgen.symbolic.rigid_body.inverse_jacobian import SINGULAR_DETERMINANT
+from robotgen.symbolic.root_laws.hand import Hand, checked_solve
+from robotgen.symbolic.root_laws.resolved_adaptive import stage_counts
 
 ROOT = Path(__file__).resolve().parents[2]
 PUMA, RMAC = ROOT / "specs" / "puma560.yaml", ROOT / "specs" / "puma560_rmac.yaml"

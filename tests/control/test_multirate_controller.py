@@ -15,9 +15,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from robotgen import simulate
 from robotgen.frontend import load_system
 from robotgen.model.rate_groups import partition, rate_groups
+from robotgen.simulation import tree as simulate
 from robotgen.symbolic.lifted_loop import lifted_loop
 
 ROOT = Path(__file__).resolve().parents[2]

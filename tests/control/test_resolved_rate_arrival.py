@@ -3,7 +3,7 @@
 
 The PUMA 560 of specs/puma560_rmrc.yaml, with `arrival` and a horizon of 0.5 s (so that the
 exponential approach is still visibly short after 2 s), is compiled; its steps run as an
-ideal joint-rate servo (robotgen.approach_paths: each call's rates held over one period).
+ideal joint-rate servo (robotgen.simulation.approach_paths: each call's rates held over one period).
 The composite robot (styx_redundant's hand) evaluates the CasADi graphs the C is printed
 from. Every test prints its numbers.
 """
@@ -16,9 +16,9 @@ from scipy.spatial.transform import Rotation
 from test_resolved_rate_chain import Graphs, write_spec
 from test_resolved_rate_composite import SPECS, h_inverse, variant
 
-from robotgen.approach_paths import approach_paths
 from robotgen.errors import UserErrors
 from robotgen.frontend import load_system
+from robotgen.simulation.approach_paths import approach_paths
 
 PUMA_RMRC = SPECS / "puma560_rmrc.yaml"
 QN = np.array([0, np.pi / 4, np.pi, 0, np.pi / 4, 0])  # the PUMA's nominal pose

@@ -15,10 +15,10 @@ from robots import UR5, robots_dir
 
 from robotgen.frontend import load_system
 from robotgen.frontend.urdf import read_urdf
-from robotgen.symbolic.control.hand import Hand
-from robotgen.symbolic.control.resolved_adaptive import StateLayout, stage_counts
 from robotgen.symbolic.op_count import count_operations
 from robotgen.symbolic.rigid_body.spherical_wrist import spherical_wrist_arm
+from robotgen.symbolic.root_laws.hand import Hand
+from robotgen.symbolic.root_laws.resolved_adaptive import StateLayout, stage_counts
 
 ROOT = Path(__file__).resolve().parents[2]
 PUMA, RMAC = ROOT / "specs" / "puma560.yaml", ROOT / "specs" / "puma560_rmac.yaml"

@@ -25,10 +25,10 @@ from robotgen.emit.controllers import snake_case
 from robotgen.emit.sx_program import KernelError
 from robotgen.frontend import load_system
 from robotgen.symbolic import controllers_for, kernels_for
-from robotgen.symbolic.control.hand import Hand
-from robotgen.symbolic.control.law import Controller, StateView
 from robotgen.symbolic.kernel import PARAMS, make_kernel
 from robotgen.symbolic.rigid_body.inverse_jacobian import SINGULAR_DETERMINANT
+from robotgen.symbolic.root_laws.hand import Hand
+from robotgen.symbolic.root_laws.law import Controller, StateView
 
 ROOT = Path(__file__).resolve().parents[2]
 RMAC_SPEC = ROOT / "specs" / "puma560_rmac.yaml"

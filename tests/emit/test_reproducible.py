@@ -21,7 +21,7 @@ from scipy.linalg import solve_continuous_are
 from robotgen.frontend import load_system
 from robotgen.numeric import exact
 from robotgen.numeric.riccati import RiccatiError, gain, solve_care
-from robotgen.symbolic.control.resolved_rate.regulator import linearise
+from robotgen.symbolic.root_laws.resolved_rate.regulator import linearise
 
 ROOT = Path(__file__).resolve().parents[2]
 

@@ -11,7 +11,7 @@ import numpy as np
 import yaml
 
 from robotgen.model.simulation import SimulationSettings
-from robotgen.simulate import run
+from robotgen.simulation.tree import run
 
 SPEC = Path(__file__).resolve().parents[2] / "specs" / "tripod_grasp.yaml"
 

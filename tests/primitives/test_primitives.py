@@ -5,7 +5,7 @@ The references never call robotgen: the spec YAML is read with PyYAML and `refer
 the contact geometry, the two-link inverse kinematics (law of cosines, not the spec's Craig
 formulas), the point-mass kinetic energy and the three-link Gauss-Newton solve are written
 below with CasADi / NumPy. Closed loops are integrated by the RK4 loop in this file (checked
-once against `robotgen.simulate.run`), with the servo's torque held over each step.
+once against `robotgen.simulation.tree.run`), with the servo's torque held over each step.
 """
 from __future__ import annotations
 
@@ -278,7 +278,7 @@ def test_composite_mass_and_coriolis_against_kinetic_energy(high, styx):
 
 def test_high_level_computed_torque_error_decays_at_the_gains_rate(high):
     from robotgen.model.simulation import SimulationSettings
-    from robotgen.simulate import run
+    from robotgen.simulation.tree import run
 
     data = spec_data(HIGH)
     ct = data["nodes"]["ct_hand"]["control"]
@@ -484,14 +484,14 @@ def test_redundant_hand_masks_internal_motion_tracks_and_damps_it(redundant):
 
     # `robotgen simulate`'s loop from our theta0 (the spec's dt): it runs and tracks
     from robotgen.model.simulation import SimulationSettings
-    from robotgen.simulate import run
+    from robotgen.simulation.tree import run
 
     sim = data["simulation"]
     res = run(redundant, SimulationSettings(
         duration=2.0, dt=const(sim["dt"]), start=tuple(NOMINAL), theta0=tuple(theta0),
         amplitude=tuple(const(c) for c in sim["amplitude"]), frequency=tuple(const(c) for c in sim["frequency"])))
     late = np.abs(res.error[res.t >= 1.0]).max(axis=0)
-    print(f"  robotgen.simulate.run, dt = {const(sim['dt']):g}: max |x - x_d| over t in [1, 2] s = "
+    print(f"  robotgen.simulation.tree.run, dt = {const(sim['dt']):g}: max |x - x_d| over t in [1, 2] s = "
           f"{np.array2string(late, formatter=SCI)}")
     np.testing.assert_allclose(res.x[0], NOMINAL + e0, atol=1e-13)
     assert np.all(late < [1e-5, 1e-5, 1e-3])

@@ -15,7 +15,7 @@ from robotgen.frontend import load_system
 from robotgen.frontend.mjcf import read_mjcf, read_mjcf_tree
 from robotgen.frontend.urdf import read_urdf, read_urdf_tree
 from robotgen.model.coupling import Mimic, MimicCycle, couple
-from robotgen.mujoco_plant.model import plant_model
+from robotgen.simulation.mujoco.model import plant_model
 from robotgen.symbolic import kernels_for
 
 

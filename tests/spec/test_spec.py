@@ -10,7 +10,7 @@ import pytest
 from jsonschema import Draft202012Validator
 
 from robotgen.errors import Location, UserError, UserErrors
-from robotgen.frontend import SCHEMA, load_system, schema_json
+from robotgen.frontend import load_system, schema_json, spec_schema
 from robotgen.model.chain import PRISMATIC
 from robotgen.model.expression import MATH_LIB, evaluate, parse_constant, parse_expression
 from robotgen.model.formula import FormulaRobot
@@ -454,7 +454,7 @@ def test_constants():
 
 
 def test_schema_is_valid_and_deterministic():
-    Draft202012Validator.check_schema(SCHEMA)
+    Draft202012Validator.check_schema(spec_schema())
     assert schema_json() == schema_json()
     assert json.loads(schema_json())["properties"]["robotgen"]["const"] == 1
 

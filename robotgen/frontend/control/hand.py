@@ -3,14 +3,15 @@ from a spec: the root controller of one 6-joint chain (a chain or urdf leaf)."""
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Callable
 
 import numpy as np
 
 from robotgen.documentation import hint
 from robotgen.frontend.collector import Collector
 from robotgen.frontend.document import Path
+from robotgen.frontend.schema_types import closed_object, number, weight_matrix, weights
 from robotgen.model.chain import KinematicTree, mimic_joints
-from robotgen.model.laws import RESOLVED_ACCELERATION
 from robotgen.model.laws.hand import (
     COVARIANCE_BLOCKS,
     FORGETTING,
@@ -25,7 +26,7 @@ from robotgen.model.laws.hand import (
 )
 from robotgen.model.parameters import Bounds
 from robotgen.model.signature import Signature
-from robotgen.model.system import RUNTIME_GAINS, ControlNode, RobotSystem
+from robotgen.model.system import GAIN_MODES, RUNTIME_GAINS, ControlNode, RobotSystem
 
 # defaults (docs/spec-format.md): a 1 kHz servo; Kp, Kv critically damped at 20 rad/s
 DEFAULT_PERIOD = 1e-3
@@ -43,18 +44,66 @@ DEFAULT_COVARIANCE_LIMIT = 1e6
 DEFAULT_IK_ITERATIONS = 2
 
 
+RESOLVED_ACCELERATION_SCHEMA = closed_object(
+    "settings of law resolved_acceleration (Luh, Walker, Paul 1980) on a 6-joint chain: "
+    "xdd* = xdd_d + Kv (xd_d - xd) + Kp e, qdd = J^-1 (xdd* - Jdot qd), Newton-Euler torques",
+    {"period": number("sampling period T [s], > 0, default 0.001", exclusiveMinimum=0),
+     "tool": {"$ref": "#/$defs/pose", "description": "the hand frame in the tip frame, default identity"},
+     "kp": weights("hand position gains on x, y, z, roll, pitch, yaw: a number or 6, default 400"),
+     "kv": weights("hand velocity gains: a number or 6, default 40"),
+     "gains": {"enum": list(GAIN_MODES), "description": "runtime (default) or folded kp, kv"}})
+
+RESOLVED_ADAPTIVE_SCHEMA = closed_object(
+    "settings of law resolved_adaptive (Lee and Lee 1983) on a 6-joint chain: Newton-Euler "
+    "feedforward and the one-step optimal control (eq 39) of an RLS-identified perturbation model",
+    {"period": number("sampling period T [s], > 0, default 0.001", exclusiveMinimum=0),
+     "tool": {"$ref": "#/$defs/pose", "description": "the hand frame in the tip frame, default identity"},
+     "bandwidth": number("the weight rule: positions and orientations decay at this rate [rad/s], "
+                          "> 0, default 20 (Q = diag(2 bandwidth / period on p and Phi, 1 on v and Omega))",
+                          exclusiveMinimum=0),
+     "q": weight_matrix("Q of eq 38 instead of the rule: a number, 4 numbers (position, orientation, velocity, "
+                         "angular velocity), 12 (the diagonal) or 12 rows of 12 (symmetric positive definite)"),
+     "torque_weight": number("the weight rule: R = torque_weight B^T Q B, > 0, default 1"),
+     "r": weight_matrix("R of eq 38 instead of the rule: a number, 6 (the diagonal) or 6 rows of 6 "
+                         "(symmetric positive definite)"),
+     "forgetting": number("forgetting factor mu of eq 37, 0 < mu <= 1, default 0.99"),
+     "directional": {"type": "boolean", "description": "forget along the regressor only (default true); false is "
+                                                       "eq 37 as printed, P divided by mu"},
+     "initial_covariance": {"type": ["number", "string", "object"],
+                            "description": "P_0 of eq 37: one number, or per regressor block "
+                                           "{A: 1, B: 1e-8, c: 1e-2} (the defaults)",
+                            "properties": {k: {"$ref": "#/$defs/number"} for k in ("A", "B", "c")},
+                            "additionalProperties": False},
+     "covariance_limit": number("largest trace of P, default 1e6", exclusiveMinimum=0),
+     "affine": {"type": "boolean", "description": "identify and cancel the model's constant term c "
+                                                  "(default true)"},
+     "ik_iterations": {"type": "integer", "minimum": 1, "maximum": 10,
+                       "description": "Newton steps of the inverse kinematics per cycle, for arms without a "
+                                      "closed form (a spherical wrist), default 2"},
+     "gains": {"enum": list(GAIN_MODES),
+               "description": "runtime (default) or folded q, r or torque_weight, forgetting"}})
+
+
 class HandLawReader(Collector):
     """Laws resolved_acceleration and resolved_adaptive."""
 
-    def check_hand_control(self, system: RobotSystem, node: ControlNode, spec: dict, robot: Signature) -> ControlNode:
-        """Check a hand law's node (resolved acceleration or adaptive) on its 6-joint chain; return it with its
-        settings read."""
+    def check_acceleration_control(self, system: RobotSystem, node: ControlNode, spec: dict,
+                                   robot: Signature) -> ControlNode:
+        """Law resolved_acceleration's node and settings."""
+        return self.check_hand_control(system, node, spec, robot, self.acceleration_settings)
+
+    def check_adaptive_control(self, system: RobotSystem, node: ControlNode, spec: dict,
+                               robot: Signature) -> ControlNode:
+        """Law resolved_adaptive's node and settings."""
+        return self.check_hand_control(system, node, spec, robot, self.adaptive_settings)
+
+    def check_hand_control(self, system: RobotSystem, node: ControlNode, spec: dict, robot: Signature,
+                           read: Callable[[Path, dict, float, np.ndarray, bool], object]) -> ControlNode:
+        """A hand law's node: the root, over a 6-joint chain without mimic joints; its period,
+        tool and gain mode, then ``read`` (the block's path, the block, those three) for the
+        rest of its settings."""
         path: Path = ("nodes", node.name, "control")
         law = node.law
-        for key in ("kp", "kv", "kv_internal", "kf_internal", "ki_internal", "internal_forces",
-                    "resolve_internal_motion", "gains", "impedance", "hybrid", "period"):
-            if key in spec:
-                self.at_key(path + (key,), f"law {law} takes no {key} here (its settings go under {law})")
         chain = getattr(system.nodes[node.robot], "leaf", None)
         if not isinstance(chain, KinematicTree):
             self.at_value(path + ("robot",), f"law {law} controls a chain or urdf leaf; '{node.robot}' is a "
@@ -69,23 +118,23 @@ class HandLawReader(Collector):
             self.at_value(path + ("robot",), f"law {law} resolves hand motion through a square Jacobian: it needs "
                                              f"{HAND_DOF} joints, '{node.robot}' has {chain.nq}")
             return node
-        if node.name != system.root:
-            self.at_key(("nodes", node.name), f"a {law} controller must be the root (it makes the module's "
-                                              f"controller); the root is '{system.root}'")
+        if not self.must_be_root(system, node):
             return node
         where = path + (law,)
         settings = spec.get(law, {})
         period = self.optional(settings, where, "period", DEFAULT_PERIOD, minimum=0.0, exclusive=True)
         tool = self.pose(where + ("tool",), settings.get("tool"))
         runtime = settings.get("gains", RUNTIME_GAINS) == RUNTIME_GAINS
-        if law == RESOLVED_ACCELERATION:
-            hand = ResolvedAccelerationSettings(
-                period, tool, self.weights(where + ("kp",), settings.get("kp", DEFAULT_KP), HAND_DOF, GAIN),
-                self.weights(where + ("kv",), settings.get("kv", DEFAULT_KV), HAND_DOF, GAIN), runtime)
-        else:
-            hand = self.adaptive_settings(where, settings, period, tool, runtime)
+        hand = read(where, settings, period, tool, runtime)
         n = robot.n_external
         return dataclasses.replace(node, kp=np.zeros((n, n)), kv=np.zeros((n, n)), hand=hand)
+
+    def acceleration_settings(self, where: Path, settings: dict, period: float, tool: np.ndarray,
+                              runtime: bool) -> ResolvedAccelerationSettings:
+        """resolved_acceleration: Kp and Kv on x, y, z, roll, pitch, yaw."""
+        return ResolvedAccelerationSettings(
+            period, tool, self.weights(where + ("kp",), settings.get("kp", DEFAULT_KP), HAND_DOF, GAIN),
+            self.weights(where + ("kv",), settings.get("kv", DEFAULT_KV), HAND_DOF, GAIN), runtime)
 
     def adaptive_settings(self, where: Path, settings: dict, period: float, tool: np.ndarray,
                           runtime: bool) -> AdaptiveSettings:

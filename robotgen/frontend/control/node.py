@@ -9,7 +9,7 @@ import numpy as np
 
 from robotgen.frontend.collector import Collector
 from robotgen.frontend.document import Path
-from robotgen.model.laws import FEEDFORWARD, FORCE_LAWS, HAND_LAWS, IMPEDANCE, PD, RESOLVED_RATE
+from robotgen.model.laws.registry import LAWS
 from robotgen.model.parameters import DIAGONAL_GAIN, MATRIX_GAIN, SCALAR_GAIN, Bounds
 from robotgen.model.signature import Signature
 from robotgen.model.system import (
@@ -21,6 +21,10 @@ from robotgen.model.system import (
     ControlNode,
     RobotSystem,
 )
+
+# the node's own keys, which a root law takes none of (its settings go under its name)
+NODE_KEYS = ("kp", "kv", "kv_internal", "kf_internal", "ki_internal", "internal_forces", "resolve_internal_motion",
+             "gains", "period")
 
 
 class ControlReader(Collector):
@@ -43,22 +47,21 @@ class ControlReader(Collector):
         )
 
     def check_control(self, system: RobotSystem, node: ControlNode, robot: Signature) -> ControlNode:
-        """Check a CONTROL node against its robot's signature: law, gains, internal forces and motions; return it
-        completed."""
+        """The node checked against its law (robotgen.model.laws.registry): a root law takes
+        none of the node's own keys and reads its settings block; a tree law's gains, what it
+        resolves, then its settings block if it has one."""
         path: Path = ("nodes", node.name, "control")
         spec = self.doc.data["nodes"][node.name]["control"]
-        if node.law in HAND_LAWS:
-            return self.check_hand_control(system, node, spec, robot)
-        for law in HAND_LAWS:
-            if law in spec:
-                self.at_key(path + (law,), f"settings of law {law}; this node's law is {node.law}")
-        if node.law == RESOLVED_RATE:
-            return self.check_rate_control(system, node, spec, robot)
-        if "resolved_rate" in spec:
-            self.at_key(path + ("resolved_rate",), f"settings of law resolved_rate; this node's law is {node.law}")
-        for law in FORCE_LAWS:
-            if law in spec and law != node.law:
-                self.at_key(path + (law,), f"settings of law {law}; this node's law is {node.law}")
+        law = LAWS[node.law]
+        for other in LAWS.values():
+            if other.settings is not None and other.name != law.name and other.name in spec:
+                self.at_key(path + (other.name,), f"settings of law {other.name}; this node's law is {law.name}")
+        if law.is_root:
+            for key in NODE_KEYS:
+                if key in spec:
+                    self.at_key(path + (key,), f"law {law.name} takes no {key} here (its settings go under "
+                                               f"{law.name})")
+            return law.part("settings")(self, system, node, spec, robot)
         target = system.nodes[node.robot]
         if isinstance(getattr(target, "leaf", None), PAYLOAD_BODIES):
             self.at_value(path + ("robot",), f"'{node.robot}' is a rigid_body, a payload without actuators; "
@@ -66,15 +69,9 @@ class ControlReader(Collector):
         n = robot.n_external
         gains = {}
         for key in ("kp", "kv"):
-            if node.law == FEEDFORWARD:
+            if not law.gains:
                 if key in spec:
-                    self.at_key(path + (key,), f"law feedforward takes no {key} (it is computed torque with "
-                                               "Kp = Kv = 0)")
-                gains[key] = np.zeros((n, n))
-            elif node.law == IMPEDANCE:
-                if key in spec:
-                    self.at_key(path + (key,), f"law impedance takes no {key} (its stiffness and damping go "
-                                               "under impedance)")
+                    self.at_key(path + (key,), f"law {law.name} takes no {key} ({law.no_gains})")
                 gains[key] = np.zeros((n, n))
             elif key not in spec:
                 self.at_key(path, f"missing required key '{key}' (law {node.law})")
@@ -83,9 +80,9 @@ class ControlReader(Collector):
                 gains[key] = self.gain(path + (key,), spec[key], robot, node.robot)
         if node.internal_forces is not None:
             have = robot.n_internal_forces
-            if node.law == PD:
-                self.at_key(path + ("internal_forces",), "law pd cannot resolve internal forces (it passes the "
-                                                         "robot's attributes up unchanged)")
+            if not law.internal_forces:
+                self.at_key(path + ("internal_forces",), f"law {law.name} cannot resolve internal forces (it "
+                                                         "passes the robot's attributes up unchanged)")
             elif len(node.internal_forces) != have:
                 listed = f" ({', '.join(robot.internal_forces)})" if have else ""
                 self.at_key(path + ("internal_forces",), f"expected {have} values, one per internal force of "
@@ -93,29 +90,36 @@ class ControlReader(Collector):
         for key in ("kf_internal", "ki_internal"):
             if getattr(node, key) is None:
                 continue
-            if node.law == PD:
-                self.at_key(path + (key,), "law pd passes internal forces up unresolved; close the "
+            if not law.internal_forces:
+                self.at_key(path + (key,), f"law {law.name} passes internal forces up unresolved; close the "
                                            "internal-force loop at the controller that commands them")
             elif not robot.n_internal_forces:
                 self.at_key(path + (key,), f"robot '{node.robot}' has no internal forces to close a loop on")
-        if node.kf_internal is not None and node.law != PD and robot.n_internal_forces:
+        if node.kf_internal is not None and law.internal_forces and robot.n_internal_forces:
             if node.kf_internal >= 1:
                 self.at_value(path + ("kf_internal",), f"kf_internal {node.kf_internal:g} must be below 1: the force "
                                                        "is sensed a period late and a grasp carries a commanded "
                                                        "internal force at once, so f(k) = f_d + kf (f_d - f(k-1)) "
                                                        "has its pole at -kf")
         if node.resolve_internal_motion:
-            if node.law == PD:
-                self.at_key(path + ("resolve_internal_motion",), "law pd cannot resolve internal motion (it passes "
-                                                                 "the robot's attributes up unchanged)")
+            if not law.internal_forces:
+                self.at_key(path + ("resolve_internal_motion",), f"law {law.name} cannot resolve internal motion "
+                                                                 "(it passes the robot's attributes up unchanged)")
             elif not robot.internal_motions:
                 self.at_key(path + ("resolve_internal_motion",), f"robot '{node.robot}' has no internal motions "
                                                                  "to resolve")
         forms = tuple(gain_form(spec.get(key, 0)) for key in ("kp", "kv"))
         node = dataclasses.replace(node, kp=gains["kp"], kv=gains["kv"], gain_forms=forms)
-        if node.law in FORCE_LAWS:
-            return self.check_force_law(node, spec, robot)
+        if law.settings is not None:
+            return law.part("settings")(self, system, node, spec, robot)
         return node
+
+    def must_be_root(self, system: RobotSystem, node: ControlNode) -> bool:
+        """Whether a root law's node is the root of its spec (said where it is not)."""
+        if node.name != system.root:
+            self.at_key(("nodes", node.name), f"a {node.law} controller must be the root ({LAWS[node.law].root}); "
+                                              f"the root is '{system.root}'")
+        return node.name == system.root
 
     def gain(self, path: Path, value: object, robot: Signature, name: str,
              bounds: tuple[Bounds, Bounds] = (GAIN, GAIN_MATRIX)) -> np.ndarray:

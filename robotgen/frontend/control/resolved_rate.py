@@ -11,15 +11,19 @@ import numpy as np
 from robotgen.documentation import hint
 from robotgen.frontend.collector import Collector
 from robotgen.frontend.document import Path, format_path
+from robotgen.frontend.schema_types import closed_object, number, vector3
 from robotgen.model.chain import KinematicTree, mimic_joints
 from robotgen.model.laws.resolved_rate import (
     COMPOSITE_KEYS,
     EXTENDED_JACOBIAN,
+    FRAMES,
     GENERIC_AXES,
     HAND,
     JOINT_LIMITS,
     LINE_OF_SIGHT,
+    OBJECTIVES,
     PSEUDO_INVERSE,
+    REDUNDANCY_METHODS,
     SPHERICAL,
     TOOL,
     WEIGHTED_PSEUDO_INVERSE,
@@ -42,6 +46,62 @@ from robotgen.model.system import (
     RobotSystem,
 )
 
+SCHEMA = closed_object(
+    "settings of law resolved_rate: resolved motion rate and position control of a chain "
+    "(Whitney 1972), or of a composite robot in its own coordinates (then only damping, "
+    "rate_limits, horizon and arrival apply)",
+    {"frame": {"enum": list(FRAMES),
+               "description": "command coordinates: base, hand (eq 7), tool (axes of a held "
+                              "tool), line_of_sight (eq 10), spherical; default hand"},
+     "eye": vector3("line_of_sight: the eye point in base coordinates [m]"),
+     "centre": vector3("spherical: the centre in base coordinates [m]"),
+     "tool": {"$ref": "#/$defs/pose", "description": "tool: the tool frame in the hand frame"},
+     "active": {"type": "array", "items": {"type": "string"}, "uniqueItems": True,
+                "description": "command axes that follow the command (default all); the "
+                               "others are held at rate zero"},
+     "free": {"type": "array", "items": {"type": "string"}, "uniqueItems": True,
+              "description": "command axes left out of the task (neither commanded nor held)"},
+     "weights": {"type": "array", "minItems": 6, "maxItems": 6, "items": {"$ref": "#/$defs/number"},
+                 "description": "proportion of each command axis, default 1"},
+     "redundancy": closed_object(
+         "joint rates of a redundant arm",
+         {"method": {"enum": list(REDUNDANCY_METHODS),
+                     "description": "pseudo_inverse (default), weighted_pseudo_inverse or extended_jacobian"},
+          "joint_weights": {"type": ["number", "string", "array"], "items": {"$ref": "#/$defs/number"},
+                            "description": "weighted_pseudo_inverse: W = diag(joint_weights), a positive "
+                                           "number or one per joint; the rates minimise qdot^T W qdot"},
+          "objective": {"enum": list(OBJECTIVES),
+                        "description": "secondary objective H to increase (default none)"},
+          "gain": number("gain on grad H, > 0, default 1", exclusiveMinimum=0)}),
+     "damping": closed_object(
+         "damped least squares near singularities",
+         {"lambda_max": number("damping at a singularity, > 0", exclusiveMinimum=0),
+          "threshold": number("manipulability below which damping rises, > 0", exclusiveMinimum=0)},
+         ("lambda_max", "threshold")),
+     "rate_limits": {"type": ["number", "string", "array"], "items": {"$ref": "#/$defs/number"},
+                     "description": "joint-rate bounds: a number or one per joint (of every leaf, "
+                                    "in tree order, for a composite robot; default the joints' "
+                                    "velocity limits); the whole rate vector is scaled"},
+     "horizon": number("T of eqs 11-18: position control time constant [s], > 0, default 0.1",
+                        exclusiveMinimum=0),
+     "arrival": closed_object(
+         "adds arrival_step: position control with T of eq 11 the time remaining until arrival, "
+         "passed at every call",
+         {"minimum_remaining": number("remaining times below this count as this [s] (one control "
+                                       "period), > 0, default 0.001", exclusiveMinimum=0)}),
+     "lqr": closed_object(
+         "optimal regulator about a nominal posture from the linearised dynamics (eq 19)",
+         {"nominal": {"type": "array", "minItems": 1, "items": {"$ref": "#/$defs/number"},
+                      "description": "nominal joint positions (rates zero)"},
+          "q": {"type": "array", "minItems": 2, "items": {"$ref": "#/$defs/number"},
+                "description": "state weights: [position, rate] or one per state (2n), default [100, 1]"},
+          "r": {"type": ["number", "string", "array"], "items": {"$ref": "#/$defs/number"},
+                "description": "torque weights: a number or one per joint, default 1"},
+          "servo": {"type": "boolean",
+                    "description": "also emit servo_step(q, qd, v): the optimal linear servo on these "
+                                   "gains, its feedforward v passed in (default false)"}},
+         ("nominal",))})
+
 
 class ResolvedRateReader(Collector):
     """Law resolved_rate's settings."""
@@ -50,11 +110,6 @@ class ResolvedRateReader(Collector):
         """A resolved_rate controller: the root, over a chain or urdf leaf or over a composite
         robot (an attach node, possibly under control nodes)."""
         path: Path = ("nodes", node.name, "control")
-        for key in ("kp", "kv", "kv_internal", "kf_internal", "ki_internal", "internal_forces",
-                    "resolve_internal_motion", "gains", "impedance", "hybrid", "period"):
-            if key in spec:
-                self.at_key(path + (key,), f"law resolved_rate takes no {key} (it outputs joint rates; "
-                                           "its settings go under resolved_rate)")
         target = system.nodes[node.robot]
         chain = getattr(target, "leaf", None)
         below = self.leaf_below(system.nodes, node.robot)
@@ -71,15 +126,13 @@ class ResolvedRateReader(Collector):
                                              f"mimic joints ({mimic_joints(chain)}): a tip above them leaves them out "
                                              f"({hint('spec-format', 'Mimic joints')})")
             return node
-        if node.name != system.root:
-            self.at_key(("nodes", node.name), f"a resolved_rate controller must be the root (it outputs joint "
-                                              f"rates, which no node above can use); the root is '{system.root}'")
+        if not self.must_be_root(system, node):
             return node
-        settings = spec.get("resolved_rate", {})
+        settings = spec.get(node.law, {})
         if composite:
-            rate = self.composite_rate_settings(path + ("resolved_rate",), settings, system, node.robot, robot)
+            rate = self.composite_rate_settings(path + (node.law,), settings, system, node.robot, robot)
         else:
-            rate = self.rate_settings(path + ("resolved_rate",), settings, chain)
+            rate = self.rate_settings(path + (node.law,), settings, chain)
         n = robot.n_external
         return dataclasses.replace(node, kp=np.zeros((n, n)), kv=np.zeros((n, n)), rate=rate)
 

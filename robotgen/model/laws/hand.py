@@ -49,7 +49,7 @@ class ResolvedAccelerationSettings:
 
 
 # The first step after a controller's reset refuses a desired hand pose farther than this from
-# the hand (robotgen.symbolic.control.hand.start_check): a path started in the wrong frame or
+# the hand (robotgen.symbolic.root_laws.hand.start_check): a path started in the wrong frame or
 # at the wrong place. The adaptive law closes a start error within a few periods, so its first
 # torques grow with it: on the PUMA at its start pose (specs/puma560_rmac.yaml) about 76 N m per
 # mm and 31 N m per mrad (1566 N m for 2 cm). Start the path at the hand: hand_pose(q).
@@ -82,7 +82,7 @@ class AdaptiveSettings:
     initial_covariance: P_0 on the regressor blocks (A's, B's, c's).
     covariance_limit: trace(P) is held below it, unless the forgetting is directional and the
        model affine (the regressor's constant 1 then keeps P bounded:
-       robotgen.symbolic.control.resolved_adaptive.identify).
+       robotgen.symbolic.root_laws.resolved_adaptive.identify).
     affine: the model's constant term c, identified and cancelled (the torque that holds a
        payload the model does not know).
     ik_iterations: Newton steps of the inverse kinematics per cycle (arms without a closed form)."""

@@ -1,8 +1,11 @@
-"""The tree control laws by name (robotgen.model.laws.TREE_LAWS): one module each."""
+"""The tree control laws by name: the symbolic part (a TreeLaw) of each law of
+robotgen.model.laws.registry that is not a root law."""
 from __future__ import annotations
 
-from robotgen.symbolic.control import computed_torque, feedforward, hybrid, impedance, pd, pd_feedforward
+from robotgen.model.laws.registry import LAWS
 from robotgen.symbolic.control.law import TreeLaw
 
-TREE_LAWS: dict[str, TreeLaw] = {m.LAW.name: m.LAW for m in (computed_torque, feedforward, pd_feedforward, pd,
-                                                              impedance, hybrid)}
+
+def tree_law(name: str) -> TreeLaw:
+    """The TreeLaw of the law called ``name``."""
+    return LAWS[name].part("kernels")

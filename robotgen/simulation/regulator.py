@@ -4,19 +4,48 @@ the compiled ``lqr_step`` (tau = tau0 - K (q - q0, qd)) closed around the chain'
 A resolved-rate controller outputs joint rates, which a plant cannot take; its regulator
 outputs torques. The chain starts at the simulation's theta0 at rest and the regulator
 brings it back to the nominal posture q0: the "tracking error" is q - q0. The plant is the
-chain's forward dynamics integrated by RK4 (hand_simulation.rk4_step) or a MuJoCo model of
-the same chain (robotgen.mujoco_plant), the torque held over each period dt."""
+chain's forward dynamics integrated by RK4 (robotgen.simulation.hand.rk4_step) or a MuJoCo model of
+the same chain (robotgen.simulation.mujoco), the torque held over each period dt."""
 from __future__ import annotations
 
 import numpy as np
 
-from robotgen.hand_simulation import rk4_step
+from robotgen.documentation import hint
 from robotgen.model.chain import REVOLUTE
 from robotgen.model.signature import METRE, RADIAN
 from robotgen.model.simulation import MUJOCO_PLANT, ROBOTGEN_PLANT, SimulationSettings
 from robotgen.model.system import RobotSystem
-from robotgen.mujoco_plant.run import Diverged, chain_steps
-from robotgen.simulate import DIVERGED, Result, SimulationError, format_values
+from robotgen.simulation.failures import DIVERGED, SimulationError, format_values
+from robotgen.simulation.hand import rk4_step
+from robotgen.simulation.mujoco.run import Diverged, chain_steps
+from robotgen.simulation.tree import Result
+from robotgen.simulation.tree import compare as compare  # its records are a tree run's
+from robotgen.simulation.tree import plot as plot
+from robotgen.simulation.tree import summary as summary
+from robotgen.simulation.tree import write_csv as write_csv
+
+
+def refusal(system: RobotSystem) -> str | None:
+    """Why ``robotgen simulate`` cannot run this resolved-rate controller: it outputs joint
+    rates, so only a chain's regulator (lqr settings) is simulated."""
+    if system.rate_controls_composite or system.root_node.rate.lqr is None:
+        where = hint("python-api", "Resolved-rate controllers")
+        return ("simulate runs torque controllers; a resolved_rate controller outputs joint rates (with lqr "
+                "settings its regulator's lqr_step is simulated): integrate its rate_step / position_step "
+                f"({where} shows how)")
+    return None
+
+
+def comparison_system(system: RobotSystem) -> None:
+    """A regulator is simulated alone."""
+    return None
+
+
+def simulate(module, system: RobotSystem, s: SimulationSettings, plant: str, comparison=None
+             ) -> tuple[Result, str | None]:
+    """The laws' simulation entry (robotgen.model.laws.registry): ``run``; ``comparison`` is
+    always None."""
+    return run(module, system, s, plant)
 
 
 def run(module, system: RobotSystem, s: SimulationSettings, plant: str = ROBOTGEN_PLANT) -> tuple[Result, str | None]:

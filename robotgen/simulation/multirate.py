@@ -9,8 +9,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from robotgen import simulate
-from robotgen.simulate import Result
+from robotgen.simulation import tree as simulate
+from robotgen.simulation.model_plant import ModulePlant
+from robotgen.simulation.tree import Result
 
 SINGLE_RATE = "single_rate"  # the file stem's suffix of the single-rate run
 
@@ -51,7 +52,7 @@ def cost(info: dict) -> Cost:
     return Cost(groups, GroupCost(m["single_rate"], every, groups[0].period, m["single_rate_operations"]))
 
 
-def run(module, settings, rest, plant=simulate.ModulePlant) -> tuple[Result, Result]:
+def run(module, settings, rest, plant=ModulePlant) -> tuple[Result, Result]:
     """(the multi-rate run, the single-rate run), both stepping the plant every settings.dt
     (the fastest period)."""
     return (simulate.run(module, settings, rest, plant, multirate=True),

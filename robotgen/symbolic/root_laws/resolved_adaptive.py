@@ -45,13 +45,13 @@ from robotgen.model.laws.hand import AdaptiveSettings
 from robotgen.model.parameter_struct import runtime_parameters
 from robotgen.model.simulation import rest_posture
 from robotgen.model.system import RobotSystem
-from robotgen.symbolic.control.hand import Hand, discretise, hand_kernels, pose_rows, start_check, wrap
-from robotgen.symbolic.control.law import Controller, RootLaw, StateView
 from robotgen.symbolic.kernel import Kernel, ParameterSymbols, make_kernel
 from robotgen.symbolic.leaf_kernels import leaf_kernels
 from robotgen.symbolic.op_count import count_operations
 from robotgen.symbolic.rigid_body.cholesky import cholesky_solve
 from robotgen.symbolic.rigid_body.rpy import rpy_of
+from robotgen.symbolic.root_laws.hand import Hand, discretise, hand_kernels, pose_rows, start_check, wrap
+from robotgen.symbolic.root_laws.law import Controller, RootLaw, StateView
 
 NX, NU = 12, 6  # hand state and torques
 STEP, INIT = "adaptive_step", "adaptive_init"

@@ -6,7 +6,7 @@ changing mid-run (the plant's hand picks up point masses the controller is not t
 The plant is the chain's forward dynamics (the spec's model, and the same with each payload
 added to the last link), integrated by RK4 from theta0 with the joint rates of the path's
 start (eq 11), or a MuJoCo model of the same chain whose hand holds each payload
-(robotgen.mujoco_plant); the controller runs once per sampling period on the sensed joint
+(robotgen.simulation.mujoco); the controller runs once per sampling period on the sensed joint
 state and its torques are held over the period. An adaptive controller is run three times: adapting,
 with its identification frozen (adapt = False), and replaced by resolved acceleration
 control with its default gains, so that the plot compares them."""
@@ -22,16 +22,16 @@ import numpy as np
 
 from robotgen.frontend.control.hand import DEFAULT_KP, DEFAULT_KV
 from robotgen.model.chain import with_payload
-from robotgen.model.laws import RESOLVED_ACCELERATION, RESOLVED_ADAPTIVE
-from robotgen.model.laws.hand import HAND_AXES, HAND_DOF, ResolvedAccelerationSettings
+from robotgen.model.laws import RESOLVED_ACCELERATION
+from robotgen.model.laws.hand import HAND_AXES, HAND_DOF, AdaptiveSettings, ResolvedAccelerationSettings
 from robotgen.model.simulation import MUJOCO_PLANT, ROBOTGEN_PLANT, SimulationSettings
 from robotgen.model.system import RobotSystem
-from robotgen.mujoco_plant.run import Diverged, chain_steps
 from robotgen.numeric import exact
-from robotgen.simulate import DIVERGED, SimulationError
-from robotgen.symbolic.control.hand import Hand
+from robotgen.simulation.failures import DIVERGED, SimulationError
+from robotgen.simulation.mujoco.run import Diverged, chain_steps
 from robotgen.symbolic.rigid_body.chain import ChainGraphs, Symbols
 from robotgen.symbolic.rigid_body.rpy import rpy_of, rpy_rate_map, rpy_rotation
+from robotgen.symbolic.root_laws.hand import Hand
 
 SETTLE_WINDOW = 1.0  # [s]: the RMS just after a change and at the end of the run
 
@@ -127,15 +127,31 @@ def rk4_step(tree, T: float) -> ca.Function:
                                              qd + T / 6 * (k1[1] + 2 * k2[1] + 2 * k3[1] + k4[1])])
 
 
-def comparison_system(system: RobotSystem) -> RobotSystem:
+def refusal(system: RobotSystem) -> str | None:
+    """Why ``robotgen simulate`` cannot run this hand controller: never (a law's simulation
+    answers this, robotgen.model.laws.registry)."""
+    return None
+
+
+def comparison_system(system: RobotSystem) -> RobotSystem | None:
     """An adaptive controller's spec with resolved acceleration control at its root instead,
     with the same period and hand and that law's default gains: the reference its simulation
-    compares against."""
+    compares against (None for resolved acceleration control itself)."""
     node = system.root_node
+    if not isinstance(node.hand, AdaptiveSettings):
+        return None
     hand = ResolvedAccelerationSettings(node.hand.period, node.hand.tool, np.full(HAND_DOF, DEFAULT_KP),
                                         np.full(HAND_DOF, DEFAULT_KV))
     root = dataclasses.replace(node, law=RESOLVED_ACCELERATION, hand=hand)
     return dataclasses.replace(system, name=f"{system.name}_rac", nodes={**system.nodes, system.root: root})
+
+
+def simulate(module, system: RobotSystem, s: SimulationSettings, plant: str, comparison=None
+             ) -> tuple[HandResult, str | None]:
+    """Every run against ``plant`` (``comparison``: the module of comparison_system, if any),
+    and the MuJoCo plant's MJCF or None: the laws' simulation entry (robotgen.model.laws.registry)."""
+    result = run(module, system, s, comparison, plant=plant)
+    return result, result.mjcf
 
 
 def run(module, system: RobotSystem, s: SimulationSettings, comparison=None,
@@ -175,7 +191,7 @@ def run(module, system: RobotSystem, s: SimulationSettings, comparison=None,
     result = HandResult(t, p_d, [j.name for j in tree.joints], changes=s.payload_changes, plant=plant, mjcf=mjcf)
     if note:
         result.plant_note = note
-    if node.law == RESOLVED_ADAPTIVE:
+    if isinstance(node.hand, AdaptiveSettings):
         setups = [("adaptive", "adaptive", module.AdaptiveController, True),
                   ("frozen", "identification frozen (adapt = False)", module.AdaptiveController, False)]
         if comparison is not None:

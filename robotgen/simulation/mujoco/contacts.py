@@ -17,7 +17,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from robotgen.mujoco_plant.model import FINGERTIP_RADIUS, ContactMap
+from robotgen.simulation.mujoco.model import FINGERTIP_RADIUS, ContactMap
 
 # the first servo periods, while the commanded squeeze first presses the tips into their pads
 # (they start exactly touching, with no force): not counted as open contacts

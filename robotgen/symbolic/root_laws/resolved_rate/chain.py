@@ -37,9 +37,12 @@ from robotgen.model.laws.resolved_rate import (
     RateControlSettings,
 )
 from robotgen.model.system import RobotSystem
-from robotgen.symbolic.control.resolved_rate.command_frames import command_jacobian, hand, twist_map
-from robotgen.symbolic.control.resolved_rate.regulator import regulator
-from robotgen.symbolic.control.resolved_rate.resolution import (
+from robotgen.symbolic.kernel import Kernel, make_kernel
+from robotgen.symbolic.leaf_kernels import leaf_kernels
+from robotgen.symbolic.rigid_body.axis_angle import rotation_vector
+from robotgen.symbolic.root_laws.resolved_rate.command_frames import command_jacobian, hand, twist_map
+from robotgen.symbolic.root_laws.resolved_rate.regulator import regulator
+from robotgen.symbolic.root_laws.resolved_rate.resolution import (
     DampedResolver,
     conditioning,
     damping_squared,
@@ -47,9 +50,6 @@ from robotgen.symbolic.control.resolved_rate.resolution import (
     null_vector,
     scale_to_limits,
 )
-from robotgen.symbolic.kernel import Kernel, make_kernel
-from robotgen.symbolic.leaf_kernels import leaf_kernels
-from robotgen.symbolic.rigid_body.axis_angle import rotation_vector
 
 
 def chain_and_settings(system: RobotSystem) -> tuple[KinematicTree, RateControlSettings]:

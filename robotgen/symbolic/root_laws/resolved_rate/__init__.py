@@ -5,10 +5,10 @@ from __future__ import annotations
 
 from robotgen.model.laws import RESOLVED_RATE
 from robotgen.model.system import RobotSystem
-from robotgen.symbolic.control.law import RootLaw
-from robotgen.symbolic.control.resolved_rate.chain import chain_kernels, chain_report
-from robotgen.symbolic.control.resolved_rate.composite import composite_kernels, composite_report
 from robotgen.symbolic.kernel import Kernel
+from robotgen.symbolic.root_laws.law import RootLaw
+from robotgen.symbolic.root_laws.resolved_rate.chain import chain_kernels, chain_report
+from robotgen.symbolic.root_laws.resolved_rate.composite import composite_kernels, composite_report
 
 
 def kernels(system: RobotSystem) -> list[Kernel]:

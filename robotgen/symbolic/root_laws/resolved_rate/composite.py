@@ -35,15 +35,15 @@ import casadi as ca
 
 from robotgen.model.laws.resolved_rate import CompositeRateSettings
 from robotgen.model.system import RobotSystem
-from robotgen.symbolic.control.resolved_rate.resolution import (
+from robotgen.symbolic.kernel import Kernel, make_kernel
+from robotgen.symbolic.plant import leaf_velocities, strip_controls
+from robotgen.symbolic.rigid_body.cholesky import cholesky_solve
+from robotgen.symbolic.root_laws.resolved_rate.resolution import (
     conditioning,
     damping_squared,
     limited,
     scale_to_limits,
 )
-from robotgen.symbolic.kernel import Kernel, make_kernel
-from robotgen.symbolic.plant import leaf_velocities, strip_controls
-from robotgen.symbolic.rigid_body.cholesky import cholesky_solve
 from robotgen.symbolic.system import SystemGraphs
 from robotgen.symbolic.system_kernels import system_kernels
 

@@ -19,14 +19,14 @@ import numpy as np
 from robotgen.model.chain import KinematicTree
 from robotgen.model.laws.hand import START_ANGLE, START_DISTANCE
 from robotgen.numeric import exact
-from robotgen.symbolic.control.law import StartCheck
-from robotgen.symbolic.control.resolved_rate.resolution import DampedResolver
 from robotgen.symbolic.kernel import Kernel, make_kernel
 from robotgen.symbolic.rigid_body.chain import ChainGraphs, Symbols
 from robotgen.symbolic.rigid_body.cholesky import cholesky_solve_matrix
 from robotgen.symbolic.rigid_body.inverse_jacobian import WristCentreJacobian
 from robotgen.symbolic.rigid_body.rpy import rpy_of, rpy_rate_map, rpy_rates
 from robotgen.symbolic.rigid_body.spherical_wrist import SphericalWristArm, spherical_wrist_arm
+from robotgen.symbolic.root_laws.law import StartCheck
+from robotgen.symbolic.root_laws.resolved_rate.resolution import DampedResolver
 
 N = 6
 # A 6 x 6 solve refuses a Jacobian whose QR factor R has a pivot below this fraction of its

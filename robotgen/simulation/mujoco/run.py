@@ -1,4 +1,4 @@
-"""Stepping the MJCF of robotgen.mujoco_plant.model under a compiled controller's torques.
+"""Stepping the MJCF of robotgen.simulation.mujoco.model under a compiled controller's torques.
 
 One servo period: robotgen's tau goes to the motors (ctrl), held over the period, and
 MuJoCo takes ``substeps`` steps of its own RK4 integrator (one without contacts, so that
@@ -21,12 +21,12 @@ import numpy as np
 
 from robotgen.errors import UserError
 from robotgen.model.system import CONTACT_GRASPS, AttachNode, RobotSystem
-from robotgen.mujoco_plant import require_mujoco
-from robotgen.mujoco_plant.contacts import ContactHistory, Reading, internal_forces
-from robotgen.mujoco_plant.model import PlantModel, below_controls, fingertips, plant_model
-from robotgen.simulate import SimulationError
+from robotgen.simulation.failures import SimulationError
+from robotgen.simulation.mujoco import require_mujoco
+from robotgen.simulation.mujoco.contacts import ContactHistory, Reading, internal_forces
+from robotgen.simulation.mujoco.model import PlantModel, below_controls, fingertips, plant_model
 
-DIVERGED = 1e8  # as robotgen.simulate
+DIVERGED = 1e8  # as robotgen.simulation.tree
 # the MuJoCo model must reproduce robotgen's M and C qd + N to this (relative), or the
 # mapping is wrong; MIN_INERTIA alone moves the Styx fingers' M by ~1e-11
 AGREEMENT = 1e-8
@@ -316,7 +316,7 @@ class ChainSteps:
 
 
 class TreePlant:
-    """A robot tree's MuJoCo plant as robotgen.simulate runs it: started at robotgen's leaf
+    """A robot tree's MuJoCo plant as robotgen.simulation.tree runs it: started at robotgen's leaf
     state with every payload where the grasp puts it (its attach's rd), stepped with the
     servo step's torques; records the contacts."""
 
@@ -357,7 +357,7 @@ class TreePlant:
         return np.array(self.sim.internal_forces(self._readings))
 
     def set_wall(self, wall) -> None:
-        """The wall is in the MJCF already: the spec's (robotgen.mujoco_plant.model)."""
+        """The wall is in the MJCF already: the spec's (robotgen.simulation.mujoco.model)."""
         if self.sim.plant.wall is None:
             raise SimulationError("the MuJoCo model was written without a wall: give it in the spec's simulation "
                                   "section", "wall")
@@ -398,7 +398,7 @@ def root_payload(system: RobotSystem) -> str | None:
 
 
 def tree_plant(system: RobotSystem, module, dt: float) -> tuple[PlantModel, object]:
-    """The MJCF of a robot tree and the plant factory robotgen.simulate.run takes: each plant
+    """The MJCF of a robot tree and the plant factory robotgen.simulation.tree.run takes: each plant
     is first checked against the compiled module (check_agreement: every leaf's M and
     C theta_dot + N, every fingertip where the grasp's robots' rd puts it)."""
     plant = plant_model(system, dt)

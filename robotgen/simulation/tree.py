@@ -2,12 +2,13 @@
 
 The plant is the uncontrolled tree's composite dynamics (Deno et al. 1990, eq 2.3) in the
 root's velocity coordinates, integrated by classical RK4 with the leaf joint states carried
-along (Theta_dot = A(Theta) v): ``ModulePlant``, with the spec's wall pushing on it
-(robotgen.wall_contact) and its payloads' masses changing mid-run where the spec says. The
+along (Theta_dot = A(Theta) v): ``ModulePlant`` (robotgen.simulation.model_plant), with the
+spec's wall pushing on it (robotgen.simulation.wall_contact) and its payloads' masses changing
+mid-run where the spec says. The
 servo step runs once per step on the sensed leaf state (and, when it reads them, the forces
 the leaves exert, as a period's end senses them), and its torques are held over the step
 (zero-order hold), as on a real servo loop. Another plant with the same methods
-(robotgen.mujoco_plant.run.TreePlant: a MuJoCo model of the same bodies, with contacts) can
+(robotgen.simulation.mujoco.run.TreePlant: a MuJoCo model of the same bodies, with contacts) can
 take its place.
 """
 from __future__ import annotations
@@ -21,29 +22,18 @@ from pathlib import Path
 import numpy as np
 
 from robotgen.model.signature import FORCE_UNITS
-from robotgen.model.simulation import ROBOTGEN_PLANT, Wall
+from robotgen.model.simulation import ROBOTGEN_PLANT
 from robotgen.model.simulation import SimulationSettings as Settings
-from robotgen.wall_contact import WallContact
+from robotgen.simulation.failures import SimulationError, format_values
+from robotgen.simulation.model_plant import ModulePlant
 
-# a state entry beyond this is taken as divergence before it overflows
-DIVERGED = 1e8
 # largest constraint residual |y - h^-1(h(y))| accepted at the start [m or rad]
 RESIDUAL_TOLERANCE = 1e-6
-
-
-class SimulationError(ValueError):
-    """The settings or the closed loop cannot be simulated: the user's to fix. ``field`` is
-    the key of the simulation section the message is about (None: the spec as a whole)."""
-
-    def __init__(self, message: str, field: str | None = None):
-        super().__init__(message)
-        self.field = field
 
 
 @dataclass
 class Result:
     """A servo simulation: times t [s], root positions x and x_d, torques tau, leaf positions theta, names and units."""
-
     t: np.ndarray
     x: np.ndarray  # root positions
     x_d: np.ndarray
@@ -57,7 +47,7 @@ class Result:
     f_actual: np.ndarray | None = None  # (steps, k) the internal forces the plant carries
     f_commanded: np.ndarray | None = None  # (k,) their commands, NaN where none is known
     plant: str = ROBOTGEN_PLANT  # what the loop was closed around
-    contacts: object | None = None  # the MuJoCo plant's ContactHistory (robotgen.mujoco_plant.contacts)
+    contacts: object | None = None  # the MuJoCo plant's ContactHistory (robotgen.simulation.mujoco.contacts)
     plant_note: str = ""  # how that plant steps
     wall_force: np.ndarray | None = None  # (steps,) the normal force the wall carries, with a wall
     wall_commanded: float = float("nan")  # the force written at the root, along the wall's normal
@@ -90,11 +80,6 @@ def desired(s: Settings, x0: np.ndarray, t: float):
     a = np.zeros_like(x0) if not s.amplitude else np.asarray(s.amplitude, float)
     w = 2 * np.pi * (np.zeros_like(x0) if not s.frequency else np.asarray(s.frequency, float))
     return x0 + a * np.sin(w * t), a * w * np.cos(w * t), -a * w * w * np.sin(w * t)
-
-
-def format_values(values) -> str:
-    """Values as [v1, v2, ...] to 4 significant digits."""
-    return "[" + ", ".join(f"{v:.4g}" for v in np.asarray(values, float).ravel()) + "]"
 
 
 def _start(module, s: Settings, rest: np.ndarray, n_ext: int) -> tuple[np.ndarray, np.ndarray, str | None]:
@@ -135,76 +120,6 @@ def _check_constraints(module, theta: np.ndarray, source: str | None) -> None:
     advice = "" if source else "; give simulation.start (root positions) or theta0"
     raise SimulationError(f"{what} the constraint of attach '{attach}': residual {r[worst]:.3g} in "
                           f"'{coordinate}' (y - h^-1(h(y)), largest of {format_values(r)}){advice}", source)
-
-
-class ModulePlant:
-    """robotgen's own plant: the module's plant_dynamics, RK4 in (theta, v), torques held; the
-    wall's push (if any) added to them at every stage, and the payload masses it is given
-    passed to every plant function (run-time parameters)."""
-
-    name = ROBOTGEN_PLANT
-    note = "classical RK4 of plant_dynamics, one step per period"
-
-    def __init__(self, module, theta: np.ndarray, theta_dot: np.ndarray, v: np.ndarray, n_ext: int):
-        self.module, self.theta, self.v, self.n_ext = module, theta, v, n_ext
-        self.wall: WallContact | None = None
-        self.masses: dict[str, float] = {}  # run-time payload masses, by parameter name
-
-    def set_wall(self, wall: Wall) -> None:
-        """Put the simulation's wall in the plant."""
-        self.wall = WallContact(self.module, wall)
-
-    def set_payload_mass(self, payload: str, mass: float) -> None:
-        """Change a run-time payload's mass [kg] from now on."""
-        self.masses[f"{payload}_mass"] = mass
-
-    def _rates(self, theta: np.ndarray, v: np.ndarray) -> np.ndarray:
-        return self.module.plant_dynamics(theta, v, np.zeros(self.module.nq), **self.masses)[0]
-
-    def _pushed(self, theta: np.ndarray, v: np.ndarray, tau: np.ndarray) -> np.ndarray:
-        """The actuators' torques plus the wall's push at (theta, v)."""
-        return tau if self.wall is None else tau + self.wall.torque(theta, self._rates(theta, v))
-
-    def sensed(self) -> tuple[np.ndarray, np.ndarray]:
-        """Leaf positions theta (nq,) and rates theta_dot (nq,) of the plant now."""
-        return self.theta, self._rates(self.theta, self.v)
-
-    def position(self, theta: np.ndarray) -> np.ndarray:
-        """The root's external positions at leaf positions theta (nq,), by the module's plant_position."""
-        return self.module.plant_position(theta)[:self.n_ext]
-
-    def internal_forces(self, tau: np.ndarray) -> np.ndarray:
-        """The plant's internal forces under leaf torques tau (nq,), the wall's push included."""
-        return self.module.plant_internal_forces(self.theta, self.v, self._pushed(self.theta, self.v, tau),
-                                                 **self.masses)
-
-    def sensed_forces(self, tau_before: np.ndarray) -> np.ndarray:
-        """What the leaves exert through the grasps and on the wall now, the last torques still
-        applied: plant_sensed_forces under the actuators' and the wall's torques, less the
-        wall's push (the leaves exert its opposite)."""
-        pushed = self._pushed(self.theta, self.v, tau_before)
-        return self.module.plant_sensed_forces(self.theta, self.v, pushed, **self.masses) - (pushed - tau_before)
-
-    def wall_force(self) -> float:
-        """The wall's normal force [N] on its point now."""
-        return self.wall.normal_force(*self.sensed())
-
-    def record(self, t: float) -> None:
-        """robotgen's plant records no contacts."""
-        pass
-
-    def step(self, tau: np.ndarray, dt: float, when: str) -> None:
-        """One period on; ``when`` says which, for the message if the loop diverges."""
-        theta_next, v_next = _rk4(lambda th, vel: self.module.plant_dynamics(th, vel, self._pushed(th, vel, tau),
-                                                                             **self.masses),
-                                  self.theta, self.v, dt)
-        if not (np.all(np.abs(theta_next) < DIVERGED) and np.all(np.abs(v_next) < DIVERGED)):
-            raise SimulationError(
-                f"the closed loop diverged {when}: the state before the blow-up was theta = "
-                f"{format_values(self.theta)}, root velocity = {format_values(self.v)}, torque = "
-                f"{format_values(tau)}; the gains are too high for dt = {dt:g} s or the loop is unstable: lower kp "
-                "and kv, or dt")
-        self.theta, self.v = theta_next, v_next
 
 
 def run(module, s: Settings, rest: np.ndarray | None = None, plant=ModulePlant, multirate: bool = False) -> Result:
@@ -289,20 +204,6 @@ def _pad(a: np.ndarray, n: int) -> np.ndarray:
     out = np.zeros(n)
     out[: a.shape[0]] = a
     return out
-
-
-def _rk4(f, theta, v, dt):
-    """One classical RK4 step of (theta_dot, v_dot) = f(theta, v)."""
-    with np.errstate(all="ignore"):  # a diverging loop overflows; run() reports it
-        try:
-            k1 = f(theta, v)
-            k2 = f(theta + dt / 2 * k1[0], v + dt / 2 * k1[1])
-            k3 = f(theta + dt / 2 * k2[0], v + dt / 2 * k2[1])
-            k4 = f(theta + dt * k3[0], v + dt * k3[1])
-        except FloatingPointError:  # a stage left the finite numbers: the checked plant refuses it
-            return np.full_like(theta, np.nan), np.full_like(v, np.nan)
-        return (theta + dt / 6 * (k1[0] + 2 * k2[0] + 2 * k3[0] + k4[0]),
-                v + dt / 6 * (k1[1] + 2 * k2[1] + 2 * k3[1] + k4[1]))
 
 
 def write_csv(result: Result, path: Path) -> None:

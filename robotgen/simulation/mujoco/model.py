@@ -50,7 +50,7 @@ What cannot be mapped, and what is done instead:
   1e-15; the compiler's boundmass and boundinertia raise them to MIN_INERTIA (1e-14 kg and
   kg m^2), which changes the Styx fingers' M by about 1e-11 relative.
 
-The writer imports no MuJoCo (robotgen.mujoco_plant.run does)."""
+The writer imports no MuJoCo (robotgen.simulation.mujoco.run does)."""
 from __future__ import annotations
 
 import xml.etree.ElementTree as ET
@@ -277,7 +277,7 @@ def _chain_bodies(world: ET.Element, leaf: str, tree: KinematicTree) -> tuple[li
         ET.SubElement(body, "joint", attributes)
         if not np.array_equal(inertia, joint.body.inertia):
             body.append(ET.Comment(" inertia made physical by moving some about the joint axis to or from the "
-                                   "parent: the same dynamics (robotgen.mujoco_plant.model) "))
+                                   "parent: the same dynamics (robotgen.simulation.mujoco.model) "))
         _inertial(body, joint.body.mass, joint.body.com, inertia)
         if parent is not world and np.any(joint.origin[:3, 3]):
             ET.SubElement(parent, "geom", type="capsule", size=repr(LINK_RADIUS),

@@ -15,10 +15,10 @@ import casadi as ca
 from robotgen.model.laws import RESOLVED_ACCELERATION
 from robotgen.model.parameter_struct import runtime_parameters
 from robotgen.model.system import RobotSystem
-from robotgen.symbolic.control.hand import Hand, hand_kernels, orientation_error, pose_rows, start_check
-from robotgen.symbolic.control.law import Controller, RootLaw
 from robotgen.symbolic.kernel import Kernel, ParameterSymbols, make_kernel
 from robotgen.symbolic.leaf_kernels import leaf_kernels
+from robotgen.symbolic.root_laws.hand import Hand, hand_kernels, orientation_error, pose_rows, start_check
+from robotgen.symbolic.root_laws.law import Controller, RootLaw
 
 STEP = "resolved_acceleration_step"
 
