@@ -36,7 +36,8 @@ def reference(arm: Arm, x: np.ndarray) -> dict[str, np.ndarray]:
     """Every layout's values on the packed states X (NSETS x 3n), from robotgen's module.
     The peers' models have no joint damping D: their tau is robotgen's less D qd, their forward
     dynamics at tau is robotgen's at tau + D qd (and so are its derivatives in q and M^-1),
-    with d ddq / d qd = robotgen's + M^-1 D."""
+    with d ddq / d qd = robotgen's + M^-1 D. Pinocchio's computeRNEADerivatives fills the upper
+    triangle of dtau/da = M (its lower triangle zeros)."""
     m, n = arm.module, arm.nq
     q, qd, u = x[:, :n], x[:, n:2 * n], x[:, 2 * n:]
     d = np.asarray(arm.damping)
@@ -53,7 +54,7 @@ def reference(arm: Arm, x: np.ndarray) -> dict[str, np.ndarray]:
         "mass_inverse": flat(minv), "mass_inverse_upper": minv[:, upper[0], upper[1]],
         "tau": m.inverse_dynamics(q, qd, u) - d * qd,
         "ddq": m.forward_dynamics(q, qd, u + d * qd),
-        "dtau_dq_dv": flat(dtau_dq, dtau_dv), "dtau_dq_dv_da": flat(dtau_dq, dtau_dv, mass),
+        "dtau_dq_dv": flat(dtau_dq, dtau_dv), "dtau_dq_dv_da": flat(dtau_dq, dtau_dv, np.triu(mass)),
         "rnea_jacobian": flat(np.concatenate([dtau_dq, dtau_dv, mass], axis=2)),
         "dddq": flat(ddq_dq, ddq_dv, ddq_du),
         "aba_jacobian": flat(np.concatenate([ddq_dq, ddq_dv, ddq_du], axis=2)),
@@ -215,15 +216,16 @@ def check(arm: Arm, exe: Path, rows: list[dict]) -> list[float]:
     return differences
 
 
-def time_rounds(exe: Path, rows: list[dict], rounds: int) -> list[dict]:
-    """ROUNDS runs of the harness, each from a fresh copy (bench/run.py's fresh_copy); each row's
-    record from the run with its least time."""
+def time_rounds(exe: Path, rows: list[dict], rounds: int, kernels: list[str] | None = None) -> list[dict]:
+    """ROUNDS runs of the harness (on KERNELS, default all), each from a fresh copy (bench/run.py's
+    fresh_copy); each row's record from the run with its least time."""
     from run import fresh_copy
 
     best: dict[tuple[str, str, str], dict] = {}
+    rows = [r for r in rows if kernels is None or r["kernel"] in kernels]
     for _ in range(rounds):
         copy = fresh_copy(exe, exe.parent / "round")
-        res = subprocess.run([str(copy)], capture_output=True, text=True)
+        res = subprocess.run([str(copy), *(kernels or [])], capture_output=True, text=True)
         if res.returncode != 0:
             raise HarnessError(f"{exe} failed (exit {res.returncode}): {res.stderr.strip()}")
         for line in res.stdout.splitlines():
