@@ -27,6 +27,7 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 sys.path.insert(0, str(HERE.parent))
 
+import run  # noqa: E402
 from peers import arms, harness, pinocchio_cg  # noqa: E402
 from peers import casadi_kin_dyn_peer as casadi_kin_dyn  # noqa: E402
 
@@ -46,8 +47,6 @@ def say(text: str) -> None:
 
 def start_pinocchio_cg() -> tuple[pinocchio_cg.Generator | None, dict]:
     """The generator's compile, started in the background (minutes, once: cached)."""
-    import run
-
     try:
         gen = pinocchio_cg.Generator(run.pinocchio_toolchain(run.cmeel_prefix()))
     except (PeerUnavailable, run.ToolchainError) as e:

@@ -16,7 +16,7 @@ from .pinocchio_cg import CACHE, PeerFunction, PeerUnavailable
 
 HERE = Path(__file__).resolve().parent
 VENV = HERE.parent / "out" / "casadi-kin-dyn"
-# what each generated function's outputs hold (harness.LAYOUTS): matrices row-major, M whole
+# what each generated function's outputs hold (harness.reference's keys): matrices row-major and whole
 LAYOUTS = {"crba": "mass", "rnea": "tau", "aba": "ddq", "crba_ldl": "ddq", "rnea_jacobian": "dtau_dq_dv",
            "aba_jacobian": "dddq", "crba_ldl_jacobian": "dddq"}
 MASS_INVERSE_LAYOUT = "mass_inverse"

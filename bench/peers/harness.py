@@ -11,6 +11,7 @@ import subprocess
 from pathlib import Path
 
 import numpy as np
+from run import fresh_copy, kernel_sources  # bench/run.py: a fresh copy per round; the files that hold kernels
 
 from .arms import Arm
 from .pinocchio_cg import CACHE, PeerFunction
@@ -175,8 +176,6 @@ def compile_object(source: Path, flags: list[str], includes: list[Path]) -> Path
 
 def build(arm: Arm, peers: list[PeerFunction], work: Path, flags: list[str] = CFLAGS) -> tuple[Path, list[dict]]:
     """The harness for ARM and PEERS in WORK: its program and its table's rows."""
-    from run import kernel_sources  # bench/run.py: the generated files that hold kernels
-
     cc, _ = compiler()
     work.mkdir(parents=True, exist_ok=True)
     text, rows = calls_source(arm, peers)
@@ -219,8 +218,6 @@ def check(arm: Arm, exe: Path, rows: list[dict]) -> list[float]:
 def time_rounds(exe: Path, rows: list[dict], rounds: int, kernels: list[str] | None = None) -> list[dict]:
     """ROUNDS runs of the harness (on KERNELS, default all), each from a fresh copy (bench/run.py's
     fresh_copy); each row's record from the run with its least time."""
-    from run import fresh_copy
-
     best: dict[tuple[str, str, str], dict] = {}
     rows = [r for r in rows if kernels is None or r["kernel"] in kernels]
     for _ in range(rounds):

@@ -28,8 +28,8 @@ class PeerUnavailable(Exception):
 class PeerFunction:
     """One generated function the harness calls: robotgen's KERNEL computed by WHO's VARIANT,
     from SOURCE, in the convention CONVENTION ("cppadcg": f(in, out, atomics) with in[0] the
-    packed state; "casadi": f(arg, res, iw, w, mem)), its outputs laid out as LAYOUT
-    (harness.LAYOUTS)."""
+    packed state; "casadi": f(arg, res, iw, w, mem)), its outputs laid out as LAYOUT (a key of
+    harness.reference's values)."""
     kernel: str
     who: str
     variant: str

@@ -12,6 +12,7 @@ from conftest import ROOT
 
 sys.path.insert(0, str(ROOT / "bench"))
 
+import run  # noqa: E402
 from peers import arms, harness, pinocchio_cg  # noqa: E402
 from peers import casadi_kin_dyn_peer as casadi_kin_dyn  # noqa: E402
 
@@ -114,8 +115,6 @@ def test_casadi_kin_dyn_agrees_with_robotgen(ur5, tmp_path):
 
 @pytest.mark.slow  # Pinocchio's generator compiles in ~5 minutes (once: cached in bench/out/peers/)
 def test_pinocchio_codegen_agrees_with_robotgen(ur5, tmp_path):
-    import run
-
     try:
         gen = pinocchio_cg.Generator(run.pinocchio_toolchain(run.cmeel_prefix()))
         peers = gen.functions(ur5.name, ur5.model_urdf, ur5.nq)
