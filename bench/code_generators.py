@@ -12,7 +12,7 @@ with robotgen's module (relative difference <= 1e-9; what disagrees is not timed
 each kernel's functions in interleaved rounds. The ratio is peer ns / robotgen ns (> 1: robotgen
 is faster), against the best variant of each peer. A peer that cannot be built here is
 reported with the reason, and the rest goes on. The results go to the JSON file under
-"code_generators" (bench/run.py calls this section too and writes it into bench/results.json).
+"code_generators", its other keys kept (bench/run.py, which writes bench/results.json, keeps this one).
 """
 from __future__ import annotations
 
