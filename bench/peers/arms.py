@@ -7,9 +7,8 @@ neither peer: the agreement check (harness.reference) takes it out of robotgen's
 """
 from __future__ import annotations
 
-import importlib
+import importlib.util
 import site
-import sys
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 from pathlib import Path
@@ -72,9 +71,7 @@ def build(name: str, work: Path) -> Arm:
     status = robotgen_main(["build", str(urdf), "--tip", tip, "--name", name, "-o", str(out)])
     if status != 0:
         raise ArmError(f"robotgen build {urdf} --tip {tip} failed with exit status {status}")
-    sys.path.insert(0, str(out))
-    importlib.invalidate_caches()
-    module = importlib.import_module(name)
+    module = load_module(name, out)
     node = module.info()["nodes"][name]
     for joint in node["joints"]:
         if joint["coulomb"] or joint["armature"]:
@@ -85,6 +82,17 @@ def build(name: str, work: Path) -> Arm:
     model_urdf.write_text(with_fixed_joints(urdf.read_text(), locked))
     return Arm(name, urdf, tip, out, module, int(module.nq), locked,
                [float(j["viscous"]) for j in node["joints"]], model_urdf)
+
+
+def load_module(name: str, out: Path):
+    """The extension module in OUT, loaded from its file (not one of the same name imported before)."""
+    path = next(out.glob(f"{name}.*.so"), None) or next(out.glob(f"{name}.*.pyd"), None)
+    if path is None:
+        raise ArmError(f"robotgen's build in {out} has no extension module")
+    spec = importlib.util.spec_from_file_location(name, path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
 
 
 def with_fixed_joints(text: str, locked: list[str]) -> str:
