@@ -1,5 +1,5 @@
 """casadi_kin_dyn's functions for one robot, as CasADi's generated C (run by
-bench/peers/casadi_kin_dyn.py inside the virtual environment that holds casadi_kin_dyn, whose
+bench/peers/casadi_kin_dyn_peer.py inside the virtual environment that holds casadi_kin_dyn, whose
 Pinocchio and CasADi are older than robotgen's).
 
     python casadi_kin_dyn_codegen.py URDF OUT.c OUT.json

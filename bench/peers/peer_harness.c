@@ -1,6 +1,6 @@
 /* Timing harness for robotgen's kernels against the code-generating peers' (bench/peers/).
  *
- * bench/peers/harness.py writes calls.c for one robot: ENTRIES, one per (kernel, who,
+ * bench/peers/harness.py writes calls.c for one robot: PEER_ENTRIES, one per (kernel, who,
  * variant), each a function call(x, out) that calls robotgen's kernel or a peer's generated
  * function on the packed state x = [q, qd, qdd or tau] and writes out. Every entry is called the
  * same way (through the table's pointer, from another translation unit), so calling costs the

@@ -1,5 +1,6 @@
 // Pinocchio's code generation (CppADCodeGen) for one robot: each variant's straight-line C,
-// saved as CppADCodeGen writes it (bench/peers/pinocchio_cg.py compiles and times it).
+// saved as CppADCodeGen writes them (bench/peers/pinocchio_cg.py runs this program;
+// bench/peers/harness.py compiles and times the C).
 //
 //   pinocchio_codegen URDF OUTDIR [VARIANT ...]
 //
@@ -126,17 +127,17 @@ namespace
     };
   }
 
+  // A traced variant: inputs q (and v, u when inputs_per_nv is 2), OUTPUTS values.
   Variant traced(Eigen::Index inputs_per_nv, Eigen::Index outputs, Traced::Body body)
   {
     return [=](const Model & model, const std::string & name, const std::string & dir) {
-      const Eigen::Index nv = model.nv;
-      const Eigen::Index count = outputs >= 0 ? outputs : -outputs * nv * nv;
-      Traced(model, name, model.nq + inputs_per_nv * nv, count, body).save(dir);
+      Traced(model, name, model.nq + inputs_per_nv * model.nv, outputs, body).save(dir);
     };
   }
 
   std::map<std::string, Variant> variants(const Model & model)
   {
+    using V = Traced::ADVector;
     const Eigen::Index nv = model.nv, upper = nv * (nv + 1) / 2;
     std::map<std::string, Variant> out;
     // out[0]: M's upper triangle, row by row
@@ -152,11 +153,11 @@ namespace
     // out[0]: ddq_dq, ddq_dv, ddq_dtau (= M^-1), each row-major
     out["aba_derivatives"] = stock<pinocchio::CodeGenABADerivatives<double>>();
     // out[0]: ddq by CRBA, Cholesky and the bias forces
-    out["crba_cholesky_fd"] = traced(2, nv, [](Traced & t, const Traced::ADVector & q, const Traced::ADVector & v, const Traced::ADVector & u) {
+    out["crba_cholesky_fd"] = traced(2, nv, [](Traced & t, const V & q, const V & v, const V & u) {
       t.ad_Y = t.accelerations(q, v, u);
     });
     // out[0]: M^-1's upper triangle, from the Cholesky factors
-    out["crba_cholesky_minv"] = traced(0, upper, [](Traced & t, const Traced::ADVector & q, const Traced::ADVector &, const Traced::ADVector &) {
+    out["crba_cholesky_minv"] = traced(0, upper, [](Traced & t, const V & q, const V &, const V &) {
       t.factor(q);
       Traced::ADRowMatrix minv(t.ad_model.nv, t.ad_model.nv);
       pinocchio::cholesky::computeMinv(t.ad_model, t.ad_data, minv);
@@ -164,7 +165,7 @@ namespace
       t.put_upper(at, minv);
     });
     // out[0]: dtau_dq, dtau_dv row-major: what robotgen's inverse_dynamics_derivatives returns
-    out["rnea_derivatives_dq_dv"] = traced(2, -2, [](Traced & t, const Traced::ADVector & q, const Traced::ADVector & v, const Traced::ADVector & u) {
+    out["rnea_derivatives_dq_dv"] = traced(2, 2 * nv * nv, [](Traced & t, const V & q, const V & v, const V & u) {
       const Eigen::Index n = t.ad_model.nv;
       Traced::ADRowMatrix dq = Traced::ADRowMatrix::Zero(n, n), dv = dq, da = dq;
       pinocchio::computeRNEADerivatives(t.ad_model, t.ad_data, q, v, u, dq, dv, da);
@@ -173,7 +174,7 @@ namespace
       t.put(at, dv);
     });
     // out[0]: ddq_dq, ddq_dv, M^-1 row-major: RNEA's derivatives at ddq, times -M^-1
-    out["crba_cholesky_fd_derivatives"] = traced(2, -3, [](Traced & t, const Traced::ADVector & q, const Traced::ADVector & v, const Traced::ADVector & u) {
+    out["crba_cholesky_fd_derivatives"] = traced(2, 3 * nv * nv, [](Traced & t, const V & q, const V & v, const V & u) {
       const Eigen::Index n = t.ad_model.nv;
       Traced::ADVector ddq = t.accelerations(q, v, u);
       Traced::ADRowMatrix minv(n, n);

@@ -104,11 +104,13 @@ def _agree(arm, peers, tmp_path):
     assert {r["kernel"] for r in rows if r["who"] != "robotgen"} == set(harness.KERNELS)
 
 
-def test_casadi_kin_dyn_agrees_with_robotgen(ur5, tmp_path):
+def test_casadi_kin_dyn_agrees_with_robotgen(request, tmp_path):
     try:
-        peers, _ = casadi_kin_dyn.functions(ur5.name, ur5.model_urdf)
+        casadi_kin_dyn.version()
     except pinocchio_cg.PeerUnavailable as e:
         pytest.skip(f"casadi_kin_dyn is installed by `make bench` only: {e}")
+    ur5 = request.getfixturevalue("ur5")
+    peers, _ = casadi_kin_dyn.functions(ur5.name, ur5.model_urdf)
     assert len(peers) == 9
     _agree(ur5, peers, tmp_path)
 
