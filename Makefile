@@ -51,9 +51,18 @@ demo:
 controller:
 	$(MAKE) -C examples/controller ROBOTGEN="$(PYTHON) -m robotgen"
 
+# The code-generating peers (bench/code_generators.py): Pinocchio's code generation needs CppAD and
+# CppADCodeGen (headers); casadi_kin_dyn pins an older Pinocchio and CasADi, so it gets a virtual
+# environment of its own in bench/out/. A peer that cannot be installed is reported and left out.
+CASADI_KIN_DYN_ENV ?= bench/out/casadi-kin-dyn
 bench:
 	$(PYTHON) -m pip install --quiet cmeel-eigen==3.4.1 cmeel-urdfdom-headers==3.0.0  # headers for bench/pinocchio_harness.cpp (the pin wheel has neither)
+	$(PYTHON) -m pip install --quiet cmeel-cppad==20250000.2 cmeel-cppadcodegen==2.4.3 \
+	  || echo "bench: CppAD / CppADCodeGen not installed: Pinocchio's code generation is left out"
+	($(PYTHON) -m venv $(CASADI_KIN_DYN_ENV) && $(CASADI_KIN_DYN_ENV)/bin/python -m pip install --quiet \
+	  cmeel-casadi-kin-dyn==1.6.14) || echo "bench: casadi_kin_dyn not installed: it is left out"
 	$(PYTHON) bench/run.py
+	$(PYTHON) bench/code_generators.py  # the peers' generated C vs robotgen's on the UR5, Panda, iiwa (~10 min the first time)
 	$(PYTHON) bench/controllers.py  # servo step with run-time vs folded gains; hand controllers in C vs CasADi
 	$(PYTHON) bench/scaling.py  # build s and ns per call vs dof: chains of 2..30 links, a humanoid tree (~5 min)
 
