@@ -125,10 +125,10 @@ class SimulationReader(Collector):
                 self.at_value(at + ("payload",), f"'{name}' is not a rigid_body payload of the tree"
                                                  + (f" ({', '.join(bodies)})" if bodies else ""))
                 continue
-            if "mass" not in system.nodes[name].leaf.runtime:
+            if "mass" not in system.leaf(name).runtime:
                 where = self.doc.source.key(("nodes", name))
                 self.at_key(at, f"payload '{name}''s mass must be a run-time parameter (mass: {{runtime: "
-                                f"{system.nodes[name].leaf.mass:g}}} at {where}), so that robotgen's plant "
+                                f"{system.leaf(name).mass:g}}} at {where}), so that robotgen's plant "
                                 "can take another mass than the controller's")
             out.append(PayloadChange(change.at, change.mass, payload=name))
         return tuple(out)

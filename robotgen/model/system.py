@@ -5,7 +5,9 @@ robots to a payload through a constraint, CONTROL puts a controller on a robot. 
 names its children; the tree is walked the same way at every level."""
 from __future__ import annotations
 
+from collections.abc import Iterator
 from dataclasses import dataclass, field
+from typing import TypeVar
 
 import numpy as np
 
@@ -223,6 +225,15 @@ class ControlNode:
 
 
 Node = DefineNode | AttachNode | ControlNode
+_Kind = TypeVar("_Kind")
+
+
+def narrowed(value: object, kind: type[_Kind], what: str) -> _Kind:
+    """``value`` as a ``kind``; a TypeError naming ``what`` if it is not one (a caller's broken
+    invariant: the front end checked the spec's shape before any caller asks)."""
+    if not isinstance(value, kind):
+        raise TypeError(f"{what} is a {type(value).__name__}, not a {kind.__name__}")
+    return value
 
 
 @dataclass(frozen=True, eq=False)
@@ -250,6 +261,31 @@ class RobotSystem:
         return self.nodes[self.root]
 
     @property
+    def root_control(self) -> ControlNode:
+        """The root node, a CONTROL node (a TypeError if it is not)."""
+        return self.control(self.root)
+
+    def define(self, name: str) -> DefineNode:
+        """Node ``name``, a DEFINE node (a TypeError if it is not)."""
+        return narrowed(self.nodes[name], DefineNode, f"node {name!r}")
+
+    def attach(self, name: str) -> AttachNode:
+        """Node ``name``, an ATTACH node (a TypeError if it is not)."""
+        return narrowed(self.nodes[name], AttachNode, f"node {name!r}")
+
+    def control(self, name: str) -> ControlNode:
+        """Node ``name``, a CONTROL node (a TypeError if it is not)."""
+        return narrowed(self.nodes[name], ControlNode, f"node {name!r}")
+
+    def leaf(self, name: str) -> Leaf:
+        """The robot or body of DEFINE node ``name``."""
+        return self.define(name).leaf
+
+    def tree(self, name: str) -> KinematicTree:
+        """The kinematic tree of DEFINE node ``name`` (a TypeError if its leaf is not a chain)."""
+        return narrowed(self.leaf(name), KinematicTree, f"the leaf of node {name!r}")
+
+    @property
     def is_single_leaf(self) -> bool:
         """Whether the system is one DEFINE leaf (a chain or formulas robot alone)."""
         return isinstance(self.root_node, DefineNode)
@@ -264,14 +300,14 @@ class RobotSystem:
     @property
     def is_rate_controlled(self) -> bool:
         """The root is a resolved-rate controller: joint rates out, not torques."""
-        return self.root_law is not None and self.root_node.rate is not None
+        return self.root_law is not None and self.root_control.rate is not None
 
     @property
     def rate_controls_composite(self) -> bool:
         """The root is a resolved-rate controller of a composite robot (an ATTACH tree)."""
-        return self.is_rate_controlled and isinstance(self.root_node.rate, CompositeRateSettings)
+        return self.is_rate_controlled and isinstance(self.root_control.rate, CompositeRateSettings)
 
-    def walk(self, name: str | None = None):
+    def walk(self, name: str | None = None) -> Iterator[Node]:
         """Nodes below ``name`` (default the root), children before parents."""
         node = self.nodes[name or self.root]
         for child in node.children:

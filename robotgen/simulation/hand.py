@@ -160,7 +160,7 @@ def run(module, system: RobotSystem, s: SimulationSettings, comparison=None,
     run too when the controller is adaptive), or those of ``keys`` (adaptive, frozen, rac),
     against ``plant`` (robotgen or mujoco)."""
     node = system.root_node
-    tree = system.nodes[node.robot].leaf
+    tree = system.tree(node.robot)
     hand = Hand(tree, node.hand.tool)
     q_sym = hand.sym.q
     R_sym, p_sym = hand.pose(q_sym)

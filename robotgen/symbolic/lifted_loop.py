@@ -186,7 +186,7 @@ def operating_point(system: RobotSystem, maps: TickMaps) -> tuple[np.ndarray, np
     elif s.start is not None and maps.inverse is not None:
         theta = np.asarray(maps.inverse(s.start)).ravel()
     else:
-        theta = np.asarray(rest_posture([system.nodes[leaf].leaf for leaf in robot_leaves(system)]), float)
+        theta = np.asarray(rest_posture([system.leaf(leaf) for leaf in robot_leaves(system)]), float)
     return theta, np.asarray(maps.position(theta)).ravel()
 
 

@@ -29,7 +29,7 @@ class SystemGraphs:
         self.system = system
         self.parameters = parameters
         self.leaves = robot_leaves(system)
-        sizes = [system.nodes[n].leaf.nq for n in self.leaves]
+        sizes = [system.leaf(n).nq for n in self.leaves]
         self.offsets = dict(zip(self.leaves, np.cumsum([0] + sizes[:-1]).tolist()))
         self.sizes = dict(zip(self.leaves, sizes))
         self.n = int(sum(sizes))

@@ -146,7 +146,7 @@ class ResolvedRateReader(Collector):
                                            f"command is its velocity in its own coordinates "
                                            f"({', '.join(robot.velocity_names)}) and the leaves' rates come from the "
                                            f"tree's velocity map (settings here: {', '.join(COMPOSITE_KEYS)})")
-        leaves = [system.nodes[leaf].leaf for leaf in robot_leaves(system, name)]
+        leaves = [system.leaf(leaf) for leaf in robot_leaves(system, name)]
         n = sum(leaf.nq for leaf in leaves)
         if "rate_limits" in spec:
             rate_limits = self.per_joint(path + ("rate_limits",), spec["rate_limits"], n, "rate limit", positive=True)

@@ -19,6 +19,7 @@ damping, rate limits, the horizon and the arrival apply (``CompositeRateSettings
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -94,7 +95,7 @@ class Redundancy:
 
     def summary(self) -> dict:
         """The settings as info() reports them."""
-        out = {"method": self.method, "objective": self.objective, "gain": self.gain}
+        out: dict[str, Any] = {"method": self.method, "objective": self.objective, "gain": self.gain}
         if self.joint_weights is not None:
             out["joint_weights"] = list(self.joint_weights)
         return out
@@ -161,7 +162,7 @@ class RateControlSettings:
     def summary(self) -> dict:
         """Plain data for info() and the manifest."""
         names = self.frame.axis_names
-        out = {
+        out: dict[str, Any] = {
             "frame": self.frame.kind,
             "axes": list(names),
             "active": [n for n, a, f in zip(names, self.active, self.free) if a and not f],

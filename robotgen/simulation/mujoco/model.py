@@ -294,7 +294,7 @@ def _chain_bodies(world: ET.Element, leaf: str, tree: KinematicTree) -> tuple[li
 
 
 def _leaf_tree(system: RobotSystem, name: str) -> tuple[KinematicTree, np.ndarray, np.ndarray, Location]:
-    leaf = system.nodes[name].leaf
+    leaf = system.leaf(name)
     if isinstance(leaf, KinematicTree):
         if leaf.coupling is not None:
             raise UserError(system.location_of(name), f"the MuJoCo plant couples no joints exactly: chain leaf "
@@ -344,7 +344,7 @@ def _gravity(system: RobotSystem, leaves: list[tuple[str, KinematicTree, Locatio
     """The one gravity vector of the MuJoCo model: every chain's, mechanism's and payload's."""
     given = [(f"leaf '{name}'", np.asarray(tree.gravity, float), where) for name, tree, where in leaves]
     for p in payloads:
-        body = system.nodes[p].leaf
+        body = system.leaf(p)
         g = np.r_[body.gravity, 0.0] if isinstance(body, PlanarBody) else np.asarray(body.gravity, float)
         given.append((f"payload '{p}'", g, system.location_of(p)))
     first = given[0]
@@ -370,7 +370,7 @@ def plant_model(system: RobotSystem, period: float, hand_frame: np.ndarray | Non
                                                         "planar or point contacts")
     grasps = [a for a in attaches if a.constraint.kind in CONTACT_GRASPS]
     for a in grasps:
-        payload = system.nodes[a.payload].leaf
+        payload = system.leaf(a.payload)
         if not isinstance(payload, (PlanarBody, SpatialBody)):
             raise UserError(system.location_of(a.payload), f"the MuJoCo plant needs payload '{a.payload}' to be a "
                                                            "rigid_body (a formulas payload has no bodies)")
@@ -396,7 +396,7 @@ def plant_model(system: RobotSystem, period: float, hand_frame: np.ndarray | Non
     maps, offset = [], 0
     for name in leaves:
         tree, T, theta0, where = trees[name]
-        leaf = system.nodes[name].leaf
+        leaf = system.leaf(name)
         coordinates = tuple(j.name for j in leaf.joints) if isinstance(leaf, KinematicTree) else leaf.coordinates
         coulomb = np.array([j.coulomb for j in tree.joints])
         world.append(ET.Comment(f" leaf '{name}'" + ("" if isinstance(leaf, KinematicTree) else
@@ -485,7 +485,7 @@ def _wall(contact: ET.Element, world: ET.Element, system: RobotSystem, wall) -> 
 
 
 def _payload(world: ET.Element, system: RobotSystem, attach: AttachNode) -> PayloadMap:
-    body = system.nodes[attach.payload].leaf
+    body = system.leaf(attach.payload)
     name = attach.payload
     element = ET.SubElement(world, "body", name=name)
     if isinstance(body, PlanarBody):

@@ -34,7 +34,7 @@ def gains(node, parameters: ParameterSymbols) -> tuple[ca.SX, ca.SX]:
 def kernels(system: RobotSystem) -> list[Kernel]:
     """The resolved acceleration control kernels (Luh, Walker, Paul 1980) of the root's 6-joint chain."""
     node = system.root_node
-    tree = system.nodes[node.robot].leaf
+    tree = system.tree(node.robot)
     parameters = ParameterSymbols.of(runtime_parameters(system))
     hand = Hand(tree, node.hand.tool)
     q, qd = ca.SX.sym("q", 6), ca.SX.sym("qd", 6)
@@ -69,7 +69,7 @@ def report(system: RobotSystem) -> tuple[dict, dict]:
 
 def controller(system: RobotSystem) -> Controller:
     """The module's ResolvedAccelerationController: its step kernel, period [s] and first step's check."""
-    return Controller("ResolvedAccelerationController", STEP, system.root_node.hand.period, start=start_check())
+    return Controller("ResolvedAccelerationController", STEP, system.root_control.hand.period, start=start_check())
 
 
 LAW = RootLaw(RESOLVED_ACCELERATION, kernels, report, controller)

@@ -211,7 +211,7 @@ def step_graph(system: RobotSystem) -> tuple[list[tuple], list[tuple], Parameter
     s: AdaptiveSettings = node.hand
     layout = StateLayout.of(s)
     parameters = ParameterSymbols.of(runtime_parameters(system))
-    hand = Hand(system.nodes[node.robot].leaf, s.tool)
+    hand = Hand(system.tree(node.robot), s.tool)
     w = Weights(node.name, s, parameters)
     T = s.period
     i = Inputs()
@@ -251,7 +251,7 @@ def kernels(system: RobotSystem) -> list[Kernel]:
     """The resolved motion adaptive control kernels (Lee and Lee 1983) of the root's 6-joint chain."""
     node = system.root_node
     s: AdaptiveSettings = node.hand
-    tree = system.nodes[node.robot].leaf
+    tree = system.tree(node.robot)
     hand = Hand(tree, s.tool)
     inputs, outputs, parameters = step_graph(system)
     step = make_kernel(
@@ -299,7 +299,7 @@ def stage_counts(system: RobotSystem) -> dict:
     the emitted step (every stage fused, common subexpressions shared)."""
     node = system.root_node
     s: AdaptiveSettings = node.hand
-    hand = Hand(system.nodes[node.robot].leaf, s.tool)
+    hand = Hand(system.tree(node.robot), s.tool)
     parameters = ParameterSymbols.of(runtime_parameters(system))
     w = Weights(node.name, s, parameters)
     i = Inputs()
@@ -369,7 +369,7 @@ def stage_counts(system: RobotSystem) -> dict:
 def nominal_pose(system: RobotSystem) -> np.ndarray:
     """Where the weight rule's closed loop is evaluated: the simulation's theta0, else the
     middle of the joints' limits."""
-    tree = system.nodes[system.root_node.robot].leaf
+    tree = system.tree(system.root_control.robot)
     sim = system.simulation
     if sim is not None and sim.theta0 is not None:
         return np.asarray(sim.theta0, float)
@@ -383,7 +383,7 @@ def closed_loop(system: RobotSystem, q: np.ndarray | None = None) -> dict:
     slowest time constant -T / ln(radius)."""
     node = system.root_node
     s: AdaptiveSettings = node.hand
-    hand = Hand(system.nodes[node.robot].leaf, s.tool)
+    hand = Hand(system.tree(node.robot), s.tool)
     q = nominal_pose(system) if q is None else np.asarray(q, float)
     i = Inputs()
     R, p = hand.pose(i.q)
@@ -424,7 +424,7 @@ def report(system: RobotSystem) -> tuple[dict, dict]:
 
 def controller(system: RobotSystem) -> Controller:
     """The module's AdaptiveController: step and init kernels, period [s], state size, and views of A, B, c, P."""
-    s: AdaptiveSettings = system.root_node.hand
+    s: AdaptiveSettings = system.root_control.hand
     layout = StateLayout.of(s)
     docs = {"A": "the identified A of dx(k+1) = A dx(k) + B du(k) + c (eq 29)", "B": "the identified B (eq 29)",
             "c": "the identified constant term c (the offset a payload makes)", "P": "the RLS covariance P (eq 37)"}

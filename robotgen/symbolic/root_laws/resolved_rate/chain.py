@@ -55,7 +55,7 @@ from robotgen.symbolic.root_laws.resolved_rate.resolution import (
 def chain_and_settings(system: RobotSystem) -> tuple[KinematicTree, RateControlSettings]:
     """The root's chain and its resolved-rate settings."""
     node = system.root_node
-    return system.nodes[node.robot].leaf, node.rate
+    return system.tree(node.robot), node.rate
 
 
 class RateLaw:
@@ -248,7 +248,7 @@ def _lqr_kernels(tree: KinematicTree, s: RateControlSettings) -> list[Kernel]:
 def chain_report(system: RobotSystem) -> tuple[dict, dict]:
     """(extra info() keys, module attributes) of a rate-controlled system."""
     tree, s = chain_and_settings(system)
-    info = {"controller": system.root, "robot": system.root_node.robot, **s.summary()}
+    info = {"controller": system.root, "robot": system.root_control.robot, **s.summary()}
     attributes = {}
     if s.lqr is not None:
         design = regulator(tree, s.lqr)

@@ -126,7 +126,7 @@ class CompositeRateLaw:
 def composite_kernels(system: RobotSystem) -> list[Kernel]:
     """The resolved-rate kernels of a composite root (robots joined through an ATTACH)."""
     law = CompositeRateLaw(system)
-    robot = system.root_node.robot
+    robot = system.root_control.robot
     th, n, k, ne = law.theta, law.n, law.k, law.n_external
     names = ", ".join(law.names)
     wrapped = [nm for nm, a in zip(law.names, law.angles) if a]
