@@ -263,7 +263,7 @@ def _describe(node: ast.AST) -> str:
     return kinds.get(type(node), type(node).__name__)
 
 
-def parse_expression(text: str | int | float, location: Location, names: set[str], *,
+def parse_expression(text: object, location: Location, names: set[str], *,
                      exact_columns: bool = True) -> Expr:
     """Parse and check ``text``; names it may read are ``names`` plus pi and e.
 

@@ -129,7 +129,7 @@ class DefineNode:
     used as an ATTACH payload it has nil wr."""
 
     name: str
-    leaf: Leaf
+    leaf: Leaf | None  # None only inside the front end, for a URDF that failed to load (the spec is refused)
 
     primitive = "define"
 
@@ -236,6 +236,14 @@ def narrowed(value: object, kind: type[_Kind], what: str) -> _Kind:
     return value
 
 
+def under_controls(nodes: dict[str, Node], name: str) -> DefineNode | AttachNode:
+    """Node ``name`` itself, or what the chain of control nodes it heads controls."""
+    node = nodes[name]
+    while isinstance(node, ControlNode):
+        node = nodes[node.robot]
+    return node
+
+
 @dataclass(frozen=True, eq=False)
 class RobotSystem:
     """A robot system: the primitive tree of nodes by name, its root, the spec's settings and where it came from."""
@@ -279,7 +287,10 @@ class RobotSystem:
 
     def leaf(self, name: str) -> Leaf:
         """The robot or body of DEFINE node ``name``."""
-        return self.define(name).leaf
+        leaf = self.define(name).leaf
+        if leaf is None:
+            raise TypeError(f"node {name!r} has no leaf (its URDF failed to load)")
+        return leaf
 
     def tree(self, name: str) -> KinematicTree:
         """The kinematic tree of DEFINE node ``name`` (a TypeError if its leaf is not a chain)."""

@@ -320,7 +320,7 @@ def fingertips(system: RobotSystem, attach: AttachNode) -> list[str]:
     for r in attach.robots:
         below = below_controls(system, r)
         if isinstance(below, DefineNode):
-            blocks = [(below.name, below.leaf.nq)]
+            blocks = [(below.name, system.leaf(below.name).nq)]
         elif isinstance(below, AttachNode) and below.constraint.kind == FRAME_CHANGE:
             blocks = []
             for r2 in below.robots:
