@@ -194,7 +194,7 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     hand = law is not None and law.hand_frame
     if hand and args.dt is not None:
         raise _Usage(f"a {system.root_law} controller runs at its own period "
-                     f"({system.root_control.hand.period:g} s); --dt applies to robot trees")
+                     f"({system.root_control.hand_settings.period:g} s); --dt applies to robot trees")
     settings = system.simulation or SimulationSettings()
     groups = multi_rate_groups(system)
     if groups is not None and args.dt is not None:
@@ -252,7 +252,7 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
             emit(Path(tmp) / twin.name, twin.name, kernels_for(twin), nq=system_nq(twin),
                  extra_info=system_info(twin), spec_sha256=twin.source_sha256, controllers=controllers_for(twin))
             comparison = simulate.load_module(Path(tmp) / twin.name, twin.name)
-        step = system.root_control.hand.period if hand else settings.dt
+        step = system.root_control.hand_settings.period if hand else settings.dt
         for p in plants:
             progress.stage(f"simulating {settings.duration:g} s at dt = {step:g} s on the {p} plant")
             try:
@@ -398,7 +398,7 @@ def _cmd_info(args: argparse.Namespace) -> int:
         from robotgen.symbolic import module_extras  # lazy: CasADi only where it is needed
         from robotgen.symbolic.root_laws.resolved_adaptive import closed_loop
 
-        print(closed_loop_line(closed_loop(system), system.root_control.hand.period))
+        print(closed_loop_line(closed_loop(system), system.root_control.hand_settings.period))
         print(operation_table(module_extras(system)[0]["hand_control"]))
     return EXIT_OK
 

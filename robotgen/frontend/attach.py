@@ -29,6 +29,7 @@ from robotgen.model.system import (
     Constraint,
     DefineNode,
     RobotSystem,
+    leaf_of,
     under_controls,
 )
 
@@ -85,13 +86,13 @@ class AttachReader(Collector):
         nodes = system.nodes
         path: Path = ("nodes", node.name, "attach")
         for i, r in enumerate(node.robots):
-            leaf = getattr(nodes[r], "leaf", None)
+            leaf = leaf_of(nodes[r])
             if isinstance(leaf, PAYLOAD_BODIES):
                 self.at_value(path + ("robots", i), f"'{r}' is a rigid_body, a payload without actuators; "
                                                     "it cannot be a robot (give it as payload)")
         payload = None
         if node.payload is not None:
-            payload = getattr(nodes[node.payload], "leaf", None)
+            payload = leaf_of(nodes[node.payload])
             if not isinstance(payload, (*PAYLOAD_BODIES, FormulaRobot)):
                 kind = (f"a {nodes[node.payload].primitive} node" if not isinstance(nodes[node.payload], DefineNode)
                         else "a chain")
@@ -108,7 +109,7 @@ class AttachReader(Collector):
             owner: dict[str, str] = {}
             for i, r in enumerate(node.robots):
                 below = under_controls(nodes, r)
-                leaf = getattr(below, "leaf", None)
+                leaf = leaf_of(below)
                 if isinstance(leaf, PAYLOAD_BODIES):
                     continue  # reported above
                 if not isinstance(leaf, (KinematicTree, FormulaRobot)):

@@ -16,7 +16,14 @@ from robotgen.model.signature import (
     signature,
 )
 from robotgen.model.simulation import WALL_DAMPING, WALL_STIFFNESS, PayloadChange, SimulationSettings, Wall
-from robotgen.model.system import PAYLOAD_BODIES, ControlNode, DefineNode, Node, RobotSystem
+from robotgen.model.system import (
+    PAYLOAD_BODIES,
+    ControlNode,
+    DefineNode,
+    Node,
+    RobotSystem,
+    leaf_of,
+)
 
 
 class SimulationReader(Collector):
@@ -198,8 +205,8 @@ class SimulationReader(Collector):
                 at = path + ("payload_change",) + (() if isinstance(changes, dict) else (k,))
                 self.at_key(at + ("payload",), "a hand controller's payload is a point mass in its hand (mass, com); "
                                                "payload names a robot tree's rigid_body")
-        chain = getattr(nodes.get(root.robot), "leaf", None)
-        expected = {"theta0": (getattr(chain, "nq", HAND_DOF), f"one per joint of '{root.robot}'"),
+        chain = leaf_of(nodes.get(root.robot))
+        expected = {"theta0": (chain.nq if chain is not None else HAND_DOF, f"one per joint of '{root.robot}'"),
                     "amplitude": (HAND_DOF, f"one per hand axis: {', '.join(HAND_AXES)}"),
                     "frequency": (HAND_DOF, f"one per hand axis: {', '.join(HAND_AXES)}")}
         for key, (n, what) in expected.items():

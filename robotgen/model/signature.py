@@ -26,6 +26,7 @@ from robotgen.model.system import (
     PlanarBody,
     RobotSystem,
     SpatialBody,
+    leaf_of,
 )
 
 
@@ -250,7 +251,7 @@ def has_position_inverse(system: RobotSystem, node: AttachNode) -> bool:
         below = system.nodes[r]
         while isinstance(below, ControlNode):
             below = system.nodes[below.robot]
-        leaves.append(getattr(below, "leaf", None))
+        leaves.append(leaf_of(below))
     return all(isinstance(leaf, FormulaRobot) and leaf.inverse_kinematics for leaf in leaves)
 
 

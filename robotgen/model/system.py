@@ -210,6 +210,47 @@ class ControlNode:
         """The one robot it controls."""
         return (self.robot,)
 
+    @property
+    def hand_settings(self) -> ResolvedAccelerationSettings | AdaptiveSettings:
+        """A hand law's settings (a TypeError for another law)."""
+        if self.hand is None:
+            raise TypeError(f"{self.name!r} has no hand settings (law {self.law})")
+        return self.hand
+
+    @property
+    def acceleration(self) -> ResolvedAccelerationSettings:
+        """Law resolved_acceleration's settings (a TypeError for another law)."""
+        return narrowed(self.hand, ResolvedAccelerationSettings, f"the hand settings of {self.name!r}")
+
+    @property
+    def adaptive(self) -> AdaptiveSettings:
+        """Law resolved_adaptive's settings (a TypeError for another law)."""
+        return narrowed(self.hand, AdaptiveSettings, f"the hand settings of {self.name!r}")
+
+    @property
+    def chain_rate(self) -> RateControlSettings:
+        """Law resolved_rate's settings over a chain (a TypeError otherwise)."""
+        return narrowed(self.rate, RateControlSettings, f"the rate settings of {self.name!r}")
+
+    @property
+    def composite_rate(self) -> CompositeRateSettings:
+        """Law resolved_rate's settings over a composite robot (a TypeError otherwise)."""
+        return narrowed(self.rate, CompositeRateSettings, f"the rate settings of {self.name!r}")
+
+    @property
+    def rate_settings(self) -> RateControlSettings | CompositeRateSettings:
+        """Law resolved_rate's settings (a TypeError for another law)."""
+        if self.rate is None:
+            raise TypeError(f"{self.name!r} has no rate settings (law {self.law})")
+        return self.rate
+
+    @property
+    def force_settings(self) -> ImpedanceSettings | HybridSettings:
+        """A force law's settings (a TypeError for another law)."""
+        if self.force is None:
+            raise TypeError(f"{self.name!r} has no force settings (law {self.law})")
+        return self.force
+
     def internal_force_loop_problem(self, dt: float) -> str | None:
         """Why the internal-force PI loop is unstable at servo period ``dt`` (None: it is not, or
         there is no integral): its poles are inside the unit circle when ki_internal dt <
@@ -234,6 +275,11 @@ def narrowed(value: object, kind: type[_Kind], what: str) -> _Kind:
     if not isinstance(value, kind):
         raise TypeError(f"{what} is a {type(value).__name__}, not a {kind.__name__}")
     return value
+
+
+def leaf_of(node: Node | None) -> Leaf | None:
+    """The leaf of a DEFINE node; None for an ATTACH or CONTROL node (or no node)."""
+    return node.leaf if isinstance(node, DefineNode) else None
 
 
 def under_controls(nodes: dict[str, Node], name: str) -> DefineNode | AttachNode:

@@ -137,7 +137,7 @@ def comparison_system(system: RobotSystem) -> RobotSystem | None:
     """An adaptive controller's spec with resolved acceleration control at its root instead,
     with the same period and hand and that law's default gains: the reference its simulation
     compares against (None for resolved acceleration control itself)."""
-    node = system.root_node
+    node = system.root_control
     if not isinstance(node.hand, AdaptiveSettings):
         return None
     hand = ResolvedAccelerationSettings(node.hand.period, node.hand.tool, np.full(HAND_DOF, DEFAULT_KP),
@@ -159,16 +159,16 @@ def run(module, system: RobotSystem, s: SimulationSettings, comparison=None,
     """Every run of the spec's controller (``comparison``: the module of comparison_system,
     run too when the controller is adaptive), or those of ``keys`` (adaptive, frozen, rac),
     against ``plant`` (robotgen or mujoco)."""
-    node = system.root_node
+    node = system.root_control
     tree = system.tree(node.robot)
-    hand = Hand(tree, node.hand.tool)
+    hand = Hand(tree, node.hand_settings.tool)
     q_sym = hand.sym.q
     R_sym, p_sym = hand.pose(q_sym)
     pose_f = ca.Function("pose", [q_sym], [R_sym, p_sym, rpy_of(R_sym)])
     rates_f = ca.Function("rates", [q_sym, hand.sym.qd], [hand.joint_rates(q_sym, hand.sym.qd)])
     q0 = np.asarray(s.theta0 if s.theta0 is not None else np.zeros(tree.nq), float)
-    hand_frame = exact.matmul(tree.tool, node.hand.tool)  # the hand in the last joint's frame
-    period = node.hand.period
+    hand_frame = exact.matmul(tree.tool, node.hand_settings.tool)  # the hand in the last joint's frame
+    period = node.hand_settings.period
     mjcf = note = None
     if plant == MUJOCO_PLANT:
         stages = [(0.0, np.zeros(3))] + [(c.mass, np.asarray(c.com, float)) for c in s.payload_changes]

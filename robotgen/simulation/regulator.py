@@ -28,7 +28,7 @@ from robotgen.simulation.tree import write_csv as write_csv
 def refusal(system: RobotSystem) -> str | None:
     """Why ``robotgen simulate`` cannot run this resolved-rate controller: it outputs joint
     rates, so only a chain's regulator (lqr settings) is simulated."""
-    if system.rate_controls_composite or system.root_control.rate.lqr is None:
+    if system.rate_controls_composite or system.root_control.chain_rate.lqr is None:
         where = hint("python-api", "Resolved-rate controllers")
         return ("simulate runs torque controllers; a resolved_rate controller outputs joint rates (with lqr "
                 "settings its regulator's lqr_step is simulated): integrate its rate_step / position_step "
@@ -51,7 +51,7 @@ def simulate(module, system: RobotSystem, s: SimulationSettings, plant: str, com
 def run(module, system: RobotSystem, s: SimulationSettings, plant: str = ROBOTGEN_PLANT) -> tuple[Result, str | None]:
     """(the regulated run, the MuJoCo plant's MJCF or None)."""
     tree = system.tree(system.root_control.robot)
-    nominal = np.asarray(system.root_control.rate.lqr.nominal, float)
+    nominal = np.asarray(system.root_control.chain_rate.lqr.nominal, float)
     q = np.asarray(s.theta0, float) if s.theta0 is not None else nominal.copy()
     qd = np.zeros_like(q)
     mjcf, note = None, "classical RK4 of the chain's forward dynamics, one step per period"

@@ -133,7 +133,7 @@ class ScheduleBuilder:
     def __post_init__(self):
         self._outputs = [[None] * size for size in self.output_sizes]
 
-    def local(self, values: ca.SX | None = None, size: int | None = None) -> int:
+    def local(self, values: ca.SX | ca.DM | None = None, size: int | None = None) -> int:
         """A local array, filled by the prologue with ``values`` or left for loops to write."""
         size = values.numel() if values is not None else size
         self._locals.append([None] * size)

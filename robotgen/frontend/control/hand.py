@@ -26,7 +26,13 @@ from robotgen.model.laws.hand import (
 )
 from robotgen.model.parameters import Bounds
 from robotgen.model.signature import Signature
-from robotgen.model.system import GAIN_MODES, RUNTIME_GAINS, ControlNode, RobotSystem
+from robotgen.model.system import (
+    GAIN_MODES,
+    RUNTIME_GAINS,
+    ControlNode,
+    RobotSystem,
+    leaf_of,
+)
 
 # defaults (docs/spec-format.md): a 1 kHz servo; Kp, Kv critically damped at 20 rad/s
 DEFAULT_PERIOD = 1e-3
@@ -105,7 +111,7 @@ class HandLawReader(ControlReader):
         rest of its settings."""
         path: Path = ("nodes", node.name, "control")
         law = node.law
-        chain = getattr(system.nodes[node.robot], "leaf", None)
+        chain = leaf_of(system.nodes[node.robot])
         if not isinstance(chain, KinematicTree):
             self.at_value(path + ("robot",), f"law {law} controls a chain or urdf leaf; '{node.robot}' is a "
                                              f"{system.nodes[node.robot].primitive} node")

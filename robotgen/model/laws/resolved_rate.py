@@ -76,6 +76,22 @@ class CommandFrame:
         """The command frame's axis names."""
         return AXIS_NAMES[self.kind]
 
+    @property
+    def tool_pose(self) -> np.ndarray:
+        """The held tool's (4, 4) pose in the hand frame (frame tool; a TypeError for another frame)."""
+        if self.tool is None:
+            raise TypeError(f"a {self.kind} command frame holds no tool")
+        return self.tool
+
+    @property
+    def centre(self) -> np.ndarray:
+        """The (3,) eye or centre in base coordinates [m] (frames line_of_sight and spherical; a
+        TypeError for another frame)."""
+        if self.point is None:
+            raise TypeError(f"a {self.kind} command frame has no point")
+        return self.point
+
+
 
 @dataclass(frozen=True)
 class Redundancy:
