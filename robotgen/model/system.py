@@ -245,6 +245,16 @@ class ControlNode:
         return self.rate
 
     @property
+    def impedance(self) -> ImpedanceSettings:
+        """Law impedance's settings (a TypeError for another law)."""
+        return narrowed(self.force, ImpedanceSettings, f"the force settings of {self.name!r}")
+
+    @property
+    def hybrid(self) -> HybridSettings:
+        """Law hybrid's settings (a TypeError for another law)."""
+        return narrowed(self.force, HybridSettings, f"the force settings of {self.name!r}")
+
+    @property
     def force_settings(self) -> ImpedanceSettings | HybridSettings:
         """A force law's settings (a TypeError for another law)."""
         if self.force is None:
