@@ -271,14 +271,16 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
                     result = simulate.run(module, settings, rest)
             except SimulationError as e:
                 in_spec = e.field is not None and e.field in settings.locations
-                where = settings.locations[e.field] if in_spec else system.location_of(system.root)
+                where = (settings.locations[e.field] if in_spec and e.field is not None
+                         else system.location_of(system.root))
                 raise UserError(where, f"simulation.{e.field}: {e}" if in_spec else str(e)) from None
             results += list(both) if groups is not None else [result]
         info = module.info()
     kind = own if own is not None else simulate
     wrote = _write_simulation(out, system, kind, results, mjcf, inputs, stems)
     if groups is not None:
-        print(multirate_simulation.compare(*results, info))
+        multi, single = results
+        print(multirate_simulation.compare(multi, single, info))
     else:
         print(kind.summary(results[0]) if len(results) == 1 else kind.compare(*results))
     print(wrote)

@@ -16,7 +16,7 @@ from robotgen.model.signature import METRE, RADIAN
 from robotgen.model.simulation import MUJOCO_PLANT, ROBOTGEN_PLANT, SimulationSettings
 from robotgen.model.system import RobotSystem
 from robotgen.simulation.failures import DIVERGED, SimulationError, format_values
-from robotgen.simulation.hand import rk4_step
+from robotgen.simulation.hand import PlantStep, rk4_step
 from robotgen.simulation.mujoco.run import Diverged, chain_steps
 from robotgen.simulation.tree import Result
 from robotgen.simulation.tree import compare as compare  # its records are a tree run's
@@ -51,19 +51,24 @@ def simulate(module, system: RobotSystem, s: SimulationSettings, plant: str, com
 def run(module, system: RobotSystem, s: SimulationSettings, plant: str = ROBOTGEN_PLANT) -> tuple[Result, str | None]:
     """(the regulated run, the MuJoCo plant's MJCF or None)."""
     tree = system.tree(system.root_control.robot)
-    nominal = np.asarray(system.root_control.chain_rate.lqr.nominal, float)
+    lqr = system.root_control.chain_rate.lqr
+    if lqr is None:  # (refusal says so first)
+        raise TypeError("the regulator's simulation needs lqr settings")
+    nominal = np.asarray(lqr.nominal, float)
     q = np.asarray(s.theta0, float) if s.theta0 is not None else nominal.copy()
     qd = np.zeros_like(q)
     mjcf, note = None, "classical RK4 of the chain's forward dynamics, one step per period"
+    step: PlantStep
     if plant == MUJOCO_PLANT:
-        model, step = chain_steps(system, module, s.dt, q)
-        mjcf, note = model.xml, step.sim.note
+        model, chain_step = chain_steps(system, module, s.dt, q)
+        mjcf, note, step = model.xml, chain_step.sim.note, chain_step
     else:
         rk4 = rk4_step(tree, s.dt)
 
-        def step(stage, q, qd, tau):
+        def rk4_plant(stage: int, q: np.ndarray, qd: np.ndarray, tau: np.ndarray) -> tuple[np.ndarray, ...]:
             with np.errstate(all="ignore"):
                 return tuple(np.array(v).ravel() for v in rk4(q, qd, tau))
+        step = rk4_plant
     steps = int(round(s.duration / s.dt))
     T, Q, TAU = [], [], []
     for k in range(steps + 1):
