@@ -123,9 +123,12 @@ class ChainGraphs:
             if self._turned("jacobian") is None:
                 return False
             shared = [self.mass(), self.nonlinear()] if self.tree.n_joints <= LOOPS_ABOVE_DOF else []
+            direct = (self._jacobian_direct(), self._jacobian_dot_qd_direct())
+            turned_forms = (self._turned("jacobian"), self._turned("jacobian_dot_qd"))
+            if turned_forms[0] is None or turned_forms[1] is None:  # (_turn's condition is the tree's: both or neither)
+                return False
             count = [count_operations([s.q, s.qd], [*shared, J, a])["total"]
-                     for J, a in ((self._jacobian_direct(), self._jacobian_dot_qd_direct()),
-                                  (self._turned("jacobian"), self._turned("jacobian_dot_qd")))]
+                     for J, a in (direct, (turned_forms[0], turned_forms[1]))]
             return count[1] < count[0]
         return self._get("tip_turned", build)
 
