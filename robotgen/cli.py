@@ -194,7 +194,7 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     hand = law is not None and law.hand_frame
     if hand and args.dt is not None:
         raise _Usage(f"a {system.root_law} controller runs at its own period "
-                     f"({system.root_node.hand.period:g} s); --dt applies to robot trees")
+                     f"({system.root_control.hand_settings.period:g} s); --dt applies to robot trees")
     settings = system.simulation or SimulationSettings()
     groups = multi_rate_groups(system)
     if groups is not None and args.dt is not None:
@@ -237,7 +237,7 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
         problem = write_problem(out, names, inputs)
     if problem:
         raise OutputError(problem)
-    rest = rest_posture([system.nodes[leaf].leaf for leaf in robot_leaves(system)])
+    rest = rest_posture([system.leaf(leaf) for leaf in robot_leaves(system)])
     results, mjcf = [], None
     with tempfile.TemporaryDirectory(prefix="robotgen-sim-") as tmp:
         build = Path(tmp) / system.name
@@ -252,7 +252,7 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
             emit(Path(tmp) / twin.name, twin.name, kernels_for(twin), nq=system_nq(twin),
                  extra_info=system_info(twin), spec_sha256=twin.source_sha256, controllers=controllers_for(twin))
             comparison = simulate.load_module(Path(tmp) / twin.name, twin.name)
-        step = system.root_node.hand.period if hand else settings.dt
+        step = system.root_control.hand_settings.period if hand else settings.dt
         for p in plants:
             progress.stage(f"simulating {settings.duration:g} s at dt = {step:g} s on the {p} plant")
             try:
@@ -271,14 +271,16 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
                     result = simulate.run(module, settings, rest)
             except SimulationError as e:
                 in_spec = e.field is not None and e.field in settings.locations
-                where = settings.locations[e.field] if in_spec else system.location_of(system.root)
+                where = (settings.locations[e.field] if in_spec and e.field is not None
+                         else system.location_of(system.root))
                 raise UserError(where, f"simulation.{e.field}: {e}" if in_spec else str(e)) from None
             results += list(both) if groups is not None else [result]
         info = module.info()
     kind = own if own is not None else simulate
     wrote = _write_simulation(out, system, kind, results, mjcf, inputs, stems)
     if groups is not None:
-        print(multirate_simulation.compare(*results, info))
+        multi, single = results
+        print(multirate_simulation.compare(multi, single, info))
     else:
         print(kind.summary(results[0]) if len(results) == 1 else kind.compare(*results))
     print(wrote)
@@ -394,11 +396,11 @@ def _cmd_info(args: argparse.Namespace) -> int:
             print(lifted_loop_line(lifted_loop(system, groups)))
         except OperatingPointError as e:
             print(f"  lifted closed loop: not linearised: {e}")
-    if system.root_law is not None and isinstance(system.root_node.hand, AdaptiveSettings):
+    if system.root_law is not None and isinstance(system.root_control.hand, AdaptiveSettings):
         from robotgen.symbolic import module_extras  # lazy: CasADi only where it is needed
         from robotgen.symbolic.root_laws.resolved_adaptive import closed_loop
 
-        print(closed_loop_line(closed_loop(system), system.root_node.hand.period))
+        print(closed_loop_line(closed_loop(system), system.root_control.hand_settings.period))
         print(operation_table(module_extras(system)[0]["hand_control"]))
     return EXIT_OK
 

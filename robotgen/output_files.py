@@ -143,7 +143,7 @@ def write_problem(directory: Path, names: list[str], inputs: Iterable[Path] = ()
     if problem:
         return problem
     record, problem = _record(directory)
-    if problem:
+    if problem or record is None:  # (a record is read, or there is a problem)
         return problem
     foreign, changed = [], []
     for name in names:
@@ -170,8 +170,13 @@ def write_files(directory: Path, made: dict[str, Path], inputs: Iterable[Path] =
             problem = write_problem(directory, list(made), inputs)
             if problem:
                 raise OutputError(problem)
-            record, _ = _record(directory)
-            new = {name: sha256_of(path) for name, path in made.items()}
+            record = _record(directory)[0] or {}  # (write_problem read it)
+            new: dict[str, str] = {}
+            for name, path in made.items():
+                digest = sha256_of(path)
+                if digest is None:
+                    raise OutputError(f"{path} is not a regular file robotgen made")
+                new[name] = digest
             _write_record(directory, {**record, **{n: [*record.get(n, []), h] for n, h in new.items()}})
             for name, path in made.items():
                 temporary = sibling(directory / name, "tmp")

@@ -2,11 +2,14 @@
 robotgen can prove it wrote (robotgen.emit.output_directory)."""
 from __future__ import annotations
 
+import importlib
 import os
 import shutil
 import sys
+from collections.abc import Sequence
 from contextlib import contextmanager
 from pathlib import Path
+from types import ModuleType
 
 from robotgen import interrupts
 from robotgen.emit import cache
@@ -20,12 +23,19 @@ from robotgen.errors import OutputError
 from robotgen.output_files import output_errors, sibling
 from robotgen.progress import QUIET, Progress
 from robotgen.symbolic.kernel import Kernel
+from robotgen.symbolic.rate_steps import MultiRate
 from robotgen.symbolic.root_laws.law import Controller
 
-try:
-    import fcntl
-except ImportError:  # not POSIX
-    fcntl = None
+
+def _posix_locks() -> ModuleType | None:
+    """The fcntl module where the platform has it (POSIX), else None."""
+    try:
+        return importlib.import_module("fcntl")
+    except ImportError:
+        return None
+
+
+fcntl = _posix_locks()
 
 __all__ = ["MANIFEST", "emit", "replace_problem"]
 
@@ -33,7 +43,7 @@ __all__ = ["MANIFEST", "emit", "replace_problem"]
 def emit(out_dir: Path, name: str, kernels: list[Kernel], *, nq: int,
          precision: str = "double", compile: bool = True, extra_info: dict | None = None,
          spec_sha256: str = "", attributes: dict | None = None, progress: Progress = QUIET,
-         controllers: list[Controller] | None = None, targets: tuple[str, ...] = (),
+         controllers: Sequence[Controller | MultiRate] | None = None, targets: tuple[str, ...] = (),
          inputs: tuple[Path, ...] = (), build_key: str | None = None) -> Path:
     """Writes ``<name>.h``, ``<name>.c``, ``<name>_module.c``, the stub ``<name>.pyi``,
     ``Makefile`` (with ``<name>.pc.in`` and ``<name>Config.cmake.in``, which its ``install``

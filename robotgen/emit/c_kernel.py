@@ -267,6 +267,7 @@ def _scheduled_body(kernel: Kernel, precision: Precision, read, helpers: dict[St
     as one straight-line block; each loop as a block whose body reads and writes slices
     (registers x0, x1, ...)."""
     schedule = kernel.schedule
+    assert schedule is not None  # a scheduled kernel's
     zero = literal(0.0, precision)
     declarations = [f"{precision.real} t{k}[{size}];" for k, size in enumerate(schedule.local_sizes)]
     # index tables (a tree's parents, its ancestor pairs): const locals rg_p0, rg_p1, ...

@@ -241,16 +241,18 @@ def module_view(name: str, kernels: list[Kernel], *, nq: int, precision: str,
     if info_keys & extra_info.keys():
         raise KernelError(f"extra_info may not set {sorted(info_keys & extra_info.keys())}")
     helpers, helper_names = _stage_helpers(kernels, PRECISIONS[precision])
-    functions, stage_counts = [], {}
+    printed: list[FunctionView] = []
+    stage_counts: dict[str, tuple[int, int]] = {}
     for i, k in enumerate(kernels):
         progress.step(i + 1, len(kernels), f"printing C: {k.name}")
-        functions.append(_function_view(name, k, PRECISIONS[precision], parameters, helper_names, stage_counts))
-    functions, homes = _assign_parts(tuple(functions), helpers)
+        printed.append(_function_view(name, k, PRECISIONS[precision], parameters, helper_names, stage_counts))
+    functions, homes = _assign_parts(tuple(printed), helpers)
     helpers = tuple(replace(h, parts=parts, home=homes[h.c_name] if len(parts) > 1 else None)
                     for h in helpers
                     for parts in [tuple(sorted({f.part for f in functions if h.c_name in f.helpers}))])
     by_name = {f.name: f for f in functions}
-    views = tuple(controller_view(name, c, by_name, PRECISIONS[precision], parameters) for c in controllers)
+    views = tuple(controller_view(name, c, by_name, PRECISIONS[precision], parameters) for c in controllers
+                  if isinstance(c, Controller))
     multirate = multirate_view(name, rates[0], by_name, PRECISIONS[precision], parameters) if rates else None
     _check_controller_names(name, functions, views, helpers, multirate)
     _check_macros_unique(name, functions, views, multirate)
@@ -290,7 +292,8 @@ def module_view(name: str, kernels: list[Kernel], *, nq: int, precision: str,
     return ModuleView(
         name=name, macro_prefix=name.upper(), precision=precision,
         real=PRECISIONS[precision].real, nq=nq, robotgen_version=robotgen.__version__,
-        casadi_version=ca.__version__, spec_sha256=spec_sha256, functions=functions,
+        casadi_version=ca.__version__,  # type: ignore[attr-defined]  # casadi's stubs omit __version__
+        spec_sha256=spec_sha256, functions=functions,
         info=info, module_doc=c_string(module_doc), info_json=c_string(to_json(info, None)),
         attributes_json=c_string(to_json(attributes, None)),
         keyword_names=tuple(sorted(keyword_names)),
@@ -371,7 +374,8 @@ def _parameter_view(parameter: RuntimeParameter, offset: int,
         default = values[0]
     doc = parameter.doc.strip()
     return ParameterView(
-        name=parameter.name, shape=shape, ndim=len(shape), dims=(*shape, 0, 0)[:2],
+        name=parameter.name, shape=shape, ndim=len(shape),
+        dims=(shape[0] if shape else 0, shape[1] if len(shape) > 1 else 0),
         size=parameter.size, offset=offset, shape_text=shape_text,
         expected=f"a float64 array of shape {shape_text}" if shape else "a number (float64 of shape ())",
         declaration=f"{precision.real} {parameter.name}" + (f"[{parameter.size}]" if shape else ""),
@@ -440,7 +444,8 @@ def _assign_parts(functions: tuple[FunctionView, ...], helpers: tuple[HelperView
         return functions, {h.c_name: 0 for h in helpers}
     own = {f.name: compile_cost(f.definition) for f in functions}
     shared = {h.c_name: compile_cost(h.definition) for h in helpers}
-    load, home = [0] * COMPILE_PARTS, {}
+    load: list[int] = [0] * COMPILE_PARTS
+    home: dict[str, int] = {}
     part = {}
     for f in sorted(functions, key=lambda f: (-own[f.name] - sum(shared[h] for h in f.helpers), f.name)):
         after = [load[k] + own[f.name] + sum(shared[h] for h in f.helpers if h not in home)
@@ -558,6 +563,7 @@ def _count_scheduled(kernel: Kernel, stages: dict[str, tuple[int, int]] | None =
     times the loop's iterations. ``stages``: counts of stages already seen (by their serialized
     function: the kernels of a module repeat one stage)."""
     schedule = kernel.schedule
+    assert schedule is not None  # a scheduled kernel's
     stages = {} if stages is None else stages
     arithmetic = sin_cos = 0
     for stage in schedule.stages:
@@ -578,7 +584,9 @@ def _check_controller_names(name: str, functions: tuple[FunctionView, ...],
     """The controllers' C names (struct types, reset and step) clash neither with each other
     nor with the kernels, the stage helpers and the parameter struct."""
     c_names = [f.c_name for f in functions] + [h.c_name for h in helpers] + [c_kernel.params_type(name)]
-    for c in (*controllers, *([multirate] if multirate is not None else [])):
+    classes: tuple[ControllerView | MultiRateView, ...] = (
+        *controllers, *([multirate] if multirate is not None else []))
+    for c in classes:
         c_names += [c.c_type, c.c_reset, c.c_step]
     if len(set(c_names)) != len(c_names):
         raise KernelError(f"module {name!r}: C names of the controllers clash: {sorted(c_names)}")

@@ -188,7 +188,7 @@ def controller_view(module: str, controller: Controller, functions: dict[str, Fu
         raise KernelError(f"{what}: ports {ports} take the C step's names {sorted(C_NAMES)} or rg_*")
 
     macro = c_type.upper()
-    views = []
+    built: list[ViewView] = []
     for view in controller.views:
         end = view.offset + view.rows * view.cols
         if view.offset < 0 or view.rows < 1 or view.cols < 1 or end > n:
@@ -196,12 +196,12 @@ def controller_view(module: str, controller: Controller, functions: dict[str, Fu
                               f"is not inside the state of {n}")
         shape = (view.rows,) if view.cols == 1 else (view.rows, view.cols)
         doc = " ".join(view.doc.split())
-        views.append(ViewView(
+        built.append(ViewView(
             name=view.name, offset=view.offset, rows=view.rows, cols=view.cols, size=view.rows * view.cols,
             shape=shape, shape_text=_shape_text(shape), doc=doc, doc_line=doc.replace("*/", "* /"),
             offset_macro=f"{macro}_{view.name.upper()}_OFFSET",
             stub_doc=py_string(_view_doc(doc, shape)), c_doc=c_string(_view_doc(doc, shape))))
-    views = tuple(views)
+    views = tuple(built)
 
     reads = step.reads_parameters or bool(init is not None and init.reads_parameters)
     params = f"const {c_kernel.params_type(module)} *params, " if reads else ""
@@ -215,7 +215,7 @@ def controller_view(module: str, controller: Controller, functions: dict[str, Fu
             "state_size": n, "flags": list(controller.flags),
             "views": [{"name": v.name, "offset": v.offset, "shape": list(v.shape), "doc": v.doc} for v in views],
             "outputs": [o.name for o in others], "reads_parameters": reads,
-            "start_check": None if start is None else {
+            "start_check": None if start is None or controller.start is None else {
                 "function": start.name, "limits": list(controller.start.limits), "units": list(controller.start.units)}}
     keywords = [f"{p.name}={p.py_default}" for p in parameters] if reads else []
     signature = f"{controller.class_name}({', '.join(['*', *keywords]) if keywords else ''})"
@@ -230,11 +230,13 @@ def controller_view(module: str, controller: Controller, functions: dict[str, Fu
         outputs=others, step_reads_parameters=step.reads_parameters,
         init_reads_parameters=bool(init is not None and init.reads_parameters), reads_parameters=reads,
         step_prototype=step_prototype, reset_prototype=f"void {c_type}_reset({c_type} *controller)",
-        start_kernel=start.c_name if start else "", start_size=len(controller.start.limits) if start else 0,
-        start_limits=tuple(c_kernel.literal(v, precision) for v in controller.start.limits) if start else (),
-        start_units=tuple(c_string(u) for u in controller.start.units) if start else (),
-        start_bounds=c_string(_start_bounds(controller.start)) if start else "",
-        start_hint=c_string(controller.start.hint) if start else "",
+        start_kernel=start.c_name if start else "",
+        start_size=len(controller.start.limits) if start and controller.start else 0,
+        start_limits=tuple(c_kernel.literal(v, precision) for v in controller.start.limits)
+        if start and controller.start else (),
+        start_units=tuple(c_string(u) for u in controller.start.units) if start and controller.start else (),
+        start_bounds=c_string(_start_bounds(controller.start)) if start and controller.start else "",
+        start_hint=c_string(controller.start.hint) if start and controller.start else "",
         layout_lines=_layout(controller, step, init, views, others, period_literal),
         step_lines=_step_comment(f"{c_type}_step", controller.class_name, step, init, controller.flags, others, n,
                                  real, controller.start, start),

@@ -169,7 +169,7 @@ def multirate_view(module: str, spec: MultiRate, functions: dict[str, FunctionVi
     if [p.name for p in inputs[:2]] != list(SENSED) or not any(p.name == "x_e" for p in inputs):
         raise KernelError(f"{what}: no group step reads the root trajectory")
 
-    groups = []
+    built: list[GroupView] = []
     for k, (g, step, init) in enumerate(zip(spec.groups, steps, inits)):
         gm = f"{macro}_G{k}"
         args = []
@@ -188,12 +188,12 @@ def multirate_view(module: str, spec: MultiRate, functions: dict[str, FunctionVi
         init_args = f"theta, theta_dot, {'params, ' if init is not None and init.reads_parameters else ''}" \
                     f"rg_next.state_g{k}"
         state_size = next((p.size for p in step.inputs if p.name == "state"), 0)
-        groups.append(GroupView(
+        built.append(GroupView(
             index=k, step=step.name, c_step=step.c_name, init=init.name if init else None,
             c_init=init.c_name if init else "", period=float(g.period), period_literal=repr(float(g.period)),
             rate_text=_rate(g.period), ticks=g.ticks, controllers=tuple(g.controllers), macro=gm,
             state_size=state_size, operations=step.arithmetic_ops, step_args=", ".join(args), init_args=init_args))
-    groups = tuple(groups)
+    groups = tuple(built)
     held = tuple(HeldView(name, name[len(HELD_PREFIX):], held_sizes[name], writer[name], reader[name],
                           f"{macro}_{name.upper()}_SIZE") for name in spec.held)
     real = precision.real

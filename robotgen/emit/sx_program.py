@@ -155,8 +155,9 @@ def _shared_reciprocals(steps: tuple[Instruction, ...]) -> tuple[Instruction, ..
     for register, defined_at in sorted(key for key in shared if key[1] < 0):  # registers never written here
         add_reciprocal(register, defined_at)
     for k, step in enumerate(steps):
-        if divisors[k] in reciprocal:
-            step = Instruction(ca.OP_MUL, step.target, (step.args[0], reciprocal[divisors[k]]))
+        divisor = divisors[k]
+        if divisor is not None and divisor in reciprocal:
+            step = Instruction(ca.OP_MUL, step.target, (step.args[0], reciprocal[divisor]))
         out.append(step)
         if (step.target, k) in shared:
             add_reciprocal(step.target, k)

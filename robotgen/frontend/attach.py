@@ -27,10 +27,10 @@ from robotgen.model.system import (
     POSITION_OUTPUT,
     AttachNode,
     Constraint,
-    ControlNode,
     DefineNode,
-    Node,
     RobotSystem,
+    leaf_of,
+    under_controls,
 )
 
 
@@ -80,26 +80,19 @@ class AttachReader(Collector):
         robotgen's bilateral grasp model."""
         return self.optional(spec, path, "friction", DEFAULT_CONTACT_FRICTION, minimum=0.0, exclusive=True)
 
-    def leaf_below(self, nodes: dict[str, Node], name: str) -> Node:
-        """The node itself, or what a chain of control nodes controls."""
-        node = nodes[name]
-        while isinstance(node, ControlNode):
-            node = nodes[node.robot]
-        return node
-
     def check_attach(self, system: RobotSystem, node: AttachNode, robots: list[Signature]) -> AttachNode:
         """Check an ATTACH node against its robots' signatures (robots, payload, constraint); return it with its
         constraint read."""
         nodes = system.nodes
         path: Path = ("nodes", node.name, "attach")
         for i, r in enumerate(node.robots):
-            leaf = getattr(nodes[r], "leaf", None)
+            leaf = leaf_of(nodes[r])
             if isinstance(leaf, PAYLOAD_BODIES):
                 self.at_value(path + ("robots", i), f"'{r}' is a rigid_body, a payload without actuators; "
                                                     "it cannot be a robot (give it as payload)")
         payload = None
         if node.payload is not None:
-            payload = getattr(nodes[node.payload], "leaf", None)
+            payload = leaf_of(nodes[node.payload])
             if not isinstance(payload, (*PAYLOAD_BODIES, FormulaRobot)):
                 kind = (f"a {nodes[node.payload].primitive} node" if not isinstance(nodes[node.payload], DefineNode)
                         else "a chain")
@@ -115,8 +108,8 @@ class AttachReader(Collector):
                                                  "use planar_contacts or formulas to hold one")
             owner: dict[str, str] = {}
             for i, r in enumerate(node.robots):
-                below = self.leaf_below(nodes, r)
-                leaf = getattr(below, "leaf", None)
+                below = under_controls(nodes, r)
+                leaf = leaf_of(below)
                 if isinstance(leaf, PAYLOAD_BODIES):
                     continue  # reported above
                 if not isinstance(leaf, (KinematicTree, FormulaRobot)):
@@ -138,7 +131,7 @@ class AttachReader(Collector):
             elif payload is not None and len(leaf_coordinates(payload)) != grasp.pose_dim:
                 self.at_value(path + ("payload",), f"payload '{node.payload}' has {len(leaf_coordinates(payload))} "
                                                    f"coordinates; {c.kind} needs {grasp.payload}")
-            k = len(c.contacts)
+            k = 0 if c.contacts is None else len(c.contacts)
             if m != grasp.tip_dim * k:
                 self.at_key(kind_path + ("points",), f"{k} contact points need {grasp.tip_dim * k} robot "
                                                      f"coordinates (fingertip {grasp.axes} each); robots "

@@ -3,7 +3,9 @@
 expressions and name checks. Nothing is returned from a spec with errors."""
 from __future__ import annotations
 
+import ast
 import keyword
+from typing import overload
 
 import numpy as np
 
@@ -87,7 +89,13 @@ class Collector:
             self.at_value(path + tuple(below), violation.message)
         return False
 
-    def optional(self, mapping: dict, path: Path, key: str, default: float, **bounds) -> float:
+    @overload
+    def optional(self, mapping: dict, path: Path, key: str, default: float, **bounds) -> float: ...
+
+    @overload
+    def optional(self, mapping: dict, path: Path, key: str, default: None, **bounds) -> float | None: ...
+
+    def optional(self, mapping: dict, path: Path, key: str, default: float | None, **bounds) -> float | None:
         """mapping[key] read as a constant, or ``default`` when the key is absent."""
         if key not in mapping:
             return default
@@ -105,14 +113,15 @@ class Collector:
         return xyz_rpy(self.vector(path + ("xyz",), pose.get("xyz"), (0, 0, 0)),
                        self.vector(path + ("rpy",), pose.get("rpy"), (0, 0, 0)))
 
-    def expression(self, path: Path, value: object, names: set[str]) -> Expr | None:
-        """A formula expression over ``names``, parsed and located; None after an error."""
+    def expression(self, path: Path, value: object, names: set[str]) -> Expr:
+        """A formula expression over ``names``, parsed and located; after an error, the constant 0
+        (like ``constant``'s 0.0: the error is collected and the spec refused)."""
         location, exact = self.text_location(path, value)
         try:
             return parse_expression(value, location, names, exact_columns=exact)
         except UserError as error:
             self.error(error.location, path, error.message)
-            return None
+            return Expr("0", ast.Constant(0.0), location)
 
     def check_names(self, path: Path, entries: list[tuple[str, Path, str]]) -> None:
         """Names of coordinates, velocities and parameters: distinct, not reserved."""

@@ -12,9 +12,11 @@ import hashlib
 import re
 import sys
 from dataclasses import dataclass, replace
+from typing import Any
 
 from jsonschema import Draft202012Validator, ValidationError
 from ruamel.yaml import YAML
+from ruamel.yaml.comments import CommentedSeq
 from ruamel.yaml.constructor import ConstructorError, RoundTripConstructor
 from ruamel.yaml.error import MarkedYAMLError, YAMLError
 
@@ -38,7 +40,7 @@ _TYPE_NAMES = {"object": "a mapping", "array": "a list", "string": "a string", "
 def format_path(data: object, path: Path) -> str:
     """``nodes.arm.define.chain.joints[2].link.mass``: sequence indices in brackets."""
     text = ""
-    node = data
+    node: Any = data  # walks arbitrary YAML data
     for part in path:
         if isinstance(node, list):
             text += f"[{part}]"
@@ -86,10 +88,10 @@ class SourceMap:
         item. Falls back to the closest located ancestor (e.g. keys from YAML merges)."""
         key = value = self._location(getattr(getattr(self.root, "lc", None), "line", 0),
                                      getattr(getattr(self.root, "lc", None), "col", 0))
-        node = self.root
+        node: Any = self.root  # ruamel's CommentedMap and CommentedSeq, with their .lc positions
         for part in path:
             try:
-                if isinstance(node, list):
+                if isinstance(node, CommentedSeq):
                     key = value = self._location(*node.lc.item(part))
                 else:
                     key = self._location(*node.lc.key(part))
@@ -299,7 +301,12 @@ def _plain(node: object, path: Path, source: SourceMap, errors: list[UserError],
 def _schema_errors(error: ValidationError, data: object, source: SourceMap) -> list[UserError]:
     """One schema violation as located, human messages."""
     path: Path = tuple(error.absolute_path)
-    instance, schema, kind = error.instance, error.schema, error.validator
+    # jsonschema's stubs type these with an Unset sentinel for errors not yet reported; a
+    # reported error has them all, as the JSON values they are
+    instance: Any = error.instance
+    schema: Any = error.schema
+    kind = error.validator
+    validator_value: Any = error.validator_value
 
     def at(location: Location, where: Path, message: str) -> UserError:
         field = format_path(data, where)
@@ -310,12 +317,12 @@ def _schema_errors(error: ValidationError, data: object, source: SourceMap) -> l
         return [at(source.key(path + (k,)), path + (k,), f"unknown key (allowed: {allowed})")
                 for k in instance if k not in schema.get("properties", {})]
     if kind == "required":
-        missing = [k for k in error.validator_value if k not in instance]
+        missing = [k for k in validator_value if k not in instance]
         return [at(source.key(path), path, f"missing required key '{k}'") for k in missing]
-    if kind == "oneOf" and all(set(branch) == {"required"} for branch in error.validator_value):
+    if kind == "oneOf" and all(set(branch) == {"required"} for branch in validator_value):
         if not isinstance(instance, dict):
             return []  # not a mapping at all: its type error says so
-        keys = [branch["required"][0] for branch in error.validator_value]
+        keys = [branch["required"][0] for branch in validator_value]
         present = [k for k in keys if k in instance]
         if not present:
             return [at(source.key(path), path, f"needs one of: {', '.join(keys)}")]
@@ -325,12 +332,12 @@ def _schema_errors(error: ValidationError, data: object, source: SourceMap) -> l
         return [at(source.key(path + (instance,)), path,
                    f"name {instance!r} is not an identifier ([A-Za-z_][A-Za-z0-9_]*)")]
     if kind == "type":
-        expected = error.validator_value if isinstance(error.validator_value, list) else [error.validator_value]
+        expected = validator_value if isinstance(validator_value, list) else [validator_value]
         message = f"expected {' or '.join(_TYPE_NAMES[t] for t in expected)}, got {describe(instance)}"
     elif kind == "enum":
-        message = f"{instance!r} is not one of: {', '.join(map(str, error.validator_value))}"
+        message = f"{instance!r} is not one of: {', '.join(map(str, validator_value))}"
     elif kind == "const":
-        message = f"must be {error.validator_value!r}, got {describe(instance)}"
+        message = f"must be {validator_value!r}, got {describe(instance)}"
     elif kind in ("minItems", "maxItems"):
         low, high = schema.get("minItems"), schema.get("maxItems")
         bound = "exactly" if low == high else ("at least" if kind == "minItems" else "at most")
@@ -339,7 +346,7 @@ def _schema_errors(error: ValidationError, data: object, source: SourceMap) -> l
     elif kind == "minProperties":
         message = "must not be empty"
     elif kind == "pattern":
-        message = f"{instance!r} must match {error.validator_value}"
+        message = f"{instance!r} must match {validator_value}"
     else:
         message = error.message
     return [at(source.value(path), path, message)]
@@ -360,6 +367,7 @@ def load_document(path: str) -> Document:
     source = SourceMap(path, root, text.splitlines())
     errors: list[UserError] = []
     data = _plain(root, (), source, errors)
+    assert isinstance(data, dict)  # _plain keeps a mapping a dict
     for error in _validator(tuple(LAWS.values())).iter_errors(data):
         errors += _schema_errors(error, data, source)
     if errors:

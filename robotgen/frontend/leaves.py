@@ -110,14 +110,14 @@ class LeafReader(Collector):
         self.check_convention_keys(path, joint, convention)
         motor = joint.get("motor") or {}
         friction = joint.get("friction") or {}
-        geometry = {}
+        origin = axis = dh_row = None
         if convention == JOINT_LIST:
-            geometry["origin"] = self.pose(path + ("origin",), joint.get("origin"))
-            geometry["axis"] = self.axis(path + ("axis",), joint.get("axis"))
+            origin = self.pose(path + ("origin",), joint.get("origin"))
+            axis = self.axis(path + ("axis",), joint.get("axis"))
         else:
             dh = joint.get("dh") or {}
-            geometry["dh"] = DHParameters(**{k: self.optional(dh, path + ("dh",), k, 0.0)
-                                             for k in ("a", "alpha", "d", "theta")})
+            dh_row = DHParameters(**{k: self.optional(dh, path + ("dh",), k, 0.0)
+                                     for k in ("a", "alpha", "d", "theta")})
         return JointRow(
             name=joint.get("name", f"q{index + 1}"),
             type=joint["type"],
@@ -127,7 +127,7 @@ class LeafReader(Collector):
             viscous=self.optional(friction, path + ("friction",), "viscous", 0.0, minimum=0.0),
             coulomb=self.optional(friction, path + ("friction",), "coulomb", 0.0, minimum=0.0),
             limits=self.limits(path + ("limits",), joint.get("limits")),
-            **geometry,
+            dh=dh_row, origin=origin, axis=axis,
         )
 
     def chain(self, name: str, path: Path, chain: dict) -> KinematicTree:
@@ -144,7 +144,7 @@ class LeafReader(Collector):
         base = self.pose(path + ("base",), chain.get("base"))
         tool = self.pose(path + ("tool",), chain.get("tool"))
         joints, tool = canonical_chain(convention, rows, base, tool)
-        for i in joints_without_inertia(KinematicTree(name, joints, len(joints) - 1, tool, DEFAULT_GRAVITY)):
+        for i in joints_without_inertia(KinematicTree(name, joints, len(joints) - 1, tool, np.array(DEFAULT_GRAVITY))):
             self.warnings.append(f"{self.doc.source.key(path + ('joints', i))}: warning: {name}: joint "
                                  f"'{joints[i].name}' moves no mass, inertia or motor inertia: M is singular and "
                                  "forward dynamics returns no finite answer (give its link a mass)")
@@ -323,8 +323,8 @@ class LeafReader(Collector):
             self.at_value(path + ("gravity",), f"a {'spatial' if spatial else 'planar'} body takes "
                                                f"{len(gravity_default)} gravity components, got {len(gravity)}")
         kind = "spatial" if spatial else "planar"
-        mass, runtime = self.parameter(path + (kind, "mass"), spec[kind]["mass"], PAYLOAD_MASS)
-        runtime = frozenset({"mass"} if runtime else ())
+        mass, is_runtime = self.parameter(path + (kind, "mass"), spec[kind]["mass"], PAYLOAD_MASS)
+        runtime = frozenset({"mass"} if is_runtime else ())
         if spatial:
             body = spec["spatial"]
             return SpatialBody(

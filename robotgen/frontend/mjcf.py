@@ -504,7 +504,7 @@ def _unmodelled(mj: _Mjcf, plan: _Plan, frames: dict) -> tuple[str, ...]:
         notes.append(f"{mj.loc('equality', ignored[0])}: note: ignored {len(ignored)} equality constraint"
                      f"{'s' if many else ''} that do{'' if many else 'es'} not act on the joints robotgen keeps "
                      f"(inactive, or among parts held fixed): {names}")
-    moving = [b for b in plan.below if owner[b] >= 0]
+    moving = [b for b in plan.below if frames[b][0] >= 0]
     warned = []
     stiff = [j for j in plan.kept if m.jnt_stiffness[j] != 0 and not mj.disabled["spring"]]
     if stiff:
@@ -577,10 +577,16 @@ def _robot(mj: _Mjcf, plan: _Plan, tip: tuple[int, int | None] | None, name: str
     body that moves with a kept joint."""
     m = mj.m
     joints, frames, locked = _frames(mj, plan)
+    site: int | None = None
     if tip is None:
         parents = {int(m.body_parentid[b]) for b in range(1, m.nbody)}
-        tip = next((b for b in plan.below if b not in parents and frames[b][0] >= 0), None), None
-    tip_body, site = tip
+        leaf_body = next((b for b in plan.below if b not in parents and frames[b][0] >= 0), None)
+        if leaf_body is None:
+            raise mj.fail("body", plan.base, f"no body below base body '{mj.name('body', plan.base)}' moves with "
+                                             "a joint robotgen keeps")
+        tip_body = leaf_body
+    else:
+        tip_body, site = tip
     tip_name = mj.name("site", site) if site is not None else mj.name("body", tip_body)
     if frames.get(tip_body, (-1,))[0] < 0:
         where = "is not below" if tip_body not in frames else "does not move below"

@@ -23,7 +23,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass
 from fractions import Fraction
-from typing import Protocol
+from typing import Any, Protocol
 
 from robotgen.errors import Location, UserError
 from robotgen.model.coupling import Coupling, Mimic, affine, couple
@@ -34,7 +34,7 @@ JOINT_EQUALITY = 2  # mjtEq's mjEQ_JOINT
 class Compiled(Protocol):
     """What the equality readers need of a compiled MJCF model: the mjModel, joint names, names and locations."""
 
-    m: object
+    m: Any  # a mujoco.MjModel (mujoco has no type stubs)
     joint_names: list[str]
 
     def name(self, kind: str, i: int) -> str:

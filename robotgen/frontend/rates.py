@@ -62,7 +62,7 @@ class RateReader(Collector):
 
         def owner(name: str | None) -> str | None:
             """The controller whose own period ``name`` runs at (None: simulation.dt's or the default)."""
-            while name is not None and nodes[name].period is None:
+            while name is not None and controls[name].period is None:
                 name = parent[name]
             return name
 
@@ -75,7 +75,7 @@ class RateReader(Collector):
 
         wrong: set[str] = set()  # periods reported: not checked again through the ones that take them
         for name, p in periods.items():  # the walk from the root: a controller after the ones above it
-            if nodes[name].period is None:
+            if controls[name].period is None:
                 continue  # inherited: its owner's period is checked where it is set
             path = self._path(name)
             wrong.add(name)
@@ -94,13 +94,14 @@ class RateReader(Collector):
             else:
                 wrong.discard(name)
         for name, p in periods.items():
-            if nodes[name].period is not None and name not in wrong and owner(slowest) not in wrong \
+            if controls[name].period is not None and name not in wrong and owner(slowest) not in wrong \
                     and not divides(p, s):
                 self.at_value(self._path(name), f"{p:g} s does not divide the slowest period in the tree ({s:g} s of "
                                                 f"{source(slowest)}): the groups' ticks must line up once per slowest "
                                                 "period")
         tops = [name for name in periods if parent[name] is None]
-        if dt_given and all(nodes[name].period is not None for name in tops) and ticks_of(simulation.dt, f) != 1:
+        if dt_given and simulation is not None and all(controls[name].period is not None for name in tops) \
+                and ticks_of(simulation.dt, f) != 1:
             self.at_value(("simulation", "dt"), f"{simulation.dt:g} s is not the fastest controller period "
                                                 f"({f:g} s of '{fastest}'): every topmost controller sets its "
                                                 "period, and the plant steps at the fastest; drop dt or make it "

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import math
+from typing import Any
 
 from robotgen.frontend.collector import Collector
 from robotgen.frontend.document import Path
@@ -15,7 +16,14 @@ from robotgen.model.signature import (
     signature,
 )
 from robotgen.model.simulation import WALL_DAMPING, WALL_STIFFNESS, PayloadChange, SimulationSettings, Wall
-from robotgen.model.system import PAYLOAD_BODIES, ControlNode, DefineNode, Node, RobotSystem
+from robotgen.model.system import (
+    PAYLOAD_BODIES,
+    ControlNode,
+    DefineNode,
+    Node,
+    RobotSystem,
+    leaf_of,
+)
 
 
 class SimulationReader(Collector):
@@ -26,7 +34,8 @@ class SimulationReader(Collector):
         coordinates (start, initial_error, amplitude, frequency), the leaves' joints (theta0),
         the root's unresolved internal forces (internal_forces)."""
         path: Path = ("simulation",)
-        values = {k: self.constant(path + (k,), spec[k]) for k in ("duration", "dt") if k in spec}
+        # SimulationSettings' fields by name: floats, tuples, the plant's name, payload changes, a wall
+        values: dict[str, Any] = {k: self.constant(path + (k,), spec[k]) for k in ("duration", "dt") if k in spec}
         if "plant" in spec:
             values["plant"] = spec["plant"]  # the schema holds it to PLANTS
         for k in ("start", "theta0", "initial_error", "amplitude", "frequency", "internal_forces", "force"):
@@ -60,8 +69,8 @@ class SimulationReader(Collector):
         self.internal_force_periods(system, values.get("dt", SimulationSettings.dt))
         try:
             sig = signature(system, root)
-            leaves = [nodes[leaf].leaf for leaf in robot_leaves(system)]
-        except (SignatureError, KeyError, AttributeError):
+            leaves = [system.leaf(leaf) for leaf in robot_leaves(system)]
+        except (SignatureError, KeyError, AttributeError, TypeError):
             sig = None  # the tree has errors of its own, reported elsewhere
         if sig is not None and all(leaf is not None for leaf in leaves):
             n_theta = sum(leaf.nq for leaf in leaves)
@@ -91,7 +100,8 @@ class SimulationReader(Collector):
         entries = [(path, spec)] if isinstance(spec, dict) else [(path + (k,), c) for k, c in enumerate(spec)]
         changes = []
         for at, change in entries:
-            com = tuple(self.constant(at + ("com", i), v) for i, v in enumerate(change.get("com", (0, 0, 0))))
+            x, y, z = (self.constant(at + ("com", i), v) for i, v in enumerate(change.get("com", (0, 0, 0))))
+            com = (x, y, z)  # the schema holds com to three numbers
             changes.append(PayloadChange(self.constant(at + ("at",), change["at"], minimum=0.0),
                                          self.constant(at + ("mass",), change["mass"], minimum=0.0), com))
         for (at, _), before, after in zip(entries[1:], changes, changes[1:]):
@@ -125,10 +135,11 @@ class SimulationReader(Collector):
                 self.at_value(at + ("payload",), f"'{name}' is not a rigid_body payload of the tree"
                                                  + (f" ({', '.join(bodies)})" if bodies else ""))
                 continue
-            if "mass" not in system.nodes[name].leaf.runtime:
+            body = system.leaf(name)  # one of bodies
+            if isinstance(body, PAYLOAD_BODIES) and "mass" not in body.runtime:
                 where = self.doc.source.key(("nodes", name))
                 self.at_key(at, f"payload '{name}''s mass must be a run-time parameter (mass: {{runtime: "
-                                f"{system.nodes[name].leaf.mass:g}}} at {where}), so that robotgen's plant "
+                                f"{body.mass:g}}} at {where}), so that robotgen's plant "
                                 "can take another mass than the controller's")
             out.append(PayloadChange(change.at, change.mass, payload=name))
         return tuple(out)
@@ -194,8 +205,8 @@ class SimulationReader(Collector):
                 at = path + ("payload_change",) + (() if isinstance(changes, dict) else (k,))
                 self.at_key(at + ("payload",), "a hand controller's payload is a point mass in its hand (mass, com); "
                                                "payload names a robot tree's rigid_body")
-        chain = getattr(nodes.get(root.robot), "leaf", None)
-        expected = {"theta0": (getattr(chain, "nq", HAND_DOF), f"one per joint of '{root.robot}'"),
+        chain = leaf_of(nodes.get(root.robot))
+        expected = {"theta0": (chain.nq if chain is not None else HAND_DOF, f"one per joint of '{root.robot}'"),
                     "amplitude": (HAND_DOF, f"one per hand axis: {', '.join(HAND_AXES)}"),
                     "frequency": (HAND_DOF, f"one per hand axis: {', '.join(HAND_AXES)}")}
         for key, (n, what) in expected.items():

@@ -30,7 +30,7 @@ from robotgen.model.system import (
 )
 
 
-class SpecReader(LeafReader, AttachReader, ControlReader, ForceLawReader, ResolvedRateReader, HandLawReader,
+class SpecReader(LeafReader, AttachReader, ForceLawReader, ResolvedRateReader, HandLawReader, ControlReader,
                  SimulationReader, RateReader):
     """The whole spec: every part's reader over one collector."""
 
@@ -138,7 +138,9 @@ class SpecReader(LeafReader, AttachReader, ControlReader, ForceLawReader, Resolv
             if name not in whole:
                 return None
             node = nodes[name]
-            if any(sig(child) is None for child in node.children):
+            below = {child: sig(child) for child in node.children}
+            checked = {child: s for child, s in below.items() if s is not None}
+            if len(checked) < len(below):
                 return None
             if isinstance(node, DefineNode):
                 if node.leaf is None:  # a URDF that failed to load
@@ -147,9 +149,9 @@ class SpecReader(LeafReader, AttachReader, ControlReader, ForceLawReader, Resolv
             else:
                 before = len(self.errors)
                 if isinstance(node, AttachNode):
-                    nodes[name] = node = self.check_attach(system, node, [sig(r) for r in node.robots])
+                    nodes[name] = node = self.check_attach(system, node, [checked[r] for r in node.robots])
                 else:
-                    nodes[name] = node = self.check_control(system, node, sig(node.robot))
+                    nodes[name] = node = self.check_control(system, node, checked[node.robot])
                 if len(self.errors) > before:
                     return None
                 try:

@@ -100,6 +100,13 @@ class _Reader:
                 foreign.append(child)
         return foreign, check.notes
 
+    def link(self, joint: Element, tag: str) -> str:
+        """The link a joint's <parent> or <child> names."""
+        ref = joint.find(tag)
+        if ref is None:
+            raise self.fail(joint, f"joint '{joint.attrib.get('name')}' needs <{tag} link=...>")
+        return self.attr(ref, "link")
+
     def attr(self, el: Element, name: str, default: str | None = None) -> str:
         if name in el.attrib:
             return el.attrib[name]
@@ -111,17 +118,18 @@ class _Reader:
         """``n`` numbers from an attribute; with ``finite`` (geometry and inertia, which go
         into exact arithmetic) inf and nan are errors."""
         text = default if el is None else self.attr(el, name, default)
+        where = self.root if el is None else el  # (the defaults pass every check)
         try:
             values = [float(v) for v in text.split()]
         except ValueError:
             values = []
         if len(values) != n:
-            raise self.fail(el, f"<{el.tag}> attribute '{name}' must hold {n} number{'s' if n > 1 else ''}, "
-                                f"got '{text}'")
+            raise self.fail(where, f"<{where.tag}> attribute '{name}' must hold {n} number{'s' if n > 1 else ''}, "
+                                   f"got '{text}'")
         if finite and not all(math.isfinite(v) for v in values):
-            raise self.fail(el, f"<{el.tag}> attribute '{name}' must hold finite numbers, got '{text}'")
+            raise self.fail(where, f"<{where.tag}> attribute '{name}' must hold finite numbers, got '{text}'")
         if finite and any(abs(v) > MAX_MAGNITUDE for v in values):
-            raise self.fail(el, f"<{el.tag}> attribute '{name}' holds a number larger than {MAX_MAGNITUDE:g} "
+            raise self.fail(where, f"<{where.tag}> attribute '{name}' holds a number larger than {MAX_MAGNITUDE:g} "
                                 f"in magnitude: '{text}'")
         return np.array(values)
 
@@ -336,7 +344,7 @@ def read_urdf_file(path: str) -> UrdfFile:
                 raise r.fail(el, f"more than {MAX_LINKS} links; robotgen reads robots up to that size")
     if not links:
         raise r.fail(root, "the URDF has no <link> elements")
-    joints = {}  # child link -> joint element
+    joints: dict[str, Element] = {}  # child link -> joint element
     joint_names: set[str] = set()
     for el in root.children:
         if el.tag != "joint":
@@ -354,12 +362,12 @@ def read_urdf_file(path: str) -> UrdfFile:
                 raise r.fail(el, f"joint '{el.attrib.get('name')}' needs <{tag} link=...>")
             if r.attr(ref, "link") not in links:
                 raise r.fail(ref, f"joint '{el.attrib.get('name')}' names unknown link '{ref.attrib['link']}'")
-        child = el.find("child").attrib["link"]
+        child = r.link(el, "child")
         if child in joints:
             raise r.fail(el, f"link '{child}' has two parent joints ('{joints[child].attrib.get('name')}' "
                              f"and '{el.attrib.get('name')}'): closed loops are not supported")
         joints[child] = el
-    parent_of = {c: j.find("parent").attrib["link"] for c, j in joints.items()}
+    parent_of = {c: r.link(j, "parent") for c, j in joints.items()}
     roots = [l for l in links if l not in joints]
     if len(roots) != 1:
         raise r.fail(root, f"the links must form one tree; found roots {sorted(roots)}")
@@ -383,7 +391,7 @@ def _below_base(f: UrdfFile, base: str | None) -> tuple[str, list[str]]:
         at_root = [f.joints[c] for c in f.children_of.get(base, []) if f.joints[c].attrib["type"] == "floating"]
         if at_root:
             j = at_root[0]
-            child = j.find("child").attrib["link"]
+            child = r.link(j, "child")
             raise r.fail(j, f"joint '{j.attrib.get('name')}' is a floating joint at the root, which robotgen "
                             f"does not support; read the robot below it with base='{child}' (--base {child})")
     base = f.known_link("base", base)
@@ -449,22 +457,25 @@ def _normalise(f: UrdfFile, base: str, actuated: list[Element]
     canonical = []
     markers = _NoLimitMarkers()
     for k, j in enumerate(actuated):
-        parent_link = j.find("parent").attrib["link"]
+        parent_link = r.link(j, "parent")
         owner, T_parent = frames[parent_link]
         assert owner < k, "joints must be in topological order"
-        axis = r.floats(j.find("axis"), "xyz", 3, "1 0 0")
+        axis_element = j.find("axis")
+        axis = r.floats(axis_element, "xyz", 3, "1 0 0")
         largest = float(np.abs(axis).max())
-        if largest == 0:
-            raise r.fail(j.find("axis"), f"joint '{j.attrib.get('name')}' has a zero axis")
+        if largest == 0:  # (not the default axis)
+            raise r.fail(j if axis_element is None else axis_element, f"joint '{j.attrib.get('name')}' has a zero axis")
         # scale by a power of two (exact) so that |axis|^2 neither overflows nor underflows
         axis = np.array([math.ldexp(float(a), -math.frexp(largest)[1]) for a in axis])
         dyn = j.find("dynamics")
         damping = r.number(dyn, "damping", "0") if dyn is not None else 0.0
         friction = r.number(dyn, "friction", "0") if dyn is not None else 0.0
-        if damping < 0 or friction < 0:
+        if dyn is not None and (damping < 0 or friction < 0):
             raise r.fail(dyn, f"joint '{j.attrib.get('name')}': <dynamics> damping and friction must be >= 0")
+        joint_type = _JOINT_TYPES[j.attrib["type"]]
+        assert joint_type is not None, "fixed joints are merged, not actuated"
         canonical.append(Joint(
-            name=r.attr(j, "name"), type=_JOINT_TYPES[j.attrib["type"]], parent=owner,
+            name=r.attr(j, "name"), type=joint_type, parent=owner,
             origin=exact.matmul(T_parent, r.origin(j)), axis=exact.unit(axis), body=merge_bodies(parts[k]),
             viscous=damping, coulomb=friction, damping=damping, limits=_limits(r, j, markers),
         ))

@@ -14,7 +14,7 @@ from robotgen.model.system import AttachNode, ControlNode, DefineNode, RobotSyst
 
 def system_nq(system: RobotSystem) -> int:
     """Number of sensed joint coordinates: the actuated leaves' coordinates, stacked."""
-    return sum(system.nodes[leaf].leaf.nq for leaf in robot_leaves(system))
+    return sum(system.leaf(leaf).nq for leaf in robot_leaves(system))
 
 
 def system_info(system: RobotSystem) -> dict:
@@ -62,6 +62,8 @@ def coupled_joints(tree: KinematicTree) -> list[dict]:
     """Each mimic joint and how it moves: q_joint = multiplier q_coordinate + offset, the
     coordinate named after its own joint (model/coupling.py)."""
     c = tree.coupling
+    if c is None:
+        return []
     return [{"joint": tree.joints[i].name, "coordinate": tree.joints[c.independent[c.coordinate[i]]].name,
              "multiplier": c.multiplier[i], "offset": c.offset[i]} for i in c.followers()]
 

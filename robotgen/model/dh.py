@@ -96,6 +96,13 @@ def dh_modified_origin(row: DHParameters) -> np.ndarray:
     return exact.matmul(rot_x(row.alpha), trans(row.a, 0, 0), rot_z(row.theta), trans(0, 0, row.d))
 
 
+def _dh(row: JointRow) -> DHParameters:
+    """The row's DH parameters (a DH chain's rows all have them)."""
+    if row.dh is None:
+        raise ValueError(f"joint '{row.name}' of a DH chain has no DH row")
+    return row.dh
+
+
 def _joint(row: JointRow, index: int, origin: np.ndarray, axis: np.ndarray, body: Body) -> Joint:
     return Joint(
         name=row.name, type=row.type, parent=index - 1, origin=origin, axis=axis, body=body,
@@ -110,7 +117,7 @@ def dh_standard_chain(rows: Sequence[JointRow], base: np.ndarray,
     joints = []
     before = base  # P_{i-1}, with P_0 = base
     for i, row in enumerate(rows):
-        fixed = dh_standard_fixed(row.dh)
+        fixed = dh_standard_fixed(_dh(row))
         joints.append(_joint(row, i, before, Z_AXIS.copy(), body_in_frame(row.body, fixed)))
         before = fixed
     return tuple(joints), exact.matmul(before, tool)
@@ -120,7 +127,7 @@ def dh_modified_chain(rows: Sequence[JointRow], base: np.ndarray,
                       tool: np.ndarray) -> tuple[tuple[Joint, ...], np.ndarray]:
     """Canonical joints of a modified-DH chain (Craig's convention) after ``base``, and the tool."""
     joints = tuple(
-        _joint(row, i, exact.matmul(base if i == 0 else np.eye(4), dh_modified_origin(row.dh)), Z_AXIS.copy(),
+        _joint(row, i, exact.matmul(base if i == 0 else np.eye(4), dh_modified_origin(_dh(row))), Z_AXIS.copy(),
                row.body)
         for i, row in enumerate(rows))
     return joints, tool.copy()

@@ -12,6 +12,7 @@ import ast
 import math
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, replace
+from typing import Any
 
 from robotgen.errors import Location, UserError
 from robotgen.numeric import exact
@@ -99,16 +100,16 @@ class _Checker:
         column = self.origin[min(max(index, 0), len(self.origin) - 1)]
         return replace(self.location, col=self.location.col + column)
 
-    def index(self, byte_offset: int) -> int:
+    def index(self, byte_offset: int | None) -> int:
         """Character index in the prepared text of an ast byte offset."""
         return len(self.prepared.encode("utf-8")[:byte_offset].decode("utf-8", errors="ignore"))
 
-    def token_after(self, node: ast.AST, token: str) -> int:
+    def token_after(self, node: ast.expr, token: str) -> int:
         """Index of the first ``token`` after ``node`` (an operator, a dot, a bracket)."""
         found = self.prepared.find(token, self.index(node.end_col_offset))
         return found if found >= 0 else self.index(node.col_offset)
 
-    def fail(self, node: ast.AST, message: str) -> UserError:
+    def fail(self, node: ast.expr | ast.keyword, message: str) -> UserError:
         """Error at the token that makes ``node`` illegal."""
         if isinstance(node, ast.BinOp):
             start = self.index(node.left.end_col_offset)
@@ -122,7 +123,7 @@ class _Checker:
             index = self.index(node.col_offset)
         return UserError(self.at(index), message)
 
-    def check(self, node: ast.AST) -> None:
+    def check(self, node: ast.expr) -> None:
         if isinstance(node, ast.Constant):
             self.check_number(node)
         elif isinstance(node, ast.Name):
@@ -176,27 +177,34 @@ class _Checker:
     def text_of(self, node: ast.AST) -> str:
         return ast.get_source_segment(self.prepared, node) or ""
 
-    def check_constants(self, node: ast.AST) -> float | None:
+    def check_constants(self, node: ast.expr) -> float | None:
         """The value of ``node`` if it reads no variable (None otherwise), so that every
         constant part of a formula, which the build folds into one number, is a finite real
         number: 1/0, 10^400, exp(1000), sqrt(-1), log(0) are located errors, not NaN or
         infinite literals in the emitted C."""
         if isinstance(node, ast.Constant):
-            return float(node.value)
+            return _number(node)
         if isinstance(node, ast.Name):
             return CONSTANTS.get(node.id) if node.id not in self.allowed - set(CONSTANTS) else None
-        parts = [node.operand] if isinstance(node, ast.UnaryOp) else \
-            [node.left, node.right] if isinstance(node, ast.BinOp) else list(node.args)
-        values = [self.check_constants(part) for part in parts]
-        if any(v is None for v in values):
+        if isinstance(node, ast.UnaryOp):
+            parts = [node.operand]
+        elif isinstance(node, ast.BinOp):
+            parts = [node.left, node.right]
+        elif isinstance(node, ast.Call):
+            parts = list(node.args)
+        else:
+            raise TypeError(f"unchecked expression node {type(node).__name__}")
+        values = [v for v in (self.check_constants(part) for part in parts) if v is not None]
+        if len(values) < len(parts):
             return None
+        value: object
         try:
             if isinstance(node, ast.UnaryOp):
                 value = -values[0] if isinstance(node.op, ast.USub) else values[0]
             elif isinstance(node, ast.BinOp):
                 value = _FLOAT_BINARY[type(node.op)](*values)
             else:
-                value = _FLOAT_LIB[node.func.id](*values)
+                value = _FLOAT_LIB[_called(node)](*values)
         except (ArithmeticError, ValueError) as error:
             reason = "division by zero" if isinstance(error, ZeroDivisionError) else \
                 "too large" if isinstance(error, OverflowError) else "outside the function's domain"
@@ -224,6 +232,20 @@ _FLOAT_LIB: dict[str, Callable[..., float]] = {
 }
 
 
+def _number(node: ast.Constant) -> float:
+    """A checked number constant's value (Checker.check_number refused every other constant)."""
+    if isinstance(node.value, bool) or not isinstance(node.value, (int, float)):
+        raise TypeError(f"unchecked constant {node.value!r}")
+    return float(node.value)
+
+
+def _called(node: ast.Call) -> str:
+    """The name of the function a checked call calls (Checker.check_call refused every other callee)."""
+    if not isinstance(node.func, ast.Name):
+        raise TypeError(f"unchecked callee {type(node.func).__name__}")
+    return node.func.id
+
+
 def _describe(node: ast.AST) -> str:
     kinds = {
         ast.Attribute: "attribute access", ast.Subscript: "indexing", ast.Lambda: "lambda",
@@ -241,7 +263,7 @@ def _describe(node: ast.AST) -> str:
     return kinds.get(type(node), type(node).__name__)
 
 
-def parse_expression(text: str | int | float, location: Location, names: set[str], *,
+def parse_expression(text: object, location: Location, names: set[str], *,
                      exact_columns: bool = True) -> Expr:
     """Parse and check ``text``; names it may read are ``names`` plus pi and e.
 
@@ -292,17 +314,19 @@ def _function(lib: object, name: str) -> Callable[..., object] | None:
     return getattr(lib, name, None)
 
 
-def evaluate(expr: Expr, env: Mapping[str, object], lib: object) -> object:
+def evaluate(expr: Expr, env: Mapping[str, object], lib: object) -> Any:
     """Value of ``expr`` with names bound by ``env`` (pi and e default to math's).
 
     ``lib`` maps each name of ``FUNCTIONS`` to a callable, as a mapping or as attributes;
     an optional ``pow`` entry implements ``**`` and ``^`` (default: Python's ``**``).
-    Numbers enter as floats, so integer powers never grow into huge Python ints."""
+    Numbers enter as floats, so integer powers never grow into huge Python ints. The value is
+    whatever ``lib``'s functions and the operators make of floats and ``env``'s values (a float,
+    a CasADi SX, ...), hence Any."""
     power = _function(lib, "pow") or (lambda a, b: a ** b)
 
-    def visit(node: ast.AST) -> object:
+    def visit(node: ast.expr) -> Any:
         if isinstance(node, ast.Constant):
-            return float(node.value)
+            return _number(node)
         if isinstance(node, ast.Name):
             return env[node.id] if node.id in env else CONSTANTS[node.id]
         if isinstance(node, ast.UnaryOp):
@@ -321,9 +345,9 @@ def evaluate(expr: Expr, env: Mapping[str, object], lib: object) -> object:
                 return left / right
             return power(left, right)
         if isinstance(node, ast.Call):
-            function = _function(lib, node.func.id)
+            function = _function(lib, _called(node))
             if function is None:
-                raise KeyError(f"function library has no '{node.func.id}'")
+                raise KeyError(f"function library has no '{_called(node)}'")
             return function(*(visit(arg) for arg in node.args))
         raise TypeError(f"unchecked expression node {type(node).__name__}")
 

@@ -131,7 +131,12 @@ def rate_groups(system: RobotSystem) -> RateGroups | None:
     if not periods:
         return None
     fastest = min(periods.values())
-    ticks = {name: ticks_of(p, fastest) for name, p in periods.items()}
+    ticks: dict[str, int] = {}
+    for name, p in periods.items():
+        t = ticks_of(p, fastest)
+        if t is None:  # robotgen.frontend.rates refuses such a spec
+            raise ValueError(f"controller '{name}': period {p:g} s is not a whole multiple of {fastest:g} s")
+        ticks[name] = t
     distinct = sorted(set(ticks.values()))
     group_of = {name: distinct.index(t) for name, t in ticks.items()}
     by_group = [next(periods[n] for n in periods if group_of[n] == k) for k in range(len(distinct))]

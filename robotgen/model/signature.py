@@ -26,6 +26,7 @@ from robotgen.model.system import (
     PlanarBody,
     RobotSystem,
     SpatialBody,
+    leaf_of,
 )
 
 
@@ -97,7 +98,7 @@ def coordinate_units(system: RobotSystem, name: str) -> tuple[str, ...]:
     if isinstance(node, ControlNode):
         return coordinate_units(system, node.robot)[:sig.n_external] + internal
     c = node.constraint
-    payload = system.nodes[node.payload].leaf if node.payload else None
+    payload = system.leaf(node.payload) if node.payload else None
     if isinstance(payload, (PlanarBody, SpatialBody)):
         external = leaf_units(payload)
     elif c.kind == FRAME_CHANGE:
@@ -106,7 +107,7 @@ def coordinate_units(system: RobotSystem, name: str) -> tuple[str, ...]:
             below = system.nodes[r]
             while isinstance(below, ControlNode):
                 below = system.nodes[below.robot]
-            leaf = below.leaf
+            leaf = system.leaf(below.name)  # a frame change's robots are leaves under their controllers
             if isinstance(leaf, FormulaRobot):
                 external += tuple(leaf.units.get(o, "") for o in leaf.outputs)
             else:
@@ -156,6 +157,7 @@ def _attach_structure(system: RobotSystem, node: AttachNode) -> tuple[tuple[str,
     children = [signature(system, r) for r in node.robots]
     m = sum(c.n_external for c in children)
     c = node.constraint
+    external: tuple[str, ...]
     if c.kind == FRAME_CHANGE:
         external = ()
         for r in node.robots:
@@ -165,9 +167,11 @@ def _attach_structure(system: RobotSystem, node: AttachNode) -> tuple[tuple[str,
         n_forces = 0
     elif c.kind in CONTACT_GRASPS:
         grasp = CONTACT_GRASPS[c.kind]
-        payload = system.nodes[node.payload].leaf if node.payload else None
+        payload = system.leaf(node.payload) if node.payload else None
         if payload is None or len(leaf_coordinates(payload)) != grasp.pose_dim:
             raise SignatureError(f"{c.kind} on '{node.name}' needs a payload: {grasp.payload}")
+        if c.contacts is None:
+            raise SignatureError(f"{c.kind} on '{node.name}' needs its contact points")
         external = leaf_coordinates(payload)
         if m != grasp.tip_dim * len(c.contacts):
             raise SignatureError(f"attach '{node.name}': {len(c.contacts)} contacts need "
@@ -225,7 +229,7 @@ def angle_coordinates(system: RobotSystem, name: str) -> tuple[bool, ...]:
     n = signature(system, node.name).n_external
     if not isinstance(node, AttachNode):
         return (False,) * n
-    payload = system.nodes[node.payload].leaf if node.payload else None
+    payload = system.leaf(node.payload) if node.payload else None
     if node.constraint.kind == PLANAR_CONTACTS or isinstance(payload, PlanarBody):
         return (False, False, True) if n == 3 else (False,) * n
     if node.constraint.kind == POINT_CONTACTS or isinstance(payload, SpatialBody):
@@ -247,7 +251,7 @@ def has_position_inverse(system: RobotSystem, node: AttachNode) -> bool:
         below = system.nodes[r]
         while isinstance(below, ControlNode):
             below = system.nodes[below.robot]
-        leaves.append(getattr(below, "leaf", None))
+        leaves.append(leaf_of(below))
     return all(isinstance(leaf, FormulaRobot) and leaf.inverse_kinematics for leaf in leaves)
 
 

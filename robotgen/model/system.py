@@ -5,7 +5,9 @@ robots to a payload through a constraint, CONTROL puts a controller on a robot. 
 names its children; the tree is walked the same way at every level."""
 from __future__ import annotations
 
+from collections.abc import Iterator
 from dataclasses import dataclass, field
+from typing import TypeVar
 
 import numpy as np
 
@@ -127,7 +129,7 @@ class DefineNode:
     used as an ATTACH payload it has nil wr."""
 
     name: str
-    leaf: Leaf
+    leaf: Leaf | None  # None only inside the front end, for a URDF that failed to load (the spec is refused)
 
     primitive = "define"
 
@@ -208,6 +210,57 @@ class ControlNode:
         """The one robot it controls."""
         return (self.robot,)
 
+    @property
+    def hand_settings(self) -> ResolvedAccelerationSettings | AdaptiveSettings:
+        """A hand law's settings (a TypeError for another law)."""
+        if self.hand is None:
+            raise TypeError(f"{self.name!r} has no hand settings (law {self.law})")
+        return self.hand
+
+    @property
+    def acceleration(self) -> ResolvedAccelerationSettings:
+        """Law resolved_acceleration's settings (a TypeError for another law)."""
+        return narrowed(self.hand, ResolvedAccelerationSettings, f"the hand settings of {self.name!r}")
+
+    @property
+    def adaptive(self) -> AdaptiveSettings:
+        """Law resolved_adaptive's settings (a TypeError for another law)."""
+        return narrowed(self.hand, AdaptiveSettings, f"the hand settings of {self.name!r}")
+
+    @property
+    def chain_rate(self) -> RateControlSettings:
+        """Law resolved_rate's settings over a chain (a TypeError otherwise)."""
+        return narrowed(self.rate, RateControlSettings, f"the rate settings of {self.name!r}")
+
+    @property
+    def composite_rate(self) -> CompositeRateSettings:
+        """Law resolved_rate's settings over a composite robot (a TypeError otherwise)."""
+        return narrowed(self.rate, CompositeRateSettings, f"the rate settings of {self.name!r}")
+
+    @property
+    def rate_settings(self) -> RateControlSettings | CompositeRateSettings:
+        """Law resolved_rate's settings (a TypeError for another law)."""
+        if self.rate is None:
+            raise TypeError(f"{self.name!r} has no rate settings (law {self.law})")
+        return self.rate
+
+    @property
+    def impedance(self) -> ImpedanceSettings:
+        """Law impedance's settings (a TypeError for another law)."""
+        return narrowed(self.force, ImpedanceSettings, f"the force settings of {self.name!r}")
+
+    @property
+    def hybrid(self) -> HybridSettings:
+        """Law hybrid's settings (a TypeError for another law)."""
+        return narrowed(self.force, HybridSettings, f"the force settings of {self.name!r}")
+
+    @property
+    def force_settings(self) -> ImpedanceSettings | HybridSettings:
+        """A force law's settings (a TypeError for another law)."""
+        if self.force is None:
+            raise TypeError(f"{self.name!r} has no force settings (law {self.law})")
+        return self.force
+
     def internal_force_loop_problem(self, dt: float) -> str | None:
         """Why the internal-force PI loop is unstable at servo period ``dt`` (None: it is not, or
         there is no integral): its poles are inside the unit circle when ki_internal dt <
@@ -223,6 +276,28 @@ class ControlNode:
 
 
 Node = DefineNode | AttachNode | ControlNode
+_Kind = TypeVar("_Kind")
+
+
+def narrowed(value: object, kind: type[_Kind], what: str) -> _Kind:
+    """``value`` as a ``kind``; a TypeError naming ``what`` if it is not one (a caller's broken
+    invariant: the front end checked the spec's shape before any caller asks)."""
+    if not isinstance(value, kind):
+        raise TypeError(f"{what} is a {type(value).__name__}, not a {kind.__name__}")
+    return value
+
+
+def leaf_of(node: Node | None) -> Leaf | None:
+    """The leaf of a DEFINE node; None for an ATTACH or CONTROL node (or no node)."""
+    return node.leaf if isinstance(node, DefineNode) else None
+
+
+def under_controls(nodes: dict[str, Node], name: str) -> DefineNode | AttachNode:
+    """Node ``name`` itself, or what the chain of control nodes it heads controls."""
+    node = nodes[name]
+    while isinstance(node, ControlNode):
+        node = nodes[node.robot]
+    return node
 
 
 @dataclass(frozen=True, eq=False)
@@ -250,6 +325,34 @@ class RobotSystem:
         return self.nodes[self.root]
 
     @property
+    def root_control(self) -> ControlNode:
+        """The root node, a CONTROL node (a TypeError if it is not)."""
+        return self.control(self.root)
+
+    def define(self, name: str) -> DefineNode:
+        """Node ``name``, a DEFINE node (a TypeError if it is not)."""
+        return narrowed(self.nodes[name], DefineNode, f"node {name!r}")
+
+    def attach(self, name: str) -> AttachNode:
+        """Node ``name``, an ATTACH node (a TypeError if it is not)."""
+        return narrowed(self.nodes[name], AttachNode, f"node {name!r}")
+
+    def control(self, name: str) -> ControlNode:
+        """Node ``name``, a CONTROL node (a TypeError if it is not)."""
+        return narrowed(self.nodes[name], ControlNode, f"node {name!r}")
+
+    def leaf(self, name: str) -> Leaf:
+        """The robot or body of DEFINE node ``name``."""
+        leaf = self.define(name).leaf
+        if leaf is None:
+            raise TypeError(f"node {name!r} has no leaf (its URDF failed to load)")
+        return leaf
+
+    def tree(self, name: str) -> KinematicTree:
+        """The kinematic tree of DEFINE node ``name`` (a TypeError if its leaf is not a chain)."""
+        return narrowed(self.leaf(name), KinematicTree, f"the leaf of node {name!r}")
+
+    @property
     def is_single_leaf(self) -> bool:
         """Whether the system is one DEFINE leaf (a chain or formulas robot alone)."""
         return isinstance(self.root_node, DefineNode)
@@ -264,14 +367,14 @@ class RobotSystem:
     @property
     def is_rate_controlled(self) -> bool:
         """The root is a resolved-rate controller: joint rates out, not torques."""
-        return self.root_law is not None and self.root_node.rate is not None
+        return self.root_law is not None and self.root_control.rate is not None
 
     @property
     def rate_controls_composite(self) -> bool:
         """The root is a resolved-rate controller of a composite robot (an ATTACH tree)."""
-        return self.is_rate_controlled and isinstance(self.root_node.rate, CompositeRateSettings)
+        return self.is_rate_controlled and isinstance(self.root_control.rate, CompositeRateSettings)
 
-    def walk(self, name: str | None = None):
+    def walk(self, name: str | None = None) -> Iterator[Node]:
         """Nodes below ``name`` (default the root), children before parents."""
         node = self.nodes[name or self.root]
         for child in node.children:

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import csv
 import dataclasses
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -33,6 +34,8 @@ from robotgen.symbolic.rigid_body.chain import ChainGraphs, Symbols
 from robotgen.symbolic.rigid_body.rpy import rpy_of, rpy_rate_map, rpy_rotation
 from robotgen.symbolic.root_laws.hand import Hand
 
+# a plant's step: (payload stage, q, qd, tau) -> (q, qd) one period on
+PlantStep = Callable[[int, np.ndarray, np.ndarray, np.ndarray], tuple[np.ndarray, ...]]
 SETTLE_WINDOW = 1.0  # [s]: the RMS just after a change and at the end of the run
 
 
@@ -137,7 +140,7 @@ def comparison_system(system: RobotSystem) -> RobotSystem | None:
     """An adaptive controller's spec with resolved acceleration control at its root instead,
     with the same period and hand and that law's default gains: the reference its simulation
     compares against (None for resolved acceleration control itself)."""
-    node = system.root_node
+    node = system.root_control
     if not isinstance(node.hand, AdaptiveSettings):
         return None
     hand = ResolvedAccelerationSettings(node.hand.period, node.hand.tool, np.full(HAND_DOF, DEFAULT_KP),
@@ -159,30 +162,32 @@ def run(module, system: RobotSystem, s: SimulationSettings, comparison=None,
     """Every run of the spec's controller (``comparison``: the module of comparison_system,
     run too when the controller is adaptive), or those of ``keys`` (adaptive, frozen, rac),
     against ``plant`` (robotgen or mujoco)."""
-    node = system.root_node
-    tree = system.nodes[node.robot].leaf
-    hand = Hand(tree, node.hand.tool)
+    node = system.root_control
+    tree = system.tree(node.robot)
+    hand = Hand(tree, node.hand_settings.tool)
     q_sym = hand.sym.q
     R_sym, p_sym = hand.pose(q_sym)
     pose_f = ca.Function("pose", [q_sym], [R_sym, p_sym, rpy_of(R_sym)])
     rates_f = ca.Function("rates", [q_sym, hand.sym.qd], [hand.joint_rates(q_sym, hand.sym.qd)])
     q0 = np.asarray(s.theta0 if s.theta0 is not None else np.zeros(tree.nq), float)
-    hand_frame = exact.matmul(tree.tool, node.hand.tool)  # the hand in the last joint's frame
-    period = node.hand.period
+    hand_frame = exact.matmul(tree.tool, node.hand_settings.tool)  # the hand in the last joint's frame
+    period = node.hand_settings.period
     mjcf = note = None
+    step: PlantStep
     if plant == MUJOCO_PLANT:
         stages = [(0.0, np.zeros(3))] + [(c.mass, np.asarray(c.com, float)) for c in s.payload_changes]
-        model, step = chain_steps(system, module, period, q0, hand_frame, stages)
-        mjcf, note = model.xml, step.sim.note
+        model, chain_step = chain_steps(system, module, period, q0, hand_frame, stages)
+        mjcf, note, step = model.xml, chain_step.sim.note, chain_step
     else:
         plants = [rk4_step(tree, period)]
         for change in s.payload_changes:
             point = hand_frame[:3, 3] + hand_frame[:3, :3] @ np.asarray(change.com, float)
             plants.append(rk4_step(with_payload(tree, change.mass, point), period))
 
-        def step(stage, q, qd, tau):
+        def rk4_plant(stage: int, q: np.ndarray, qd: np.ndarray, tau: np.ndarray) -> tuple[np.ndarray, ...]:
             with np.errstate(all="ignore"):
                 return tuple(np.array(v).ravel() for v in plants[stage](q, qd, tau))
+        step = rk4_plant
     _, p0, rpy0 = (np.array(v) for v in pose_f(q0))
     trajectory = Trajectory(p0.ravel(), rpy0.ravel(), s.amplitude, s.frequency)
     steps = int(round(s.duration / period))
@@ -192,7 +197,8 @@ def run(module, system: RobotSystem, s: SimulationSettings, comparison=None,
     if note:
         result.plant_note = note
     if isinstance(node.hand, AdaptiveSettings):
-        setups = [("adaptive", "adaptive", module.AdaptiveController, True),
+        setups: list[tuple[str, str, type, bool | None]] = [
+            ("adaptive", "adaptive", module.AdaptiveController, True),
                   ("frozen", "identification frozen (adapt = False)", module.AdaptiveController, False)]
         if comparison is not None:
             setups.append(("rac", f"resolved acceleration (Kp = {DEFAULT_KP:g}, Kv = {DEFAULT_KV:g})",

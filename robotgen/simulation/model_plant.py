@@ -60,7 +60,9 @@ class ModulePlant:
         return self.module.plant_sensed_forces(self.theta, self.v, pushed, **self.masses) - (pushed - tau_before)
 
     def wall_force(self) -> float:
-        """The wall's normal force [N] on its point now."""
+        """The wall's normal force [N] on its point now (a TypeError without a wall)."""
+        if self.wall is None:
+            raise TypeError("the plant has no wall")
         return self.wall.normal_force(*self.sensed())
 
     def record(self, t: float) -> None:

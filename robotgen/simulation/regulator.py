@@ -16,7 +16,7 @@ from robotgen.model.signature import METRE, RADIAN
 from robotgen.model.simulation import MUJOCO_PLANT, ROBOTGEN_PLANT, SimulationSettings
 from robotgen.model.system import RobotSystem
 from robotgen.simulation.failures import DIVERGED, SimulationError, format_values
-from robotgen.simulation.hand import rk4_step
+from robotgen.simulation.hand import PlantStep, rk4_step
 from robotgen.simulation.mujoco.run import Diverged, chain_steps
 from robotgen.simulation.tree import Result
 from robotgen.simulation.tree import compare as compare  # its records are a tree run's
@@ -28,7 +28,7 @@ from robotgen.simulation.tree import write_csv as write_csv
 def refusal(system: RobotSystem) -> str | None:
     """Why ``robotgen simulate`` cannot run this resolved-rate controller: it outputs joint
     rates, so only a chain's regulator (lqr settings) is simulated."""
-    if system.rate_controls_composite or system.root_node.rate.lqr is None:
+    if system.rate_controls_composite or system.root_control.chain_rate.lqr is None:
         where = hint("python-api", "Resolved-rate controllers")
         return ("simulate runs torque controllers; a resolved_rate controller outputs joint rates (with lqr "
                 "settings its regulator's lqr_step is simulated): integrate its rate_step / position_step "
@@ -50,20 +50,25 @@ def simulate(module, system: RobotSystem, s: SimulationSettings, plant: str, com
 
 def run(module, system: RobotSystem, s: SimulationSettings, plant: str = ROBOTGEN_PLANT) -> tuple[Result, str | None]:
     """(the regulated run, the MuJoCo plant's MJCF or None)."""
-    tree = system.nodes[system.root_node.robot].leaf
-    nominal = np.asarray(system.root_node.rate.lqr.nominal, float)
+    tree = system.tree(system.root_control.robot)
+    lqr = system.root_control.chain_rate.lqr
+    if lqr is None:  # (refusal says so first)
+        raise TypeError("the regulator's simulation needs lqr settings")
+    nominal = np.asarray(lqr.nominal, float)
     q = np.asarray(s.theta0, float) if s.theta0 is not None else nominal.copy()
     qd = np.zeros_like(q)
     mjcf, note = None, "classical RK4 of the chain's forward dynamics, one step per period"
+    step: PlantStep
     if plant == MUJOCO_PLANT:
-        model, step = chain_steps(system, module, s.dt, q)
-        mjcf, note = model.xml, step.sim.note
+        model, chain_step = chain_steps(system, module, s.dt, q)
+        mjcf, note, step = model.xml, chain_step.sim.note, chain_step
     else:
         rk4 = rk4_step(tree, s.dt)
 
-        def step(stage, q, qd, tau):
+        def rk4_plant(stage: int, q: np.ndarray, qd: np.ndarray, tau: np.ndarray) -> tuple[np.ndarray, ...]:
             with np.errstate(all="ignore"):
                 return tuple(np.array(v).ravel() for v in rk4(q, qd, tau))
+        step = rk4_plant
     steps = int(round(s.duration / s.dt))
     T, Q, TAU = [], [], []
     for k in range(steps + 1):

@@ -16,6 +16,7 @@ from __future__ import annotations
 import csv
 import importlib
 import sys
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -26,6 +27,7 @@ from robotgen.model.simulation import ROBOTGEN_PLANT
 from robotgen.model.simulation import SimulationSettings as Settings
 from robotgen.simulation.failures import SimulationError, format_values
 from robotgen.simulation.model_plant import ModulePlant
+from robotgen.simulation.mujoco.contacts import ContactHistory
 
 # largest constraint residual |y - h^-1(h(y))| accepted at the start [m or rad]
 RESIDUAL_TOLERANCE = 1e-6
@@ -47,7 +49,7 @@ class Result:
     f_actual: np.ndarray | None = None  # (steps, k) the internal forces the plant carries
     f_commanded: np.ndarray | None = None  # (k,) their commands, NaN where none is known
     plant: str = ROBOTGEN_PLANT  # what the loop was closed around
-    contacts: object | None = None  # the MuJoCo plant's ContactHistory (robotgen.simulation.mujoco.contacts)
+    contacts: ContactHistory | None = None  # the MuJoCo plant's contacts over the run
     plant_note: str = ""  # how that plant steps
     wall_force: np.ndarray | None = None  # (steps,) the normal force the wall carries, with a wall
     wall_commanded: float = float("nan")  # the force written at the root, along the wall's normal
@@ -82,7 +84,8 @@ def desired(s: Settings, x0: np.ndarray, t: float):
     return x0 + a * np.sin(w * t), a * w * np.cos(w * t), -a * w * w * np.sin(w * t)
 
 
-def _start(module, s: Settings, rest: np.ndarray, n_ext: int) -> tuple[np.ndarray, np.ndarray, str | None]:
+def _start(module, s: Settings, rest: Sequence[float] | np.ndarray,
+           n_ext: int) -> tuple[np.ndarray, np.ndarray, str | None]:
     """(theta at t = 0, x_d(0), the field that chose theta or None for the rest posture)."""
     if s.theta0 is not None:
         theta = np.asarray(s.theta0, float)
@@ -122,7 +125,8 @@ def _check_constraints(module, theta: np.ndarray, source: str | None) -> None:
                           f"'{coordinate}' (y - h^-1(h(y)), largest of {format_values(r)}){advice}", source)
 
 
-def run(module, s: Settings, rest: np.ndarray | None = None, plant=ModulePlant, multirate: bool = False) -> Result:
+def run(module, s: Settings, rest: Sequence[float] | np.ndarray | None = None, plant=ModulePlant,
+        multirate: bool = False) -> Result:
     """The closed loop from the settings; ``rest`` is the leaf posture used when the
     settings give neither theta0 nor start; ``plant(module, theta, theta_dot, v, n_ext)``
     makes the plant it is closed around, given the settings' wall (set_wall) and its payloads'
@@ -191,7 +195,8 @@ def run(module, s: Settings, rest: np.ndarray | None = None, plant=ModulePlant, 
     for node in info["nodes"].values():
         commands.update(node.get("internal_force_setpoints", {}))
     on_root = bool(s.force) and s.wall is not None and info["nodes"][s.wall.node]["coordinates"] == root["coordinates"]
-    commanded = float(-f_e[:n_ext] @ np.asarray(s.wall.normal)) if on_root else float("nan")  # pushed into the wall
+    # pushed into the wall
+    commanded = float(-f_e[:n_ext] @ np.asarray(s.wall.normal)) if on_root and s.wall is not None else float("nan")
     return Result(np.array(T), np.array(X), np.array(XD), np.array(TAU), np.array(TH),
                   list(root["coordinates"]), list(root["units"][:n_ext]), joints, joint_units, names,
                   np.array(FI) if reads_forces else None,
@@ -231,7 +236,7 @@ def write_csv(result: Result, path: Path) -> None:
         for k in range(len(result.t)):
             row = ([f"{result.t[k]:.6f}"] + [f"{v:.10g}" for v in result.x[k]]
                    + [f"{v:.10g}" for v in result.x_d[k]] + [f"{v:.10g}" for v in result.tau[k]]
-                   + [f"{v:.10g}" for v in (result.f_actual[k] if fi else [])])
+                   + [f"{v:.10g}" for v in (result.f_actual[k] if fi and result.f_actual is not None else [])])
             if result.wall_force is not None:
                 row.append(f"{result.wall_force[k]:.10g}")
             row += [f"{v:.10g}" for v in (pose[k] if pose is not None else [])]
@@ -258,8 +263,8 @@ def plot(result: Result, path: Path, title: str) -> None:
     pose = result.payload_pose
     n_rows = (2 * len(groups) + len(force_groups) + (result.f_actual is not None) + 2 * (contacts is not None)
               + (result.wall_force is not None))
-    fig, axes = plt.subplots(n_rows, 1, figsize=(9, 2.3 * n_rows), sharex=True, squeeze=False)
-    axes = list(axes[:, 0])
+    fig, grid = plt.subplots(n_rows, 1, figsize=(9, 2.3 * n_rows), sharex=True, squeeze=False)
+    axes = list(grid[:, 0])
     colors = plt.rcParams["axes.prop_cycle"].by_key()["color"]
     for unit, indices in groups.items():
         ax = axes.pop(0)
@@ -288,7 +293,7 @@ def plot(result: Result, path: Path, title: str) -> None:
         ax.set_ylabel(f"{label}{_unit(unit)}")
         ax.legend(loc="upper right", fontsize=7, ncol=3)
         ax.grid(True, alpha=0.3)
-    if result.f_actual is not None:
+    if result.f_actual is not None and result.f_commanded is not None:  # (set together)
         ax = axes.pop(0)
         for n, name in enumerate(result.internal_forces):
             c = colors[n % len(colors)]
@@ -364,7 +369,7 @@ def _force_lines(result: Result) -> list[str]:
     if result.changes:
         lines.append("the plant's payload: " + ", ".join(f"{c.payload or 'hand'} {c.mass:g} kg from t = {c.at:g} s"
                                                          for c in result.changes))
-    if result.f_actual is not None and np.any(np.isfinite(result.f_commanded)):
+    if result.f_actual is not None and result.f_commanded is not None and np.any(np.isfinite(result.f_commanded)):
         lines.append("internal forces f - f_commanded (largest over the run, and at the end):")
         for n, name in enumerate(result.internal_forces):
             if np.isfinite(result.f_commanded[n]):

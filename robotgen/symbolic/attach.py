@@ -114,9 +114,10 @@ def _point_contacts(pts: np.ndarray, y: ca.SX, m: int):
         e3 = e3 / lib.norm_2(e3)
         return lib.horzcat(e1, lib.cross(e3, e1), e3)
 
-    body = np.array(ca.DM(triad(*(ca.DM(p) for p in pts[:3]), ca)))
+    c1, c2, c3 = (ca.DM(p) for p in pts[:3])
+    body = np.array(ca.DM(triad(c1, c2, c3, ca)))
     P = [y[3 * k:3 * k + 3] for k in range(3)]
-    R = triad(*P, ca) @ body.T
+    R = triad(P[0], P[1], P[2], ca) @ body.T
     p = P[0] - R @ ca.DM(pts[0])
     rpy = rpy_of(R)
     x = ca.vertcat(p, rpy)
@@ -138,18 +139,26 @@ def _point_contacts(pts: np.ndarray, y: ca.SX, m: int):
         H = gram_schmidt(squeezes)
     return x, ca.SX.eye(m), G, h_inverse, None, H
 
+def _kinematics(graph: NodeGraph) -> Callable[[str], ca.SX]:
+    """A frame change's robot's kinematic outputs (the front end refuses a robot without them)."""
+    if graph.leaf is None or graph.leaf.kinematics is None:
+        raise TypeError(f"'{graph.name}' has no kinematic outputs")
+    return graph.leaf.kinematics
+
+
 def _constraint(node: AttachNode, kids: list[NodeGraph], leaves: list[NodeGraph], y: ca.SX):
     """x = h(y), J, G, h^-1, and where the constraint fixes them, the null bases K of J
     (frame changes: block by block) and H of G (two contacts: the squeeze)."""
     c = node.constraint
     m = y.shape[0]
     if c.kind == FRAME_CHANGE:
-        outs = [lf.leaf.kinematics(c.output) for lf in leaves]
+        outs = [_kinematics(lf)(c.output) for lf in leaves]
         x = ca.vertcat(*outs)
         J = ca.jacobian(x, y)
         K = block_null_rows(J, [o.shape[0] for o in outs], [k.sig.n_external for k in kids])
-        inverses = [lf.leaf.inverse_kinematics for lf in leaves]
-        h_inverse = _stacked_map(inverses, [o.shape[0] for o in outs]) if all(inverses) else None
+        inverses = [lf.leaf.inverse_kinematics for lf in leaves if lf.leaf is not None]
+        known = [inverse for inverse in inverses if inverse is not None]
+        h_inverse = _stacked_map(known, [o.shape[0] for o in outs]) if len(known) == len(leaves) else None
         return x, J, ca.SX.eye(x.shape[0]), h_inverse, K, None
     if c.kind == PLANAR_CONTACTS:
         pts = np.asarray(c.contacts, dtype=float)

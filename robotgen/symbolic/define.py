@@ -44,11 +44,11 @@ def leaf_attributes(leaf, q: ca.SX, qd: ca.SX, values: Mapping[str, ca.SX] | Non
 
         return LeafAttributes(g.mass(), g.coriolis(), g.gravity() + g.friction(), tip, None)
     if isinstance(leaf, FormulaRobot):
-        g = FormulaGraphs(leaf, sym, values)
-        kin = (lambda output: g.kinematics()) if leaf.kinematics else None
+        fg = FormulaGraphs(leaf, sym, values)
+        kin = (lambda output: fg.kinematics()) if leaf.kinematics else None
         ik = (expression_map(leaf.inverse_kinematics, leaf.outputs, {**leaf.parameters, **values})
               if leaf.inverse_kinematics else None)
-        return LeafAttributes(g.mass(), g.coriolis(), g.n_term(qd), kin, ik)
+        return LeafAttributes(fg.mass(), fg.coriolis(), fg.n_term(qd), kin, ik)
     if isinstance(leaf, PlanarBody):
         if "mass" in values:
             m = values["mass"]
@@ -61,9 +61,9 @@ def leaf_attributes(leaf, q: ca.SX, qd: ca.SX, values: Mapping[str, ca.SX] | Non
     if isinstance(leaf, SpatialBody):
         R, E = rpy_rotation(q[3:6]), rpy_rate_map(q[3:6])
         RE = R.T @ E  # body-frame angular velocity per rpy rate
-        m = values.get("mass", leaf.mass)
-        M = ca.diagcat(m * ca.SX.eye(3), RE.T @ const(leaf.inertia) @ RE)
-        N = ca.vertcat(-m * const(leaf.gravity) if "mass" in values else const(-leaf.mass * leaf.gravity),
+        mass: ca.SX | float = values["mass"] if "mass" in values else leaf.mass
+        M = ca.diagcat(mass * ca.SX.eye(3), RE.T @ const(leaf.inertia) @ RE)
+        N = ca.vertcat(-mass * const(leaf.gravity) if "mass" in values else const(-leaf.mass * leaf.gravity),
                        ca.SX.zeros(3, 1))
         return LeafAttributes(M, coriolis_matrix(M, q, qd), N, None, None)
     raise TypeError(f"unknown leaf type {type(leaf).__name__}")

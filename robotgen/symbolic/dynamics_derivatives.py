@@ -15,6 +15,7 @@ import casadi as ca
 
 from robotgen.model.derivatives import RK4, SEMI_IMPLICIT_EULER
 from robotgen.symbolic.differentiation import reverse_jacobian
+from robotgen.symbolic.formulas import FormulaGraphs
 from robotgen.symbolic.kernel import row_major
 from robotgen.symbolic.op_count import count_operations
 from robotgen.symbolic.rigid_body.chain import ChainGraphs, Symbols
@@ -46,7 +47,7 @@ RECURSION_LOOPS_WITHIN = 1.1
 class DynamicsDerivatives:
     """Built on a leaf's graphs (ChainGraphs or FormulaGraphs) and their symbols."""
 
-    def __init__(self, graphs):
+    def __init__(self, graphs: ChainGraphs | FormulaGraphs) -> None:
         self.graphs = graphs
         self.sym: Symbols = graphs.sym
         s = self.sym
@@ -83,8 +84,8 @@ class DynamicsDerivatives:
         s = self.sym
         n = s.q.shape[0]
         b = ScheduleBuilder([s.q, s.qd, s.tau], [n * n] * 3)
-        if self._looped():
-            schedule_forward_dynamics_derivatives(b, self.graphs.tree, self.graphs.axes_and_inertias(), s.qd, s.tau,
+        if (chain := self._looped()) is not None:
+            schedule_forward_dynamics_derivatives(b, chain.tree, chain.axes_and_inertias(), s.qd, s.tau,
                                                   ((OUTPUT, 0), (OUTPUT, 1), (OUTPUT, 2)))
             return b
         factor = cholesky_factor(self.graphs.mass())  # forward_dynamics' own, after CSE
@@ -98,14 +99,15 @@ class DynamicsDerivatives:
     def discrete_dynamics_derivatives_schedule(self, integrator: str, dt: ca.SX) -> ScheduleBuilder | None:
         """Outputs (q+, qd+, A, B) of semi-implicit Euler as loops on a chain where forward
         dynamics' derivatives are (_looped); None otherwise (RK4 stays straight-line)."""
-        if integrator != SEMI_IMPLICIT_EULER or not self._looped():
+        chain = self._looped() if integrator == SEMI_IMPLICIT_EULER else None
+        if chain is None:
             return None
         s = self.sym
         n = s.q.shape[0]
         b = ScheduleBuilder([s.q, s.qd, s.tau, dt], [n, n, 4 * n * n, 2 * n * n])
         Q, QD, DT, EYE = b.local(s.q), b.local(s.qd), b.local(dt), b.local(ca.SX.eye(n))
         FQ, FQD, MINV = (b.local(size=n * n) for _ in range(3))
-        QDD = schedule_forward_dynamics_derivatives(b, self.graphs.tree, self.graphs.axes_and_inertias(), s.qd, s.tau,
+        QDD = schedule_forward_dynamics_derivatives(b, chain.tree, chain.axes_and_inertias(), s.qd, s.tau,
                                                     ((LOCAL, FQ), (LOCAL, FQD), (LOCAL, MINV)))
         # qd+ = qd + dt qdd, q+ = q + dt qd+; row i of A = [[I + dt^2 Fq, dt I + dt^2 Fqd], [dt Fq, I + dt Fqd]]
         # and of B = [dt^2 M^-1; dt M^-1]
@@ -125,9 +127,9 @@ class DynamicsDerivatives:
     def _inverse_into(self, b: ScheduleBuilder, qdd: ca.SX, dq: tuple[str, int], dqd: tuple[str, int]) -> None:
         """d tau/dq and d tau/dqd at ``qdd`` into two row-major arrays of ``b``: the recursion's
         pair loops on a serial chain, else straight-line in the prologue."""
-        g, s = self.graphs, self.sym
-        if self._looped():
-            schedule_rnea_derivatives(b, g.tree, g.axes_and_inertias(), s.qd, qdd, dq, dqd)
+        s = self.sym
+        if (chain := self._looped()) is not None:
+            schedule_rnea_derivatives(b, chain.tree, chain.axes_and_inertias(), s.qd, qdd, dq, dqd)
             return
         DQ, DQD = self._id(s.q, s.qd, qdd)
         b.prologue(Slice(*dq), row_major(DQ))
@@ -146,15 +148,15 @@ class DynamicsDerivatives:
         return self._large() or (isinstance(self.graphs, ChainGraphs) and count_operations(
             [s.q, s.qd, s.tau], list(self.forward_dynamics_derivatives()[1:]))["total"] > DERIVATIVE_LOOPS_ABOVE_OPS)
 
-    def _looped(self) -> bool:
-        """Whether the recursion's loops are used (derivative_loops): a large serial chain on
-        which the recursion has at most RECURSION_LOOPS_WITHIN times the sweeps' operations, and
-        no mimic joints (the recursion runs in the joints)."""
+    def _looped(self) -> ChainGraphs | None:
+        """The chain's graphs if the recursion's loops are used (derivative_loops), else None:
+        a large serial chain on which the recursion has at most RECURSION_LOOPS_WITHIN times the
+        sweeps' operations, and no mimic joints (the recursion runs in the joints)."""
         g = self.graphs
-        if not (self._large() and is_serial(g.tree) and g.tree.coupling is None):
-            return False
+        if not (self._large() and isinstance(g, ChainGraphs) and is_serial(g.tree) and g.tree.coupling is None):
+            return None
         recursion, sweeps = g.id_derivatives_counts()
-        return recursion <= RECURSION_LOOPS_WITHIN * sweeps
+        return g if recursion <= RECURSION_LOOPS_WITHIN * sweeps else None
 
     def mass_inverse(self) -> ca.SX:
         """M^-1 (n, n) by L D L^T solves of the identity."""

@@ -1,7 +1,7 @@
 """The hand-over between the symbolic layer and the emitters."""
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from functools import cached_property
 from typing import NamedTuple
@@ -112,7 +112,7 @@ class ParameterSymbols:
 NO_PARAMETERS = ParameterSymbols((), {})
 
 
-def make_kernel(name: str, doc: str, inputs: list[tuple], outputs: list[tuple[str, ca.SX | None, Shape]],
+def make_kernel(name: str, doc: str, inputs: Sequence[tuple], outputs: Sequence[tuple[str, ca.SX | None, Shape]],
                 parameters: ParameterSymbols = NO_PARAMETERS, *, guarded: bool = False,
                 schedule: ScheduleBuilder | None = None) -> Kernel:
     """The one way a kernel is built: ``inputs`` are (port name, SX column[, (rows, cols)
@@ -129,7 +129,7 @@ def make_kernel(name: str, doc: str, inputs: list[tuple], outputs: list[tuple[st
             assert expr.shape == shape, (name, port, expr.shape, shape)
 
     def columns() -> list[ca.SX]:
-        flat = schedule.outputs() if schedule is not None else None
+        flat = schedule.outputs() if schedule is not None else []  # (an output given as None has a schedule)
         return [flat[k] if e is None else row_major(e) for k, (_, e, _) in enumerate(outputs)]
     if parameters.parameters and any(ca.depends_on(e, parameters.vector) for e in columns()):
         inputs = [*inputs, parameters.port()]

@@ -3,6 +3,7 @@ M, C, N, inverse and forward dynamics and the fused servo terms, or a formulas l
 N and kinematics, each a CasADi Function with named ports."""
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import replace
 
 import casadi as ca
@@ -12,7 +13,7 @@ from robotgen.model.derivatives import SEMI_IMPLICIT_EULER, DerivativeSettings
 from robotgen.model.formula import FormulaRobot
 from robotgen.symbolic.dynamics_derivatives import DynamicsDerivatives
 from robotgen.symbolic.formulas import FormulaGraphs
-from robotgen.symbolic.kernel import NO_PARAMETERS, Kernel, Matrix, ParameterSymbols, make_kernel
+from robotgen.symbolic.kernel import NO_PARAMETERS, Kernel, Matrix, ParameterSymbols, Shape, make_kernel
 from robotgen.symbolic.op_count import count_operations
 from robotgen.symbolic.rigid_body.chain import ChainGraphs, Symbols
 from robotgen.symbolic.rigid_body.chain_loops import (
@@ -104,6 +105,7 @@ def leaf_kernels(leaf: KinematicTree | FormulaRobot, prefix: str = "",
     ``derivatives``: the spec's derivatives section (None: no derivative functions)."""
     n = leaf.nq
     sym = Symbols.make(n)
+    graphs: ChainGraphs | FormulaGraphs
     if isinstance(leaf, KinematicTree):
         graphs, table, k = ChainGraphs(leaf, sym), _CHAIN, 0
     else:
@@ -111,14 +113,14 @@ def leaf_kernels(leaf: KinematicTree | FormulaRobot, prefix: str = "",
         k = len(leaf.kinematics or ())
         if not k:
             del table["kinematics"], table["kinematics_jacobian"]
-    loops = ChainLoops(graphs.tree, graphs.axes_and_inertias) if isinstance(leaf, KinematicTree) else None
+    loops = ChainLoops(graphs.tree, graphs.axes_and_inertias) if isinstance(graphs, ChainGraphs) else None
     kernels = [
         (loops and _looped(loops, name, doc, inputs, _resolve(shape, n, k), lambda name=name: getattr(graphs, name)(),
                            sym, prefix, parameters))
         or _kernel(name, doc, inputs, _resolve(shape, n, k), getattr(graphs, name)(), sym, prefix, parameters)
         for name, (inputs, shape, doc) in table.items()
     ]
-    if isinstance(leaf, KinematicTree):
+    if isinstance(graphs, ChainGraphs):
         kernels.append(_servo_terms(graphs, sym, n, prefix, loops))
     if derivatives is not None and derivatives.included(n):
         kernels += _derivative_kernels(graphs, derivatives.integrator, n, prefix, parameters)
@@ -178,14 +180,12 @@ def _derivative_kernels(graphs, integrator: str, n: int, prefix: str, parameters
         state, [("q_next", q_next, (n, 1)), ("qd_next", qd_next, (n, 1))], parameters, guarded=True))
     step_schedule = d.discrete_dynamics_derivatives_schedule(integrator, dt)
     shapes = [(n, 1), (n, 1), Matrix(2 * n, 2 * n), Matrix(2 * n, n)]
-    if step_schedule is not None:
-        q_next, qd_next, A, B = None, None, None, None
-    else:
-        q_next, qd_next, A, B = d.discrete_dynamics_derivatives(integrator, dt)
+    step_outputs: Sequence[ca.SX | None] = ((None, None, None, None) if step_schedule is not None
+                                            else d.discrete_dynamics_derivatives(integrator, dt))
     kernels.append(make_kernel(
         prefix + "discrete_dynamics_derivatives",
         f"One step ({step}) and its Jacobians: q+, qd+, A = d(q+, qd+)/d(q, qd), B = d(q+, qd+)/d tau.",
-        state, [(name, x, shape) for name, x, shape in zip(("q_next", "qd_next", "A", "B"), (q_next, qd_next, A, B),
+        state, [(name, x, shape) for name, x, shape in zip(("q_next", "qd_next", "A", "B"), step_outputs,
                                                            shapes)],
         parameters, guarded=True, schedule=step_schedule))
     if isinstance(graphs, ChainGraphs):
@@ -205,9 +205,9 @@ def _servo_terms(graphs: ChainGraphs, sym: Symbols, n: int, prefix: str, loops: 
     if loops is not None and _long([sym.q, sym.qd], lambda: [o[1]() for o in outputs], n):
         schedule = ScheduleBuilder([sym.q, sym.qd], [n * n, n, 6 * n, 6])
         loops.servo_terms(schedule, sym.qd, graphs.jacobian(), graphs.jacobian_dot_qd())
-        outputs = [(name, None, shape) for name, _, shape in outputs]
+        built: list[tuple[str, ca.SX | None, Shape]] = [(name, None, shape) for name, _, shape in outputs]
     else:
-        outputs = [(name, build(), shape) for name, build, shape in outputs]
+        built = [(name, build(), shape) for name, build, shape in outputs]
     return make_kernel(prefix + "servo_terms", "M(q), C(q, qd) qd + N, the tip Jacobian J and Jdot qd in one "
                        "call: a computed-torque servo cycle's terms, sharing sin/cos and kinematics.",
-                       [("q", sym.q), ("qd", sym.qd)], outputs, schedule=schedule)
+                       [("q", sym.q), ("qd", sym.qd)], built, schedule=schedule)

@@ -23,6 +23,7 @@ neutral mode the plant never sees: only the modes observable from the plant's st
 count, the Kalman decomposition's observable part (Krylov subspace of the state rows)."""
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
 
 import casadi as ca
@@ -123,7 +124,7 @@ class TickMaps:
         self.size = o
         self._maps: dict[tuple[int, ...], tuple[ca.Function, ca.Function]] = {}
 
-    def _call(self, name: str, args: dict[str, ca.SX]) -> dict[str, ca.SX]:
+    def _call(self, name: str, args: Mapping[str, ca.SX | ca.DM]) -> dict[str, ca.SX]:
         kernel = self.kernels[name]
         values = [args[p.name] if p.name != PARAMS else self.values for p in kernel.inputs]
         return dict(zip((p.name for p in kernel.outputs), kernel.function.call(values)))
@@ -139,9 +140,11 @@ class TickMaps:
         tau_before = sum((part[f"tau_g{grp.index}"] for grp in self.groups.groups), ca.SX.zeros(self.n))
         new = dict(part)
         for k in due:
-            args = {"theta": theta, "theta_dot": theta_dot, **{key: ca.DM(val) for key, val in self.root.items()}}
+            args: dict[str, ca.SX | ca.DM] = {"theta": theta, "theta_dot": theta_dot,
+                                              **{key: ca.DM(val) for key, val in self.root.items()}}
             args.update({key: new[key] for key in new if key.startswith(HELD.format(""))})
-            args["state"] = new.get(f"state_g{k}")
+            if f"state_g{k}" in new:  # a group with a state
+                args["state"] = new[f"state_g{k}"]
             args["tau_sensed"] = self.sensed_forces(theta, v, tau_before)  # the last torques still applied
             out = self._call(STEP.format(k), args)
             new[f"tau_g{k}"] = out["tau"]
@@ -186,7 +189,7 @@ def operating_point(system: RobotSystem, maps: TickMaps) -> tuple[np.ndarray, np
     elif s.start is not None and maps.inverse is not None:
         theta = np.asarray(maps.inverse(s.start)).ravel()
     else:
-        theta = np.asarray(rest_posture([system.nodes[leaf].leaf for leaf in robot_leaves(system)]), float)
+        theta = np.asarray(rest_posture([system.leaf(leaf) for leaf in robot_leaves(system)]), float)
     return theta, np.asarray(maps.position(theta)).ravel()
 
 

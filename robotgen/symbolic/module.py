@@ -3,6 +3,8 @@
 robot tree's (robotgen.symbolic.system_kernels)."""
 from __future__ import annotations
 
+from robotgen.model.chain import KinematicTree
+from robotgen.model.formula import FormulaRobot
 from robotgen.model.laws.registry import LAWS
 from robotgen.model.parameter_struct import runtime_parameters
 from robotgen.model.rate_groups import multi_rate_groups
@@ -19,8 +21,11 @@ def kernels_for(system: RobotSystem) -> list[Kernel]:
     """Every function the module of ``system`` emits, as CasADi Functions with ports."""
     if system.is_single_leaf:
         parameters = ParameterSymbols.of(runtime_parameters(system))
-        return leaf_kernels(system.root_node.leaf, parameters=parameters,
-                            values=leaf_values(parameters, system.root_node), derivatives=system.derivatives)
+        root = system.define(system.root)
+        if not isinstance(root.leaf, (KinematicTree, FormulaRobot)):  # the front end refuses a lone payload
+            raise TypeError(f"a module of one leaf needs a robot; '{system.root}' is a {type(root.leaf).__name__}")
+        return leaf_kernels(root.leaf, parameters=parameters, values=leaf_values(parameters, root),
+                            derivatives=system.derivatives)
     if system.root_law is not None:
         return _root_law(system).kernels(system)
     return system_kernels(system)
@@ -46,4 +51,6 @@ def controllers_for(system: RobotSystem) -> list[Controller | MultiRate]:
 
 def _root_law(system: RobotSystem) -> RootLaw:
     """The symbolic part of the root's law (robotgen.model.laws.registry)."""
+    if system.root_law is None:
+        raise TypeError(f"the root '{system.root}' has no root law")
     return LAWS[system.root_law].part("kernels")

@@ -43,4 +43,12 @@ class NodeGraph:
     leaf: LeafAttributes | None = None
     attach: AttachMaps | None = None
 
+    @property
+    def maps(self) -> AttachMaps:
+        """An ATTACH node's maps (a TypeError for another node)."""
+        if self.attach is None:
+            raise TypeError(f"'{self.name}' is no ATTACH node")
+        return self.attach
+
+
 

@@ -8,7 +8,7 @@ import dataclasses
 import casadi as ca
 
 from robotgen.model.signature import constraint_residual_names, has_position_inverse, robot_leaves
-from robotgen.model.system import AttachNode, ControlNode, RobotSystem
+from robotgen.model.system import AttachNode, ControlNode, Node, RobotSystem
 from robotgen.symbolic.kernel import NO_PARAMETERS, ParameterSymbols
 from robotgen.symbolic.rigid_body.cholesky import cholesky_solve
 from robotgen.symbolic.rows import rows
@@ -20,10 +20,10 @@ def strip_controls(system: RobotSystem) -> RobotSystem:
 
     def through(name: str) -> str:
         while isinstance(system.nodes[name], ControlNode):
-            name = system.nodes[name].robot
+            name = system.control(name).robot
         return name
 
-    nodes = {}
+    nodes: dict[str, Node] = {}
     for name, node in system.nodes.items():
         if isinstance(node, ControlNode):
             continue
@@ -87,7 +87,10 @@ def constraint_residual(g: SystemGraphs) -> ca.SX:
         if isinstance(node, AttachNode) and has_position_inverse(g.system, node):
             graph = g.graph(node.name)
             y = ca.vertcat(*[g.graph(r).x for r in node.robots])
-            parts.append(y - graph.attach.h_inverse(graph.x))
+            maps = graph.attach
+            if maps is None or maps.h_inverse is None:  # has_position_inverse says it has one
+                raise TypeError(f"attach '{node.name}' has no position inverse")
+            parts.append(y - maps.h_inverse(graph.x))
     return ca.vertcat(*parts) if parts else ca.SX(0, 1)
 
 
@@ -111,7 +114,7 @@ def internal_forces(g: SystemGraphs, v: ca.SX, v_dot: ca.SX, leaf_v: ca.SX, tau:
         w = maps.A @ vel
         wdot = maps.A @ acc + on_plant(maps.Adot) @ vel
         row, rho = 0, []
-        for r in g.system.nodes[name].robots:
+        for r in g.system.attach(name).robots:
             child = g.graph(r)
             n = child.sig.n_velocity
             w_c, wdot_c = rows(w, row, row + n), rows(wdot, row, row + n)
@@ -126,8 +129,8 @@ def internal_forces(g: SystemGraphs, v: ca.SX, v_dot: ca.SX, leaf_v: ca.SX, tau:
             down(r, w_c, wdot_c)
             row += n
         if maps.n_created_forces:
-            J, rho = maps.J, ca.vertcat(*rho)
-            lam = ca.solve(J @ J.T, J @ rho)  # J^T lambda = rho (J has full row rank)
+            J, stacked = maps.J, ca.vertcat(*rho)
+            lam = ca.solve(J @ J.T, J @ stacked)  # J^T lambda = rho (J has full row rank)
             parts.append(maps.H @ lam)
 
     down(g.system.root, v, v_dot)
@@ -146,7 +149,7 @@ def _down_from(g: SystemGraphs, name: str, vel: ca.SX) -> ca.SX:
             return
         w = graph.attach.A @ val
         row = 0
-        for r in g.system.nodes[node].robots:
+        for r in g.system.attach(node).robots:
             n = g.graph(r).sig.n_velocity
             down(r, rows(w, row, row + n))
             row += n
@@ -170,7 +173,7 @@ def _to_leaves(g: SystemGraphs, value: ca.SX, step, share) -> ca.SX | None:
         if stacked is None:
             return False
         row = 0
-        for r in g.system.nodes[name].robots:
+        for r in g.system.attach(name).robots:
             n = share(g.graph(r).sig)
             if not down(r, rows(stacked, row, row + n)):
                 return False
@@ -184,7 +187,10 @@ def leaf_velocities(g: SystemGraphs, v: ca.SX) -> ca.SX:
     """Leaf joint rates for root velocity v: w = A v at each ATTACH, down to the leaves (the
     tree's velocity map, linear in v; also what a resolved-rate controller of a composite
     robot resolves its command through, robotgen.symbolic.root_laws.resolved_rate.composite)."""
-    return _to_leaves(g, v, lambda maps, vel: maps.A @ vel, lambda sig: sig.n_velocity)
+    rates = _to_leaves(g, v, lambda maps, vel: maps.A @ vel, lambda sig: sig.n_velocity)
+    if rates is None:  # (A v exists at every ATTACH)
+        raise TypeError("a velocity map is missing")
+    return rates
 
 
 def leaf_positions(g: SystemGraphs, x: ca.SX) -> ca.SX | None:

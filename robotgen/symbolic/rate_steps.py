@@ -46,7 +46,7 @@ class HeldLayout:
 
     def vector(self, t: Trajectory) -> ca.SX:
         """A trajectory as the held vector."""
-        return ca.vertcat(*([t.x] if self.n_x else []), t.v, t.a, t.F, t.Fi)
+        return ca.vertcat(*([t.x] if self.n_x and t.x is not None else []), t.v, t.a, t.F, t.Fi)
 
     def trajectory(self, held: ca.SX) -> Trajectory:
         """The trajectory a held vector holds."""

@@ -12,6 +12,7 @@ differ. Adding a loop only checks that what it reads was written: a build prints
 never needs the flattened graph, which takes a large tree's build noticeable time."""
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import casadi as ca
@@ -133,9 +134,12 @@ class ScheduleBuilder:
     def __post_init__(self):
         self._outputs = [[None] * size for size in self.output_sizes]
 
-    def local(self, values: ca.SX | None = None, size: int | None = None) -> int:
+    def local(self, values: ca.SX | ca.DM | None = None, size: int | None = None) -> int:
         """A local array, filled by the prologue with ``values`` or left for loops to write."""
-        size = values.numel() if values is not None else size
+        if values is not None:
+            size = values.numel()
+        if size is None:
+            raise TypeError("a local array needs its values or its size")
         self._locals.append([None] * size)
         index = len(self._locals) - 1
         if values is not None:
@@ -169,7 +173,7 @@ class ScheduleBuilder:
         self._flat = None
 
     def loop(self, body: ca.Function, space: str, n: int, reads: list[Slice], writes: list[Slice],
-             pairs: list[tuple[int, int]] = ()) -> None:
+             pairs: Sequence[tuple[int, int]] = ()) -> None:
         """Add a loop, checking that every element it reads was written before."""
         loop = Loop(body, space, n, tuple(reads), tuple(writes), tuple(pairs))
         if (space == PAIRS) != bool(pairs):
@@ -215,7 +219,8 @@ class ScheduleBuilder:
     def _flatten(self) -> list[ca.SX]:
         """The stages' symbols and the prologue's values (which only go to elements no loop
         wrote before them), then the loops in order."""
-        arrays = ([[None] * len(a) for a in self._locals], [[None] * size for size in self.output_sizes])
+        arrays: tuple[list[list[ca.SX | None]], list[list[ca.SX | None]]] = (
+            [[None] * len(a) for a in self._locals], [[None] * size for size in self.output_sizes])
         for st in self._stages:
             for symbol, index in zip(st.symbols, st.arrays):
                 arrays[0][index] = [symbol[e] for e in range(symbol.numel())]

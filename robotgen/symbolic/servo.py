@@ -52,7 +52,7 @@ def state_blocks(graphs: SystemGraphs, name: str) -> list[tuple[ControlNode, str
         if not isinstance(n, ControlNode):
             continue
         law = tree_law(n.law)
-        if law.stateful:
+        if law.state is not None:  # (law.stateful)
             out.append((n, LAW_STATE, law.state(graphs.graph(n.robot))))
         if n.ki_internal is not None:
             out.append((n, FORCE_INTEGRAL, ca.SX.zeros(graphs.graph(n.robot).sig.n_internal_forces)))
@@ -150,6 +150,8 @@ class Servo:
         out = law.write(Command(child, v_d, a_d, F_d, feedback, position_error, t.x, state, self.dt, node,
                                 parameters, lambda: self.sensed(node.robot)))
         if law.stateful:
+            if out.next_state is None:
+                raise TypeError(f"law {node.law} keeps a state and wrote no next one")
             self.next_state[node.name, LAW_STATE] = out.next_state
         self.write(node.robot, Trajectory(out.x, out.v, out.a, out.F, Fi))
 
@@ -175,7 +177,7 @@ class Servo:
     # -- ATTACH ----------------------------------------------------------------------
     def _attach(self, node: AttachNode, t: Trajectory) -> None:
         g = self.g.graph(node.name)
-        maps = g.attach
+        maps = g.maps
         ne, m1, f1 = g.sig.n_external, maps.n_created_motions, maps.n_created_forces
         w = maps.A @ t.v  # eq 3.8: children velocities
         wa = maps.A @ t.a + maps.Adot @ t.v  # and accelerations
@@ -210,7 +212,7 @@ class Servo:
                 F, Fi = self.sensed(node.robot)
                 out = (rows(F, 0, sig.n_velocity), Fi if sig.n_internal_forces else ca.SX(0, 1))
             else:
-                maps = self.g.graph(name).attach
+                maps = self.g.graph(name).maps
                 parts = [self.sensed(r) for r in node.robots]
                 kids = [self.g.graph(r).sig for r in node.robots]
                 tau_e = ca.vertcat(*[rows(F, 0, k.n_external) for (F, _), k in zip(parts, kids)])

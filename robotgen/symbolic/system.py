@@ -11,8 +11,18 @@ from __future__ import annotations
 import casadi as ca
 import numpy as np
 
+from robotgen.model.formula import FormulaRobot
 from robotgen.model.signature import robot_leaves, signature
-from robotgen.model.system import AttachNode, ControlNode, DefineNode, RobotSystem
+from robotgen.model.system import (
+    AttachNode,
+    ControlNode,
+    DefineNode,
+    Leaf,
+    PlanarBody,
+    RobotSystem,
+    SpatialBody,
+    under_controls,
+)
 from robotgen.symbolic.attach import attach_graph
 from robotgen.symbolic.control.tree_laws import tree_law
 from robotgen.symbolic.define import leaf_attributes
@@ -29,7 +39,7 @@ class SystemGraphs:
         self.system = system
         self.parameters = parameters
         self.leaves = robot_leaves(system)
-        sizes = [system.nodes[n].leaf.nq for n in self.leaves]
+        sizes = [system.leaf(n).nq for n in self.leaves]
         self.offsets = dict(zip(self.leaves, np.cumsum([0] + sizes[:-1]).tolist()))
         self.sizes = dict(zip(self.leaves, sizes))
         self.n = int(sum(sizes))
@@ -56,10 +66,7 @@ class SystemGraphs:
 
     def underlying_leaf(self, name: str) -> NodeGraph:
         """The graphs of the leaf or ATTACH node below any controllers of ``name``."""
-        node = self.system.nodes[name]
-        while isinstance(node, ControlNode):
-            node = self.system.nodes[node.robot]
-        return self.graph(node.name)
+        return self.graph(under_controls(self.system.nodes, name).name)
 
     def _define(self, node: DefineNode) -> NodeGraph:
         s = self.leaf_slice(node.name)
@@ -75,12 +82,17 @@ class SystemGraphs:
         return NodeGraph(node.name, sig, child.x, v, M, C, N)
 
     def _attach(self, node: AttachNode) -> NodeGraph:
-        payload = self.system.nodes[node.payload] if node.payload else None
+        payload = self.system.define(node.payload) if node.payload else None
         return attach_graph(node, signature(self.system, node.name), [self.graph(r) for r in node.robots],
-                            [self.underlying_leaf(r) for r in node.robots], payload and payload.leaf,
+                            [self.underlying_leaf(r) for r in node.robots], payload.leaf if payload else None,
                             self.theta, self.theta_dot, leaf_values(self.parameters, payload) if payload else {})
 
 
 def leaf_values(parameters: ParameterSymbols, node: DefineNode) -> dict[str, ca.SX]:
     """A leaf's run-time parameters as symbols, by their name in the leaf."""
-    return {key: parameters.symbols[f"{node.name}_{key}"] for key in getattr(node.leaf, "runtime", ())}
+    return {key: parameters.symbols[f"{node.name}_{key}"] for key in _runtime(node.leaf)}
+
+
+def _runtime(leaf: Leaf | None) -> frozenset[str]:
+    """The names of a leaf's run-time parameters (a chain has none)."""
+    return leaf.runtime if isinstance(leaf, (FormulaRobot, PlanarBody, SpatialBody)) else frozenset()

@@ -36,11 +36,30 @@ def test_the_quick_sample_exists_and_spans_the_layers():
     assert 300 <= count < everything, (count, everything)
 
 
-@pytest.mark.skipif(shutil.which("make") is None, reason="needs make")
-def test_make_test_quick_runs_lint_then_the_sample():
-    plan = subprocess.run(["make", "--no-print-directory", "-n", "test-quick", "PYTHON=python"], capture_output=True,
+LINT = ["python -m ruff check .", "python -m mypy"]  # mypy's files and settings: pyproject.toml [tool.mypy]
+
+
+def plan_of(target: str) -> list[str]:
+    """The commands ``make -n target`` would run."""
+    plan = subprocess.run(["make", "--no-print-directory", "-n", target, "PYTHON=python"], capture_output=True,
                           text=True, cwd=ROOT)  # run from make test, make would name the directory it enters
     assert plan.returncode == 0, plan.stderr
-    lines = plan.stdout.splitlines()
-    assert lines[0] == "python -m ruff check ."
-    assert lines[1].split() == ["python", "-m", "pytest", "-q", *quick_tests()]
+    return plan.stdout.splitlines()
+
+
+@pytest.mark.skipif(shutil.which("make") is None, reason="needs make")
+def test_make_lint_runs_ruff_then_mypy():
+    assert plan_of("lint") == LINT
+
+
+@pytest.mark.skipif(shutil.which("make") is None, reason="needs make")
+def test_make_test_quick_runs_lint_then_the_sample():
+    lines = plan_of("test-quick")
+    assert lines[:len(LINT)] == LINT
+    assert lines[len(LINT)].split() == ["python", "-m", "pytest", "-q", *quick_tests()]
+    assert len(lines) == len(LINT) + 1, lines
+
+
+@pytest.mark.skipif(shutil.which("make") is None, reason="needs make")
+def test_make_test_runs_lint_then_the_suite():
+    assert plan_of("test") == [*LINT, "python -m pytest -q"]

@@ -8,8 +8,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from robotgen.frontend.collector import Collector
-from robotgen.frontend.control.node import gain_form
+from robotgen.frontend.control.node import ControlReader, gain_form
 from robotgen.frontend.document import Path
 from robotgen.frontend.schema_types import closed_object, number
 from robotgen.model.laws.force import (
@@ -50,7 +49,7 @@ HYBRID_SCHEMA = closed_object(
     ("selection",))
 
 
-class ForceLawReader(Collector):
+class ForceLawReader(ControlReader):
     """Laws impedance and hybrid."""
 
     def check_impedance(self, system: RobotSystem, node: ControlNode, spec: dict, robot: Signature) -> ControlNode:
@@ -62,7 +61,8 @@ class ForceLawReader(Collector):
         return self.check_force_law(node, spec, robot, self.hybrid_settings)
 
     def check_force_law(self, node: ControlNode, spec: dict, robot: Signature,
-                        read: Callable[[Path, dict, ControlNode, Signature], object | None]) -> ControlNode:
+                        read: Callable[[Path, dict, ControlNode, Signature],
+                                       ImpedanceSettings | HybridSettings | None]) -> ControlNode:
         """A force law's node: its robot without internal motions, its block present, then
         ``read`` (the block's path, the block, the node, the robot) for the settings (None
         where they are wrong)."""

@@ -8,7 +8,7 @@ from collections.abc import Callable
 import numpy as np
 
 from robotgen.documentation import hint
-from robotgen.frontend.collector import Collector
+from robotgen.frontend.control.node import ControlReader
 from robotgen.frontend.document import Path
 from robotgen.frontend.schema_types import closed_object, number, weight_matrix, weights
 from robotgen.model.chain import KinematicTree, mimic_joints
@@ -26,7 +26,13 @@ from robotgen.model.laws.hand import (
 )
 from robotgen.model.parameters import Bounds
 from robotgen.model.signature import Signature
-from robotgen.model.system import GAIN_MODES, RUNTIME_GAINS, ControlNode, RobotSystem
+from robotgen.model.system import (
+    GAIN_MODES,
+    RUNTIME_GAINS,
+    ControlNode,
+    RobotSystem,
+    leaf_of,
+)
 
 # defaults (docs/spec-format.md): a 1 kHz servo; Kp, Kv critically damped at 20 rad/s
 DEFAULT_PERIOD = 1e-3
@@ -84,7 +90,7 @@ RESOLVED_ADAPTIVE_SCHEMA = closed_object(
                "description": "runtime (default) or folded q, r or torque_weight, forgetting"}})
 
 
-class HandLawReader(Collector):
+class HandLawReader(ControlReader):
     """Laws resolved_acceleration and resolved_adaptive."""
 
     def check_acceleration_control(self, system: RobotSystem, node: ControlNode, spec: dict,
@@ -98,13 +104,14 @@ class HandLawReader(Collector):
         return self.check_hand_control(system, node, spec, robot, self.adaptive_settings)
 
     def check_hand_control(self, system: RobotSystem, node: ControlNode, spec: dict, robot: Signature,
-                           read: Callable[[Path, dict, float, np.ndarray, bool], object]) -> ControlNode:
+                           read: Callable[[Path, dict, float, np.ndarray, bool],
+                                          ResolvedAccelerationSettings | AdaptiveSettings]) -> ControlNode:
         """A hand law's node: the root, over a 6-joint chain without mimic joints; its period,
         tool and gain mode, then ``read`` (the block's path, the block, those three) for the
         rest of its settings."""
         path: Path = ("nodes", node.name, "control")
         law = node.law
-        chain = getattr(system.nodes[node.robot], "leaf", None)
+        chain = leaf_of(system.nodes[node.robot])
         if not isinstance(chain, KinematicTree):
             self.at_value(path + ("robot",), f"law {law} controls a chain or urdf leaf; '{node.robot}' is a "
                                              f"{system.nodes[node.robot].primitive} node")
@@ -179,13 +186,13 @@ class HandLawReader(Collector):
     def initial_covariance(self, path: Path, value: object) -> tuple[float, float, float]:
         """P_0's blocks on A's, B's and c's regressors: one positive number for all, or a
         mapping with any of A, B, c (the others keep their defaults)."""
-        if value is None:
-            return tuple(DEFAULT_INITIAL_COVARIANCE[k] for k in COVARIANCE_BLOCKS)
-        if not isinstance(value, dict):
+        if not isinstance(value, dict) and value is not None:
             v = self.constant(path, value, minimum=0.0, exclusive=True)
             return (v, v, v)
-        return tuple(self.constant(path + (k,), value[k], minimum=0.0, exclusive=True) if k in value
-                     else DEFAULT_INITIAL_COVARIANCE[k] for k in COVARIANCE_BLOCKS)
+        given = value or {}
+        a, b, c = (self.constant(path + (k,), given[k], minimum=0.0, exclusive=True) if k in given
+                   else DEFAULT_INITIAL_COVARIANCE[k] for k in COVARIANCE_BLOCKS)
+        return (a, b, c)
 
     def weight_matrix(self, path: Path, value: object, n: int, bounds: Bounds, groups: int | None = None
                       ) -> np.ndarray:

@@ -19,6 +19,7 @@ from robotgen.model.system import (
     PAYLOAD_BODIES,
     RUNTIME_GAINS,
     ControlNode,
+    DefineNode,
     RobotSystem,
 )
 
@@ -34,7 +35,7 @@ class ControlReader(Collector):
         """The node without its gains (they need the robot's dimension: ``control_gains``)."""
         forces = spec.get("internal_forces")
         return ControlNode(
-            name=name, robot=spec["robot"], law=spec["law"], kp=None, kv=None,
+            name=name, robot=spec["robot"], law=spec["law"], kp=np.zeros((0, 0)), kv=np.zeros((0, 0)),  # read later
             kv_internal=self.bounded(path + ("kv_internal",), spec["kv_internal"], DAMPING)
             if "kv_internal" in spec else 0.0,
             internal_forces=None if forces is None else
@@ -63,7 +64,7 @@ class ControlReader(Collector):
                                                f"{law.name})")
             return law.part("settings")(self, system, node, spec, robot)
         target = system.nodes[node.robot]
-        if isinstance(getattr(target, "leaf", None), PAYLOAD_BODIES):
+        if isinstance(target, DefineNode) and isinstance(target.leaf, PAYLOAD_BODIES):
             self.at_value(path + ("robot",), f"'{node.robot}' is a rigid_body, a payload without actuators; "
                                              "it cannot be controlled")
         n = robot.n_external
@@ -108,7 +109,7 @@ class ControlReader(Collector):
             elif not robot.internal_motions:
                 self.at_key(path + ("resolve_internal_motion",), f"robot '{node.robot}' has no internal motions "
                                                                  "to resolve")
-        forms = tuple(gain_form(spec.get(key, 0)) for key in ("kp", "kv"))
+        forms = (gain_form(spec.get("kp", 0)), gain_form(spec.get("kv", 0)))
         node = dataclasses.replace(node, kp=gains["kp"], kv=gains["kv"], gain_forms=forms)
         if law.settings is not None:
             return law.part("settings")(self, system, node, spec, robot)

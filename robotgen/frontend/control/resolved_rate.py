@@ -9,7 +9,7 @@ import dataclasses
 import numpy as np
 
 from robotgen.documentation import hint
-from robotgen.frontend.collector import Collector
+from robotgen.frontend.control.node import ControlReader
 from robotgen.frontend.document import Path, format_path
 from robotgen.frontend.schema_types import closed_object, number, vector3
 from robotgen.model.chain import KinematicTree, mimic_joints
@@ -41,9 +41,10 @@ from robotgen.model.signature import (
     robot_leaves,
 )
 from robotgen.model.system import (
-    AttachNode,
     ControlNode,
+    DefineNode,
     RobotSystem,
+    under_controls,
 )
 
 SCHEMA = closed_object(
@@ -103,7 +104,7 @@ SCHEMA = closed_object(
          ("nominal",))})
 
 
-class ResolvedRateReader(Collector):
+class ResolvedRateReader(ControlReader):
     """Law resolved_rate's settings."""
 
     def check_rate_control(self, system: RobotSystem, node: ControlNode, spec: dict, robot: Signature) -> ControlNode:
@@ -111,11 +112,10 @@ class ResolvedRateReader(Collector):
         robot (an attach node, possibly under control nodes)."""
         path: Path = ("nodes", node.name, "control")
         target = system.nodes[node.robot]
-        chain = getattr(target, "leaf", None)
-        below = self.leaf_below(system.nodes, node.robot)
-        composite = isinstance(below, AttachNode)
-        if not isinstance(chain, KinematicTree) and not composite:
-            leaf = type(getattr(below, "leaf", None)).__name__
+        chain = target.leaf if isinstance(target, DefineNode) else None
+        below = under_controls(system.nodes, node.robot)
+        if not isinstance(chain, KinematicTree) and isinstance(below, DefineNode):
+            leaf = type(below.leaf).__name__
             what = (f"a {leaf} leaf" if below is target else f"a control node over the {leaf} leaf '{below.name}'")
             self.at_value(path + ("robot",), f"law resolved_rate controls a chain or urdf leaf, or a composite "
                                              f"robot (an attach node, possibly under control nodes); "
@@ -129,10 +129,11 @@ class ResolvedRateReader(Collector):
         if not self.must_be_root(system, node):
             return node
         settings = spec.get(node.law, {})
-        if composite:
-            rate = self.composite_rate_settings(path + (node.law,), settings, system, node.robot, robot)
-        else:
+        rate: RateControlSettings | CompositeRateSettings
+        if isinstance(chain, KinematicTree):  # (then the robot is no composite)
             rate = self.rate_settings(path + (node.law,), settings, chain)
+        else:
+            rate = self.composite_rate_settings(path + (node.law,), settings, system, node.robot, robot)
         n = robot.n_external
         return dataclasses.replace(node, kp=np.zeros((n, n)), kv=np.zeros((n, n)), rate=rate)
 
@@ -146,14 +147,16 @@ class ResolvedRateReader(Collector):
                                            f"command is its velocity in its own coordinates "
                                            f"({', '.join(robot.velocity_names)}) and the leaves' rates come from the "
                                            f"tree's velocity map (settings here: {', '.join(COMPOSITE_KEYS)})")
-        leaves = [system.nodes[leaf].leaf for leaf in robot_leaves(system, name)]
+        leaves = [system.leaf(leaf) for leaf in robot_leaves(system, name)]
         n = sum(leaf.nq for leaf in leaves)
+        rate_limits: np.ndarray | None
         if "rate_limits" in spec:
             rate_limits = self.per_joint(path + ("rate_limits",), spec["rate_limits"], n, "rate limit", positive=True)
         else:
             # the joints' velocity limits, when every leaf is a chain and every joint has one
             chains = all(isinstance(leaf, KinematicTree) for leaf in leaves)
-            velocities = [j.limits.velocity for leaf in leaves for j in leaf.coordinate_joints] if chains else []
+            velocities = [j.limits.velocity for leaf in leaves if isinstance(leaf, KinematicTree)
+                          for j in leaf.coordinate_joints] if chains else []
             limited = chains and all(v is not None and v > 0 for v in velocities)
             rate_limits = np.array(velocities, dtype=float) if limited else None
         return CompositeRateSettings(

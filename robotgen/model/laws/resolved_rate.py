@@ -19,6 +19,7 @@ damping, rate limits, the horizon and the arrival apply (``CompositeRateSettings
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -75,6 +76,22 @@ class CommandFrame:
         """The command frame's axis names."""
         return AXIS_NAMES[self.kind]
 
+    @property
+    def tool_pose(self) -> np.ndarray:
+        """The held tool's (4, 4) pose in the hand frame (frame tool; a TypeError for another frame)."""
+        if self.tool is None:
+            raise TypeError(f"a {self.kind} command frame holds no tool")
+        return self.tool
+
+    @property
+    def centre(self) -> np.ndarray:
+        """The (3,) eye or centre in base coordinates [m] (frames line_of_sight and spherical; a
+        TypeError for another frame)."""
+        if self.point is None:
+            raise TypeError(f"a {self.kind} command frame has no point")
+        return self.point
+
+
 
 @dataclass(frozen=True)
 class Redundancy:
@@ -94,7 +111,7 @@ class Redundancy:
 
     def summary(self) -> dict:
         """The settings as info() reports them."""
-        out = {"method": self.method, "objective": self.objective, "gain": self.gain}
+        out: dict[str, Any] = {"method": self.method, "objective": self.objective, "gain": self.gain}
         if self.joint_weights is not None:
             out["joint_weights"] = list(self.joint_weights)
         return out
@@ -161,7 +178,7 @@ class RateControlSettings:
     def summary(self) -> dict:
         """Plain data for info() and the manifest."""
         names = self.frame.axis_names
-        out = {
+        out: dict[str, Any] = {
             "frame": self.frame.kind,
             "axes": list(names),
             "active": [n for n, a, f in zip(names, self.active, self.free) if a and not f],

@@ -154,8 +154,8 @@ class ContactHistory:
         settled = self.settled() if self.settled().any() else np.ones(len(self.t), bool)
         normal = self.array("normal")[settled]
         usage, slip, slid = self.worst_usage(), self.largest_slip(), self.array("sliding")[-1]
-        for i, c in enumerate(self.contacts):
-            lines.append(f"  {c.name:>10} {c.leaf:>10} {usage[i]:19.4f} {normal[:, i].min():12.4f} "
+        for i, contact in enumerate(self.contacts):
+            lines.append(f"  {contact.name:>10} {contact.leaf:>10} {usage[i]:19.4f} {normal[:, i].min():12.4f} "
                          f"{normal[:, i].max():12.4f} {1e3 * slip[i]:10.4f} {1e3 * slid[i]:10.4f} "
                          f"{100 * opened[i]:5.1f}%")
         return lines

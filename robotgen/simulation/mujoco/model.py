@@ -69,11 +69,12 @@ from robotgen.model.system import (
     PLANAR_CONTACTS,
     PLANAR_OUTPUT,
     AttachNode,
-    ControlNode,
     DefineNode,
     PlanarBody,
     RobotSystem,
     SpatialBody,
+    leaf_of,
+    under_controls,
 )
 
 FINGERTIP_RADIUS = 0.001  # [m] each fingertip's sphere
@@ -170,12 +171,17 @@ class PlantModel:
         return sum(leaf.T.shape[0] for leaf in self.leaves)
 
 
-def below_controls(system: RobotSystem, name: str):
+def below_controls(system: RobotSystem, name: str) -> DefineNode | AttachNode:
     """The leaf or ATTACH node below any controllers of ``name``."""
-    node = system.nodes[name]
-    while isinstance(node, ControlNode):
-        node = system.nodes[node.robot]
-    return node
+    return under_controls(system.nodes, name)
+
+
+def _element(world: ET.Element, path: str) -> ET.Element:
+    """The element at ``path`` of the model being written (written before it is looked for)."""
+    found = world.find(path)
+    if found is None:
+        raise ValueError(f"the MJCF being written has no {path}")
+    return found
 
 
 def _vec(values) -> str:
@@ -197,8 +203,8 @@ def quaternion(R: np.ndarray) -> np.ndarray:
         q = [0.0] * 4
         q[0] = (R[m, j] - R[j, m]) / (4 * s)
         q[1 + i], q[1 + j], q[1 + m] = s, (R[j, i] + R[i, j]) / (4 * s), (R[m, i] + R[i, m]) / (4 * s)
-    q = np.array(q)
-    return q if q[0] >= 0 else -q
+    quaternion = np.array(q)
+    return quaternion if quaternion[0] >= 0 else -quaternion
 
 
 def _place(element: ET.Element, pose: np.ndarray) -> None:
@@ -294,7 +300,7 @@ def _chain_bodies(world: ET.Element, leaf: str, tree: KinematicTree) -> tuple[li
 
 
 def _leaf_tree(system: RobotSystem, name: str) -> tuple[KinematicTree, np.ndarray, np.ndarray, Location]:
-    leaf = system.nodes[name].leaf
+    leaf = system.leaf(name)
     if isinstance(leaf, KinematicTree):
         if leaf.coupling is not None:
             raise UserError(system.location_of(name), f"the MuJoCo plant couples no joints exactly: chain leaf "
@@ -320,14 +326,15 @@ def fingertips(system: RobotSystem, attach: AttachNode) -> list[str]:
     for r in attach.robots:
         below = below_controls(system, r)
         if isinstance(below, DefineNode):
-            blocks = [(below.name, below.leaf.nq)]
+            blocks = [(below.name, system.leaf(below.name).nq)]
         elif isinstance(below, AttachNode) and below.constraint.kind == FRAME_CHANGE:
             blocks = []
             for r2 in below.robots:
-                leaf = below_controls(system, r2)
-                n = (len(leaf.leaf.kinematics) if isinstance(leaf.leaf, FormulaRobot)
+                sub = below_controls(system, r2)
+                sub_leaf = leaf_of(sub)
+                n = (len(sub_leaf.kinematics or ()) if isinstance(sub_leaf, FormulaRobot)
                      else 2 if below.constraint.output == PLANAR_OUTPUT else 3)
-                blocks.append((leaf.name, n))
+                blocks.append((sub.name, n))
         else:
             raise UserError(where, f"the MuJoCo plant needs each fingertip of {kind} to be one leaf's tip; robot '{r}' "
                                    f"is a {below.primitive} node that is not a frame change of leaves")
@@ -344,8 +351,13 @@ def _gravity(system: RobotSystem, leaves: list[tuple[str, KinematicTree, Locatio
     """The one gravity vector of the MuJoCo model: every chain's, mechanism's and payload's."""
     given = [(f"leaf '{name}'", np.asarray(tree.gravity, float), where) for name, tree, where in leaves]
     for p in payloads:
-        body = system.nodes[p].leaf
-        g = np.r_[body.gravity, 0.0] if isinstance(body, PlanarBody) else np.asarray(body.gravity, float)
+        body = system.leaf(p)
+        if isinstance(body, PlanarBody):
+            g = np.r_[body.gravity, 0.0]
+        elif isinstance(body, SpatialBody):
+            g = np.asarray(body.gravity, float)
+        else:  # (the caller refuses such a payload)
+            raise TypeError(f"payload '{p}' is no rigid body")
         given.append((f"payload '{p}'", g, system.location_of(p)))
     first = given[0]
     for what, g, where in given[1:]:
@@ -370,12 +382,15 @@ def plant_model(system: RobotSystem, period: float, hand_frame: np.ndarray | Non
                                                         "planar or point contacts")
     grasps = [a for a in attaches if a.constraint.kind in CONTACT_GRASPS]
     for a in grasps:
-        payload = system.nodes[a.payload].leaf
+        if a.payload is None:  # (the front end gives every contact grasp a payload)
+            raise UserError(system.location_of(a.name), f"the MuJoCo plant needs a payload on '{a.name}'")
+        payload = system.leaf(a.payload)
         if not isinstance(payload, (PlanarBody, SpatialBody)):
             raise UserError(system.location_of(a.payload), f"the MuJoCo plant needs payload '{a.payload}' to be a "
                                                            "rigid_body (a formulas payload has no bodies)")
     trees = {name: _leaf_tree(system, name) for name in leaves}
-    gravity = _gravity(system, [(n, t[0], t[3]) for n, t in trees.items()], [a.payload for a in grasps])
+    gravity = _gravity(system, [(n, t[0], t[3]) for n, t in trees.items()],
+                       [a.payload for a in grasps if a.payload is not None])
     wall = system.simulation.wall if system.simulation is not None and hand_frame is None else None
     substeps = CONTACT_SUBSTEPS if grasps or wall is not None else 1
     root = ET.Element("mujoco", model=system.name)
@@ -396,13 +411,14 @@ def plant_model(system: RobotSystem, period: float, hand_frame: np.ndarray | Non
     maps, offset = [], 0
     for name in leaves:
         tree, T, theta0, where = trees[name]
-        leaf = system.nodes[name].leaf
+        leaf = system.leaf(name)
         coordinates = tuple(j.name for j in leaf.joints) if isinstance(leaf, KinematicTree) else leaf.coordinates
         coulomb = np.array([j.coulomb for j in tree.joints])
-        world.append(ET.Comment(f" leaf '{name}'" + ("" if isinstance(leaf, KinematicTree) else
+        mechanism = leaf.mechanism if isinstance(leaf, FormulaRobot) else None
+        world.append(ET.Comment(f" leaf '{name}'" + ("" if mechanism is None else
                                                      ": the mechanism of a formulas leaf, " + ", ".join(
                                                          f"{c} = {e.text}" for c, e in zip(coordinates,
-                                                                                           leaf.mechanism.coordinates)))
+                                                                                           mechanism.coordinates)))
                                 + (". Coulomb friction c tanh(qd / " + repr(tree.coulomb_smoothing) + "), c = "
                                    + _vec(coulomb) + ", is applied by robotgen as a passive force"
                                    if coulomb.any() else "") + " "))
@@ -428,16 +444,16 @@ def plant_model(system: RobotSystem, period: float, hand_frame: np.ndarray | Non
     for a in grasps:
         payload_map = _payload(world, system, a)
         payloads.append(payload_map)
-        body = world.find(f".//body[@name='{payload_map.body}']")
+        body = _element(world, f".//body[@name='{payload_map.body}']")
         tips = fingertips(system, a)
         planar = a.constraint.kind == PLANAR_CONTACTS
-        for k, (point, leaf) in enumerate(zip(np.asarray(a.constraint.contacts, float), tips)):
-            contacts.append(_contact(contact, world, body, a, k, np.r_[point, 0.0] if planar else point, leaf,
+        for k, (point, tip_leaf) in enumerate(zip(np.asarray(a.constraint.contacts, float), tips)):
+            contacts.append(_contact(contact, world, body, a, k, np.r_[point, 0.0] if planar else point, tip_leaf,
                                      payload_map, planar, system))
     wall_map = _wall(contact, world, system, wall) if wall is not None else None
     hand_payload = None
     if hand_frame is not None:
-        tip = world.find(f".//body[@name='{maps[0].tip_body}']")
+        tip = _element(world, f".//body[@name='{maps[0].tip_body}']")
         hand_payload = "hand_payload"
         tip.append(ET.Comment(" the hand's payload: robotgen sets its mass and centre of mass at each payload "
                               "change "))
@@ -463,7 +479,8 @@ def wall_leaf(system: RobotSystem, node: str) -> str:
         leaf = below_controls(system, below.robots[0])
         if isinstance(leaf, DefineNode):
             return leaf.name
-    where = system.simulation.locations.get("wall", system.location_of(node))
+    where = (system.simulation.locations.get("wall", system.location_of(node)) if system.simulation is not None
+             else system.location_of(node))
     raise UserError(where, f"the MuJoCo plant puts the wall against one leaf's tip: node '{node}' must be a leaf or a "
                            "frame change of one leaf (its tip position)")
 
@@ -475,7 +492,7 @@ def _wall(contact: ET.Element, world: ET.Element, system: RobotSystem, wall) -> 
     point, normal = (np.r_[np.asarray(v, float), np.zeros(3 - len(v))] for v in (wall.point, wall.normal))
     ET.SubElement(world, "geom", name="wall", type="plane", size="0 0 1", pos=_vec(point - FINGERTIP_RADIUS * normal),
                   zaxis=_vec(normal), rgba="0.6 0.6 0.6 0.5")
-    tip_site = world.find(f".//site[@name='{leaf}/tip']")
+    tip_site = _element(world, f".//site[@name='{leaf}/tip']")
     holder = next(b for b in world.iter("body") if tip_site in list(b))
     ET.SubElement(holder, "geom", name="wall/tip", type="sphere", size=repr(FINGERTIP_RADIUS),
                   pos=tip_site.get("pos", "0 0 0"), rgba="0.2 0.4 0.8 1")
@@ -485,8 +502,10 @@ def _wall(contact: ET.Element, world: ET.Element, system: RobotSystem, wall) -> 
 
 
 def _payload(world: ET.Element, system: RobotSystem, attach: AttachNode) -> PayloadMap:
-    body = system.nodes[attach.payload].leaf
     name = attach.payload
+    if name is None:  # (a contact grasp has a payload)
+        raise TypeError(f"attach '{attach.name}' has no payload")
+    body = system.leaf(name)
     element = ET.SubElement(world, "body", name=name)
     if isinstance(body, PlanarBody):
         joints = tuple(f"{name}/{c}" for c in body.coordinates)
@@ -495,6 +514,8 @@ def _payload(world: ET.Element, system: RobotSystem, attach: AttachNode) -> Payl
         ET.SubElement(element, "inertial", mass=repr(float(body.mass)), pos="0 0 0",
                       diaginertia=_vec([body.inertia] * 3))
         return PayloadMap(name, attach.name, True, joints, name)
+    if not isinstance(body, SpatialBody):  # (build_plant refuses another payload)
+        raise TypeError(f"payload '{name}' is no rigid body")
     ET.SubElement(element, "freejoint", name=f"{name}/free")
     _inertial(element, body.mass, np.zeros(3), np.asarray(body.inertia, float))
     return PayloadMap(name, attach.name, False, (f"{name}/free",), name)
@@ -515,7 +536,7 @@ def _contact(contact: ET.Element, world: ET.Element, body: ET.Element, attach: A
     centre = point - 2 * FINGERTIP_RADIUS * normal  # face FINGERTIP_RADIUS inside the point, as thick
     ET.SubElement(body, "geom", name=pad, type="box", size=_vec([half, half, FINGERTIP_RADIUS]), pos=_vec(centre),
                   zaxis=_vec(normal), rgba="0.8 0.6 0.2 0.6")
-    tip_site = world.find(f".//site[@name='{leaf}/tip']")
+    tip_site = _element(world, f".//site[@name='{leaf}/tip']")
     holder = next(b for b in world.iter("body") if tip_site in list(b))
     tip = f"{attach.name}/tip{k + 1}"
     ET.SubElement(holder, "geom", name=tip, type="sphere", size=repr(FINGERTIP_RADIUS),

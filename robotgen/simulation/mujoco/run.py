@@ -412,11 +412,12 @@ def tree_plant(system: RobotSystem, module, dt: float) -> tuple[PlantModel, obje
     def tips(theta):
         theta_dot = np.zeros_like(theta)
         out = []
-        if plant.wall is not None:  # the wall's point: where the node's rd puts it
-            out.append((plant.wall.leaf, np.asarray(getattr(module, f"{system.simulation.wall.node}_read")(
+        wall = system.simulation.wall if system.simulation is not None else None
+        if plant.wall is not None and wall is not None:  # the wall's point: where the node's rd puts it
+            out.append((plant.wall.leaf, np.asarray(getattr(module, f"{wall.node}_read")(
                 theta, theta_dot)[0])))
         for attach in {c.attach for c in plant.contacts}:
-            node = system.nodes[attach]
+            node = system.attach(attach)
             y = np.concatenate([getattr(module, f"{r}_read")(theta, theta_dot)[0] for r in node.robots])
             dim = CONTACT_GRASPS[node.constraint.kind].tip_dim
             out += [(leaf, y[dim * k:dim * k + dim]) for k, leaf in enumerate(fingertips(system, node))]

@@ -26,23 +26,27 @@ from robotgen.symbolic.control.law import Command, TreeLaw, Written
 from robotgen.symbolic.node import NodeGraph
 
 
-def setting(c: Command, key: str) -> ca.SX | ca.DM | float:
-    """The selection (as a diagonal matrix), kf or ki: run-time parameters or folded."""
+def selection(c: Command) -> ca.SX | ca.DM:
+    """The selection S as a diagonal matrix: a run-time parameter or folded."""
+    p = c.parameters.symbols.get(gain_parameter_name(c.node, "selection"))
+    return ca.diag(p) if p is not None else ca.diag(ca.DM(c.node.hybrid.selection))
+
+
+def setting(c: Command, key: str) -> ca.SX | float:
+    """kf or ki: a run-time parameter or folded."""
     p = c.parameters.symbols.get(gain_parameter_name(c.node, key))
-    if key == "selection":
-        return ca.diag(p) if p is not None else ca.diag(ca.DM(c.node.force.selection))
-    return p if p is not None else getattr(c.node.force, key)
+    return p if p is not None else getattr(c.node.hybrid, key)
 
 
 def write(c: Command) -> Written:
     """Hybrid control (Raibert and Craig 1981): computed torque on S's coordinates, F_d with a PI loop on I - S's."""
     r = c.robot
-    S = setting(c, "selection")
+    S = selection(c)
     free = ca.DM.eye(S.shape[0]) - S  # I - S: the force-controlled coordinates
     Kp, Kv = gain(c.node, "kp", c.parameters), gain(c.node, "kv", c.parameters)
     a = S @ (c.a_d + Kv @ (c.v_d - r.v) + Kp @ c.position_error()) - free @ (Kv @ r.v)
     e = free @ (c.F_d - c.sensed()[0])
-    z = c.state + c.dt * e
+    z = c.law_state + c.dt * e
     F = r.M @ a + r.C @ r.v + r.N + c.F_d + setting(c, "kf") * e + setting(c, "ki") * z
     return Written(F, c.x_d, c.v_d, a, z)
 

@@ -28,7 +28,7 @@ from robotgen.symbolic.control.law import Command, TreeLaw, Written
 
 def matrix(c: Command, key: str) -> ca.SX | ca.DM:
     """The impedance's stiffness, damping or inertia, as a run-time parameter or folded."""
-    written = getattr(c.node.force, key)
+    written = getattr(c.node.impedance, key)
     return written_matrix(c.parameters.symbols.get(gain_parameter_name(c.node, key)), written.value, written.form)
 
 
@@ -37,7 +37,7 @@ def write(c: Command) -> Written:
     set."""
     r = c.robot
     spring = matrix(c, "damping") @ (c.v_d - r.v) + matrix(c, "stiffness") @ c.position_error()
-    if c.node.force.inertia is None:
+    if c.node.impedance.inertia is None:
         return Written(r.M @ c.a_d + r.C @ r.v + r.N + spring + c.F_d, c.x_d, c.v_d, c.a_d)
     F_s = c.sensed()[0]
     a = c.a_d + ca.solve(matrix(c, "inertia"), c.F_d - F_s + spring)
@@ -46,7 +46,7 @@ def write(c: Command) -> Written:
 
 def reads_forces(node: ControlNode) -> bool:
     """Whether the node reads the sensed force: only with a target inertia M_d."""
-    return node.force.inertia is not None
+    return node.impedance.inertia is not None
 
 
 LAW = TreeLaw(IMPEDANCE, transparent=False, write=write, reads_forces=reads_forces)

@@ -47,10 +47,17 @@ class Command:
     sensed: Callable[[], tuple[ca.SX, ca.SX]]  # rd's force term (F_s, F_i,s) of the robot; laws that read forces
 
     @property
+    def law_state(self) -> ca.SX:
+        """The law's own block of the controller state (a stateful law's; a TypeError for another)."""
+        if self.state is None:
+            raise TypeError(f"law {self.node.law} of '{self.node.name}' keeps no state")
+        return self.state
+
+    @property
     def expected(self) -> tuple[ca.SX, ca.SX]:
         """(x_e, xd_e): the expected trajectory a computed-torque or feedforward law integrates."""
         nx = self.robot.sig.n_external
-        return rows(self.state, 0, nx), rows(self.state, nx)
+        return rows(self.law_state, 0, nx), rows(self.law_state, nx)
 
 
 @dataclass(frozen=True, eq=False)

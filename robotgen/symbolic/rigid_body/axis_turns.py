@@ -3,6 +3,8 @@ lists of CasADi scalars. A constant's zeros are skipped and its +-1 become addit
 robot whose axes are coordinate axes (the usual DH arm) pays only for what is not zero."""
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import casadi as ca
 import numpy as np
 
@@ -20,7 +22,7 @@ def cross(u, v) -> list:
     return [u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]]
 
 
-def turn(w: np.ndarray, c, s, v) -> list:
+def turn(w: Sequence[float] | np.ndarray, c, s, v) -> list:
     """Rot(w, q) v (Rodrigues), (cos q, sin q) = (c, s), constant unit w."""
     w = [float(x) for x in w]
     k = dot(w, v)

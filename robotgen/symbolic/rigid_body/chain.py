@@ -4,7 +4,9 @@ a tree with mimic joints maps its coordinates into them and their results back
 (rigid_body/coupled.py)."""
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 import casadi as ca
 
@@ -60,9 +62,9 @@ class ChainGraphs:
         self.motions = joint_motions(tree, self.q_joints)
         # every algorithm below reads the bodies through these (the same torques, fewer terms)
         self.inertias = [OriginInertia.constant(p) for p in regrouped_inertias(tree)]
-        self._cache: dict[str, ca.SX] = {}
+        self._cache: dict[str, Any] = {}  # built graphs, counts and choices by name
 
-    def _get(self, key: str, build) -> ca.SX:
+    def _get(self, key: str, build: Callable[[], Any]) -> Any:
         if key not in self._cache:
             self._cache[key] = build()
         return self._cache[key]
@@ -80,7 +82,8 @@ class ChainGraphs:
 
     def jacobian(self) -> ca.SX:
         """Directly or with the first joint's turn factored out, as tip_turned decides."""
-        return self._turned("jacobian") if self.tip_turned() else self._jacobian_direct()
+        turned_form = self._turned("jacobian") if self.tip_turned() else None  # (not None when tip_turned)
+        return turned_form if turned_form is not None else self._jacobian_direct()
 
     def _jacobian_direct(self) -> ca.SX:
         return self._get("jacobian_direct",
@@ -120,9 +123,12 @@ class ChainGraphs:
             if self._turned("jacobian") is None:
                 return False
             shared = [self.mass(), self.nonlinear()] if self.tree.n_joints <= LOOPS_ABOVE_DOF else []
+            direct = (self._jacobian_direct(), self._jacobian_dot_qd_direct())
+            turned_forms = (self._turned("jacobian"), self._turned("jacobian_dot_qd"))
+            if turned_forms[0] is None or turned_forms[1] is None:  # (_turn's condition is the tree's: both or neither)
+                return False
             count = [count_operations([s.q, s.qd], [*shared, J, a])["total"]
-                     for J, a in ((self._jacobian_direct(), self._jacobian_dot_qd_direct()),
-                                  (self._turned("jacobian"), self._turned("jacobian_dot_qd")))]
+                     for J, a in (direct, (turned_forms[0], turned_forms[1]))]
             return count[1] < count[0]
         return self._get("tip_turned", build)
 
@@ -133,7 +139,8 @@ class ChainGraphs:
     def jacobian_dot_qd(self) -> ca.SX:
         """From RNEA's forward pass at qdd = 0: directly (the pass nonlinear() uses too) or with
         the first joint's turn factored out, as tip_turned decides."""
-        return self._turned("jacobian_dot_qd") if self.tip_turned() else self._jacobian_dot_qd_direct()
+        turned_form = self._turned("jacobian_dot_qd") if self.tip_turned() else None  # (not None when tip_turned)
+        return turned_form if turned_form is not None else self._jacobian_dot_qd_direct()
 
     def bias_pass(self):
         """RNEA's forward pass at qdd = 0 with gravity, shared by nonlinear and Jdot qd."""

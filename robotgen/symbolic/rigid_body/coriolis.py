@@ -45,7 +45,10 @@ def coriolis_spatial(tree: KinematicTree, motions: list[JointMotion], inertias: 
     """C(q, qd) (n, n) by the O(n^2) spatial algorithm, Christoffel-consistent."""
     n = tree.n_joints
     poses = joint_poses(tree, motions)
-    S, v, dS, I = [], [], [], []
+    S: list[ca.SX] = []
+    v: list[ca.SX] = []
+    dS: list[ca.SX] = []
+    I: list[ca.SX] = []
     for i, (joint, (R, p)) in enumerate(zip(tree.joints, poses)):
         z = R @ const(joint.axis)
         Si = ca.vertcat(ca.SX.zeros(3, 1), z) if joint.type == PRISMATIC else ca.vertcat(z, ca.cross(p, z))
@@ -61,10 +64,10 @@ def coriolis_spatial(tree: KinematicTree, motions: list[JointMotion], inertias: 
         B.append(0.5 * (-vx.T @ I[k] - I[k] @ vx + _force_cross_bar(Iv)))
     IC, BC = list(I), list(B)  # composite: sums over each subtree
     for k in reversed(range(n)):
-        p = tree.joints[k].parent
-        if p >= 0:
-            IC[p] = IC[p] + IC[k]
-            BC[p] = BC[p] + BC[k]
+        parent = tree.joints[k].parent
+        if parent >= 0:
+            IC[parent] = IC[parent] + IC[k]
+            BC[parent] = BC[parent] + BC[k]
     C = ca.SX.zeros(n, n)
     for i in range(n):
         a_i, b_i = BC[i].T @ S[i], IC[i] @ S[i]  # C_ij = a_i . S_j + b_i . dS_j for ancestors j

@@ -52,10 +52,12 @@ class CoupledCoordinates:
     def _sum(self, k: int, term) -> ca.SX:
         """sum over the joints i of coordinate k of S_ik term(i), in joint order."""
         c = self.coupling
-        total = None
-        for i in c.joints_of(k):
-            x = _scaled(term(i), c.multiplier[i])
-            total = x if total is None else total + x
+        if c is None:
+            raise TypeError("a sum over coupled joints needs the coupling")
+        terms = [_scaled(term(i), c.multiplier[i]) for i in c.joints_of(k)]  # (every coordinate moves a joint)
+        total = terms[0]
+        for x in terms[1:]:
+            total = total + x
         return total
 
     def forces(self, tau: ca.SX) -> ca.SX:

@@ -36,6 +36,8 @@ stretched or folded, e = 0); J22's are all 1 (wrist: axes 4 and 6 in line, W_ab 
 every joint rate and acceleration is NaN (a checked step returns status 2)."""
 from __future__ import annotations
 
+from typing import Any
+
 import casadi as ca
 import numpy as np
 
@@ -68,7 +70,7 @@ class WristCentreJacobian:
         arm = self.arm
         s3 = arm.sign3
         # (cos, sin) of each turn: q2 + phi3 turns body 3 about w2 (axes 2 and 3 parallel)
-        f = {name: (ca.cos(angle), ca.sin(angle)) for name, angle in (
+        f: dict[str, Any] = {name: (ca.cos(angle), ca.sin(angle)) for name, angle in (
             ("q1", q[0]), ("q2", q[1]), ("q23", q[1] + s3 * q[2]), ("q4", q[3]), ("q5", q[4]), ("q6", q[5]))}
         (c2, s2), (c23, s23), (c5, s5) = f["q2"], f["q23"], f["q5"]
         Q = plane_turn(c23, s23, float(arm.U[0]), float(arm.U[1]))
@@ -79,7 +81,8 @@ class WristCentreJacobian:
         g, e = col1[2], P[0] * Q[1] - P[1] * Q[0]
         W_a, W_ab = self.c_a * c5 + self.c_ab * s5, self.c_ab * c5 - self.c_a * s5
         # r on the wrist basis: Rot(b, q5) Rot(c, q6) r0
-        r = turn(arm.b, c5, s5, turn(arm.c, *f["q6"], [ca.SX(float(x)) for x in self.r0]))
+        c6, s6 = f["q6"]
+        r = turn(arm.b, c5, s5, turn(arm.c, c6, s6, [ca.SX(float(x)) for x in self.r0]))
         f.update(P=P, Q=Q, D2=D2, d=d, col1=col1, W=(W_a, W_ab))
         f["r_wrist"] = [dot(arm.a, r), dot(arm.b, r), dot(self.ab, r)]
         f["r_arm"] = self.from_wrist(f, f["r_wrist"])

@@ -123,7 +123,13 @@ def joint_terms(tree: KinematicTree, motions: list[JointMotion], inertias: list[
     n = tree.n_joints
     S, Ic = axes_and_inertias(tree, motions, inertias)
     a_base = base_acceleration(tree)
-    Sdot, v, a, alpha, F, T, p = [], [], [], [], [], [], []
+    Sdot: list[ca.SX] = []
+    v: list[ca.SX] = []
+    a: list[ca.SX] = []
+    alpha: list[ca.SX] = []
+    F: list[ca.SX] = []
+    T: list[ca.SX] = []
+    p: list[ca.SX] = []
     for i, joint in enumerate(tree.joints):
         v_p, a_p = (ca.SX.zeros(6, 1), a_base) if joint.parent < 0 else (v[joint.parent], a[joint.parent])
         for lst, x in zip((v, a, Sdot, alpha), forward_step(v_p, a_p, S[i], qd[i], qdd[i])):

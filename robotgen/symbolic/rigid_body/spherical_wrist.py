@@ -203,7 +203,7 @@ def spherical_wrist_arm(tree: KinematicTree) -> SphericalWristArm | None:
         return None
     if any(j.type != REVOLUTE for j in tree.joints):
         return None
-    frames = []
+    frames: list[np.ndarray] = []
     for j in tree.joints:
         frames.append(exact.matmul(frames[j.parent] if j.parent >= 0 else np.eye(4), j.origin))
     w = [exact.unit(exact.matmul(T[:3, :3], j.axis)) for T, j in zip(frames, tree.joints)]

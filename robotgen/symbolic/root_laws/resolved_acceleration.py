@@ -14,7 +14,7 @@ import casadi as ca
 
 from robotgen.model.laws import RESOLVED_ACCELERATION
 from robotgen.model.parameter_struct import runtime_parameters
-from robotgen.model.system import RobotSystem
+from robotgen.model.system import ControlNode, RobotSystem
 from robotgen.symbolic.kernel import Kernel, ParameterSymbols, make_kernel
 from robotgen.symbolic.leaf_kernels import leaf_kernels
 from robotgen.symbolic.root_laws.hand import Hand, hand_kernels, orientation_error, pose_rows, start_check
@@ -23,9 +23,9 @@ from robotgen.symbolic.root_laws.law import Controller, RootLaw
 STEP = "resolved_acceleration_step"
 
 
-def gains(node, parameters: ParameterSymbols) -> tuple[ca.SX, ca.SX]:
+def gains(node: ControlNode, parameters: ParameterSymbols) -> tuple[ca.SX, ca.SX]:
     """Kp and Kv (6,) of the node: run-time parameter symbols, or its folded constants."""
-    s = node.hand
+    s = node.acceleration
     if f"{node.name}_kp" in parameters.symbols:
         return parameters.symbols[f"{node.name}_kp"], parameters.symbols[f"{node.name}_kv"]
     return ca.SX(ca.DM(s.kp)), ca.SX(ca.DM(s.kv))
@@ -33,10 +33,10 @@ def gains(node, parameters: ParameterSymbols) -> tuple[ca.SX, ca.SX]:
 
 def kernels(system: RobotSystem) -> list[Kernel]:
     """The resolved acceleration control kernels (Luh, Walker, Paul 1980) of the root's 6-joint chain."""
-    node = system.root_node
-    tree = system.nodes[node.robot].leaf
+    node = system.root_control
+    tree = system.tree(node.robot)
     parameters = ParameterSymbols.of(runtime_parameters(system))
-    hand = Hand(tree, node.hand.tool)
+    hand = Hand(tree, node.hand_settings.tool)
     q, qd = ca.SX.sym("q", 6), ca.SX.sym("qd", 6)
     pose_d, twist_d, accel_d = ca.SX.sym("pose_d", 16), ca.SX.sym("twist_d", 6), ca.SX.sym("accel_d", 6)
     R_d, p_d = pose_rows(pose_d)
@@ -59,8 +59,8 @@ def kernels(system: RobotSystem) -> list[Kernel]:
 
 def report(system: RobotSystem) -> tuple[dict, dict]:
     """(info entries, module attributes) of a resolved acceleration spec: its gains, period and tool."""
-    node = system.root_node
-    s = node.hand
+    node = system.root_control
+    s = node.acceleration
     info = {"controller": system.root, "robot": node.robot, "law": RESOLVED_ACCELERATION, "period": s.period,
             "kp": [float(v) for v in s.kp], "kv": [float(v) for v in s.kv],
             "tool": [[float(v) for v in row] for row in s.tool]}
@@ -69,7 +69,8 @@ def report(system: RobotSystem) -> tuple[dict, dict]:
 
 def controller(system: RobotSystem) -> Controller:
     """The module's ResolvedAccelerationController: its step kernel, period [s] and first step's check."""
-    return Controller("ResolvedAccelerationController", STEP, system.root_node.hand.period, start=start_check())
+    return Controller("ResolvedAccelerationController", STEP, system.root_control.hand_settings.period,
+                      start=start_check())
 
 
 LAW = RootLaw(RESOLVED_ACCELERATION, kernels, report, controller)

@@ -36,6 +36,7 @@ trajectory) is the caller's, passed in and out of each step."""
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import casadi as ca
 import numpy as np
@@ -162,6 +163,7 @@ def identify(Theta: ca.SX, P: ca.SX, phi: ca.SX, dx: ca.SX, mu, limit: float | N
     s = ca.dot(phi, Pphi)
     g = Pphi * (adapt / (s + mu))
     Theta = Theta + (dx - Theta @ phi) @ g.T
+    scale: ca.SX | float
     if directional:
         eg, scale = g * (1 - (1 - mu) / ca.fmax(s, TINY)), 1
     else:
@@ -207,11 +209,11 @@ def one_step_control(A: ca.SX, B: ca.SX, c: ca.SX | None, dx: ca.SX, Q: ca.SX, R
 
 def step_graph(system: RobotSystem) -> tuple[list[tuple], list[tuple], ParameterSymbols]:
     """The step kernel's inputs and outputs (make_kernel's form) and the parameters."""
-    node = system.root_node
-    s: AdaptiveSettings = node.hand
+    node = system.root_control
+    s = node.adaptive
     layout = StateLayout.of(s)
     parameters = ParameterSymbols.of(runtime_parameters(system))
-    hand = Hand(system.nodes[node.robot].leaf, s.tool)
+    hand = Hand(system.tree(node.robot), s.tool)
     w = Weights(node.name, s, parameters)
     T = s.period
     i = Inputs()
@@ -227,8 +229,10 @@ def step_graph(system: RobotSystem) -> tuple[list[tuple], list[tuple], Parameter
     c = Theta[:, NX + NU] if s.affine else None
     du = one_step_control(A, B, c, dx, w.Q, torque_weight(w.Q, w.R, w.kappa, old["B0"]))
     tau = ff["u_n"] + du
-    new = {"A": A, "B": B, "c": c, "P": P, "phi": ca.vertcat(dx, du, *((1,) if s.affine else ())),
+    new = {"A": A, "B": B, "P": P, "phi": ca.vertcat(dx, du, *((1,) if s.affine else ())),
            "B0": old["B0"], "q_d": ff["q_d"], "qd_d": ff["qd_d"], "qdd_d": ff["qdd_d"]}
+    if c is not None:  # an affine model's c (the layout has its block then only)
+        new["c"] = c
     inputs = [*i.ports(), ("state", state), ("adapt", adapt)]
     outputs = [("tau", tau, (NU, 1)), ("dx", dx, (NX, 1)), ("state_next", layout.pack(new), (layout.size, 1))]
     return inputs, outputs, parameters
@@ -249,9 +253,9 @@ def initial_state(hand: Hand, s: AdaptiveSettings, i: Inputs) -> ca.SX:
 
 def kernels(system: RobotSystem) -> list[Kernel]:
     """The resolved motion adaptive control kernels (Lee and Lee 1983) of the root's 6-joint chain."""
-    node = system.root_node
-    s: AdaptiveSettings = node.hand
-    tree = system.nodes[node.robot].leaf
+    node = system.root_control
+    s = node.adaptive
+    tree = system.tree(node.robot)
     hand = Hand(tree, s.tool)
     inputs, outputs, parameters = step_graph(system)
     step = make_kernel(
@@ -297,9 +301,9 @@ def stage_counts(system: RobotSystem) -> dict:
     3 of the feedforward is counted as what it adds to stage 2, whose J^-1 the paper's stage 3
     reuses), the totals in the paper's accounting (parallel parts counted by the larger), and
     the emitted step (every stage fused, common subexpressions shared)."""
-    node = system.root_node
-    s: AdaptiveSettings = node.hand
-    hand = Hand(system.nodes[node.robot].leaf, s.tool)
+    node = system.root_control
+    s = node.adaptive
+    hand = Hand(system.tree(node.robot), s.tool)
     parameters = ParameterSymbols.of(runtime_parameters(system))
     w = Weights(node.name, s, parameters)
     i = Inputs()
@@ -346,7 +350,8 @@ def stage_counts(system: RobotSystem) -> dict:
         + " (the paper differences J over a period); counted as what it adds to stage 2",
         "errors and identification (eq 37)": f"{s.n_phi} regressors (the paper 18)",
     }
-    rows = [{"part": part, "stage": stage, "name": name, "paper": {"mul": m, "add": a}, "robotgen": counts[name],
+    rows: list[dict[str, Any]] = [
+        {"part": part, "stage": stage, "name": name, "paper": {"mul": m, "add": a}, "robotgen": counts[name],
              "note": notes.get(name, "")} for part, stage, name, (m, a) in TABLE_1]
     out: dict = {"rows": rows}
 
@@ -369,7 +374,7 @@ def stage_counts(system: RobotSystem) -> dict:
 def nominal_pose(system: RobotSystem) -> np.ndarray:
     """Where the weight rule's closed loop is evaluated: the simulation's theta0, else the
     middle of the joints' limits."""
-    tree = system.nodes[system.root_node.robot].leaf
+    tree = system.tree(system.root_control.robot)
     sim = system.simulation
     if sim is not None and sim.theta0 is not None:
         return np.asarray(sim.theta0, float)
@@ -381,9 +386,9 @@ def closed_loop(system: RobotSystem, q: np.ndarray | None = None) -> dict:
     at the joint pose q (default nominal_pose) with the hand at rest there, the spec's
     weights: its eigenvalues' moduli, the spectral radius and its margin to 1, and the
     slowest time constant -T / ln(radius)."""
-    node = system.root_node
-    s: AdaptiveSettings = node.hand
-    hand = Hand(system.nodes[node.robot].leaf, s.tool)
+    node = system.root_control
+    s = node.adaptive
+    hand = Hand(system.tree(node.robot), s.tool)
     q = nominal_pose(system) if q is None else np.asarray(q, float)
     i = Inputs()
     R, p = hand.pose(i.q)
@@ -405,8 +410,8 @@ def closed_loop(system: RobotSystem, q: np.ndarray | None = None) -> dict:
 
 def report(system: RobotSystem) -> tuple[dict, dict]:
     """(info entries, module attributes) of a resolved adaptive spec: its weights, forgetting and Table 1's counts."""
-    node = system.root_node
-    s: AdaptiveSettings = node.hand
+    node = system.root_control
+    s = node.adaptive
 
     def listed(m: np.ndarray | None):
         return None if m is None else m.tolist()
@@ -424,7 +429,7 @@ def report(system: RobotSystem) -> tuple[dict, dict]:
 
 def controller(system: RobotSystem) -> Controller:
     """The module's AdaptiveController: step and init kernels, period [s], state size, and views of A, B, c, P."""
-    s: AdaptiveSettings = system.root_node.hand
+    s = system.root_control.adaptive
     layout = StateLayout.of(s)
     docs = {"A": "the identified A of dx(k+1) = A dx(k) + B du(k) + c (eq 29)", "B": "the identified B (eq 29)",
             "c": "the identified constant term c (the offset a payload makes)", "P": "the RLS covariance P (eq 37)"}

@@ -28,12 +28,13 @@ from __future__ import annotations
 import casadi as ca
 import numpy as np
 
-from robotgen.model.chain import KinematicTree
+from robotgen.model.chain import Joint, KinematicTree
 from robotgen.model.laws.resolved_rate import (
     EXTENDED_JACOBIAN,
     JOINT_LIMITS,
     MANIPULABILITY,
     WEIGHTED_PSEUDO_INVERSE,
+    LQRSettings,
     RateControlSettings,
 )
 from robotgen.model.system import RobotSystem
@@ -54,8 +55,8 @@ from robotgen.symbolic.root_laws.resolved_rate.resolution import (
 
 def chain_and_settings(system: RobotSystem) -> tuple[KinematicTree, RateControlSettings]:
     """The root's chain and its resolved-rate settings."""
-    node = system.root_node
-    return system.nodes[node.robot].leaf, node.rate
+    node = system.root_control
+    return system.tree(node.robot), node.chain_rate
 
 
 class RateLaw:
@@ -81,10 +82,12 @@ class RateLaw:
         if r.method == EXTENDED_JACOBIAN:
             # Baillieul: the optimality condition g = z^T grad H = 0 as one more task row,
             # driven to zero at rate gain: d g / dq qdot = -gain g.
+            if grad is None:  # the front end gives the extended Jacobian an objective
+                raise TypeError("the extended Jacobian needs an objective")
             g = ca.dot(null_vector(self.J), grad)
             self._resolver = DampedResolver(ca.vertcat(self.J, ca.jacobian(g, self.q)), lam2)
-            self._extra = -r.gain * g
-            self._null = None
+            self._extra: ca.SX | None = -r.gain * g
+            self._null: ca.SX | None = None
         elif r.method == WEIGHTED_PSEUDO_INVERSE:
             # qdot = J#W Sdot + (I - J#W J) W^-1 gain grad H, J#W = W^-1 J^T (J W^-1 J^T)^-1
             # (resolution.py); W^-1 grad H is the ascent of H per unit of qdot^T W qdot.
@@ -105,10 +108,11 @@ class RateLaw:
         q = self.q
         if objective == JOINT_LIMITS:
             terms, grad = [], []
-            limited = [j for j in self.tree.joints if _has_range(j)]
+            limited = [j for j in self.tree.joints if _joint_range(j)]
             for i, j in enumerate(self.tree.joints):
-                if _has_range(j):
-                    mid, half = 0.5 * (j.limits.upper + j.limits.lower), 0.5 * (j.limits.upper - j.limits.lower)
+                if (bounds := _joint_range(j)) is not None:
+                    lower, upper = bounds
+                    mid, half = 0.5 * (upper + lower), 0.5 * (upper - lower)
                     terms.append(((q[i] - mid) / half) ** 2)
                     grad.append(-(q[i] - mid) / (len(limited) * half ** 2))
                 else:
@@ -158,15 +162,20 @@ class RateLaw:
         Re-planned with the new T at every call, the rate along the remaining displacement
         is |dp| / T, and |dp| shrinks as T does: a straight line at constant speed (the
         rotation about a fixed axis at a constant rate), arriving at T = 0."""
+        if self.s.arrival is None:
+            raise TypeError("arrival_step needs the settings' arrival")
         T = ca.fmax(remaining, self.s.arrival.minimum_remaining)
         S, error = self.hand_rates(target, T)
         qd, scale = limited(self.unlimited(S), self.s.rate_limits)
         return qd, error, scale
 
 
-def _has_range(joint) -> bool:
+def _joint_range(joint: Joint) -> tuple[float, float] | None:
+    """(lower, upper) of a joint with a range of positions, else None."""
     lim = joint.limits
-    return lim.lower is not None and lim.upper is not None and lim.upper > lim.lower
+    if lim.lower is not None and lim.upper is not None and lim.upper > lim.lower:
+        return lim.lower, lim.upper
+    return None
 
 
 def chain_kernels(system: RobotSystem) -> list[Kernel]:
@@ -218,12 +227,12 @@ def chain_kernels(system: RobotSystem) -> list[Kernel]:
                                "the redundancy resolution increases.", [("q", q, (n, 1))],
                                [("objective", law.H, (1, 1))]))
     if s.lqr is not None:
-        kernels.extend(_lqr_kernels(tree, s))
+        kernels.extend(_lqr_kernels(tree, s.lqr))
     return kernels
 
 
-def _lqr_kernels(tree: KinematicTree, s: RateControlSettings) -> list[Kernel]:
-    design = regulator(tree, s.lqr)
+def _lqr_kernels(tree: KinematicTree, lqr: LQRSettings) -> list[Kernel]:
+    design = regulator(tree, lqr)
     n = tree.nq
     q, qd = ca.SX.sym("q", n), ca.SX.sym("qd", n)
     state = ca.vertcat(q - ca.DM(design.model.nominal), qd)
@@ -232,7 +241,7 @@ def _lqr_kernels(tree: KinematicTree, s: RateControlSettings) -> list[Kernel]:
                            "tau = tau0 - K (q - q0, qd), K from the continuous Riccati equation of the "
                            "linearised dynamics (module attribute lqr).",
                            [("q", q, (n, 1)), ("qd", qd, (n, 1))], [("tau", tau, (n, 1))], guarded=True)]
-    if s.lqr.servo:
+    if lqr.servo:
         # the optimal linear servo u = -K s + v (robotgen.numeric.linear_servo, S1) on eq 19
         # applied to the whole state: the same K, v = R^-1 B^T g(t) computed offline
         v = ca.SX.sym("v", n)
@@ -248,7 +257,7 @@ def _lqr_kernels(tree: KinematicTree, s: RateControlSettings) -> list[Kernel]:
 def chain_report(system: RobotSystem) -> tuple[dict, dict]:
     """(extra info() keys, module attributes) of a rate-controlled system."""
     tree, s = chain_and_settings(system)
-    info = {"controller": system.root, "robot": system.root_node.robot, **s.summary()}
+    info = {"controller": system.root, "robot": system.root_control.robot, **s.summary()}
     attributes = {}
     if s.lqr is not None:
         design = regulator(tree, s.lqr)

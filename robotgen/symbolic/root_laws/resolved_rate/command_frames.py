@@ -46,8 +46,8 @@ def hand(tree: KinematicTree, frame: CommandFrame, q: ca.SX) -> Hand:
     J = geometric_jacobian(tree, q)
     Jv, Jw = J[:3, :], J[3:, :]
     if frame.kind == TOOL:
-        r = R @ const(frame.tool[:3, 3])
-        return Hand(R @ const(frame.tool[:3, :3]), p + r, Jv - skew(r) @ Jw, Jw)
+        r = R @ const(frame.tool_pose[:3, 3])
+        return Hand(R @ const(frame.tool_pose[:3, :3]), p + r, Jv - skew(r) @ Jw, Jw)
     return Hand(R, p, Jv, Jw)
 
 
@@ -67,7 +67,7 @@ def twist_map(frame: CommandFrame, h: Hand) -> ca.SX:
     if frame.kind in (HAND, TOOL):
         return _blocks(Rt, Rt)
     if frame.kind == LINE_OF_SIGHT:
-        sight = _unit(h.p - const(frame.point))  # b87 / |b87|, eq 10
+        sight = _unit(h.p - const(frame.centre))  # b87 / |b87|, eq 10
         x, z = h.R[:, 0], h.R[:, 2]
         lift_z = _unit(z - ca.dot(z, sight) * sight)
         sweep_x = _unit(x - ca.dot(x, sight) * sight)
@@ -76,7 +76,7 @@ def twist_map(frame: CommandFrame, h: Hand) -> ca.SX:
         sweep = ca.if_else(use_z, ca.cross(sight, lift_z), sweep_x)
         return _blocks(ca.horzcat(sweep, sight, lift).T, Rt)
     if frame.kind == SPHERICAL:
-        d = h.p - const(frame.point)
+        d = h.p - const(frame.centre)
         dx, dy, dz = d[0], d[1], d[2]
         h2 = dx * dx + dy * dy
         horizontal = ca.sqrt(h2)

@@ -33,7 +33,6 @@ import dataclasses
 
 import casadi as ca
 
-from robotgen.model.laws.resolved_rate import CompositeRateSettings
 from robotgen.model.system import RobotSystem
 from robotgen.symbolic.kernel import Kernel, make_kernel
 from robotgen.symbolic.plant import leaf_velocities, strip_controls
@@ -54,7 +53,7 @@ _TORQUE_STEPS = ("servo_step", "servo_init")
 
 def robot_subsystem(system: RobotSystem) -> RobotSystem:
     """The tree below the resolved-rate root, with the controlled robot as its root."""
-    root = system.root_node
+    root = system.root_control
     nodes = {k: v for k, v in system.nodes.items() if k != system.root}
     return dataclasses.replace(system, nodes=nodes, root=root.robot)
 
@@ -63,8 +62,8 @@ class CompositeRateLaw:
     """Rate and position control of the robot below ``system``'s root, as SX of theta."""
 
     def __init__(self, system: RobotSystem):
-        node = system.root_node
-        s: CompositeRateSettings = node.rate
+        node = system.root_control
+        s = node.composite_rate
         self.s = s
         # Controllers below do not change the kinematics: the velocity map is the
         # uncontrolled tree's, as the plant has it.
@@ -118,6 +117,8 @@ class CompositeRateLaw:
 
     def arrival_step(self, target: ca.SX, remaining: ca.SX) -> tuple[ca.SX, ca.SX, ca.SX]:
         """T the remaining time, at least the minimum: (theta_dot, error, rate_scale)."""
+        if self.s.arrival is None:
+            raise TypeError("arrival_step needs the settings' arrival")
         rates, error = self.rates(target, ca.fmax(remaining, self.s.arrival.minimum_remaining))
         theta_dot, scale = limited(self.unlimited(rates), self.s.rate_limits)
         return theta_dot, error, scale
@@ -126,7 +127,7 @@ class CompositeRateLaw:
 def composite_kernels(system: RobotSystem) -> list[Kernel]:
     """The resolved-rate kernels of a composite root (robots joined through an ATTACH)."""
     law = CompositeRateLaw(system)
-    robot = system.root_node.robot
+    robot = system.root_control.robot
     th, n, k, ne = law.theta, law.n, law.k, law.n_external
     names = ", ".join(law.names)
     wrapped = [nm for nm, a in zip(law.names, law.angles) if a]
@@ -172,6 +173,6 @@ def composite_kernels(system: RobotSystem) -> list[Kernel]:
 
 def composite_report(system: RobotSystem) -> tuple[dict, dict]:
     """(extra info() keys, module attributes) of a rate-controlled composite robot."""
-    node = system.root_node
-    return {"rate_control": {"controller": system.root, "robot": node.robot, **node.rate.summary()}}, {}
+    node = system.root_control
+    return {"rate_control": {"controller": system.root, "robot": node.robot, **node.rate_settings.summary()}}, {}
 

@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import functools
 from dataclasses import dataclass
+from typing import Any
 
 import casadi as ca
 import numpy as np
@@ -88,7 +89,7 @@ def regulator(tree: KinematicTree, settings: LQRSettings) -> RegulatorDesign:
     K = gain(model.B, R, solve_care(model.A, model.B, Q, R))
     closed = np.linalg.eigvals(model.A - model.B @ K)
     C = np.hstack([np.eye(n), np.zeros((n, n))])
-    report = {
+    report: dict[str, Any] = {
         "state": "(dtheta, dtheta_dot) about the nominal (Whitney 1972, eqs 19-20)",
         "state_dimension": 2 * n,
         "controllability_rank": pbh_rank(model.A, model.B, rows=False),
