@@ -8,7 +8,7 @@ from dataclasses import dataclass, replace
 import casadi as ca
 
 import robotgen
-from robotgen.emit import c_kernel, sincos
+from robotgen.emit import c_kernel, lane_names, lanes, sincos
 from robotgen.emit.c_kernel import PRECISIONS, KernelError, check_identifier, is_parameter_port
 from robotgen.emit.controllers import PARAMETERS_CLASS, ControllerView, controller_view, controllers_note
 from robotgen.emit.literals import c_string, py_string
@@ -120,6 +120,17 @@ class FunctionView:
     part: int = 0  # which of the module's compile parts holds it (COMPILE_PARTS)
     helpers: tuple[str, ...] = ()  # the stage helpers it calls (HelperView.c_name)
     singular_error: str = ""  # C string literal: the error of status 2 when Kernel.singular says why
+    # Its batch form (robotgen.emit.lanes), when it has one: the prototypes of <fn>_batch and
+    # <fn>_batch_lanes, the lane kernel and block driver (printed once, compiled per width) and
+    # the two public functions.
+    batch_prototype: str = ""
+    batch_lanes_prototype: str = ""
+    lane_definition: str = ""
+    batch_definition: str = ""
+
+    @property
+    def batch(self) -> bool:
+        return bool(self.batch_definition)
 
 
 @dataclass(frozen=True)
@@ -184,6 +195,19 @@ class ModuleView:
     sincos_helper: str = ""
     sincos_parts: tuple[int, ...] = ()
     helpers: tuple[HelperView, ...] = ()  # after the sin and cos routine, before the functions
+    # Batches across states (robotgen.emit.lanes): the compiler test defining where lanes are
+    # compiled, each width's definitions around its copy of the lane code, the lane code (the
+    # sin and cos routine and the stage helpers that batched functions call, by part), the width
+    # chooser and the parts that have batched functions.
+    lanes_guard: str = ""
+    lane_widths: tuple[tuple[str, str], ...] = ()
+    lane_helpers: tuple[HelperView, ...] = ()
+    batch_select: str = ""
+    batch_parts: tuple[int, ...] = ()
+
+    @property
+    def batch_functions(self) -> tuple[FunctionView, ...]:
+        return tuple(f for f in self.functions if f.batch)
 
 
 def module_view(name: str, kernels: list[Kernel], *, nq: int, precision: str,
@@ -253,6 +277,8 @@ def module_view(name: str, kernels: list[Kernel], *, nq: int, precision: str,
     if OUT_KEYWORD in keyword_names:
         raise KernelError(f"module {name!r}: an input or run-time parameter is named {OUT_KEYWORD!r}, "
                           "every function's keyword for its result arrays")
+    lane_helpers = _lane_helpers(kernels, functions, helper_names, PRECISIONS[precision])
+    batch_parts = tuple(sorted({f.part for f in functions if f.batch}))
     sincos_parts = tuple(sorted({f.part for f in functions if sincos.HELPER + "(" in f.definition}
                                 | {k for h in helpers if sincos.HELPER + "(" in h.definition
                                    for k in (h.parts if h.home is None else (h.home,))}))
@@ -275,7 +301,39 @@ def module_view(name: str, kernels: list[Kernel], *, nq: int, precision: str,
         controllers_note=controllers_note(views), parts=max(f.part for f in functions) + 1,
         zero=c_kernel.literal(0.0, PRECISIONS[precision]), one=c_kernel.literal(1.0, PRECISIONS[precision]),
         sincos_helper=sincos.helper_source() if sincos_parts else "", sincos_parts=sincos_parts,
-        helpers=helpers)
+        helpers=helpers, lanes_guard=lanes.LANES_GUARD if batch_parts else "",
+        lane_widths=tuple((lanes.width_open(w, PRECISIONS[precision]), lanes.width_close()) for w in lanes.WIDTHS)
+        if batch_parts else (),
+        lane_helpers=lane_helpers, batch_select=lanes.select_source(PRECISIONS[precision]) if batch_parts else "",
+        batch_parts=batch_parts)
+
+
+def _lane_helpers(kernels: list[Kernel], functions: tuple[FunctionView, ...], helper_names: dict,
+                  precision: c_kernel.Precision) -> tuple[HelperView, ...]:
+    """The lane forms of what the batched functions' lane kernels call, each static in every part
+    that calls it: their stages' helpers, and rg_sincos2 (double) first, since those call it too."""
+    by_name = {f.name: f for f in functions}
+    stages: dict[str, tuple[str, set[int]]] = {}
+    sincos_parts: set[int] = set()
+    calls_sincos = lane_names.per_width(sincos.HELPER) + "("
+    for kernel in kernels:
+        f = by_name[kernel.name]
+        if not f.batch:
+            continue
+        if calls_sincos in f.lane_definition:
+            sincos_parts.add(f.part)
+        for stage in kernel.schedule.stages if kernel.schedule is not None else ():
+            c_name = helper_names[stage]
+            if c_name not in stages:
+                stages[c_name] = (c_kernel.stage_source(c_name, stage, kernel, precision, lanes=True), set())
+            stages[c_name][1].add(f.part)
+    for text, parts in stages.values():
+        if calls_sincos in text:
+            sincos_parts |= parts
+    views = ([HelperView(sincos.HELPER, sincos.lane_helper_source(), tuple(sorted(sincos_parts)))]
+             if sincos_parts else [])
+    views += [HelperView(c_name, text, tuple(sorted(parts))) for c_name, (text, parts) in stages.items()]
+    return tuple(views)
 
 
 def _module_parameters(name: str, kernels: list[Kernel],
@@ -468,7 +526,19 @@ def _function_view(prefix: str, kernel: Kernel, precision: c_kernel.Precision,
                                 "set to 0 (status 2)") if kernel.guarded and kernel.singular else "",
         takes_step=any(p.name == c_kernel.STEP_PORT and p.size == 1 for p in kernel.inputs),
         helpers=tuple(dict.fromkeys(helper_names[stage] for stage in kernel.schedule.stages))
-        if kernel.schedule is not None and helper_names else ())
+        if kernel.schedule is not None and helper_names else (),
+        **_batch_fields(prefix, kernel, precision, program, helper_names))
+
+
+def _batch_fields(prefix: str, kernel: Kernel, precision: c_kernel.Precision, program: Program | None,
+                  helper_names: dict | None) -> dict:
+    if not lanes.has_batch(kernel):
+        return {}
+    whole, capped = lanes.batch_prototypes(prefix, kernel, precision)
+    return dict(batch_prototype=whole, batch_lanes_prototype=capped,
+                lane_definition=c_kernel.lane_kernel_source(prefix, kernel, precision, program, helper_names)
+                + "\n" + lanes.driver_source(prefix, kernel, precision),
+                batch_definition=lanes.batch_source(prefix, kernel, precision))
 
 
 def _port_view(port: Port, macro: str) -> PortView:

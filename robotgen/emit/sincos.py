@@ -25,6 +25,7 @@ from fractions import Fraction
 
 import casadi as ca
 
+from robotgen.emit import lane_names
 from robotgen.emit.sx_program import Instruction, Program, defining_steps
 
 HELPER = "rg_sincos2"
@@ -67,10 +68,11 @@ def _c(value: Fraction | str) -> str:
     return repr(float(value))
 
 
-def _estrin(terms: tuple[str, ...]) -> str:
-    """c0 + c1 z + ... in lane l, with z2 = z^2 and z4 = z^4 (Estrin's scheme, 6 or 7 terms)."""
+def _estrin(terms: tuple[str, ...], constant=lambda text: text) -> str:
+    """c0 + c1 z + ... in lane l, with z2 = z^2 and z4 = z^4 (Estrin's scheme, 6 or 7 terms);
+    ``constant`` spells each coefficient (a broadcast in the lane form)."""
     assert len(terms) in (6, 7), terms
-    c = [_c(t) for t in terms]
+    c = [constant(_c(t)) for t in terms]
     low = f"({c[0]} + z[l] * {c[1]}) + z2[l] * ({c[2]} + z[l] * {c[3]})"
     high = f"({c[4]} + z[l] * {c[5]})" + (f" + z2[l] * {c[6]}" if len(c) == 7 else "")
     return f"({low}) + z4[l] * ({high})"
@@ -120,6 +122,74 @@ def helper_source() -> str:
         "    co[l] = sc[l] * (cr[l] * (1.0 - w[l]) + sr[l] * w[l]);",
         "  }",
         "  /* stored lane by lane: s and c may overlap, so a loop writing them would stay scalar */",
+        "  s[0] = so[0];",
+        "  s[1] = so[1];",
+        "  c[0] = co[0];",
+        "  c[1] = co[1];",
+        "}",
+    ]) + "\n"
+
+
+def lane_helper_source() -> str:
+    """``rg_sincos2`` for W states at once (robotgen.emit.lanes), printed once and compiled per
+    width as RG_L(rg_sincos2): x, s and c hold two angles, each a vector of W states. Each lane
+    takes rg_sincos2's operations in its order, so its bits: the same reduction and polynomials
+    on vectors, the quadrant from a vector of ints, and a lane whose pair has an angle past
+    the bound (or not finite) through libm, both angles, as rg_sincos2 takes that pair. The
+    polynomials see 0 in such a lane, so that no conversion to int overflows."""
+    v, vi = lane_names.VECTOR, lane_names.INT_VECTOR
+
+    def k(text: str) -> str:
+        return lane_names.splat(text)
+
+    def i(text: str) -> str:
+        return f"{lane_names.INT_SPLAT}({text})"
+
+    m, width = "m", lane_names.WIDTH
+    return "\n".join([
+        "/* rg_sincos2 on every lane: two angles of W states, each lane computed as rg_sincos2 computes it. */",
+        f"static {lane_names.TARGET} void {lane_names.per_width(HELPER)}(const {v} *x, {v} *s, {v} *c) {{",
+        f"  {v} a[2], y[2], k[2], r[2], z[2], z2[2], z4[2], ps[2], pc[2], sr[2], cr[2], w[2], ss[2], sc[2];",
+        f"  {v} so[2], co[2];",
+        f"  {vi} n[2];",
+        f"  int l, {m}, far[{width}];",
+        f"  for ({m} = 0; {m} < {width}; ++{m}) {{",
+        f"    far[{m}] = !(fabs(x[0][{m}]) <= {ABOVE!r}) || !(fabs(x[1][{m}]) <= {ABOVE!r});",
+        f"    a[0][{m}] = far[{m}] ? 0.0 : x[0][{m}];",
+        f"    a[1][{m}] = far[{m}] ? 0.0 : x[1][{m}];",
+        "  }",
+        f"  for (l = 0; l < 2; ++l) y[l] = a[l] * {k(_c(_TWO_OVER_PI))} + {k('65536.5')};",
+        f"  for (l = 0; l < 2; ++l) n[l] = __builtin_convertvector(y[l], {vi});",
+        f"  for (l = 0; l < 2; ++l) k[l] = __builtin_convertvector(n[l], {v}) - {k('65536.0')};",
+        f"  for (l = 0; l < 2; ++l) r[l] = ((a[l] - k[l] * {k(_c(_P1))}) - k[l] * {k(_c(_P2))}) - k[l] * {k(_c(_P3))};",
+        "  for (l = 0; l < 2; ++l) {",
+        "    z[l] = r[l] * r[l];",
+        "    z2[l] = z[l] * z[l];",
+        "    z4[l] = z2[l] * z2[l];",
+        "  }",
+        f"  for (l = 0; l < 2; ++l) ps[l] = {_estrin(SIN_TERMS, k)};",
+        f"  for (l = 0; l < 2; ++l) pc[l] = {_estrin(COS_TERMS, k)};",
+        "  for (l = 0; l < 2; ++l) {",
+        "    sr[l] = r[l] + (r[l] * z[l]) * ps[l];",
+        f"    cr[l] = {k('1.0')} + z[l] * pc[l];",
+        "  }",
+        "  for (l = 0; l < 2; ++l) {",
+        f"    w[l] = __builtin_convertvector(n[l] & {i('1')}, {v});",
+        f"    ss[l] = __builtin_convertvector({i('1')} - (n[l] & {i('2')}), {v});",
+        f"    sc[l] = __builtin_convertvector({i('1')} - ((n[l] + {i('1')}) & {i('2')}), {v});",
+        "  }",
+        "  for (l = 0; l < 2; ++l) {",
+        f"    so[l] = ss[l] * (sr[l] * ({k('1.0')} - w[l]) + cr[l] * w[l]);",
+        f"    co[l] = sc[l] * (cr[l] * ({k('1.0')} - w[l]) + sr[l] * w[l]);",
+        "  }",
+        f"  for ({m} = 0; {m} < {width}; ++{m}) {{",
+        f"    if (far[{m}]) {{",
+        "      for (l = 0; l < 2; ++l) {",
+        f"        so[l][{m}] = sin(x[l][{m}]);",
+        f"        co[l][{m}] = cos(x[l][{m}]);",
+        "      }",
+        "    }",
+        "  }",
         "  s[0] = so[0];",
         "  s[1] = so[1];",
         "  c[0] = co[0];",
