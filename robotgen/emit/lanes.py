@@ -107,16 +107,78 @@ def width_open(width: Width, precision: Precision) -> str:
         f"typedef int {integers} __attribute__((vector_size({4 * w})));",
         f"#define {lane_names.VECTOR} {vector}",
         f"#define {lane_names.INT_VECTOR} {integers}",
+        # what a comparison gives: a type of its own in Clang; in GCC an opaque type that
+        # converts to this one (which its shuffles take as their mask)
+        "#if defined(__clang__)",
+        f"typedef __typeof__(({vector}){{0}} < ({vector}){{0}}) rg_vm_{width.name};",
+        "#else",
+        f"typedef {'long long' if precision.real == 'double' else 'int'} rg_vm_{width.name} "
+        f"__attribute__((vector_size({width.vector_bytes})));",
+        "#endif",
+        f"#define {lane_names.MASK_VECTOR} rg_vm_{width.name}",
         f"#define {lane_names.WIDTH} {w}",
         f"#define {lane_names.SPLAT}(x) (({lane_names.VECTOR}){{{splat}}})",
         f"#define {lane_names.INT_SPLAT}(x) (({lane_names.INT_VECTOR}){{{splat}}})",
         f"#define {lane_names.TARGET} {target}".rstrip(),
         f"#define {lane_names.PER_WIDTH}(name) name##_{width.name}",
+        *_transposes(w, precision),
     ]) + "\n"
 
 
+def _transpose_steps(w: int) -> list[tuple[int, int, list[int], list[int]]]:
+    """A W x W transpose of rows t[0..W-1] in log2(W) steps: at step b (1, 2, 4, ...), rows i and
+    i + b (i without the bit b) swap their off-diagonal b x b blocks. (i, j, lanes of new t[i],
+    lanes of new t[j]), in a shuffle's numbering (t[i]'s lanes 0..W-1, t[j]'s W..2W-1)."""
+    steps, b = [], 1
+    while b < w:
+        for i in (i for i in range(w) if not i & b):
+            steps.append((i, i + b, [w + lane - b if lane & b else lane for lane in range(w)],
+                          [w + lane if lane & b else lane + b for lane in range(w)]))
+        b *= 2
+    return steps
+
+
+def _transposes(w: int, precision: Precision) -> list[str]:
+    """RG_L(rg_gather) and RG_L(rg_scatter): W consecutive elements of W states (stride apart)
+    to and from W vectors (element e of every state in t[e]; scatter transposes t in place),
+    through a transpose in registers:
+    W loads or stores of W elements instead of W * W single ones. Shuffles of GCC
+    (__builtin_shuffle) or Clang (__builtin_shufflevector)."""
+    v, real = lane_names.VECTOR, precision.real
+    lines = ["#if defined(__clang__)",
+             "#define RG_SHUFFLE(a, b, ...) __builtin_shufflevector(a, b, __VA_ARGS__)",
+             "#else",
+             f"#define RG_SHUFFLE(a, b, ...) __builtin_shuffle(a, b, ({lane_names.MASK_VECTOR}){{__VA_ARGS__}})",
+             "#endif",
+             f"static {lane_names.TARGET} void {lane_names.per_width('rg_transpose')}({v} *t) {{",
+             f"  {v} a, b;"]
+    for i, j, low, high in _transpose_steps(w):
+        lines += [f"  a = RG_SHUFFLE(t[{i}], t[{j}], {', '.join(map(str, low))});",
+                  f"  b = RG_SHUFFLE(t[{i}], t[{j}], {', '.join(map(str, high))});",
+                  f"  t[{i}] = a;", f"  t[{j}] = b;"]
+    # W elements at any address of the real type: an under-aligned vector that may alias it
+    unaligned = lane_names.per_width("rg_vu")
+    lines += ["}", "#undef RG_SHUFFLE",
+              f"typedef {real} {unaligned} __attribute__((vector_size({w * (8 if real == 'double' else 4)}), "
+              f"aligned({8 if real == 'double' else 4}), may_alias));",
+              f"static {lane_names.TARGET} __attribute__((unused)) void {lane_names.per_width('rg_gather')}"
+              f"({v} *t, const {real} *p, size_t stride) {{",
+              "  int l;",
+              f"  for (l = 0; l < {w}; ++l) t[l] = *(const {unaligned} *)(p + l * stride);",
+              f"  {lane_names.per_width('rg_transpose')}(t);",
+              "}",
+              f"static {lane_names.TARGET} __attribute__((unused)) void {lane_names.per_width('rg_scatter')}"
+              f"({real} *p, size_t stride, {v} *t) {{",
+              "  int l;",
+              f"  {lane_names.per_width('rg_transpose')}(t);",
+              f"  for (l = 0; l < {w}; ++l) *({unaligned} *)(p + l * stride) = t[l];",
+              "}"]
+    return lines
+
+
 def width_close() -> str:
-    names = (lane_names.VECTOR, lane_names.INT_VECTOR, lane_names.WIDTH, lane_names.SPLAT, lane_names.INT_SPLAT,
+    names = (lane_names.VECTOR, lane_names.INT_VECTOR, lane_names.MASK_VECTOR, lane_names.WIDTH, lane_names.SPLAT,
+             lane_names.INT_SPLAT,
              lane_names.TARGET, lane_names.PER_WIDTH)
     return "\n".join(f"#undef {name}" for name in names) + "\n#endif\n"
 
@@ -124,14 +186,17 @@ def width_close() -> str:
 def driver_source(prefix: str, kernel: Kernel, precision: Precision) -> str:
     """RG_L(rgb_<fn>): the whole blocks of W among n states through the lane kernel, each state
     checked as the single-state function checks it (status 1 and 3: its outputs untouched; 2:
-    set to 0). Returns the status of the first state whose single call returns nonzero, or 0."""
+    set to 0). Returns the status of the first state whose single call returns nonzero, or 0.
+    Ports go in and out W elements of W states at a time through rg_gather and rg_scatter (a
+    transpose in registers); the elements past the last multiple of W, and the outputs of a
+    block where a state fails its checks, one at a time."""
     real, v, w = precision.real, lane_names.VECTOR, lane_names.WIDTH
     zero = "0.0f" if real == "float" else "0.0"
     inputs, outputs = _array_ports(kernel), kernel.outputs
     params = [f"const {params_type(prefix)} *{p.name}" if is_parameter_port(p) else f"const {real} *{p.name}"
               for p in kernel.inputs] + [f"{real} *{p.name}" for p in outputs]
-    arrays = [f"rgb_in{k}[{p.size}]" for k, p in enumerate(inputs)] + [f"rgb_out{k}[{p.size}]"
-                                                                        for k, p in enumerate(outputs)]
+    arrays = ([f"rgb_in{k}[{p.size}]" for k, p in enumerate(inputs)]
+              + [f"rgb_out{k}[{p.size}]" for k, p in enumerate(outputs)])
     arguments, k = [], 0
     for p in kernel.inputs:
         if is_parameter_port(p):
@@ -140,43 +205,62 @@ def driver_source(prefix: str, kernel: Kernel, precision: Precision) -> str:
             arguments.append(f"rgb_in{k}")
             k += 1
     arguments += [f"rgb_out{k}" for k in range(len(outputs))]
-    checked = kernel.guarded or any(p.name == STEP_PORT and p.size == 1 for p in kernel.inputs)
+    step = any(p.name == STEP_PORT and p.size == 1 for p in kernel.inputs)
+    checked = kernel.guarded or step
+    gather, scatter = lane_names.per_width("rg_gather"), lane_names.per_width("rg_scatter")
     lines = [
         f"/* {function_name(prefix, kernel)} on {w} states at a time, the whole blocks of n. */",
         f"static {lane_names.TARGET} int {lane_names.per_width(DRIVER + kernel.name)}(int n, {', '.join(params)}) {{",
         f"  {v} {', '.join(arrays)};",
-        "  int rg_b, rg_l, rg_e" + (", rg_s, rg_status = 0;" if checked else ";"),
-        "  size_t rg_k;",
+        "  int rg_b, rg_l, rg_e" + (f", rg_s[{w}], rg_failed, rg_status = 0;" if checked else ";"),
+        *([f"  {lane_names.MASK_VECTOR} rg_in, rg_out, rg_dt;", "  size_t rg_k;"] if checked else []),
+        *([f"  {v} rg_x;"] if kernel.guarded else []),
         f"  for (rg_b = 0; rg_b <= n - {w}; rg_b += {w}) {{",
-        f"    for (rg_l = 0; rg_l < {w}; ++rg_l) {{",
-        "      rg_k = (size_t)(rg_b + rg_l);",
     ]
-    lines += [f"      for (rg_e = 0; rg_e < {p.size}; ++rg_e) rgb_in{k}[rg_e][rg_l] = {p.name}[rg_k * {p.size} + rg_e];"
-              for k, p in enumerate(inputs)]
-    lines += ["    }", f"    {lane_names.per_width('rgl_' + kernel.name)}({', '.join(arguments)});",
-              f"    for (rg_l = 0; rg_l < {w}; ++rg_l) {{", "      rg_k = (size_t)(rg_b + rg_l);"]
-    writes = [f"for (rg_e = 0; rg_e < {p.size}; ++rg_e) {p.name}[rg_k * {p.size} + rg_e] = rgb_out{k}[rg_e][rg_l];"
-              for k, p in enumerate(outputs)]
+    for k, p in enumerate(inputs):
+        lines += [f"    for (rg_e = 0; rg_e + {w} <= {p.size}; rg_e += {w})",
+                  f"      {gather}(rgb_in{k} + rg_e, {p.name} + (size_t)rg_b * {p.size} + rg_e, {p.size});",
+                  f"    for (rg_e = {p.size} - {p.size} % {w}; rg_e < {p.size}; ++rg_e)",
+                  f"      for (rg_l = 0; rg_l < {w}; ++rg_l) "
+                  f"rgb_in{k}[rg_e][rg_l] = {p.name}[(size_t)(rg_b + rg_l) * {p.size} + rg_e];"]
+    lines.append(f"    {lane_names.per_width('rgl_' + kernel.name)}({', '.join(arguments)});")
+    fast = []
+    for k, p in enumerate(outputs):
+        fast += [f"for (rg_e = 0; rg_e + {w} <= {p.size}; rg_e += {w})",
+                 f"  {scatter}({p.name} + (size_t)rg_b * {p.size} + rg_e, {p.size}, rgb_out{k} + rg_e);",
+                 f"for (rg_e = {p.size} - {p.size} % {w}; rg_e < {p.size}; ++rg_e)",
+                 f"  for (rg_l = 0; rg_l < {w}; ++rg_l) "
+                 f"{p.name}[(size_t)(rg_b + rg_l) * {p.size} + rg_e] = rgb_out{k}[rg_e][rg_l];"]
     if not checked:
-        lines += ["      " + line for line in writes]
-        lines += ["    }", "  }", "  return 0;", "}"]
+        lines += ["    " + line for line in fast]
+        lines += ["  }", "  return 0;", "}"]
         return "\n".join(lines) + "\n"
-    lines.append("      rg_s = 0;")
+    # the checks on whole vectors: x - x is 0 for a finite x and NaN for a NaN or an infinity
+    mask = lane_names.MASK_VECTOR
+    dt_port = next((k for k, p in enumerate(inputs) if p.name == STEP_PORT and p.size == 1), None)
+    lines += [f"    rg_in = rg_out = rg_dt = ({mask}){{0}};"]
     if kernel.guarded:
-        lines += [f"      for (rg_e = 0; rg_e < {p.size}; ++rg_e) if (!isfinite({p.name}[rg_k * {p.size} + rg_e])) "
-                  "rg_s = 1;" for p in inputs]
-    if any(p.name == STEP_PORT and p.size == 1 for p in kernel.inputs):
-        lines.append(f"      if (rg_s == 0 && {STEP_PORT}[rg_k] <= {zero}) rg_s = 3;")
+        for side, ports in (("in", inputs), ("out", outputs)):
+            for k, p in enumerate(ports):
+                lines += [f"    for (rg_e = 0; rg_e < {p.size}; ++rg_e) {{",
+                          f"      rg_x = rgb_{side}{k}[rg_e] - rgb_{side}{k}[rg_e];",
+                          f"      rg_{side} |= rg_x != rg_x;", "    }"]
+    if step:
+        lines.append(f"    rg_dt = rgb_in{dt_port}[0] <= {lane_names.splat(zero)};")
+    lines += ["    rg_failed = 0;", f"    for (rg_l = 0; rg_l < {w}; ++rg_l) {{",
+              "      rg_s[rg_l] = rg_in[rg_l] ? 1 : rg_dt[rg_l] ? 3 : rg_out[rg_l] ? 2 : 0;",
+              "      rg_failed |= rg_s[rg_l];",
+              "      if (rg_s[rg_l] != 0 && rg_status == 0) rg_status = rg_s[rg_l];", "    }",
+              "    if (!rg_failed) {", *("      " + line for line in fast), "      continue;", "    }",
+              f"    for (rg_l = 0; rg_l < {w}; ++rg_l) {{", "      rg_k = (size_t)(rg_b + rg_l);",
+              "      if (rg_s[rg_l] == 0) {"]
+    lines += [f"        for (rg_e = 0; rg_e < {p.size}; ++rg_e) "
+              f"{p.name}[rg_k * {p.size} + rg_e] = rgb_out{k}[rg_e][rg_l];" for k, p in enumerate(outputs)]
     if kernel.guarded:
-        lines += [f"      for (rg_e = 0; rg_e < {p.size}; ++rg_e) if (rg_s == 0 && !isfinite(rgb_out{k}[rg_e][rg_l])) "
-                  "rg_s = 2;" for k, p in enumerate(outputs)]
-    lines += ["      if (rg_s == 0) {", *("        " + line for line in writes)]
-    if kernel.guarded:
-        lines.append("      } else if (rg_s == 2) {")
+        lines.append("      } else if (rg_s[rg_l] == 2) {")
         lines += [f"        for (rg_e = 0; rg_e < {p.size}; ++rg_e) {p.name}[rg_k * {p.size} + rg_e] = {zero};"
                   for p in outputs]
-    lines += ["      }", "      if (rg_s != 0 && rg_status == 0) rg_status = rg_s;", "    }", "  }",
-              "  return rg_status;", "}"]
+    lines += ["      }", "    }", "  }", "  return rg_status;", "}"]
     return "\n".join(lines) + "\n"
 
 

@@ -134,10 +134,12 @@ def lane_helper_source() -> str:
     """``rg_sincos2`` for W states at once (robotgen.emit.lanes), printed once and compiled per
     width as RG_L(rg_sincos2): x, s and c hold two angles, each a vector of W states. Each lane
     takes rg_sincos2's operations in its order, so its bits: the same reduction and polynomials
-    on vectors, the quadrant from a vector of ints, and a lane whose pair has an angle past
-    the bound (or not finite) through libm, both angles, as rg_sincos2 takes that pair. The
-    polynomials see 0 in such a lane, so that no conversion to int overflows."""
-    v, vi = lane_names.VECTOR, lane_names.INT_VECTOR
+    on vectors (RG_L(rg_sincos1), one angle), the quadrant from a vector of ints, and a lane
+    whose pair has an angle past the bound (or not finite) through libm, both angles, as
+    rg_sincos2 takes that pair. The polynomials see 0 in such a lane, so that no conversion to
+    int overflows. |x| <= bound is written x <= bound and x >= -bound (the same lanes, NaN in
+    neither), so that the test stays on vectors."""
+    v, vi, mask = lane_names.VECTOR, lane_names.INT_VECTOR, lane_names.MASK_VECTOR
 
     def k(text: str) -> str:
         return lane_names.splat(text)
@@ -145,55 +147,48 @@ def lane_helper_source() -> str:
     def i(text: str) -> str:
         return f"{lane_names.INT_SPLAT}({text})"
 
-    m, width = "m", lane_names.WIDTH
+    def within(x: str) -> str:
+        return f"({x} <= {k(repr(ABOVE))}) & ({x} >= {k(repr(-ABOVE))})"
+
+    one = lane_names.per_width("rg_sincos1")
     return "\n".join([
+        "/* rg_sincos2's reduction, polynomials and quadrant on every lane of one angle x, |x| <= the bound. */",
+        f"static {lane_names.TARGET} void {one}(const {v} *x, {v} *s, {v} *c) {{",
+        f"  {v} y, k, r, z, z2, z4, ps, pc, sr, cr, w, ss, sc;",
+        f"  {vi} n;",
+        f"  y = *x * {k(_c(_TWO_OVER_PI))} + {k('65536.5')};",
+        f"  n = __builtin_convertvector(y, {vi});",
+        f"  k = __builtin_convertvector(n, {v}) - {k('65536.0')};",
+        f"  r = ((*x - k * {k(_c(_P1))}) - k * {k(_c(_P2))}) - k * {k(_c(_P3))};",
+        "  z = r * r;",
+        "  z2 = z * z;",
+        "  z4 = z2 * z2;",
+        f"  ps = {_estrin(SIN_TERMS, k).replace('[l]', '')};",
+        f"  pc = {_estrin(COS_TERMS, k).replace('[l]', '')};",
+        "  sr = r + (r * z) * ps;",
+        f"  cr = {k('1.0')} + z * pc;",
+        f"  w = __builtin_convertvector(n & {i('1')}, {v});",
+        f"  ss = __builtin_convertvector({i('1')} - (n & {i('2')}), {v});",
+        f"  sc = __builtin_convertvector({i('1')} - ((n + {i('1')}) & {i('2')}), {v});",
+        f"  *s = ss * (sr * ({k('1.0')} - w) + cr * w);",
+        f"  *c = sc * (cr * ({k('1.0')} - w) + sr * w);",
+        "}",
+        "",
         "/* rg_sincos2 on every lane: two angles of W states, each lane computed as rg_sincos2 computes it. */",
         f"static {lane_names.TARGET} void {lane_names.per_width(HELPER)}(const {v} *x, {v} *s, {v} *c) {{",
-        f"  {v} a[2], y[2], k[2], r[2], z[2], z2[2], z4[2], ps[2], pc[2], sr[2], cr[2], w[2], ss[2], sc[2];",
-        f"  {v} so[2], co[2];",
-        f"  {vi} n[2];",
-        f"  int l, {m}, far[{width}];",
-        f"  for ({m} = 0; {m} < {width}; ++{m}) {{",
-        f"    far[{m}] = !(fabs(x[0][{m}]) <= {ABOVE!r}) || !(fabs(x[1][{m}]) <= {ABOVE!r});",
-        f"    a[0][{m}] = far[{m}] ? 0.0 : x[0][{m}];",
-        f"    a[1][{m}] = far[{m}] ? 0.0 : x[1][{m}];",
-        "  }",
-        f"  for (l = 0; l < 2; ++l) y[l] = a[l] * {k(_c(_TWO_OVER_PI))} + {k('65536.5')};",
-        f"  for (l = 0; l < 2; ++l) n[l] = __builtin_convertvector(y[l], {vi});",
-        f"  for (l = 0; l < 2; ++l) k[l] = __builtin_convertvector(n[l], {v}) - {k('65536.0')};",
-        f"  for (l = 0; l < 2; ++l) r[l] = ((a[l] - k[l] * {k(_c(_P1))}) - k[l] * {k(_c(_P2))}) - k[l] * {k(_c(_P3))};",
-        "  for (l = 0; l < 2; ++l) {",
-        "    z[l] = r[l] * r[l];",
-        "    z2[l] = z[l] * z[l];",
-        "    z4[l] = z2[l] * z2[l];",
-        "  }",
-        f"  for (l = 0; l < 2; ++l) ps[l] = {_estrin(SIN_TERMS, k)};",
-        f"  for (l = 0; l < 2; ++l) pc[l] = {_estrin(COS_TERMS, k)};",
-        "  for (l = 0; l < 2; ++l) {",
-        "    sr[l] = r[l] + (r[l] * z[l]) * ps[l];",
-        f"    cr[l] = {k('1.0')} + z[l] * pc[l];",
-        "  }",
-        "  for (l = 0; l < 2; ++l) {",
-        f"    w[l] = __builtin_convertvector(n[l] & {i('1')}, {v});",
-        f"    ss[l] = __builtin_convertvector({i('1')} - (n[l] & {i('2')}), {v});",
-        f"    sc[l] = __builtin_convertvector({i('1')} - ((n[l] + {i('1')}) & {i('2')}), {v});",
-        "  }",
-        "  for (l = 0; l < 2; ++l) {",
-        f"    so[l] = ss[l] * (sr[l] * ({k('1.0')} - w[l]) + cr[l] * w[l]);",
-        f"    co[l] = sc[l] * (cr[l] * ({k('1.0')} - w[l]) + sr[l] * w[l]);",
-        "  }",
-        f"  for ({m} = 0; {m} < {width}; ++{m}) {{",
-        f"    if (far[{m}]) {{",
-        "      for (l = 0; l < 2; ++l) {",
-        f"        so[l][{m}] = sin(x[l][{m}]);",
-        f"        co[l][{m}] = cos(x[l][{m}]);",
-        "      }",
+        f"  {mask} near = {within('x[0]')} & {within('x[1]')};",
+        f"  {v} a0 = ({v})(({mask})x[0] & near), a1 = ({v})(({mask})x[1] & near);",
+        "  int m;",
+        f"  {one}(&a0, s, c);",
+        f"  {one}(&a1, s + 1, c + 1);",
+        f"  for (m = 0; m < {lane_names.WIDTH}; ++m) {{",
+        "    if (!near[m]) {",
+        "      s[0][m] = sin(x[0][m]);",
+        "      c[0][m] = cos(x[0][m]);",
+        "      s[1][m] = sin(x[1][m]);",
+        "      c[1][m] = cos(x[1][m]);",
         "    }",
         "  }",
-        "  s[0] = so[0];",
-        "  s[1] = so[1];",
-        "  c[0] = co[0];",
-        "  c[1] = co[1];",
         "}",
     ]) + "\n"
 
