@@ -245,7 +245,8 @@ def module_view(name: str, kernels: list[Kernel], *, nq: int, precision: str,
     functions, stage_counts = [], {}
     for i, k in enumerate(kernels):
         progress.step(i + 1, len(kernels), f"printing C: {k.name}")
-        functions.append(_function_view(name, k, PRECISIONS[precision], parameters, helper_names, stage_counts))
+        functions.append(_function_view(name, k, PRECISIONS[precision], parameters, helper_names, stage_counts,
+                                        with_lanes=nq <= lanes.LANES_MAX_NQ))
     functions, homes = _assign_parts(tuple(functions), helpers)
     helpers = tuple(replace(h, parts=parts, home=homes[h.c_name] if len(parts) > 1 else None)
                     for h in helpers
@@ -279,6 +280,7 @@ def module_view(name: str, kernels: list[Kernel], *, nq: int, precision: str,
                           "every function's keyword for its result arrays")
     lane_helpers = _lane_helpers(kernels, functions, helper_names, PRECISIONS[precision])
     batch_parts = tuple(sorted({f.part for f in functions if f.batch}))
+    laned = any(f.lane_definition for f in functions)
     sincos_parts = tuple(sorted({f.part for f in functions if sincos.HELPER + "(" in f.definition}
                                 | {k for h in helpers if sincos.HELPER + "(" in h.definition
                                    for k in (h.parts if h.home is None else (h.home,))}))
@@ -301,10 +303,11 @@ def module_view(name: str, kernels: list[Kernel], *, nq: int, precision: str,
         controllers_note=controllers_note(views), parts=max(f.part for f in functions) + 1,
         zero=c_kernel.literal(0.0, PRECISIONS[precision]), one=c_kernel.literal(1.0, PRECISIONS[precision]),
         sincos_helper=sincos.helper_source() if sincos_parts else "", sincos_parts=sincos_parts,
-        helpers=helpers, lanes_guard=lanes.LANES_GUARD if batch_parts else "",
+        helpers=helpers, lanes_guard=lanes.LANES_GUARD if laned else "",
         lane_widths=tuple((lanes.width_open(w, PRECISIONS[precision]), lanes.width_close()) for w in lanes.WIDTHS)
-        if batch_parts else (),
-        lane_helpers=lane_helpers, batch_select=lanes.select_source(PRECISIONS[precision]) if batch_parts else "",
+        if laned else (),
+        lane_helpers=lane_helpers,
+        batch_select=lanes.select_source(PRECISIONS[precision], laned) if batch_parts else "",
         batch_parts=batch_parts)
 
 
@@ -318,7 +321,7 @@ def _lane_helpers(kernels: list[Kernel], functions: tuple[FunctionView, ...], he
     calls_sincos = lane_names.per_width(sincos.HELPER) + "("
     for kernel in kernels:
         f = by_name[kernel.name]
-        if not f.batch:
+        if not f.lane_definition:
             continue
         if calls_sincos in f.lane_definition:
             sincos_parts.add(f.part)
@@ -501,7 +504,7 @@ def _stage_helpers(kernels: list[Kernel], precision: c_kernel.Precision
 
 def _function_view(prefix: str, kernel: Kernel, precision: c_kernel.Precision,
                    parameters: tuple[ParameterView, ...], helper_names: dict | None = None,
-                   stage_counts: dict | None = None) -> FunctionView:
+                   stage_counts: dict | None = None, with_lanes: bool = True) -> FunctionView:
     if not kernel.outputs:
         raise KernelError(f"kernel {kernel.name!r} has no outputs")
     program = read_program(kernel) if kernel.schedule is None else None
@@ -527,18 +530,18 @@ def _function_view(prefix: str, kernel: Kernel, precision: c_kernel.Precision,
         takes_step=any(p.name == c_kernel.STEP_PORT and p.size == 1 for p in kernel.inputs),
         helpers=tuple(dict.fromkeys(helper_names[stage] for stage in kernel.schedule.stages))
         if kernel.schedule is not None and helper_names else (),
-        **_batch_fields(prefix, kernel, precision, program, helper_names))
+        **_batch_fields(prefix, kernel, precision, program, helper_names, with_lanes))
 
 
 def _batch_fields(prefix: str, kernel: Kernel, precision: c_kernel.Precision, program: Program | None,
-                  helper_names: dict | None) -> dict:
+                  helper_names: dict | None, with_lanes: bool) -> dict:
     if not lanes.has_batch(kernel):
         return {}
     whole, capped = lanes.batch_prototypes(prefix, kernel, precision)
-    return dict(batch_prototype=whole, batch_lanes_prototype=capped,
-                lane_definition=c_kernel.lane_kernel_source(prefix, kernel, precision, program, helper_names)
-                + "\n" + lanes.driver_source(prefix, kernel, precision),
-                batch_definition=lanes.batch_source(prefix, kernel, precision))
+    lane_definition = (c_kernel.lane_kernel_source(prefix, kernel, precision, program, helper_names) + "\n"
+                       + lanes.driver_source(prefix, kernel, precision)) if with_lanes else ""
+    return dict(batch_prototype=whole, batch_lanes_prototype=capped, lane_definition=lane_definition,
+                batch_definition=lanes.batch_source(prefix, kernel, precision, with_lanes))
 
 
 def _port_view(port: Port, macro: str) -> PortView:

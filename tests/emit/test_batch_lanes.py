@@ -43,10 +43,9 @@ def built(tmp_path_factory, name, kernels, nq, wanted, precision="double"):
     return load(out, name), chosen
 
 
-def branched_tree(seed: int = 3) -> KinematicTree:
-    """18 joints on two roots with branches (past 12 joints: loops through parent tables),
-    oblique axes, one prismatic joint."""
-    parents = [-1, 0, 1, 2, 1, 4, 5, 6, 0, 8, 9, 10, 9, 12, 13, -1, 15, 16]
+def branched_tree(seed: int = 3, parents: tuple[int, ...] = (-1, 0, 1, 2, 1, 4, 5, 6, 0, 8, 9, 10)) -> KinematicTree:
+    """A tree on oblique axes with one prismatic joint: 12 joints, branches of several lengths
+    (lanes are compiled up to 12 coordinates, robotgen.emit.lanes.LANES_MAX_NQ)."""
     rng = np.random.default_rng(seed)
     joints = []
     for i, parent in enumerate(parents):
@@ -80,9 +79,7 @@ def panda(tmp_path_factory):
 @pytest.fixture(scope="module")
 def tree(tmp_path_factory):
     t = branched_tree()
-    kernels = leaf_kernels(t)
-    assert all(k.schedule is not None for k in kernels if k.name in ("mass", "forward_dynamics"))
-    return built(tmp_path_factory, "lanes_tree", kernels, t.nq, ("mass", "inverse_dynamics", "forward_dynamics"))
+    return built(tmp_path_factory, "lanes_tree", leaf_kernels(t), t.nq, ("mass", "inverse_dynamics", "forward_dynamics"))
 
 
 def widths(module) -> list[int]:
@@ -215,6 +212,15 @@ def test_the_batch_c_builds_pedantic_and_without_lanes(ur5, compiler, tmp_path):
         result = subprocess.run([compiler, "-std=c99", "-pedantic", "-Wall", "-Wextra", "-Werror", "-O1",
                                  *extra, "-c", source, "-o", str(tmp_path / "lanes.o")], capture_output=True, text=True)
         assert result.returncode == 0, result.stderr[-3000:]
+
+
+def test_past_12_coordinates_a_batch_is_a_loop_of_single_calls(tmp_path_factory):
+    """An 18-joint tree (its kernels loops through parent tables) gets the batch entry points
+    without lanes: width 1 at every cap, the single calls' bits."""
+    t = branched_tree(4, (-1, 0, 1, 2, 1, 4, 5, 6, 0, 8, 9, 10, 9, 12, 13, -1, 15, 16))
+    module, kernels = built(tmp_path_factory, "lanes_long_tree", leaf_kernels(t), t.nq, ("mass", "forward_dynamics"))
+    assert "RG_LANES_X86" not in open(os.path.join(os.path.dirname(module.__file__), "lanes_long_tree.c")).read()
+    assert assert_batch_is_single_calls(module, kernels, lanes.BATCH_FUNCTIONS, (1, 9), np.random.default_rng(7)) == [1]
 
 
 def test_float_batches_are_single_calls_bit_for_bit(tmp_path_factory):
