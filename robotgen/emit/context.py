@@ -450,6 +450,11 @@ COMPILE_PARTS_ABOVE = 300_000
 LOOP_STATEMENT_COST = 5
 
 
+# A function's lane form (robotgen.emit.lanes) is compiled once per width of the machine's family:
+# twice on x86-64 (AVX-512F, AVX2), where robotgen's builds mostly run.
+LANE_COPIES = 2
+
+
 def compile_cost(definition: str) -> int:
     """Statements of a C function, those in a schedule's loops (indented past the loop
     headers, which follow the prologue) counted LOOP_STATEMENT_COST times."""
@@ -466,9 +471,10 @@ def _assign_parts(functions: tuple[FunctionView, ...], helpers: tuple[HelperView
     """Each function into the part whose load (compile_cost, with the helpers it would be the
     first to call) grows least, the costliest functions first; and each helper's home: the
     part of its first caller."""
-    if sum(len(f.definition) for f in functions) + sum(len(h.definition) for h in helpers) <= COMPILE_PARTS_ABOVE:
+    if (sum(len(f.definition) + LANE_COPIES * len(f.lane_definition) for f in functions)
+            + sum(len(h.definition) for h in helpers) <= COMPILE_PARTS_ABOVE):
         return functions, {h.c_name: 0 for h in helpers}
-    own = {f.name: compile_cost(f.definition) for f in functions}
+    own = {f.name: compile_cost(f.definition) + LANE_COPIES * compile_cost(f.lane_definition) for f in functions}
     shared = {h.c_name: compile_cost(h.definition) for h in helpers}
     load, home = [0] * COMPILE_PARTS, {}
     part = {}
