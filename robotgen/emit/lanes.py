@@ -76,6 +76,9 @@ LANES_GUARD = ("#if defined(__GNUC__) && (defined(__clang__) || __GNUC__ >= 9) &
                "#elif defined(__aarch64__)\n"
                f"#define {NEON} 1\n"
                "#endif\n"
+               "#endif\n"
+               f"#if defined(__clang__) && (defined({X86}) || defined({NEON}))\n"
+               "#pragma STDC FP_CONTRACT OFF\n"
                "#endif\n")
 
 
@@ -104,7 +107,11 @@ def width_open(width: Width, precision: Precision) -> str:
     """The definitions of lane_names for ``width`` (before its copy of the lane kernels)."""
     w = width.lanes(precision)
     splat = ", ".join(["(x)"] * w)
-    target = f'__attribute__((target("{width.target}")))' if width.target else ""
+    # never a multiply-add: GCC fuses across statements in GNU mode (AVX-512F has FMA), Clang within
+    # an expression (the sin/cos polynomials); Clang's is turned off by the pragma of LANES_GUARD
+    isa = f'target("{width.target}")' if width.target else ""
+    target = f"__attribute__(({isa}))" if isa else ""
+    gcc_target = f'__attribute__(({isa + ", " if isa else ""}optimize("fp-contract=off")))'
     vector, integers = f"rg_v_{width.name}", f"rg_vi_{width.name}"
     return "\n".join([
         f"#if defined({width.guard})",
@@ -124,7 +131,11 @@ def width_open(width: Width, precision: Precision) -> str:
         f"#define {lane_names.WIDTH} {w}",
         f"#define {lane_names.SPLAT}(x) (({lane_names.VECTOR}){{{splat}}})",
         f"#define {lane_names.INT_SPLAT}(x) (({lane_names.INT_VECTOR}){{{splat}}})",
+        "#if defined(__clang__)",
         f"#define {lane_names.TARGET} {target}".rstrip(),
+        "#else",
+        f"#define {lane_names.TARGET} {gcc_target}",
+        "#endif",
         f"#define {lane_names.PER_WIDTH}(name) name##_{width.name}",
         *_transposes(w, precision),
     ]) + "\n"

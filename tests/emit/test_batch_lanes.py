@@ -223,6 +223,35 @@ def test_past_12_coordinates_a_batch_is_a_loop_of_single_calls(tmp_path_factory)
     assert assert_batch_is_single_calls(module, kernels, lanes.BATCH_FUNCTIONS, (1, 9), np.random.default_rng(7)) == [1]
 
 
+@pytest.mark.parametrize("compiler", ["gcc", "clang"])
+def test_a_users_build_in_gnu_mode_keeps_the_bits(ur5, compiler, tmp_path):
+    """Built as a user might (-O2, GNU C, where GCC fuses multiply-adds and AVX-512F has them;
+    Clang fuses within an expression), every width still gives the single calls' bits: the lane
+    code turns contraction off itself. bench/batch.py's harness compares them with memcmp."""
+    import json
+    import sys
+
+    from conftest import ROOT
+
+    if shutil.which(compiler) is None:
+        pytest.skip(f"{compiler} is not installed")
+    sys.path.insert(0, str(ROOT / "bench"))
+    try:
+        import batch as bench_batch
+    finally:
+        sys.path.remove(str(ROOT / "bench"))
+    module, _ = ur5
+    out = os.path.dirname(module.__file__)
+    manifest = json.loads(open(os.path.join(out, "manifest.json")).read())
+    (tmp_path / "check.c").write_text(bench_batch.harness("lanes_ur5", "double", manifest["functions"], 1))
+    exe = tmp_path / "check"
+    subprocess.run([compiler, "-O2", "-std=gnu99", "-I", out, str(tmp_path / "check.c"),
+                    os.path.join(out, "lanes_ur5.c"), "-lm", "-o", str(exe)], check=True)
+    result = subprocess.run([str(exe)], capture_output=True, text=True)
+    assert result.returncode == 0, result.stderr
+    assert json.loads(result.stdout)["widths"] == widths(module)
+
+
 def test_float_batches_are_single_calls_bit_for_bit(tmp_path_factory):
     """--precision float: 16 and 8 floats a vector, sinf and cosf lane by lane."""
     system = load_urdf_system(str(robots_dir() / UR5[0]), UR5[1])
