@@ -43,8 +43,8 @@ def built(tmp_path_factory, name, kernels, nq, wanted, precision="double"):
     return load(out, name), chosen
 
 
-def branched_tree(seed: int = 3, parents: tuple[int, ...] = (-1, 0, 1, 2, 1, 4, 5, 6, 0, 8, 9, 10)) -> KinematicTree:
-    """A tree on oblique axes with one prismatic joint: 12 joints, branches of several lengths
+def branched_tree(seed: int = 3, parents: tuple[int, ...] = (-1, 0, 1, 2, 1, 4, 5, 0, 7)) -> KinematicTree:
+    """A tree on oblique axes with one prismatic joint: 9 joints, three branches of several lengths
     (lanes are compiled up to 12 coordinates, robotgen.emit.lanes.LANES_MAX_NQ)."""
     rng = np.random.default_rng(seed)
     joints = []
