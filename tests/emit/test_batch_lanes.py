@@ -259,3 +259,33 @@ def test_float_batches_are_single_calls_bit_for_bit(tmp_path_factory):
                             ("mass", "forward_dynamics"), precision="float")
     assert_batch_is_single_calls(module, kernels, lanes.BATCH_FUNCTIONS, (1, 15, 16, 17, 1023),
                                  np.random.default_rng(6))
+
+
+def test_a_tree_specs_plant_reads_the_parameters_in_every_lane(build_module):
+    """specs/styx_squeeze.yaml: a robot tree whose plant_dynamics reads run-time parameters (the
+    box's mass: one struct for every state of the batch), with the default and with a value passed."""
+    import json
+
+    from conftest import SPECS
+
+    module = build_module(SPECS / "styx_squeeze.yaml")
+    manifest = json.loads(open(os.path.join(os.path.dirname(module.__file__), "manifest.json")).read())
+    plant = next(f for f in manifest["functions"] if f["name"] == "plant_dynamics")
+    assert plant["reads_parameters"]
+    name, value = next((k, v) for k, v in module.parameters.items() if "mass" in k)
+    rng = np.random.default_rng(8)
+    n = 19
+    arrays = [rng.uniform(-0.5, 0.5, (n, *p["shape"])) for p in plant["inputs"]]
+    for keywords in ({}, {name: value * 1.25}):
+        single = [module.plant_dynamics(*(a[k] for a in arrays), **keywords) for k in range(n)]
+        for cap in WIDTHS:
+            os.environ["ROBOTGEN_BATCH_LANES"] = str(cap)
+            try:
+                batch = module.plant_dynamics(*arrays, **keywords)
+            finally:
+                del os.environ["ROBOTGEN_BATCH_LANES"]
+            for j, part in enumerate(batch):
+                for k in range(n):
+                    assert part[k].tobytes() == single[k][j].tobytes(), (keywords, cap, j, k)
+    changed = module.plant_dynamics(*arrays, **{name: value * 1.25})
+    assert any(not np.array_equal(a, b) for a, b in zip(changed, module.plant_dynamics(*arrays))), name
