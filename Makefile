@@ -67,6 +67,7 @@ bench:
 	$(PYTHON) bench/code_generators.py  # the peers' generated C vs robotgen's on the UR5, Panda, iiwa (~10 min the first time)
 	$(PYTHON) bench/controllers.py  # servo step with run-time vs folded gains; hand controllers in C vs CasADi
 	$(PYTHON) bench/scaling.py  # build s and ns per call vs dof: chains of 2..30 links, a humanoid tree (~5 min)
+	$(PYTHON) bench/batch.py  # states/s of the _batch entry points (SIMD across states) against a loop of single calls
 
 # Refresh tests/golden/ (every spec's manifest, the small specs whole); tests/emit/test_golden.py
 # checks that a fresh build equals it.

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
-from robotgen.emit import issue_order, sincos
+from robotgen.emit import issue_order, lane_names, sincos
 from robotgen.emit.sx_program import Instruction, KernelError, Program, read_program, reads_first
 from robotgen.symbolic.kernel import PARAMS, Kernel, Port
 from robotgen.symbolic.schedule import (
@@ -184,8 +184,49 @@ def kernel_source(prefix: str, kernel: Kernel, precision: Precision,
     return "\n".join(lines) + "\n"
 
 
+LANE_KERNEL = "rgl_"  # a kernel's lane form: static, rgl_<kernel> per width
+
+
+def lane_kernel_source(prefix: str, kernel: Kernel, precision: Precision, program: Program | None = None,
+                       helpers: dict[Stage, str] | None = None) -> str:
+    """``kernel``'s lane form (robotgen.emit.lanes): the statements of kernel_source in the same
+    order on vectors of W states, its ports arrays of vectors (one state per lane, a port's
+    element k in vector k), the parameters read from the struct into every lane. It has no
+    guards: the batch driver checks each state as the single-state function does."""
+    _check_ports(kernel)
+    fields = {i: parameter_elements(p) for i, p in enumerate(kernel.inputs) if is_parameter_port(p)}
+
+    def read(port: int, element: int) -> str:
+        if port in fields:
+            return lane_names.splat(fields[port][element])
+        return f"{kernel.inputs[port].name}[{element}]"
+
+    if kernel.schedule is not None:
+        helpers = {stage: lane_names.per_width(name) for stage, name in
+                   (helpers or {stage: stage_name(stage) for stage in kernel.schedule.stages}).items()}
+        declarations, body = _scheduled_body(kernel, precision, read, helpers, lanes=True)
+    else:
+        program = program or read_program(kernel)
+        declarations, body = _straight_line(program, kernel, precision, read,
+                                            lambda port, element: f"{kernel.outputs[port].name}[{element}]",
+                                            lanes=True)
+        zero = _literal(0.0, precision, True)
+        for port_index, elements in program.unwritten_outputs:
+            name = kernel.outputs[port_index].name
+            body += [f"{name}[{e}] = {zero};" for e in elements]
+    used = {name for line in declarations + body for name in re.findall(r"[A-Za-z_][A-Za-z0-9_]*", line)}
+    params = [f"const {params_type(prefix)} *{p.name}" if is_parameter_port(p)
+              else f"const {lane_names.VECTOR} *{p.name}" for p in kernel.inputs]
+    params += [f"{lane_names.VECTOR} *{p.name}" for p in kernel.outputs]
+    lines = [f"static {lane_names.TARGET} void {lane_names.per_width(LANE_KERNEL + kernel.name)}"
+             f"({', '.join(params)}) {{", *("  " + d for d in declarations)]
+    lines += [f"  (void){p.name};" for p in (*kernel.inputs, *kernel.outputs) if p.name not in used]
+    lines += ["  " + line for line in body]
+    return "\n".join([*lines, "}"]) + "\n"
+
+
 def _straight_line(program: Program, kernel: Kernel, precision: Precision, read, write,
-                   register: str = "w") -> tuple[list[str], list[str]]:
+                   register: str = "w", lanes: bool = False) -> tuple[list[str], list[str]]:
     """(declarations of the registers, statements) of one SX program; ``read(port, element)``
     and ``write(port, element)`` spell its inputs and outputs. In double precision the
     angles of a straight-line program (not a loop body) go through robotgen.emit.sincos, and
@@ -200,27 +241,32 @@ def _straight_line(program: Program, kernel: Kernel, precision: Precision, read,
     body = []
     for step in program.instructions:
         if step.op == sincos.SINCOS:
-            body += _sincos_statements(step, register, precision)
+            body += _sincos_statements(step, register, precision, lanes)
         else:
-            body.append(_statement(step, kernel, precision, read, write, register))
+            body.append(_statement(step, kernel, precision, read, write, register, lanes))
     registers = sorted({s.target for s in program.instructions if s.target >= 0})
-    declarations = [f"{precision.real} " + ", ".join(f"{register}{r}" for r in registers[start:start + 12]) + ";"
+    real = lane_names.VECTOR if lanes else precision.real
+    declarations = [f"{real} " + ", ".join(f"{register}{r}" for r in registers[start:start + 12]) + ";"
                     for start in range(0, len(registers), 12)]
     if sincos.uses_helper(program):
         n = sincos.lanes(program)
-        declarations.append(f"{precision.real} {sincos.ANGLES}[{n}], {sincos.SINES}[{n}], {sincos.COSINES}[{n}];")
+        declarations.append(f"{real} {sincos.ANGLES}[{n}], {sincos.SINES}[{n}], {sincos.COSINES}[{n}];")
+    if lanes and any(lane_names.LANE_INDEX + "]" in line for line in body):
+        declarations.append(f"int {lane_names.LANE_INDEX};")
     return declarations, body
 
 
-def _sincos_statements(step: Instruction, register: str, precision: Precision) -> list[str]:
-    """The angles into their lanes (an odd one paired with 0), then sin and cos two at a time."""
+def _sincos_statements(step: Instruction, register: str, precision: Precision, lanes: bool = False) -> list[str]:
+    """The angles into their lanes (an odd one paired with 0), then sin and cos two at a time
+    (with ``lanes``, two angles of every state at a time: the same pairs)."""
     angles = [f"{register}{r}" for r in step.args]
     if len(angles) % 2:
-        angles.append(literal(0.0, precision))
+        angles.append(_literal(0.0, precision, lanes))
+    helper = lane_names.per_width(sincos.HELPER) if lanes else sincos.HELPER
     lines = [f"{sincos.ANGLES}[{lane}] = {angle};" for lane, angle in enumerate(angles)]
     for lane in range(0, len(angles), 2):
         offset = f" + {lane}" if lane else ""
-        lines.append(f"{sincos.HELPER}({sincos.ANGLES}{offset}, {sincos.SINES}{offset}, {sincos.COSINES}{offset});")
+        lines.append(f"{helper}({sincos.ANGLES}{offset}, {sincos.SINES}{offset}, {sincos.COSINES}{offset});")
     return lines
 
 
@@ -240,9 +286,10 @@ def stage_name(stage: Stage) -> str:
     return f"rg_{stage.name}"
 
 
-def stage_source(c_name: str, stage: Stage, kernel: Kernel, precision: Precision) -> str:
+def stage_source(c_name: str, stage: Stage, kernel: Kernel, precision: Precision, lanes: bool = False) -> str:
     """The static helper that does ``stage`` of ``kernel``'s schedule: its parameters are the
-    kernel's inputs that the stage reads, then one array per output."""
+    kernel's inputs that the stage reads, then one array per output. With ``lanes``, its lane
+    form (robotgen.emit.lanes): arrays of vectors, named per width."""
     ports = tuple(kernel.inputs[k] for k in stage.inputs)
     names = [p.name for p in ports] + list(stage.names)
     if any(is_parameter_port(p) for p in ports) or len(set(names)) != len(names):
@@ -251,25 +298,29 @@ def stage_source(c_name: str, stage: Stage, kernel: Kernel, precision: Precision
     inner = part_kernel(stage.name, stage.function, ports)
     program = read_program(inner)
     registers, statements = _straight_line(program, inner, precision, lambda port, e: f"{ports[port].name}[{e}]",
-                                           lambda port, e: f"{stage.names[port]}[{e}]")
-    zero = literal(0.0, precision)
+                                           lambda port, e: f"{stage.names[port]}[{e}]", lanes=lanes)
+    zero = _literal(0.0, precision, lanes)
     statements += [f"{stage.names[port]}[{e}] = {zero};" for port, elements in program.unwritten_outputs
                    for e in elements]
     statements = fills(statements)
-    parameters = [f"const {precision.real} *{p.name}" for p in ports] + [f"{precision.real} *{n}" for n in stage.names]
-    return "\n".join([f"static void {c_name}({', '.join(parameters)}) {{",
+    real = lane_names.VECTOR if lanes else precision.real
+    parameters = [f"const {real} *{p.name}" for p in ports] + [f"{real} *{n}" for n in stage.names]
+    head = (f"static {lane_names.TARGET} void {lane_names.per_width(c_name)}" if lanes
+            else f"static void {c_name}")
+    return "\n".join([f"{head}({', '.join(parameters)}) {{",
                       *("  " + line for line in registers + statements), "}"]) + "\n"
 
 
-def _scheduled_body(kernel: Kernel, precision: Precision, read, helpers: dict[Stage, str]
+def _scheduled_body(kernel: Kernel, precision: Precision, read, helpers: dict[Stage, str], lanes: bool = False
                     ) -> tuple[list[str], list[str]]:
     """A schedule's C: local arrays t0, t1, ...; a call of each stage's helper; the prologue
     as one straight-line block; each loop as a block whose body reads and writes slices
-    (registers x0, x1, ...)."""
+    (registers x0, x1, ...). With ``lanes``, every local and register is a vector of states."""
     schedule = kernel.schedule
     assert schedule is not None  # a scheduled kernel's
-    zero = literal(0.0, precision)
-    declarations = [f"{precision.real} t{k}[{size}];" for k, size in enumerate(schedule.local_sizes)]
+    zero = _literal(0.0, precision, lanes)
+    real = lane_names.VECTOR if lanes else precision.real
+    declarations = [f"{real} t{k}[{size}];" for k, size in enumerate(schedule.local_sizes)]
     # index tables (a tree's parents, its ancestor pairs): const locals rg_p0, rg_p1, ...
     tables: dict[tuple[int, ...], str] = {}
 
@@ -303,7 +354,7 @@ def _scheduled_body(kernel: Kernel, precision: Precision, read, helpers: dict[St
     program = read_program(prologue)
     writes = schedule.prologue_writes
     registers, statements = _straight_line(program, prologue, precision, read,
-                                           lambda port, element: address(writes[port], element))
+                                           lambda port, element: address(writes[port], element), lanes=lanes)
     statements += [f"{address(writes[port], e)} = {zero};" for port, elements in program.unwritten_outputs
                    for e in elements]
     body += ["{", *("  " + line for line in registers + fills(statements)), "}"]
@@ -312,7 +363,7 @@ def _scheduled_body(kernel: Kernel, precision: Precision, read, helpers: dict[St
         program = reads_first(read_program(inner))
         registers, statements = _straight_line(
             program, inner, precision, lambda port, element, loop=loop: address(loop.reads[port], element),
-            lambda port, element, loop=loop: address(loop.writes[port], element), register="x")
+            lambda port, element, loop=loop: address(loop.writes[port], element), register="x", lanes=lanes)
         statements += [f"{address(loop.writes[port], e)} = {zero};" for port, elements in program.unwritten_outputs
                        for e in elements]
         if loop.space == PAIRS:
@@ -339,7 +390,7 @@ def _scheduled_body(kernel: Kernel, precision: Precision, read, helpers: dict[St
 # per step, where a loop of single stores of zero became `rep stosq` (an inline memset, slow to
 # start) and of another value stayed scalar.
 FILL_RUN = 64
-_STORE = re.compile(r"(\w+)\[(\d+)\] = ([\w.+-]+);")
+_STORE = re.compile(r"(\w+)\[(\d+)\] = ([\w.+()-]+);")
 
 
 def fills(statements: list[str]) -> list[str]:
@@ -433,16 +484,24 @@ def _check_ports(kernel: Kernel) -> None:
         raise KernelError(f"kernel {kernel.name!r}: port names repeat: {names}")
 
 
-def _statement(step: Instruction, kernel: Kernel, precision: Precision, read, write, register: str) -> str:
+# Operations printed on whole vectors in a lane kernel; any other is printed lane by lane, as the
+# scalar statement on each lane (comparisons, selections, <math.h> calls), so that every lane
+# computes what the single-state function computes.
+_VECTOR_OPERATIONS = frozenset(getattr(ca, op) for op in (
+    "OP_ASSIGN", "OP_ADD", "OP_SUB", "OP_MUL", "OP_DIV", "OP_NEG", "OP_SQ", "OP_TWICE", "OP_INV"))
+
+
+def _statement(step: Instruction, kernel: Kernel, precision: Precision, read, write, register: str,
+               lanes: bool = False) -> str:
     if step.op in (sincos.SIN_LANE, sincos.COS_LANE):
-        lanes = sincos.SINES if step.op == sincos.SIN_LANE else sincos.COSINES
-        return f"{register}{step.target} = {lanes}[{step.element}];"
+        lanes_array = sincos.SINES if step.op == sincos.SIN_LANE else sincos.COSINES
+        return f"{register}{step.target} = {lanes_array}[{step.element}];"
     if step.op == ca.OP_INPUT:
         return f"{register}{step.target} = {read(step.port, step.element)};"
     if step.op == ca.OP_OUTPUT:
         return f"{write(step.port, step.element)} = {register}{step.args[0]};"
     if step.op == ca.OP_CONST:
-        return f"{register}{step.target} = {literal(step.constant, precision)};"
+        return f"{register}{step.target} = {_literal(step.constant, precision, lanes)};"
     if step.op not in OPERATIONS:
         raise KernelError(f"kernel {kernel.name!r}: CasADi operation {step.op_name} "
                           "has no C translation")
@@ -450,9 +509,20 @@ def _statement(step: Instruction, kernel: Kernel, precision: Precision, read, wr
     if len(step.args) != arity:
         raise KernelError(f"kernel {kernel.name!r}: {step.op_name} with {len(step.args)} "
                           f"operands, expected {arity}")
-    expression = pattern.format(*(f"{register}{r}" for r in step.args), fs=precision.math_suffix,
-                                one=literal(1.0, precision), zero=literal(0.0, precision))
+    whole = lanes and step.op in _VECTOR_OPERATIONS
+    lane = f"[{lane_names.LANE_INDEX}]" if lanes and not whole else ""
+    expression = pattern.format(*(f"{register}{r}{lane}" for r in step.args), fs=precision.math_suffix,
+                                one=_literal(1.0, precision, whole), zero=_literal(0.0, precision, whole))
+    if lane:
+        index = lane_names.LANE_INDEX
+        return (f"for ({index} = 0; {index} < {lane_names.WIDTH}; ++{index}) "
+                f"{register}{step.target}{lane} = {expression};")
     return f"{register}{step.target} = {expression};"
+
+
+def _literal(value: float, precision: Precision, lanes: bool) -> str:
+    """A literal, in every lane with ``lanes``."""
+    return lane_names.splat(literal(value, precision)) if lanes else literal(value, precision)
 
 
 def literal(value: float, precision: Precision) -> str:

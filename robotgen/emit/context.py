@@ -8,7 +8,7 @@ from dataclasses import dataclass, replace
 import casadi as ca
 
 import robotgen
-from robotgen.emit import c_kernel, sincos
+from robotgen.emit import c_kernel, lane_names, lanes, sincos
 from robotgen.emit.c_kernel import PRECISIONS, KernelError, check_identifier, is_parameter_port
 from robotgen.emit.controllers import PARAMETERS_CLASS, ControllerView, controller_view, controllers_note
 from robotgen.emit.literals import c_string, py_string
@@ -130,6 +130,18 @@ class FunctionView:
     part: int = 0  # which of the module's compile parts holds it (COMPILE_PARTS)
     helpers: tuple[str, ...] = ()  # the stage helpers it calls (HelperView.c_name)
     singular_error: str = ""  # C string literal: the error of status 2 when Kernel.singular says why
+    # Its batch form (robotgen.emit.lanes), when it has one: the prototypes of <fn>_batch and
+    # <fn>_batch_lanes, the lane kernel and block driver (printed once, compiled per width) and
+    # the two public functions.
+    batch_prototype: str = ""
+    batch_lanes_prototype: str = ""
+    lane_definition: str = ""
+    batch_definition: str = ""
+
+    @property
+    def batch(self) -> bool:
+        """The function has a _batch entry point."""
+        return bool(self.batch_definition)
 
 
 @dataclass(frozen=True)
@@ -200,6 +212,20 @@ class ModuleView:
     # A multi-rate tree's MultiRateController (None: nothing emitted differs from a module
     # built before it)
     multirate: MultiRateView | None = None
+    # Batches across states (robotgen.emit.lanes): the compiler test defining where lanes are
+    # compiled, each width's definitions around its copy of the lane code, the lane code (the
+    # sin and cos routine and the stage helpers that batched functions call, by part), the width
+    # chooser and the parts that have batched functions.
+    lanes_guard: str = ""
+    lane_widths: tuple[tuple[str, str], ...] = ()
+    lane_helpers: tuple[HelperView, ...] = ()
+    batch_select: str = ""
+    batch_parts: tuple[int, ...] = ()
+
+    @property
+    def batch_functions(self) -> tuple[FunctionView, ...]:
+        """The functions with a _batch entry point (robotgen.emit.lanes)."""
+        return tuple(f for f in self.functions if f.batch)
 
 
 def module_view(name: str, kernels: list[Kernel], *, nq: int, precision: str,
@@ -245,7 +271,8 @@ def module_view(name: str, kernels: list[Kernel], *, nq: int, precision: str,
     stage_counts: dict[str, tuple[int, int]] = {}
     for i, k in enumerate(kernels):
         progress.step(i + 1, len(kernels), f"printing C: {k.name}")
-        printed.append(_function_view(name, k, PRECISIONS[precision], parameters, helper_names, stage_counts))
+        printed.append(_function_view(name, k, PRECISIONS[precision], parameters, helper_names, stage_counts,
+                                      with_lanes=nq <= lanes.LANES_MAX_NQ))
     functions, homes = _assign_parts(tuple(printed), helpers)
     helpers = tuple(replace(h, parts=parts, home=homes[h.c_name] if len(parts) > 1 else None)
                     for h in helpers
@@ -286,6 +313,9 @@ def module_view(name: str, kernels: list[Kernel], *, nq: int, precision: str,
     if OUT_KEYWORD in keyword_names:
         raise KernelError(f"module {name!r}: an input or run-time parameter is named {OUT_KEYWORD!r}, "
                           "every function's keyword for its result arrays")
+    lane_helpers = _lane_helpers(kernels, functions, helper_names, PRECISIONS[precision])
+    batch_parts = tuple(sorted({f.part for f in functions if f.batch}))
+    laned = any(f.lane_definition for f in functions)
     sincos_parts = tuple(sorted({f.part for f in functions if sincos.HELPER + "(" in f.definition}
                                 | {k for h in helpers if sincos.HELPER + "(" in h.definition
                                    for k in (h.parts if h.home is None else (h.home,))}))
@@ -311,7 +341,40 @@ def module_view(name: str, kernels: list[Kernel], *, nq: int, precision: str,
         controllers_note=controllers_note(views), parts=max(f.part for f in functions) + 1,
         zero=c_kernel.literal(0.0, PRECISIONS[precision]), one=c_kernel.literal(1.0, PRECISIONS[precision]),
         sincos_helper=sincos.helper_source() if sincos_parts else "", sincos_parts=sincos_parts,
-        helpers=helpers)
+        helpers=helpers, lanes_guard=lanes.LANES_GUARD if laned else "",
+        lane_widths=tuple((lanes.width_open(w, PRECISIONS[precision]), lanes.width_close()) for w in lanes.WIDTHS)
+        if laned else (),
+        lane_helpers=lane_helpers,
+        batch_select=lanes.select_source(PRECISIONS[precision], laned) if batch_parts else "",
+        batch_parts=batch_parts)
+
+
+def _lane_helpers(kernels: list[Kernel], functions: tuple[FunctionView, ...], helper_names: dict,
+                  precision: c_kernel.Precision) -> tuple[HelperView, ...]:
+    """The lane forms of what the batched functions' lane kernels call, each static in every part
+    that calls it: their stages' helpers, and rg_sincos2 (double) first, since those call it too."""
+    by_name = {f.name: f for f in functions}
+    stages: dict[str, tuple[str, set[int]]] = {}
+    sincos_parts: set[int] = set()
+    calls_sincos = lane_names.per_width(sincos.HELPER) + "("
+    for kernel in kernels:
+        f = by_name[kernel.name]
+        if not f.lane_definition:
+            continue
+        if calls_sincos in f.lane_definition:
+            sincos_parts.add(f.part)
+        for stage in kernel.schedule.stages if kernel.schedule is not None else ():
+            c_name = helper_names[stage]
+            if c_name not in stages:
+                stages[c_name] = (c_kernel.stage_source(c_name, stage, kernel, precision, lanes=True), set())
+            stages[c_name][1].add(f.part)
+    for text, parts in stages.values():
+        if calls_sincos in text:
+            sincos_parts |= parts
+    views = ([HelperView(sincos.HELPER, sincos.lane_helper_source(), tuple(sorted(sincos_parts)))]
+             if sincos_parts else [])
+    views += [HelperView(c_name, text, tuple(sorted(parts))) for c_name, (text, parts) in stages.items()]
+    return tuple(views)
 
 
 def _module_parameters(name: str, kernels: list[Kernel],
@@ -424,6 +487,11 @@ COMPILE_PARTS_ABOVE = 300_000
 LOOP_STATEMENT_COST = 5
 
 
+# A function's lane form (robotgen.emit.lanes) is compiled once per width of the machine's family:
+# twice on x86-64 (AVX-512F, AVX2), where robotgen's builds mostly run.
+LANE_COPIES = 2
+
+
 def compile_cost(definition: str) -> int:
     """Statements of a C function, those in a schedule's loops (indented past the loop
     headers, which follow the prologue) counted LOOP_STATEMENT_COST times."""
@@ -440,9 +508,10 @@ def _assign_parts(functions: tuple[FunctionView, ...], helpers: tuple[HelperView
     """Each function into the part whose load (compile_cost, with the helpers it would be the
     first to call) grows least, the costliest functions first; and each helper's home: the
     part of its first caller."""
-    if sum(len(f.definition) for f in functions) + sum(len(h.definition) for h in helpers) <= COMPILE_PARTS_ABOVE:
+    if (sum(len(f.definition) + LANE_COPIES * len(f.lane_definition) for f in functions)
+            + sum(len(h.definition) for h in helpers) <= COMPILE_PARTS_ABOVE):
         return functions, {h.c_name: 0 for h in helpers}
-    own = {f.name: compile_cost(f.definition) for f in functions}
+    own = {f.name: compile_cost(f.definition) + LANE_COPIES * compile_cost(f.lane_definition) for f in functions}
     shared = {h.c_name: compile_cost(h.definition) for h in helpers}
     load: list[int] = [0] * COMPILE_PARTS
     home: dict[str, int] = {}
@@ -479,7 +548,7 @@ def _stage_helpers(kernels: list[Kernel], precision: c_kernel.Precision
 
 def _function_view(prefix: str, kernel: Kernel, precision: c_kernel.Precision,
                    parameters: tuple[ParameterView, ...], helper_names: dict | None = None,
-                   stage_counts: dict | None = None) -> FunctionView:
+                   stage_counts: dict | None = None, with_lanes: bool = True) -> FunctionView:
     if not kernel.outputs:
         raise KernelError(f"kernel {kernel.name!r} has no outputs")
     program = read_program(kernel) if kernel.schedule is None else None
@@ -504,7 +573,19 @@ def _function_view(prefix: str, kernel: Kernel, precision: c_kernel.Precision,
                                 "set to 0 (status 2)") if kernel.guarded and kernel.singular else "",
         takes_step=any(p.name == c_kernel.STEP_PORT and p.size == 1 for p in kernel.inputs),
         helpers=tuple(dict.fromkeys(helper_names[stage] for stage in kernel.schedule.stages))
-        if kernel.schedule is not None and helper_names else ())
+        if kernel.schedule is not None and helper_names else (),
+        **_batch_fields(prefix, kernel, precision, program, helper_names, with_lanes))
+
+
+def _batch_fields(prefix: str, kernel: Kernel, precision: c_kernel.Precision, program: Program | None,
+                  helper_names: dict | None, with_lanes: bool) -> dict:
+    if not lanes.has_batch(kernel):
+        return {}
+    whole, capped = lanes.batch_prototypes(prefix, kernel, precision)
+    lane_definition = (c_kernel.lane_kernel_source(prefix, kernel, precision, program, helper_names) + "\n"
+                       + lanes.driver_source(prefix, kernel, precision)) if with_lanes else ""
+    return dict(batch_prototype=whole, batch_lanes_prototype=capped, lane_definition=lane_definition,
+                batch_definition=lanes.batch_source(prefix, kernel, precision, with_lanes))
 
 
 def _port_view(port: Port, macro: str) -> PortView:

@@ -25,6 +25,7 @@ from fractions import Fraction
 
 import casadi as ca
 
+from robotgen.emit import lane_names
 from robotgen.emit.sx_program import Instruction, Program, defining_steps
 
 HELPER = "rg_sincos2"
@@ -67,10 +68,11 @@ def _c(value: Fraction | str) -> str:
     return repr(float(value))
 
 
-def _estrin(terms: tuple[str, ...]) -> str:
-    """c0 + c1 z + ... in lane l, with z2 = z^2 and z4 = z^4 (Estrin's scheme, 6 or 7 terms)."""
+def _estrin(terms: tuple[str, ...], constant=lambda text: text) -> str:
+    """c0 + c1 z + ... in lane l, with z2 = z^2 and z4 = z^4 (Estrin's scheme, 6 or 7 terms);
+    ``constant`` spells each coefficient (a broadcast in the lane form)."""
     assert len(terms) in (6, 7), terms
-    c = [_c(t) for t in terms]
+    c = [constant(_c(t)) for t in terms]
     low = f"({c[0]} + z[l] * {c[1]}) + z2[l] * ({c[2]} + z[l] * {c[3]})"
     high = f"({c[4]} + z[l] * {c[5]})" + (f" + z2[l] * {c[6]}" if len(c) == 7 else "")
     return f"({low}) + z4[l] * ({high})"
@@ -124,6 +126,69 @@ def helper_source() -> str:
         "  s[1] = so[1];",
         "  c[0] = co[0];",
         "  c[1] = co[1];",
+        "}",
+    ]) + "\n"
+
+
+def lane_helper_source() -> str:
+    """``rg_sincos2`` for W states at once (robotgen.emit.lanes), printed once and compiled per
+    width as RG_L(rg_sincos2): x, s and c hold two angles, each a vector of W states. Each lane
+    takes rg_sincos2's operations in its order, so its bits: the same reduction and polynomials
+    on vectors (RG_L(rg_sincos1), one angle), the quadrant from a vector of ints, and a lane
+    whose pair has an angle past the bound (or not finite) through libm, both angles, as
+    rg_sincos2 takes that pair. The polynomials see 0 in such a lane, so that no conversion to
+    int overflows. |x| <= bound is written x <= bound and x >= -bound (the same lanes, NaN in
+    neither), so that the test stays on vectors."""
+    v, vi, mask = lane_names.VECTOR, lane_names.INT_VECTOR, lane_names.MASK_VECTOR
+
+    def k(text: str) -> str:
+        return lane_names.splat(text)
+
+    def i(text: str) -> str:
+        return f"{lane_names.INT_SPLAT}({text})"
+
+    def within(x: str) -> str:
+        return f"({x} <= {k(repr(ABOVE))}) & ({x} >= {k(repr(-ABOVE))})"
+
+    one = lane_names.per_width("rg_sincos1")
+    return "\n".join([
+        "/* rg_sincos2's reduction, polynomials and quadrant on every lane of one angle x, |x| <= the bound. */",
+        f"static {lane_names.TARGET} void {one}(const {v} *x, {v} *s, {v} *c) {{",
+        f"  {v} y, k, r, z, z2, z4, ps, pc, sr, cr, w, ss, sc;",
+        f"  {vi} n;",
+        f"  y = *x * {k(_c(_TWO_OVER_PI))} + {k('65536.5')};",
+        f"  n = __builtin_convertvector(y, {vi});",
+        f"  k = __builtin_convertvector(n, {v}) - {k('65536.0')};",
+        f"  r = ((*x - k * {k(_c(_P1))}) - k * {k(_c(_P2))}) - k * {k(_c(_P3))};",
+        "  z = r * r;",
+        "  z2 = z * z;",
+        "  z4 = z2 * z2;",
+        f"  ps = {_estrin(SIN_TERMS, k).replace('[l]', '')};",
+        f"  pc = {_estrin(COS_TERMS, k).replace('[l]', '')};",
+        "  sr = r + (r * z) * ps;",
+        f"  cr = {k('1.0')} + z * pc;",
+        f"  w = __builtin_convertvector(n & {i('1')}, {v});",
+        f"  ss = __builtin_convertvector({i('1')} - (n & {i('2')}), {v});",
+        f"  sc = __builtin_convertvector({i('1')} - ((n + {i('1')}) & {i('2')}), {v});",
+        f"  *s = ss * (sr * ({k('1.0')} - w) + cr * w);",
+        f"  *c = sc * (cr * ({k('1.0')} - w) + sr * w);",
+        "}",
+        "",
+        "/* rg_sincos2 on every lane: two angles of W states, each lane computed as rg_sincos2 computes it. */",
+        f"static {lane_names.TARGET} void {lane_names.per_width(HELPER)}(const {v} *x, {v} *s, {v} *c) {{",
+        f"  {mask} near = {within('x[0]')} & {within('x[1]')};",
+        f"  {v} a0 = ({v})(({mask})x[0] & near), a1 = ({v})(({mask})x[1] & near);",
+        "  int m;",
+        f"  {one}(&a0, s, c);",
+        f"  {one}(&a1, s + 1, c + 1);",
+        f"  for (m = 0; m < {lane_names.WIDTH}; ++m) {{",
+        "    if (!near[m]) {",
+        "      s[0][m] = sin(x[0][m]);",
+        "      c[0][m] = cos(x[0][m]);",
+        "      s[1][m] = sin(x[1][m]);",
+        "      c[1][m] = cos(x[1][m]);",
+        "    }",
+        "  }",
         "}",
     ]) + "\n"
 

@@ -1,6 +1,7 @@
 """The emitted C of every example under AddressSanitizer and UndefinedBehaviorSanitizer: every
 function called on random inputs with huge values, zeros, NaN and Inf among them, and on the
-spec's parameter defaults. No finding is allowed (the sanitizers abort the program on the first
+spec's parameter defaults; every batch entry point (robotgen.emit.lanes) on BATCH states, one
+round in ten. No finding is allowed (the sanitizers abort the program on the first
 one); a NaN or Inf result is not a finding (the inputs ask for it)."""
 from __future__ import annotations
 
@@ -12,9 +13,15 @@ from pathlib import Path
 import pytest
 
 from robotgen.cli import main
+from robotgen.emit.lanes import BATCH_FUNCTIONS
 
 SPECS = Path(__file__).resolve().parents[2] / "specs"
 CALLS = 3000  # rounds; each calls every function once
+BATCH = 9  # states of a batch call: a block of 8 lanes and one left over, two of 4 and one
+# the specs whose lanes are compiled here; the others' batch entry points loop over the single
+# functions (-DRG_NO_LANES), since instrumented lane copies take three times as long to compile
+# (the PUMA 560's 41 s of gcc's CPU against 15); its lanes (every transpose width) are a slow test
+LANES = ("two_link",)
 COMPILERS = [c for c in ("gcc", "clang") if shutil.which(c)]
 SANITIZE = ["-fsanitize=address,undefined", "-fno-sanitize-recover=all", "-fno-omit-frame-pointer", "-g", "-O1"]
 
@@ -24,8 +31,10 @@ def harness(manifest: dict) -> str:
     a special value."""
     name = manifest["name"]
     size = max([1] + [max(1, _size(p)) for f in manifest["functions"] for p in f["inputs"] + f["outputs"]])
+    batched = [f for f in manifest["functions"] if f["name"] in BATCH_FUNCTIONS]
     lines = [f'#include "{name}.h"', "#include <math.h>", "#include <stdio.h>",
              f"static double in[16][{size}], out[16][{size}];",
+             *([f"static double bin[16][{BATCH * size}], bout[16][{BATCH * size}];"] if batched else []),
              "static unsigned long long s = 88172645463325252ULL;",
              "static double next(void) {",
              "    static const double special[8] = {0.0, -0.0, 1e300, -1e300, 1e-310, 0.0, 0.0, 0.0};",
@@ -46,6 +55,15 @@ def harness(manifest: dict) -> str:
         args += ["&params"] if f.get("reads_parameters") else []
         args += [f"out[{k}]" for k in range(len(f["outputs"]))]
         lines.append(f"        status |= {f['c_name']}({', '.join(args)});")
+    if batched:
+        lines += ["        if (round % 10 == 0) {",
+                  f"            for (i = 0; i < 16 * {BATCH * size}; ++i) bin[i / {BATCH * size}][i % {BATCH * size}] = next();"]
+    for f in batched:
+        args = [f"bin[{k}]" for k in range(len(f["inputs"]))]
+        args += ["&params"] if f.get("reads_parameters") else []
+        args += [f"bout[{k}]" for k in range(len(f["outputs"]))]
+        lines.append(f"            status |= {f['c_name']}_batch({BATCH}, {', '.join(args)});")
+    lines += ["        }"] if batched else []
     lines += ["    }", '    printf("done %d\\n", status);', "    return 0;", "}"]
     return "\n".join(lines) + "\n"
 
@@ -61,6 +79,17 @@ def _size(port: dict) -> int:
 @pytest.mark.parametrize("spec", ["two_link", "puma560", "styx_finger", "styx_high_ct", "styx_redundant",
                                   "puma560_rmrc", "tripod_grasp", "styx_multirate"])
 def test_emitted_c_is_clean_under_sanitizers(tmp_path, spec):
+    sanitized(tmp_path, spec, lanes=spec in LANES)
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(not COMPILERS, reason="no C compiler")
+def test_the_lanes_of_a_six_joint_arm_are_clean_under_sanitizers(tmp_path):
+    sanitized(tmp_path, "puma560", lanes=True)
+
+
+def sanitized(tmp_path: Path, spec: str, lanes: bool) -> None:
+    """The spec's C and the harness under both sanitizers, built and run with each compiler."""
     out = tmp_path / spec
     assert main(["build", str(SPECS / f"{spec}.yaml"), "-o", str(out), "--no-compile", "-q"]) == 0
     manifest = json.loads((out / "manifest.json").read_text())
@@ -74,7 +103,8 @@ def test_emitted_c_is_clean_under_sanitizers(tmp_path, spec):
         return started[-1]
 
     try:  # gcc's and clang's builds, then their runs, side by side (each is one process)
-        builds = {cc: start([cc, *SANITIZE, "-std=c99", f"-I{out}", *sources, "-lm", "-o", str(exe)])
+        flags = [] if lanes else ["-DRG_NO_LANES"]
+        builds = {cc: start([cc, *SANITIZE, *flags, "-std=c99", f"-I{out}", *sources, "-lm", "-o", str(exe)])
                   for cc, exe in exes.items()}
         for cc, build in builds.items():
             stderr = build.communicate()[1]

@@ -1,0 +1,291 @@
+"""Batches across states (robotgen.emit.lanes): a batch call of the module goes through the C's
+<fn>_batch, W states per vector, and must give n single calls' results bit for bit, at every
+width this CPU runs (ROBOTGEN_BATCH_LANES caps it: 1 is the loop of single calls), for n with
+and without a remainder, on the UR5 and the Panda (straight-line and looped kernels) and on a
+branched tree past 12 joints (loops through parent tables, a prismatic joint). States include
+angles past rg_sincos2's bound (libm in that lane) and, for checked functions, a NaN state and a
+singular one: each state's outputs are what its single call leaves (untouched, zeros)."""
+from __future__ import annotations
+
+import ctypes
+import importlib.util
+import os
+import shutil
+import subprocess
+
+import numpy as np
+import pytest
+from robots import PANDA, UR5, robots_dir
+
+from robotgen.emit import compile as emit_compile
+from robotgen.emit import lanes
+from robotgen.emit.build import emit
+from robotgen.frontend.urdf import load_urdf_system
+from robotgen.model.chain import Body, Joint, KinematicTree
+from robotgen.model.describe import system_nq
+from robotgen.symbolic import kernels_for, leaf_kernels
+
+WIDTHS = (1, 2, 4, 8, 16)  # caps tried; the module says which width each one gets
+
+
+def load(out, name):
+    spec = importlib.util.spec_from_file_location(name, out / name / f"{name}{emit_compile.extension_suffix()}")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def built(tmp_path_factory, name, kernels, nq, wanted, precision="double"):
+    out = tmp_path_factory.mktemp(name)
+    chosen = [k for k in kernels if k.name in wanted]
+    assert {k.name for k in chosen} == set(wanted)
+    emit(out / name, name, chosen, nq=nq, precision=precision)
+    return load(out, name), chosen
+
+
+def branched_tree(seed: int = 3, parents: tuple[int, ...] = (-1, 0, 1, 2, 1, 4, 5, 0, 7)) -> KinematicTree:
+    """A tree on oblique axes with one prismatic joint: 9 joints, three branches of several lengths
+    (lanes are compiled up to 12 coordinates, robotgen.emit.lanes.LANES_MAX_NQ)."""
+    rng = np.random.default_rng(seed)
+    joints = []
+    for i, parent in enumerate(parents):
+        T = np.eye(4)
+        T[:3, :3] = np.linalg.qr(rng.normal(size=(3, 3)))[0]
+        if np.linalg.det(T[:3, :3]) < 0:
+            T[:3, 2] *= -1
+        T[:3, 3] = rng.normal(size=3) * 0.2
+        axis = rng.normal(size=3)
+        joints.append(Joint(f"j{i}", "prismatic" if i == 3 else "revolute", parent, T, axis / np.linalg.norm(axis),
+                            Body(rng.uniform(0.5, 2.0), rng.normal(size=3) * 0.1, np.diag(rng.uniform(0.01, 0.1, 3)))))
+    return KinematicTree("branched", tuple(joints), 7, np.eye(4), np.array([0.0, 0.0, -9.81]))
+
+
+@pytest.fixture(scope="module")
+def ur5(tmp_path_factory):
+    system = load_urdf_system(str(robots_dir() / UR5[0]), UR5[1])
+    return built(tmp_path_factory, "lanes_ur5", kernels_for(system), system_nq(system),
+                 ("mass", "inverse_dynamics", "forward_dynamics", "discrete_dynamics_derivatives"))
+
+
+@pytest.fixture(scope="module")
+def panda(tmp_path_factory):
+    system = load_urdf_system(str(robots_dir() / PANDA[0]), PANDA[1])
+    kernels = kernels_for(system)
+    assert next(k for k in kernels if k.name == "forward_dynamics_derivatives").schedule is not None
+    return built(tmp_path_factory, "lanes_panda", kernels, system_nq(system),
+                 ("mass", "forward_dynamics_derivatives"))
+
+
+@pytest.fixture(scope="module")
+def tree(tmp_path_factory):
+    t = branched_tree()
+    return built(tmp_path_factory, "lanes_tree", leaf_kernels(t), t.nq, ("mass", "inverse_dynamics", "forward_dynamics"))
+
+
+def widths(module) -> list[int]:
+    """The distinct widths a batch call takes on this CPU, each cap's (the C's <name>_batch_lanes)."""
+    library = ctypes.CDLL(module.__file__)
+    select = getattr(library, f"{module.__name__}_batch_lanes")
+    return sorted({select(cap) for cap in WIDTHS})
+
+
+def states(kernel, n: int, rng) -> list[np.ndarray]:
+    """n random states; every 7th state's angles past 1e5 (rg_sincos2 leaves them to libm)."""
+    arrays = []
+    for port in kernel.inputs:
+        if port.name == "dt":
+            arrays.append(rng.uniform(1e-3, 1e-2, (n, 1)))
+            continue
+        a = rng.uniform(-3.0, 3.0, (n, port.size))
+        if port.name == "q":
+            a[::7] += 3e5
+        arrays.append(a)
+    return arrays
+
+
+def single_calls(fn, arrays, n, outputs):
+    """Each state's single call: its results, or the results it leaves in arrays holding -7
+    (untouched on status 1, zeros on status 2), and whether it raised."""
+    results = [np.full((n, p.size), -7.0) for p in outputs]
+    failed = []
+    for k in range(n):
+        out = tuple(r[k].reshape(p.rows, p.cols) if p.cols > 1 else r[k] for r, p in zip(results, outputs))
+        try:
+            fn(*(a[k] for a in arrays), out=out if len(out) > 1 else out[0])
+        except FloatingPointError:
+            failed.append(k)
+    return results, failed
+
+
+def assert_batch_is_single_calls(module, kernels, names, ns, rng, poison=False):
+    seen = widths(module)
+    assert seen[0] == 1
+    for kernel in kernels:
+        if kernel.name not in names:
+            continue
+        fn = getattr(module, kernel.name)
+        for n in ns:
+            arrays = states(kernel, n, rng)
+            if poison and n > 3:
+                arrays[0][2, 1] = np.nan  # status 1: nothing written
+                arrays[0][3, 0] = np.inf
+            expected, failed = single_calls(fn, arrays, n, kernel.outputs)
+            for cap in WIDTHS:
+                got = [np.full((n, p.size), -7.0) for p in kernel.outputs]
+                out = tuple(g.reshape((n, p.rows, p.cols) if p.cols > 1 else (n, p.rows))
+                            for g, p in zip(got, kernel.outputs))
+                os.environ["ROBOTGEN_BATCH_LANES"] = str(cap)
+                try:
+                    fn(*arrays, out=out if len(out) > 1 else out[0])
+                    raised = False
+                except FloatingPointError:
+                    raised = True
+                finally:
+                    del os.environ["ROBOTGEN_BATCH_LANES"]
+                assert raised == bool(failed), (kernel.name, n, cap)
+                for g, e, p in zip(got, expected, kernel.outputs):
+                    same = np.all(g.view(np.uint64) == e.view(np.uint64), axis=1)
+                    assert same.all(), (f"{kernel.name}.{p.name}, n={n}, lanes {cap}: states "
+                                        f"{np.flatnonzero(~same)[:8]} differ from single calls")
+    return seen
+
+
+def test_ur5_batches_are_single_calls_bit_for_bit(ur5):
+    module, kernels = ur5
+    seen = assert_batch_is_single_calls(module, kernels, lanes.BATCH_FUNCTIONS, (1, 3, 7, 8, 9, 1023),
+                                        np.random.default_rng(1), poison=True)
+    print("widths run:", seen)
+
+
+def test_panda_batches_are_single_calls_bit_for_bit(panda):
+    module, kernels = panda
+    assert_batch_is_single_calls(module, kernels, lanes.BATCH_FUNCTIONS, (1, 7, 8, 1023), np.random.default_rng(2),
+                                 poison=True)
+
+
+def test_branched_tree_batches_are_single_calls_bit_for_bit(tree):
+    module, kernels = tree
+    assert_batch_is_single_calls(module, kernels, lanes.BATCH_FUNCTIONS, (1, 7, 8, 1023), np.random.default_rng(3))
+
+
+def test_a_singular_state_in_a_batch_is_zeroed_as_its_single_call(ur5):
+    """Forward dynamics at a state where M's solve overflows returns status 2 and zeros, in a
+    batch as alone; the other states of its block are written."""
+    module, kernels = ur5
+    fn = module.forward_dynamics
+    rng = np.random.default_rng(4)
+    q, qd, tau = rng.uniform(-1, 1, (16, 6)), rng.uniform(-1, 1, (16, 6)), rng.uniform(-1, 1, (16, 6))
+    qd[5] = 1e200  # C qd overflows: the result is not finite
+    for cap in WIDTHS:
+        out = np.full((16, 6), -7.0)
+        os.environ["ROBOTGEN_BATCH_LANES"] = str(cap)
+        try:
+            with pytest.raises(FloatingPointError, match="status 2"):
+                fn(q, qd, tau, out=out)
+        finally:
+            del os.environ["ROBOTGEN_BATCH_LANES"]
+        assert np.all(out[5] == 0.0)
+        for k in (0, 4, 6, 15):
+            assert np.array_equal(out[k], fn(q[k], qd[k], tau[k]))
+
+
+def test_unbatched_arguments_apply_to_every_state(ur5):
+    """dt without the batch axis is one step length for every state, as in the loop."""
+    module, _ = ur5
+    rng = np.random.default_rng(5)
+    q, qd, tau = rng.uniform(-1, 1, (9, 6)), rng.uniform(-1, 1, (9, 6)), rng.uniform(-1, 1, (9, 6))
+    batch = module.discrete_dynamics_derivatives(q, qd, tau, 0.01)
+    for k in range(9):
+        for b, s in zip(batch, module.discrete_dynamics_derivatives(q[k], qd[k], tau[k], 0.01)):
+            assert np.array_equal(b[k], s)
+
+
+@pytest.mark.parametrize("compiler", ["gcc", "clang"])
+def test_the_batch_c_builds_pedantic_and_without_lanes(ur5, compiler, tmp_path):
+    """The source with its lanes compiles warning-free as C99 -pedantic under gcc and clang, and
+    with -DRG_NO_LANES (every state through the single-state function)."""
+    if shutil.which(compiler) is None:
+        pytest.skip(f"{compiler} is not installed")
+    module, _ = ur5
+    source = os.path.join(os.path.dirname(module.__file__), "lanes_ur5.c")
+    for extra in ([], ["-DRG_NO_LANES"]):
+        result = subprocess.run([compiler, "-std=c99", "-pedantic", "-Wall", "-Wextra", "-Werror", "-O1",
+                                 *extra, "-c", source, "-o", str(tmp_path / "lanes.o")], capture_output=True, text=True)
+        assert result.returncode == 0, result.stderr[-3000:]
+
+
+def test_past_12_coordinates_a_batch_is_a_loop_of_single_calls(tmp_path_factory):
+    """An 18-joint tree (its kernels loops through parent tables) gets the batch entry points
+    without lanes: width 1 at every cap, the single calls' bits."""
+    t = branched_tree(4, (-1, 0, 1, 2, 1, 4, 5, 6, 0, 8, 9, 10, 9, 12, 13, -1, 15, 16))
+    module, kernels = built(tmp_path_factory, "lanes_long_tree", leaf_kernels(t), t.nq, ("mass", "forward_dynamics"))
+    assert "RG_LANES_X86" not in open(os.path.join(os.path.dirname(module.__file__), "lanes_long_tree.c")).read()
+    assert assert_batch_is_single_calls(module, kernels, lanes.BATCH_FUNCTIONS, (1, 9), np.random.default_rng(7)) == [1]
+
+
+@pytest.mark.parametrize("compiler", ["gcc", "clang"])
+def test_a_users_build_in_gnu_mode_keeps_the_bits(ur5, compiler, tmp_path):
+    """Built as a user might (-O2, GNU C, where GCC fuses multiply-adds and AVX-512F has them;
+    Clang fuses within an expression), every width still gives the single calls' bits: the lane
+    code turns contraction off itself. bench/batch.py's harness compares them with memcmp."""
+    import json
+    import sys
+
+    from conftest import ROOT
+
+    if shutil.which(compiler) is None:
+        pytest.skip(f"{compiler} is not installed")
+    sys.path.insert(0, str(ROOT / "bench"))
+    try:
+        import batch as bench_batch
+    finally:
+        sys.path.remove(str(ROOT / "bench"))
+    module, _ = ur5
+    out = os.path.dirname(module.__file__)
+    manifest = json.loads(open(os.path.join(out, "manifest.json")).read())
+    (tmp_path / "check.c").write_text(bench_batch.harness("lanes_ur5", "double", manifest["functions"], 1))
+    exe = tmp_path / "check"
+    subprocess.run([compiler, "-O2", "-std=gnu99", "-I", out, str(tmp_path / "check.c"),
+                    os.path.join(out, "lanes_ur5.c"), "-lm", "-o", str(exe)], check=True)
+    result = subprocess.run([str(exe)], capture_output=True, text=True)
+    assert result.returncode == 0, result.stderr
+    assert json.loads(result.stdout)["widths"] == widths(module)
+
+
+def test_float_batches_are_single_calls_bit_for_bit(tmp_path_factory):
+    """--precision float: 16 and 8 floats a vector, sinf and cosf lane by lane."""
+    system = load_urdf_system(str(robots_dir() / UR5[0]), UR5[1])
+    module, kernels = built(tmp_path_factory, "lanes_ur5f", kernels_for(system), system_nq(system),
+                            ("mass", "forward_dynamics"), precision="float")
+    assert_batch_is_single_calls(module, kernels, lanes.BATCH_FUNCTIONS, (1, 15, 16, 17, 1023),
+                                 np.random.default_rng(6))
+
+
+def test_a_tree_specs_plant_reads_the_parameters_in_every_lane(build_module):
+    """specs/styx_squeeze.yaml: a robot tree whose plant_dynamics reads run-time parameters (the
+    box's mass: one struct for every state of the batch), with the default and with a value passed."""
+    import json
+
+    from conftest import SPECS
+
+    module = build_module(SPECS / "styx_squeeze.yaml")
+    manifest = json.loads(open(os.path.join(os.path.dirname(module.__file__), "manifest.json")).read())
+    plant = next(f for f in manifest["functions"] if f["name"] == "plant_dynamics")
+    assert plant["reads_parameters"]
+    name, value = next((k, v) for k, v in module.parameters.items() if "mass" in k)
+    rng = np.random.default_rng(8)
+    n = 19
+    arrays = [rng.uniform(-0.5, 0.5, (n, *p["shape"])) for p in plant["inputs"]]
+    for keywords in ({}, {name: value * 1.25}):
+        single = [module.plant_dynamics(*(a[k] for a in arrays), **keywords) for k in range(n)]
+        for cap in WIDTHS:
+            os.environ["ROBOTGEN_BATCH_LANES"] = str(cap)
+            try:
+                batch = module.plant_dynamics(*arrays, **keywords)
+            finally:
+                del os.environ["ROBOTGEN_BATCH_LANES"]
+            for j, part in enumerate(batch):
+                for k in range(n):
+                    assert part[k].tobytes() == single[k][j].tobytes(), (keywords, cap, j, k)
+    changed = module.plant_dynamics(*arrays, **{name: value * 1.25})
+    assert any(not np.array_equal(a, b) for a, b in zip(changed, module.plant_dynamics(*arrays))), name
