@@ -29,6 +29,12 @@ extern "C" {
 #define STYX_FINGER_MASS_Q_SIZE 2
 #define STYX_FINGER_MASS_MASS_SIZE 4
 int styx_finger_mass(const double *q, double *mass);
+/* styx_finger_mass_batch: styx_finger_mass on n states, state k of each array at k times its size
+ * (one state after the other); bit-identical to n calls of styx_finger_mass. Returns the status
+ * of the first state whose call returns nonzero (0 if none); every state's outputs are as its
+ * call leaves them. _batch_lanes caps the lanes (1: one state at a time; 0: no cap). */
+int styx_finger_mass_batch(int n, const double *q, double *mass);
+int styx_finger_mass_batch_lanes(int lanes, int n, const double *q, double *mass);
 
 /* styx_finger_coriolis:
  * Coriolis matrix C(q, qd) (given, or Christoffel symbols of M).
@@ -51,6 +57,12 @@ int styx_finger_coriolis(const double *q, const double *qd, double *coriolis);
 #define STYX_FINGER_GRAVITY_Q_SIZE 2
 #define STYX_FINGER_GRAVITY_GRAVITY_SIZE 2
 int styx_finger_gravity(const double *q, double *gravity);
+/* styx_finger_gravity_batch: styx_finger_gravity on n states, state k of each array at k times its size
+ * (one state after the other); bit-identical to n calls of styx_finger_gravity. Returns the status
+ * of the first state whose call returns nonzero (0 if none); every state's outputs are as its
+ * call leaves them. _batch_lanes caps the lanes (1: one state at a time; 0: no cap). */
+int styx_finger_gravity_batch(int n, const double *q, double *gravity);
+int styx_finger_gravity_batch_lanes(int lanes, int n, const double *q, double *gravity);
 
 /* styx_finger_nonlinear:
  * C(q, qd) qd + N(q, qd).
@@ -77,6 +89,12 @@ int styx_finger_nonlinear(const double *q, const double *qd, double *nonlinear);
 #define STYX_FINGER_INVERSE_DYNAMICS_QDD_SIZE 2
 #define STYX_FINGER_INVERSE_DYNAMICS_INVERSE_DYNAMICS_SIZE 2
 int styx_finger_inverse_dynamics(const double *q, const double *qd, const double *qdd, double *inverse_dynamics);
+/* styx_finger_inverse_dynamics_batch: styx_finger_inverse_dynamics on n states, state k of each array at k times its size
+ * (one state after the other); bit-identical to n calls of styx_finger_inverse_dynamics. Returns the status
+ * of the first state whose call returns nonzero (0 if none); every state's outputs are as its
+ * call leaves them. _batch_lanes caps the lanes (1: one state at a time; 0: no cap). */
+int styx_finger_inverse_dynamics_batch(int n, const double *q, const double *qd, const double *qdd, double *inverse_dynamics);
+int styx_finger_inverse_dynamics_batch_lanes(int lanes, int n, const double *q, const double *qd, const double *qdd, double *inverse_dynamics);
 
 /* styx_finger_forward_dynamics:
  * M^-1 (tau - C qd - N) by an L D L^T solve.
@@ -93,6 +111,12 @@ int styx_finger_inverse_dynamics(const double *q, const double *qd, const double
 #define STYX_FINGER_FORWARD_DYNAMICS_TAU_SIZE 2
 #define STYX_FINGER_FORWARD_DYNAMICS_FORWARD_DYNAMICS_SIZE 2
 int styx_finger_forward_dynamics(const double *q, const double *qd, const double *tau, double *forward_dynamics);
+/* styx_finger_forward_dynamics_batch: styx_finger_forward_dynamics on n states, state k of each array at k times its size
+ * (one state after the other); bit-identical to n calls of styx_finger_forward_dynamics. Returns the status
+ * of the first state whose call returns nonzero (0 if none); every state's outputs are as its
+ * call leaves them. _batch_lanes caps the lanes (1: one state at a time; 0: no cap). */
+int styx_finger_forward_dynamics_batch(int n, const double *q, const double *qd, const double *tau, double *forward_dynamics);
+int styx_finger_forward_dynamics_batch_lanes(int lanes, int n, const double *q, const double *qd, const double *tau, double *forward_dynamics);
 
 /* styx_finger_kinematics:
  * Output map x = f(q) as given in the spec.
@@ -131,6 +155,12 @@ int styx_finger_kinematics_jacobian(const double *q, double *kinematics_jacobian
 #define STYX_FINGER_INVERSE_DYNAMICS_DERIVATIVES_DTAU_DQ_SIZE 4
 #define STYX_FINGER_INVERSE_DYNAMICS_DERIVATIVES_DTAU_DQD_SIZE 4
 int styx_finger_inverse_dynamics_derivatives(const double *q, const double *qd, const double *qdd, double *dtau_dq, double *dtau_dqd);
+/* styx_finger_inverse_dynamics_derivatives_batch: styx_finger_inverse_dynamics_derivatives on n states, state k of each array at k times its size
+ * (one state after the other); bit-identical to n calls of styx_finger_inverse_dynamics_derivatives. Returns the status
+ * of the first state whose call returns nonzero (0 if none); every state's outputs are as its
+ * call leaves them. _batch_lanes caps the lanes (1: one state at a time; 0: no cap). */
+int styx_finger_inverse_dynamics_derivatives_batch(int n, const double *q, const double *qd, const double *qdd, double *dtau_dq, double *dtau_dqd);
+int styx_finger_inverse_dynamics_derivatives_batch_lanes(int lanes, int n, const double *q, const double *qd, const double *qdd, double *dtau_dq, double *dtau_dqd);
 
 /* styx_finger_forward_dynamics_derivatives:
  * Partial derivatives of forward dynamics: d qdd/dq, d qdd/dqd and d qdd/d tau = M^-1.
@@ -151,6 +181,12 @@ int styx_finger_inverse_dynamics_derivatives(const double *q, const double *qd, 
 #define STYX_FINGER_FORWARD_DYNAMICS_DERIVATIVES_DQDD_DQD_SIZE 4
 #define STYX_FINGER_FORWARD_DYNAMICS_DERIVATIVES_DQDD_DTAU_SIZE 4
 int styx_finger_forward_dynamics_derivatives(const double *q, const double *qd, const double *tau, double *dqdd_dq, double *dqdd_dqd, double *dqdd_dtau);
+/* styx_finger_forward_dynamics_derivatives_batch: styx_finger_forward_dynamics_derivatives on n states, state k of each array at k times its size
+ * (one state after the other); bit-identical to n calls of styx_finger_forward_dynamics_derivatives. Returns the status
+ * of the first state whose call returns nonzero (0 if none); every state's outputs are as its
+ * call leaves them. _batch_lanes caps the lanes (1: one state at a time; 0: no cap). */
+int styx_finger_forward_dynamics_derivatives_batch(int n, const double *q, const double *qd, const double *tau, double *dqdd_dq, double *dqdd_dqd, double *dqdd_dtau);
+int styx_finger_forward_dynamics_derivatives_batch_lanes(int lanes, int n, const double *q, const double *qd, const double *tau, double *dqdd_dq, double *dqdd_dqd, double *dqdd_dtau);
 
 /* styx_finger_mass_inverse:
  * M(q)^-1 (L D L^T factorisation, then solves).
@@ -163,6 +199,12 @@ int styx_finger_forward_dynamics_derivatives(const double *q, const double *qd, 
 #define STYX_FINGER_MASS_INVERSE_Q_SIZE 2
 #define STYX_FINGER_MASS_INVERSE_MASS_INVERSE_SIZE 4
 int styx_finger_mass_inverse(const double *q, double *mass_inverse);
+/* styx_finger_mass_inverse_batch: styx_finger_mass_inverse on n states, state k of each array at k times its size
+ * (one state after the other); bit-identical to n calls of styx_finger_mass_inverse. Returns the status
+ * of the first state whose call returns nonzero (0 if none); every state's outputs are as its
+ * call leaves them. _batch_lanes caps the lanes (1: one state at a time; 0: no cap). */
+int styx_finger_mass_inverse_batch(int n, const double *q, double *mass_inverse);
+int styx_finger_mass_inverse_batch_lanes(int lanes, int n, const double *q, double *mass_inverse);
 
 /* styx_finger_discrete_dynamics:
  * One step of length dt, tau held: semi-implicit Euler (qd+ = qd + dt qdd, q+ = q + dt qd+). Returns q+, qd+.
@@ -184,6 +226,12 @@ int styx_finger_mass_inverse(const double *q, double *mass_inverse);
 #define STYX_FINGER_DISCRETE_DYNAMICS_Q_NEXT_SIZE 2
 #define STYX_FINGER_DISCRETE_DYNAMICS_QD_NEXT_SIZE 2
 int styx_finger_discrete_dynamics(const double *q, const double *qd, const double *tau, const double *dt, double *q_next, double *qd_next);
+/* styx_finger_discrete_dynamics_batch: styx_finger_discrete_dynamics on n states, state k of each array at k times its size
+ * (one state after the other); bit-identical to n calls of styx_finger_discrete_dynamics. Returns the status
+ * of the first state whose call returns nonzero (0 if none); every state's outputs are as its
+ * call leaves them. _batch_lanes caps the lanes (1: one state at a time; 0: no cap). */
+int styx_finger_discrete_dynamics_batch(int n, const double *q, const double *qd, const double *tau, const double *dt, double *q_next, double *qd_next);
+int styx_finger_discrete_dynamics_batch_lanes(int lanes, int n, const double *q, const double *qd, const double *tau, const double *dt, double *q_next, double *qd_next);
 
 /* styx_finger_discrete_dynamics_derivatives:
  * One step (semi-implicit Euler (qd+ = qd + dt qdd, q+ = q + dt qd+)) and its Jacobians: q+, qd+, A = d(q+, qd+)/d(q, qd), B = d(q+, qd+)/d tau.
@@ -209,6 +257,17 @@ int styx_finger_discrete_dynamics(const double *q, const double *qd, const doubl
 #define STYX_FINGER_DISCRETE_DYNAMICS_DERIVATIVES_A_SIZE 16
 #define STYX_FINGER_DISCRETE_DYNAMICS_DERIVATIVES_B_SIZE 8
 int styx_finger_discrete_dynamics_derivatives(const double *q, const double *qd, const double *tau, const double *dt, double *q_next, double *qd_next, double *A, double *B);
+/* styx_finger_discrete_dynamics_derivatives_batch: styx_finger_discrete_dynamics_derivatives on n states, state k of each array at k times its size
+ * (one state after the other); bit-identical to n calls of styx_finger_discrete_dynamics_derivatives. Returns the status
+ * of the first state whose call returns nonzero (0 if none); every state's outputs are as its
+ * call leaves them. _batch_lanes caps the lanes (1: one state at a time; 0: no cap). */
+int styx_finger_discrete_dynamics_derivatives_batch(int n, const double *q, const double *qd, const double *tau, const double *dt, double *q_next, double *qd_next, double *A, double *B);
+int styx_finger_discrete_dynamics_derivatives_batch_lanes(int lanes, int n, const double *q, const double *qd, const double *tau, const double *dt, double *q_next, double *qd_next, double *A, double *B);
+
+/* styx_finger_batch_lanes: the states a _batch call computes at once on this CPU (8 with
+ * AVX-512F, 4 with AVX2, 2 on aarch64, 1 elsewhere; twice that in float), at most lanes
+ * (0: no cap). */
+int styx_finger_batch_lanes(int lanes);
 
 #ifdef __cplusplus
 }

@@ -71,6 +71,12 @@ int two_link_jacobian_dot_qd(const double *q, const double *qd, double *jacobian
 #define TWO_LINK_MASS_Q_SIZE 2
 #define TWO_LINK_MASS_MASS_SIZE 4
 int two_link_mass(const double *q, double *mass);
+/* two_link_mass_batch: two_link_mass on n states, state k of each array at k times its size
+ * (one state after the other); bit-identical to n calls of two_link_mass. Returns the status
+ * of the first state whose call returns nonzero (0 if none); every state's outputs are as its
+ * call leaves them. _batch_lanes caps the lanes (1: one state at a time; 0: no cap). */
+int two_link_mass_batch(int n, const double *q, double *mass);
+int two_link_mass_batch_lanes(int lanes, int n, const double *q, double *mass);
 
 /* two_link_coriolis:
  * Coriolis matrix C(q, qd) from Christoffel symbols; Mdot - 2C is skew-symmetric.
@@ -93,6 +99,12 @@ int two_link_coriolis(const double *q, const double *qd, double *coriolis);
 #define TWO_LINK_GRAVITY_Q_SIZE 2
 #define TWO_LINK_GRAVITY_GRAVITY_SIZE 2
 int two_link_gravity(const double *q, double *gravity);
+/* two_link_gravity_batch: two_link_gravity on n states, state k of each array at k times its size
+ * (one state after the other); bit-identical to n calls of two_link_gravity. Returns the status
+ * of the first state whose call returns nonzero (0 if none); every state's outputs are as its
+ * call leaves them. _batch_lanes caps the lanes (1: one state at a time; 0: no cap). */
+int two_link_gravity_batch(int n, const double *q, double *gravity);
+int two_link_gravity_batch_lanes(int lanes, int n, const double *q, double *gravity);
 
 /* two_link_nonlinear:
  * C(q, qd) qd + N(q, qd): Coriolis, centrifugal, gravity, friction.
@@ -119,6 +131,12 @@ int two_link_nonlinear(const double *q, const double *qd, double *nonlinear);
 #define TWO_LINK_INVERSE_DYNAMICS_QDD_SIZE 2
 #define TWO_LINK_INVERSE_DYNAMICS_INVERSE_DYNAMICS_SIZE 2
 int two_link_inverse_dynamics(const double *q, const double *qd, const double *qdd, double *inverse_dynamics);
+/* two_link_inverse_dynamics_batch: two_link_inverse_dynamics on n states, state k of each array at k times its size
+ * (one state after the other); bit-identical to n calls of two_link_inverse_dynamics. Returns the status
+ * of the first state whose call returns nonzero (0 if none); every state's outputs are as its
+ * call leaves them. _batch_lanes caps the lanes (1: one state at a time; 0: no cap). */
+int two_link_inverse_dynamics_batch(int n, const double *q, const double *qd, const double *qdd, double *inverse_dynamics);
+int two_link_inverse_dynamics_batch_lanes(int lanes, int n, const double *q, const double *qd, const double *qdd, double *inverse_dynamics);
 
 /* two_link_forward_dynamics:
  * Joint accelerations M^-1 (tau - C qd - N) by an L D L^T solve (past 12 joints: articulated bodies).
@@ -135,6 +153,12 @@ int two_link_inverse_dynamics(const double *q, const double *qd, const double *q
 #define TWO_LINK_FORWARD_DYNAMICS_TAU_SIZE 2
 #define TWO_LINK_FORWARD_DYNAMICS_FORWARD_DYNAMICS_SIZE 2
 int two_link_forward_dynamics(const double *q, const double *qd, const double *tau, double *forward_dynamics);
+/* two_link_forward_dynamics_batch: two_link_forward_dynamics on n states, state k of each array at k times its size
+ * (one state after the other); bit-identical to n calls of two_link_forward_dynamics. Returns the status
+ * of the first state whose call returns nonzero (0 if none); every state's outputs are as its
+ * call leaves them. _batch_lanes caps the lanes (1: one state at a time; 0: no cap). */
+int two_link_forward_dynamics_batch(int n, const double *q, const double *qd, const double *tau, double *forward_dynamics);
+int two_link_forward_dynamics_batch_lanes(int lanes, int n, const double *q, const double *qd, const double *tau, double *forward_dynamics);
 
 /* two_link_servo_terms:
  * M(q), C(q, qd) qd + N, the tip Jacobian J and Jdot qd in one call: a computed-torque servo cycle's terms, sharing sin/cos and kinematics.
@@ -171,6 +195,12 @@ int two_link_servo_terms(const double *q, const double *qd, double *mass, double
 #define TWO_LINK_INVERSE_DYNAMICS_DERIVATIVES_DTAU_DQ_SIZE 4
 #define TWO_LINK_INVERSE_DYNAMICS_DERIVATIVES_DTAU_DQD_SIZE 4
 int two_link_inverse_dynamics_derivatives(const double *q, const double *qd, const double *qdd, double *dtau_dq, double *dtau_dqd);
+/* two_link_inverse_dynamics_derivatives_batch: two_link_inverse_dynamics_derivatives on n states, state k of each array at k times its size
+ * (one state after the other); bit-identical to n calls of two_link_inverse_dynamics_derivatives. Returns the status
+ * of the first state whose call returns nonzero (0 if none); every state's outputs are as its
+ * call leaves them. _batch_lanes caps the lanes (1: one state at a time; 0: no cap). */
+int two_link_inverse_dynamics_derivatives_batch(int n, const double *q, const double *qd, const double *qdd, double *dtau_dq, double *dtau_dqd);
+int two_link_inverse_dynamics_derivatives_batch_lanes(int lanes, int n, const double *q, const double *qd, const double *qdd, double *dtau_dq, double *dtau_dqd);
 
 /* two_link_forward_dynamics_derivatives:
  * Partial derivatives of forward dynamics: d qdd/dq, d qdd/dqd and d qdd/d tau = M^-1.
@@ -191,6 +221,12 @@ int two_link_inverse_dynamics_derivatives(const double *q, const double *qd, con
 #define TWO_LINK_FORWARD_DYNAMICS_DERIVATIVES_DQDD_DQD_SIZE 4
 #define TWO_LINK_FORWARD_DYNAMICS_DERIVATIVES_DQDD_DTAU_SIZE 4
 int two_link_forward_dynamics_derivatives(const double *q, const double *qd, const double *tau, double *dqdd_dq, double *dqdd_dqd, double *dqdd_dtau);
+/* two_link_forward_dynamics_derivatives_batch: two_link_forward_dynamics_derivatives on n states, state k of each array at k times its size
+ * (one state after the other); bit-identical to n calls of two_link_forward_dynamics_derivatives. Returns the status
+ * of the first state whose call returns nonzero (0 if none); every state's outputs are as its
+ * call leaves them. _batch_lanes caps the lanes (1: one state at a time; 0: no cap). */
+int two_link_forward_dynamics_derivatives_batch(int n, const double *q, const double *qd, const double *tau, double *dqdd_dq, double *dqdd_dqd, double *dqdd_dtau);
+int two_link_forward_dynamics_derivatives_batch_lanes(int lanes, int n, const double *q, const double *qd, const double *tau, double *dqdd_dq, double *dqdd_dqd, double *dqdd_dtau);
 
 /* two_link_mass_inverse:
  * M(q)^-1 (L D L^T factorisation, then solves).
@@ -203,6 +239,12 @@ int two_link_forward_dynamics_derivatives(const double *q, const double *qd, con
 #define TWO_LINK_MASS_INVERSE_Q_SIZE 2
 #define TWO_LINK_MASS_INVERSE_MASS_INVERSE_SIZE 4
 int two_link_mass_inverse(const double *q, double *mass_inverse);
+/* two_link_mass_inverse_batch: two_link_mass_inverse on n states, state k of each array at k times its size
+ * (one state after the other); bit-identical to n calls of two_link_mass_inverse. Returns the status
+ * of the first state whose call returns nonzero (0 if none); every state's outputs are as its
+ * call leaves them. _batch_lanes caps the lanes (1: one state at a time; 0: no cap). */
+int two_link_mass_inverse_batch(int n, const double *q, double *mass_inverse);
+int two_link_mass_inverse_batch_lanes(int lanes, int n, const double *q, double *mass_inverse);
 
 /* two_link_discrete_dynamics:
  * One step of length dt, tau held: semi-implicit Euler (qd+ = qd + dt qdd, q+ = q + dt qd+). Returns q+, qd+.
@@ -224,6 +266,12 @@ int two_link_mass_inverse(const double *q, double *mass_inverse);
 #define TWO_LINK_DISCRETE_DYNAMICS_Q_NEXT_SIZE 2
 #define TWO_LINK_DISCRETE_DYNAMICS_QD_NEXT_SIZE 2
 int two_link_discrete_dynamics(const double *q, const double *qd, const double *tau, const double *dt, double *q_next, double *qd_next);
+/* two_link_discrete_dynamics_batch: two_link_discrete_dynamics on n states, state k of each array at k times its size
+ * (one state after the other); bit-identical to n calls of two_link_discrete_dynamics. Returns the status
+ * of the first state whose call returns nonzero (0 if none); every state's outputs are as its
+ * call leaves them. _batch_lanes caps the lanes (1: one state at a time; 0: no cap). */
+int two_link_discrete_dynamics_batch(int n, const double *q, const double *qd, const double *tau, const double *dt, double *q_next, double *qd_next);
+int two_link_discrete_dynamics_batch_lanes(int lanes, int n, const double *q, const double *qd, const double *tau, const double *dt, double *q_next, double *qd_next);
 
 /* two_link_discrete_dynamics_derivatives:
  * One step (semi-implicit Euler (qd+ = qd + dt qdd, q+ = q + dt qd+)) and its Jacobians: q+, qd+, A = d(q+, qd+)/d(q, qd), B = d(q+, qd+)/d tau.
@@ -249,6 +297,12 @@ int two_link_discrete_dynamics(const double *q, const double *qd, const double *
 #define TWO_LINK_DISCRETE_DYNAMICS_DERIVATIVES_A_SIZE 16
 #define TWO_LINK_DISCRETE_DYNAMICS_DERIVATIVES_B_SIZE 8
 int two_link_discrete_dynamics_derivatives(const double *q, const double *qd, const double *tau, const double *dt, double *q_next, double *qd_next, double *A, double *B);
+/* two_link_discrete_dynamics_derivatives_batch: two_link_discrete_dynamics_derivatives on n states, state k of each array at k times its size
+ * (one state after the other); bit-identical to n calls of two_link_discrete_dynamics_derivatives. Returns the status
+ * of the first state whose call returns nonzero (0 if none); every state's outputs are as its
+ * call leaves them. _batch_lanes caps the lanes (1: one state at a time; 0: no cap). */
+int two_link_discrete_dynamics_derivatives_batch(int n, const double *q, const double *qd, const double *tau, const double *dt, double *q_next, double *qd_next, double *A, double *B);
+int two_link_discrete_dynamics_derivatives_batch_lanes(int lanes, int n, const double *q, const double *qd, const double *tau, const double *dt, double *q_next, double *qd_next, double *A, double *B);
 
 /* two_link_jacobian_derivative:
  * dJ/dt (6 x n): the time derivative of the tip Jacobian; jacobian_derivative qd = jacobian_dot_qd.
@@ -263,6 +317,11 @@ int two_link_discrete_dynamics_derivatives(const double *q, const double *qd, co
 #define TWO_LINK_JACOBIAN_DERIVATIVE_QD_SIZE 2
 #define TWO_LINK_JACOBIAN_DERIVATIVE_JACOBIAN_DERIVATIVE_SIZE 12
 int two_link_jacobian_derivative(const double *q, const double *qd, double *jacobian_derivative);
+
+/* two_link_batch_lanes: the states a _batch call computes at once on this CPU (8 with
+ * AVX-512F, 4 with AVX2, 2 on aarch64, 1 elsewhere; twice that in float), at most lanes
+ * (0: no cap). */
+int two_link_batch_lanes(int lanes);
 
 #ifdef __cplusplus
 }

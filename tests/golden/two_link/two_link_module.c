@@ -4,6 +4,7 @@
 #include <Python.h>
 #define NPY_NO_DEPRECATED_API NPY_1_7_API_VERSION
 #include <numpy/arrayobject.h>
+#include <stdlib.h>
 
 #include "two_link.h"
 
@@ -438,6 +439,42 @@ static PyObject *rg_finish(const char *fn, int status, PyArrayObject **results, 
     return tuple;
 }
 
+/* A batch goes to the C's _batch functions (each W states at once in the lanes of a vector;
+ * robotgen.emit.lanes), at most RG_CHUNK states per call (their n is an int). The environment
+ * variable ROBOTGEN_BATCH_LANES, read at each call, caps the lanes (1: one state at a time), for
+ * comparing the widths; unset or 0, the widest this CPU runs. */
+#define RG_CHUNK 65536
+#define RG_NO_MEMORY (-1)
+
+static int rg_lanes_cap(void)
+{
+    const char *text = getenv("ROBOTGEN_BATCH_LANES");
+    return text == NULL ? 0 : atoi(text);
+}
+
+/* The n elements of each of count states of a batch argument: its data, or (an argument
+ * without the batch axis, step 0) that one state repeated, in *own (PyMem_RawMalloc'd, NULL
+ * when not needed). NULL when out of memory. Needs no GIL. */
+static const double *rg_batch_input(const double *data, npy_intp step, npy_intp size, npy_intp count,
+                              double **own)
+{
+    npy_intp b, e;
+    *own = NULL;
+    if (step != 0) {
+        return data;
+    }
+    *own = (double *)PyMem_RawMalloc((size_t)(count * size) * sizeof(**own));
+    if (*own == NULL) {
+        return NULL;
+    }
+    for (b = 0; b < count; ++b) {
+        for (e = 0; e < size; ++e) {
+            (*own)[b * size + e] = (double)data[b * step + e];
+        }
+    }
+    return *own;
+}
+
 static PyObject *rg_from_json(const char *text)
 {
     PyObject *json = PyImport_ImportModule("json");
@@ -467,6 +504,7 @@ PyDoc_STRVAR(k_fk_doc,
     "q: float64 array (2,) or (B, 2)\n"
     "out: None, or a float64 array (4, 4) (or (B, 4, 4) for a batch) to write the result into, then returned: no allocation\n"
     "Returns fk (4, 4); batched inputs give a leading B axis.");
+
 
 static PyObject *k_fk(PyObject *self, PyObject *const *args, Py_ssize_t nargs,
                       PyObject *kwnames)
@@ -526,6 +564,7 @@ PyDoc_STRVAR(k_jacobian_doc,
     "out: None, or a float64 array (6, 2) (or (B, 6, 2) for a batch) to write the result into, then returned: no allocation\n"
     "Returns jacobian (6, 2); batched inputs give a leading B axis.");
 
+
 static PyObject *k_jacobian(PyObject *self, PyObject *const *args, Py_ssize_t nargs,
                             PyObject *kwnames)
 {
@@ -583,6 +622,7 @@ PyDoc_STRVAR(k_jacobian_hand_doc,
     "q: float64 array (2,) or (B, 2)\n"
     "out: None, or a float64 array (6, 2) (or (B, 6, 2) for a batch) to write the result into, then returned: no allocation\n"
     "Returns jacobian_hand (6, 2); batched inputs give a leading B axis.");
+
 
 static PyObject *k_jacobian_hand(PyObject *self, PyObject *const *args, Py_ssize_t nargs,
                                  PyObject *kwnames)
@@ -644,6 +684,7 @@ PyDoc_STRVAR(k_jacobian_dot_qd_doc,
     "out: None, or a float64 array (6,) (or (B, 6) for a batch) to write the result into, then returned: no allocation\n"
     "Returns jacobian_dot_qd (6,); batched inputs give a leading B axis.");
 
+
 static PyObject *k_jacobian_dot_qd(PyObject *self, PyObject *const *args, Py_ssize_t nargs,
                                    PyObject *kwnames)
 {
@@ -704,6 +745,34 @@ PyDoc_STRVAR(k_mass_doc,
     "out: None, or a float64 array (2, 2) (or (B, 2, 2) for a batch) to write the result into, then returned: no allocation\n"
     "Returns mass (2, 2); batched inputs give a leading B axis.");
 
+
+/* count states of mass through two_link_mass_batch_lanes, without the GIL: the status of
+ * the first state that fails (every state computed), or RG_NO_MEMORY. */
+static int k_mass_batch(PyArrayObject *const *in, PyArrayObject *const *out,
+                        const npy_intp *step, npy_intp count)
+{
+    double *own[2] = {NULL};
+    const double *args[1];
+    double *results[1];
+    npy_intp b, chunk;
+    int i, status = 0, lanes = rg_lanes_cap(), failed = 0;
+    PyThreadState *unlocked = PyEval_SaveThread();
+    args[0] = rg_batch_input(rg_data(in[0]), step[0], 2, count, &own[0]);
+    failed |= args[0] == NULL;
+    results[0] = rg_data(out[0]);
+    for (b = 0; b < count && status == 0 && !failed; b += chunk) {
+        chunk = count - b < RG_CHUNK ? count - b : RG_CHUNK;
+        status = two_link_mass_batch_lanes(lanes, (int)chunk,
+            args[0] + b * 2,
+            results[0] + b * 4);
+    }
+    for (i = 0; i < 2; ++i) {
+        PyMem_RawFree(own[i]);
+    }
+    PyEval_RestoreThread(unlocked);
+    return failed ? RG_NO_MEMORY : status;
+}
+
 static PyObject *k_mass(PyObject *self, PyObject *const *args, Py_ssize_t nargs,
                         PyObject *kwnames)
 {
@@ -731,6 +800,14 @@ static PyObject *k_mass(PyObject *self, PyObject *const *args, Py_ssize_t nargs,
     }
     step[0] = PyArray_NDIM(in[0]) > 1 ? 2 : 0;
     count = batch < 0 ? 1 : batch;
+    if (batch >= 0) {
+        status = k_mass_batch(in, out, step, count);
+        rg_release(in, 1);
+        if (status == RG_NO_MEMORY) {
+            rg_release(out, 1);
+            return PyErr_NoMemory();
+        }
+    } else {
     unlocked = count > 1 ? PyEval_SaveThread() : NULL;
     for (b = 0; b < count && status == 0; ++b) {
         status = two_link_mass(
@@ -741,6 +818,7 @@ static PyObject *k_mass(PyObject *self, PyObject *const *args, Py_ssize_t nargs,
         PyEval_RestoreThread(unlocked);
     }
     rg_release(in, 1);
+    }
     return rg_finish("mass", status, out, 1);
 }
 
@@ -763,6 +841,7 @@ PyDoc_STRVAR(k_coriolis_doc,
     "qd: float64 array (2,) or (B, 2)\n"
     "out: None, or a float64 array (2, 2) (or (B, 2, 2) for a batch) to write the result into, then returned: no allocation\n"
     "Returns coriolis (2, 2); batched inputs give a leading B axis.");
+
 
 static PyObject *k_coriolis(PyObject *self, PyObject *const *args, Py_ssize_t nargs,
                             PyObject *kwnames)
@@ -824,6 +903,34 @@ PyDoc_STRVAR(k_gravity_doc,
     "out: None, or a float64 array (2,) (or (B, 2) for a batch) to write the result into, then returned: no allocation\n"
     "Returns gravity (2,); batched inputs give a leading B axis.");
 
+
+/* count states of gravity through two_link_gravity_batch_lanes, without the GIL: the status of
+ * the first state that fails (every state computed), or RG_NO_MEMORY. */
+static int k_gravity_batch(PyArrayObject *const *in, PyArrayObject *const *out,
+                           const npy_intp *step, npy_intp count)
+{
+    double *own[2] = {NULL};
+    const double *args[1];
+    double *results[1];
+    npy_intp b, chunk;
+    int i, status = 0, lanes = rg_lanes_cap(), failed = 0;
+    PyThreadState *unlocked = PyEval_SaveThread();
+    args[0] = rg_batch_input(rg_data(in[0]), step[0], 2, count, &own[0]);
+    failed |= args[0] == NULL;
+    results[0] = rg_data(out[0]);
+    for (b = 0; b < count && status == 0 && !failed; b += chunk) {
+        chunk = count - b < RG_CHUNK ? count - b : RG_CHUNK;
+        status = two_link_gravity_batch_lanes(lanes, (int)chunk,
+            args[0] + b * 2,
+            results[0] + b * 2);
+    }
+    for (i = 0; i < 2; ++i) {
+        PyMem_RawFree(own[i]);
+    }
+    PyEval_RestoreThread(unlocked);
+    return failed ? RG_NO_MEMORY : status;
+}
+
 static PyObject *k_gravity(PyObject *self, PyObject *const *args, Py_ssize_t nargs,
                            PyObject *kwnames)
 {
@@ -851,6 +958,14 @@ static PyObject *k_gravity(PyObject *self, PyObject *const *args, Py_ssize_t nar
     }
     step[0] = PyArray_NDIM(in[0]) > 1 ? 2 : 0;
     count = batch < 0 ? 1 : batch;
+    if (batch >= 0) {
+        status = k_gravity_batch(in, out, step, count);
+        rg_release(in, 1);
+        if (status == RG_NO_MEMORY) {
+            rg_release(out, 1);
+            return PyErr_NoMemory();
+        }
+    } else {
     unlocked = count > 1 ? PyEval_SaveThread() : NULL;
     for (b = 0; b < count && status == 0; ++b) {
         status = two_link_gravity(
@@ -861,6 +976,7 @@ static PyObject *k_gravity(PyObject *self, PyObject *const *args, Py_ssize_t nar
         PyEval_RestoreThread(unlocked);
     }
     rg_release(in, 1);
+    }
     return rg_finish("gravity", status, out, 1);
 }
 
@@ -883,6 +999,7 @@ PyDoc_STRVAR(k_nonlinear_doc,
     "qd: float64 array (2,) or (B, 2)\n"
     "out: None, or a float64 array (2,) (or (B, 2) for a batch) to write the result into, then returned: no allocation\n"
     "Returns nonlinear (2,); batched inputs give a leading B axis.");
+
 
 static PyObject *k_nonlinear(PyObject *self, PyObject *const *args, Py_ssize_t nargs,
                              PyObject *kwnames)
@@ -948,6 +1065,40 @@ PyDoc_STRVAR(k_inverse_dynamics_doc,
     "out: None, or a float64 array (2,) (or (B, 2) for a batch) to write the result into, then returned: no allocation\n"
     "Returns inverse_dynamics (2,); batched inputs give a leading B axis.");
 
+
+/* count states of inverse_dynamics through two_link_inverse_dynamics_batch_lanes, without the GIL: the status of
+ * the first state that fails (every state computed), or RG_NO_MEMORY. */
+static int k_inverse_dynamics_batch(PyArrayObject *const *in, PyArrayObject *const *out,
+                                    const npy_intp *step, npy_intp count)
+{
+    double *own[4] = {NULL};
+    const double *args[3];
+    double *results[1];
+    npy_intp b, chunk;
+    int i, status = 0, lanes = rg_lanes_cap(), failed = 0;
+    PyThreadState *unlocked = PyEval_SaveThread();
+    args[0] = rg_batch_input(rg_data(in[0]), step[0], 2, count, &own[0]);
+    failed |= args[0] == NULL;
+    args[1] = rg_batch_input(rg_data(in[1]), step[1], 2, count, &own[1]);
+    failed |= args[1] == NULL;
+    args[2] = rg_batch_input(rg_data(in[2]), step[2], 2, count, &own[2]);
+    failed |= args[2] == NULL;
+    results[0] = rg_data(out[0]);
+    for (b = 0; b < count && status == 0 && !failed; b += chunk) {
+        chunk = count - b < RG_CHUNK ? count - b : RG_CHUNK;
+        status = two_link_inverse_dynamics_batch_lanes(lanes, (int)chunk,
+            args[0] + b * 2,
+            args[1] + b * 2,
+            args[2] + b * 2,
+            results[0] + b * 2);
+    }
+    for (i = 0; i < 4; ++i) {
+        PyMem_RawFree(own[i]);
+    }
+    PyEval_RestoreThread(unlocked);
+    return failed ? RG_NO_MEMORY : status;
+}
+
 static PyObject *k_inverse_dynamics(PyObject *self, PyObject *const *args, Py_ssize_t nargs,
                                     PyObject *kwnames)
 {
@@ -977,6 +1128,14 @@ static PyObject *k_inverse_dynamics(PyObject *self, PyObject *const *args, Py_ss
     step[1] = PyArray_NDIM(in[1]) > 1 ? 2 : 0;
     step[2] = PyArray_NDIM(in[2]) > 1 ? 2 : 0;
     count = batch < 0 ? 1 : batch;
+    if (batch >= 0) {
+        status = k_inverse_dynamics_batch(in, out, step, count);
+        rg_release(in, 3);
+        if (status == RG_NO_MEMORY) {
+            rg_release(out, 1);
+            return PyErr_NoMemory();
+        }
+    } else {
     unlocked = count > 1 ? PyEval_SaveThread() : NULL;
     for (b = 0; b < count && status == 0; ++b) {
         status = two_link_inverse_dynamics(
@@ -989,6 +1148,7 @@ static PyObject *k_inverse_dynamics(PyObject *self, PyObject *const *args, Py_ss
         PyEval_RestoreThread(unlocked);
     }
     rg_release(in, 3);
+    }
     return rg_finish("inverse_dynamics", status, out, 1);
 }
 
@@ -1013,6 +1173,40 @@ PyDoc_STRVAR(k_forward_dynamics_doc,
     "tau: float64 array (2,) or (B, 2)\n"
     "out: None, or a float64 array (2,) (or (B, 2) for a batch) to write the result into, then returned: no allocation\n"
     "Returns forward_dynamics (2,); batched inputs give a leading B axis.");
+
+
+/* count states of forward_dynamics through two_link_forward_dynamics_batch_lanes, without the GIL: the status of
+ * the first state that fails (every state computed), or RG_NO_MEMORY. */
+static int k_forward_dynamics_batch(PyArrayObject *const *in, PyArrayObject *const *out,
+                                    const npy_intp *step, npy_intp count)
+{
+    double *own[4] = {NULL};
+    const double *args[3];
+    double *results[1];
+    npy_intp b, chunk;
+    int i, status = 0, lanes = rg_lanes_cap(), failed = 0;
+    PyThreadState *unlocked = PyEval_SaveThread();
+    args[0] = rg_batch_input(rg_data(in[0]), step[0], 2, count, &own[0]);
+    failed |= args[0] == NULL;
+    args[1] = rg_batch_input(rg_data(in[1]), step[1], 2, count, &own[1]);
+    failed |= args[1] == NULL;
+    args[2] = rg_batch_input(rg_data(in[2]), step[2], 2, count, &own[2]);
+    failed |= args[2] == NULL;
+    results[0] = rg_data(out[0]);
+    for (b = 0; b < count && status == 0 && !failed; b += chunk) {
+        chunk = count - b < RG_CHUNK ? count - b : RG_CHUNK;
+        status = two_link_forward_dynamics_batch_lanes(lanes, (int)chunk,
+            args[0] + b * 2,
+            args[1] + b * 2,
+            args[2] + b * 2,
+            results[0] + b * 2);
+    }
+    for (i = 0; i < 4; ++i) {
+        PyMem_RawFree(own[i]);
+    }
+    PyEval_RestoreThread(unlocked);
+    return failed ? RG_NO_MEMORY : status;
+}
 
 static PyObject *k_forward_dynamics(PyObject *self, PyObject *const *args, Py_ssize_t nargs,
                                     PyObject *kwnames)
@@ -1043,6 +1237,14 @@ static PyObject *k_forward_dynamics(PyObject *self, PyObject *const *args, Py_ss
     step[1] = PyArray_NDIM(in[1]) > 1 ? 2 : 0;
     step[2] = PyArray_NDIM(in[2]) > 1 ? 2 : 0;
     count = batch < 0 ? 1 : batch;
+    if (batch >= 0) {
+        status = k_forward_dynamics_batch(in, out, step, count);
+        rg_release(in, 3);
+        if (status == RG_NO_MEMORY) {
+            rg_release(out, 1);
+            return PyErr_NoMemory();
+        }
+    } else {
     unlocked = count > 1 ? PyEval_SaveThread() : NULL;
     for (b = 0; b < count && status == 0; ++b) {
         status = two_link_forward_dynamics(
@@ -1055,6 +1257,7 @@ static PyObject *k_forward_dynamics(PyObject *self, PyObject *const *args, Py_ss
         PyEval_RestoreThread(unlocked);
     }
     rg_release(in, 3);
+    }
     return rg_finish("forward_dynamics", status, out, 1);
 }
 
@@ -1080,6 +1283,7 @@ PyDoc_STRVAR(k_servo_terms_doc,
     "qd: float64 array (2,) or (B, 2)\n"
     "out: None, or a tuple of 4 float64 arrays of the results' shapes to write them into, then returned: no allocation\n"
     "Returns mass (2, 2), nonlinear (2,), jacobian (6, 2), jacobian_dot_qd (6,) as a tuple; batched inputs give a leading B axis.");
+
 
 static PyObject *k_servo_terms(PyObject *self, PyObject *const *args, Py_ssize_t nargs,
                                PyObject *kwnames)
@@ -1149,6 +1353,42 @@ PyDoc_STRVAR(k_inverse_dynamics_derivatives_doc,
     "out: None, or a tuple of 2 float64 arrays of the results' shapes to write them into, then returned: no allocation\n"
     "Returns dtau_dq (2, 2), dtau_dqd (2, 2) as a tuple; batched inputs give a leading B axis.");
 
+
+/* count states of inverse_dynamics_derivatives through two_link_inverse_dynamics_derivatives_batch_lanes, without the GIL: the status of
+ * the first state that fails (every state computed), or RG_NO_MEMORY. */
+static int k_inverse_dynamics_derivatives_batch(PyArrayObject *const *in, PyArrayObject *const *out,
+                                                const npy_intp *step, npy_intp count)
+{
+    double *own[5] = {NULL};
+    const double *args[3];
+    double *results[2];
+    npy_intp b, chunk;
+    int i, status = 0, lanes = rg_lanes_cap(), failed = 0;
+    PyThreadState *unlocked = PyEval_SaveThread();
+    args[0] = rg_batch_input(rg_data(in[0]), step[0], 2, count, &own[0]);
+    failed |= args[0] == NULL;
+    args[1] = rg_batch_input(rg_data(in[1]), step[1], 2, count, &own[1]);
+    failed |= args[1] == NULL;
+    args[2] = rg_batch_input(rg_data(in[2]), step[2], 2, count, &own[2]);
+    failed |= args[2] == NULL;
+    results[0] = rg_data(out[0]);
+    results[1] = rg_data(out[1]);
+    for (b = 0; b < count && status == 0 && !failed; b += chunk) {
+        chunk = count - b < RG_CHUNK ? count - b : RG_CHUNK;
+        status = two_link_inverse_dynamics_derivatives_batch_lanes(lanes, (int)chunk,
+            args[0] + b * 2,
+            args[1] + b * 2,
+            args[2] + b * 2,
+            results[0] + b * 4,
+            results[1] + b * 4);
+    }
+    for (i = 0; i < 5; ++i) {
+        PyMem_RawFree(own[i]);
+    }
+    PyEval_RestoreThread(unlocked);
+    return failed ? RG_NO_MEMORY : status;
+}
+
 static PyObject *k_inverse_dynamics_derivatives(PyObject *self, PyObject *const *args, Py_ssize_t nargs,
                                                 PyObject *kwnames)
 {
@@ -1178,6 +1418,14 @@ static PyObject *k_inverse_dynamics_derivatives(PyObject *self, PyObject *const 
     step[1] = PyArray_NDIM(in[1]) > 1 ? 2 : 0;
     step[2] = PyArray_NDIM(in[2]) > 1 ? 2 : 0;
     count = batch < 0 ? 1 : batch;
+    if (batch >= 0) {
+        status = k_inverse_dynamics_derivatives_batch(in, out, step, count);
+        rg_release(in, 3);
+        if (status == RG_NO_MEMORY) {
+            rg_release(out, 2);
+            return PyErr_NoMemory();
+        }
+    } else {
     unlocked = count > 1 ? PyEval_SaveThread() : NULL;
     for (b = 0; b < count && status == 0; ++b) {
         status = two_link_inverse_dynamics_derivatives(
@@ -1191,6 +1439,7 @@ static PyObject *k_inverse_dynamics_derivatives(PyObject *self, PyObject *const 
         PyEval_RestoreThread(unlocked);
     }
     rg_release(in, 3);
+    }
     return rg_finish("inverse_dynamics_derivatives", status, out, 2);
 }
 
@@ -1217,6 +1466,44 @@ PyDoc_STRVAR(k_forward_dynamics_derivatives_doc,
     "tau: float64 array (2,) or (B, 2)\n"
     "out: None, or a tuple of 3 float64 arrays of the results' shapes to write them into, then returned: no allocation\n"
     "Returns dqdd_dq (2, 2), dqdd_dqd (2, 2), dqdd_dtau (2, 2) as a tuple; batched inputs give a leading B axis.");
+
+
+/* count states of forward_dynamics_derivatives through two_link_forward_dynamics_derivatives_batch_lanes, without the GIL: the status of
+ * the first state that fails (every state computed), or RG_NO_MEMORY. */
+static int k_forward_dynamics_derivatives_batch(PyArrayObject *const *in, PyArrayObject *const *out,
+                                                const npy_intp *step, npy_intp count)
+{
+    double *own[6] = {NULL};
+    const double *args[3];
+    double *results[3];
+    npy_intp b, chunk;
+    int i, status = 0, lanes = rg_lanes_cap(), failed = 0;
+    PyThreadState *unlocked = PyEval_SaveThread();
+    args[0] = rg_batch_input(rg_data(in[0]), step[0], 2, count, &own[0]);
+    failed |= args[0] == NULL;
+    args[1] = rg_batch_input(rg_data(in[1]), step[1], 2, count, &own[1]);
+    failed |= args[1] == NULL;
+    args[2] = rg_batch_input(rg_data(in[2]), step[2], 2, count, &own[2]);
+    failed |= args[2] == NULL;
+    results[0] = rg_data(out[0]);
+    results[1] = rg_data(out[1]);
+    results[2] = rg_data(out[2]);
+    for (b = 0; b < count && status == 0 && !failed; b += chunk) {
+        chunk = count - b < RG_CHUNK ? count - b : RG_CHUNK;
+        status = two_link_forward_dynamics_derivatives_batch_lanes(lanes, (int)chunk,
+            args[0] + b * 2,
+            args[1] + b * 2,
+            args[2] + b * 2,
+            results[0] + b * 4,
+            results[1] + b * 4,
+            results[2] + b * 4);
+    }
+    for (i = 0; i < 6; ++i) {
+        PyMem_RawFree(own[i]);
+    }
+    PyEval_RestoreThread(unlocked);
+    return failed ? RG_NO_MEMORY : status;
+}
 
 static PyObject *k_forward_dynamics_derivatives(PyObject *self, PyObject *const *args, Py_ssize_t nargs,
                                                 PyObject *kwnames)
@@ -1247,6 +1534,14 @@ static PyObject *k_forward_dynamics_derivatives(PyObject *self, PyObject *const 
     step[1] = PyArray_NDIM(in[1]) > 1 ? 2 : 0;
     step[2] = PyArray_NDIM(in[2]) > 1 ? 2 : 0;
     count = batch < 0 ? 1 : batch;
+    if (batch >= 0) {
+        status = k_forward_dynamics_derivatives_batch(in, out, step, count);
+        rg_release(in, 3);
+        if (status == RG_NO_MEMORY) {
+            rg_release(out, 3);
+            return PyErr_NoMemory();
+        }
+    } else {
     unlocked = count > 1 ? PyEval_SaveThread() : NULL;
     for (b = 0; b < count && status == 0; ++b) {
         status = two_link_forward_dynamics_derivatives(
@@ -1261,6 +1556,7 @@ static PyObject *k_forward_dynamics_derivatives(PyObject *self, PyObject *const 
         PyEval_RestoreThread(unlocked);
     }
     rg_release(in, 3);
+    }
     return rg_finish("forward_dynamics_derivatives", status, out, 3);
 }
 
@@ -1281,6 +1577,34 @@ PyDoc_STRVAR(k_mass_inverse_doc,
     "q: float64 array (2,) or (B, 2)\n"
     "out: None, or a float64 array (2, 2) (or (B, 2, 2) for a batch) to write the result into, then returned: no allocation\n"
     "Returns mass_inverse (2, 2); batched inputs give a leading B axis.");
+
+
+/* count states of mass_inverse through two_link_mass_inverse_batch_lanes, without the GIL: the status of
+ * the first state that fails (every state computed), or RG_NO_MEMORY. */
+static int k_mass_inverse_batch(PyArrayObject *const *in, PyArrayObject *const *out,
+                                const npy_intp *step, npy_intp count)
+{
+    double *own[2] = {NULL};
+    const double *args[1];
+    double *results[1];
+    npy_intp b, chunk;
+    int i, status = 0, lanes = rg_lanes_cap(), failed = 0;
+    PyThreadState *unlocked = PyEval_SaveThread();
+    args[0] = rg_batch_input(rg_data(in[0]), step[0], 2, count, &own[0]);
+    failed |= args[0] == NULL;
+    results[0] = rg_data(out[0]);
+    for (b = 0; b < count && status == 0 && !failed; b += chunk) {
+        chunk = count - b < RG_CHUNK ? count - b : RG_CHUNK;
+        status = two_link_mass_inverse_batch_lanes(lanes, (int)chunk,
+            args[0] + b * 2,
+            results[0] + b * 4);
+    }
+    for (i = 0; i < 2; ++i) {
+        PyMem_RawFree(own[i]);
+    }
+    PyEval_RestoreThread(unlocked);
+    return failed ? RG_NO_MEMORY : status;
+}
 
 static PyObject *k_mass_inverse(PyObject *self, PyObject *const *args, Py_ssize_t nargs,
                                 PyObject *kwnames)
@@ -1309,6 +1633,14 @@ static PyObject *k_mass_inverse(PyObject *self, PyObject *const *args, Py_ssize_
     }
     step[0] = PyArray_NDIM(in[0]) > 1 ? 2 : 0;
     count = batch < 0 ? 1 : batch;
+    if (batch >= 0) {
+        status = k_mass_inverse_batch(in, out, step, count);
+        rg_release(in, 1);
+        if (status == RG_NO_MEMORY) {
+            rg_release(out, 1);
+            return PyErr_NoMemory();
+        }
+    } else {
     unlocked = count > 1 ? PyEval_SaveThread() : NULL;
     for (b = 0; b < count && status == 0; ++b) {
         status = two_link_mass_inverse(
@@ -1319,6 +1651,7 @@ static PyObject *k_mass_inverse(PyObject *self, PyObject *const *args, Py_ssize_
         PyEval_RestoreThread(unlocked);
     }
     rg_release(in, 1);
+    }
     return rg_finish("mass_inverse", status, out, 1);
 }
 
@@ -1346,6 +1679,45 @@ PyDoc_STRVAR(k_discrete_dynamics_doc,
     "dt: float64 array (1,) or (B, 1)\n"
     "out: None, or a tuple of 2 float64 arrays of the results' shapes to write them into, then returned: no allocation\n"
     "Returns q_next (2,), qd_next (2,) as a tuple; batched inputs give a leading B axis.");
+
+
+/* count states of discrete_dynamics through two_link_discrete_dynamics_batch_lanes, without the GIL: the status of
+ * the first state that fails (every state computed), or RG_NO_MEMORY. */
+static int k_discrete_dynamics_batch(PyArrayObject *const *in, PyArrayObject *const *out,
+                                     const npy_intp *step, npy_intp count)
+{
+    double *own[6] = {NULL};
+    const double *args[4];
+    double *results[2];
+    npy_intp b, chunk;
+    int i, status = 0, lanes = rg_lanes_cap(), failed = 0;
+    PyThreadState *unlocked = PyEval_SaveThread();
+    args[0] = rg_batch_input(rg_data(in[0]), step[0], 2, count, &own[0]);
+    failed |= args[0] == NULL;
+    args[1] = rg_batch_input(rg_data(in[1]), step[1], 2, count, &own[1]);
+    failed |= args[1] == NULL;
+    args[2] = rg_batch_input(rg_data(in[2]), step[2], 2, count, &own[2]);
+    failed |= args[2] == NULL;
+    args[3] = rg_batch_input(rg_data(in[3]), step[3], 1, count, &own[3]);
+    failed |= args[3] == NULL;
+    results[0] = rg_data(out[0]);
+    results[1] = rg_data(out[1]);
+    for (b = 0; b < count && status == 0 && !failed; b += chunk) {
+        chunk = count - b < RG_CHUNK ? count - b : RG_CHUNK;
+        status = two_link_discrete_dynamics_batch_lanes(lanes, (int)chunk,
+            args[0] + b * 2,
+            args[1] + b * 2,
+            args[2] + b * 2,
+            args[3] + b * 1,
+            results[0] + b * 2,
+            results[1] + b * 2);
+    }
+    for (i = 0; i < 6; ++i) {
+        PyMem_RawFree(own[i]);
+    }
+    PyEval_RestoreThread(unlocked);
+    return failed ? RG_NO_MEMORY : status;
+}
 
 static PyObject *k_discrete_dynamics(PyObject *self, PyObject *const *args, Py_ssize_t nargs,
                                      PyObject *kwnames)
@@ -1377,6 +1749,14 @@ static PyObject *k_discrete_dynamics(PyObject *self, PyObject *const *args, Py_s
     step[2] = PyArray_NDIM(in[2]) > 1 ? 2 : 0;
     step[3] = PyArray_NDIM(in[3]) > 1 ? 1 : 0;
     count = batch < 0 ? 1 : batch;
+    if (batch >= 0) {
+        status = k_discrete_dynamics_batch(in, out, step, count);
+        rg_release(in, 4);
+        if (status == RG_NO_MEMORY) {
+            rg_release(out, 2);
+            return PyErr_NoMemory();
+        }
+    } else {
     unlocked = count > 1 ? PyEval_SaveThread() : NULL;
     for (b = 0; b < count && status == 0; ++b) {
         status = two_link_discrete_dynamics(
@@ -1391,6 +1771,7 @@ static PyObject *k_discrete_dynamics(PyObject *self, PyObject *const *args, Py_s
         PyEval_RestoreThread(unlocked);
     }
     rg_release(in, 4);
+    }
     return rg_finish("discrete_dynamics", status, out, 2);
 }
 
@@ -1420,6 +1801,49 @@ PyDoc_STRVAR(k_discrete_dynamics_derivatives_doc,
     "dt: float64 array (1,) or (B, 1)\n"
     "out: None, or a tuple of 4 float64 arrays of the results' shapes to write them into, then returned: no allocation\n"
     "Returns q_next (2,), qd_next (2,), A (4, 4), B (4, 2) as a tuple; batched inputs give a leading B axis.");
+
+
+/* count states of discrete_dynamics_derivatives through two_link_discrete_dynamics_derivatives_batch_lanes, without the GIL: the status of
+ * the first state that fails (every state computed), or RG_NO_MEMORY. */
+static int k_discrete_dynamics_derivatives_batch(PyArrayObject *const *in, PyArrayObject *const *out,
+                                                 const npy_intp *step, npy_intp count)
+{
+    double *own[8] = {NULL};
+    const double *args[4];
+    double *results[4];
+    npy_intp b, chunk;
+    int i, status = 0, lanes = rg_lanes_cap(), failed = 0;
+    PyThreadState *unlocked = PyEval_SaveThread();
+    args[0] = rg_batch_input(rg_data(in[0]), step[0], 2, count, &own[0]);
+    failed |= args[0] == NULL;
+    args[1] = rg_batch_input(rg_data(in[1]), step[1], 2, count, &own[1]);
+    failed |= args[1] == NULL;
+    args[2] = rg_batch_input(rg_data(in[2]), step[2], 2, count, &own[2]);
+    failed |= args[2] == NULL;
+    args[3] = rg_batch_input(rg_data(in[3]), step[3], 1, count, &own[3]);
+    failed |= args[3] == NULL;
+    results[0] = rg_data(out[0]);
+    results[1] = rg_data(out[1]);
+    results[2] = rg_data(out[2]);
+    results[3] = rg_data(out[3]);
+    for (b = 0; b < count && status == 0 && !failed; b += chunk) {
+        chunk = count - b < RG_CHUNK ? count - b : RG_CHUNK;
+        status = two_link_discrete_dynamics_derivatives_batch_lanes(lanes, (int)chunk,
+            args[0] + b * 2,
+            args[1] + b * 2,
+            args[2] + b * 2,
+            args[3] + b * 1,
+            results[0] + b * 2,
+            results[1] + b * 2,
+            results[2] + b * 16,
+            results[3] + b * 8);
+    }
+    for (i = 0; i < 8; ++i) {
+        PyMem_RawFree(own[i]);
+    }
+    PyEval_RestoreThread(unlocked);
+    return failed ? RG_NO_MEMORY : status;
+}
 
 static PyObject *k_discrete_dynamics_derivatives(PyObject *self, PyObject *const *args, Py_ssize_t nargs,
                                                  PyObject *kwnames)
@@ -1451,6 +1875,14 @@ static PyObject *k_discrete_dynamics_derivatives(PyObject *self, PyObject *const
     step[2] = PyArray_NDIM(in[2]) > 1 ? 2 : 0;
     step[3] = PyArray_NDIM(in[3]) > 1 ? 1 : 0;
     count = batch < 0 ? 1 : batch;
+    if (batch >= 0) {
+        status = k_discrete_dynamics_derivatives_batch(in, out, step, count);
+        rg_release(in, 4);
+        if (status == RG_NO_MEMORY) {
+            rg_release(out, 4);
+            return PyErr_NoMemory();
+        }
+    } else {
     unlocked = count > 1 ? PyEval_SaveThread() : NULL;
     for (b = 0; b < count && status == 0; ++b) {
         status = two_link_discrete_dynamics_derivatives(
@@ -1467,6 +1899,7 @@ static PyObject *k_discrete_dynamics_derivatives(PyObject *self, PyObject *const
         PyEval_RestoreThread(unlocked);
     }
     rg_release(in, 4);
+    }
     return rg_finish("discrete_dynamics_derivatives", status, out, 4);
 }
 
@@ -1489,6 +1922,7 @@ PyDoc_STRVAR(k_jacobian_derivative_doc,
     "qd: float64 array (2,) or (B, 2)\n"
     "out: None, or a float64 array (6, 2) (or (B, 6, 2) for a batch) to write the result into, then returned: no allocation\n"
     "Returns jacobian_derivative (6, 2); batched inputs give a leading B axis.");
+
 
 static PyObject *k_jacobian_derivative(PyObject *self, PyObject *const *args, Py_ssize_t nargs,
                                        PyObject *kwnames)
