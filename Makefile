@@ -31,9 +31,11 @@ test-slow:
 # ruff with pyproject.toml's rules: pyflakes, pycodestyle, import order, bugbear, pyupgrade, and D1 on
 # robotgen/ (every public module, class, function and method has a docstring; tests/, bench/ and
 # examples/ are exempt); then mypy on robotgen/ ([tool.mypy]: the node union narrowed by type).
-# `make test` and `make test-quick` run it first.
+# `ruff format --check` holds every Python file to ruff's formatter. `make test` and `make test-quick`
+# run it first.
 lint:
 	$(PYTHON) -m ruff check .
+	$(PYTHON) -m ruff format --check .
 	$(PYTHON) -m mypy
 
 # The golden outputs, rebuilt under every OpenBLAS kernel this CPU runs: the emitted C and

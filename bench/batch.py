@@ -19,6 +19,7 @@ Prints a table (states per second in millions, the ratio to the loop) and writes
 bench/batch.json. The machine may be shared: the rounds are interleaved so that load moves
 every column alike, and the least of them is reported.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -36,10 +37,18 @@ HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
 sys.path.insert(0, str(ROOT))
 
-ROBOTS = {"ur5": ("ur_description/urdf/ur5_robot.urdf", "tool0"),
-          "panda": ("panda_description/urdf/panda.urdf", "panda_hand_tcp")}
-FUNCTIONS = ["mass", "inverse_dynamics", "forward_dynamics", "inverse_dynamics_derivatives",
-             "forward_dynamics_derivatives", "discrete_dynamics_derivatives"]
+ROBOTS = {
+    "ur5": ("ur_description/urdf/ur5_robot.urdf", "tool0"),
+    "panda": ("panda_description/urdf/panda.urdf", "panda_hand_tcp"),
+}
+FUNCTIONS = [
+    "mass",
+    "inverse_dynamics",
+    "forward_dynamics",
+    "inverse_dynamics_derivatives",
+    "forward_dynamics_derivatives",
+    "discrete_dynamics_derivatives",
+]
 STATES = 1024
 HORIZON = 100
 CFLAGS = ["-O2", "-std=c99", "-ffp-contract=off"]
@@ -61,8 +70,22 @@ def build(robot: str, precision: str, tmp: Path) -> Path:
     urdf, tip = ROBOTS[robot]
     name = f"{robot}_{precision}"
     out = tmp / name
-    status = main(["build", str(robots_dir() / urdf), "--tip", tip, "--name", name, "-o", str(out),
-                   "--precision", precision, "--no-compile", "--quiet"])
+    status = main(
+        [
+            "build",
+            str(robots_dir() / urdf),
+            "--tip",
+            tip,
+            "--name",
+            name,
+            "-o",
+            str(out),
+            "--precision",
+            precision,
+            "--no-compile",
+            "--quiet",
+        ]
+    )
     if status != 0:
         sys.exit(f"bench: robotgen build {urdf} exited with {status}")
     return out
@@ -70,21 +93,29 @@ def build(robot: str, precision: str, tmp: Path) -> Path:
 
 def harness(name: str, real: str, functions: list[dict], rounds: int) -> str:
     """The C of one robot's harness: states, timings, and the bit check, printed as json."""
-    lines = ["#define _POSIX_C_SOURCE 199309L", "#include <stdio.h>", "#include <stdlib.h>",
-             "#include <string.h>", "#include <time.h>", f'#include "{name}.h"',
-             "static double now(void) { struct timespec t; clock_gettime(CLOCK_MONOTONIC, &t);"
-             " return t.tv_sec + 1e-9 * t.tv_nsec; }",
-             f"static {real} *fill(size_t count, double low, double high) {{",
-             f"  {real} *a = malloc(count * sizeof *a); size_t i;",
-             f"  for (i = 0; i < count; ++i) a[i] = ({real})(low + (high - low) * (rand() / (double)RAND_MAX));",
-             "  return a;", "}", "int main(void) {",
-             f"  int lanes[5] = {{1, {name}_batch_lanes(2), {name}_batch_lanes(4), {name}_batch_lanes(8), "
-             f"{name}_batch_lanes(16)}}, w, r, k, reps, first = 1;",
-             "  double t, best[6], horizon[2];",
-             "  srand(7);", '  printf("{\\"widths\\": [");',
-             "  for (w = 0; w < 5; ++w) if (w == 0 || lanes[w] != lanes[w - 1])"
-             ' printf("%s%d", w ? ", " : "", lanes[w]);',
-             '  printf("], \\"functions\\": {");']
+    lines = [
+        "#define _POSIX_C_SOURCE 199309L",
+        "#include <stdio.h>",
+        "#include <stdlib.h>",
+        "#include <string.h>",
+        "#include <time.h>",
+        f'#include "{name}.h"',
+        "static double now(void) { struct timespec t; clock_gettime(CLOCK_MONOTONIC, &t);"
+        " return t.tv_sec + 1e-9 * t.tv_nsec; }",
+        f"static {real} *fill(size_t count, double low, double high) {{",
+        f"  {real} *a = malloc(count * sizeof *a); size_t i;",
+        f"  for (i = 0; i < count; ++i) a[i] = ({real})(low + (high - low) * (rand() / (double)RAND_MAX));",
+        "  return a;",
+        "}",
+        "int main(void) {",
+        f"  int lanes[5] = {{1, {name}_batch_lanes(2), {name}_batch_lanes(4), {name}_batch_lanes(8), "
+        f"{name}_batch_lanes(16)}}, w, r, k, reps, first = 1;",
+        "  double t, best[6], horizon[2];",
+        "  srand(7);",
+        '  printf("{\\"widths\\": [");',
+        '  for (w = 0; w < 5; ++w) if (w == 0 || lanes[w] != lanes[w - 1]) printf("%s%d", w ? ", " : "", lanes[w]);',
+        '  printf("], \\"functions\\": {");',
+    ]
     for f in functions:
         args = [p["name"] for p in f["inputs"]]
         sizes = {p["name"]: math.prod(p["shape"]) for p in f["inputs"] + f["outputs"]}
@@ -96,8 +127,9 @@ def harness(name: str, real: str, functions: list[dict], rounds: int) -> str:
             lines.append(f"    {real} *{p['name']} = malloc({STATES} * {sizes[p['name']]} * sizeof(*{p['name']}));")
             lines.append(f"    {real} *{p['name']}_1 = malloc({STATES} * {sizes[p['name']]} * sizeof(*{p['name']}));")
         outs = [p["name"] for p in f["outputs"]]
-        single = ", ".join([f"{a} + (size_t)k * {sizes[a]}" for a in args] + [f"{o}_1 + (size_t)k * {sizes[o]}"
-                                                                               for o in outs])
+        single = ", ".join(
+            [f"{a} + (size_t)k * {sizes[a]}" for a in args] + [f"{o}_1 + (size_t)k * {sizes[o]}" for o in outs]
+        )
 
         def batch(n: str, lane: str, o: list[str], fn: str = f["name"], ins: list[str] = args) -> str:
             return f"{name}_{fn}_batch_lanes({lane}, {n}, {', '.join(ins + o)})"
@@ -107,7 +139,7 @@ def harness(name: str, real: str, functions: list[dict], rounds: int) -> str:
             f"    for (k = 0; k < {STATES}; ++k) {name}_{f['name']}({single});",
             "    for (w = 1; w < 5; ++w) {",
             f"      {batch(str(STATES), 'lanes[w]', outs)};",
-            f"      if ({compare}) {{ fprintf(stderr, \"{f['name']}: lanes %d differ from single calls\\n\", lanes[w]);"
+            f'      if ({compare}) {{ fprintf(stderr, "{f["name"]}: lanes %d differ from single calls\\n", lanes[w]);'
             " return 1; }",
             "    }",
             "    for (w = 0; w < 6; ++w) best[w] = 1e30;",
@@ -140,7 +172,7 @@ def harness(name: str, real: str, functions: list[dict], rounds: int) -> str:
                 "      if (t < horizon[1]) horizon[1] = t;",
                 "    }",
                 f'    printf(", \\"horizon_{HORIZON}\\": {{\\"loop_s\\": %.6e, \\"batch_s\\": %.6e}}",'
-                ' horizon[0], horizon[1]);',
+                " horizon[0], horizon[1]);",
             ]
         lines.append('    printf("}");')
         lines += [f"    free({a});" for a in args] + [f"    free({o}); free({o}_1);" for o in outs]
@@ -155,8 +187,17 @@ def run(out: Path, rounds: int, functions: list[str]) -> dict:
     chosen = [f for f in manifest["functions"] if f["name"] in functions]
     (out / "batch_harness.c").write_text(harness(name, real, chosen, rounds))
     cc = os.environ.get("CC", "cc")
-    command = [cc, *CFLAGS, "-I", str(out), str(out / "batch_harness.c"), str(out / f"{name}.c"), "-lm",
-               "-o", str(out / "batch_harness")]
+    command = [
+        cc,
+        *CFLAGS,
+        "-I",
+        str(out),
+        str(out / "batch_harness.c"),
+        str(out / f"{name}.c"),
+        "-lm",
+        "-o",
+        str(out / "batch_harness"),
+    ]
     subprocess.run(command, check=True)
     result = subprocess.run([str(out / "batch_harness")], capture_output=True, text=True)
     if result.returncode != 0:
@@ -176,13 +217,32 @@ def table(results: dict) -> str:
                 continue
             widest = widths[-1]
             others = ", ".join(f"{w}: {r['loop_s'] / r['lanes_s'][w]:.2f}x" for w in widths[:-1])
-            rows.append([robot, precision, fn, f"{STATES / r['loop_s'] / 1e6:.2f}", widest,
-                         f"{STATES / r['lanes_s'][widest] / 1e6:.2f}", f"{r['loop_s'] / r['lanes_s'][widest]:.2f}",
-                         others])
+            rows.append(
+                [
+                    robot,
+                    precision,
+                    fn,
+                    f"{STATES / r['loop_s'] / 1e6:.2f}",
+                    widest,
+                    f"{STATES / r['lanes_s'][widest] / 1e6:.2f}",
+                    f"{r['loop_s'] / r['lanes_s'][widest]:.2f}",
+                    others,
+                ]
+            )
             if "horizon_100" in r:
                 h = r["horizon_100"]
-                rows.append([robot, precision, f"{fn}, {HORIZON}-knot horizon", f"{h['loop_s'] * 1e6:.1f} us",
-                             "widest", f"{h['batch_s'] * 1e6:.1f} us", f"{h['loop_s'] / h['batch_s']:.2f}", ""])
+                rows.append(
+                    [
+                        robot,
+                        precision,
+                        f"{fn}, {HORIZON}-knot horizon",
+                        f"{h['loop_s'] * 1e6:.1f} us",
+                        "widest",
+                        f"{h['batch_s'] * 1e6:.1f} us",
+                        f"{h['loop_s'] / h['batch_s']:.2f}",
+                        "",
+                    ]
+                )
     widths = [max(len(row[i]) for row in rows) for i in range(len(rows[0]))]
     return "\n".join("  ".join(c.ljust(w) for c, w in zip(row, widths)).rstrip() for row in rows)
 
@@ -205,10 +265,21 @@ def main() -> None:
                 print(f"bench: {robot} ({precision}): building and timing ...", flush=True)
                 results[f"{robot}/{precision}"] = run(build(robot, precision, Path(tmp)), rounds, args.functions)
     print(table(results))
-    args.json.write_text(json.dumps({
-        "date": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
-        "machine": platform.processor() or platform.machine(), "cpus": os.cpu_count(), "states": STATES,
-        "horizon": HORIZON, "results": results}, indent=2, sort_keys=True) + "\n")
+    args.json.write_text(
+        json.dumps(
+            {
+                "date": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
+                "machine": platform.processor() or platform.machine(),
+                "cpus": os.cpu_count(),
+                "states": STATES,
+                "horizon": HORIZON,
+                "results": results,
+            },
+            indent=2,
+            sort_keys=True,
+        )
+        + "\n"
+    )
 
 
 if __name__ == "__main__":

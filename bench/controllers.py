@@ -17,6 +17,7 @@
 
 Every number is the minimum over repeats (the least disturbed run); gcc -O2, no -march.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -101,8 +102,12 @@ def build(spec: Path, out: Path, name: str | None = None, change=None) -> Path:
         change(data)
     path = out.parent / f"{data['name']}.yaml"
     path.write_text(yaml.safe_dump(data, sort_keys=False))
-    subprocess.run([sys.executable, "-m", "robotgen", "build", str(path), "-o", str(out), "-q"], check=True,
-                   cwd=ROOT, capture_output=True)
+    subprocess.run(
+        [sys.executable, "-m", "robotgen", "build", str(path), "-o", str(out), "-q"],
+        check=True,
+        cwd=ROOT,
+        capture_output=True,
+    )
     return out
 
 
@@ -123,8 +128,21 @@ def gains_section(tmp: Path, rounds: int) -> dict:
             (work / f"{dst}{ext}").write_text(text)
     (work / "harness.c").write_text(SERVO_HARNESS.replace("ROUNDS", str(rounds)))
     exe = work / "harness"
-    subprocess.run(["cc", *CFLAGS, "-I", str(work), str(work / "harness.c"), str(work / "A.c"), str(work / "B.c"),
-                    "-o", str(exe), "-lm"], check=True)
+    subprocess.run(
+        [
+            "cc",
+            *CFLAGS,
+            "-I",
+            str(work),
+            str(work / "harness.c"),
+            str(work / "A.c"),
+            str(work / "B.c"),
+            "-o",
+            str(exe),
+            "-lm",
+        ],
+        check=True,
+    )
     out = subprocess.run([str(exe)], capture_output=True, text=True, check=True).stdout.split()
     values = np.array(out, dtype=float).reshape(-1, 2)
     runtime, folded = values[:, 0].min(), values[:, 1].min()
@@ -132,10 +150,19 @@ def gains_section(tmp: Path, rounds: int) -> dict:
     for which, d in (("runtime", a), ("folded", b)):
         manifest = json.loads((d / "manifest.json").read_text())
         ops[which] = next(f["arithmetic_ops"] for f in manifest["functions"] if f["name"] == "servo_step")
-    result = {"spec": "specs/styx_high_ct.yaml", "function": "servo_step", "runtime_ns": runtime, "folded_ns": folded,
-              "ratio": runtime / folded, "arithmetic_ops": ops, "rounds": rounds}
-    print(f"bench: styx_high_ct servo_step: run-time gains {runtime:.1f} ns, folded {folded:.1f} ns, "
-          f"ratio {runtime / folded:.3f} ({ops['runtime']} vs {ops['folded']} operations)")
+    result = {
+        "spec": "specs/styx_high_ct.yaml",
+        "function": "servo_step",
+        "runtime_ns": runtime,
+        "folded_ns": folded,
+        "ratio": runtime / folded,
+        "arithmetic_ops": ops,
+        "rounds": rounds,
+    }
+    print(
+        f"bench: styx_high_ct servo_step: run-time gains {runtime:.1f} ns, folded {folded:.1f} ns, "
+        f"ratio {runtime / folded:.3f} ({ops['runtime']} vs {ops['folded']} operations)"
+    )
     return result
 
 
@@ -147,10 +174,14 @@ def main(argv=None) -> int:
     tmp = Path(tempfile.mkdtemp(prefix="robotgen-bench-ctl-"))
     try:
         rounds = 3 if args.quick else 7
-        result = {"machine": {"platform": platform.platform(), "processor": platform.processor()},
-                  "c_flags": CFLAGS, "units": "ns per call, min over repeats and rounds",
-                  "gains": gains_section(tmp, rounds), "controllers": controllers_section(tmp, rounds),
-                  "servo_steps": servo_steps_section(tmp, rounds)}
+        result = {
+            "machine": {"platform": platform.platform(), "processor": platform.processor()},
+            "c_flags": CFLAGS,
+            "units": "ns per call, min over repeats and rounds",
+            "gains": gains_section(tmp, rounds),
+            "controllers": controllers_section(tmp, rounds),
+            "servo_steps": servo_steps_section(tmp, rounds),
+        }
         Path(args.json).write_text(json.dumps(result, indent=2) + "\n")
         print(f"bench: wrote {args.json}")
     finally:
@@ -208,10 +239,16 @@ def controllers_section(tmp: Path, rounds: int) -> list[dict]:
     from robotgen.symbolic import controllers_for, kernels_for
 
     rmac = ROOT / "specs" / "puma560_rmac.yaml"
-    variants = [("bench_rmac", None),
-                ("bench_rac", lambda d: d["nodes"]["rmac"]["control"].update(
-                    law="resolved_acceleration", resolved_acceleration=d["nodes"]["rmac"]["control"].pop(
-                        "resolved_adaptive")))]
+    variants = [
+        ("bench_rmac", None),
+        (
+            "bench_rac",
+            lambda d: d["nodes"]["rmac"]["control"].update(
+                law="resolved_acceleration",
+                resolved_acceleration=d["nodes"]["rmac"]["control"].pop("resolved_adaptive"),
+            ),
+        ),
+    ]
     rows = []
     empty = ca.Function("empty", [ca.SX.sym("x")], [ca.SX.sym("x") * 0])
     x0 = np.zeros(1)
@@ -227,17 +264,36 @@ def controllers_section(tmp: Path, rounds: int) -> list[dict]:
         module = __import__(name)
         sys.path.remove(str(out))
         pose = np.asarray(module.fk(np.array(q0)) @ np.asarray(system.root_node.hand.tool))
-        harness = (CONTROLLER_HARNESS.replace("M_params", f"{name}_params").replace("M_PARAMS_DEFAULT",
-                                                                                      f"{name.upper()}_PARAMS_DEFAULT")
-                   .replace('"M.h"', f'"{name}.h"').replace("TYPE", prefix).replace("PREFIX", prefix)
-                   .replace("ROUNDS", str(rounds)).replace("Q0", "{" + ", ".join(map(repr, q0)) + "}")
-                   .replace("POSE_X", repr(float(pose[0, 3])))
-                   .replace("POSE", "{" + ", ".join(map(repr, pose.ravel().tolist())) + "}"))
+        harness = (
+            CONTROLLER_HARNESS.replace("M_params", f"{name}_params")
+            .replace("M_PARAMS_DEFAULT", f"{name.upper()}_PARAMS_DEFAULT")
+            .replace('"M.h"', f'"{name}.h"')
+            .replace("TYPE", prefix)
+            .replace("PREFIX", prefix)
+            .replace("ROUNDS", str(rounds))
+            .replace("Q0", "{" + ", ".join(map(repr, q0)) + "}")
+            .replace("POSE_X", repr(float(pose[0, 3])))
+            .replace("POSE", "{" + ", ".join(map(repr, pose.ravel().tolist())) + "}")
+        )
         (out / "bench.c").write_text(harness)
-        subprocess.run(["cc", *CFLAGS, "-I", str(out), str(out / "bench.c"), str(out / f"{name}.c"), "-o",
-                        str(out / "bench"), "-lm"], check=True)
-        c_ns = min(float(v) for v in subprocess.run([str(out / "bench")], capture_output=True, text=True,
-                                                      check=True).stdout.split())
+        subprocess.run(
+            [
+                "cc",
+                *CFLAGS,
+                "-I",
+                str(out),
+                str(out / "bench.c"),
+                str(out / f"{name}.c"),
+                "-o",
+                str(out / "bench"),
+                "-lm",
+            ],
+            check=True,
+        )
+        c_ns = min(
+            float(v)
+            for v in subprocess.run([str(out / "bench")], capture_output=True, text=True, check=True).stdout.split()
+        )
         args = [np.array(q0), np.zeros(6), pose.ravel(), np.zeros(6), np.zeros(6)]
         n_in = kernel.function.n_in()
         args += [np.zeros(kernel.function.size1_in(k)) for k in range(len(args), n_in)]
@@ -245,22 +301,33 @@ def controllers_section(tmp: Path, rounds: int) -> list[dict]:
             init = next(k for k in kernels_for(system) if k.name == controller.init).function
             args[5] = np.array(init(*args[:5])).ravel()
             args[6] = np.ones(1)
-        defaults = [np.array(p.default) for p in (kernel.inputs[-1].parameters if kernel.inputs[-1].parameters
-                                                  else ())]
+        defaults = [np.array(p.default) for p in (kernel.inputs[-1].parameters if kernel.inputs[-1].parameters else ())]
         if defaults:
             args[-1] = np.concatenate(defaults)
         f = kernel.function
         casadi_s = min(timeit.repeat(lambda f=f, args=args: f(*args), number=200, repeat=5)) / 200
         casadi_ns = (casadi_s - t_empty) * 1e9
-        ops = next(fn["arithmetic_ops"] for fn in json.loads((out / "manifest.json").read_text())["functions"]
-                   if fn["name"] == controller.step)
-        rows.append({"controller": controller.class_name, "spec": "specs/puma560_rmac.yaml" + (
-            "" if change is None else " with law resolved_acceleration"), "c_ns": c_ns, "casadi_ns": casadi_ns,
-            "casadi_empty_call_ns": t_empty * 1e9, "ratio_casadi_over_c": casadi_ns / c_ns,
-            "step_arithmetic_ops": ops})
-        print(f"bench: {controller.class_name} (PUMA 560), one period: C {c_ns / 1e3:.2f} us, CasADi evaluator "
-              f"{casadi_ns / 1e3:.2f} us (empty call {t_empty * 1e6:.2f} us subtracted): CasADi / C = "
-              f"{casadi_ns / c_ns:.1f}; {ops} operations")
+        ops = next(
+            fn["arithmetic_ops"]
+            for fn in json.loads((out / "manifest.json").read_text())["functions"]
+            if fn["name"] == controller.step
+        )
+        rows.append(
+            {
+                "controller": controller.class_name,
+                "spec": "specs/puma560_rmac.yaml" + ("" if change is None else " with law resolved_acceleration"),
+                "c_ns": c_ns,
+                "casadi_ns": casadi_ns,
+                "casadi_empty_call_ns": t_empty * 1e9,
+                "ratio_casadi_over_c": casadi_ns / c_ns,
+                "step_arithmetic_ops": ops,
+            }
+        )
+        print(
+            f"bench: {controller.class_name} (PUMA 560), one period: C {c_ns / 1e3:.2f} us, CasADi evaluator "
+            f"{casadi_ns / 1e3:.2f} us (empty call {t_empty * 1e6:.2f} us subtracted): CasADi / C = "
+            f"{casadi_ns / c_ns:.1f}; {ops} operations"
+        )
     return rows
 
 
@@ -319,8 +386,22 @@ def servo_steps_section(tmp: Path, rounds: int) -> list[dict]:
     rows = []
     for spec_name in STEP_SPECS:
         out = tmp / f"steps-{spec_name}"
-        subprocess.run([sys.executable, "-m", "robotgen", "build", str(ROOT / "specs" / f"{spec_name}.yaml"), "-o",
-                        str(out), "-q", "--no-compile"], check=True, cwd=ROOT, capture_output=True)
+        subprocess.run(
+            [
+                sys.executable,
+                "-m",
+                "robotgen",
+                "build",
+                str(ROOT / "specs" / f"{spec_name}.yaml"),
+                "-o",
+                str(out),
+                "-q",
+                "--no-compile",
+            ],
+            check=True,
+            cwd=ROOT,
+            capture_output=True,
+        )
         manifest = json.loads((out / "manifest.json").read_text())
         for f in manifest["functions"]:
             if f["name"] not in STEP_FUNCTIONS:
@@ -329,38 +410,62 @@ def servo_steps_section(tmp: Path, rounds: int) -> list[dict]:
             offsets = np.concatenate([[0], np.cumsum(sizes)[:-1]]).astype(int).tolist()
             args = [f"(x) + {o}" for o in offsets] + (["&p"] if f.get("reads_parameters", False) else [])
             args += [f"OUT{k}" for k in range(len(f["outputs"]))]
-            outs = " ".join(f"static double OUT{k}[{max(1, int(np.prod(p['shape'])))}];"
-                            for k, p in enumerate(f["outputs"]))
-            params = (f"{spec_name}_params p = {spec_name.upper()}_PARAMS_DEFAULT;"
-                      if f.get("reads_parameters", False) else "")
+            outs = " ".join(
+                f"static double OUT{k}[{max(1, int(np.prod(p['shape'])))}];" for k, p in enumerate(f["outputs"])
+            )
+            params = (
+                f"{spec_name}_params p = {spec_name.upper()}_PARAMS_DEFAULT;"
+                if f.get("reads_parameters", False)
+                else ""
+            )
             call = f"#define CALL(x) {f['c_name']}({', '.join(args)})"
             # a period, not a random number, where an input is the time step
             fixed = ""
             if spec_name.startswith("styx"):  # near a grasp, not a singular straight finger
                 fixed += " for (set = 0; set < NSETS; ++set) for (k = 0; k < TOTAL; ++k) IN[set][k] *= 0.2;"
-                fixed += "".join(f" for (set = 0; set < NSETS; ++set) IN[set][{k}] += {x};"
-                                 for k, x in enumerate(STYX_GRASP))
+                fixed += "".join(
+                    f" for (set = 0; set < NSETS; ++set) IN[set][{k}] += {x};" for k, x in enumerate(STYX_GRASP)
+                )
             # a period, not a random number, where an input is the time step
-            fixed += "".join(f" for (set = 0; set < NSETS; ++set) IN[set][{o}] = 1e-3;"
-                             for o, p in zip(offsets, f["inputs"]) if p["name"] == "dt")
-            text = (STEP_HARNESS.replace('"NAME.h"', f'"{spec_name}.h"\n{call}').replace("FIXED", fixed)
-                    .replace("TOTAL", str(sum(sizes)))
-                    .replace("ROUNDS", str(rounds)).replace("PARAMS_DECL", params).replace("OUT_DECL", outs))
+            fixed += "".join(
+                f" for (set = 0; set < NSETS; ++set) IN[set][{o}] = 1e-3;"
+                for o, p in zip(offsets, f["inputs"])
+                if p["name"] == "dt"
+            )
+            text = (
+                STEP_HARNESS.replace('"NAME.h"', f'"{spec_name}.h"\n{call}')
+                .replace("FIXED", fixed)
+                .replace("TOTAL", str(sum(sizes)))
+                .replace("ROUNDS", str(rounds))
+                .replace("PARAMS_DECL", params)
+                .replace("OUT_DECL", outs)
+            )
             src = out / f"bench_{f['name']}.c"
             src.write_text(text)
             exe = out / f"bench_{f['name']}"
-            subprocess.run(["cc", *CFLAGS, "-I", str(out), str(src), str(out / f"{spec_name}.c"), "-o", str(exe),
-                            "-lm"], check=True)
+            subprocess.run(
+                ["cc", *CFLAGS, "-I", str(out), str(src), str(out / f"{spec_name}.c"), "-o", str(exe), "-lm"],
+                check=True,
+            )
             lines = subprocess.run([str(exe)], capture_output=True, text=True, check=True).stdout.split("\n")
             values = [line.split() for line in lines if line.strip()]
             ns = min(float(v[0]) for v in values)
             failed = int(values[0][1])
-            rows.append({"spec": f"specs/{spec_name}.yaml", "function": f["name"], "c_ns": ns,
-                         "arithmetic_ops": f["arithmetic_ops"], "sin_cos_ops": f["sin_cos_ops"],
-                         "nonzero_status_of_64_inputs": failed})
+            rows.append(
+                {
+                    "spec": f"specs/{spec_name}.yaml",
+                    "function": f["name"],
+                    "c_ns": ns,
+                    "arithmetic_ops": f["arithmetic_ops"],
+                    "sin_cos_ops": f["sin_cos_ops"],
+                    "nonzero_status_of_64_inputs": failed,
+                }
+            )
             note = f"; status != 0 on {failed} of 64 inputs" if failed else ""
-            print(f"bench: {spec_name} {f['name']}: {ns:8.1f} ns, {f['arithmetic_ops']} operations "
-                  f"({f['sin_cos_ops']} sin/cos){note}")
+            print(
+                f"bench: {spec_name} {f['name']}: {ns:8.1f} ns, {f['arithmetic_ops']} operations "
+                f"({f['sin_cos_ops']} sin/cos){note}"
+            )
     return rows
 
 

@@ -40,6 +40,7 @@ minimum over several repeats (the least disturbed run), the C harness also repor
 Each run of a harness is from a fresh copy of its program (and of libpinocchio_default), so
 that rounds are independent samples (fresh_copy).
 """
+
 from __future__ import annotations
 
 import argparse
@@ -66,8 +67,17 @@ ROOT = HERE.parent
 sys.path.insert(0, str(ROOT))
 
 FUNCTIONS = ["mass", "inverse_dynamics", "jacobian", "gravity", "coriolis", "forward_dynamics"]
-ARITY = {"mass": 1, "jacobian": 1, "gravity": 1, "fk": 1, "coriolis": 2, "nonlinear": 2,
-         "jacobian_dot_qd": 2, "inverse_dynamics": 3, "forward_dynamics": 3}
+ARITY = {
+    "mass": 1,
+    "jacobian": 1,
+    "gravity": 1,
+    "fk": 1,
+    "coriolis": 2,
+    "nonlinear": 2,
+    "jacobian_dot_qd": 2,
+    "inverse_dynamics": 3,
+    "forward_dynamics": 3,
+}
 CFLAGS = ["-std=c99", "-O2"]
 BATCH = 1000
 
@@ -96,11 +106,24 @@ def c_harness(out: Path, name: str, nq: int, work: Path, flags: list[str] = CFLA
     """bench/harness.c compiled against the generated kernels in OUT (once per work directory)."""
     cc = os.environ.get("CC", "cc")
     exe = work / "harness"
-    derivatives = any(f["name"] == "inverse_dynamics_derivatives"
-                      for f in json.loads((out / "manifest.json").read_text())["functions"])
-    cmd = [cc, *flags, f'-DRG_HEADER="{name}.h"', f"-DRG_PREFIX={name}", f"-DRG_NQ={nq}",
-           *(["-DRG_DERIVATIVES"] if derivatives else []),
-           f"-I{out}", str(HERE / "harness.c"), *map(str, kernel_sources(out)), "-lm", "-o", str(exe)]
+    derivatives = any(
+        f["name"] == "inverse_dynamics_derivatives"
+        for f in json.loads((out / "manifest.json").read_text())["functions"]
+    )
+    cmd = [
+        cc,
+        *flags,
+        f'-DRG_HEADER="{name}.h"',
+        f"-DRG_PREFIX={name}",
+        f"-DRG_NQ={nq}",
+        *(["-DRG_DERIVATIVES"] if derivatives else []),
+        f"-I{out}",
+        str(HERE / "harness.c"),
+        *map(str, kernel_sources(out)),
+        "-lm",
+        "-o",
+        str(exe),
+    ]
     if not exe.exists():  # a work directory holds one build (run again in later rounds)
         work.mkdir(parents=True, exist_ok=True)
         subprocess.run(cmd, check=True)
@@ -119,8 +142,16 @@ def fresh_copy(path: Path, directory: Path) -> Path:
     return copy
 
 
-def run_c(out: Path, name: str, nq: int, functions: list[str], work: Path, single_calls: bool = False,
-          back_to_back: bool = True, flags: list[str] = CFLAGS) -> dict:
+def run_c(
+    out: Path,
+    name: str,
+    nq: int,
+    functions: list[str],
+    work: Path,
+    single_calls: bool = False,
+    back_to_back: bool = True,
+    flags: list[str] = CFLAGS,
+) -> dict:
     """Each function back to back (throughput: the core overlaps consecutive calls), and with
     single_calls also one call at a time (the harness's serial mode: a single call's time, as
     a Python call makes it)."""
@@ -129,16 +160,21 @@ def run_c(out: Path, name: str, nq: int, functions: list[str], work: Path, singl
     exe = fresh_copy(exe, work / "round")
     results: dict = {}
     for mode in ("",) * back_to_back + ("serial",) * single_calls:
-        res = subprocess.run([str(exe), *([mode] if mode else []), *functions], check=True,
-                             capture_output=True, text=True)
+        res = subprocess.run(
+            [str(exe), *([mode] if mode else []), *functions], check=True, capture_output=True, text=True
+        )
         for line in res.stdout.splitlines():
             fn, ns_min, ns_med, iters = line.split()
             if mode:
                 results.setdefault(fn, {}).update(ns_single_call=float(ns_min), ns_single_call_median=float(ns_med))
             else:
                 results[fn] = {"ns_min": float(ns_min), "ns_median": float(ns_med), "iterations": int(iters)}
-    return {"compiler": subprocess.run([cc, "--version"], capture_output=True, text=True).stdout.splitlines()[0],
-            "cflags": flags, "command": " ".join(cmd), "results": results}
+    return {
+        "compiler": subprocess.run([cc, "--version"], capture_output=True, text=True).stdout.splitlines()[0],
+        "cflags": flags,
+        "command": " ".join(cmd),
+        "results": results,
+    }
 
 
 def calibrate(out: Path, name: str, nq: int, work: Path, rounds: int = 3) -> dict:
@@ -149,8 +185,9 @@ def calibrate(out: Path, name: str, nq: int, work: Path, rounds: int = 3) -> dic
     exe, _ = c_harness(out, name, nq, work)
     runs = []
     for _ in range(rounds):
-        res = subprocess.run([str(fresh_copy(exe, work / "round")), "calibrate"], check=True, capture_output=True,
-                             text=True)
+        res = subprocess.run(
+            [str(fresh_copy(exe, work / "round")), "calibrate"], check=True, capture_output=True, text=True
+        )
         runs.append({key: float(value) for key, value in (line.split() for line in res.stdout.splitlines())})
     return {"peak_ops_per_ns": max(r["peak_ops_per_ns"] for r in runs), "sincos_ns": min(r["sincos_ns"] for r in runs)}
 
@@ -174,7 +211,7 @@ def states(nq: int, n: int, rng) -> list[np.ndarray]:
 def run_python(module, fn: str, nq: int, quick: bool) -> dict:
     f = getattr(module, fn)
     rng = np.random.default_rng(0)
-    batch = states(nq, BATCH, rng)[:ARITY[fn]]
+    batch = states(nq, BATCH, rng)[: ARITY[fn]]
     per_state = best_ns(lambda: f(*batch), 5 if quick else 50, 3 if quick else 7) / BATCH
     return {**python_single_calls(module, fn, nq, quick), "ns_per_state_batch": per_state}
 
@@ -188,12 +225,15 @@ def python_single_calls(module, fn: str, nq: int, quick: bool) -> dict:
     number = 2000 if quick else 20000
     names = {f"a{i}": a for i, a in enumerate(one)} | {"f": f, "r": f(*one), "y": None}
     call = f"f({', '.join(f'a{i}' for i in range(k))}"
-    return {"ns_single": best_ns(timeit.Timer("y = " + call + ")", globals=names), number, 3 if quick else 7),
-            "ns_single_out": best_ns(timeit.Timer(call + ", out=r)", globals=names), number, 3 if quick else 7)}
+    return {
+        "ns_single": best_ns(timeit.Timer("y = " + call + ")", globals=names), number, 3 if quick else 7),
+        "ns_single_out": best_ns(timeit.Timer(call + ", out=r)", globals=names), number, 3 if quick else 7),
+    }
 
 
-def single_call_rounds(rows: list[dict], module, out: Path, name: str, nq: int, work: Path, rounds: int,
-                       quick: bool) -> None:
+def single_call_rounds(
+    rows: list[dict], module, out: Path, name: str, nq: int, work: Path, rounds: int, quick: bool
+) -> None:
     """Python's cost over C is a difference of two small times taken at different moments on
     a shared machine: further rounds alternate the C harness (serial) and the Python calls,
     and each keeps its least disturbed time (the first round is in ``rows`` already)."""
@@ -224,19 +264,44 @@ def run_casadi(kernel, nq: int, quick: bool) -> dict:
 
 
 def table(rows: list[dict]) -> str:
-    head = ["function", "C ns", "C 1 call", "Py ns", "Py out=", "Py-C 1 call", "Py out=-C 1 call",
-            "Py batch ns/st", "CasADi ns", "CasADi map ns/st", "Py/C", "CasADi/C", "CasADi/Py", "CasADi map/Py batch"]
+    head = [
+        "function",
+        "C ns",
+        "C 1 call",
+        "Py ns",
+        "Py out=",
+        "Py-C 1 call",
+        "Py out=-C 1 call",
+        "Py batch ns/st",
+        "CasADi ns",
+        "CasADi map ns/st",
+        "Py/C",
+        "CasADi/C",
+        "CasADi/Py",
+        "CasADi map/Py batch",
+    ]
     lines = [head]
     for r in rows:
         c, p, k = r["c"]["ns_min"], r["python"], r["casadi"]
         one = r["c"]["ns_single_call"]
-        lines.append([
-            r["function"], f"{c:.1f}", f"{one:.1f}", f"{p['ns_single']:.0f}", f"{p['ns_single_out']:.0f}",
-            f"{p['ns_single'] - one:.0f}", f"{p['ns_single_out'] - one:.0f}", f"{p['ns_per_state_batch']:.1f}",
-            f"{k['ns_single']:.0f}", f"{k['ns_per_state_map']:.1f}",
-            f"{p['ns_single'] / c:.1f}", f"{k['ns_single'] / c:.1f}", f"{k['ns_single'] / p['ns_single']:.1f}",
-            f"{k['ns_per_state_map'] / p['ns_per_state_batch']:.1f}",
-        ])
+        lines.append(
+            [
+                r["function"],
+                f"{c:.1f}",
+                f"{one:.1f}",
+                f"{p['ns_single']:.0f}",
+                f"{p['ns_single_out']:.0f}",
+                f"{p['ns_single'] - one:.0f}",
+                f"{p['ns_single_out'] - one:.0f}",
+                f"{p['ns_per_state_batch']:.1f}",
+                f"{k['ns_single']:.0f}",
+                f"{k['ns_per_state_map']:.1f}",
+                f"{p['ns_single'] / c:.1f}",
+                f"{k['ns_single'] / c:.1f}",
+                f"{k['ns_single'] / p['ns_single']:.1f}",
+                f"{k['ns_per_state_map'] / p['ns_per_state_batch']:.1f}",
+            ]
+        )
     widths = [max(len(row[i]) for row in lines) for i in range(len(head))]
     fmt = lambda row: "  ".join(s.rjust(w) if i else s.ljust(w) for i, (s, w) in enumerate(zip(row, widths)))  # noqa: E731
     return "\n".join([fmt(lines[0]), fmt(["-" * w for w in widths])] + [fmt(r) for r in lines[1:]])
@@ -258,8 +323,16 @@ PIN_CALLS = {  # robotgen function -> the Pinocchio call timed by bench/pinocchi
     "inverse_dynamics_derivatives": "computeRNEADerivatives (dtau_dq, dtau_dv)",
     "forward_dynamics_derivatives": "computeABADerivatives (ddq_dq, ddq_dv, Minv upper triangle)",
 }
-PIN_FUNCTIONS = ["mass", "inverse_dynamics", "gravity", "jacobian", "coriolis", "forward_dynamics",
-                 "inverse_dynamics_derivatives", "forward_dynamics_derivatives"]
+PIN_FUNCTIONS = [
+    "mass",
+    "inverse_dynamics",
+    "gravity",
+    "jacobian",
+    "coriolis",
+    "forward_dynamics",
+    "inverse_dynamics_derivatives",
+    "forward_dynamics_derivatives",
+]
 CXX_FLAGS = ["-std=c++17", "-O2", "-DNDEBUG"]
 CHECK_TOL = 1e-9
 
@@ -281,8 +354,9 @@ def cmeel_prefix() -> Path:
     for prefix in candidates:
         if (prefix / "include" / "pinocchio").is_dir() and (prefix / "lib").is_dir():
             return prefix
-    raise ToolchainError("no cmeel.prefix with include/pinocchio: the pin wheel is not installed "
-                         "(pip install pin==4.1.0)")
+    raise ToolchainError(
+        "no cmeel.prefix with include/pinocchio: the pin wheel is not installed (pip install pin==4.1.0)"
+    )
 
 
 def robots_dir() -> Path:
@@ -300,31 +374,49 @@ def pinocchio_toolchain(prefix: Path) -> dict:
     inc = prefix / "include"
     eigen = next((d for d in [inc / "eigen3", Path("/usr/include/eigen3")] if (d / "Eigen" / "Core").is_file()), None)
     if eigen is None:
-        raise ToolchainError(f"Eigen headers not found (looked in {inc / 'eigen3'} and /usr/include/eigen3); "
-                             "the pin wheel does not ship them: pip install cmeel-eigen==3.4.1")
-    urdf_headers = next((d for d in [inc / "urdfdom_headers", inc, Path("/usr/include")]
-                         if (d / "urdf_model" / "model.h").is_file()), None)
+        raise ToolchainError(
+            f"Eigen headers not found (looked in {inc / 'eigen3'} and /usr/include/eigen3); "
+            "the pin wheel does not ship them: pip install cmeel-eigen==3.4.1"
+        )
+    urdf_headers = next(
+        (d for d in [inc / "urdfdom_headers", inc, Path("/usr/include")] if (d / "urdf_model" / "model.h").is_file()),
+        None,
+    )
     if urdf_headers is None:
-        raise ToolchainError(f"urdf_model/model.h not found (looked in {inc / 'urdfdom_headers'}); "
-                             "pinocchio/parsers/urdf.hpp needs it: pip install cmeel-urdfdom-headers==3.0.0")
+        raise ToolchainError(
+            f"urdf_model/model.h not found (looked in {inc / 'urdfdom_headers'}); "
+            "pinocchio/parsers/urdf.hpp needs it: pip install cmeel-urdfdom-headers==3.0.0"
+        )
     libdir = prefix / "lib"
     libs = [n for n in ("pinocchio_parsers", "pinocchio_default") if (libdir / f"lib{n}.so").exists()]
     if "pinocchio_default" not in libs:
         raise ToolchainError(f"no libpinocchio_default.so in {libdir}")
-    targets = (libdir / "cmake" / "pinocchio" / "pinocchioTargets.cmake")
+    targets = libdir / "cmake" / "pinocchio" / "pinocchioTargets.cmake"
     text = targets.read_text() if targets.is_file() else ""
-    version = re.search(r"PINOCCHIO_URDFDOM_HEADERS_MAJOR_VERSION=(\d+);PINOCCHIO_URDFDOM_HEADERS_MINOR_VERSION=(\d+);"
-                        r"PINOCCHIO_URDFDOM_HEADERS_PATCH_VERSION=(\d+)", text)
+    version = re.search(
+        r"PINOCCHIO_URDFDOM_HEADERS_MAJOR_VERSION=(\d+);PINOCCHIO_URDFDOM_HEADERS_MINOR_VERSION=(\d+);"
+        r"PINOCCHIO_URDFDOM_HEADERS_PATCH_VERSION=(\d+)",
+        text,
+    )
     major, minor, patch = version.groups() if version else ("3", "0", "0")
     defines = [  # pinocchio_headers, pinocchio_default and pinocchio_parsers' interface definitions
-        "-DBOOST_MPL_LIMIT_LIST_SIZE=30", "-DBOOST_MPL_LIMIT_VECTOR_SIZE=30", "-DBOOST_MPL_CFG_NO_PREPROCESSED_HEADERS",
-        "-DBOOST_FUSION_INVOKE_MAX_ARITY=12", "-DPINOCCHIO_WITH_URDFDOM",
-        f"-DPINOCCHIO_URDFDOM_HEADERS_MAJOR_VERSION={major}", f"-DPINOCCHIO_URDFDOM_HEADERS_MINOR_VERSION={minor}",
+        "-DBOOST_MPL_LIMIT_LIST_SIZE=30",
+        "-DBOOST_MPL_LIMIT_VECTOR_SIZE=30",
+        "-DBOOST_MPL_CFG_NO_PREPROCESSED_HEADERS",
+        "-DBOOST_FUSION_INVOKE_MAX_ARITY=12",
+        "-DPINOCCHIO_WITH_URDFDOM",
+        f"-DPINOCCHIO_URDFDOM_HEADERS_MAJOR_VERSION={major}",
+        f"-DPINOCCHIO_URDFDOM_HEADERS_MINOR_VERSION={minor}",
         f"-DPINOCCHIO_URDFDOM_HEADERS_PATCH_VERSION={patch}",
     ]
-    return {"prefix": prefix, "includes": [f"-I{inc}", f"-I{urdf_headers}", f"-I{eigen}"], "defines": defines,
-            "libs": [f"-L{libdir}", f"-Wl,-rpath,{libdir}", *(f"-l{n}" for n in libs)], "eigen": str(eigen),
-            "urdf_headers": str(urdf_headers)}
+    return {
+        "prefix": prefix,
+        "includes": [f"-I{inc}", f"-I{urdf_headers}", f"-I{eigen}"],
+        "defines": defines,
+        "libs": [f"-L{libdir}", f"-Wl,-rpath,{libdir}", *(f"-l{n}" for n in libs)],
+        "eigen": str(eigen),
+        "urdf_headers": str(urdf_headers),
+    }
 
 
 class PinocchioHarness:
@@ -337,15 +429,20 @@ class PinocchioHarness:
         self.instantiation = "header" if headers else "library"
         src = HERE / "pinocchio_harness.cpp"
         try:
-            version = (subprocess.run([self.cxx, "--version"], capture_output=True, text=True).stdout.splitlines()
-                       or [self.cxx])[0]
+            version = (
+                subprocess.run([self.cxx, "--version"], capture_output=True, text=True).stdout.splitlines()
+                or [self.cxx]
+            )[0]
         except OSError as e:
             raise ToolchainError(f"C++ compiler {self.cxx!r} cannot be run: {e}") from None
         lib = self.tool["prefix"] / "lib" / "libpinocchio_default.so"
         self.flags = [*CXX_FLAGS, *mode]
         cmd_tail = [*self.tool["defines"], *self.tool["includes"], str(src), *self.tool["libs"]]
-        key = hashlib.sha256("\0".join([src.read_text(), version, str(lib.resolve()), str(lib.stat().st_size),
-                                        *self.flags, *cmd_tail]).encode()).hexdigest()[:16]
+        key = hashlib.sha256(
+            "\0".join(
+                [src.read_text(), version, str(lib.resolve()), str(lib.stat().st_size), *self.flags, *cmd_tail]
+            ).encode()
+        ).hexdigest()[:16]
         cache = HERE / "out"
         cache.mkdir(exist_ok=True)
         self.exe = cache / f"pinocchio_harness-{self.instantiation}-{key}"
@@ -356,16 +453,18 @@ class PinocchioHarness:
         self._proc = None
         if not self.cached:
             self._tmp = self.exe.with_name(self.exe.name + ".tmp")
-            self._proc = subprocess.Popen([*self.command[:-1], str(self._tmp)], stdout=subprocess.PIPE,
-                                          stderr=subprocess.STDOUT, text=True)
+            self._proc = subprocess.Popen(
+                [*self.command[:-1], str(self._tmp)], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True
+            )
 
     def wait(self) -> Path:
         if self._proc is not None:
             log, _ = self._proc.communicate()
             if self._proc.returncode != 0:
                 errors = [ln for ln in log.splitlines() if "error" in ln] or log.splitlines()[-20:]
-                raise ToolchainError(f"{' '.join(self.command)}\nfailed (exit {self._proc.returncode}):\n"
-                                     + "\n".join(errors[:20]))
+                raise ToolchainError(
+                    f"{' '.join(self.command)}\nfailed (exit {self._proc.returncode}):\n" + "\n".join(errors[:20])
+                )
             self._tmp.replace(self.exe)
             self._proc = None
         return self.exe
@@ -386,9 +485,15 @@ class PinocchioHarness:
         return json.loads(res.stdout)
 
     def describe(self) -> dict:
-        return {"compiler": self.compiler, "flags": self.flags, "command": " ".join(self.command),
-                "template_instantiation": self.instantiation, "eigen": self.tool["eigen"],
-                "urdf_headers": self.tool["urdf_headers"], "cached": self.cached}
+        return {
+            "compiler": self.compiler,
+            "flags": self.flags,
+            "command": " ".join(self.command),
+            "template_instantiation": self.instantiation,
+            "eigen": self.tool["eigen"],
+            "urdf_headers": self.tool["urdf_headers"],
+            "cached": self.cached,
+        }
 
 
 def rel_err(a, b) -> float:
@@ -421,7 +526,9 @@ def check_against_pinocchio(module, name: str, urdf: Path, tip: str, locked: lis
     }
     # robotgen's URDF <dynamics damping> is viscous friction in inverse/forward dynamics.
     generated = {
-        "mass": module.mass(q), "gravity": module.gravity(q), "jacobian": module.jacobian(q),
+        "mass": module.mass(q),
+        "gravity": module.gravity(q),
+        "jacobian": module.jacobian(q),
         "coriolis": module.coriolis(q, qd),
         "inverse_dynamics": module.inverse_dynamics(q, qd, x) - damping * qd,
         "forward_dynamics": module.forward_dynamics(q, qd, x + damping * qd),
@@ -442,27 +549,49 @@ def check_against_pinocchio(module, name: str, urdf: Path, tip: str, locked: lis
             errors[fn]["pinocchio_cxx_vs_python"] = rel_err(np.reshape(cxx[fn], np.shape(pin_py[fn])), pin_py[fn])
     bad = {fn: e for fn, e in errors.items() if max(e.values()) > CHECK_TOL}
     if bad:
-        sys.exit(f"bench: {name}: robotgen and Pinocchio disagree (relative error > {CHECK_TOL:g}), "
-                 f"not timing wrong code: {bad}")
+        sys.exit(
+            f"bench: {name}: robotgen and Pinocchio disagree (relative error > {CHECK_TOL:g}), "
+            f"not timing wrong code: {bad}"
+        )
     return errors
 
 
 def op_counts(out: Path) -> dict:
     manifest = json.loads((out / "manifest.json").read_text())
-    return {f["name"]: {"arithmetic_ops": f.get("arithmetic_ops"), "sin_cos_ops": f.get("sin_cos_ops")}
-            for f in manifest["functions"]}
+    return {
+        f["name"]: {"arithmetic_ops": f.get("arithmetic_ops"), "sin_cos_ops": f.get("sin_cos_ops")}
+        for f in manifest["functions"]
+    }
 
 
 def versus_table(robots: list[dict]) -> str:
-    head = ["robot", "function", "robotgen C ns", "Pinocchio ns", "Pin/robotgen", "ops", "sin/cos", "floor ns",
-            "efficiency"]
+    head = [
+        "robot",
+        "function",
+        "robotgen C ns",
+        "Pinocchio ns",
+        "Pin/robotgen",
+        "ops",
+        "sin/cos",
+        "floor ns",
+        "efficiency",
+    ]
     lines = [head]
     for r in robots:
         for f in r["functions"]:
-            lines.append([r["robot"], f["function"], f"{f['robotgen_c']['ns_min']:.1f}",
-                          f"{f['pinocchio']['ns_min']:.1f}", f"{f['ratio']:.2f}",
-                          str(f["arithmetic_ops"]), str(f["sin_cos_ops"]), f"{f['floor_ns']:.1f}",
-                          f"{f['efficiency']:.2f}"])
+            lines.append(
+                [
+                    r["robot"],
+                    f["function"],
+                    f"{f['robotgen_c']['ns_min']:.1f}",
+                    f"{f['pinocchio']['ns_min']:.1f}",
+                    f"{f['ratio']:.2f}",
+                    str(f["arithmetic_ops"]),
+                    str(f["sin_cos_ops"]),
+                    f"{f['floor_ns']:.1f}",
+                    f"{f['efficiency']:.2f}",
+                ]
+            )
     widths = [max(len(row[i]) for row in lines) for i in range(len(head))]
     fmt = lambda row: "  ".join(s.rjust(w) if i > 1 else s.ljust(w) for i, (s, w) in enumerate(zip(row, widths)))  # noqa: E731
     return "\n".join([fmt(lines[0]), fmt(["-" * w for w in widths])] + [fmt(r) for r in lines[1:]])
@@ -498,18 +627,31 @@ def time_versus(built: dict, harness: PinocchioHarness, tmp: Path, rounds: int, 
                     if fn not in best or t["ns_min"] < best[fn]["ns_min"]:
                         best[fn] = t
         ops = op_counts(b["out"])
-        robots.append({
-            "robot": name, "urdf": b["urdf_rel"], "tip": b["tip"], "nq": b["nq"], "locked_joints": b["locked"],
-            "check": b["check"], "c_command": c_info["command"],
-            "functions": [{
-                "function": fn, "pinocchio_call": PIN_CALLS[fn],
-                "robotgen_c": best_c[fn], "pinocchio": best_p[fn],
-                "ratio": best_p[fn]["ns_min"] / best_c[fn]["ns_min"], **ops[fn],
-                "floor_ns": floor_ns(ops[fn]["arithmetic_ops"], ops[fn]["sin_cos_ops"], machine),
-                "efficiency": floor_ns(ops[fn]["arithmetic_ops"], ops[fn]["sin_cos_ops"], machine)
-                / best_c[fn]["ns_min"],
-            } for fn in PIN_FUNCTIONS],
-        })
+        robots.append(
+            {
+                "robot": name,
+                "urdf": b["urdf_rel"],
+                "tip": b["tip"],
+                "nq": b["nq"],
+                "locked_joints": b["locked"],
+                "check": b["check"],
+                "c_command": c_info["command"],
+                "functions": [
+                    {
+                        "function": fn,
+                        "pinocchio_call": PIN_CALLS[fn],
+                        "robotgen_c": best_c[fn],
+                        "pinocchio": best_p[fn],
+                        "ratio": best_p[fn]["ns_min"] / best_c[fn]["ns_min"],
+                        **ops[fn],
+                        "floor_ns": floor_ns(ops[fn]["arithmetic_ops"], ops[fn]["sin_cos_ops"], machine),
+                        "efficiency": floor_ns(ops[fn]["arithmetic_ops"], ops[fn]["sin_cos_ops"], machine)
+                        / best_c[fn]["ns_min"],
+                    }
+                    for fn in PIN_FUNCTIONS
+                ],
+            }
+        )
     return robots
 
 
@@ -519,11 +661,15 @@ def fused_section(robots: list[tuple[str, Path, int]], tmp: Path, versus: list[d
     least of ``rounds`` runs, as the kernels against Pinocchio are."""
     rows = []
     pinocchio = {r["robot"]: {f["function"]: f["pinocchio"]["ns_min"] for f in r["functions"]} for r in versus}
-    print("\nbench: fused servo terms (one call) vs mass + nonlinear + jacobian + jacobian_dot_qd, and vs "
-          "Pinocchio's crba + rnea + computeFrameJacobian")
+    print(
+        "\nbench: fused servo terms (one call) vs mass + nonlinear + jacobian + jacobian_dot_qd, and vs "
+        "Pinocchio's crba + rnea + computeFrameJacobian"
+    )
     for name, out, nq in robots:
-        runs = [run_c(out, name, nq, ["servo_terms", "servo_terms_separate"], tmp / f"fused-{name}")["results"]
-                for _ in range(rounds)]
+        runs = [
+            run_c(out, name, nq, ["servo_terms", "servo_terms_separate"], tmp / f"fused-{name}")["results"]
+            for _ in range(rounds)
+        ]
         fused, separate = (min(r[f]["ns_min"] for r in runs) for f in ("servo_terms", "servo_terms_separate"))
         row = {"robot": name, "fused_ns": fused, "separate_ns": separate, "speedup": separate / fused}
         line = f"  {name:10s} fused {fused:8.1f} ns   separate {separate:8.1f} ns   speedup {separate / fused:4.2f}x"
@@ -531,8 +677,9 @@ def fused_section(robots: list[tuple[str, Path, int]], tmp: Path, versus: list[d
             p = pinocchio[name]
             row["pinocchio_separate_ns"] = p["mass"] + p["inverse_dynamics"] + p["jacobian"]
             row["versus_pinocchio"] = row["pinocchio_separate_ns"] / fused
-            line += (f"   Pinocchio crba + rnea + J {row['pinocchio_separate_ns']:8.1f} ns: "
-                     f"{row['versus_pinocchio']:5.2f}x")
+            line += (
+                f"   Pinocchio crba + rnea + J {row['pinocchio_separate_ns']:8.1f} ns: {row['versus_pinocchio']:5.2f}x"
+            )
         rows.append(row)
         print(line)
     return rows
@@ -544,8 +691,10 @@ def native_section(built: dict, tmp: Path, rounds: int) -> list[dict]:
     rounds."""
     native = [*CFLAGS, "-march=native", "-ffp-contract=off"]  # as the extension's build adds
     functions = [*PIN_FUNCTIONS, "servo_terms"]
-    print(f"\nbench: the same C built for this CPU ({' '.join(native)}) vs the portable build "
-          f"({' '.join(CFLAGS)}), least of {rounds} alternating rounds")
+    print(
+        f"\nbench: the same C built for this CPU ({' '.join(native)}) vs the portable build "
+        f"({' '.join(CFLAGS)}), least of {rounds} alternating rounds"
+    )
     rows = []
     for name, b in built.items():
         best: dict = {}
@@ -556,13 +705,21 @@ def native_section(built: dict, tmp: Path, rounds: int) -> list[dict]:
                     best.setdefault(fn, {})[label] = min(t["ns_min"], best.get(fn, {}).get(label, math.inf))
         for fn in functions:
             t = best[fn]
-            rows.append({"robot": name, "function": fn, "portable_ns": t["portable"], "native_ns": t["native"],
-                         "speedup": t["portable"] / t["native"]})
+            rows.append(
+                {
+                    "robot": name,
+                    "function": fn,
+                    "portable_ns": t["portable"],
+                    "native_ns": t["native"],
+                    "speedup": t["portable"] / t["native"],
+                }
+            )
     header = f"{'robot':6s} {'function':30s} {'portable ns':>11s} {'native ns':>10s} {'speedup':>8s}"
     print(header + "\n" + "-" * len(header))
     for r in rows:
-        print(f"{r['robot']:6s} {r['function']:30s} {r['portable_ns']:11.1f} {r['native_ns']:10.1f} "
-              f"{r['speedup']:8.2f}")
+        print(
+            f"{r['robot']:6s} {r['function']:30s} {r['portable_ns']:11.1f} {r['native_ns']:10.1f} {r['speedup']:8.2f}"
+        )
     return rows
 
 
@@ -573,11 +730,18 @@ def main(argv=None) -> int:
     ap.add_argument("--json", default=str(HERE / "results.json"), help="where to write the results")
     ap.add_argument("--functions", nargs="*", default=FUNCTIONS)
     ap.add_argument("--quick", action="store_true", help="fewer repetitions (smoke test)")
-    ap.add_argument("--urdf", nargs="*", choices=sorted(URDF_ROBOTS),
-                    help="URDF arms to compare with Pinocchio's C++ (default: ur5 panda, none with --spec)")
-    ap.add_argument("--pinocchio-headers", action="store_true",
-                    help="instantiate Pinocchio's algorithms from its headers at -O2 in the harness "
-                         "(a ~2.5 min compile) instead of calling the wheel's libpinocchio_default")
+    ap.add_argument(
+        "--urdf",
+        nargs="*",
+        choices=sorted(URDF_ROBOTS),
+        help="URDF arms to compare with Pinocchio's C++ (default: ur5 panda, none with --spec)",
+    )
+    ap.add_argument(
+        "--pinocchio-headers",
+        action="store_true",
+        help="instantiate Pinocchio's algorithms from its headers at -O2 in the harness "
+        "(a ~2.5 min compile) instead of calling the wheel's libpinocchio_default",
+    )
     args = ap.parse_args(argv)
 
     spec = Path(args.spec or ROOT / "specs" / "puma560.yaml").resolve()
@@ -603,16 +767,26 @@ def main(argv=None) -> int:
         for rname in urdf_names:
             rout = Path(tmp) / f"build-{rname}"
             urdf, tip, rmodule, locked = build_urdf(rname, rout)
-            built[rname] = {"out": rout, "urdf": urdf, "tip": tip, "module": rmodule, "locked": locked,
-                            "nq": int(rmodule.nq), "urdf_rel": str(urdf.relative_to(robots_dir().parent.parent))}
+            built[rname] = {
+                "out": rout,
+                "urdf": urdf,
+                "tip": tip,
+                "module": rmodule,
+                "locked": locked,
+                "nq": int(rmodule.nq),
+                "urdf_rel": str(urdf.relative_to(robots_dir().parent.parent)),
+            }
         if harness is not None:
             try:
                 harness.wait()
                 for rname, b in built.items():
                     b["check"] = check_against_pinocchio(b["module"], rname, b["urdf"], b["tip"], b["locked"], harness)
                     worst = max(max(e.values()) for e in b["check"].values())
-                    print(f"bench: {rname}: generated module, Pinocchio (Python) and the C++ harness agree, "
-                          f"max relative error {worst:.1e} <= {CHECK_TOL:g}", flush=True)
+                    print(
+                        f"bench: {rname}: generated module, Pinocchio (Python) and the C++ harness agree, "
+                        f"max relative error {worst:.1e} <= {CHECK_TOL:g}",
+                        flush=True,
+                    )
             except ToolchainError as e:
                 versus, harness = {"error": str(e)}, None
 
@@ -626,64 +800,92 @@ def main(argv=None) -> int:
         c = run_c(out, name, nq, functions, Path(tmp), single_calls=True)
         rows = []
         for fn in functions:
-            rows.append({
-                "function": fn,
-                "c": c["results"][fn],
-                "python": run_python(module, fn, nq, args.quick),
-                "casadi": run_casadi(kernels[fn], nq, args.quick),
-            })
+            rows.append(
+                {
+                    "function": fn,
+                    "c": c["results"][fn],
+                    "python": run_python(module, fn, nq, args.quick),
+                    "casadi": run_casadi(kernels[fn], nq, args.quick),
+                }
+            )
         single_call_rounds(rows, module, out, name, nq, Path(tmp), 1 if args.quick else 3, args.quick)
         print(table(rows))
-        print("C ns: calls back to back (the core overlaps consecutive calls); C 1 call: one call at a time "
-              "(lfence between calls), as a Python call makes it; Py out=: the result written into a given "
-              "array; Py-C 1 call: what the Python call f(q, ...) costs over the C call (C 1 call and Py: the "
-              "least of alternating rounds)")
+        print(
+            "C ns: calls back to back (the core overlaps consecutive calls); C 1 call: one call at a time "
+            "(lfence between calls), as a Python call makes it; Py out=: the result written into a given "
+            "array; Py-C 1 call: what the Python call f(q, ...) costs over the C call (C 1 call and Py: the "
+            "least of alternating rounds)"
+        )
 
         if harness is not None:
             import pinocchio as pin
 
-            print(f"\nbench: generated C ({' '.join(CFLAGS)}) vs Pinocchio {pin.__version__} C++ "
-                  f"({' '.join(harness.flags)}; algorithms from the wheel's "
-                  f"{'libpinocchio_default.so' if harness.instantiation == 'library' else 'headers, compiled here'})",
-                  flush=True)
+            print(
+                f"\nbench: generated C ({' '.join(CFLAGS)}) vs Pinocchio {pin.__version__} C++ "
+                f"({' '.join(harness.flags)}; algorithms from the wheel's "
+                f"{'libpinocchio_default.so' if harness.instantiation == 'library' else 'headers, compiled here'})",
+                flush=True,
+            )
             machine = calibrate(out, name, nq, Path(tmp) / "calibrate")
-            print(f"bench: this machine, measured: scalar peak {machine['peak_ops_per_ns']:.2f} operations/ns, "
-                  f"libm sin+cos {machine['sincos_ns']:.2f} ns; a kernel's floor is its operations at that peak "
-                  "plus its sin/cos pairs at that cost", flush=True)
+            print(
+                f"bench: this machine, measured: scalar peak {machine['peak_ops_per_ns']:.2f} operations/ns, "
+                f"libm sin+cos {machine['sincos_ns']:.2f} ns; a kernel's floor is its operations at that peak "
+                "plus its sin/cos pairs at that cost",
+                flush=True,
+            )
             robots = time_versus(built, harness, Path(tmp), 1 if args.quick else 2, machine)
             print(versus_table(robots))
-            print("ratio = Pinocchio ns / robotgen ns (> 1: the generated C is faster); ops: arithmetic "
-                  "operations in the generated kernel (manifest.json)")
+            print(
+                "ratio = Pinocchio ns / robotgen ns (> 1: the generated C is faster); ops: arithmetic "
+                "operations in the generated kernel (manifest.json)"
+            )
             versus = {
-                "pinocchio": pin.__version__, "c_flags": CFLAGS, "pinocchio_harness": harness.describe(),
-                "rounds": 1 if args.quick else 2, "check_tolerance": CHECK_TOL,
+                "pinocchio": pin.__version__,
+                "c_flags": CFLAGS,
+                "pinocchio_harness": harness.describe(),
+                "rounds": 1 if args.quick else 2,
+                "check_tolerance": CHECK_TOL,
                 "units": "ns per call, min over repeats and rounds; ratio = pinocchio / robotgen_c",
-                "notes": ["both harnesses cycle through the same 256 random states (the same LCG)",
-                          "robotgen's inverse_dynamics and forward_dynamics include the URDF joint damping "
-                          "as viscous friction (Panda: 0.003); Pinocchio's rnea and aba do not",
-                          "Pinocchio's crba fills the upper triangle of M; robotgen's mass returns the full matrix"],
-                "robots": robots, "machine_floor": machine,
+                "notes": [
+                    "both harnesses cycle through the same 256 random states (the same LCG)",
+                    "robotgen's inverse_dynamics and forward_dynamics include the URDF joint damping "
+                    "as viscous friction (Panda: 0.003); Pinocchio's rnea and aba do not",
+                    "Pinocchio's crba fills the upper triangle of M; robotgen's mass returns the full matrix",
+                ],
+                "robots": robots,
+                "machine_floor": machine,
             }
         elif versus is not None:
             print(f"\nbench: Pinocchio C++ comparison not run: {versus['error']}", file=sys.stderr)
             status = 1
 
         result = {
-            "robot": name, "spec": os.path.relpath(spec, ROOT), "nq": nq,
+            "robot": name,
+            "spec": os.path.relpath(spec, ROOT),
+            "nq": nq,
             "date": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
-            "machine": {"platform": platform.platform(), "processor": platform.processor() or platform.machine(),
-                        "cpus": os.cpu_count(), "python": platform.python_version()},
-            "casadi": __import__("casadi").__version__, "numpy": np.__version__,
+            "machine": {
+                "platform": platform.platform(),
+                "processor": platform.processor() or platform.machine(),
+                "cpus": os.cpu_count(),
+                "python": platform.python_version(),
+            },
+            "casadi": __import__("casadi").__version__,
+            "numpy": np.__version__,
             "c": {k: v for k, v in c.items() if k != "results"},
-            "batch_size": BATCH, "quick": args.quick,
+            "batch_size": BATCH,
+            "quick": args.quick,
             "units": "ns per call (min over repeats); *_batch / *_map: ns per state",
             "functions": rows,
         }
         if versus is not None:
             result["versus_pinocchio"] = versus
         result["fused_servo_terms"] = fused_section(
-            [(name, out, nq)] + [(n, b["out"], b["nq"]) for n, b in (built or {}).items()], Path(tmp),
-            versus.get("robots", []) if versus else [], 1 if args.quick else 2)
+            [(name, out, nq)] + [(n, b["out"], b["nq"]) for n, b in (built or {}).items()],
+            Path(tmp),
+            versus.get("robots", []) if versus else [],
+            1 if args.quick else 2,
+        )
         if built and not args.quick:
             result["native_build"] = native_section(built, Path(tmp), 2)
         path = Path(args.json)  # bench/code_generators.py's section of it is its own: kept

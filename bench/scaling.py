@@ -26,6 +26,7 @@ bench/run.py's run_c: ns per call, min over 7 repeats of >= 50 ms each.
 Prints a table, writes bench/scaling.json and bench/scaling.png (ns per call vs dof, log y;
 build seconds vs dof). A model over the budget is reported (which, by how much), never skipped.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -62,6 +63,7 @@ CHECK_TOL = 1e-9
 
 # --- models -------------------------------------------------------------------------------
 
+
 def _rot(axis: str, quarter_turns: int) -> np.ndarray:
     """Exact rotation by quarter_turns * 90 degrees about x or y (integer entries)."""
     c, s = [(1, 0), (0, 1), (-1, 0), (0, -1)][quarter_turns % 4]
@@ -87,20 +89,36 @@ def synthetic_chain(n: int, seed: int = SEED):
             turn = rng.integers(5)  # 0..3: a quarter turn about +-x or +-y; 4: none (parallel axes)
             if turn < 4:
                 T[:3, :3] = _rot("xy"[turn // 2], 1 if turn % 2 == 0 else 3)
-            T[:3, 3] = [round(rng.uniform(0.0, 0.1), 3) if rng.random() < 0.5 else 0.0, 0.0,
-                        round(rng.uniform(0.05, 0.15), 3)]
+            T[:3, 3] = [
+                round(rng.uniform(0.0, 0.1), 3) if rng.random() < 0.5 else 0.0,
+                0.0,
+                round(rng.uniform(0.05, 0.15), 3),
+            ]
         mass = round(rng.uniform(0.6, 1.4), 3)
         a, b, c = rng.uniform(0.04, 0.12, 3)  # a solid box: valid principal moments
         principal = mass / 12 * np.array([b * b + c * c, a * a + c * c, a * a + b * b])
         R = _random_rotation(rng)
-        body = Body(mass, np.round(np.array([rng.uniform(-0.02, 0.02), rng.uniform(-0.02, 0.02),
-                                             rng.uniform(0.02, 0.06)]), 3), R @ np.diag(principal) @ R.T)
-        joints.append(Joint(f"j{i + 1}", REVOLUTE, i - 1, T, np.array([0.0, 0.0, 1.0]), body,
-                            limits=Limits(-np.pi, np.pi, 2.0, 50.0)))
+        body = Body(
+            mass,
+            np.round(np.array([rng.uniform(-0.02, 0.02), rng.uniform(-0.02, 0.02), rng.uniform(0.02, 0.06)]), 3),
+            R @ np.diag(principal) @ R.T,
+        )
+        joints.append(
+            Joint(
+                f"j{i + 1}",
+                REVOLUTE,
+                i - 1,
+                T,
+                np.array([0.0, 0.0, 1.0]),
+                body,
+                limits=Limits(-np.pi, np.pi, 2.0, 50.0),
+            )
+        )
     tool = np.eye(4)
     tool[2, 3] = 0.1
-    return KinematicTree(f"chain{n}", tuple(joints), n - 1, tool, np.array([0.0, 0.0, -9.81]),
-                         base_link="base", tip_link="tip")
+    return KinematicTree(
+        f"chain{n}", tuple(joints), n - 1, tool, np.array([0.0, 0.0, -9.81]), base_link="base", tip_link="tip"
+    )
 
 
 def humanoid():
@@ -117,11 +135,18 @@ def single_leaf_system(tree, source: str = "", sha: str = ""):
     from robotgen.model.derivatives import DerivativeSettings
     from robotgen.model.system import DefineNode, RobotSystem
 
-    return RobotSystem(tree.name, source, sha, {tree.name: DefineNode(tree.name, tree)}, tree.name,
-                       derivatives=DerivativeSettings(include=False))
+    return RobotSystem(
+        tree.name,
+        source,
+        sha,
+        {tree.name: DefineNode(tree.name, tree)},
+        tree.name,
+        derivatives=DerivativeSettings(include=False),
+    )
 
 
 # --- one model ----------------------------------------------------------------------------
+
 
 def timed_build(system, out: Path) -> dict:
     """kernels_for + emit(compile=True), with the compile step timed apart."""
@@ -152,9 +177,14 @@ def timed_build(system, out: Path) -> dict:
     finally:
         compiler.compile_extension = original
     t_compile = sum(compile_s)
-    return {"kernels": kernels, "graph_s": t_graph, "emit_s": t_emit_total - t_compile,
-            "compile_s": t_compile, "compile_timed_apart": bool(compile_s),
-            "build_s": t_graph + t_emit_total}
+    return {
+        "kernels": kernels,
+        "graph_s": t_graph,
+        "emit_s": t_emit_total - t_compile,
+        "compile_s": t_compile,
+        "compile_timed_apart": bool(compile_s),
+        "build_s": t_graph + t_emit_total,
+    }
 
 
 def load_module(out: Path, name: str):
@@ -179,8 +209,9 @@ def check_module(module, kernels: dict, nq: int) -> float:
             sys.exit(f"bench: {module.__name__}.{fn}: shape {got.shape} or non-finite output")
         worst = max(worst, bench_run.rel_err(got, want))
     if worst > CHECK_TOL:
-        sys.exit(f"bench: {module.__name__}: the compiled module and CasADi disagree ({worst:.1e}); "
-                 "not timing wrong code")
+        sys.exit(
+            f"bench: {module.__name__}: the compiled module and CasADi disagree ({worst:.1e}); not timing wrong code"
+        )
     return worst
 
 
@@ -194,15 +225,22 @@ def build_model(tree, kind: str, tmp: Path, source: Path | None = None) -> dict:
     print(f"bench: {tree.name} (dof {tree.nq}): building ...", end="", flush=True)
     b = timed_build(system, out)
     kernels = {k.name: k for k in b.pop("kernels")}
-    print(f" {b['build_s']:.1f} s (graph {b['graph_s']:.1f}, emit {b['emit_s']:.1f}, "
-          f"compile {b['compile_s']:.1f})", flush=True)
+    print(
+        f" {b['build_s']:.1f} s (graph {b['graph_s']:.1f}, emit {b['emit_s']:.1f}, compile {b['compile_s']:.1f})",
+        flush=True,
+    )
     worst = check_module(load_module(out, tree.name), kernels, tree.nq)
     ops = bench_run.op_counts(out)
     over = b["build_s"] - BUDGET_S
     return {
-        "model": tree.name, "kind": kind, "dof": tree.nq, "tip_link": tree.tip_link,
-        "depth": max(len(tree.support(i)) for i in range(tree.nq)), **b,
-        "over_budget_s": over if over > 0 else 0.0, "check_vs_casadi": worst,
+        "model": tree.name,
+        "kind": kind,
+        "dof": tree.nq,
+        "tip_link": tree.tip_link,
+        "depth": max(len(tree.support(i)) for i in range(tree.nq)),
+        **b,
+        "over_budget_s": over if over > 0 else 0.0,
+        "check_vs_casadi": worst,
         "arithmetic_ops": {fn: ops.get(fn, {}).get("arithmetic_ops") for fn in FUNCTIONS},
         "_out": out,
     }
@@ -211,8 +249,19 @@ def build_model(tree, kind: str, tmp: Path, source: Path | None = None) -> dict:
 def harness_command(out: Path, name: str, nq: int, exe: Path) -> list[str]:
     """The command bench/run.py's run_c compiles bench/harness.c with (cc -O2, kernel sources)."""
     cc = os.environ.get("CC", "cc")
-    return [cc, *bench_run.CFLAGS, f'-DRG_HEADER="{name}.h"', f"-DRG_PREFIX={name}", f"-DRG_NQ={nq}",
-            f"-I{out}", str(HERE / "harness.c"), *map(str, bench_run.kernel_sources(out)), "-lm", "-o", str(exe)]
+    return [
+        cc,
+        *bench_run.CFLAGS,
+        f'-DRG_HEADER="{name}.h"',
+        f"-DRG_PREFIX={name}",
+        f"-DRG_NQ={nq}",
+        f"-I{out}",
+        str(HERE / "harness.c"),
+        *map(str, bench_run.kernel_sources(out)),
+        "-lm",
+        "-o",
+        str(exe),
+    ]
 
 
 def compile_harnesses(rows: list[dict], tmp: Path) -> None:
@@ -224,16 +273,19 @@ def compile_harnesses(rows: list[dict], tmp: Path) -> None:
     def one(r):
         work = tmp / f"c-{r['model']}"
         work.mkdir(parents=True, exist_ok=True)
-        res = subprocess.run(harness_command(r["_out"], r["model"], r["dof"], work / "harness"),
-                             capture_output=True, text=True)
+        res = subprocess.run(
+            harness_command(r["_out"], r["model"], r["dof"], work / "harness"), capture_output=True, text=True
+        )
         if res.returncode != 0:
             raise RuntimeError(f"compiling the C harness for {r['model']} failed:\n{res.stderr[-2000:]}")
 
     t0 = time.perf_counter()
     with ThreadPoolExecutor(max_workers=os.cpu_count() or 1) as pool:
         list(pool.map(one, sorted(rows, key=lambda r: -r["compile_s"])))  # longest first
-    print(f"bench: compiled {len(rows)} C harnesses in {time.perf_counter() - t0:.0f} s "
-          f"({os.cpu_count()} at a time)", flush=True)
+    print(
+        f"bench: compiled {len(rows)} C harnesses in {time.perf_counter() - t0:.0f} s ({os.cpu_count()} at a time)",
+        flush=True,
+    )
 
 
 def time_model(r: dict, tmp: Path) -> None:
@@ -246,17 +298,31 @@ def time_model(r: dict, tmp: Path) -> None:
 
 # --- report -------------------------------------------------------------------------------
 
-SHORT = {"mass": "mass", "inverse_dynamics": "inv_dyn", "gravity": "gravity", "jacobian": "jacobian",
-         "coriolis": "coriolis", "forward_dynamics": "fwd_dyn"}
+SHORT = {
+    "mass": "mass",
+    "inverse_dynamics": "inv_dyn",
+    "gravity": "gravity",
+    "jacobian": "jacobian",
+    "coriolis": "coriolis",
+    "forward_dynamics": "fwd_dyn",
+}
 
 
 def table(rows: list[dict]) -> str:
     head = ["model", "dof", "graph s", "emit s", "compile s", "build s"] + [f"{SHORT[f]} ns" for f in FUNCTIONS]
     lines = [head]
     for r in rows:
-        lines.append([r["model"], str(r["dof"]), f"{r['graph_s']:.1f}", f"{r['emit_s']:.1f}",
-                      f"{r['compile_s']:.1f}", f"{r['build_s']:.1f}" + (" !" if r["over_budget_s"] else "")]
-                     + [f"{r['ns'][f]:.0f}" for f in FUNCTIONS])
+        lines.append(
+            [
+                r["model"],
+                str(r["dof"]),
+                f"{r['graph_s']:.1f}",
+                f"{r['emit_s']:.1f}",
+                f"{r['compile_s']:.1f}",
+                f"{r['build_s']:.1f}" + (" !" if r["over_budget_s"] else ""),
+            ]
+            + [f"{r['ns'][f]:.0f}" for f in FUNCTIONS]
+        )
     widths = [max(len(row[i]) for row in lines) for i in range(len(head))]
     fmt = lambda row: "  ".join(s.rjust(w) if i else s.ljust(w) for i, (s, w) in enumerate(zip(row, widths)))  # noqa: E731
     return "\n".join([fmt(lines[0]), fmt(["-" * w for w in widths])] + [fmt(r) for r in lines[1:]])
@@ -279,14 +345,19 @@ def plot(rows: list[dict], png: Path) -> None:
     ax1.set_yscale("log")
     ax1.set_xlabel("degrees of freedom")
     ax1.set_ylabel("ns per call (generated C, cc -O2)")
-    ax1.set_title("Generated C: ns per call" + (f" (stars: {', '.join(r['model'] for r in trees)} tree)"
-                                                if trees else ""))
+    ax1.set_title(
+        "Generated C: ns per call" + (f" (stars: {', '.join(r['model'] for r in trees)} tree)" if trees else "")
+    )
     ax1.grid(True, which="both", alpha=0.3)
     ax1.legend(fontsize=8)
     x = [r["dof"] for r in chains]
-    for key, style, label in (("build_s", "o-", "build (total)"), ("graph_s", "s--", "CasADi graphs"),
-                              ("emit_s", "^--", "C emit"), ("compile_s", "v--", "compile")):
-        line, = ax2.plot(x, [r[key] for r in chains], style, label=label)
+    for key, style, label in (
+        ("build_s", "o-", "build (total)"),
+        ("graph_s", "s--", "CasADi graphs"),
+        ("emit_s", "^--", "C emit"),
+        ("compile_s", "v--", "compile"),
+    ):
+        (line,) = ax2.plot(x, [r[key] for r in chains], style, label=label)
         for r in trees:
             ax2.plot(r["dof"], r[key], "*", color=line.get_color(), markersize=12)
     ax2.axhline(BUDGET_S, color="red", linestyle=":", label=f"budget {BUDGET_S:.0f} s")
@@ -327,32 +398,46 @@ def main(argv=None) -> int:
         del r["_out"]
     total = time.perf_counter() - t_start
 
-    print(f"\nbench: build seconds and ns per call (generated C, {' '.join(bench_run.CFLAGS)}; "
-          f"min over repeats) against dof; budget {BUDGET_S:.0f} s per build")
+    print(
+        f"\nbench: build seconds and ns per call (generated C, {' '.join(bench_run.CFLAGS)}; "
+        f"min over repeats) against dof; budget {BUDGET_S:.0f} s per build"
+    )
     print(table(rows))
     over = [r for r in rows if r["over_budget_s"] > 0]
     for r in over:
         slowest = max(("graph_s", "emit_s", "compile_s"), key=lambda k: r[k])
-        print(f"bench: OVER BUDGET: {r['model']} (dof {r['dof']}) builds in {r['build_s']:.1f} s, "
-              f"{r['over_budget_s']:.1f} s over {BUDGET_S:.0f} s (largest part: {slowest[:-2]} "
-              f"{r[slowest]:.1f} s)")
+        print(
+            f"bench: OVER BUDGET: {r['model']} (dof {r['dof']}) builds in {r['build_s']:.1f} s, "
+            f"{r['over_budget_s']:.1f} s over {BUDGET_S:.0f} s (largest part: {slowest[:-2]} "
+            f"{r[slowest]:.1f} s)"
+        )
     if not over:
         print(f"bench: every build within {BUDGET_S:.0f} s")
     print(f"bench: scaling run took {total:.0f} s")
 
     result = {
         "date": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
-        "machine": {"platform": platform.platform(), "processor": platform.processor() or platform.machine(),
-                    "cpus": os.cpu_count(), "python": platform.python_version()},
-        "casadi": __import__("casadi").__version__, "quick": args.quick, "seed": SEED,
-        "budget_s": BUDGET_S, "total_s": total,
+        "machine": {
+            "platform": platform.platform(),
+            "processor": platform.processor() or platform.machine(),
+            "cpus": os.cpu_count(),
+            "python": platform.python_version(),
+        },
+        "casadi": __import__("casadi").__version__,
+        "quick": args.quick,
+        "seed": SEED,
+        "budget_s": BUDGET_S,
+        "total_s": total,
         "units": "seconds; ns per call of the generated C (min over 7 repeats), ns_median the median",
-        "notes": ["build_s = graph_s + emit_s + compile_s: kernels_for(system), then emit(compile=True) "
-                  "with its compile step (one compiler process) timed apart",
-                  "chains: synthetic revolute chains, fixed seed, chain n = first n links of the longest",
-                  f"humanoid: {HUMANOID[1]} read with robotgen.frontend.urdf.read_urdf_tree (fixed base)"],
-        "over_budget": [{"model": r["model"], "dof": r["dof"], "build_s": r["build_s"],
-                         "over_s": r["over_budget_s"]} for r in over],
+        "notes": [
+            "build_s = graph_s + emit_s + compile_s: kernels_for(system), then emit(compile=True) "
+            "with its compile step (one compiler process) timed apart",
+            "chains: synthetic revolute chains, fixed seed, chain n = first n links of the longest",
+            f"humanoid: {HUMANOID[1]} read with robotgen.frontend.urdf.read_urdf_tree (fixed base)",
+        ],
+        "over_budget": [
+            {"model": r["model"], "dof": r["dof"], "build_s": r["build_s"], "over_s": r["over_budget_s"]} for r in over
+        ],
         "models": rows,
     }
     Path(args.json).write_text(json.dumps(result, indent=2) + "\n")

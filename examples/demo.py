@@ -16,6 +16,7 @@ is computed torque, tau = M(q) (qdd_d + Kv (qd_d - qd) + Kp (q_d - q)) + C(q, qd
 from the generated `mass` and `nonlinear`. With exact models the error obeys
 e'' + Kv e' + Kp e = 0, so it decays at the rate the gains set; the demo prints it.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -75,13 +76,18 @@ def check_spec(spec: Path) -> str:
             print(error, file=sys.stderr)
         raise SystemExit(1) from None
     if system.is_rate_controlled:
-        print(f"demo: {spec}'s root '{system.root}' is a resolved_rate controller, which outputs joint rates; "
-              "build it and integrate its rate_step or position_step (docs/python-api.md)", file=sys.stderr)
+        print(
+            f"demo: {spec}'s root '{system.root}' is a resolved_rate controller, which outputs joint rates; "
+            "build it and integrate its rate_step or position_step (docs/python-api.md)",
+            file=sys.stderr,
+        )
         raise SystemExit(2)
     if not system.is_single_leaf:
-        print(f"demo: {spec} is a robot tree (root '{system.root}' is a {system.root_node.primitive} node); "
-              f"the demo closes a loop around one chain. Run `robotgen simulate {spec}` for trees.",
-              file=sys.stderr)
+        print(
+            f"demo: {spec} is a robot tree (root '{system.root}' is a {system.root_node.primitive} node); "
+            f"the demo closes a loop around one chain. Run `robotgen simulate {spec}` for trees.",
+            file=sys.stderr,
+        )
         raise SystemExit(2)
     leaf = system.root_node.leaf
     if not hasattr(leaf, "nq") or type(leaf).__name__ in ("PlanarBody", "SpatialBody"):
@@ -92,14 +98,21 @@ def check_spec(spec: Path) -> str:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("spec", nargs="?", type=Path, default=ROOT / "specs" / "puma560.yaml",
-                        help="a spec whose root is one chain or formulas leaf (default specs/puma560.yaml); the "
-                             "module goes to generated/<name>/ under the current directory")
+    parser.add_argument(
+        "spec",
+        nargs="?",
+        type=Path,
+        default=ROOT / "specs" / "puma560.yaml",
+        help="a spec whose root is one chain or formulas leaf (default specs/puma560.yaml); the "
+        "module goes to generated/<name>/ under the current directory",
+    )
     spec = parser.parse_args().spec
     arm = build(spec, check_spec(spec))
     n = arm.nq
-    print(f"module '{arm.__name__}' in generated/{arm.__name__} (sys.path.insert(0, "
-          f"'generated/{arm.__name__}') imports it), nq = {n}, functions: {', '.join(arm.info()['functions'])}")
+    print(
+        f"module '{arm.__name__}' in generated/{arm.__name__} (sys.path.insert(0, "
+        f"'generated/{arm.__name__}') imports it), nq = {n}, functions: {', '.join(arm.info()['functions'])}"
+    )
     wn = 20.0  # closed-loop natural frequency [rad/s], critically damped
     Kp, Kv = wn * wn, 2 * wn
     dt, T = 1e-3, 2.0
@@ -120,7 +133,7 @@ def main() -> None:
 
     steps = int(T / dt)
     t_ctrl = 0.0
-    print(f"closed loop: computed torque, Kp = {Kp:g}, Kv = {Kv:g}, RK4 at {1/dt:g} Hz for {T:g} s")
+    print(f"closed loop: computed torque, Kp = {Kp:g}, Kv = {Kv:g}, RK4 at {1 / dt:g} Hz for {T:g} s")
     print(f"{'t [s]':>6} {'|e|':>12} {'predicted':>12} {'|tau|':>11}   (rad or m; N m or N)")
     e0 = np.linalg.norm(q - q0)
     for k in range(steps + 1):
@@ -139,10 +152,14 @@ def main() -> None:
         k4q, k4v = f(q + dt * k3q, qd + dt * k3v, tau)
         q = q + dt / 6 * (k1q + 2 * k2q + 2 * k3q + k4q)
         qd = qd + dt / 6 * (k1v + 2 * k2v + 2 * k3v + k4v)
-    print("(the measured error levels off near 1e-5: tau is held constant over each 1 ms "
-          "step, as a servo loop holds it; the prediction is for a continuous controller)")
-    inside = all(lo is None or lo - 1e-9 <= v <= hi + 1e-9 for v, lo, hi in
-                 ((q[i], j["limits"]["lower"], j["limits"]["upper"]) for i, j in enumerate(joints[:n])))
+    print(
+        "(the measured error levels off near 1e-5: tau is held constant over each 1 ms "
+        "step, as a servo loop holds it; the prediction is for a continuous controller)"
+    )
+    inside = all(
+        lo is None or lo - 1e-9 <= v <= hi + 1e-9
+        for v, lo, hi in ((q[i], j["limits"]["lower"], j["limits"]["upper"]) for i, j in enumerate(joints[:n]))
+    )
     print(f"final joint positions {np.round(q, 4)}: {'inside' if inside else 'OUTSIDE'} the joint limits")
     if hasattr(arm, "fk"):
         print(f"tip position at the end: {np.round(arm.fk(q)[:3, 3], 4)} m")

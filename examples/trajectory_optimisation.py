@@ -16,6 +16,7 @@ batched), and the two are compared: cost per iteration, and solve time.
 Cost: sum_k (u_k^T R u_k + (x_k - x*)^T Q (x_k - x*)) dt + (x_N - x*)^T Qf (x_N - x*), with
 the torque limit kept by clamping in the rollout (the plot shows it reached).
 """
+
 from __future__ import annotations
 
 import argparse
@@ -75,6 +76,7 @@ def finite_difference_jacobians(arm, X, U, h=1e-6):
     def f(Z):
         q, qd = arm.discrete_dynamics(Z[:, :2], Z[:, 2:4], Z[:, 4:], DT)
         return np.hstack([q, qd])
+
     columns = [(f(Z + h * e) - f(Z - h * e)) / (2 * h) for e in np.eye(6)]
     J = np.stack(columns, axis=-1)  # (N, 4, 6)
     return J[:, :, :4], J[:, :, 4:]
@@ -131,8 +133,12 @@ def ilqr(arm, jacobians, iterations=100, label=""):
         if improvement < 1e-7 * J:
             break
     seconds = time.perf_counter() - start
-    print(f"{label}: cost by iteration: " + " ".join(f"{c:.4g}" for c in history[:8])
-          + (" ..." if len(history) > 8 else "") + f" -> {history[-1]:.6g} after {len(history) - 1} iterations")
+    print(
+        f"{label}: cost by iteration: "
+        + " ".join(f"{c:.4g}" for c in history[:8])
+        + (" ..." if len(history) > 8 else "")
+        + f" -> {history[-1]:.6g} after {len(history) - 1} iterations"
+    )
     return X, U, history, seconds, in_jacobians
 
 
@@ -170,18 +176,26 @@ def plot(path: Path, X, U, history_exact, history_fd) -> None:
 
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--plot", type=Path, default=Path("generated") / "trajectory_optimisation.png",
-                        help="where to write the plot (default: generated/trajectory_optimisation.png)")
+    parser.add_argument(
+        "--plot",
+        type=Path,
+        default=Path("generated") / "trajectory_optimisation.png",
+        help="where to write the plot (default: generated/trajectory_optimisation.png)",
+    )
     args = parser.parse_args(argv)
     with tempfile.TemporaryDirectory() as tmp:
         arm = build(Path(tmp) / "two_link")
         X, U, h_exact, t_exact, j_exact = ilqr(arm, exact_jacobians, label="generated derivatives")
         _, _, h_fd, t_fd, j_fd = ilqr(arm, finite_difference_jacobians, label="finite differences  ")
         print(f"final state {np.round(X[-1], 4)} (goal {np.round(X_GOAL, 4)}), max |tau| {np.abs(U).max():.1f} N m")
-        print(f"solve time: generated derivatives {t_exact:.3f} s, finite differences {t_fd:.3f} s "
-              f"(ratio {t_fd / t_exact:.2f}; the Python Riccati sweep and rollouts dominate both)")
-        print(f"of which A, B at all {STEPS} knots: {1e3 * j_exact:.2f} ms vs {1e3 * j_fd:.2f} ms "
-              f"(ratio {j_fd / j_exact:.1f})")
+        print(
+            f"solve time: generated derivatives {t_exact:.3f} s, finite differences {t_fd:.3f} s "
+            f"(ratio {t_fd / t_exact:.2f}; the Python Riccati sweep and rollouts dominate both)"
+        )
+        print(
+            f"of which A, B at all {STEPS} knots: {1e3 * j_exact:.2f} ms vs {1e3 * j_fd:.2f} ms "
+            f"(ratio {j_fd / j_exact:.1f})"
+        )
         plot(args.plot, X, U, h_exact, h_fd)
     return 0
 

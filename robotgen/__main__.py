@@ -5,6 +5,7 @@ meanwhile is held until the import is done (raised inside a C extension's import
 surface as an ImportError traceback), then answered as robotgen answers it later: one line,
 exit 130 or 143, nothing done. A Ctrl-C between the handlers' return and robotgen.cli.entry's
 own handling is answered the same way."""
+
 import signal
 import sys
 
@@ -20,8 +21,7 @@ def main() -> None:
 
 def _start() -> None:
     held: list[int] = []
-    previous = {s: signal.signal(s, lambda signum, frame: held.append(signum))
-                for s in (signal.SIGINT, signal.SIGTERM)}
+    previous = {s: signal.signal(s, lambda signum, frame: held.append(signum)) for s in (signal.SIGINT, signal.SIGTERM)}
     try:
         from robotgen.cli import entry
     finally:

@@ -1,6 +1,7 @@
 """The command line: build, check, schema, info, simulate, docs (docs/cli.md).
 
 Exit status: 0 success, 1 the user's input is wrong, 2 usage error, 3 a bug in robotgen."""
+
 from __future__ import annotations
 
 import argparse
@@ -44,8 +45,13 @@ def _unraisable(hook) -> None:
     lost, and the build would go on. The signal is sent again instead, 10 ms later from
     another thread (sent from here it would be raised here again), to be raised in the main
     thread at the next point that can pass it on."""
-    signum = (signal.SIGINT if issubclass(hook.exc_type, KeyboardInterrupt) else
-              signal.SIGTERM if issubclass(hook.exc_type, _Terminated) else None)
+    signum = (
+        signal.SIGINT
+        if issubclass(hook.exc_type, KeyboardInterrupt)
+        else signal.SIGTERM
+        if issubclass(hook.exc_type, _Terminated)
+        else None
+    )
     if signum is None:
         sys.__unraisablehook__(hook)
     else:
@@ -59,11 +65,13 @@ def _load(args: argparse.Namespace):
     path = args.spec
     name = getattr(args, "name", None)
     if name is not None and name_problem(name):
-        suggestion = re.sub(r"[^a-z0-9_]", "_", name.lower())[:MAX_LENGTH - 6]
+        suggestion = re.sub(r"[^a-z0-9_]", "_", name.lower())[: MAX_LENGTH - 6]
         suggestion = suggestion if PATTERN.match(suggestion) else "_" + suggestion
         suggestion = suggestion if not name_problem(suggestion) else suggestion + "_robot"
-        raise _Usage(f"--name {name!r} {name_problem(name)} (it names the Python module and prefixes every "
-                     f"C function); try --name {suggestion}")
+        raise _Usage(
+            f"--name {name!r} {name_problem(name)} (it names the Python module and prefixes every "
+            f"C function); try --name {suggestion}"
+        )
     reader = _file_reader(path)
     if reader is not None:
         kind, load_chain, load_tree = reader
@@ -72,13 +80,16 @@ def _load(args: argparse.Namespace):
         elif not getattr(args, "tip", None):
             what = "LINK" if kind == "URDF" else "BODY"
             hint = f"; robotgen info {Path(path).name} lists its links" if kind == "URDF" else ""
-            raise _Usage(f"a{'n' if kind == 'MJCF' else ''} {kind} file needs --tip {what} (or --tree for every "
-                         f"joint below the base){hint}")
+            raise _Usage(
+                f"a{'n' if kind == 'MJCF' else ''} {kind} file needs --tip {what} (or --tree for every "
+                f"joint below the base){hint}"
+            )
         else:
             system = load_chain(path, tip=args.tip, base=args.base, name=args.name)
         if getattr(args, "no_derivatives", False) or getattr(args, "integrator", None):
-            settings = DerivativeSettings(False if args.no_derivatives else None,
-                                          args.integrator or SEMI_IMPLICIT_EULER)
+            settings = DerivativeSettings(
+                False if args.no_derivatives else None, args.integrator or SEMI_IMPLICIT_EULER
+            )
             system = replace(system, derivatives=settings)
     else:
         from robotgen.frontend import load_system
@@ -88,8 +99,10 @@ def _load(args: argparse.Namespace):
         given += ["--no-derivatives"] if getattr(args, "no_derivatives", False) else []
         given += ["--integrator"] if getattr(args, "integrator", None) else []
         if given:
-            raise _Usage(f"{', '.join(given)} appl{'ies' if len(given) == 1 else 'y'} to a URDF file (or an MJCF "
-                         "file); a spec says the same with its name:, nodes: and derivatives: keys")
+            raise _Usage(
+                f"{', '.join(given)} appl{'ies' if len(given) == 1 else 'y'} to a URDF file (or an MJCF "
+                "file); a spec says the same with its name:, nodes: and derivatives: keys"
+            )
         system = load_system(path)
     for warning in system.warnings:
         print(warning, file=sys.stderr)
@@ -133,10 +146,16 @@ def _cmd_build(args: argparse.Namespace) -> int:
     except TargetUnavailable as e:
         print(f"robotgen: error: {e}", file=sys.stderr)
         return EXIT_USER
-    options = {"name": system.name, "precision": args.precision, "compile": not args.no_compile,
-               "tip": args.tip, "base": args.base, "tree": getattr(args, "tree", False),
-               "source_sha256": system.source_sha256,  # an MJCF file's: its includes and meshes too
-               **({"targets": list(targets)} if targets else {})}
+    options = {
+        "name": system.name,
+        "precision": args.precision,
+        "compile": not args.no_compile,
+        "tip": args.tip,
+        "base": args.base,
+        "tree": getattr(args, "tree", False),
+        "source_sha256": system.source_sha256,  # an MJCF file's: its includes and meshes too
+        **({"targets": list(targets)} if targets else {}),
+    }
     inputs = (Path(system.source), *map(Path, system.dependencies))
     key = cache.build_key(list(inputs), options)
     from robotgen.emit.build import emit, replace_problem
@@ -156,10 +175,22 @@ def _cmd_build(args: argparse.Namespace) -> int:
     extra_info, attributes = module_extras(system)
     interrupts.check()
     progress.stage(f"printing {len(kernels)} C functions")
-    emit(out, system.name, kernels, nq=system_nq(system), precision=args.precision,
-         compile=not args.no_compile, extra_info={**system_info(system), **extra_info},
-         spec_sha256=system.source_sha256, attributes=attributes, progress=progress,
-         controllers=controllers_for(system), targets=targets, inputs=inputs, build_key=key)
+    emit(
+        out,
+        system.name,
+        kernels,
+        nq=system_nq(system),
+        precision=args.precision,
+        compile=not args.no_compile,
+        extra_info={**system_info(system), **extra_info},
+        spec_sha256=system.source_sha256,
+        attributes=attributes,
+        progress=progress,
+        controllers=controllers_for(system),
+        targets=targets,
+        inputs=inputs,
+        build_key=key,
+    )
     print(f"robotgen: built {system.name} ({len(kernels)} functions) in {out}")
     return EXIT_OK
 
@@ -182,8 +213,10 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     progress = _progress(args)
     system = _load(args)
     if system.is_single_leaf:
-        raise _Usage("simulate needs a robot tree (attach/control); a chain's module closes a loop in a few "
-                     f"lines of Python: {documentation.hint('python-api', 'A chain')}")
+        raise _Usage(
+            "simulate needs a robot tree (attach/control); a chain's module closes a loop in a few "
+            f"lines of Python: {documentation.hint('python-api', 'A chain')}"
+        )
     law = LAWS[system.root_law] if system.root_law is not None else None
     own = law.part("simulation") if law is not None else None  # a root law's own simulation
     if law is not None and own is None:
@@ -193,13 +226,17 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
         raise _Usage(refusal)
     hand = law is not None and law.hand_frame
     if hand and args.dt is not None:
-        raise _Usage(f"a {system.root_law} controller runs at its own period "
-                     f"({system.root_control.hand_settings.period:g} s); --dt applies to robot trees")
+        raise _Usage(
+            f"a {system.root_law} controller runs at its own period "
+            f"({system.root_control.hand_settings.period:g} s); --dt applies to robot trees"
+        )
     settings = system.simulation or SimulationSettings()
     groups = multi_rate_groups(system)
     if groups is not None and args.dt is not None:
-        raise _Usage(f"a multi-rate tree runs at its controllers' periods (the fastest {groups.base_period:g} s, the "
-                     "plant's step); --dt applies to single-rate trees")
+        raise _Usage(
+            f"a multi-rate tree runs at its controllers' periods (the fastest {groups.base_period:g} s, the "
+            "plant's step); --dt applies to single-rate trees"
+        )
     period = groups.base_period if groups is not None else servo_period(system)
     if period is not None:  # the controllers' period (the plant steps at the fastest)
         settings = dataclasses.replace(settings, dt=period)
@@ -216,8 +253,10 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
             raise UserError(system.location_of(node.name), f"controller '{node.name}': {problem}")
     plant = args.plant or settings.plant
     if groups is not None and plant == BOTH_PLANTS:
-        raise _Usage("a multi-rate tree is simulated beside its single-rate run on one plant; choose --plant robotgen "
-                     "or --plant mujoco")
+        raise _Usage(
+            "a multi-rate tree is simulated beside its single-rate run on one plant; choose --plant robotgen "
+            "or --plant mujoco"
+        )
     plants = (ROBOTGEN_PLANT, MUJOCO_PLANT) if plant == BOTH_PLANTS else (plant,)
     if MUJOCO_PLANT in plants:
         try:
@@ -229,8 +268,11 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
             raise UserError(settings.locations["plant"], f"simulation.plant: {e}") from None
     out = Path(args.output) if args.output else Path("generated") / f"{system.name}_simulation"
     inputs = (Path(system.source), *map(Path, system.dependencies))
-    stems = ([(system.name, " (multi-rate)"), (f"{system.name}_{multirate_simulation.SINGLE_RATE}", " (single rate)")]
-             if groups is not None else [(f"{system.name}{'' if p == plants[0] else '_' + p}", "") for p in plants])
+    stems = (
+        [(system.name, " (multi-rate)"), (f"{system.name}_{multirate_simulation.SINGLE_RATE}", " (single rate)")]
+        if groups is not None
+        else [(f"{system.name}{'' if p == plants[0] else '_' + p}", "") for p in plants]
+    )
     names = [f"{stem}.{ext}" for stem, _ in stems for ext in ("csv", "png")]
     names += [f"{system.name}.xml"] if MUJOCO_PLANT in plants else []
     with output_errors(out):  # before the simulation: say it at once
@@ -242,15 +284,29 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     with tempfile.TemporaryDirectory(prefix="robotgen-sim-") as tmp:
         build = Path(tmp) / system.name
         progress.stage(f"compiling {system.name}'s servo step and plant")
-        emit(build, system.name, kernels_for(system), nq=system_nq(system), extra_info=system_info(system),
-             spec_sha256=system.source_sha256, controllers=controllers_for(system))
+        emit(
+            build,
+            system.name,
+            kernels_for(system),
+            nq=system_nq(system),
+            extra_info=system_info(system),
+            spec_sha256=system.source_sha256,
+            controllers=controllers_for(system),
+        )
         module = simulate.load_module(build, system.name)
         comparison = None
         twin = own.comparison_system(system) if own is not None else None
         if twin is not None:  # another law on the same path
             progress.stage(f"compiling {twin.name}, {twin.root_law.replace('_', ' ')} control for comparison")
-            emit(Path(tmp) / twin.name, twin.name, kernels_for(twin), nq=system_nq(twin),
-                 extra_info=system_info(twin), spec_sha256=twin.source_sha256, controllers=controllers_for(twin))
+            emit(
+                Path(tmp) / twin.name,
+                twin.name,
+                kernels_for(twin),
+                nq=system_nq(twin),
+                extra_info=system_info(twin),
+                spec_sha256=twin.source_sha256,
+                controllers=controllers_for(twin),
+            )
             comparison = simulate.load_module(Path(tmp) / twin.name, twin.name)
         step = system.root_control.hand_settings.period if hand else settings.dt
         for p in plants:
@@ -271,8 +327,9 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
                     result = simulate.run(module, settings, rest)
             except SimulationError as e:
                 in_spec = e.field is not None and e.field in settings.locations
-                where = (settings.locations[e.field] if in_spec and e.field is not None
-                         else system.location_of(system.root))
+                where = (
+                    settings.locations[e.field] if in_spec and e.field is not None else system.location_of(system.root)
+                )
                 raise UserError(where, f"simulation.{e.field}: {e}" if in_spec else str(e)) from None
             results += list(both) if groups is not None else [result]
         info = module.info()
@@ -287,8 +344,9 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
-def _write_simulation(out: Path, system, kind, results: list, mjcf: str | None, inputs: tuple[Path, ...],
-                      stems: list[tuple[str, str]]) -> str:
+def _write_simulation(
+    out: Path, system, kind, results: list, mjcf: str | None, inputs: tuple[Path, ...], stems: list[tuple[str, str]]
+) -> str:
     """<stem>.csv and <stem>.png of each run (``stems``, one (stem, what the plot's title adds)
     per result: the first plant's <name>, a second plant's <name>_<plant>, a multi-rate tree's
     single-rate run <name>_single_rate; ``kind``: robotgen.simulation.tree or a root law's simulation, whose
@@ -304,8 +362,11 @@ def _write_simulation(out: Path, system, kind, results: list, mjcf: str | None, 
             kind.write_csv(result, made[f"{stem}.csv"])
             try:
                 png = Path(tmp) / f"{stem}.png"
-                kind.plot(result, png, f"{system.name}: {system.root} ({system.root_node.primitive}), "
-                                       f"{result.plant} plant{note}")
+                kind.plot(
+                    result,
+                    png,
+                    f"{system.name}: {system.root} ({system.root_node.primitive}), {result.plant} plant{note}",
+                )
                 made[png.name] = png
             except ImportError:
                 print("robotgen: no PNG: matplotlib is missing; pip install matplotlib", file=sys.stderr)
@@ -315,8 +376,11 @@ def _write_simulation(out: Path, system, kind, results: list, mjcf: str | None, 
         interrupts.check()
         write_files(out, made, inputs)
     written = [str(out / name) for name in made]
-    return (f"robotgen: wrote {', '.join(written[:-1])} and {written[-1]}" if len(written) > 1
-            else f"robotgen: wrote {written[0]}")
+    return (
+        f"robotgen: wrote {', '.join(written[:-1])} and {written[-1]}"
+        if len(written) > 1
+        else f"robotgen: wrote {written[0]}"
+    )
 
 
 def _cmd_check(args: argparse.Namespace) -> int:
@@ -364,8 +428,7 @@ def _cmd_info(args: argparse.Namespace) -> int:
         return EXIT_OK
     system = _load(args)
     info = system_info(system)
-    print(f"{system.name} (root: {system.root}; sensed joints: {system_nq(system)} in "
-          f"{', '.join(info['leaves'])})")
+    print(f"{system.name} (root: {system.root}; sensed joints: {system_nq(system)} in {', '.join(info['leaves'])})")
     for name, node in info["nodes"].items():
         print(f"  {name}: {node['primitive']} {node['kind']}, nq = {node['nq']}")
         coordinates = [f"{c} [{u}]" if u else c for c, u in zip(node["coordinates"], node["units"])]
@@ -379,8 +442,10 @@ def _cmd_info(args: argparse.Namespace) -> int:
                 print(f"    {key}: {', '.join(value) if isinstance(value, list) else value}")
         for j in node.get("joints", []):
             lim = j["limits"]
-            bounds = (-math.inf if lim["lower"] is None else lim["lower"], math.inf if lim["upper"] is None
-                      else lim["upper"])
+            bounds = (
+                -math.inf if lim["lower"] is None else lim["lower"],
+                math.inf if lim["upper"] is None else lim["upper"],
+            )
             rng = "" if lim["lower"] is None and lim["upper"] is None else f" [{bounds[0]:g}, {bounds[1]:g}]"
             print(f"    - {j['name']}: {j['type']}, parent {j['parent']}{rng}")
         if node.get("locked_joints"):
@@ -410,8 +475,10 @@ def operation_table(hand: dict) -> str:
     the paper's accounting of parallel parts in the totals."""
     counts = hand["operation_counts"]
     head = f"    {'stage':46} {'paper mul':>9} {'add':>5}   {'robotgen mul':>12} {'add':>5} {'trig':>5} {'other':>5}"
-    lines = ["  operations per sampling period (Lee and Lee 1983, Table 1; other = divisions, square roots, "
-             "selections):", head]
+    lines = [
+        "  operations per sampling period (Lee and Lee 1983, Table 1; other = divisions, square roots, selections):",
+        head,
+    ]
     part = None
     for row in counts["rows"]:
         if row["part"] != part:
@@ -419,17 +486,26 @@ def operation_table(hand: dict) -> str:
             lines.append(f"    {part}")
         p, r = row["paper"], row["robotgen"]
         more = f"   more: {row['note']}" if row["note"] else ""  # computes more than the paper's quantity
-        lines.append(f"      {row['stage'] + ' ' + row['name']:44} {p['mul']:9d} {p['add']:5d}   {r['mul']:12d} "
-                     f"{r['add']:5d} {r['trig']:5d} {r['other']:5d}{more}")
-    labels = {"feedforward": "total feedforward", "feedback": "total feedback (stage 1: the larger part)",
-              "period": "period: feedforward and feedback in parallel", "sequential": "every stage on one processor"}
+        lines.append(
+            f"      {row['stage'] + ' ' + row['name']:44} {p['mul']:9d} {p['add']:5d}   {r['mul']:12d} "
+            f"{r['add']:5d} {r['trig']:5d} {r['other']:5d}{more}"
+        )
+    labels = {
+        "feedforward": "total feedforward",
+        "feedback": "total feedback (stage 1: the larger part)",
+        "period": "period: feedforward and feedback in parallel",
+        "sequential": "every stage on one processor",
+    }
     for key, label in labels.items():
         p, r = counts["paper"][key], counts["robotgen"][key]
-        lines.append(f"    {label:46} {p['mul']:9d} {p['add']:5d}   {r['mul']:12d} {r['add']:5d} {r['trig']:5d} "
-                     f"{r['other']:5d}")
+        lines.append(
+            f"    {label:46} {p['mul']:9d} {p['add']:5d}   {r['mul']:12d} {r['add']:5d} {r['trig']:5d} {r['other']:5d}"
+        )
     step = counts["step"]
-    lines.append(f"    {'emitted step (every stage fused, terms shared)':46} {'':9} {'':5}   {step['mul']:12d} "
-                 f"{step['add']:5d} {step['trig']:5d} {step['other']:5d}")
+    lines.append(
+        f"    {'emitted step (every stage fused, terms shared)':46} {'':9} {'':5}   {step['mul']:12d} "
+        f"{step['add']:5d} {step['trig']:5d} {step['other']:5d}"
+    )
     return "\n".join(lines)
 
 
@@ -437,84 +513,120 @@ def rate_group_lines(groups) -> str:
     """The rate groups of a multi-rate tree, fastest first."""
     lines = [f"  rate groups (one step function each, run on ticks of {groups.base_period:g} s):"]
     for g in groups.groups:
-        lines.append(f"    servo_step_g{g.index}: every {g.period:g} s ({g.rate:g} Hz, {g.ticks} tick"
-                     f"{'s' if g.ticks > 1 else ''}): {', '.join(g.controllers)}"
-                     + (f"; holds what it writes to {', '.join(g.writes)}" if g.writes else ""))
+        lines.append(
+            f"    servo_step_g{g.index}: every {g.period:g} s ({g.rate:g} Hz, {g.ticks} tick"
+            f"{'s' if g.ticks > 1 else ''}): {', '.join(g.controllers)}"
+            + (f"; holds what it writes to {', '.join(g.writes)}" if g.writes else "")
+        )
     return "\n".join(lines)
 
 
 def lifted_loop_line(loop) -> str:
     """The lifted closed loop's spectral radius at the start pose."""
     x = ", ".join(f"{v:.4g}" for v in loop.x)
-    verdict = (f"stable: an error decays by that factor per {1e3 * loop.frame:g} ms (time constant "
-               f"{1e3 * loop.time_constant:.3g} ms)" if loop.stable else
-               f"UNSTABLE: an error grows by that factor per {1e3 * loop.frame:g} ms; run the slower groups faster "
-               "or lower their gains")
-    return (f"  lifted closed loop over one slowest period ({1e3 * loop.frame:g} ms, {loop.ticks} ticks) at the start "
-            f"pose x = ({x}), at rest: spectral radius {loop.spectral_radius:.4f}, {verdict}")
+    verdict = (
+        f"stable: an error decays by that factor per {1e3 * loop.frame:g} ms (time constant "
+        f"{1e3 * loop.time_constant:.3g} ms)"
+        if loop.stable
+        else f"UNSTABLE: an error grows by that factor per {1e3 * loop.frame:g} ms; run the slower groups faster "
+        "or lower their gains"
+    )
+    return (
+        f"  lifted closed loop over one slowest period ({1e3 * loop.frame:g} ms, {loop.ticks} ticks) at the start "
+        f"pose x = ({x}), at rest: spectral radius {loop.spectral_radius:.4f}, {verdict}"
+    )
 
 
 def closed_loop_line(loop: dict, period: float) -> str:
     """The one-step control's closed loop at the nominal pose."""
     pose = ", ".join(f"{v:.4g}" for v in loop["pose"])
-    return (f"  one-step control's closed loop at q = ({pose}), hand at rest: spectral radius "
-            f"{loop['spectral_radius']:.4g} (margin {loop['margin']:.4g}), slowest time constant "
-            f"{1e3 * loop['time_constant']:.3g} ms at T = {1e3 * period:g} ms")
+    return (
+        f"  one-step control's closed loop at q = ({pose}), hand at rest: spectral radius "
+        f"{loop['spectral_radius']:.4g} (margin {loop['margin']:.4g}), slowest time constant "
+        f"{1e3 * loop['time_constant']:.3g} ms at T = {1e3 * period:g} ms"
+    )
 
 
 def _parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="robotgen", description="Compile robot systems to C and Python.",
-                                epilog="Exit status: 0 success, 1 your input is wrong (FILE:LINE:COL: message), "
-                                       "2 usage error, 3 a bug in robotgen. Documentation: robotgen docs "
-                                       "(the pages installed with robotgen).")
-    p.add_argument("--version", action="version",
-                   version=f"robotgen {robotgen.__version__} (casadi {_casadi_version()}, Python "
-                           f"{sys.version.split()[0]})")
+    p = argparse.ArgumentParser(
+        prog="robotgen",
+        description="Compile robot systems to C and Python.",
+        epilog="Exit status: 0 success, 1 your input is wrong (FILE:LINE:COL: message), "
+        "2 usage error, 3 a bug in robotgen. Documentation: robotgen docs "
+        "(the pages installed with robotgen).",
+    )
+    p.add_argument(
+        "--version",
+        action="version",
+        version=f"robotgen {robotgen.__version__} (casadi {_casadi_version()}, Python {sys.version.split()[0]})",
+    )
     quiet = argparse.ArgumentParser(add_help=False)
     quiet.add_argument("-q", "--quiet", action="store_true", help="no progress messages on stderr")
     sub = p.add_subparsers(dest="command", required=True)
-    b = sub.add_parser("build", parents=[quiet],
-                       help="compile a spec (or a URDF or MJCF chain) to C and a Python module")
+    b = sub.add_parser(
+        "build", parents=[quiet], help="compile a spec (or a URDF or MJCF chain) to C and a Python module"
+    )
     b.add_argument("spec", help="SPEC.yaml, ROBOT.urdf or ROBOT.xml (MJCF)")
     b.add_argument("-o", "--output", help="output directory (default generated/<name>/)")
     b.add_argument("--precision", choices=["double", "float"], default="double")
     b.add_argument("--no-compile", action="store_true", help="emit sources only")
-    b.add_argument("--target", action="append", choices=sorted(TARGETS), default=[],
-                   help="also compile the C for this microcontroller and record each function's code and "
-                        "stack bytes in manifest.json (needs its compiler, e.g. arm-none-eabi-gcc)")
+    b.add_argument(
+        "--target",
+        action="append",
+        choices=sorted(TARGETS),
+        default=[],
+        help="also compile the C for this microcontroller and record each function's code and "
+        "stack bytes in manifest.json (needs its compiler, e.g. arm-none-eabi-gcc)",
+    )
     b.add_argument("--tip", help="URDF: the tip link; MJCF: the tip body or site")
-    b.add_argument("--base", help="URDF: the base link (default: the root link); MJCF: the base body "
-                        "(default: the world)")
+    b.add_argument(
+        "--base", help="URDF: the base link (default: the root link); MJCF: the base body (default: the world)"
+    )
     b.add_argument("--name", help="URDF, MJCF: module name (default: the robot's or model's name)")
-    b.add_argument("--tree", action="store_true",
-                   help="URDF, MJCF: keep every movable joint below the base (a branched tree); --tip then "
-                        "only names the frame of fk and jacobian")
-    b.add_argument("--no-derivatives", action="store_true",
-                   help="URDF, MJCF: leave out the derivative functions (a spec says so in its derivatives section)")
-    b.add_argument("--integrator", choices=list(INTEGRATORS),
-                   help="URDF, MJCF: the step of discrete_dynamics (default semi_implicit_euler)")
+    b.add_argument(
+        "--tree",
+        action="store_true",
+        help="URDF, MJCF: keep every movable joint below the base (a branched tree); --tip then "
+        "only names the frame of fk and jacobian",
+    )
+    b.add_argument(
+        "--no-derivatives",
+        action="store_true",
+        help="URDF, MJCF: leave out the derivative functions (a spec says so in its derivatives section)",
+    )
+    b.add_argument(
+        "--integrator",
+        choices=list(INTEGRATORS),
+        help="URDF, MJCF: the step of discrete_dynamics (default semi_implicit_euler)",
+    )
     b.set_defaults(run=_cmd_build)
     for name, run, text in (("check", _cmd_check, "validate only"), ("info", _cmd_info, "print the robot tree")):
         c = sub.add_parser(name, help=text)
         c.add_argument("spec", help="SPEC.yaml, ROBOT.urdf or ROBOT.xml (MJCF)")
         c.add_argument("--tip", help="URDF: the tip link; MJCF: the tip body or site")
-        c.add_argument("--base", help="URDF: the base link (default: the root link); MJCF: the base body "
-                            "(default: the world)")
+        c.add_argument(
+            "--base", help="URDF: the base link (default: the root link); MJCF: the base body (default: the world)"
+        )
         c.add_argument("--name", help="URDF, MJCF: module name (default: the robot's or model's name)")
         c.add_argument("--tree", action="store_true", help="URDF, MJCF: every movable joint below the base")
         c.set_defaults(run=run)
-    sim = sub.add_parser("simulate", parents=[quiet], help="run a tree's servo step against its true constrained plant "
-                                                           "(or MuJoCo's)")
+    sim = sub.add_parser(
+        "simulate", parents=[quiet], help="run a tree's servo step against its true constrained plant (or MuJoCo's)"
+    )
     sim.add_argument("spec")
-    sim.add_argument("-o", "--output",
-                     help="directory for the CSV, PNG and MJCF (default generated/<name>_simulation/)")
+    sim.add_argument(
+        "-o", "--output", help="directory for the CSV, PNG and MJCF (default generated/<name>_simulation/)"
+    )
     sim.add_argument("--duration", type=float, help="seconds (default: the spec's simulation section)")
     sim.add_argument("--dt", type=float, help="servo period and RK4 step [s]")
-    sim.add_argument("--plant", choices=["robotgen", "mujoco", "both"],
-                     help="the plant the loop is closed around: robotgen's own model, an independent MuJoCo "
-                          "model of the same system (contacts instead of the bilateral grasp; needs pip install "
-                          "'robotgen[mujoco]'), or both side by side (default: the spec's simulation.plant, else "
-                          "robotgen)")
+    sim.add_argument(
+        "--plant",
+        choices=["robotgen", "mujoco", "both"],
+        help="the plant the loop is closed around: robotgen's own model, an independent MuJoCo "
+        "model of the same system (contacts instead of the bilateral grasp; needs pip install "
+        "'robotgen[mujoco]'), or both side by side (default: the spec's simulation.plant, else "
+        "robotgen)",
+    )
     sim.set_defaults(run=_cmd_simulate, tip=None, base=None, name=None)
     s = sub.add_parser("schema", help="print the JSON Schema of the spec format")
     s.set_defaults(run=_cmd_schema)
@@ -575,8 +687,7 @@ def main(argv: list[str] | None = None) -> int:
         return EXIT_OK
     except Exception:  # noqa: BLE001 - a bug in robotgen, not the user's fault
         traceback.print_exc()
-        print("robotgen: internal error (a bug in robotgen, not in your input); please report it",
-              file=sys.stderr)
+        print("robotgen: internal error (a bug in robotgen, not in your input); please report it", file=sys.stderr)
         return EXIT_BUG
 
 

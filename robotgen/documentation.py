@@ -1,6 +1,7 @@
 """The documentation pages (the repository's docs/*.md), which a wheel installs as
 robotgen/docs: what `robotgen docs [PAGE]` lists and prints, and what error messages point
 to, so that a hint names what an installed user has rather than a path in a clone."""
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -29,4 +30,4 @@ def pages() -> dict[str, tuple[Path, str]]:
 
 def hint(page: str, section: str = "") -> str:
     """How a message points to a page: "`robotgen docs spec-format`", with the section's name."""
-    return f"`robotgen docs {page}`" + (f", \"{section}\"" if section else "")
+    return f"`robotgen docs {page}`" + (f', "{section}"' if section else "")

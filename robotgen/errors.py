@@ -1,4 +1,5 @@
 """Errors that are the user's fault carry a location; everything else is a robotgen bug."""
+
 from __future__ import annotations
 
 from dataclasses import dataclass

@@ -9,6 +9,7 @@ went on to replace its output (6 of 24 SIGINTs sent while the PUMA 560's graphs 
 in process). So the handlers here note the signal before they raise its exception, and
 ``check()`` raises it again where a command would otherwise go on: before an output is
 swapped in, after each stage, and when the command ends."""
+
 from __future__ import annotations
 
 import signal

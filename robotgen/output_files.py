@@ -8,6 +8,7 @@ the record does not vouch for, a directory, a symbolic link, or an input of the 
 
 Errors of the output directory itself (a path through a regular file, a name too long, no
 permission, an immutable directory) are the user's to fix: OutputError, exit status 1."""
+
 from __future__ import annotations
 
 import errno
@@ -52,12 +53,14 @@ def shown(names: list[str]) -> str:
 def refusal(directory: Path, foreign: list[str], changed: list[str], what: str) -> str | None:
     """The message for files robotgen did not write (``foreign``) or that changed since it
     wrote them (``changed``), which it refuses to ``what`` ("replace it"), or None."""
-    parts = ([f"files that robotgen did not write ({shown(foreign)})"] if foreign else []) + \
-            ([f"files that changed since robotgen wrote them ({shown(changed)})"] if changed else [])
+    parts = ([f"files that robotgen did not write ({shown(foreign)})"] if foreign else []) + (
+        [f"files that changed since robotgen wrote them ({shown(changed)})"] if changed else []
+    )
     if not parts:
         return None
-    return (f"{directory} holds {' and '.join(parts)}; refusing to {what} (move them, or choose another output "
-            "directory)")
+    return (
+        f"{directory} holds {' and '.join(parts)}; refusing to {what} (move them, or choose another output directory)"
+    )
 
 
 def input_inside(directory: Path, inputs: Iterable[Path], names: Iterable[str] | None = None) -> str | None:
@@ -69,8 +72,10 @@ def input_inside(directory: Path, inputs: Iterable[Path], names: Iterable[str] |
         for path in inputs:
             real = Path(path).resolve()
             if (real in targets) if targets is not None else real.is_relative_to(root):
-                return (f"{directory} holds {path}, which this command reads; robotgen never replaces its input "
-                        "(choose another output directory)")
+                return (
+                    f"{directory} holds {path}, which this command reads; robotgen never replaces its input "
+                    "(choose another output directory)"
+                )
     except (OSError, RuntimeError):  # a symlink loop: nothing to compare
         return None
     return None
@@ -124,8 +129,8 @@ def _record(directory: Path) -> tuple[dict[str, list[str]] | None, str | None]:
             raise ValueError
         files = json.loads(path.read_text(encoding="utf-8"))["files"]
         if not isinstance(files, dict) or not all(
-                isinstance(k, str) and isinstance(v, list) and all(isinstance(h, str) for h in v)
-                for k, v in files.items()):
+            isinstance(k, str) and isinstance(v, list) and all(isinstance(h, str) for h in v) for k, v in files.items()
+        ):
             raise ValueError
         return files, None
     except (OSError, ValueError, KeyError, TypeError):

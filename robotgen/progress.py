@@ -1,6 +1,7 @@
 """Progress of a long build on stderr: stages, and kernels as they are printed to C. Shown
 when stderr is a terminal (or ROBOTGEN_PROGRESS=1 asks for it, e.g. in a CI log), never with
 `-q`; never on stdout, which carries only results."""
+
 from __future__ import annotations
 
 import os

@@ -1,4 +1,5 @@
 """Shared fixtures: build a spec once per test session and import its generated module."""
+
 from __future__ import annotations
 
 import importlib

@@ -4,6 +4,7 @@ The spec YAML is read with plain PyYAML and a tiny constant-expression evaluator
 reference models are built from those numbers by hand (closed forms) or by Pinocchio, so a
 bug in robotgen's spec loader, DH normalisation or dynamics cannot hide in the reference.
 """
+
 from __future__ import annotations
 
 import ast
@@ -233,9 +234,7 @@ def pinocchio_model(chain: DHChain):
         parent, placement, static_prev = jid, S, S
     model.armature = np.array([j.armature for j in chain.joints])
     fid = model.addFrame(
-        pin.Frame(
-            "tool", parent, pin.SE3(static_prev[:3, :3], static_prev[:3, 3]), pin.FrameType.OP_FRAME
-        )
+        pin.Frame("tool", parent, pin.SE3(static_prev[:3, :3], static_prev[:3, 3]), pin.FrameType.OP_FRAME)
     )
     return model, fid
 

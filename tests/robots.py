@@ -1,4 +1,5 @@
 """Where the independent references' robot files live, and how to build them with robotgen."""
+
 from __future__ import annotations
 
 import importlib

@@ -1,6 +1,7 @@
 """The floors of robotgen (docs/ARCHITECTURE.md): every import, at module level, inside a
 function or under TYPE_CHECKING, goes to the same floor or one below. Read from the source
 with ast, so an import that runs only sometimes is checked too."""
+
 from __future__ import annotations
 
 import ast
@@ -11,8 +12,14 @@ PACKAGE = Path(__file__).resolve().parents[1] / "robotgen"
 # lowest first; a module belongs to the longest prefix listed. The tree laws
 # (symbolic.control) sit below the root laws, which build on the whole tree's graphs.
 FLOORS = (
-    ("robotgen", "robotgen.errors", "robotgen.numeric", "robotgen.progress", "robotgen.interrupts",
-     "robotgen.documentation"),
+    (
+        "robotgen",
+        "robotgen.errors",
+        "robotgen.numeric",
+        "robotgen.progress",
+        "robotgen.interrupts",
+        "robotgen.documentation",
+    ),
     ("robotgen.model",),
     ("robotgen.frontend", "robotgen.symbolic"),
     ("robotgen.symbolic.root_laws", "robotgen.symbolic.module", "robotgen.symbolic.__init__"),
@@ -54,9 +61,16 @@ def imports(path: Path, here: str) -> list[tuple[int, str]]:
                 anchor = package.split(".")[: len(package.split(".")) - node.level + 1]
                 base = ".".join(anchor + ([base] if base else []))
             # ``from robotgen.simulation import hand`` imports the module robotgen.simulation.hand
-            out += [(node.lineno, f"{base}.{a.name}" if (PACKAGE.parent / base.replace(".", "/") / a.name).exists()
-                     or (PACKAGE.parent / f"{base.replace('.', '/')}/{a.name}.py").exists() else base)
-                    for a in node.names]
+            out += [
+                (
+                    node.lineno,
+                    f"{base}.{a.name}"
+                    if (PACKAGE.parent / base.replace(".", "/") / a.name).exists()
+                    or (PACKAGE.parent / f"{base.replace('.', '/')}/{a.name}.py").exists()
+                    else base,
+                )
+                for a in node.names
+            ]
     return [(line, name) for line, name in out if name == "robotgen" or name.startswith("robotgen.")]
 
 
@@ -68,8 +82,13 @@ def violations(files: dict[Path, str] | None = None) -> list[str]:
     for path, here in files.items():
         for line, target in imports(path, here):
             upward = floor(target) > floor(here)
-            sideways = any(here.startswith(a) and target.startswith(b) and not target.startswith(here)
-                           and floor(here) == floor(target) for a, b in APART)
+            sideways = any(
+                here.startswith(a)
+                and target.startswith(b)
+                and not target.startswith(here)
+                and floor(here) == floor(target)
+                for a, b in APART
+            )
             if upward or sideways:
                 found.append(f"{path.name}:{line}: {here} imports {target}")
     return found
@@ -83,13 +102,17 @@ def test_the_check_sees_imports_up_and_across(tmp_path):
     """Imports of the CLI inside a function, of the simulation under TYPE_CHECKING and of a
     root law, relative, from a tree law's module are found; one down is not."""
     probe = tmp_path / "probe.py"
-    probe.write_text("from typing import TYPE_CHECKING\n\nfrom robotgen.numeric import exact\n\n"
-                     "if TYPE_CHECKING:\n    from robotgen.simulation.tree import Result\n\n\n"
-                     "def f():\n    from robotgen import cli\n    return cli\n")
+    probe.write_text(
+        "from typing import TYPE_CHECKING\n\nfrom robotgen.numeric import exact\n\n"
+        "if TYPE_CHECKING:\n    from robotgen.simulation.tree import Result\n\n\n"
+        "def f():\n    from robotgen import cli\n    return cli\n"
+    )
     assert violations({probe: "robotgen.model.probe"}) == [
         "probe.py:6: robotgen.model.probe imports robotgen.simulation.tree",
-        "probe.py:10: robotgen.model.probe imports robotgen.cli"]
+        "probe.py:10: robotgen.model.probe imports robotgen.cli",
+    ]
     probe.write_text("from ..root_laws import law\nfrom ...frontend.collector import Collector\n")
     assert violations({probe: "robotgen.symbolic.control.probe"}) == [
         "probe.py:1: robotgen.symbolic.control.probe imports robotgen.symbolic.root_laws.law",
-        "probe.py:2: robotgen.symbolic.control.probe imports robotgen.frontend.collector"]
+        "probe.py:2: robotgen.symbolic.control.probe imports robotgen.frontend.collector",
+    ]

@@ -15,6 +15,7 @@ robotgen as a tree and as a chain to its deepest link, and read by Pinocchio.
 The deepest link, the joints each build must have and the base are found here from the XML
 alone (expat, none of robotgen's code), so that a reader choosing the wrong joints fails.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -61,6 +62,7 @@ def files(source: str) -> list[Path]:
 
 
 # --- the file's structure, independently of robotgen ------------------------------------------
+
 
 @dataclass
 class Structure:
@@ -132,7 +134,11 @@ def structure(path: Path) -> Structure | None:
         elif stack[1:] == ["joint"] and stack[0] == "robot" and tag in ("parent", "child"):
             joint[tag] = attrib.get("link")
         elif stack[1:] == ["joint"] and tag == "mimic":
-            joint["mimic"] = (attrib.get("joint"), float(attrib.get("multiplier", "1")), float(attrib.get("offset", "0")))
+            joint["mimic"] = (
+                attrib.get("joint"),
+                float(attrib.get("multiplier", "1")),
+                float(attrib.get("offset", "0")),
+            )
         stack.append(tag)
 
     def end(tag):
@@ -143,13 +149,14 @@ def structure(path: Path) -> Structure | None:
     parser = xml.parsers.expat.ParserCreate()
     parser.StartElementHandler, parser.EndElementHandler = begin, end
     try:
-        parser.Parse(text[max(start, 0):], True)
+        parser.Parse(text[max(start, 0) :], True)
     except xml.parsers.expat.ExpatError:
         return None
     return s if s.links else None
 
 
 # --- what each reader makes of a file -----------------------------------------------------------
+
 
 @dataclass
 class Read:
@@ -220,6 +227,7 @@ def read(source: str, path: Path) -> Read:
 
 # --- against Pinocchio ---------------------------------------------------------------------------
 
+
 def rel_err(a, b) -> float:
     a, b = np.asarray(a, float), np.asarray(b, float)
     return float(np.abs(a - b).max() / max(1.0, np.abs(b).max()))
@@ -258,8 +266,11 @@ def compare(system, path: Path, expected: set[str], structure: Structure, seed: 
     idx = np.array([model.joints[model.getJointId(n)].idx_v for n in names])
     assert all(model.joints[model.getJointId(n)].nv == 1 for n in names)
     damping, friction = model.damping[idx], model.friction[idx]
-    f = {k.name: k.function for k in kernels_for(system)
-         if k.name in ("mass", "gravity", "inverse_dynamics", "coriolis", "jacobian")}
+    f = {
+        k.name: k.function
+        for k in kernels_for(system)
+        if k.name in ("mass", "gravity", "inverse_dynamics", "coriolis", "jacobian")
+    }
     n = len(coordinates)
     rng = np.random.default_rng(seed)
     worst: dict[str, float] = {}
@@ -276,8 +287,9 @@ def compare(system, path: Path, expected: set[str], structure: Structure, seed: 
         C = np.array(pin.computeCoriolisMatrix(model, data, qp, a)).reshape(model.nv, model.nv)[np.ix_(idx, idx)]
         errs = {
             "mass": rel_err(np.array(f["mass"](q)).reshape(n, n), S.T @ M[np.ix_(idx, idx)] @ S),
-            "gravity": rel_err(np.array(f["gravity"](q)).ravel(),
-                               S.T @ pin.computeGeneralizedGravity(model, data, qp)[idx]),
+            "gravity": rel_err(
+                np.array(f["gravity"](q)).ravel(), S.T @ pin.computeGeneralizedGravity(model, data, qp)[idx]
+            ),
             "inverse_dynamics": rel_err(np.array(f["inverse_dynamics"](q, qd, qdd)).ravel(), S.T @ tau),
             "coriolis": rel_err(np.array(f["coriolis"](q, qd)).reshape(n, n), S.T @ C @ S),
             "jacobian": rel_err(np.array(f["jacobian"](q)).reshape(6, n), np.vstack([R.T @ J[:3], R.T @ J[3:]]) @ S),
@@ -288,6 +300,7 @@ def compare(system, path: Path, expected: set[str], structure: Structure, seed: 
 
 
 # --- the tables of docs/robots.md ----------------------------------------------------------------
+
 
 def _cell(text: str) -> str:
     """A refusal as code (its <tags> shown as written), a reader's verdict as text."""
@@ -305,23 +318,33 @@ def _listed(folder: str, names: list[str]) -> str:
 
 def _nothing(r: Read) -> bool:
     """No movable joint for any reader."""
-    return (r.pinocchio == 0 and r.tip is None and isinstance(r.tree, str)
-            and "no movable joint below base link" in r.tree)
+    return (
+        r.pinocchio == 0 and r.tip is None and isinstance(r.tree, str) and "no movable joint below base link" in r.tree
+    )
 
 
 def body(reads: list[Read]) -> list[str]:
     """One row per file robotgen refuses (as a tree or as a chain) with each reader's answer
     (the files of one folder refused alike in one row), then the files without a movable joint."""
-    lines = ["| file | Pinocchio | robotgen, as a tree | robotgen, as a chain to its deepest link |",
-             "| --- | --- | --- | --- |"]
+    lines = [
+        "| file | Pinocchio | robotgen, as a tree | robotgen, as a chain to its deepest link |",
+        "| --- | --- | --- | --- |",
+    ]
     rows: dict[tuple[str, str, str, str], list[str]] = {}
     for r in reads:
         if r.builds or _nothing(r):
             continue
         pin_text = f"reads it (nv = {r.pinocchio})" if isinstance(r.pinocchio, int) else r.pinocchio
         tree = "builds" if not isinstance(r.tree, str) else r.tree
-        chain = ("builds" if not isinstance(r.chain, str) and r.chain is not None else
-                 "no movable joint" if r.chain is None else r.chain if r.chain != r.tree else "the same")
+        chain = (
+            "builds"
+            if not isinstance(r.chain, str) and r.chain is not None
+            else "no movable joint"
+            if r.chain is None
+            else r.chain
+            if r.chain != r.tree
+            else "the same"
+        )
         rows.setdefault((_folder(r.name), pin_text, tree, chain), []).append(r.name)
     for (folder, pin_text, *cells), names in rows.items():
         pin_cell = pin_text if pin_text.startswith("reads it") else f"refuses it: {_cell(pin_text)}"
@@ -332,7 +355,7 @@ def body(reads: list[Read]) -> list[str]:
             groups.setdefault(_folder(r.name), []).append(r.name)
     if groups:
         listed = ", ".join(_listed(folder, names) for folder, names in groups.items())
-        lines += ["", f"No movable joint (Pinocchio: nv = 0; robotgen: \"no movable joint below base link\"): {listed}."]
+        lines += ["", f'No movable joint (Pinocchio: nv = 0; robotgen: "no movable joint below base link"): {listed}.']
     return lines
 
 
@@ -342,12 +365,17 @@ def table(source: str, reads: list[Read]) -> str:
     nothing = [r for r in reads if _nothing(r)]
     refused = [r for r in reads if not r.builds and not _nothing(r)]
     pin_reads = [r for r in refused if isinstance(r.pinocchio, int)]
-    return "\n".join([
-        f"<!-- {source}: generated by `python tests/urdf_sweep.py --write`; tests/dynamics/test_urdf_sweep.py checks "
-        "it -->",
-        f"{len(reads)} files: {len(builds)} build unmodified, as a tree and as a chain, and agree with Pinocchio; "
-        f"{len(refused)} are refused ({len(pin_reads)} of them read by Pinocchio); {len(nothing)} have no movable "
-        "joint.", "", *body(reads)])
+    return "\n".join(
+        [
+            f"<!-- {source}: generated by `python tests/urdf_sweep.py --write`; tests/dynamics/test_urdf_sweep.py checks "
+            "it -->",
+            f"{len(reads)} files: {len(builds)} build unmodified, as a tree and as a chain, and agree with Pinocchio; "
+            f"{len(refused)} are refused ({len(pin_reads)} of them read by Pinocchio); {len(nothing)} have no movable "
+            "joint.",
+            "",
+            *body(reads),
+        ]
+    )
 
 
 def documented_files(source: str) -> list[Path]:

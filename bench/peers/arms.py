@@ -5,6 +5,7 @@ read a copy of the URDF in which those joints are fixed, which is the same rigid
 URDF <dynamics damping> is viscous friction in robotgen's inverse and forward dynamics and in
 neither peer: the agreement check (harness.reference) takes it out of robotgen's outputs.
 """
+
 from __future__ import annotations
 
 import importlib.util
@@ -75,13 +76,16 @@ def build(name: str, work: Path) -> Arm:
     node = module.info()["nodes"][name]
     for joint in node["joints"]:
         if joint["coulomb"] or joint["armature"]:
-            raise ArmError(f"{name}: joint {joint['name']} has Coulomb friction or armature, which the "
-                           "peers' models do not have and the agreement check does not take out")
+            raise ArmError(
+                f"{name}: joint {joint['name']} has Coulomb friction or armature, which the "
+                "peers' models do not have and the agreement check does not take out"
+            )
     locked = list(node.get("locked_joints", []))
     model_urdf = work / f"{name}.urdf"
     model_urdf.write_text(with_fixed_joints(urdf.read_text(), locked))
-    return Arm(name, urdf, tip, out, module, int(module.nq), locked,
-               [float(j["viscous"]) for j in node["joints"]], model_urdf)
+    return Arm(
+        name, urdf, tip, out, module, int(module.nq), locked, [float(j["viscous"]) for j in node["joints"]], model_urdf
+    )
 
 
 def load_module(name: str, out: Path):

@@ -13,6 +13,7 @@ output matrix is generated transposed, so that CasADi's column-major storage is 
 layout robotgen writes, and dense (a structural zero written as 0). OUT.json lists each
 function: name, what it computes, its work sizes.
 """
+
 from __future__ import annotations
 
 import json
@@ -41,17 +42,37 @@ def functions(urdf: str) -> list[tuple[str, str, cs.Function]]:
         ("inverse_dynamics", "rnea", cs.Function("ckd_rnea", [q, v, u], [tau])),
         ("forward_dynamics", "aba", cs.Function("ckd_aba", [q, v, u], [ddq_aba])),
         ("forward_dynamics", "crba_ldl", cs.Function("ckd_crba_ldl_fd", [q, v, u], [ddq_ldl])),
-        ("mass_inverse", "aba_jacobian", cs.Function("ckd_aba_jacobian_minv", [q], [
-            cs.substitute(cs.jacobian(ddq_aba, u), cs.vertcat(v, u), cs.SX.zeros(2 * n)).T])),
+        (
+            "mass_inverse",
+            "aba_jacobian",
+            cs.Function(
+                "ckd_aba_jacobian_minv",
+                [q],
+                [cs.substitute(cs.jacobian(ddq_aba, u), cs.vertcat(v, u), cs.SX.zeros(2 * n)).T],
+            ),
+        ),
         ("mass_inverse", "crba_ldl", cs.Function("ckd_crba_ldl_minv", [q], [minv_ldl.T])),
-        ("inverse_dynamics_derivatives", "rnea_jacobian", cs.Function(
-            "ckd_rnea_jacobian", [q, v, u], [cs.jacobian(tau, q).T, cs.jacobian(tau, v).T])),
-        ("forward_dynamics_derivatives", "aba_jacobian", cs.Function(
-            "ckd_aba_jacobian", [q, v, u],
-            [cs.jacobian(ddq_aba, q).T, cs.jacobian(ddq_aba, v).T, cs.jacobian(ddq_aba, u).T])),
-        ("forward_dynamics_derivatives", "crba_ldl_jacobian", cs.Function(
-            "ckd_crba_ldl_jacobian", [q, v, u],
-            [cs.jacobian(ddq_ldl, q).T, cs.jacobian(ddq_ldl, v).T, minv_ldl.T])),
+        (
+            "inverse_dynamics_derivatives",
+            "rnea_jacobian",
+            cs.Function("ckd_rnea_jacobian", [q, v, u], [cs.jacobian(tau, q).T, cs.jacobian(tau, v).T]),
+        ),
+        (
+            "forward_dynamics_derivatives",
+            "aba_jacobian",
+            cs.Function(
+                "ckd_aba_jacobian",
+                [q, v, u],
+                [cs.jacobian(ddq_aba, q).T, cs.jacobian(ddq_aba, v).T, cs.jacobian(ddq_aba, u).T],
+            ),
+        ),
+        (
+            "forward_dynamics_derivatives",
+            "crba_ldl_jacobian",
+            cs.Function(
+                "ckd_crba_ldl_jacobian", [q, v, u], [cs.jacobian(ddq_ldl, q).T, cs.jacobian(ddq_ldl, v).T, minv_ldl.T]
+            ),
+        ),
     ]
     return out
 
@@ -59,17 +80,29 @@ def functions(urdf: str) -> list[tuple[str, str, cs.Function]]:
 def main(argv: list[str]) -> int:
     urdf, c_file, json_file = argv
     generated = functions(open(urdf).read())
-    gen = cs.CodeGenerator(c_file.rsplit("/", 1)[-1], {"with_header": False, "casadi_real": "double",
-                                                        "casadi_int": "long long int"})
+    gen = cs.CodeGenerator(
+        c_file.rsplit("/", 1)[-1], {"with_header": False, "casadi_real": "double", "casadi_int": "long long int"}
+    )
     listing = []
     for kernel, variant, f in generated:
         ins = f.sx_in()
         f = cs.Function(f.name(), ins, [cs.densify(y) for y in f.call(ins)])
         gen.add(f)
-        listing.append({"kernel": kernel, "variant": variant, "function": f.name(), "n_in": f.n_in(),
-                        "n_out": f.n_out(), "sz_arg": f.sz_arg(), "sz_res": f.sz_res(), "sz_iw": f.sz_iw(),
-                        "sz_w": f.sz_w(), "out_sizes": [f.numel_out(i) for i in range(f.n_out())],
-                        "operations": f.n_nodes()})
+        listing.append(
+            {
+                "kernel": kernel,
+                "variant": variant,
+                "function": f.name(),
+                "n_in": f.n_in(),
+                "n_out": f.n_out(),
+                "sz_arg": f.sz_arg(),
+                "sz_res": f.sz_res(),
+                "sz_iw": f.sz_iw(),
+                "sz_w": f.sz_w(),
+                "out_sizes": [f.numel_out(i) for i in range(f.n_out())],
+                "operations": f.n_nodes(),
+            }
+        )
     gen.generate(c_file.rsplit("/", 1)[0] + "/" if "/" in c_file else "./")
     with open(json_file, "w") as fh:
         json.dump({"casadi": cs.__version__, "functions": listing}, fh, indent=1)

@@ -4,6 +4,7 @@ robotgen's, so `make bench` installs it into a virtual environment of its own,
 bench/out/casadi-kin-dyn/ (or the Python named by $CASADI_KIN_DYN_PYTHON), and
 casadi_kin_dyn_codegen.py runs there; what comes back is C and a listing of its functions.
 """
+
 from __future__ import annotations
 
 import hashlib
@@ -17,16 +18,25 @@ from .pinocchio_cg import CACHE, PeerFunction, PeerUnavailable
 HERE = Path(__file__).resolve().parent
 VENV = HERE.parent / "out" / "casadi-kin-dyn"
 # what each generated function's outputs hold (harness.reference's keys): matrices row-major and whole
-LAYOUTS = {"crba": "mass", "rnea": "tau", "aba": "ddq", "crba_ldl": "ddq", "rnea_jacobian": "dtau_dq_dv",
-           "aba_jacobian": "dddq", "crba_ldl_jacobian": "dddq"}
+LAYOUTS = {
+    "crba": "mass",
+    "rnea": "tau",
+    "aba": "ddq",
+    "crba_ldl": "ddq",
+    "rnea_jacobian": "dtau_dq_dv",
+    "aba_jacobian": "dddq",
+    "crba_ldl_jacobian": "dddq",
+}
 MASS_INVERSE_LAYOUT = "mass_inverse"
 
 
 def python() -> Path:
     path = Path(os.environ.get("CASADI_KIN_DYN_PYTHON", VENV / "bin" / "python"))
     if not path.exists():
-        raise PeerUnavailable(f"no casadi_kin_dyn environment at {path} (`make bench` makes it: python -m venv "
-                              f"{VENV} && {VENV}/bin/python -m pip install cmeel-casadi-kin-dyn==1.6.14)")
+        raise PeerUnavailable(
+            f"no casadi_kin_dyn environment at {path} (`make bench` makes it: python -m venv "
+            f"{VENV} && {VENV}/bin/python -m pip install cmeel-casadi-kin-dyn==1.6.14)"
+        )
     return path
 
 
@@ -58,17 +68,34 @@ def functions(arm_name: str, model_urdf: Path) -> tuple[list[PeerFunction], dict
     c_file, listing = out / "casadi_kin_dyn_peer.c", out / "functions.json"
     if not listing.exists():
         out.mkdir(parents=True, exist_ok=True)
-        res = subprocess.run([str(py), "-I", str(script), str(model_urdf), str(c_file), str(listing) + ".tmp"],
-                             capture_output=True, text=True, env=environment(py))
+        res = subprocess.run(
+            [str(py), "-I", str(script), str(model_urdf), str(c_file), str(listing) + ".tmp"],
+            capture_output=True,
+            text=True,
+            env=environment(py),
+        )
         if res.returncode != 0:
-            raise PeerUnavailable(f"{script.name} {model_urdf} failed (exit {res.returncode}): "
-                                  f"{res.stderr.strip()[-2000:]}")
+            raise PeerUnavailable(
+                f"{script.name} {model_urdf} failed (exit {res.returncode}): {res.stderr.strip()[-2000:]}"
+            )
         Path(str(listing) + ".tmp").replace(listing)
     made = json.loads(listing.read_text())
     found = []
     for f in made["functions"]:
         layout = MASS_INVERSE_LAYOUT if f["kernel"] == "mass_inverse" else LAYOUTS[f["variant"]]
-        found.append(PeerFunction(f["kernel"], "casadi_kin_dyn", f["variant"], f["function"], c_file, "casadi",
-                                  layout, sum(f["out_sizes"]), inputs=f["n_in"], out_sizes=tuple(f["out_sizes"]),
-                                  work=(f["sz_arg"], f["sz_res"], f["sz_iw"], f["sz_w"])))
+        found.append(
+            PeerFunction(
+                f["kernel"],
+                "casadi_kin_dyn",
+                f["variant"],
+                f["function"],
+                c_file,
+                "casadi",
+                layout,
+                sum(f["out_sizes"]),
+                inputs=f["n_in"],
+                out_sizes=tuple(f["out_sizes"]),
+                work=(f["sz_arg"], f["sz_res"], f["sz_iw"], f["sz_w"]),
+            )
+        )
     return found, {"casadi_kin_dyn": release, "casadi": made["casadi"], "python": str(py)}

@@ -2,6 +2,7 @@
 (peer_harness.c and a table calls.c written here), compiled with the kernels' flags; the
 agreement check on its 256 states; interleaved timing rounds.
 """
+
 from __future__ import annotations
 
 import hashlib
@@ -20,11 +21,22 @@ HERE = Path(__file__).resolve().parent
 CFLAGS = ["-std=c99", "-O2", "-ffp-contract=off"]  # robotgen's kernels' flags (the extension's build)
 NSETS = 256
 CHECK_TOL = 1e-9
-KERNELS = ["mass", "inverse_dynamics", "forward_dynamics", "mass_inverse", "inverse_dynamics_derivatives",
-           "forward_dynamics_derivatives"]
-ROBOTGEN_OUTPUTS = {"mass": (1, [1]), "inverse_dynamics": (3, [0]), "forward_dynamics": (3, [0]),
-                    "mass_inverse": (1, [1]), "inverse_dynamics_derivatives": (3, [1, 1]),
-                    "forward_dynamics_derivatives": (3, [1, 1, 1])}  # inputs; outputs (1: n x n, 0: n)
+KERNELS = [
+    "mass",
+    "inverse_dynamics",
+    "forward_dynamics",
+    "mass_inverse",
+    "inverse_dynamics_derivatives",
+    "forward_dynamics_derivatives",
+]
+ROBOTGEN_OUTPUTS = {
+    "mass": (1, [1]),
+    "inverse_dynamics": (3, [0]),
+    "forward_dynamics": (3, [0]),
+    "mass_inverse": (1, [1]),
+    "inverse_dynamics_derivatives": (3, [1, 1]),
+    "forward_dynamics_derivatives": (3, [1, 1, 1]),
+}  # inputs; outputs (1: n x n, 0: n)
 
 
 class HarnessError(Exception):
@@ -33,6 +45,7 @@ class HarnessError(Exception):
 
 # --- what each function's outputs hold, from robotgen's module -------------------------------
 
+
 def reference(arm: Arm, x: np.ndarray) -> dict[str, np.ndarray]:
     """Every layout's values on the packed states X (NSETS x 3n), from robotgen's module.
     The peers' models have no joint damping D: their tau is robotgen's less D qd, their forward
@@ -40,7 +53,7 @@ def reference(arm: Arm, x: np.ndarray) -> dict[str, np.ndarray]:
     with d ddq / d qd = robotgen's + M^-1 D. Pinocchio's computeRNEADerivatives fills the upper
     triangle of dtau/da = M (its lower triangle zeros)."""
     m, n = arm.module, arm.nq
-    q, qd, u = x[:, :n], x[:, n:2 * n], x[:, 2 * n:]
+    q, qd, u = x[:, :n], x[:, n : 2 * n], x[:, 2 * n :]
     d = np.asarray(arm.damping)
     mass = m.mass(q)
     minv = m.mass_inverse(q)
@@ -51,11 +64,14 @@ def reference(arm: Arm, x: np.ndarray) -> dict[str, np.ndarray]:
     upper = np.triu_indices(n)
     flat = lambda *blocks: np.concatenate([b.reshape(len(x), -1) for b in blocks], axis=1)  # noqa: E731
     return {
-        "mass": flat(mass), "mass_upper": mass[:, upper[0], upper[1]],
-        "mass_inverse": flat(minv), "mass_inverse_upper": minv[:, upper[0], upper[1]],
+        "mass": flat(mass),
+        "mass_upper": mass[:, upper[0], upper[1]],
+        "mass_inverse": flat(minv),
+        "mass_inverse_upper": minv[:, upper[0], upper[1]],
         "tau": m.inverse_dynamics(q, qd, u) - d * qd,
         "ddq": m.forward_dynamics(q, qd, u + d * qd),
-        "dtau_dq_dv": flat(dtau_dq, dtau_dv), "dtau_dq_dv_da": flat(dtau_dq, dtau_dv, np.triu(mass)),
+        "dtau_dq_dv": flat(dtau_dq, dtau_dv),
+        "dtau_dq_dv_da": flat(dtau_dq, dtau_dv, np.triu(mass)),
         "rnea_jacobian": flat(np.concatenate([dtau_dq, dtau_dv, mass], axis=2)),
         "dddq": flat(ddq_dq, ddq_dv, ddq_du),
         "aba_jacobian": flat(np.concatenate([ddq_dq, ddq_dv, ddq_du], axis=2)),
@@ -66,7 +82,7 @@ def robotgen_outputs(arm: Arm, kernel: str, x: np.ndarray) -> np.ndarray:
     """robotgen's kernel on the packed states, as its C writes them (damping included)."""
     n = arm.nq
     k = ROBOTGEN_OUTPUTS[kernel][0]
-    res = getattr(arm.module, kernel)(*[x[:, i * n:(i + 1) * n] for i in range(k)])
+    res = getattr(arm.module, kernel)(*[x[:, i * n : (i + 1) * n] for i in range(k)])
     res = res if isinstance(res, tuple) else (res,)
     return np.concatenate([np.reshape(r, (len(x), -1)) for r in res], axis=1)
 
@@ -77,6 +93,7 @@ def relative_difference(a: np.ndarray, b: np.ndarray) -> float:
 
 
 # --- calls.c ---------------------------------------------------------------------------------
+
 
 def _robotgen_call(arm: Arm, kernel: str) -> tuple[str, int]:
     n = arm.nq
@@ -92,11 +109,14 @@ def _robotgen_call(arm: Arm, kernel: str) -> tuple[str, int]:
 
 def _peer_call(f: PeerFunction, n: int) -> str:
     if f.convention == "cppadcg":
-        return (f"const double *in[1] = {{x}};\n    double *o[1] = {{out}};\n"
-                f"    {f.symbol}(in, o, rg_no_atomics);")
+        return f"const double *in[1] = {{x}};\n    double *o[1] = {{out}};\n    {f.symbol}(in, o, rg_no_atomics);"
     sz_arg, sz_res, sz_iw, sz_w = f.work
-    lines = [f"static const double *arg[{max(sz_arg, 1)}];", f"static double *res[{max(sz_res, 1)}];",
-             f"static long long int iw[{max(sz_iw, 1)}];", f"static double w[{max(sz_w, 1)}];"]
+    lines = [
+        f"static const double *arg[{max(sz_arg, 1)}];",
+        f"static double *res[{max(sz_res, 1)}];",
+        f"static long long int iw[{max(sz_iw, 1)}];",
+        f"static double w[{max(sz_w, 1)}];",
+    ]
     lines += [f"arg[{i}] = x + {i * n};" for i in range(f.inputs)]
     offset = 0
     for i, size in enumerate(f.out_sizes):
@@ -109,22 +129,28 @@ def _peer_call(f: PeerFunction, n: int) -> str:
 def calls_source(arm: Arm, peers: list[PeerFunction]) -> tuple[str, list[dict]]:
     """calls.c for ARM: robotgen's kernels first, then every peer function; and the table's rows."""
     n = arm.nq
-    head = [f'/* written by bench/peers/harness.py for {arm.name}: robotgen and its peers, called alike */',
-            "#include <stddef.h>", '#include "peer_harness.h"', f'#include "{arm.name}.h"', "",
-            "/* CppADCodeGen's calling convention (its generated sources declare the same) */",
-            "typedef struct Array { void *data; unsigned long size; int sparse; const unsigned long *idx;"
-            " unsigned long nnz; } Array;",
-            "struct LangCAtomicFun { void *libModel;",
-            "    int (*forward)(void *libModel, int atomicIndex, int q, int p, const Array tx[], Array *ty);",
-            "    int (*reverse)(void *libModel, int atomicIndex, int p, const Array tx[], Array *px,"
-            " const Array py[]); };",
-            "static const struct LangCAtomicFun rg_no_atomics = {NULL, NULL, NULL};", ""]
+    head = [
+        f"/* written by bench/peers/harness.py for {arm.name}: robotgen and its peers, called alike */",
+        "#include <stddef.h>",
+        '#include "peer_harness.h"',
+        f'#include "{arm.name}.h"',
+        "",
+        "/* CppADCodeGen's calling convention (its generated sources declare the same) */",
+        "typedef struct Array { void *data; unsigned long size; int sparse; const unsigned long *idx;"
+        " unsigned long nnz; } Array;",
+        "struct LangCAtomicFun { void *libModel;",
+        "    int (*forward)(void *libModel, int atomicIndex, int q, int p, const Array tx[], Array *ty);",
+        "    int (*reverse)(void *libModel, int atomicIndex, int p, const Array tx[], Array *px, const Array py[]); };",
+        "static const struct LangCAtomicFun rg_no_atomics = {NULL, NULL, NULL};",
+        "",
+    ]
     declared = set()
     bodies, rows = [], []
     for kernel in KERNELS:
         body, outputs = _robotgen_call(arm, kernel)
-        rows.append({"kernel": kernel, "who": "robotgen", "variant": kernel, "outputs": outputs,
-                     "layout": f"robotgen:{kernel}"})
+        rows.append(
+            {"kernel": kernel, "who": "robotgen", "variant": kernel, "outputs": outputs, "layout": f"robotgen:{kernel}"}
+        )
         bodies.append((f"rg_{kernel}", body))
     for i, f in enumerate(peers):
         if f.symbol not in declared:
@@ -133,8 +159,7 @@ def calls_source(arm: Arm, peers: list[PeerFunction]) -> tuple[str, list[dict]]:
                 head.append(f"void {f.symbol}(double const *const *in, double *const *out, struct LangCAtomicFun a);")
             else:
                 head.append(f"int {f.symbol}(const double **arg, double **res, long long int *iw, double *w, int mem);")
-        rows.append({"kernel": f.kernel, "who": f.who, "variant": f.variant, "outputs": f.outputs,
-                     "layout": f.layout})
+        rows.append({"kernel": f.kernel, "who": f.who, "variant": f.variant, "outputs": f.outputs, "layout": f.layout})
         bodies.append((f"peer_{i}", _peer_call(f, n)))
     text = head + [""]
     for name, body in bodies:
@@ -147,6 +172,7 @@ def calls_source(arm: Arm, peers: list[PeerFunction]) -> tuple[str, list[dict]]:
 
 
 # --- compiling -------------------------------------------------------------------------------
+
 
 def compiler() -> tuple[str, str]:
     cc = os.environ.get("CC", "cc")
@@ -182,8 +208,10 @@ def build(arm: Arm, peers: list[PeerFunction], work: Path, flags: list[str] = CF
     calls = work / "calls.c"
     calls.write_text(text)
     shutil.copy2(HERE / "peer_harness.h", work / "peer_harness.h")
-    objects = [compile_object(HERE / "peer_harness.c", [*flags, f"-DRG_NQ={arm.nq}"], [work]),
-               compile_object(calls, flags, [work, arm.out])]
+    objects = [
+        compile_object(HERE / "peer_harness.c", [*flags, f"-DRG_NQ={arm.nq}"], [work]),
+        compile_object(calls, flags, [work, arm.out]),
+    ]
     objects += [compile_object(src, flags, [arm.out]) for src in kernel_sources(arm.out)]
     objects += [compile_object(src, flags, []) for src in sorted({f.source for f in peers})]
     exe = work / "peer_harness"
@@ -202,12 +230,12 @@ def check(arm: Arm, exe: Path, rows: list[dict]) -> list[float]:
         raise HarnessError(f"{exe} dump failed: {res.stderr.strip()}")
     data = np.fromfile(dump, dtype=np.float64)
     n = arm.nq
-    x = data[:NSETS * 3 * n].reshape(NSETS, 3 * n)
+    x = data[: NSETS * 3 * n].reshape(NSETS, 3 * n)
     at = NSETS * 3 * n
     ref = reference(arm, x)
     differences = []
     for row in rows:
-        got = data[at:at + NSETS * row["outputs"]].reshape(NSETS, row["outputs"])
+        got = data[at : at + NSETS * row["outputs"]].reshape(NSETS, row["outputs"])
         at += NSETS * row["outputs"]
         layout = row["layout"]
         want = robotgen_outputs(arm, row["kernel"], x) if layout.startswith("robotgen:") else ref[layout]

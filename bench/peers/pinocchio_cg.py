@@ -6,6 +6,7 @@ The packages: the pin wheel (Pinocchio's headers and its URDF parser), cmeel-cpp
 cmeel-cppadcodegen (CppAD and CppADCodeGen, headers), cmeel-eigen and cmeel-urdfdom-headers.
 `make bench` installs them; without them this peer says why and the bench goes on.
 """
+
 from __future__ import annotations
 
 import hashlib
@@ -30,6 +31,7 @@ class PeerFunction:
     from SOURCE, in the convention CONVENTION ("cppadcg": f(in, out, atomics) with in[0] the
     packed state; "casadi": f(arg, res, iw, w, mem)), its outputs laid out as LAYOUT (a key of
     harness.reference's values)."""
+
     kernel: str
     who: str
     variant: str
@@ -78,8 +80,10 @@ class Generator:
         self.versions = _versions()
         include = Path(toolchain["prefix"]) / "include"
         if not (include / "cppad" / "cg.hpp").is_file() or not (include / "cppad" / "cppad.hpp").is_file():
-            raise PeerUnavailable(f"CppAD / CppADCodeGen headers not found in {include} "
-                                  "(pip install cmeel-cppad cmeel-cppadcodegen==2.4.3)")
+            raise PeerUnavailable(
+                f"CppAD / CppADCodeGen headers not found in {include} "
+                "(pip install cmeel-cppad cmeel-cppadcodegen==2.4.3)"
+            )
         cxx = os.environ.get("CXX", "g++")
         try:
             version = subprocess.run([cxx, "--version"], capture_output=True, text=True).stdout.splitlines()[0]
@@ -87,8 +91,9 @@ class Generator:
             raise PeerUnavailable(f"C++ compiler {cxx!r} cannot be run: {e}") from None
         src = HERE / "pinocchio_codegen.cpp"
         tail = [*toolchain["defines"], *toolchain["includes"], str(src), *toolchain["libs"]]
-        self.key = hashlib.sha256("\0".join([src.read_text(), version, repr(sorted(self.versions.items())),
-                                             *GENERATOR_FLAGS, *tail]).encode()).hexdigest()[:16]
+        self.key = hashlib.sha256(
+            "\0".join([src.read_text(), version, repr(sorted(self.versions.items())), *GENERATOR_FLAGS, *tail]).encode()
+        ).hexdigest()[:16]
         CACHE.mkdir(parents=True, exist_ok=True)
         self.exe = CACHE / f"pinocchio_codegen-{self.key}"
         self.command = [cxx, *GENERATOR_FLAGS, *tail, "-o", str(self.exe)]
@@ -96,8 +101,9 @@ class Generator:
         self._proc = None
         if not self.cached:
             self._tmp = self.exe.with_name(self.exe.name + ".tmp")
-            self._proc = subprocess.Popen([*self.command[:-1], str(self._tmp)], stdout=subprocess.PIPE,
-                                          stderr=subprocess.STDOUT, text=True)
+            self._proc = subprocess.Popen(
+                [*self.command[:-1], str(self._tmp)], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True
+            )
 
     def wait(self) -> Path:
         if self._proc is not None:
@@ -121,17 +127,34 @@ class Generator:
             out.mkdir(parents=True, exist_ok=True)
             res = subprocess.run([str(exe), str(model_urdf), str(out)], capture_output=True, text=True)
             if res.returncode != 0:
-                raise PeerUnavailable(f"{exe.name} {model_urdf} failed (exit {res.returncode}): "
-                                      f"{res.stderr.strip()[-2000:]}")
+                raise PeerUnavailable(
+                    f"{exe.name} {model_urdf} failed (exit {res.returncode}): {res.stderr.strip()[-2000:]}"
+                )
             (out / "done").write_text(res.stdout)
         return [function(kernel, variant, kind, layout, out, nq) for kernel, variant, kind, layout in VARIANTS]
 
 
 def function(kernel: str, variant: str, kind: str, layout: str, out: Path, n: int) -> PeerFunction:
     symbol = f"pcg_{variant}_{kind}"
-    outputs = {"mass_upper": n * (n + 1) // 2, "mass_inverse_upper": n * (n + 1) // 2, "tau": n, "ddq": n,
-               "dtau_dq_dv_da": 3 * n * n, "dtau_dq_dv": 2 * n * n, "dddq": 3 * n * n, "rnea_jacobian": 3 * n * n,
-               "aba_jacobian": 3 * n * n}[layout]
-    return PeerFunction(kernel, "pinocchio_cg", variant if kind == "forward_zero" else f"{variant}_ad_jacobian",
-                        symbol, out / variant / f"{symbol}.c", "cppadcg", layout, outputs,
-                        inputs=1 if kernel in ("mass", "mass_inverse") else 3)
+    outputs = {
+        "mass_upper": n * (n + 1) // 2,
+        "mass_inverse_upper": n * (n + 1) // 2,
+        "tau": n,
+        "ddq": n,
+        "dtau_dq_dv_da": 3 * n * n,
+        "dtau_dq_dv": 2 * n * n,
+        "dddq": 3 * n * n,
+        "rnea_jacobian": 3 * n * n,
+        "aba_jacobian": 3 * n * n,
+    }[layout]
+    return PeerFunction(
+        kernel,
+        "pinocchio_cg",
+        variant if kind == "forward_zero" else f"{variant}_ad_jacobian",
+        symbol,
+        out / variant / f"{symbol}.c",
+        "cppadcg",
+        layout,
+        outputs,
+        inputs=1 if kernel in ("mass", "mass_inverse") else 3,
+    )

@@ -26,6 +26,7 @@ C_theta from the compiled leaves (`left_mass` ...), which Appendix A holds to th
 forms. Modules are built from copies of specs/styx_*.yaml, renamed and with the box's mass
 set, in a temporary directory.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -52,9 +53,11 @@ from robotgen.simulation import tree as simulate  # noqa: E402
 SPECS = ROOT / "specs"
 DEFAULT_OUTPUT = Path("generated/papers/deno_1990")
 # the figure, its spec and what the paper calls the structure
-STRUCTURES = {"4.1": ("styx_high_ct", "high-level computed torque"),
-              "4.2": ("styx_low_ct", "low-level computed torque"),
-              "4.3": ("styx_multilevel", "multi-level computed torque / stiffness")}
+STRUCTURES = {
+    "4.1": ("styx_high_ct", "high-level computed torque"),
+    "4.2": ("styx_low_ct", "low-level computed torque"),
+    "4.3": ("styx_multilevel", "multi-level computed torque / stiffness"),
+}
 BLOCK = (0.1, 0.06)  # the box is a 10 cm x 6 cm block: J_b = m_b (a^2 + c^2) / 12, as in the specs
 SWEEP_MASSES = {False: (0.0, 0.05, 0.1, 0.2, 0.5, 1.0, 2.0, 5.0), True: (0.0, 0.2, 2.0)}  # [kg]
 QUICK_DURATION = 1.5  # [s] of every run in quick mode (the specs' own: 3 s)
@@ -69,6 +72,7 @@ def block_inertia(mass: float) -> float:
 
 # ---- the hand in closed form: StyxDefinitions.m ----------------------------------------------
 
+
 @dataclass(frozen=True)
 class Finger:
     """A finger of StyxDefinitions.m: two links l1, l2, point masses m1, m2 at the link tips,
@@ -81,23 +85,32 @@ class Finger:
     l2: float
 
     def tip(self, th) -> np.ndarray:  # TwoLinkKinematics
-        return np.array([self.base + self.l1 * np.cos(th[0]) + self.l2 * np.cos(th[1]),
-                         self.l1 * np.sin(th[0]) + self.l2 * np.sin(th[1])])
+        return np.array(
+            [
+                self.base + self.l1 * np.cos(th[0]) + self.l2 * np.cos(th[1]),
+                self.l1 * np.sin(th[0]) + self.l2 * np.sin(th[1]),
+            ]
+        )
 
     def jacobian(self, th) -> np.ndarray:
-        return np.array([[-self.l1 * np.sin(th[0]), -self.l2 * np.sin(th[1])],
-                         [self.l1 * np.cos(th[0]), self.l2 * np.cos(th[1])]])
+        return np.array(
+            [[-self.l1 * np.sin(th[0]), -self.l2 * np.sin(th[1])], [self.l1 * np.cos(th[0]), self.l2 * np.cos(th[1])]]
+        )
 
     def jacobian_dot(self, th, thd) -> np.ndarray:
-        return np.array([[-self.l1 * np.cos(th[0]) * thd[0], -self.l2 * np.cos(th[1]) * thd[1]],
-                         [-self.l1 * np.sin(th[0]) * thd[0], -self.l2 * np.sin(th[1]) * thd[1]]])
+        return np.array(
+            [
+                [-self.l1 * np.cos(th[0]) * thd[0], -self.l2 * np.cos(th[1]) * thd[1]],
+                [-self.l1 * np.sin(th[0]) * thd[0], -self.l2 * np.sin(th[1]) * thd[1]],
+            ]
+        )
 
     def two_link_mass(self, th) -> np.ndarray:
         """TwoLinkMass as StyxDefinitions.m and eq 3.1 print it: M11 = m1 l1^2 + m2 l2^2. The
         point masses' kinetic energy gives M11 = (m1 + m2) l1^2 (the specs' form); the two are
         one number when l1 = l2, as on both fingers here."""
         c = self.m2 * self.l1 * self.l2 * np.cos(th[0] - th[1])
-        return np.array([[self.m1 * self.l1 ** 2 + self.m2 * self.l2 ** 2, c], [c, self.m2 * self.l2 ** 2]])
+        return np.array([[self.m1 * self.l1**2 + self.m2 * self.l2**2, c], [c, self.m2 * self.l2**2]])
 
     def coriolis(self, th, thd) -> np.ndarray:
         """Coriolis[Mleft, ...] of RobotDynamics.m: Christoffel symbols of TwoLinkMass. Only
@@ -193,8 +206,8 @@ class StyxHand:
 
 def _blockdiag(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     out = np.zeros((a.shape[0] + b.shape[0], a.shape[1] + b.shape[1]))
-    out[:a.shape[0], :a.shape[1]] = a
-    out[a.shape[0]:, a.shape[1]:] = b
+    out[: a.shape[0], : a.shape[1]] = a
+    out[a.shape[0] :, a.shape[1] :] = b
     return out
 
 
@@ -206,6 +219,7 @@ def _rel(a, b) -> float:
 
 
 # ---- modules --------------------------------------------------------------------------------
+
 
 class Builds:
     """Every (spec, box mass) compiled once into ``root``: a copy of the spec with the box's
@@ -228,8 +242,10 @@ class Builds:
             data = self.spec_data(spec)
             name = f"deno1990_{spec.removeprefix('styx_')}_{next(_SERIAL)}"
             data["name"] = name
-            data["nodes"]["box"]["define"]["rigid_body"]["planar"] = {"mass": float(box_mass),
-                                                                      "inertia": block_inertia(box_mass)}
+            data["nodes"]["box"]["define"]["rigid_body"]["planar"] = {
+                "mass": float(box_mass),
+                "inertia": block_inertia(box_mass),
+            }
             path = self.root / f"{name}.yaml"
             with open(path, "w") as f:
                 self.yaml.dump(data, f)
@@ -243,6 +259,7 @@ class Builds:
 
 
 # ---- §4.1: the expanded high-level computed torque law -----------------------------------------
+
 
 def random_grasp(module, hand: StyxHand, rng, start: np.ndarray):
     """A grasping posture near ``start`` (by the module's inverse kinematics), a box velocity,
@@ -258,8 +275,10 @@ def random_grasp(module, hand: StyxHand, rng, start: np.ndarray):
 
 def leaf_attributes(module, theta, theta_dot):
     """M_theta and C_theta: the compiled leaves' own M and C, block diagonal."""
-    return (_blockdiag(module.left_mass(theta), module.right_mass(theta)),
-            _blockdiag(module.left_coriolis(theta, theta_dot), module.right_coriolis(theta, theta_dot)))
+    return (
+        _blockdiag(module.left_mass(theta), module.right_mass(theta)),
+        _blockdiag(module.left_coriolis(theta, theta_dot), module.right_coriolis(theta, theta_dot)),
+    )
 
 
 def high_level_torque(hand: StyxHand, M_theta, C_theta, theta, xd_b, x_d, v_d, a_d, kp, kv) -> np.ndarray:
@@ -300,6 +319,7 @@ def check_high_level_law(high, hand: StyxHand, rng, start, kp, kv) -> dict[str, 
 
 # ---- §4.3: multi-level against high-level computed torque ------------------------------------
 
+
 def check_multilevel(high, multi, hand: StyxHand, rng, start, kp, kv) -> dict[str, float]:
     """At states where every expected trajectory is the current state (servo_init: the
     fingers are on the trajectory the feedforward resolves, so the PD terms vanish), the two
@@ -309,8 +329,9 @@ def check_multilevel(high, multi, hand: StyxHand, rng, start, kp, kv) -> dict[st
     with the closed form H (M_f xdd_f + C_f xd_f) (the feedforward on the fingertips: M_f =
     J^-T M_theta J^-1, C_f = J^-T (C_theta J^-1 + M_theta d/dt J^-1), eqs 3.4-3.5 of the
     frame change; xd_f = G^T xd_b, xdd_f = G^T xdd_e + G'^T xd_b)."""
-    w = dict.fromkeys(("pd", "wrench", "error_wrench", "squeeze", "high_squeeze", "accel", "carried_high",
-                       "carried_multi"), 0.0)
+    w = dict.fromkeys(
+        ("pd", "wrench", "error_wrench", "squeeze", "high_squeeze", "accel", "carried_high", "carried_multi"), 0.0
+    )
     torque_gap, error_gap = [], []
     # the finger PD gains doubled: the torques move only by what the PD terms add
     doubled_pd = {k: 2 * np.asarray(v) for k, v in multi.parameters.items() if k.startswith("pd_")}
@@ -343,20 +364,28 @@ def check_multilevel(high, multi, hand: StyxHand, rng, start, kp, kv) -> dict[st
         # the true plant: both give the box one acceleration, and the grasp carries the squeeze
         # the high-level torques leave to it, -H (M_f xdd_f + C_f xd_f), and none of the others
         v = high.plant_velocity(theta, theta_dot)
-        w["accel"] = max(w["accel"], _rel(high.plant_dynamics(theta, v, tau_m)[1],
-                                          high.plant_dynamics(theta, v, tau_h)[1]))
+        w["accel"] = max(
+            w["accel"], _rel(high.plant_dynamics(theta, v, tau_m)[1], high.plant_dynamics(theta, v, tau_h)[1])
+        )
         w["carried_high"] = max(w["carried_high"], _rel(high.plant_internal_forces(theta, v, tau_h), -squeeze))
         carried = high.plant_internal_forces(theta, v, tau_m)
         w["carried_multi"] = max(w["carried_multi"], float(np.abs(carried).max() / np.abs(squeeze).max()))
-    return {"s43_pd_terms_rel": w["pd"], "s43_box_wrench_rel": w["wrench"],
-            "s43_error_box_wrench_rel": w["error_wrench"], "s43_squeeze_rel": w["squeeze"],
-            "s43_high_level_squeeze": w["high_squeeze"], "s43_box_acceleration_rel": w["accel"],
-            "s43_high_carried_squeeze_rel": w["carried_high"], "s43_multi_carried_squeeze": w["carried_multi"],
-            "s43_joint_torque_gap_median": float(np.median(torque_gap)),
-            "s43_error_torque_gap_median": float(np.median(error_gap))}
+    return {
+        "s43_pd_terms_rel": w["pd"],
+        "s43_box_wrench_rel": w["wrench"],
+        "s43_error_box_wrench_rel": w["error_wrench"],
+        "s43_squeeze_rel": w["squeeze"],
+        "s43_high_level_squeeze": w["high_squeeze"],
+        "s43_box_acceleration_rel": w["accel"],
+        "s43_high_carried_squeeze_rel": w["carried_high"],
+        "s43_multi_carried_squeeze": w["carried_multi"],
+        "s43_joint_torque_gap_median": float(np.median(torque_gap)),
+        "s43_error_torque_gap_median": float(np.median(error_gap)),
+    }
 
 
 # ---- Appendix A: Examples.m's sample computations ---------------------------------------------
+
 
 def appendix_a(high, low, multi, hand: StyxHand, start) -> tuple[dict[str, float], list[tuple]]:
     """RobotMass (and RobotCoriolis[fingers]) at the start pose, from the compiled node
@@ -370,25 +399,79 @@ def appendix_a(high, low, multi, hand: StyxHand, start) -> tuple[dict[str, float
     left = hand.left.two_link_mass(theta[:2])
     box = hand.Mb()
     entries = [  # key, Examples.m, the paper's words, robotgen's value, its name, the closed form and its name
-        ("left", "RobotMass[left]", "the finger's mass matrix", high.left_mass(theta), "left_mass",
-         left, "TwoLinkMass (eq 3.1)"),
-        ("hand", "RobotMass[hand]", "the composite mass in box coordinates", high.hand_mass(theta), "hand_mass",
-         box + G @ Ji.T @ M_theta @ Ji @ G.T, "M_b + G J^-T M_theta J^-1 G^T (eqs 2.3, 3.4)"),
-        ("high_ct_hand", "RobotMass[HighCThand]", '"this should be zero"', high.ct_hand_mass(theta),
-         "ct_hand_mass", np.zeros((3, 3)), "0"),
-        ("low_ct_hand", "RobotMass[LowCThand]", '"just the box mass"', low.hand_mass(theta),
-         "hand_mass (Fig 4.2 tree)", box, "diag(M_b, M_b, J_b)"),
-        ("fingers_coriolis", "RobotCoriolis[fingers, ...]", "evaluated at a point",
-         high.fingers_coriolis(theta, theta_dot), "fingers_coriolis",
-         Ji.T @ (C_theta @ Ji + M_theta @ (-Ji @ hand.Jdot(theta, theta_dot) @ Ji)),
-         "J^-T (C_theta J^-1 + M_theta d/dt J^-1) (eq 3.5)"),
+        (
+            "left",
+            "RobotMass[left]",
+            "the finger's mass matrix",
+            high.left_mass(theta),
+            "left_mass",
+            left,
+            "TwoLinkMass (eq 3.1)",
+        ),
+        (
+            "hand",
+            "RobotMass[hand]",
+            "the composite mass in box coordinates",
+            high.hand_mass(theta),
+            "hand_mass",
+            box + G @ Ji.T @ M_theta @ Ji @ G.T,
+            "M_b + G J^-T M_theta J^-1 G^T (eqs 2.3, 3.4)",
+        ),
+        (
+            "high_ct_hand",
+            "RobotMass[HighCThand]",
+            '"this should be zero"',
+            high.ct_hand_mass(theta),
+            "ct_hand_mass",
+            np.zeros((3, 3)),
+            "0",
+        ),
+        (
+            "low_ct_hand",
+            "RobotMass[LowCThand]",
+            '"just the box mass"',
+            low.hand_mass(theta),
+            "hand_mass (Fig 4.2 tree)",
+            box,
+            "diag(M_b, M_b, J_b)",
+        ),
+        (
+            "fingers_coriolis",
+            "RobotCoriolis[fingers, ...]",
+            "evaluated at a point",
+            high.fingers_coriolis(theta, theta_dot),
+            "fingers_coriolis",
+            Ji.T @ (C_theta @ Ji + M_theta @ (-Ji @ hand.Jdot(theta, theta_dot) @ Ji)),
+            "J^-T (C_theta J^-1 + M_theta d/dt J^-1) (eq 3.5)",
+        ),
         # the multi-level tree (Fig 4.3): the feedforward absorbs the fingers, PD passes them on
-        ("ff", "(Fig 4.3) RobotMass[ff]", "feedforward: no mass left", multi.ff_mass(theta), "ff_mass",
-         np.zeros((4, 4)), "0"),
-        ("multilevel_hand", "(Fig 4.3) RobotMass[hand]", "the box alone", multi.hand_mass(theta),
-         "hand_mass (Fig 4.3 tree)", box, "diag(M_b, M_b, J_b)"),
-        ("pd_left", "(Fig 4.3) RobotMass[pd_left]", "PD passes the finger on", multi.pd_left_mass(theta),
-         "pd_left_mass", left, "TwoLinkMass"),
+        (
+            "ff",
+            "(Fig 4.3) RobotMass[ff]",
+            "feedforward: no mass left",
+            multi.ff_mass(theta),
+            "ff_mass",
+            np.zeros((4, 4)),
+            "0",
+        ),
+        (
+            "multilevel_hand",
+            "(Fig 4.3) RobotMass[hand]",
+            "the box alone",
+            multi.hand_mass(theta),
+            "hand_mass (Fig 4.3 tree)",
+            box,
+            "diag(M_b, M_b, J_b)",
+        ),
+        (
+            "pd_left",
+            "(Fig 4.3) RobotMass[pd_left]",
+            "PD passes the finger on",
+            multi.pd_left_mass(theta),
+            "pd_left_mass",
+            left,
+            "TwoLinkMass",
+        ),
     ]
     numbers, rows = {}, []
     for key, example, says, got, name, closed, form in entries:
@@ -399,6 +482,7 @@ def appendix_a(high, low, multi, hand: StyxHand, start) -> tuple[dict[str, float
 
 
 # ---- simulations ------------------------------------------------------------------------------
+
 
 def settings_of(path: Path, quick: bool, **changes) -> simulate.Settings:
     """The spec's simulation section, without its squeeze: chapter 4 leaves the internal
@@ -447,8 +531,10 @@ def simulate_structures(builds: Builds, mass: float, quick: bool, out: Path) -> 
         numbers[f"{key}_max_torque"] = float(np.abs(res.tau).max())
         numbers[f"{key}_max_squeeze"] = float(np.abs(res.f_actual).max())
     # the PD gains as small as the law takes them (positive): 1e-9, their terms effectively off
-    no_pd = WithGains(builds(STRUCTURES["4.3"][0], mass)[0],
-                      **{f"pd_{side}_{k}": PD_OFF for side in ("left", "right") for k in ("kp", "kv")})
+    no_pd = WithGains(
+        builds(STRUCTURES["4.3"][0], mass)[0],
+        **{f"pd_{side}_{k}": PD_OFF for side in ("left", "right") for k in ("kp", "kv")},
+    )
     res = simulate.run(no_pd, s)
     numbers["fig43_max_squeeze_without_pd"] = float(np.abs(res.f_actual).max())
     return results, numbers
@@ -475,6 +561,7 @@ def sweep_box_mass(builds: Builds, masses, quick: bool) -> dict[str, float]:
 
 
 # ---- figures and report -----------------------------------------------------------------------
+
 
 def _pyplot():
     import matplotlib
@@ -514,8 +601,10 @@ def plot_sweep(numbers: dict[str, float], n: int, path: Path) -> None:
     masses = [numbers[f"sweep_mass_{i}"] for i in range(n)]
     fig, axes = plt.subplots(1, 2, figsize=(10, 4))
     for ax, what, unit in ((axes[0], "position", "m"), (axes[1], "angle", "rad")):
-        for key, label, marker in (("fig41", "Fig 4.1: high-level computed torque", "o"),
-                                   ("fig42", "Fig 4.2: low-level computed torque", "s")):
+        for key, label, marker in (
+            ("fig41", "Fig 4.1: high-level computed torque", "o"),
+            ("fig42", "Fig 4.2: low-level computed torque", "s"),
+        ):
             ax.semilogy(masses, [numbers[f"{key}_{what}_rms_{i}"] for i in range(n)], marker=marker, label=label)
         ax.set_xscale("symlog", linthresh=0.05)
         ax.set_xticks(masses, [f"{m:g}" for m in masses])
@@ -529,14 +618,22 @@ def plot_sweep(numbers: dict[str, float], n: int, path: Path) -> None:
     plt.close(fig)
 
 
-def write_report(path: Path, numbers: dict[str, float], rows: list[tuple], n_sweep: int, mass: float,
-                 quick: bool, duration: float, initial_error) -> None:
+def write_report(
+    path: Path,
+    numbers: dict[str, float],
+    rows: list[tuple],
+    n_sweep: int,
+    mass: float,
+    quick: bool,
+    duration: float,
+    initial_error,
+) -> None:
     g = numbers
     offset = ", ".join(f"{v:g}" for v in initial_error)
     lines = [
         "# Deno, Murray, Pister, Sastry 1990: control primitives, reproduced",
         "",
-        "\"Control Primitives for Robot Systems\" (UCB/ERL M90/39) builds a planar two-fingered hand",
+        '"Control Primitives for Robot Systems" (UCB/ERL M90/39) builds a planar two-fingered hand',
         "holding a box from DEFINE, ATTACH and CONTROL and puts it under three control structures",
         "(Figs 4.1-4.3). The paper gives the structures, the expanded high-level law (§4.1) and",
         "qualitative claims; Appendix A's Examples.m lists sample computations with the expected",
@@ -570,7 +667,7 @@ def write_report(path: Path, numbers: dict[str, float], rows: list[tuple], n_swe
         "",
         "## §4.2: low-level computed torque against box mass",
         "",
-        "\"This controller is provably exponentially stable when the mass of the box is zero. However,",
+        '"This controller is provably exponentially stable when the mass of the box is zero. However,',
         "this controller does not compensate for the mass of the box. As a result, we expect degraded",
         "performance if the mass of the box is large.\" Both structures fly the specs' box path",
         f"({duration:g} s, started on the path), the box's inertia that of a 10 cm x 6 cm block:",
@@ -580,9 +677,11 @@ def write_report(path: Path, numbers: dict[str, float], rows: list[tuple], n_swe
         "| --- | --- | --- | --- | --- |",
     ]
     for i in range(n_sweep):
-        lines.append(f"| {g[f'sweep_mass_{i}']:g} | {g[f'fig41_position_rms_{i}']:.2e} | "
-                     f"{g[f'fig42_position_rms_{i}']:.2e} | {g[f'fig41_angle_rms_{i}']:.2e} | "
-                     f"{g[f'fig42_angle_rms_{i}']:.2e} |")
+        lines.append(
+            f"| {g[f'sweep_mass_{i}']:g} | {g[f'fig41_position_rms_{i}']:.2e} | "
+            f"{g[f'fig42_position_rms_{i}']:.2e} | {g[f'fig41_angle_rms_{i}']:.2e} | "
+            f"{g[f'fig42_angle_rms_{i}']:.2e} |"
+        )
     lines += [
         "",
         "Fig 4.2's error grows with the box mass, about in proportion; Fig 4.1's, whose top",
@@ -593,9 +692,9 @@ def write_report(path: Path, numbers: dict[str, float], rows: list[tuple], n_swe
         "",
         "## §4.3: multi-level against high-level computed torque",
         "",
-        "\"If we ignore the additional torques due to the PD terms, the joint torques generated due",
+        '"If we ignore the additional torques due to the PD terms, the joint torques generated due',
         "to an error in the box position are the same as those of the high level computed torque",
-        f"scheme.\" At {STATES} random states on the resolved trajectory (every expected trajectory",
+        f'scheme." At {STATES} random states on the resolved trajectory (every expected trajectory',
         "at the current state, so the PD terms vanish):",
         "",
         "| quantity | largest relative difference |",
@@ -620,7 +719,7 @@ def write_report(path: Path, numbers: dict[str, float], rows: list[tuple], n_swe
         "left to the contacts: the grasp carries -H (M_f xdd_f + C_f xd_f) although the command",
         "was zero. The multi-level feedforward sends that force on the fingertips itself",
         "(J^T (M_f xdd_f + C_f xd_f + G^+ M_b xdd_e)), and the grasp carries no squeeze. Chapters",
-        "3-4 leave internal forces out (§3; §4.1: \"with the omission of internal forces\"); in that",
+        '3-4 leave internal forces out (§3; §4.1: "with the omission of internal forces"); in that',
         "sense the two are equal.",
         "",
         f"## Figs 4.1-4.3 on one box path (box {mass:g} kg)",
@@ -633,8 +732,10 @@ def write_report(path: Path, numbers: dict[str, float], rows: list[tuple], n_swe
     ]
     for fig, (_, what) in STRUCTURES.items():
         k = f"fig{fig.replace('.', '')}"
-        lines.append(f"| Fig {fig}: {what} | {g[f'{k}_position_rms_late']:.2e} | {g[f'{k}_angle_rms_late']:.2e} | "
-                     f"{g[f'{k}_max_torque']:.3g} | {g[f'{k}_max_squeeze']:.3g} |")
+        lines.append(
+            f"| Fig {fig}: {what} | {g[f'{k}_position_rms_late']:.2e} | {g[f'{k}_angle_rms_late']:.2e} | "
+            f"{g[f'{k}_max_torque']:.3g} | {g[f'{k}_max_squeeze']:.3g} |"
+        )
     lines += [
         "",
         "Figs 4.1 and 4.3 move the box alike (their error curves in `structures.png` overlap);",
@@ -654,6 +755,7 @@ def write_report(path: Path, numbers: dict[str, float], rows: list[tuple], n_swe
 
 
 # ---- the whole reproduction --------------------------------------------------------------------
+
 
 def reproduce(out: Path, quick: bool = False) -> dict[str, float]:
     """Builds the hand's trees, checks the claims, writes the PNGs and report.md into ``out``
@@ -683,15 +785,17 @@ def reproduce(out: Path, quick: bool = False) -> dict[str, float]:
         numbers.update(sweep_box_mass(builds, masses, quick))
         plot_sweep(numbers, len(masses), out / "box_mass_sweep.png")
         duration = float(results["4.1"].t[-1])
-    write_report(out / "report.md", numbers, rows, len(masses), mass, quick, duration,
-                 data["simulation"]["initial_error"])
+    write_report(
+        out / "report.md", numbers, rows, len(masses), mass, quick, duration, data["simulation"]["initial_error"]
+    )
     return numbers
 
 
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    p.add_argument("--quick", action="store_true",
-                   help=f"{QUICK_DURATION:g} s runs, {len(SWEEP_MASSES[True])} box masses")
+    p.add_argument(
+        "--quick", action="store_true", help=f"{QUICK_DURATION:g} s runs, {len(SWEEP_MASSES[True])} box masses"
+    )
     p.add_argument("-o", "--output", type=Path, default=DEFAULT_OUTPUT, help=f"default {DEFAULT_OUTPUT}")
     args = p.parse_args()
     if args.output.exists() and not args.output.is_dir():

@@ -12,6 +12,7 @@ forgetting, no constant term in eq 29, weights of the authors' choosing) is run 
 "first defaults" variant: robotgen's first version of this law, whose hand walked away over
 10 s. Modules are built from copies of specs/puma560_rmac.yaml in a temporary directory.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -43,9 +44,10 @@ from robotgen.symbolic.root_laws.resolved_adaptive import closed_loop  # noqa: E
 SPEC = ROOT / "specs" / "puma560_rmac.yaml"
 DEFAULT_OUTPUT = Path("generated/papers/lee_lee_1983")
 # the long run: payloads picked up, changed (off the wrist axis) and dropped
-LONG_RUN = {False: (20.0, (PayloadChange(1.0, 2.0), PayloadChange(7.0, 5.0, (0.05, 0.05, 0.03)),
-                           PayloadChange(14.0, 0.0))),
-            True: (4.0, (PayloadChange(1.0, 2.0),))}
+LONG_RUN = {
+    False: (20.0, (PayloadChange(1.0, 2.0), PayloadChange(7.0, 5.0, (0.05, 0.05, 0.03)), PayloadChange(14.0, 0.0))),
+    True: (4.0, (PayloadChange(1.0, 2.0),)),
+}
 # one change for the variants: 5 kg off the wrist axis at 1 s, 10 s (quick: the first two, 3 s)
 VARIANT_CHANGE = PayloadChange(1.0, 5.0, (0.05, 0.05, 0.03))
 VARIANT_DURATION = {False: 10.0, True: 3.0}
@@ -53,8 +55,13 @@ VARIANT_DURATION = {False: 10.0, True: 3.0}
 VARIANTS = {
     "robotgen's defaults": {},
     "first defaults (eq 37 as printed, no c, hand-set Q, R)": {
-        "q": [1e6, 1e6, 1e4, 1e4], "r": 1e-5, "forgetting": 0.97, "initial_covariance": 100,
-        "affine": False, "directional": False},
+        "q": [1e6, 1e6, 1e4, 1e4],
+        "r": 1e-5,
+        "forgetting": 0.97,
+        "initial_covariance": 100,
+        "affine": False,
+        "directional": False,
+    },
     "no affine term c": {"affine": False},
     "eq 37's forgetting of all of P": {"directional": False},
     "B not trusted (P_0 on B's block 1e-5)": {"initial_covariance": {"B": 1e-5}},
@@ -88,12 +95,20 @@ class Builds:
     def comparison(self, system):
         twin = hand_simulation.comparison_system(system)
         twin = dataclasses.replace(twin, name=f"lee_lee_rac_{next(_SERIAL)}")
-        emit(self.root / twin.name, twin.name, kernels_for(twin), nq=system_nq(twin), extra_info=system_info(twin),
-             spec_sha256=twin.source_sha256, controllers=controllers_for(twin))
+        emit(
+            self.root / twin.name,
+            twin.name,
+            kernels_for(twin),
+            nq=system_nq(twin),
+            extra_info=system_info(twin),
+            spec_sha256=twin.source_sha256,
+            controllers=controllers_for(twin),
+        )
         return simulate.load_module(self.root / twin.name, twin.name)
 
 
 # ---- Table 1 ---------------------------------------------------------------------------------
+
 
 def table_1(system) -> tuple[dict, dict[str, float]]:
     counts = module_extras(system)[0]["hand_control"]["operation_counts"]
@@ -138,13 +153,15 @@ def plot_table_1(counts: dict, path: Path) -> None:
 
 # ---- runs ------------------------------------------------------------------------------------
 
+
 def long_run(builds: Builds, quick: bool, out: Path) -> dict[str, float]:
     module, system = builds.variant({})
     duration, changes = LONG_RUN[quick]
     settings = dataclasses.replace(system.simulation, duration=duration, payload_changes=changes)
     result = hand_simulation.run(module, system, settings, builds.comparison(system))
-    hand_simulation.plot(result, out / "long_run.png", f"PUMA 560 under resolved motion adaptive control, "
-                                                       f"{duration:g} s, payload steps")
+    hand_simulation.plot(
+        result, out / "long_run.png", f"PUMA 560 under resolved motion adaptive control, {duration:g} s, payload steps"
+    )
     numbers = {}
     for r in result.runs:
         numbers[f"long {r.key} before"] = 1e3 * r.rms(result.before)
@@ -152,7 +169,8 @@ def long_run(builds: Builds, quick: bool, out: Path) -> dict[str, float]:
             numbers[f"long {r.key} change {k + 1} first second"] = 1e3 * r.rms(result.window(change.at))
             end = changes[k + 1].at if k + 1 < len(changes) else result.t[-1] + 1
             numbers[f"long {r.key} change {k + 1} last second"] = 1e3 * r.rms(
-                (result.t > end - 1 - 1e-9) & (result.t < end - 1e-9))
+                (result.t > end - 1 - 1e-9) & (result.t < end - 1e-9)
+            )
         numbers[f"long {r.key} max torque step"] = r.largest_torque_step()
     return numbers
 
@@ -175,56 +193,92 @@ def variants(builds: Builds, quick: bool) -> tuple[dict[str, float], list[tuple]
         adaptive = result.runs[0]
         first, last = 1e3 * adaptive.rms(result.window(VARIANT_CHANGE.at)), 1e3 * adaptive.rms(result.last_window)
         step = adaptive.largest_torque_step()
-        numbers.update({f"variant {k} radius": loop["spectral_radius"], f"variant {k} first second": first,
-                        f"variant {k} last second": last, f"variant {k} max torque step": step})
+        numbers.update(
+            {
+                f"variant {k} radius": loop["spectral_radius"],
+                f"variant {k} first second": first,
+                f"variant {k} last second": last,
+                f"variant {k} max torque step": step,
+            }
+        )
         rows.append((label, loop["spectral_radius"], first, last, step, ""))
     return numbers, rows
 
 
 # ---- the report ------------------------------------------------------------------------------
 
+
 def write_report(path: Path, counts: dict, numbers: dict, variant_rows: list, quick: bool) -> None:
     duration, changes = LONG_RUN[quick]
-    lines = ["# Lee and Lee 1983, resolved motion adaptive control, reproduced", "",
-             "PUMA 560 of `specs/puma560_rmac.yaml`" + (" (quick mode: short runs)." if quick else "."), "",
-             "## Table 1: operations of one sampling period", "",
-             "The paper computes the feedforward and the feedback in parallel, and the two parts of "
-             "feedback stage 1 in parallel; a period costs the larger part. robotgen's counts are of the "
-             "graphs it emits (CasADi's instructions after common subexpressions; divisions, square roots "
-             "and selections are counted apart, as `other`).", "",
-             "| stage | paper mul | paper add | robotgen mul | robotgen add | trig | other | robotgen computes more |",
-             "| --- | ---: | ---: | ---: | ---: | ---: | ---: | --- |"]
+    lines = [
+        "# Lee and Lee 1983, resolved motion adaptive control, reproduced",
+        "",
+        "PUMA 560 of `specs/puma560_rmac.yaml`" + (" (quick mode: short runs)." if quick else "."),
+        "",
+        "## Table 1: operations of one sampling period",
+        "",
+        "The paper computes the feedforward and the feedback in parallel, and the two parts of "
+        "feedback stage 1 in parallel; a period costs the larger part. robotgen's counts are of the "
+        "graphs it emits (CasADi's instructions after common subexpressions; divisions, square roots "
+        "and selections are counted apart, as `other`).",
+        "",
+        "| stage | paper mul | paper add | robotgen mul | robotgen add | trig | other | robotgen computes more |",
+        "| --- | ---: | ---: | ---: | ---: | ---: | ---: | --- |",
+    ]
     for r in counts["rows"]:
         p, g = r["paper"], r["robotgen"]
         more = r["note"]
-        lines.append(f"| {r['part']} {r['stage']}: {r['name']} | {p['mul']} | {p['add']} | {g['mul']} | {g['add']} | "
-                     f"{g['trig']} | {g['other']} | {more} |")
-    for total, label in (("feedforward", "total feedforward"), ("feedback", "total feedback"),
-                         ("period", "**period** (in parallel)"), ("sequential", "every stage on one processor")):
+        lines.append(
+            f"| {r['part']} {r['stage']}: {r['name']} | {p['mul']} | {p['add']} | {g['mul']} | {g['add']} | "
+            f"{g['trig']} | {g['other']} | {more} |"
+        )
+    for total, label in (
+        ("feedforward", "total feedforward"),
+        ("feedback", "total feedback"),
+        ("period", "**period** (in parallel)"),
+        ("sequential", "every stage on one processor"),
+    ):
         p, g = counts["paper"][total], counts["robotgen"][total]
-        lines.append(f"| {label} | {p['mul']} | {p['add']} | {g['mul']} | {g['add']} | {g['trig']} | "
-                     f"{g['other']} | |")
+        lines.append(f"| {label} | {p['mul']} | {p['add']} | {g['mul']} | {g['add']} | {g['trig']} | {g['other']} | |")
     step = counts["step"]
-    lines += [f"| emitted step (stages fused) | | | {step['mul']} | {step['add']} | {step['trig']} | "
-              f"{step['other']} | |", "", "![Table 1](table1.png)", "",
-              f"## A long run: {duration:g} s, payload steps", "",
-              "The hand follows a 10 cm diagonal in the x-z plane at 0.5 Hz; the plant's hand picks up and "
-              "drops payloads the controller is not told about. RMS hand position error [mm]:", "",
-              "| run | before | " + " | ".join(f"{c.mass:g} kg at {c.at:g} s: first second | last second"
-                                                 for c in changes) + " | max torque step [N m] |",
-              "| --- | ---: | " + " | ".join("---: | ---:" for _ in changes) + " | ---: |"]
-    for key, label in (("adaptive", "adaptive"), ("frozen", "identification frozen"),
-                       ("rac", "resolved acceleration (Kp = 400, Kv = 40)")):
+    lines += [
+        f"| emitted step (stages fused) | | | {step['mul']} | {step['add']} | {step['trig']} | {step['other']} | |",
+        "",
+        "![Table 1](table1.png)",
+        "",
+        f"## A long run: {duration:g} s, payload steps",
+        "",
+        "The hand follows a 10 cm diagonal in the x-z plane at 0.5 Hz; the plant's hand picks up and "
+        "drops payloads the controller is not told about. RMS hand position error [mm]:",
+        "",
+        "| run | before | "
+        + " | ".join(f"{c.mass:g} kg at {c.at:g} s: first second | last second" for c in changes)
+        + " | max torque step [N m] |",
+        "| --- | ---: | " + " | ".join("---: | ---:" for _ in changes) + " | ---: |",
+    ]
+    for key, label in (
+        ("adaptive", "adaptive"),
+        ("frozen", "identification frozen"),
+        ("rac", "resolved acceleration (Kp = 400, Kv = 40)"),
+    ):
         cells = [f"{numbers[f'long {key} before']:.4f}"]
         for k in range(len(changes)):
-            cells += [f"{numbers[f'long {key} change {k + 1} first second']:.4f}",
-                      f"{numbers[f'long {key} change {k + 1} last second']:.4f}"]
+            cells += [
+                f"{numbers[f'long {key} change {k + 1} first second']:.4f}",
+                f"{numbers[f'long {key} change {k + 1} last second']:.4f}",
+            ]
         lines.append(f"| {label} | " + " | ".join(cells) + f" | {numbers[f'long {key} max torque step']:.2f} |")
-    lines += ["", "![long run](long_run.png)", "",
-              f"## robotgen's choices, each undone ({VARIANT_CHANGE.mass:g} kg off the wrist axis at "
-              f"{VARIANT_CHANGE.at:g} s, {VARIANT_DURATION[quick]:g} s)", "",
-              "| variant | closed-loop radius at theta0 | RMS first second [mm] | RMS last second [mm] | "
-              "max torque step [N m] |", "| --- | ---: | ---: | ---: | ---: |"]
+    lines += [
+        "",
+        "![long run](long_run.png)",
+        "",
+        f"## robotgen's choices, each undone ({VARIANT_CHANGE.mass:g} kg off the wrist axis at "
+        f"{VARIANT_CHANGE.at:g} s, {VARIANT_DURATION[quick]:g} s)",
+        "",
+        "| variant | closed-loop radius at theta0 | RMS first second [mm] | RMS last second [mm] | "
+        "max torque step [N m] |",
+        "| --- | ---: | ---: | ---: | ---: |",
+    ]
     for label, radius, first, last, step, failed in variant_rows:
         if failed:
             lines.append(f"| {label} | {radius:.6g} | {failed} | | |")

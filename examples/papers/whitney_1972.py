@@ -32,6 +32,7 @@ What this script does:
    exponential approach) and once with eq 11's remaining time T (arriving at T), and writes
    eq11.png.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -62,10 +63,14 @@ DIRECT_STEP = 0.01  # s, the coarser grid of the direct solution (and half of it
 # The path: minimum-jerk moves between joint postures (rad), each held still before and after.
 # The postures span [-0.25, 0.55] x [0.6, 1.2] x [-1.4, -0.6]: their centre is the spec's
 # nominal (0.15, 0.9, -1.0), where eq 19 is linearised.
-POSTURES = np.array([[-0.25, 1.2, -1.4],   # hand low in front of the body
-                     [0.55, 0.6, -1.1],    # swept outwards and raised
-                     [0.15, 0.9, -0.6],    # reaching forwards and down
-                     [-0.25, 1.2, -1.4]])  # back
+POSTURES = np.array(
+    [
+        [-0.25, 1.2, -1.4],  # hand low in front of the body
+        [0.55, 0.6, -1.1],  # swept outwards and raised
+        [0.15, 0.9, -0.6],  # reaching forwards and down
+        [-0.25, 1.2, -1.4],
+    ]
+)  # back
 MOVE, REST = 3.0, 0.5  # s per move; s still at each posture
 QUICK_MOVES = 1
 # eq 11: the PUMA moved DISTANCE along DIRECTION and turned TURN about AXIS (base axes) in T
@@ -97,9 +102,9 @@ class JointPath:
         k = min(max(int((t - self.rest) // span), 0), len(self.postures) - 2)
         a, b = self.postures[k], self.postures[k + 1]
         tau = min(max((t - self.rest - k * span) / self.move, 0.0), 1.0)
-        s = tau ** 3 * (10 - 15 * tau + 6 * tau ** 2)
-        ds = 30 * tau ** 2 * (1 - tau) ** 2 / self.move
-        dds = 60 * tau * (1 - tau) * (1 - 2 * tau) / self.move ** 2
+        s = tau**3 * (10 - 15 * tau + 6 * tau**2)
+        ds = 30 * tau**2 * (1 - tau) ** 2 / self.move
+        dds = 60 * tau * (1 - tau) * (1 - 2 * tau) / self.move**2
         return a + s * (b - a), ds * (b - a), dds * (b - a)
 
 
@@ -129,8 +134,7 @@ def build(out: Path):
         sys.path.remove(str(out))
 
 
-def simulate(plant, law, ref: np.ndarray, Q: np.ndarray, R: np.ndarray, tau0: np.ndarray, h: float,
-             linear=None) -> Run:
+def simulate(plant, law, ref: np.ndarray, Q: np.ndarray, R: np.ndarray, tau0: np.ndarray, h: float, linear=None) -> Run:
     """RK4 over the half grid of ``ref`` ((2N+1, 2n): theta_d, theta_d_dot at t_0, t_0 + h/2, ...):
     qdd = plant(q, qd, tau), tau = law(i, q, qd) with i the half-grid index of the stage, the
     cost integrated with the state; ``linear(q, qd, tau)`` also records the residual
@@ -139,9 +143,9 @@ def simulate(plant, law, ref: np.ndarray, Q: np.ndarray, R: np.ndarray, tau0: np
     n = ref.shape[1] // 2
 
     def rates(i, x):
-        q, qd = x[:n], x[n:2 * n]
+        q, qd = x[:n], x[n : 2 * n]
         tau = law(i, q, qd)
-        e = x[:2 * n] - ref[i]
+        e = x[: 2 * n] - ref[i]
         du = tau - tau0
         return np.r_[qd, plant(q, qd, tau), e @ Q @ e + du @ R @ du], tau
 
@@ -151,9 +155,9 @@ def simulate(plant, law, ref: np.ndarray, Q: np.ndarray, R: np.ndarray, tau0: np
     D = np.zeros((steps + 1, n))
     for k in range(steps + 1):
         k1, tau = rates(2 * k, x)
-        X[k], T[k] = x[:2 * n], tau
+        X[k], T[k] = x[: 2 * n], tau
         if linear is not None:
-            D[k] = k1[n:2 * n] - linear(x[:n], x[n:2 * n], tau)
+            D[k] = k1[n : 2 * n] - linear(x[:n], x[n : 2 * n], tau)
         if k == steps:
             break
         k2, _ = rates(2 * k + 1, x + h / 2 * k1)
@@ -183,8 +187,9 @@ def peak_to_peak_gain(closed: np.ndarray, n: int, dt: float = 1e-3, floor: float
     return gamma - 0.5 * dt * block
 
 
-def direct_solution(servo: LinearServo, s0: np.ndarray, ref, t_end: float, h: float
-                    ) -> tuple[np.ndarray, np.ndarray, float]:
+def direct_solution(
+    servo: LinearServo, s0: np.ndarray, ref, t_end: float, h: float
+) -> tuple[np.ndarray, np.ndarray, float]:
     """The finite-horizon problem the steady servo solves exactly (linear_servo S1-S4: the
     terminal cost s^T P s - 2 g_f^T s at t_end), minimised directly over the states and
     inputs at every node of a grid of step h: trapezoidal dynamics s_(k+1) - s_k = h/2
@@ -212,8 +217,8 @@ def direct_solution(servo: LinearServo, s0: np.ndarray, ref, t_end: float, h: fl
         z = k * (nx + nu)
         put(z, z, 2 * weights[k] * Q + (2 * P if k == steps else 0))
         put(z + nx, z + nx, 2 * weights[k] * R)
-        c[z:z + nx] = -2 * weights[k] * Q @ r[k]
-    c[steps * (nx + nu):steps * (nx + nu) + nx] -= 2 * g_f
+        c[z : z + nx] = -2 * weights[k] * Q @ r[k]
+    c[steps * (nx + nu) : steps * (nx + nu) + nx] -= 2 * g_f
     E_s0 = np.eye(nx)
     lam = nz  # constraint rows after the variables: s_0 = s0, then the N trapezoid steps
     put(lam, 0, E_s0)
@@ -250,7 +255,7 @@ def reproduce(out: Path, quick: bool = False) -> dict:
     if not np.array_equal(servo.K, K):
         raise RuntimeError("the servo's gains differ from the module's lqr_step gains")
 
-    path = JointPath(POSTURES[:QUICK_MOVES + 1] if quick else POSTURES, MOVE, REST)
+    path = JointPath(POSTURES[: QUICK_MOVES + 1] if quick else POSTURES, MOVE, REST)
     t_end = path.duration
     steps = int(round(t_end / STEP))
     half = 0.5 * STEP * np.arange(2 * steps + 1)
@@ -312,7 +317,7 @@ def reproduce(out: Path, quick: bool = False) -> dict:
             numbers[f"{label}_max_error_{name}_rad"] = float(np.abs(e[:, j]).max())
             numbers[f"{label}_rms_error_{name}_rad"] = float(np.sqrt(np.mean(e[:, j] ** 2)))
         numbers[f"{label}_max_error_rad"] = float(np.abs(e).max())
-        numbers[f"{label}_rms_error_rad"] = float(np.sqrt(np.mean(e ** 2)))
+        numbers[f"{label}_rms_error_rad"] = float(np.sqrt(np.mean(e**2)))
         numbers[f"{label}_peak_torque_nm"] = float(np.abs(runs[label].tau).max())
         numbers[f"{label}_peak_torque_ftlb"] = float(np.abs(runs[label].tau).max() / NM_PER_FT_LB)
         numbers[f"{label}_cost"] = runs[label].cost
@@ -351,19 +356,29 @@ def reproduce(out: Path, quick: bool = False) -> dict:
 
 def eq11_markdown(x: dict) -> str:
     T = x["eq11_arrival_time_s"]
-    return "\n".join([
-        "## Position control through rates: eq 11's remaining time", "",
-        "The paper moves the hand to a pose \"in a time interval T\" by the rates of eq 11 and eqs 13-18, "
-        "re-planned from the current joint angles \"with a new T\" along the way. The PUMA 560 of "
-        f"`specs/puma560_rmrc.yaml` moves {1e3 * DISTANCE:g} mm and turns {np.degrees(TURN):g} degrees, the "
-        f"joints following each period's rates ({1e3 * STEP:g} ms):", "",
-        "| | hand distance from the target at T |", "| --- | ---: |",
-        f"| eq 11 with the remaining time, T = {T:g} s | {x['eq11_arrival_distance_at_T_m']:.2e} m |",
-        f"| fixed horizon {x['eq11_horizon_s']:g} s (exponential approach) | "
-        f"{x['eq11_exponential_distance_at_T_m']:.2e} m (predicted {x['eq11_exponential_predicted_m']:.2e}) |",
-        "", f"With the remaining time the hand stays within {x['eq11_arrival_largest_distance_off_line_m']:.1e} m "
-        f"of the straight line and is {1e3 * x['eq11_arrival_distance_at_half_T_m']:.2f} mm from the target "
-        "at T/2 (half way).", "", "![eq 11](eq11.png)", ""])
+    return "\n".join(
+        [
+            "## Position control through rates: eq 11's remaining time",
+            "",
+            'The paper moves the hand to a pose "in a time interval T" by the rates of eq 11 and eqs 13-18, '
+            're-planned from the current joint angles "with a new T" along the way. The PUMA 560 of '
+            f"`specs/puma560_rmrc.yaml` moves {1e3 * DISTANCE:g} mm and turns {np.degrees(TURN):g} degrees, the "
+            f"joints following each period's rates ({1e3 * STEP:g} ms):",
+            "",
+            "| | hand distance from the target at T |",
+            "| --- | ---: |",
+            f"| eq 11 with the remaining time, T = {T:g} s | {x['eq11_arrival_distance_at_T_m']:.2e} m |",
+            f"| fixed horizon {x['eq11_horizon_s']:g} s (exponential approach) | "
+            f"{x['eq11_exponential_distance_at_T_m']:.2e} m (predicted {x['eq11_exponential_predicted_m']:.2e}) |",
+            "",
+            f"With the remaining time the hand stays within {x['eq11_arrival_largest_distance_off_line_m']:.1e} m "
+            f"of the straight line and is {1e3 * x['eq11_arrival_distance_at_half_T_m']:.2f} mm from the target "
+            "at T/2 (half way).",
+            "",
+            "![eq 11](eq11.png)",
+            "",
+        ]
+    )
 
 
 def rotation(axis: np.ndarray, angle: float) -> np.ndarray:
@@ -404,16 +419,21 @@ def eq11(out: Path, quick: bool) -> dict:
     along = (hand - start[:3, 3]) @ DIRECTION
     off_line = np.linalg.norm(hand - start[:3, 3] - np.outer(along, DIRECTION), axis=1)
     at_T = int(round(T / STEP))
-    numbers = {"eq11_arrival_time_s": T, "eq11_horizon_s": HORIZON,
-               "eq11_arrival_distance_at_T_m": float(arrival.distance()[at_T]),
-               "eq11_exponential_distance_at_T_m": float(exponential.distance()[at_T]),
-               "eq11_exponential_predicted_m": float(DISTANCE * np.exp(-T / HORIZON)),
-               "eq11_arrival_largest_distance_off_line_m": float(off_line[:at_T + 1].max()),
-               "eq11_arrival_distance_at_half_T_m": float(arrival.distance()[at_T // 2])}
+    numbers = {
+        "eq11_arrival_time_s": T,
+        "eq11_horizon_s": HORIZON,
+        "eq11_arrival_distance_at_T_m": float(arrival.distance()[at_T]),
+        "eq11_exponential_distance_at_T_m": float(exponential.distance()[at_T]),
+        "eq11_exponential_predicted_m": float(DISTANCE * np.exp(-T / HORIZON)),
+        "eq11_arrival_largest_distance_off_line_m": float(off_line[: at_T + 1].max()),
+        "eq11_arrival_distance_at_half_T_m": float(arrival.distance()[at_T // 2]),
+    }
     plt = _pyplot()
     fig, ax = plt.subplots(figsize=(8, 4))
-    for path, label in ((exponential, f"fixed horizon {HORIZON:g} s (position_step): exponential approach"),
-                        (arrival, f"eq 11 with the remaining time (arrival_step): arrives at T = {T:g} s")):
+    for path, label in (
+        (exponential, f"fixed horizon {HORIZON:g} s (position_step): exponential approach"),
+        (arrival, f"eq 11 with the remaining time (arrival_step): arrives at T = {T:g} s"),
+    ):
         ax.plot(path.t, 1e3 * path.distance(), label=label)
     ax.axvline(T, color="k", linestyle=":", linewidth=1)
     ax.set_xlabel("t [s]")
@@ -429,6 +449,7 @@ def eq11(out: Path, quick: bool) -> dict:
 
 def _pyplot():
     import matplotlib
+
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
@@ -460,8 +481,10 @@ def plot(path: Path, runs: dict, nodes: np.ndarray, n: int) -> None:
     ax.grid(alpha=0.3)
     right = ax.secondary_yaxis("right", functions=(lambda x: x * NM_PER_FT_LB, lambda x: x / NM_PER_FT_LB))
     right.set_ylabel("torque [N m]")
-    for ax, label, title in ((axes[1, 0], "servo", "(c) tracking error, optimal linear servo"),
-                             (axes[1, 1], "regulator", "(d) tracking error, the same gains without feedforward")):
+    for ax, label, title in (
+        (axes[1, 0], "servo", "(c) tracking error, optimal linear servo"),
+        (axes[1, 1], "regulator", "(d) tracking error, the same gains without feedforward"),
+    ):
         run, linear = runs[label], runs[label + "_linear"]
         for j in range(n):
             ax.plot(t, 1e3 * (run.q[:, j] - nodes[:, j]), color=colours[j], label=f"theta{j + 1}")
@@ -472,8 +495,9 @@ def plot(path: Path, runs: dict, nodes: np.ndarray, n: int) -> None:
         ax.set_title(title)
         ax.legend(loc="best", fontsize=7)
         ax.grid(alpha=0.3)
-    fig.suptitle("Whitney 1972, Fig 5 reproduced: three-link arm under the optimal linear servo "
-                 "(full nonlinear dynamics)")
+    fig.suptitle(
+        "Whitney 1972, Fig 5 reproduced: three-link arm under the optimal linear servo (full nonlinear dynamics)"
+    )
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
@@ -488,12 +512,12 @@ def markdown(x: dict, lqr: dict, postures: np.ndarray, hands: np.ndarray, quick:
     lines = [
         "# Whitney 1972: optimal linear servo tracking (Fig 5)",
         "",
-        "The paper (section \"Dynamic Control of Arms\") applies the linearised model of eq 19 to the "
+        'The paper (section "Dynamic Control of Arms") applies the linearised model of eq 19 to the '
         "whole state, designs feedback gains and control functions by optimal linear servo theory, and "
-        "runs them on simulation equations with every nonlinearity. Fig 5 (\"three link arm test no. "
-        "21\") plots the joint angles against their targets (rad) and the torques (ft-lb). The paper "
-        "gives no numbers for it, only: \"Although the arm moves at a leisurely pace, the errors are "
-        "quite small, as are the required torques.\" Its arm and path are not given either; the arm "
+        'runs them on simulation equations with every nonlinearity. Fig 5 ("three link arm test no. '
+        '21") plots the joint angles against their targets (rad) and the torques (ft-lb). The paper '
+        'gives no numbers for it, only: "Although the arm moves at a leisurely pace, the errors are '
+        'quite small, as are the required torques." Its arm and path are not given either; the arm '
         "below (`whitney_1972_arm.yaml`) and the path are robotgen's choice.",
         "",
         f"Arm: shoulder sweep about the vertical, shoulder flexion and elbow about horizontal axes; upper "
@@ -511,8 +535,10 @@ def markdown(x: dict, lqr: dict, postures: np.ndarray, hands: np.ndarray, quick:
         "",
         "| posture | theta [rad] | hand (x, y, z) [m], shoulder at the origin |",
         "| --- | --- | --- |",
-        *(f"| {k} | {np.round(p, 2).tolist()} | {np.round(h, 3).tolist()} |"
-          for k, (p, h) in enumerate(zip(postures, hands))),
+        *(
+            f"| {k} | {np.round(p, 2).tolist()} | {np.round(h, 3).tolist()} |"
+            for k, (p, h) in enumerate(zip(postures, hands))
+        ),
         "",
         "![Fig 5](fig5.png)",
         "",
@@ -547,7 +573,7 @@ def markdown(x: dict, lqr: dict, postures: np.ndarray, hands: np.ndarray, quick:
         f"{x['direct_input_gap_nm']:.1e} N m after the first node ({x['direct_input_coarse_gap_nm']:.1e} at "
         f"{1e3 * DIRECT_STEP:g} ms alone).",
         "",
-        "Paper's numbers: none for Fig 5 (\"errors quite small\", \"torques small\").",
+        'Paper\'s numbers: none for Fig 5 ("errors quite small", "torques small").',
         "",
     ]
     return "\n".join(lines)
@@ -556,8 +582,13 @@ def markdown(x: dict, lqr: dict, postures: np.ndarray, hands: np.ndarray, quick:
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="one move instead of three (a few seconds)")
-    parser.add_argument("-o", "--output", type=Path, default=Path("generated/papers/whitney_1972"),
-                        help="output directory (default generated/papers/whitney_1972)")
+    parser.add_argument(
+        "-o",
+        "--output",
+        type=Path,
+        default=Path("generated/papers/whitney_1972"),
+        help="output directory (default generated/papers/whitney_1972)",
+    )
     args = parser.parse_args(argv)
     numbers = reproduce(args.output, quick=args.quick)
     for key, value in numbers.items():

@@ -1,5 +1,6 @@
 """Writes a generated module's directory atomically: all or nothing, and replacing only what
 robotgen can prove it wrote (robotgen.emit.output_directory)."""
+
 from __future__ import annotations
 
 import importlib
@@ -40,11 +41,23 @@ fcntl = _posix_locks()
 __all__ = ["MANIFEST", "emit", "replace_problem"]
 
 
-def emit(out_dir: Path, name: str, kernels: list[Kernel], *, nq: int,
-         precision: str = "double", compile: bool = True, extra_info: dict | None = None,
-         spec_sha256: str = "", attributes: dict | None = None, progress: Progress = QUIET,
-         controllers: Sequence[Controller | MultiRate] | None = None, targets: tuple[str, ...] = (),
-         inputs: tuple[Path, ...] = (), build_key: str | None = None) -> Path:
+def emit(
+    out_dir: Path,
+    name: str,
+    kernels: list[Kernel],
+    *,
+    nq: int,
+    precision: str = "double",
+    compile: bool = True,
+    extra_info: dict | None = None,
+    spec_sha256: str = "",
+    attributes: dict | None = None,
+    progress: Progress = QUIET,
+    controllers: Sequence[Controller | MultiRate] | None = None,
+    targets: tuple[str, ...] = (),
+    inputs: tuple[Path, ...] = (),
+    build_key: str | None = None,
+) -> Path:
     """Writes ``<name>.h``, ``<name>.c``, ``<name>_module.c``, the stub ``<name>.pyi``,
     ``Makefile`` (with ``<name>.pc.in`` and ``<name>Config.cmake.in``, which its ``install``
     target fills in), ``manifest.json`` and (if ``compile``) the extension
@@ -60,9 +73,17 @@ def emit(out_dir: Path, name: str, kernels: list[Kernel], *, nq: int,
     may not replace, or cannot write, raises OutputError. ``build_key`` (robotgen.emit.cache)
     is stamped into the output with the rest, so that it is swapped in with it."""
     out_dir = Path(out_dir)
-    view = module_view(name, kernels, nq=nq, precision=precision, spec_sha256=spec_sha256,
-                       extra_info=extra_info, attributes=attributes, progress=progress,
-                       controllers=tuple(controllers or ()))
+    view = module_view(
+        name,
+        kernels,
+        nq=nq,
+        precision=precision,
+        spec_sha256=spec_sha256,
+        extra_info=extra_info,
+        attributes=attributes,
+        progress=progress,
+        controllers=tuple(controllers or ()),
+    )
     sources = render_all(view)
     files = dict(sources)
     with output_errors(out_dir):
@@ -137,8 +158,10 @@ def _swap_in(staging: Path, out_dir: Path, inputs: tuple[Path, ...]) -> None:
             raise
         left = remove_written(previous)
     if left:
-        print(f"robotgen: warning: {', '.join(left)} came into {out_dir} during the build; kept in {previous}",
-              file=sys.stderr)
+        print(
+            f"robotgen: warning: {', '.join(left)} came into {out_dir} during the build; kept in {previous}",
+            file=sys.stderr,
+        )
 
 
 def _remove(path: Path) -> None:

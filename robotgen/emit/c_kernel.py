@@ -9,6 +9,7 @@ A kernel's run-time parameter port (``Port.parameters``, robotgen.symbolic.kerne
 is ``const <prefix>_params *params`` instead: element k of the port is read as the field
 (or field element) that holds element k of the parameters' values concatenated.
 """
+
 from __future__ import annotations
 
 import keyword
@@ -75,15 +76,37 @@ _OPERATORS = {
     "OP_OR": (2, "{0} || {1}"),
 }
 _UNARY_CALLS = {
-    "OP_SQRT": "sqrt", "OP_EXP": "exp", "OP_LOG": "log", "OP_SIN": "sin", "OP_COS": "cos",
-    "OP_TAN": "tan", "OP_ASIN": "asin", "OP_ACOS": "acos", "OP_ATAN": "atan",
-    "OP_SINH": "sinh", "OP_COSH": "cosh", "OP_TANH": "tanh", "OP_ASINH": "asinh",
-    "OP_ACOSH": "acosh", "OP_ATANH": "atanh", "OP_FABS": "fabs", "OP_FLOOR": "floor",
-    "OP_CEIL": "ceil", "OP_ERF": "erf", "OP_LOG1P": "log1p", "OP_EXPM1": "expm1",
+    "OP_SQRT": "sqrt",
+    "OP_EXP": "exp",
+    "OP_LOG": "log",
+    "OP_SIN": "sin",
+    "OP_COS": "cos",
+    "OP_TAN": "tan",
+    "OP_ASIN": "asin",
+    "OP_ACOS": "acos",
+    "OP_ATAN": "atan",
+    "OP_SINH": "sinh",
+    "OP_COSH": "cosh",
+    "OP_TANH": "tanh",
+    "OP_ASINH": "asinh",
+    "OP_ACOSH": "acosh",
+    "OP_ATANH": "atanh",
+    "OP_FABS": "fabs",
+    "OP_FLOOR": "floor",
+    "OP_CEIL": "ceil",
+    "OP_ERF": "erf",
+    "OP_LOG1P": "log1p",
+    "OP_EXPM1": "expm1",
 }
 _BINARY_CALLS = {
-    "OP_POW": "pow", "OP_CONSTPOW": "pow", "OP_ATAN2": "atan2", "OP_COPYSIGN": "copysign",
-    "OP_FMIN": "fmin", "OP_FMAX": "fmax", "OP_FMOD": "fmod", "OP_REMAINDER": "remainder",
+    "OP_POW": "pow",
+    "OP_CONSTPOW": "pow",
+    "OP_ATAN2": "atan2",
+    "OP_COPYSIGN": "copysign",
+    "OP_FMIN": "fmin",
+    "OP_FMAX": "fmax",
+    "OP_FMOD": "fmod",
+    "OP_REMAINDER": "remainder",
     "OP_HYPOT": "hypot",
 }
 _MATH_FUNCTIONS = frozenset(_UNARY_CALLS.values()) | frozenset(_BINARY_CALLS.values())
@@ -102,9 +125,9 @@ OPERATIONS: dict[int, tuple[int, str]] = {
 C_KEYWORDS = frozenset(
     "auto break case char const continue default do double else enum extern float for goto "
     "if inline int long register restrict return short signed sizeof static struct switch "
-    "typedef union unsigned void volatile while _Bool _Complex _Imaginary".split())
-RESERVED = (C_KEYWORDS | _MATH_FUNCTIONS | {f + "f" for f in _MATH_FUNCTIONS}
-            | {"INFINITY", "NAN"})
+    "typedef union unsigned void volatile while _Bool _Complex _Imaginary".split()
+)
+RESERVED = C_KEYWORDS | _MATH_FUNCTIONS | {f + "f" for f in _MATH_FUNCTIONS} | {"INFINITY", "NAN"}
 _IDENTIFIER = re.compile(r"[A-Za-z_][A-Za-z0-9_]*\Z")
 _REGISTER = re.compile(r"[wxt][0-9]+\Z")
 
@@ -144,14 +167,21 @@ def parameter_elements(port: Port) -> list[str]:
 def prototype(prefix: str, kernel: Kernel, precision: Precision) -> str:
     """A kernel's C prototype: its inputs as const pointers (the parameter struct for a params port), then its
     outputs."""
-    params = [f"const {params_type(prefix)} *{p.name}" if is_parameter_port(p)
-              else f"const {precision.real} *{p.name}" for p in kernel.inputs]
+    params = [
+        f"const {params_type(prefix)} *{p.name}" if is_parameter_port(p) else f"const {precision.real} *{p.name}"
+        for p in kernel.inputs
+    ]
     params += [f"{precision.real} *{p.name}" for p in kernel.outputs]
     return f"int {function_name(prefix, kernel)}({', '.join(params) or 'void'})"
 
 
-def kernel_source(prefix: str, kernel: Kernel, precision: Precision,
-                  program: Program | None = None, helpers: dict[Stage, str] | None = None) -> str:
+def kernel_source(
+    prefix: str,
+    kernel: Kernel,
+    precision: Precision,
+    program: Program | None = None,
+    helpers: dict[Stage, str] | None = None,
+) -> str:
     """The C definition of ``kernel``; ``program`` may be passed if already read. ``helpers``:
     the C name of each of its schedule's stages (stage_source), by default rg_<stage>."""
     _check_ports(kernel)
@@ -165,16 +195,16 @@ def kernel_source(prefix: str, kernel: Kernel, precision: Precision,
         declarations, body = _scheduled_body(kernel, precision, read, helpers)
     else:
         program = program or read_program(kernel)
-        declarations, body = _straight_line(program, kernel, precision, read,
-                                            lambda port, element: f"{kernel.outputs[port].name}[{element}]")
+        declarations, body = _straight_line(
+            program, kernel, precision, read, lambda port, element: f"{kernel.outputs[port].name}[{element}]"
+        )
         zero = literal(0.0, precision)
         for port_index, elements in program.unwritten_outputs:
             name = kernel.outputs[port_index].name
             body += [f"{name}[{e}] = {zero};" for e in elements]
     used = {name for line in declarations + body for name in re.findall(r"[A-Za-z_][A-Za-z0-9_]*", line)}
     lines = [prototype(prefix, kernel, precision) + " {", *("  " + d for d in declarations)]
-    lines += [f"  (void){p.name};" for p in (*kernel.inputs, *kernel.outputs)
-              if p.name not in used]
+    lines += [f"  (void){p.name};" for p in (*kernel.inputs, *kernel.outputs) if p.name not in used]
     if kernel.guarded:
         lines += _guard_inputs(kernel)
     lines += _guard_step(kernel, precision)
@@ -187,8 +217,13 @@ def kernel_source(prefix: str, kernel: Kernel, precision: Precision,
 LANE_KERNEL = "rgl_"  # a kernel's lane form: static, rgl_<kernel> per width
 
 
-def lane_kernel_source(prefix: str, kernel: Kernel, precision: Precision, program: Program | None = None,
-                       helpers: dict[Stage, str] | None = None) -> str:
+def lane_kernel_source(
+    prefix: str,
+    kernel: Kernel,
+    precision: Precision,
+    program: Program | None = None,
+    helpers: dict[Stage, str] | None = None,
+) -> str:
     """``kernel``'s lane form (robotgen.emit.lanes): the statements of kernel_source in the same
     order on vectors of W states, its ports arrays of vectors (one state per lane, a port's
     element k in vector k), the parameters read from the struct into every lane. It has no
@@ -202,31 +237,43 @@ def lane_kernel_source(prefix: str, kernel: Kernel, precision: Precision, progra
         return f"{kernel.inputs[port].name}[{element}]"
 
     if kernel.schedule is not None:
-        helpers = {stage: lane_names.per_width(name) for stage, name in
-                   (helpers or {stage: stage_name(stage) for stage in kernel.schedule.stages}).items()}
+        helpers = {
+            stage: lane_names.per_width(name)
+            for stage, name in (helpers or {stage: stage_name(stage) for stage in kernel.schedule.stages}).items()
+        }
         declarations, body = _scheduled_body(kernel, precision, read, helpers, lanes=True)
     else:
         program = program or read_program(kernel)
-        declarations, body = _straight_line(program, kernel, precision, read,
-                                            lambda port, element: f"{kernel.outputs[port].name}[{element}]",
-                                            lanes=True)
+        declarations, body = _straight_line(
+            program,
+            kernel,
+            precision,
+            read,
+            lambda port, element: f"{kernel.outputs[port].name}[{element}]",
+            lanes=True,
+        )
         zero = _literal(0.0, precision, True)
         for port_index, elements in program.unwritten_outputs:
             name = kernel.outputs[port_index].name
             body += [f"{name}[{e}] = {zero};" for e in elements]
     used = {name for line in declarations + body for name in re.findall(r"[A-Za-z_][A-Za-z0-9_]*", line)}
-    params = [f"const {params_type(prefix)} *{p.name}" if is_parameter_port(p)
-              else f"const {lane_names.VECTOR} *{p.name}" for p in kernel.inputs]
+    params = [
+        f"const {params_type(prefix)} *{p.name}" if is_parameter_port(p) else f"const {lane_names.VECTOR} *{p.name}"
+        for p in kernel.inputs
+    ]
     params += [f"{lane_names.VECTOR} *{p.name}" for p in kernel.outputs]
-    lines = [f"static {lane_names.TARGET} void {lane_names.per_width(LANE_KERNEL + kernel.name)}"
-             f"({', '.join(params)}) {{", *("  " + d for d in declarations)]
+    lines = [
+        f"static {lane_names.TARGET} void {lane_names.per_width(LANE_KERNEL + kernel.name)}({', '.join(params)}) {{",
+        *("  " + d for d in declarations),
+    ]
     lines += [f"  (void){p.name};" for p in (*kernel.inputs, *kernel.outputs) if p.name not in used]
     lines += ["  " + line for line in body]
     return "\n".join([*lines, "}"]) + "\n"
 
 
-def _straight_line(program: Program, kernel: Kernel, precision: Precision, read, write,
-                   register: str = "w", lanes: bool = False) -> tuple[list[str], list[str]]:
+def _straight_line(
+    program: Program, kernel: Kernel, precision: Precision, read, write, register: str = "w", lanes: bool = False
+) -> tuple[list[str], list[str]]:
     """(declarations of the registers, statements) of one SX program; ``read(port, element)``
     and ``write(port, element)`` spell its inputs and outputs. In double precision the
     angles of a straight-line program (not a loop body) go through robotgen.emit.sincos, and
@@ -246,8 +293,10 @@ def _straight_line(program: Program, kernel: Kernel, precision: Precision, read,
             body.append(_statement(step, kernel, precision, read, write, register, lanes))
     registers = sorted({s.target for s in program.instructions if s.target >= 0})
     real = lane_names.VECTOR if lanes else precision.real
-    declarations = [f"{real} " + ", ".join(f"{register}{r}" for r in registers[start:start + 12]) + ";"
-                    for start in range(0, len(registers), 12)]
+    declarations = [
+        f"{real} " + ", ".join(f"{register}{r}" for r in registers[start : start + 12]) + ";"
+        for start in range(0, len(registers), 12)
+    ]
     if sincos.uses_helper(program):
         n = sincos.lanes(program)
         declarations.append(f"{real} {sincos.ANGLES}[{n}], {sincos.SINES}[{n}], {sincos.COSINES}[{n}];")
@@ -293,26 +342,36 @@ def stage_source(c_name: str, stage: Stage, kernel: Kernel, precision: Precision
     ports = tuple(kernel.inputs[k] for k in stage.inputs)
     names = [p.name for p in ports] + list(stage.names)
     if any(is_parameter_port(p) for p in ports) or len(set(names)) != len(names):
-        raise KernelError(f"kernel {kernel.name!r}: stage {stage.name!r} reads a parameter port or its "
-                          f"names repeat: {names}")
+        raise KernelError(
+            f"kernel {kernel.name!r}: stage {stage.name!r} reads a parameter port or its names repeat: {names}"
+        )
     inner = part_kernel(stage.name, stage.function, ports)
     program = read_program(inner)
-    registers, statements = _straight_line(program, inner, precision, lambda port, e: f"{ports[port].name}[{e}]",
-                                           lambda port, e: f"{stage.names[port]}[{e}]", lanes=lanes)
+    registers, statements = _straight_line(
+        program,
+        inner,
+        precision,
+        lambda port, e: f"{ports[port].name}[{e}]",
+        lambda port, e: f"{stage.names[port]}[{e}]",
+        lanes=lanes,
+    )
     zero = _literal(0.0, precision, lanes)
-    statements += [f"{stage.names[port]}[{e}] = {zero};" for port, elements in program.unwritten_outputs
-                   for e in elements]
+    statements += [
+        f"{stage.names[port]}[{e}] = {zero};" for port, elements in program.unwritten_outputs for e in elements
+    ]
     statements = fills(statements)
     real = lane_names.VECTOR if lanes else precision.real
     parameters = [f"const {real} *{p.name}" for p in ports] + [f"{real} *{n}" for n in stage.names]
-    head = (f"static {lane_names.TARGET} void {lane_names.per_width(c_name)}" if lanes
-            else f"static void {c_name}")
-    return "\n".join([f"{head}({', '.join(parameters)}) {{",
-                      *("  " + line for line in registers + statements), "}"]) + "\n"
+    head = f"static {lane_names.TARGET} void {lane_names.per_width(c_name)}" if lanes else f"static void {c_name}"
+    return (
+        "\n".join([f"{head}({', '.join(parameters)}) {{", *("  " + line for line in registers + statements), "}"])
+        + "\n"
+    )
 
 
-def _scheduled_body(kernel: Kernel, precision: Precision, read, helpers: dict[Stage, str], lanes: bool = False
-                    ) -> tuple[list[str], list[str]]:
+def _scheduled_body(
+    kernel: Kernel, precision: Precision, read, helpers: dict[Stage, str], lanes: bool = False
+) -> tuple[list[str], list[str]]:
     """A schedule's C: local arrays t0, t1, ...; a call of each stage's helper; the prologue
     as one straight-line block; each loop as a block whose body reads and writes slices
     (registers x0, x1, ...). With ``lanes``, every local and register is a vector of states."""
@@ -342,8 +401,11 @@ def _scheduled_body(kernel: Kernel, precision: Precision, read, helpers: dict[St
         start = s.offset + element * s.step
         i = f"{table(s.i_table)}[rg_i]" if s.i_table else "rg_i"
         terms = [str(start)] if start or not (s.i_stride or s.j_stride) else []
-        terms += [f"{stride} * {index}" if stride != 1 else index
-                  for stride, index in ((s.i_stride, i), (s.j_stride, "rg_j")) if stride]
+        terms += [
+            f"{stride} * {index}" if stride != 1 else index
+            for stride, index in ((s.i_stride, i), (s.j_stride, "rg_j"))
+            if stride
+        ]
         return f"{array(s)}[{' + '.join(terms)}]"
 
     body = []
@@ -353,31 +415,49 @@ def _scheduled_body(kernel: Kernel, precision: Precision, read, helpers: dict[St
     prologue = part_kernel(kernel.name + "_prologue", schedule.prologue, kernel.inputs)
     program = read_program(prologue)
     writes = schedule.prologue_writes
-    registers, statements = _straight_line(program, prologue, precision, read,
-                                           lambda port, element: address(writes[port], element), lanes=lanes)
-    statements += [f"{address(writes[port], e)} = {zero};" for port, elements in program.unwritten_outputs
-                   for e in elements]
+    registers, statements = _straight_line(
+        program, prologue, precision, read, lambda port, element: address(writes[port], element), lanes=lanes
+    )
+    statements += [
+        f"{address(writes[port], e)} = {zero};" for port, elements in program.unwritten_outputs for e in elements
+    ]
     body += ["{", *("  " + line for line in registers + fills(statements)), "}"]
     for loop in schedule.loops:
         inner = part_kernel(kernel.name + "_" + loop.body.name(), loop.body)
         program = reads_first(read_program(inner))
         registers, statements = _straight_line(
-            program, inner, precision, lambda port, element, loop=loop: address(loop.reads[port], element),
-            lambda port, element, loop=loop: address(loop.writes[port], element), register="x", lanes=lanes)
-        statements += [f"{address(loop.writes[port], e)} = {zero};" for port, elements in program.unwritten_outputs
-                       for e in elements]
+            program,
+            inner,
+            precision,
+            lambda port, element, loop=loop: address(loop.reads[port], element),
+            lambda port, element, loop=loop: address(loop.writes[port], element),
+            register="x",
+            lanes=lanes,
+        )
+        statements += [
+            f"{address(loop.writes[port], e)} = {zero};"
+            for port, elements in program.unwritten_outputs
+            for e in elements
+        ]
         if loop.space == PAIRS:
             first, second = table(tuple(i for i, _ in loop.pairs)), table(tuple(j for _, j in loop.pairs))
-            body += [f"for (rg_m = 0; rg_m < {len(loop.pairs)}; ++rg_m) {{",
-                     f"  rg_i = {first}[rg_m];", f"  rg_j = {second}[rg_m];", "  {",
-                     *("    " + line for line in registers + statements), "  }", "}"]
+            body += [
+                f"for (rg_m = 0; rg_m < {len(loop.pairs)}; ++rg_m) {{",
+                f"  rg_i = {first}[rg_m];",
+                f"  rg_j = {second}[rg_m];",
+                "  {",
+                *("    " + line for line in registers + statements),
+                "  }",
+                "}",
+            ]
             continue
         header = [line.format(n=loop.n) for line in _LOOP_HEADERS[loop.space]]
         body += [*header, *("    " + line for line in registers + statements), "  }" if len(header) > 1 else "}"]
     for port, elements in schedule.unwritten:
         body += fills([f"{kernel.outputs[port].name}[{e}] = {zero};" for e in elements])
-    declarations += [f"const int {name}[{len(values)}] = {{{', '.join(map(str, values))}}};"
-                     for values, name in tables.items()]
+    declarations += [
+        f"const int {name}[{len(values)}] = {{{', '.join(map(str, values))}}};" for values, name in tables.items()
+    ]
     return declarations, body
 
 
@@ -405,9 +485,11 @@ def fills(statements: list[str]) -> list[str]:
                 end += 1
         if end - k >= FILL_RUN:
             even = (end - k) // 2 * 2
-            out.append(f"for (int rg_e = {start}; rg_e < {start + even}; rg_e += 2) "
-                       f"{{ {array}[rg_e] = {value}; {array}[rg_e + 1] = {value}; }}")
-            out += statements[k + even:end]
+            out.append(
+                f"for (int rg_e = {start}; rg_e < {start + even}; rg_e += 2) "
+                f"{{ {array}[rg_e] = {value}; {array}[rg_e + 1] = {value}; }}"
+            )
+            out += statements[k + even : end]
         else:
             out += statements[k:end]
         k = end
@@ -431,8 +513,10 @@ def _guard_inputs(kernel: Kernel) -> list[str]:
     lines = [f"  int {GUARD_INDEX};"]
     for port in kernel.inputs:
         if not is_parameter_port(port):
-            lines.append(f"  for ({GUARD_INDEX} = 0; {GUARD_INDEX} < {port.size}; ++{GUARD_INDEX}) "
-                         f"if (!isfinite({port.name}[{GUARD_INDEX}])) return 1;")
+            lines.append(
+                f"  for ({GUARD_INDEX} = 0; {GUARD_INDEX} < {port.size}; ++{GUARD_INDEX}) "
+                f"if (!isfinite({port.name}[{GUARD_INDEX}])) return 1;"
+            )
     return lines
 
 
@@ -443,8 +527,11 @@ EXIT_BAD_STEP = 3
 def _guard_step(kernel: Kernel, precision: Precision) -> list[str]:
     """Status 3 before anything is written when the step dt is not positive (a checked
     kernel has already returned 1 for a NaN dt)."""
-    return [f"  if ({STEP_PORT}[0] <= {literal(0.0, precision)}) return {EXIT_BAD_STEP};"
-            for port in kernel.inputs if port.name == STEP_PORT and port.size == 1]
+    return [
+        f"  if ({STEP_PORT}[0] <= {literal(0.0, precision)}) return {EXIT_BAD_STEP};"
+        for port in kernel.inputs
+        if port.name == STEP_PORT and port.size == 1
+    ]
 
 
 def _guard_outputs(kernel: Kernel, precision: Precision) -> list[str]:
@@ -455,9 +542,11 @@ def _guard_outputs(kernel: Kernel, precision: Precision) -> list[str]:
     the check is independent operations and one branch, not a branch per element."""
     zero = literal(0.0, precision)
     elements = [f"{p.name}[{k}]" for p in kernel.outputs for k in range(p.size)]
-    groups = [elements[start:start + 8] for start in range(0, len(elements), 8)]
-    lines = [f"  {precision.real} " + ", ".join(f"{GUARD_SUM}{g}" for g in range(start, min(start + 12, len(groups))))
-             + ";" for start in range(0, len(groups), 12)]
+    groups = [elements[start : start + 8] for start in range(0, len(elements), 8)]
+    lines = [
+        f"  {precision.real} " + ", ".join(f"{GUARD_SUM}{g}" for g in range(start, min(start + 12, len(groups)))) + ";"
+        for start in range(0, len(groups), 12)
+    ]
     lines += [f"  {GUARD_SUM}{g} = {_balanced([f'({e} - {e})' for e in group])};" for g, group in enumerate(groups)]
     lines.append(f"  if ({_balanced([f'{GUARD_SUM}{g}' for g in range(len(groups))])} != {zero}) goto not_finite;")
     # one store per element: a loop of stores would be compiled into a call of memset, which a
@@ -470,7 +559,7 @@ def _balanced(terms: list[str]) -> str:
     """``terms`` summed as a balanced tree of parenthesised pairs."""
     while len(terms) > 1:
         pairs = [f"({terms[k]} + {terms[k + 1]})" for k in range(0, len(terms) - 1, 2)]
-        terms = pairs + terms[len(terms) - len(terms) % 2:]
+        terms = pairs + terms[len(terms) - len(terms) % 2 :]
     return terms[0]
 
 
@@ -487,12 +576,15 @@ def _check_ports(kernel: Kernel) -> None:
 # Operations printed on whole vectors in a lane kernel; any other is printed lane by lane, as the
 # scalar statement on each lane (comparisons, selections, <math.h> calls), so that every lane
 # computes what the single-state function computes.
-_VECTOR_OPERATIONS = frozenset(getattr(ca, op) for op in (
-    "OP_ASSIGN", "OP_ADD", "OP_SUB", "OP_MUL", "OP_DIV", "OP_NEG", "OP_SQ", "OP_TWICE", "OP_INV"))
+_VECTOR_OPERATIONS = frozenset(
+    getattr(ca, op)
+    for op in ("OP_ASSIGN", "OP_ADD", "OP_SUB", "OP_MUL", "OP_DIV", "OP_NEG", "OP_SQ", "OP_TWICE", "OP_INV")
+)
 
 
-def _statement(step: Instruction, kernel: Kernel, precision: Precision, read, write, register: str,
-               lanes: bool = False) -> str:
+def _statement(
+    step: Instruction, kernel: Kernel, precision: Precision, read, write, register: str, lanes: bool = False
+) -> str:
     if step.op in (sincos.SIN_LANE, sincos.COS_LANE):
         lanes_array = sincos.SINES if step.op == sincos.SIN_LANE else sincos.COSINES
         return f"{register}{step.target} = {lanes_array}[{step.element}];"
@@ -503,20 +595,23 @@ def _statement(step: Instruction, kernel: Kernel, precision: Precision, read, wr
     if step.op == ca.OP_CONST:
         return f"{register}{step.target} = {_literal(step.constant, precision, lanes)};"
     if step.op not in OPERATIONS:
-        raise KernelError(f"kernel {kernel.name!r}: CasADi operation {step.op_name} "
-                          "has no C translation")
+        raise KernelError(f"kernel {kernel.name!r}: CasADi operation {step.op_name} has no C translation")
     arity, pattern = OPERATIONS[step.op]
     if len(step.args) != arity:
-        raise KernelError(f"kernel {kernel.name!r}: {step.op_name} with {len(step.args)} "
-                          f"operands, expected {arity}")
+        raise KernelError(f"kernel {kernel.name!r}: {step.op_name} with {len(step.args)} operands, expected {arity}")
     whole = lanes and step.op in _VECTOR_OPERATIONS
     lane = f"[{lane_names.LANE_INDEX}]" if lanes and not whole else ""
-    expression = pattern.format(*(f"{register}{r}{lane}" for r in step.args), fs=precision.math_suffix,
-                                one=_literal(1.0, precision, whole), zero=_literal(0.0, precision, whole))
+    expression = pattern.format(
+        *(f"{register}{r}{lane}" for r in step.args),
+        fs=precision.math_suffix,
+        one=_literal(1.0, precision, whole),
+        zero=_literal(0.0, precision, whole),
+    )
     if lane:
         index = lane_names.LANE_INDEX
-        return (f"for ({index} = 0; {index} < {lane_names.WIDTH}; ++{index}) "
-                f"{register}{step.target}{lane} = {expression};")
+        return (
+            f"for ({index} = 0; {index} < {lane_names.WIDTH}; ++{index}) {register}{step.target}{lane} = {expression};"
+        )
     return f"{register}{step.target} = {expression};"
 
 
@@ -535,8 +630,9 @@ def literal(value: float, precision: Precision) -> str:
     if math.isinf(value):
         return "INFINITY" if value > 0 else "-INFINITY"
     if precision.real == "float":
-        text = next(t for t in (f"{value:.{digits}g}" for digits in range(1, 10))
-                    if float(np.float32(float(t))) == value)
+        text = next(
+            t for t in (f"{value:.{digits}g}" for digits in range(1, 10)) if float(np.float32(float(t))) == value
+        )
         text += "" if any(c in text for c in ".e") else ".0"
     else:
         text = repr(value)

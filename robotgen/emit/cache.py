@@ -4,6 +4,7 @@ The key covers everything a build depends on: the spec (and the files it reads, 
 URDF), the output options, robotgen's own code and templates, the CasADi version, the
 compiler and $CFLAGS. It is stored beside the build in BUILD_KEY (not part of the emitted
 sources, so generated/ stays byte-identical across robotgen edits that change nothing emitted)."""
+
 from __future__ import annotations
 
 import hashlib

@@ -1,4 +1,5 @@
 """Compiles the Python extension with the C compiler Python was built with."""
+
 from __future__ import annotations
 
 import os
@@ -67,8 +68,9 @@ def compile_extension(build_dir: Path, name: str, sources: list[str], parts: int
     for source in sources:
         stem = source[:-2]
         if source == f"{name}.c":
-            jobs += [[*compiler(), *flags, f"-DRG_PART={k}", "-c", source, "-o", f"{stem}.part{k}.o"]
-                     for k in range(parts)]
+            jobs += [
+                [*compiler(), *flags, f"-DRG_PART={k}", "-c", source, "-o", f"{stem}.part{k}.o"] for k in range(parts)
+            ]
         else:
             jobs.append([*compiler(), *flags, "-c", source, "-o", f"{stem}.o"])
     objects = [job[-1] for job in jobs]
@@ -87,14 +89,18 @@ def _run(command: list[str], build_dir: Path, name: str) -> None:
     try:
         result = subprocess.run(command, cwd=build_dir, capture_output=True, text=True)
     except FileNotFoundError as error:
-        raise NoCompiler(f"no C compiler: cannot run {command[0]!r} ({error.strerror}); install one (gcc or clang) "
-                         "or set CC to it, or build with --no-compile") from None
+        raise NoCompiler(
+            f"no C compiler: cannot run {command[0]!r} ({error.strerror}); install one (gcc or clang) "
+            "or set CC to it, or build with --no-compile"
+        ) from None
     if result.returncode != 0:
         if user_flags():
             raise FlagsRejected(
                 f"compiling the generated extension {name!r} failed with CFLAGS={shlex.join(user_flags())!r} "
                 f"from the environment; unset CFLAGS to build with robotgen's own flags:\n"
-                f"$ {shlex.join(command)}\n{result.stdout}{result.stderr}")
+                f"$ {shlex.join(command)}\n{result.stdout}{result.stderr}"
+            )
         raise CompileError(
             f"compiling the generated extension {name!r} failed (a robotgen bug):\n"
-            f"$ {shlex.join(command)}\n{result.stdout}{result.stderr}")
+            f"$ {shlex.join(command)}\n{result.stdout}{result.stderr}"
+        )

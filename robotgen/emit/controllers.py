@@ -5,6 +5,7 @@ functions in C, a class in the Python extension.
 A controller's C prefix is ``<module>_<snake case of its class without "Controller">_controller``
 (AdaptiveController in puma560_rmac: ``puma560_rmac_adaptive_controller``); it names the
 struct type, ``<prefix>_reset``, ``<prefix>_step`` and the macros ``<PREFIX>_*``."""
+
 from __future__ import annotations
 
 import re
@@ -114,14 +115,22 @@ class ControllerView:
 def snake_case(class_name: str) -> str:
     """AdaptiveController -> adaptive, ResolvedAccelerationController -> resolved_acceleration,
     PDController -> pd."""
-    stem = class_name[:-len("Controller")] if class_name.endswith("Controller") and class_name != "Controller" \
+    stem = (
+        class_name[: -len("Controller")]
+        if class_name.endswith("Controller") and class_name != "Controller"
         else class_name
+    )
     stem = re.sub(r"([A-Z]+)([A-Z][a-z])", r"\1_\2", stem)
     return re.sub(r"([a-z0-9])([A-Z])", r"\1_\2", stem).lower()
 
 
-def controller_view(module: str, controller: Controller, functions: dict[str, FunctionView],
-                    precision: c_kernel.Precision, parameters: tuple[ParameterView, ...]) -> ControllerView:
+def controller_view(
+    module: str,
+    controller: Controller,
+    functions: dict[str, FunctionView],
+    precision: c_kernel.Precision,
+    parameters: tuple[ParameterView, ...],
+) -> ControllerView:
     """The view of ``controller``, checked against its kernels (``functions``: name ->
     FunctionView of the module) and the Controller contract."""
     what = f"controller {controller.class_name!r}"
@@ -133,8 +142,9 @@ def controller_view(module: str, controller: Controller, functions: dict[str, Fu
     init = _kernel(functions, controller.init, f"{what}: init kernel") if controller.init else None
     n = controller.state_size
     if n < 0 or (n == 0 and (controller.init or controller.views)):
-        raise KernelError(f"{what}: state size {n} with init {controller.init!r} and views "
-                          f"{[v.name for v in controller.views]}")
+        raise KernelError(
+            f"{what}: state size {n} with init {controller.init!r} and views {[v.name for v in controller.views]}"
+        )
     if not controller.period > 0:
         raise KernelError(f"{what}: period {controller.period!r} is not positive")
 
@@ -142,30 +152,39 @@ def controller_view(module: str, controller: Controller, functions: dict[str, Fu
     names = [p.name for p in step.inputs]
     expected = [*TRAJECTORY, *([STATE] if n else []), *controller.flags]
     if names != expected:
-        raise KernelError(f"{what}: step kernel {step.name!r} has inputs {names}, the Controller contract "
-                          f"wants {expected}{' and params' if parameters else ''}")
-    inputs = step.inputs[:len(TRAJECTORY)]
+        raise KernelError(
+            f"{what}: step kernel {step.name!r} has inputs {names}, the Controller contract "
+            f"wants {expected}{' and params' if parameters else ''}"
+        )
+    inputs = step.inputs[: len(TRAJECTORY)]
     if n and step.inputs[len(TRAJECTORY)].size != n:
-        raise KernelError(f"{what}: input {STATE!r} of {step.name!r} holds {step.inputs[len(TRAJECTORY)].size}, "
-                          f"the state {n}")
-    for flag in step.inputs[len(TRAJECTORY) + bool(n):]:
+        raise KernelError(
+            f"{what}: input {STATE!r} of {step.name!r} holds {step.inputs[len(TRAJECTORY)].size}, the state {n}"
+        )
+    for flag in step.inputs[len(TRAJECTORY) + bool(n) :]:
         if flag.size != 1:
             raise KernelError(f"{what}: flag {flag.name!r} is {flag.rows}x{flag.cols}, not a number")
     outputs = [p.name for p in step.outputs]
     if not outputs or (n and (len(outputs) < 2 or outputs[-1] != STATE_NEXT or step.outputs[-1].size != n)):
-        raise KernelError(f"{what}: step kernel {step.name!r} has outputs {outputs}; the contract wants tau "
-                          f"first{f', then {STATE_NEXT!r} of {n} last' if n else ''}")
-    if STATE_NEXT in outputs[1:len(outputs) - bool(n)] or (not n and STATE_NEXT in outputs):
+        raise KernelError(
+            f"{what}: step kernel {step.name!r} has outputs {outputs}; the contract wants tau "
+            f"first{f', then {STATE_NEXT!r} of {n} last' if n else ''}"
+        )
+    if STATE_NEXT in outputs[1 : len(outputs) - bool(n)] or (not n and STATE_NEXT in outputs):
         raise KernelError(f"{what}: {STATE_NEXT!r} is only the step's last output, with a state")
-    others = tuple(OutputField(p.name, p.size, p.shape, p.shape_text, k + 1)
-                   for k, p in enumerate(step.outputs[1:len(step.outputs) - bool(n)]))
+    others = tuple(
+        OutputField(p.name, p.size, p.shape, p.shape_text, k + 1)
+        for k, p in enumerate(step.outputs[1 : len(step.outputs) - bool(n)])
+    )
     if init is not None:
         init_names = [p.name for p in init.inputs]
         init_shapes = [p.shape for p in init.inputs]
         if init_names != list(TRAJECTORY) or init_shapes != [p.shape for p in inputs]:
-            raise KernelError(f"{what}: init kernel {init.name!r} has inputs {init_names} {init_shapes}; the "
-                              f"contract wants those of {step.name!r}: {list(TRAJECTORY)} "
-                              f"{[p.shape for p in inputs]}")
+            raise KernelError(
+                f"{what}: init kernel {init.name!r} has inputs {init_names} {init_shapes}; the "
+                f"contract wants those of {step.name!r}: {list(TRAJECTORY)} "
+                f"{[p.shape for p in inputs]}"
+            )
         if [p.name for p in init.outputs] != [STATE] or init.outputs[0].size != n:
             raise KernelError(f"{what}: init kernel {init.name!r} must have the one output {STATE!r} of {n}")
 
@@ -178,8 +197,10 @@ def controller_view(module: str, controller: Controller, functions: dict[str, Fu
         c_kernel.check_identifier(view.name, f"{what}: view")
     attributes = [*CLASS_ATTRIBUTES, *controller.flags, *(v.name for v in controller.views)]
     if len(set(attributes)) != len(attributes) or any(a.startswith("__") for a in attributes):
-        raise KernelError(f"{what}: attribute names repeat or are reserved: flags {list(controller.flags)}, "
-                          f"views {[v.name for v in controller.views]}, and {sorted(CLASS_ATTRIBUTES)}")
+        raise KernelError(
+            f"{what}: attribute names repeat or are reserved: flags {list(controller.flags)}, "
+            f"views {[v.name for v in controller.views]}, and {sorted(CLASS_ATTRIBUTES)}"
+        )
     fields = [*STRUCT_FIELDS, *controller.flags, *(o.name for o in others)]
     if len(set(fields)) != len(fields) or set(fields) & c_kernel.RESERVED:
         raise KernelError(f"{what}: struct fields repeat or are reserved: {fields}")
@@ -192,15 +213,27 @@ def controller_view(module: str, controller: Controller, functions: dict[str, Fu
     for view in controller.views:
         end = view.offset + view.rows * view.cols
         if view.offset < 0 or view.rows < 1 or view.cols < 1 or end > n:
-            raise KernelError(f"{what}: view {view.name!r} ({view.rows}x{view.cols} at {view.offset}) "
-                              f"is not inside the state of {n}")
+            raise KernelError(
+                f"{what}: view {view.name!r} ({view.rows}x{view.cols} at {view.offset}) is not inside the state of {n}"
+            )
         shape = (view.rows,) if view.cols == 1 else (view.rows, view.cols)
         doc = " ".join(view.doc.split())
-        built.append(ViewView(
-            name=view.name, offset=view.offset, rows=view.rows, cols=view.cols, size=view.rows * view.cols,
-            shape=shape, shape_text=_shape_text(shape), doc=doc, doc_line=doc.replace("*/", "* /"),
-            offset_macro=f"{macro}_{view.name.upper()}_OFFSET",
-            stub_doc=py_string(_view_doc(doc, shape)), c_doc=c_string(_view_doc(doc, shape))))
+        built.append(
+            ViewView(
+                name=view.name,
+                offset=view.offset,
+                rows=view.rows,
+                cols=view.cols,
+                size=view.rows * view.cols,
+                shape=shape,
+                shape_text=_shape_text(shape),
+                doc=doc,
+                doc_line=doc.replace("*/", "* /"),
+                offset_macro=f"{macro}_{view.name.upper()}_OFFSET",
+                stub_doc=py_string(_view_doc(doc, shape)),
+                c_doc=c_string(_view_doc(doc, shape)),
+            )
+        )
     views = tuple(built)
 
     reads = step.reads_parameters or bool(init is not None and init.reads_parameters)
@@ -210,39 +243,78 @@ def controller_view(module: str, controller: Controller, functions: dict[str, Fu
     step_prototype = f"int {c_type}_step({c_type} *controller, {arrays}{params}{real} *{step.outputs[0].name})"
     period_literal = repr(float(controller.period))
     doc = _class_doc(controller, step, init, views, others, parameters if reads else ())
-    info = {"class": controller.class_name, "c_type": c_type, "step": step.name,
-            "init": init.name if init is not None else None, "period": float(controller.period),
-            "state_size": n, "flags": list(controller.flags),
-            "views": [{"name": v.name, "offset": v.offset, "shape": list(v.shape), "doc": v.doc} for v in views],
-            "outputs": [o.name for o in others], "reads_parameters": reads,
-            "start_check": None if start is None or controller.start is None else {
-                "function": start.name, "limits": list(controller.start.limits), "units": list(controller.start.units)}}
+    info = {
+        "class": controller.class_name,
+        "c_type": c_type,
+        "step": step.name,
+        "init": init.name if init is not None else None,
+        "period": float(controller.period),
+        "state_size": n,
+        "flags": list(controller.flags),
+        "views": [{"name": v.name, "offset": v.offset, "shape": list(v.shape), "doc": v.doc} for v in views],
+        "outputs": [o.name for o in others],
+        "reads_parameters": reads,
+        "start_check": None
+        if start is None or controller.start is None
+        else {"function": start.name, "limits": list(controller.start.limits), "units": list(controller.start.units)},
+    }
     keywords = [f"{p.name}={p.py_default}" for p in parameters] if reads else []
     signature = f"{controller.class_name}({', '.join(['*', *keywords]) if keywords else ''})"
     step_signature = f"step($self, {', '.join(p.name for p in inputs)}, *, out=None)"
     step_doc = _step_doc(step, inputs, others)
     return ControllerView(
-        class_name=controller.class_name, snake=snake, c_type=c_type, macro=macro,
-        c_reset=f"{c_type}_reset", c_step=f"{c_type}_step", step=step.name, c_step_kernel=step.c_name,
-        init=init.name if init is not None else None, c_init_kernel=init.c_name if init is not None else "",
-        period=float(controller.period), period_literal=period_literal, state_size=n,
-        flags=tuple(controller.flags), views=views, inputs=inputs, tau=step.outputs[0], tau_index=0,
-        outputs=others, step_reads_parameters=step.reads_parameters,
-        init_reads_parameters=bool(init is not None and init.reads_parameters), reads_parameters=reads,
-        step_prototype=step_prototype, reset_prototype=f"void {c_type}_reset({c_type} *controller)",
+        class_name=controller.class_name,
+        snake=snake,
+        c_type=c_type,
+        macro=macro,
+        c_reset=f"{c_type}_reset",
+        c_step=f"{c_type}_step",
+        step=step.name,
+        c_step_kernel=step.c_name,
+        init=init.name if init is not None else None,
+        c_init_kernel=init.c_name if init is not None else "",
+        period=float(controller.period),
+        period_literal=period_literal,
+        state_size=n,
+        flags=tuple(controller.flags),
+        views=views,
+        inputs=inputs,
+        tau=step.outputs[0],
+        tau_index=0,
+        outputs=others,
+        step_reads_parameters=step.reads_parameters,
+        init_reads_parameters=bool(init is not None and init.reads_parameters),
+        reads_parameters=reads,
+        step_prototype=step_prototype,
+        reset_prototype=f"void {c_type}_reset({c_type} *controller)",
         start_kernel=start.c_name if start else "",
         start_size=len(controller.start.limits) if start and controller.start else 0,
         start_limits=tuple(c_kernel.literal(v, precision) for v in controller.start.limits)
-        if start and controller.start else (),
+        if start and controller.start
+        else (),
         start_units=tuple(c_string(u) for u in controller.start.units) if start and controller.start else (),
         start_bounds=c_string(_start_bounds(controller.start)) if start and controller.start else "",
         start_hint=c_string(controller.start.hint) if start and controller.start else "",
         layout_lines=_layout(controller, step, init, views, others, period_literal),
-        step_lines=_step_comment(f"{c_type}_step", controller.class_name, step, init, controller.flags, others, n,
-                                 real, controller.start, start),
-        doc=doc, py_doc=c_string(f"{signature}\n--\n\n{doc}"),
+        step_lines=_step_comment(
+            f"{c_type}_step",
+            controller.class_name,
+            step,
+            init,
+            controller.flags,
+            others,
+            n,
+            real,
+            controller.start,
+            start,
+        ),
+        doc=doc,
+        py_doc=c_string(f"{signature}\n--\n\n{doc}"),
         step_py_doc=c_string(f"{step_signature}\n--\n\n{step_doc}"),
-        stub_doc=py_string(doc), step_stub_doc=py_string(_summary(step_doc)), info=info)
+        stub_doc=py_string(doc),
+        step_stub_doc=py_string(_summary(step_doc)),
+        info=info,
+    )
 
 
 def _start_check(what: str, controller: Controller, functions: dict, inputs: tuple) -> FunctionView | None:
@@ -254,19 +326,23 @@ def _start_check(what: str, controller: Controller, functions: dict, inputs: tup
     kernel = _kernel(functions, start.kernel, f"{what}: start check kernel")
     wanted = [(p.name, p.shape) for p in inputs if p.name in ("q", "pose_d")]
     if [(p.name, p.shape) for p in kernel.inputs] != wanted or kernel.reads_parameters:
-        raise KernelError(f"{what}: start check kernel {kernel.name!r} has inputs "
-                          f"{[(p.name, p.shape) for p in kernel.inputs]}; the contract wants {wanted}, no parameters")
+        raise KernelError(
+            f"{what}: start check kernel {kernel.name!r} has inputs "
+            f"{[(p.name, p.shape) for p in kernel.inputs]}; the contract wants {wanted}, no parameters"
+        )
     n = len(start.limits)
     if len(kernel.outputs) != 1 or kernel.outputs[0].size != n or len(start.units) != n or n == 0:
-        raise KernelError(f"{what}: start check kernel {kernel.name!r} must give one distance per limit "
-                          f"{start.limits} (units {start.units})")
+        raise KernelError(
+            f"{what}: start check kernel {kernel.name!r} must give one distance per limit "
+            f"{start.limits} (units {start.units})"
+        )
     if not all(v > 0 for v in start.limits):
         raise KernelError(f"{what}: start check limits {start.limits} must be positive")
     return kernel
 
 
 def _start_bounds(start) -> str:
-    """"at most 0.05 m and 0.2 rad"."""
+    """ "at most 0.05 m and 0.2 rad"."""
     parts = [f"{limit:g} {unit}" for limit, unit in zip(start.limits, start.units)]
     return "at most " + (", ".join(parts[:-1]) + " and " + parts[-1] if len(parts) > 1 else parts[0])
 
@@ -275,10 +351,14 @@ def controllers_note(views: tuple[ControllerView, ...]) -> tuple[str, ...]:
     """The header's first comment on a module's controllers (() without any)."""
     if not views:
         return ()
-    return tuple(_wrap(f"The controllers at the end ({', '.join(v.c_type for v in views)}) keep one arm's "
-                       "controller state in a struct the caller owns: one struct per controlled arm, reset once, "
-                       "then stepped once per period from one thread (a struct is not for sharing between "
-                       "threads). Their functions use no heap, no global state and no I/O either."))
+    return tuple(
+        _wrap(
+            f"The controllers at the end ({', '.join(v.c_type for v in views)}) keep one arm's "
+            "controller state in a struct the caller owns: one struct per controlled arm, reset once, "
+            "then stepped once per period from one thread (a struct is not for sharing between "
+            "threads). Their functions use no heap, no global state and no I/O either."
+        )
+    )
 
 
 def _summary(doc: str) -> str:
@@ -292,8 +372,10 @@ def _kernel(functions: dict, name: str, what: str):
 
 
 def _view_doc(doc: str, shape: tuple[int, ...]) -> str:
-    return (f"{doc[:1].upper()}{doc[1:]}: a new float64 array {_shape_text(shape)} (read-only; zeros before the "
-            "first step).")
+    return (
+        f"{doc[:1].upper()}{doc[1:]}: a new float64 array {_shape_text(shape)} (read-only; zeros before the "
+        "first step)."
+    )
 
 
 def _shape_text(shape: tuple[int, ...]) -> str:
@@ -303,13 +385,16 @@ def _shape_text(shape: tuple[int, ...]) -> str:
 
 def _class_doc(controller: Controller, step, init, views, others, parameters) -> str:
     first = " ".join(step.doc.split("\n\n")[0].split()) or step.name
-    lines = [f"A controller around {step.name}"
-             + (f" (and {init.name}, the state of the first step after a reset)" if init is not None else "")
-             + f", one step every period = {controller.period!r} s: {first}",
-             "",
-             "step(q, qd, pose_d, twist_d, accel_d) returns tau and carries the state; reset() restarts "
-             "(the next step runs " + (init.name if init is not None else "from a zero state" if
-                                        controller.state_size else "as the first") + ")."]
+    lines = [
+        f"A controller around {step.name}"
+        + (f" (and {init.name}, the state of the first step after a reset)" if init is not None else "")
+        + f", one step every period = {controller.period!r} s: {first}",
+        "",
+        "step(q, qd, pose_d, twist_d, accel_d) returns tau and carries the state; reset() restarts "
+        "(the next step runs "
+        + (init.name if init is not None else "from a zero state" if controller.state_size else "as the first")
+        + ").",
+    ]
     for flag in controller.flags:
         lines.append(f"{flag}: bool, the step's {flag!r} input; True after construction and reset().")
     for view in views:
@@ -317,14 +402,18 @@ def _class_doc(controller: Controller, step, init, views, others, parameters) ->
     if controller.state_size:
         lines.append(f"state: ({controller.state_size},), read-only: the raw state the next step reads.")
     if others:
-        lines.append(f"last: dict of the last step's other outputs ({', '.join(o.name for o in others)}); "
-                     "empty before the first step.")
+        lines.append(
+            f"last: dict of the last step's other outputs ({', '.join(o.name for o in others)}); "
+            "empty before the first step."
+        )
     else:
         lines.append("last: dict of the last step's other outputs (none).")
     if parameters:
-        lines.append("parameters: the run-time parameters the steps read, a mapping settable per key or as a "
-                     "whole (keys left out take the spec's value); the keyword arguments set them. Changes apply "
-                     "to the next step.")
+        lines.append(
+            "parameters: the run-time parameters the steps read, a mapping settable per key or as a "
+            "whole (keys left out take the spec's value); the keyword arguments set them. Changes apply "
+            "to the next step."
+        )
     lines += ["", "Not thread-safe: one object per controlled arm, stepped from one thread."]
     return "\n".join(lines)
 
@@ -333,8 +422,10 @@ def _step_doc(step, inputs, others) -> str:
     lines = [step.doc.strip() or step.name, ""]
     lines += [f"{p.name}: float64 array {p.shape_text} (no batch axis)" for p in inputs]
     extra = f"; the other outputs ({', '.join(o.name for o in others)}) are in .last" if others else ""
-    lines.append(f"out: None, or a float64 array {step.outputs[0].shape_text} to write "
-                 f"{step.outputs[0].name} into (then returned: no allocation)")
+    lines.append(
+        f"out: None, or a float64 array {step.outputs[0].shape_text} to write "
+        f"{step.outputs[0].name} into (then returned: no allocation)"
+    )
     lines.append(f"Returns {step.outputs[0].name} {step.outputs[0].shape_text}{extra}.")
     return "\n".join(lines)
 
@@ -346,10 +437,12 @@ def _wrap(text: str, indent: str = "") -> list[str]:
 
 def _layout(controller: Controller, step, init, views, others, period_literal: str) -> tuple[str, ...]:
     n = controller.state_size
-    lines = _wrap(f"{controller.class_name}: {step.c_name} every {period_literal} s"
-                  + (f", after {init.c_name} on the first step after a reset." if init is not None else ".")
-                  + " The caller owns the struct: one per controlled arm, stepped from one thread (it is "
-                  "not for sharing between threads). Call reset before the first step.") + [""]
+    lines = _wrap(
+        f"{controller.class_name}: {step.c_name} every {period_literal} s"
+        + (f", after {init.c_name} on the first step after a reset." if init is not None else ".")
+        + " The caller owns the struct: one per controlled arm, stepped from one thread (it is "
+        "not for sharing between threads). Call reset before the first step."
+    ) + [""]
     if n:
         lines.append(f"state[{n}]: what the next step reads (written by the step only):")
         covered = 0
@@ -357,27 +450,37 @@ def _layout(controller: Controller, step, init, views, others, period_literal: s
             if view.offset > covered:
                 lines.append(f"  [{covered}, {view.offset}) the law's own")
             row_major = " row-major" if view.cols > 1 else ""
-            lines += _wrap(f"  [{view.offset}, {view.offset + view.size}) {view.name} {view.shape_text}{row_major}: "
-                           f"{view.doc_line}", "      ")
+            lines += _wrap(
+                f"  [{view.offset}, {view.offset + view.size}) {view.name} {view.shape_text}{row_major}: "
+                f"{view.doc_line}",
+                "      ",
+            )
             covered = max(covered, view.offset + view.size)
         if covered < n:
             lines.append(f"  [{covered}, {n}) the law's own")
     for o in others:
         lines.append(f"{o.name} {o.shape_text}: the step's {o.name!r} output of the last step")
-    lines += _wrap("initialised: 0 after reset" + (f" (the next step runs {init.c_name} first)" if init is not None
-                                                   else "") + ", 1 after a step", "    ")
+    lines += _wrap(
+        "initialised: 0 after reset"
+        + (f" (the next step runs {init.c_name} first)" if init is not None else "")
+        + ", 1 after a step",
+        "    ",
+    )
     for flag in controller.flags:
         lines.append(f"{flag}: the step's {flag!r} input, 1 (true, after reset) or 0")
     return tuple(lines)
 
 
-def _step_comment(c_step: str, class_name: str, step, init, flags, others, state_size: int,
-                  real: str, start=None, start_kernel=None) -> tuple[str, ...]:
+def _step_comment(
+    c_step: str, class_name: str, step, init, flags, others, state_size: int, real: str, start=None, start_kernel=None
+) -> tuple[str, ...]:
     text = f"{c_step}: one period of {class_name}. "
     if start is not None:
-        text += (f"On the first step after a reset it first runs {start_kernel.c_name}: when one of its distances "
-                 f"is above its limit ({_start_bounds(start)}) it returns 3, having written nothing (the struct "
-                 "stays reset; the desired path must start at the hand). ")
+        text += (
+            f"On the first step after a reset it first runs {start_kernel.c_name}: when one of its distances "
+            f"is above its limit ({_start_bounds(start)}) it returns 3, having written nothing (the struct "
+            "stays reset; the desired path must start at the hand). "
+        )
     if init is not None:
         text += f"On the first step after a reset it runs {init.c_name} into controller->state; then it runs "
     else:
@@ -386,8 +489,11 @@ def _step_comment(c_step: str, class_name: str, step, init, flags, others, state
     if state_size:
         written.append(f"the next state (through a stack buffer of {state_size} {real}s)")
     with_flags = " with the struct's flags" if flags else ""
-    text += (f"{step.c_name}{with_flags}, writing "
-             + (", ".join(written[:-1]) + " and " + written[-1] if len(written) > 1 else written[0]) + ". "
-             + "Returns the kernel's status: 0"
-             + (" (on another value the state is not advanced)." if state_size else "."))
+    text += (
+        f"{step.c_name}{with_flags}, writing "
+        + (", ".join(written[:-1]) + " and " + written[-1] if len(written) > 1 else written[0])
+        + ". "
+        + "Returns the kernel's status: 0"
+        + (" (on another value the state is not advanced)." if state_size else ".")
+    )
     return tuple(_wrap(text))

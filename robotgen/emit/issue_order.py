@@ -19,6 +19,7 @@ docs/performance-log.md).
 The latencies are a model (cycles of a current x86-64 core), used only to rank; the order
 is computed from them alone, so it is the same on every machine.
 """
+
 from __future__ import annotations
 
 import heapq
@@ -29,8 +30,19 @@ from robotgen.emit.sx_program import Instruction, Program, defining_steps
 
 ISSUE_WIDTH = 4  # floating-point operations a core starts per cycle
 _FREE = frozenset({ca.OP_INPUT, ca.OP_CONST, ca.OP_OUTPUT, ca.OP_ASSIGN})
-_LATENCY = {ca.OP_NEG: 1, ca.OP_FABS: 1, ca.OP_DIV: 13, ca.OP_INV: 13, ca.OP_SQRT: 15,
-            ca.OP_SIN: 25, ca.OP_COS: 25, ca.OP_TAN: 30, ca.OP_ATAN2: 40, ca.OP_EXP: 20, ca.OP_LOG: 20}
+_LATENCY = {
+    ca.OP_NEG: 1,
+    ca.OP_FABS: 1,
+    ca.OP_DIV: 13,
+    ca.OP_INV: 13,
+    ca.OP_SQRT: 15,
+    ca.OP_SIN: 25,
+    ca.OP_COS: 25,
+    ca.OP_TAN: 30,
+    ca.OP_ATAN2: 40,
+    ca.OP_EXP: 20,
+    ca.OP_LOG: 20,
+}
 _DEFAULT_LATENCY = 3  # add, subtract, multiply, compare, select
 
 
@@ -44,8 +56,10 @@ def _single_assignment(program: Program) -> list[Instruction]:
     """The steps with step k writing register k (CasADi reuses registers; a moved step must
     not read a register that something else wrote in the meantime)."""
     defs = defining_steps(program.instructions)
-    return [Instruction(step.op, k if step.target >= 0 else -1, defs[k], step.port, step.element, step.constant)
-            for k, step in enumerate(program.instructions)]
+    return [
+        Instruction(step.op, k if step.target >= 0 else -1, defs[k], step.port, step.element, step.constant)
+        for k, step in enumerate(program.instructions)
+    ]
 
 
 def critical_path(program: Program) -> tuple[int, int]:
@@ -128,8 +142,11 @@ def pressure_scheduled(program: Program) -> Program:
     def rescore(k: int) -> None:
         if done[k] or lazy[k] or blocked[k]:
             return
-        s = (sum(remaining[r] == 1 for r in operands[k]) - sum(lazy[r] and not done[r] for r in operands[k])
-             - (1 if steps[k].target >= 0 and users[k] else 0))
+        s = (
+            sum(remaining[r] == 1 for r in operands[k])
+            - sum(lazy[r] and not done[r] for r in operands[k])
+            - (1 if steps[k].target >= 0 and users[k] else 0)
+        )
         score[k] = s
         heapq.heappush(heap, (-s, k))
 
@@ -162,4 +179,3 @@ def pressure_scheduled(program: Program) -> Program:
         emit(k)
     order += [k for k in range(n) if not done[k]]  # constants and inputs nothing reads
     return Program(tuple(steps[k] for k in order), program.unwritten_outputs)
-

@@ -4,6 +4,7 @@ A lane kernel (robotgen.emit.lanes) is printed once, in these names, and compile
 width: before each copy, ``<name>.c`` defines them for that width (the vector type, its
 number of lanes, a broadcast, the instruction set the copy is compiled for, and a suffix that
 keeps each copy's functions apart)."""
+
 from __future__ import annotations
 
 VECTOR = "rg_v"  # W values of the module's type (GCC/Clang vector extension)

@@ -21,6 +21,7 @@ not GCC or Clang) every state goes through the single-state function. The lane k
 printed once and compiled once per width: ``<name>.c`` defines the names of
 robotgen.emit.lane_names for each width before its copy.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -31,10 +32,20 @@ from robotgen.symbolic.kernel import Kernel
 
 # The functions with a batch form: the dynamics a sampling MPC or a trajectory optimiser
 # evaluates over many states, and their derivatives (a tree's plant for simulating many at once).
-BATCH_FUNCTIONS = frozenset({
-    "mass", "gravity", "inverse_dynamics", "forward_dynamics", "mass_inverse", "inverse_dynamics_derivatives",
-    "forward_dynamics_derivatives", "discrete_dynamics", "discrete_dynamics_derivatives", "plant_dynamics",
-})
+BATCH_FUNCTIONS = frozenset(
+    {
+        "mass",
+        "gravity",
+        "inverse_dynamics",
+        "forward_dynamics",
+        "mass_inverse",
+        "inverse_dynamics_derivatives",
+        "forward_dynamics_derivatives",
+        "discrete_dynamics",
+        "discrete_dynamics_derivatives",
+        "plant_dynamics",
+    }
+)
 # Lanes are compiled for robots of at most this many coordinates: past it, each state of a batch
 # goes through the single-state function. A long chain's or a humanoid's kernels are loops
 # (symbolic/chain_loops.py), and their lane copies tripled the build: the 30-joint chain of
@@ -71,16 +82,18 @@ WIDTHS = (
 )
 # Where lanes are compiled at all: GCC or Clang with __builtin_convertvector (GCC 9), on x86-64
 # or aarch64; -DRG_NO_LANES turns them off.
-LANES_GUARD = ("#if defined(__GNUC__) && (defined(__clang__) || __GNUC__ >= 9) && !defined(RG_NO_LANES)\n"
-               "#if defined(__x86_64__)\n"
-               f"#define {X86} 1\n"
-               "#elif defined(__aarch64__)\n"
-               f"#define {NEON} 1\n"
-               "#endif\n"
-               "#endif\n"
-               f"#if defined(__clang__) && (defined({X86}) || defined({NEON}))\n"
-               "#pragma STDC FP_CONTRACT OFF\n"
-               "#endif\n")
+LANES_GUARD = (
+    "#if defined(__GNUC__) && (defined(__clang__) || __GNUC__ >= 9) && !defined(RG_NO_LANES)\n"
+    "#if defined(__x86_64__)\n"
+    f"#define {X86} 1\n"
+    "#elif defined(__aarch64__)\n"
+    f"#define {NEON} 1\n"
+    "#endif\n"
+    "#endif\n"
+    f"#if defined(__clang__) && (defined({X86}) || defined({NEON}))\n"
+    "#pragma STDC FP_CONTRACT OFF\n"
+    "#endif\n"
+)
 
 
 def has_batch(kernel: Kernel) -> bool:
@@ -99,8 +112,10 @@ def _array_ports(kernel: Kernel):
 
 def batch_prototypes(prefix: str, kernel: Kernel, precision: Precision) -> tuple[str, str]:
     """(``<fn>_batch``, ``<fn>_batch_lanes``) prototypes, without the semicolon."""
-    params = [f"const {params_type(prefix)} *{p.name}" if is_parameter_port(p)
-              else f"const {precision.real} *{p.name}" for p in kernel.inputs]
+    params = [
+        f"const {params_type(prefix)} *{p.name}" if is_parameter_port(p) else f"const {precision.real} *{p.name}"
+        for p in kernel.inputs
+    ]
     params += [f"{precision.real} *{p.name}" for p in kernel.outputs]
     name = batch_name(prefix, kernel)
     return (f"int {name}(int n, {', '.join(params)})", f"int {name}_lanes(int lanes, int n, {', '.join(params)})")
@@ -116,32 +131,37 @@ def width_open(width: Width, precision: Precision) -> str:
     target = f"__attribute__(({isa}))" if isa else ""
     gcc_target = f'__attribute__(({isa + ", " if isa else ""}optimize("fp-contract=off")))'
     vector, integers = f"rg_v_{width.name}", f"rg_vi_{width.name}"
-    return "\n".join([
-        f"#if defined({width.guard})",
-        f"typedef {precision.real} {vector} __attribute__((vector_size({width.vector_bytes})));",
-        f"typedef int {integers} __attribute__((vector_size({4 * w})));",
-        f"#define {lane_names.VECTOR} {vector}",
-        f"#define {lane_names.INT_VECTOR} {integers}",
-        # what a comparison gives: a type of its own in Clang; in GCC an opaque type that
-        # converts to this one (which its shuffles take as their mask)
-        "#if defined(__clang__)",
-        f"typedef __typeof__(({vector}){{0}} < ({vector}){{0}}) rg_vm_{width.name};",
-        "#else",
-        f"typedef {'long long' if precision.real == 'double' else 'int'} rg_vm_{width.name} "
-        f"__attribute__((vector_size({width.vector_bytes})));",
-        "#endif",
-        f"#define {lane_names.MASK_VECTOR} rg_vm_{width.name}",
-        f"#define {lane_names.WIDTH} {w}",
-        f"#define {lane_names.SPLAT}(x) (({lane_names.VECTOR}){{{splat}}})",
-        f"#define {lane_names.INT_SPLAT}(x) (({lane_names.INT_VECTOR}){{{splat}}})",
-        "#if defined(__clang__)",
-        f"#define {lane_names.TARGET} {target}".rstrip(),
-        "#else",
-        f"#define {lane_names.TARGET} {gcc_target}",
-        "#endif",
-        f"#define {lane_names.PER_WIDTH}(name) name##_{width.name}",
-        *_transposes(w, precision),
-    ]) + "\n"
+    return (
+        "\n".join(
+            [
+                f"#if defined({width.guard})",
+                f"typedef {precision.real} {vector} __attribute__((vector_size({width.vector_bytes})));",
+                f"typedef int {integers} __attribute__((vector_size({4 * w})));",
+                f"#define {lane_names.VECTOR} {vector}",
+                f"#define {lane_names.INT_VECTOR} {integers}",
+                # what a comparison gives: a type of its own in Clang; in GCC an opaque type that
+                # converts to this one (which its shuffles take as their mask)
+                "#if defined(__clang__)",
+                f"typedef __typeof__(({vector}){{0}} < ({vector}){{0}}) rg_vm_{width.name};",
+                "#else",
+                f"typedef {'long long' if precision.real == 'double' else 'int'} rg_vm_{width.name} "
+                f"__attribute__((vector_size({width.vector_bytes})));",
+                "#endif",
+                f"#define {lane_names.MASK_VECTOR} rg_vm_{width.name}",
+                f"#define {lane_names.WIDTH} {w}",
+                f"#define {lane_names.SPLAT}(x) (({lane_names.VECTOR}){{{splat}}})",
+                f"#define {lane_names.INT_SPLAT}(x) (({lane_names.INT_VECTOR}){{{splat}}})",
+                "#if defined(__clang__)",
+                f"#define {lane_names.TARGET} {target}".rstrip(),
+                "#else",
+                f"#define {lane_names.TARGET} {gcc_target}",
+                "#endif",
+                f"#define {lane_names.PER_WIDTH}(name) name##_{width.name}",
+                *_transposes(w, precision),
+            ]
+        )
+        + "\n"
+    )
 
 
 def _transpose_steps(w: int) -> list[tuple[int, int, list[int], list[int]]]:
@@ -151,8 +171,14 @@ def _transpose_steps(w: int) -> list[tuple[int, int, list[int], list[int]]]:
     steps, b = [], 1
     while b < w:
         for i in (i for i in range(w) if not i & b):
-            steps.append((i, i + b, [w + lane - b if lane & b else lane for lane in range(w)],
-                          [w + lane if lane & b else lane + b for lane in range(w)]))
+            steps.append(
+                (
+                    i,
+                    i + b,
+                    [w + lane - b if lane & b else lane for lane in range(w)],
+                    [w + lane if lane & b else lane + b for lane in range(w)],
+                )
+            )
         b *= 2
     return steps
 
@@ -164,42 +190,57 @@ def _transposes(w: int, precision: Precision) -> list[str]:
     W loads or stores of W elements instead of W * W single ones. Shuffles of GCC
     (__builtin_shuffle) or Clang (__builtin_shufflevector)."""
     v, real = lane_names.VECTOR, precision.real
-    lines = ["#if defined(__clang__)",
-             "#define RG_SHUFFLE(a, b, ...) __builtin_shufflevector(a, b, __VA_ARGS__)",
-             "#else",
-             f"#define RG_SHUFFLE(a, b, ...) __builtin_shuffle(a, b, ({lane_names.MASK_VECTOR}){{__VA_ARGS__}})",
-             "#endif",
-             f"static {lane_names.TARGET} void {lane_names.per_width('rg_transpose')}({v} *t) {{",
-             f"  {v} a, b;"]
+    lines = [
+        "#if defined(__clang__)",
+        "#define RG_SHUFFLE(a, b, ...) __builtin_shufflevector(a, b, __VA_ARGS__)",
+        "#else",
+        f"#define RG_SHUFFLE(a, b, ...) __builtin_shuffle(a, b, ({lane_names.MASK_VECTOR}){{__VA_ARGS__}})",
+        "#endif",
+        f"static {lane_names.TARGET} void {lane_names.per_width('rg_transpose')}({v} *t) {{",
+        f"  {v} a, b;",
+    ]
     for i, j, low, high in _transpose_steps(w):
-        lines += [f"  a = RG_SHUFFLE(t[{i}], t[{j}], {', '.join(map(str, low))});",
-                  f"  b = RG_SHUFFLE(t[{i}], t[{j}], {', '.join(map(str, high))});",
-                  f"  t[{i}] = a;", f"  t[{j}] = b;"]
+        lines += [
+            f"  a = RG_SHUFFLE(t[{i}], t[{j}], {', '.join(map(str, low))});",
+            f"  b = RG_SHUFFLE(t[{i}], t[{j}], {', '.join(map(str, high))});",
+            f"  t[{i}] = a;",
+            f"  t[{j}] = b;",
+        ]
     # W elements at any address of the real type: an under-aligned vector that may alias it
     unaligned = lane_names.per_width("rg_vu")
-    lines += ["}", "#undef RG_SHUFFLE",
-              f"typedef {real} {unaligned} __attribute__((vector_size({w * (8 if real == 'double' else 4)}), "
-              f"aligned({8 if real == 'double' else 4}), may_alias));",
-              f"static {lane_names.TARGET} __attribute__((unused)) void {lane_names.per_width('rg_gather')}"
-              f"({v} *t, const {real} *p, size_t stride) {{",
-              "  int l;",
-              f"  for (l = 0; l < {w}; ++l) t[l] = *(const {unaligned} *)(p + l * stride);",
-              f"  {lane_names.per_width('rg_transpose')}(t);",
-              "}",
-              f"static {lane_names.TARGET} __attribute__((unused)) void {lane_names.per_width('rg_scatter')}"
-              f"({real} *p, size_t stride, {v} *t) {{",
-              "  int l;",
-              f"  {lane_names.per_width('rg_transpose')}(t);",
-              f"  for (l = 0; l < {w}; ++l) *({unaligned} *)(p + l * stride) = t[l];",
-              "}"]
+    lines += [
+        "}",
+        "#undef RG_SHUFFLE",
+        f"typedef {real} {unaligned} __attribute__((vector_size({w * (8 if real == 'double' else 4)}), "
+        f"aligned({8 if real == 'double' else 4}), may_alias));",
+        f"static {lane_names.TARGET} __attribute__((unused)) void {lane_names.per_width('rg_gather')}"
+        f"({v} *t, const {real} *p, size_t stride) {{",
+        "  int l;",
+        f"  for (l = 0; l < {w}; ++l) t[l] = *(const {unaligned} *)(p + l * stride);",
+        f"  {lane_names.per_width('rg_transpose')}(t);",
+        "}",
+        f"static {lane_names.TARGET} __attribute__((unused)) void {lane_names.per_width('rg_scatter')}"
+        f"({real} *p, size_t stride, {v} *t) {{",
+        "  int l;",
+        f"  {lane_names.per_width('rg_transpose')}(t);",
+        f"  for (l = 0; l < {w}; ++l) *({unaligned} *)(p + l * stride) = t[l];",
+        "}",
+    ]
     return lines
 
 
 def width_close() -> str:
     """The end of one width's copy of the lane code: its names undefined, its guard closed."""
-    names = (lane_names.VECTOR, lane_names.INT_VECTOR, lane_names.MASK_VECTOR, lane_names.WIDTH, lane_names.SPLAT,
-             lane_names.INT_SPLAT,
-             lane_names.TARGET, lane_names.PER_WIDTH)
+    names = (
+        lane_names.VECTOR,
+        lane_names.INT_VECTOR,
+        lane_names.MASK_VECTOR,
+        lane_names.WIDTH,
+        lane_names.SPLAT,
+        lane_names.INT_SPLAT,
+        lane_names.TARGET,
+        lane_names.PER_WIDTH,
+    )
     return "\n".join(f"#undef {name}" for name in names) + "\n#endif\n"
 
 
@@ -213,10 +254,13 @@ def driver_source(prefix: str, kernel: Kernel, precision: Precision) -> str:
     real, v, w = precision.real, lane_names.VECTOR, lane_names.WIDTH
     zero = "0.0f" if real == "float" else "0.0"
     inputs, outputs = _array_ports(kernel), kernel.outputs
-    params = [f"const {params_type(prefix)} *{p.name}" if is_parameter_port(p) else f"const {real} *{p.name}"
-              for p in kernel.inputs] + [f"{real} *{p.name}" for p in outputs]
-    arrays = ([f"rgb_in{k}[{p.size}]" for k, p in enumerate(inputs)]
-              + [f"rgb_out{k}[{p.size}]" for k, p in enumerate(outputs)])
+    params = [
+        f"const {params_type(prefix)} *{p.name}" if is_parameter_port(p) else f"const {real} *{p.name}"
+        for p in kernel.inputs
+    ] + [f"{real} *{p.name}" for p in outputs]
+    arrays = [f"rgb_in{k}[{p.size}]" for k, p in enumerate(inputs)] + [
+        f"rgb_out{k}[{p.size}]" for k, p in enumerate(outputs)
+    ]
     arguments, k = [], 0
     for p in kernel.inputs:
         if is_parameter_port(p):
@@ -238,19 +282,23 @@ def driver_source(prefix: str, kernel: Kernel, precision: Precision) -> str:
         f"  for (rg_b = 0; rg_b <= n - {w}; rg_b += {w}) {{",
     ]
     for k, p in enumerate(inputs):
-        lines += [f"    for (rg_e = 0; rg_e + {w} <= {p.size}; rg_e += {w})",
-                  f"      {gather}(rgb_in{k} + rg_e, {p.name} + (size_t)rg_b * {p.size} + rg_e, {p.size});",
-                  f"    for (rg_e = {p.size} - {p.size} % {w}; rg_e < {p.size}; ++rg_e)",
-                  f"      for (rg_l = 0; rg_l < {w}; ++rg_l) "
-                  f"rgb_in{k}[rg_e][rg_l] = {p.name}[(size_t)(rg_b + rg_l) * {p.size} + rg_e];"]
+        lines += [
+            f"    for (rg_e = 0; rg_e + {w} <= {p.size}; rg_e += {w})",
+            f"      {gather}(rgb_in{k} + rg_e, {p.name} + (size_t)rg_b * {p.size} + rg_e, {p.size});",
+            f"    for (rg_e = {p.size} - {p.size} % {w}; rg_e < {p.size}; ++rg_e)",
+            f"      for (rg_l = 0; rg_l < {w}; ++rg_l) "
+            f"rgb_in{k}[rg_e][rg_l] = {p.name}[(size_t)(rg_b + rg_l) * {p.size} + rg_e];",
+        ]
     lines.append(f"    {lane_names.per_width('rgl_' + kernel.name)}({', '.join(arguments)});")
     fast = []
     for k, p in enumerate(outputs):
-        fast += [f"for (rg_e = 0; rg_e + {w} <= {p.size}; rg_e += {w})",
-                 f"  {scatter}({p.name} + (size_t)rg_b * {p.size} + rg_e, {p.size}, rgb_out{k} + rg_e);",
-                 f"for (rg_e = {p.size} - {p.size} % {w}; rg_e < {p.size}; ++rg_e)",
-                 f"  for (rg_l = 0; rg_l < {w}; ++rg_l) "
-                 f"{p.name}[(size_t)(rg_b + rg_l) * {p.size} + rg_e] = rgb_out{k}[rg_e][rg_l];"]
+        fast += [
+            f"for (rg_e = 0; rg_e + {w} <= {p.size}; rg_e += {w})",
+            f"  {scatter}({p.name} + (size_t)rg_b * {p.size} + rg_e, {p.size}, rgb_out{k} + rg_e);",
+            f"for (rg_e = {p.size} - {p.size} % {w}; rg_e < {p.size}; ++rg_e)",
+            f"  for (rg_l = 0; rg_l < {w}; ++rg_l) "
+            f"{p.name}[(size_t)(rg_b + rg_l) * {p.size} + rg_e] = rgb_out{k}[rg_e][rg_l];",
+        ]
     if not checked:
         lines += ["    " + line for line in fast]
         lines += ["  }", "  return 0;", "}"]
@@ -262,24 +310,39 @@ def driver_source(prefix: str, kernel: Kernel, precision: Precision) -> str:
     if kernel.guarded:
         for side, ports in (("in", inputs), ("out", outputs)):
             for k, p in enumerate(ports):
-                lines += [f"    for (rg_e = 0; rg_e < {p.size}; ++rg_e) {{",
-                          f"      rg_x = rgb_{side}{k}[rg_e] - rgb_{side}{k}[rg_e];",
-                          f"      rg_{side} |= rg_x != rg_x;", "    }"]
+                lines += [
+                    f"    for (rg_e = 0; rg_e < {p.size}; ++rg_e) {{",
+                    f"      rg_x = rgb_{side}{k}[rg_e] - rgb_{side}{k}[rg_e];",
+                    f"      rg_{side} |= rg_x != rg_x;",
+                    "    }",
+                ]
     if step:
         lines.append(f"    rg_dt = rgb_in{dt_port}[0] <= {lane_names.splat(zero)};")
-    lines += ["    rg_failed = 0;", f"    for (rg_l = 0; rg_l < {w}; ++rg_l) {{",
-              "      rg_s[rg_l] = rg_in[rg_l] ? 1 : rg_dt[rg_l] ? 3 : rg_out[rg_l] ? 2 : 0;",
-              "      rg_failed |= rg_s[rg_l];",
-              "      if (rg_s[rg_l] != 0 && rg_status == 0) rg_status = rg_s[rg_l];", "    }",
-              "    if (!rg_failed) {", *("      " + line for line in fast), "      continue;", "    }",
-              f"    for (rg_l = 0; rg_l < {w}; ++rg_l) {{", "      rg_k = (size_t)(rg_b + rg_l);",
-              "      if (rg_s[rg_l] == 0) {"]
-    lines += [f"        for (rg_e = 0; rg_e < {p.size}; ++rg_e) "
-              f"{p.name}[rg_k * {p.size} + rg_e] = rgb_out{k}[rg_e][rg_l];" for k, p in enumerate(outputs)]
+    lines += [
+        "    rg_failed = 0;",
+        f"    for (rg_l = 0; rg_l < {w}; ++rg_l) {{",
+        "      rg_s[rg_l] = rg_in[rg_l] ? 1 : rg_dt[rg_l] ? 3 : rg_out[rg_l] ? 2 : 0;",
+        "      rg_failed |= rg_s[rg_l];",
+        "      if (rg_s[rg_l] != 0 && rg_status == 0) rg_status = rg_s[rg_l];",
+        "    }",
+        "    if (!rg_failed) {",
+        *("      " + line for line in fast),
+        "      continue;",
+        "    }",
+        f"    for (rg_l = 0; rg_l < {w}; ++rg_l) {{",
+        "      rg_k = (size_t)(rg_b + rg_l);",
+        "      if (rg_s[rg_l] == 0) {",
+    ]
+    lines += [
+        f"        for (rg_e = 0; rg_e < {p.size}; ++rg_e) {p.name}[rg_k * {p.size} + rg_e] = rgb_out{k}[rg_e][rg_l];"
+        for k, p in enumerate(outputs)
+    ]
     if kernel.guarded:
         lines.append("      } else if (rg_s[rg_l] == 2) {")
-        lines += [f"        for (rg_e = 0; rg_e < {p.size}; ++rg_e) {p.name}[rg_k * {p.size} + rg_e] = {zero};"
-                  for p in outputs]
+        lines += [
+            f"        for (rg_e = 0; rg_e < {p.size}; ++rg_e) {p.name}[rg_k * {p.size} + rg_e] = {zero};"
+            for p in outputs
+        ]
     lines += ["      }", "    }", "  }", "  return rg_status;", "}"]
     return "\n".join(lines) + "\n"
 
@@ -309,19 +372,35 @@ def batch_source(prefix: str, kernel: Kernel, precision: Precision, laned: bool 
     ``laned``)."""
     whole, capped = batch_prototypes(prefix, kernel, precision)
     names = [p.name for p in (*kernel.inputs, *kernel.outputs)]
-    single = [p.name if is_parameter_port(p) else f"{p.name} + (size_t)rg_k * {p.size}"
-              for p in (*kernel.inputs, *kernel.outputs)]
+    single = [
+        p.name if is_parameter_port(p) else f"{p.name} + (size_t)rg_k * {p.size}"
+        for p in (*kernel.inputs, *kernel.outputs)
+    ]
     lines = [capped + " {", "  int rg_k, rg_s, rg_status = 0, rg_done = 0;", f"  switch ({SELECT}(lanes)) {{"]
     for guard in dict.fromkeys(w.guard for w in WIDTHS) if laned else ():
         lines.append(f"#{'if' if guard == WIDTHS[0].guard else 'elif'} defined({guard})")
         for width in (w for w in WIDTHS if w.guard == guard):
             n = width.lanes(precision)
-            lines += [f"  case {n}:",
-                      f"    rg_status = {DRIVER}{kernel.name}_{width.name}(n, {', '.join(names)});",
-                      f"    rg_done = n - n % {n};", "    break;"]
-    lines += [*(["#endif"] if laned else []), "  default:", "    break;", "  }",
-              "  for (rg_k = rg_done; rg_k < n; ++rg_k) {",
-              f"    rg_s = {function_name(prefix, kernel)}({', '.join(single)});",
-              "    if (rg_s != 0 && rg_status == 0) rg_status = rg_s;", "  }", "  return rg_status;", "}", "",
-              whole + " {", f"  return {batch_name(prefix, kernel)}_lanes(0, n, {', '.join(names)});", "}"]
+            lines += [
+                f"  case {n}:",
+                f"    rg_status = {DRIVER}{kernel.name}_{width.name}(n, {', '.join(names)});",
+                f"    rg_done = n - n % {n};",
+                "    break;",
+            ]
+    lines += [
+        *(["#endif"] if laned else []),
+        "  default:",
+        "    break;",
+        "  }",
+        "  for (rg_k = rg_done; rg_k < n; ++rg_k) {",
+        f"    rg_s = {function_name(prefix, kernel)}({', '.join(single)});",
+        "    if (rg_s != 0 && rg_status == 0) rg_status = rg_s;",
+        "  }",
+        "  return rg_status;",
+        "}",
+        "",
+        whole + " {",
+        f"  return {batch_name(prefix, kernel)}_lanes(0, n, {', '.join(names)});",
+        "}",
+    ]
     return "\n".join(lines) + "\n"

@@ -1,4 +1,5 @@
 """Text as C and Python string literals, for the emitted docstrings and comments."""
+
 from __future__ import annotations
 
 

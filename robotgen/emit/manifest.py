@@ -1,4 +1,5 @@
 """manifest.json: what was built, from what, and how big each function is."""
+
 from __future__ import annotations
 
 import hashlib

@@ -8,6 +8,7 @@ groups hold for faster ones (``wr_<node>``), each group's last torques (``tau_g<
 within the slowest period and whether a step has run since the reset. A step is atomic: it
 works on a copy of the struct and writes it back, and tau, only when every group's step
 returned 0."""
+
 from __future__ import annotations
 
 import textwrap
@@ -102,16 +103,24 @@ def _rate(period: float) -> str:
     return f"{1 / period:.4g} Hz"
 
 
-def multirate_view(module: str, spec: MultiRate, functions: dict[str, FunctionView],
-                   precision: c_kernel.Precision, parameters: tuple[ParameterView, ...] = ()) -> MultiRateView:
+def multirate_view(
+    module: str,
+    spec: MultiRate,
+    functions: dict[str, FunctionView],
+    precision: c_kernel.Precision,
+    parameters: tuple[ParameterView, ...] = (),
+) -> MultiRateView:
     """The view of ``spec``, checked against its kernels (``functions``: name -> FunctionView)."""
     what = f"multi-rate controller {spec.class_name!r}"
     c_kernel.check_identifier(spec.class_name, what)
     c_type, macro = f"{module}_multirate", f"{module}_multirate".upper()
     if len(spec.groups) < 2:
         raise KernelError(f"{what}: {len(spec.groups)} group(s); a multi-rate tree has at least two")
-    if spec.groups[0].ticks != 1 or any(g.ticks <= 0 or spec.frame_ticks % g.ticks for g in spec.groups) \
-            or any(a.ticks >= b.ticks for a, b in zip(spec.groups, spec.groups[1:])):
+    if (
+        spec.groups[0].ticks != 1
+        or any(g.ticks <= 0 or spec.frame_ticks % g.ticks for g in spec.groups)
+        or any(a.ticks >= b.ticks for a, b in zip(spec.groups, spec.groups[1:]))
+    ):
         raise KernelError(f"{what}: ticks {[g.ticks for g in spec.groups]} must rise from 1 and divide the last")
     single = _function(functions, spec.single_rate, what)
     tau = single.outputs[0]
@@ -130,8 +139,7 @@ def multirate_view(module: str, spec: MultiRate, functions: dict[str, FunctionVi
             raise KernelError(f"{what}: step {step.name!r} must give tau {tau.shape_text} first")
         has_state = "state" in names
         if has_state != (inits[k] is not None) or has_state != (step.outputs[-1].name == "state_next"):
-            raise KernelError(f"{what}: step {step.name!r}: a state input, a state_next output and an init go "
-                              "together")
+            raise KernelError(f"{what}: step {step.name!r}: a state input, a state_next output and an init go together")
         for p in step.inputs:
             if p.name in (*SENSED, *ROOT_INPUTS, TAU_SENSED):
                 if p.name in driver_inputs and driver_inputs[p.name].shape != p.shape:
@@ -144,7 +152,7 @@ def multirate_view(module: str, spec: MultiRate, functions: dict[str, FunctionVi
                     raise KernelError(f"{what}: held {p.name!r} is written and read with different sizes")
             elif p.name != "state":
                 raise KernelError(f"{what}: step {step.name!r} has an input {p.name!r} the driver cannot give")
-        for p in step.outputs[1:len(step.outputs) - has_state]:
+        for p in step.outputs[1 : len(step.outputs) - has_state]:
             if not p.name.startswith(HELD_PREFIX) or p.name in writer:
                 raise KernelError(f"{what}: step {step.name!r} has an output {p.name!r} that is no held trajectory")
             writer[p.name] = k
@@ -152,17 +160,20 @@ def multirate_view(module: str, spec: MultiRate, functions: dict[str, FunctionVi
             if held_sizes[p.name] != p.size:
                 raise KernelError(f"{what}: held {p.name!r} is written and read with different sizes")
         init = inits[k]
-        if init is not None and ([p.name for p in init.inputs] != list(SENSED)
-                                 or [(p.name, p.size) for p in init.outputs]
-                                 != [("state", step.inputs[names.index("state")].size)]):
+        if init is not None and (
+            [p.name for p in init.inputs] != list(SENSED)
+            or [(p.name, p.size) for p in init.outputs] != [("state", step.inputs[names.index("state")].size)]
+        ):
             raise KernelError(f"{what}: init {init.name!r} must map {SENSED} to the state of {step.name!r}")
         reads_parameters = reads_parameters or step.reads_parameters or bool(init and init.reads_parameters)
     if sorted(writer) != sorted(spec.held) or sorted(reader) != sorted(spec.held):
         raise KernelError(f"{what}: held {list(spec.held)}, written {sorted(writer)}, read {sorted(reader)}")
     for name in spec.held:
         if not writer[name] > reader[name]:
-            raise KernelError(f"{what}: {name!r} is written by group {writer[name]}, read by the faster or same "
-                              f"group {reader[name]}; a slower group writes what a faster one holds")
+            raise KernelError(
+                f"{what}: {name!r} is written by group {writer[name]}, read by the faster or same "
+                f"group {reader[name]}; a slower group writes what a faster one holds"
+            )
         c_kernel.check_identifier(name, f"{what}: held trajectory")
     order = [*SENSED, *ROOT_INPUTS, TAU_SENSED]
     inputs = tuple(sorted(driver_inputs.values(), key=lambda p: order.index(p.name)))
@@ -183,42 +194,95 @@ def multirate_view(module: str, spec: MultiRate, functions: dict[str, FunctionVi
         if step.reads_parameters:
             args.append("params")
         for p in step.outputs:
-            args.append(f"rg_next.tau_g{k}" if p.name == "tau" else f"rg_state_g{k}" if p.name == "state_next"
-                        else f"rg_next.{p.name}")
-        init_args = f"theta, theta_dot, {'params, ' if init is not None and init.reads_parameters else ''}" \
-                    f"rg_next.state_g{k}"
+            args.append(
+                f"rg_next.tau_g{k}"
+                if p.name == "tau"
+                else f"rg_state_g{k}"
+                if p.name == "state_next"
+                else f"rg_next.{p.name}"
+            )
+        init_args = (
+            f"theta, theta_dot, {'params, ' if init is not None and init.reads_parameters else ''}rg_next.state_g{k}"
+        )
         state_size = next((p.size for p in step.inputs if p.name == "state"), 0)
-        built.append(GroupView(
-            index=k, step=step.name, c_step=step.c_name, init=init.name if init else None,
-            c_init=init.c_name if init else "", period=float(g.period), period_literal=repr(float(g.period)),
-            rate_text=_rate(g.period), ticks=g.ticks, controllers=tuple(g.controllers), macro=gm,
-            state_size=state_size, operations=step.arithmetic_ops, step_args=", ".join(args), init_args=init_args))
+        built.append(
+            GroupView(
+                index=k,
+                step=step.name,
+                c_step=step.c_name,
+                init=init.name if init else None,
+                c_init=init.c_name if init else "",
+                period=float(g.period),
+                period_literal=repr(float(g.period)),
+                rate_text=_rate(g.period),
+                ticks=g.ticks,
+                controllers=tuple(g.controllers),
+                macro=gm,
+                state_size=state_size,
+                operations=step.arithmetic_ops,
+                step_args=", ".join(args),
+                init_args=init_args,
+            )
+        )
     groups = tuple(built)
-    held = tuple(HeldView(name, name[len(HELD_PREFIX):], held_sizes[name], writer[name], reader[name],
-                          f"{macro}_{name.upper()}_SIZE") for name in spec.held)
+    held = tuple(
+        HeldView(
+            name, name[len(HELD_PREFIX) :], held_sizes[name], writer[name], reader[name], f"{macro}_{name.upper()}_SIZE"
+        )
+        for name in spec.held
+    )
     real = precision.real
     arrays = "".join(f"const {real} *{p.name}, " for p in inputs)
     params = f"const {c_kernel.params_type(module)} *params, " if reads_parameters else ""
     step_prototype = f"int {c_type}_step({c_type} *controller, {arrays}{params}{real} *tau)"
     info = {
-        "class": spec.class_name, "c_type": c_type, "single_rate": spec.single_rate,
-        "single_rate_operations": single.arithmetic_ops, "frame_ticks": spec.frame_ticks,
+        "class": spec.class_name,
+        "c_type": c_type,
+        "single_rate": spec.single_rate,
+        "single_rate_operations": single.arithmetic_ops,
+        "frame_ticks": spec.frame_ticks,
         "held": [{"name": h.name, "size": h.size, "writer": h.writer, "reader": h.reader} for h in held],
-        "groups": [{"step": g.step, "init": g.init, "period": g.period, "ticks": g.ticks,
-                    "controllers": list(g.controllers), "operations": g.operations} for g in groups],
-        "reads_parameters": reads_parameters}
+        "groups": [
+            {
+                "step": g.step,
+                "init": g.init,
+                "period": g.period,
+                "ticks": g.ticks,
+                "controllers": list(g.controllers),
+                "operations": g.operations,
+            }
+            for g in groups
+        ],
+        "reads_parameters": reads_parameters,
+    }
     doc = _doc(spec, groups, held, inputs, reads_parameters)
     step_doc = _step_doc(inputs, tau)
     keywords = ", ".join(["*", *(f"{p.name}={p.py_default}" for p in parameters)]) if reads_parameters else ""
     return MultiRateView(
-        class_name=spec.class_name, c_type=c_type, macro=macro, c_reset=f"{c_type}_reset", c_step=f"{c_type}_step",
-        groups=groups, slowest_first=tuple(reversed(groups)), held=held, inputs=inputs, tau=tau, nq=tau.size,
-        frame_ticks=spec.frame_ticks, reads_parameters=reads_parameters, step_prototype=step_prototype,
+        class_name=spec.class_name,
+        c_type=c_type,
+        macro=macro,
+        c_reset=f"{c_type}_reset",
+        c_step=f"{c_type}_step",
+        groups=groups,
+        slowest_first=tuple(reversed(groups)),
+        held=held,
+        inputs=inputs,
+        tau=tau,
+        nq=tau.size,
+        frame_ticks=spec.frame_ticks,
+        reads_parameters=reads_parameters,
+        step_prototype=step_prototype,
         reset_prototype=f"void {c_type}_reset({c_type} *controller)",
-        struct_lines=_struct_comment(spec, groups, held), step_lines=_step_comment(c_type, groups),
-        doc=doc, py_doc=c_string(f"{spec.class_name}({keywords})\n--\n\n{doc}"),
+        struct_lines=_struct_comment(spec, groups, held),
+        step_lines=_step_comment(c_type, groups),
+        doc=doc,
+        py_doc=c_string(f"{spec.class_name}({keywords})\n--\n\n{doc}"),
         step_py_doc=c_string(f"step($self, {', '.join(p.name for p in inputs)}, *, out=None)\n--\n\n{step_doc}"),
-        stub_doc=py_string(doc), step_stub_doc=py_string(" ".join(step_doc.split("\n\n")[0].split())), info=info)
+        stub_doc=py_string(doc),
+        step_stub_doc=py_string(" ".join(step_doc.split("\n\n")[0].split())),
+        info=info,
+    )
 
 
 def _function(functions: dict, name: str, what: str):
@@ -228,27 +292,40 @@ def _function(functions: dict, name: str, what: str):
 
 
 def _doc(spec: MultiRate, groups, held, inputs, reads_parameters: bool) -> str:
-    lines = [f"Runs the rate groups' steps on one tick count of the fastest period ({groups[0].period!r} s): at each "
-             "step every group due at this tick runs, the slowest first, so that what a slower group writes to a "
-             "faster group's controllers is held for it from this tick on; the torques are the sum of each group's "
-             "last.", ""]
+    lines = [
+        f"Runs the rate groups' steps on one tick count of the fastest period ({groups[0].period!r} s): at each "
+        "step every group due at this tick runs, the slowest first, so that what a slower group writes to a "
+        "faster group's controllers is held for it from this tick on; the torques are the sum of each group's "
+        "last.",
+        "",
+    ]
     for g in groups:
-        lines.append(f"group {g.index}: {g.step} every {g.ticks} tick{'s' if g.ticks > 1 else ''} "
-                     f"({g.period!r} s, {g.rate_text}): {', '.join(g.controllers)}")
+        lines.append(
+            f"group {g.index}: {g.step} every {g.ticks} tick{'s' if g.ticks > 1 else ''} "
+            f"({g.period!r} s, {g.rate_text}): {', '.join(g.controllers)}"
+        )
     inits = [g.init for g in groups if g.init]
-    restart = (f"the next step runs at tick 0 and starts every expected trajectory at the sensed state: "
-               f"{', '.join(inits)}" if inits else "the next step runs at tick 0")
-    lines += ["", f"step({', '.join(p.name for p in inputs)}) returns tau (the actuators' torques); reset() "
-              f"restarts ({restart}).",
-              "tick: int, the tick the next step runs, within the slowest period (0 after a reset).",
-              "periods, ticks: each group's period [s] and its ticks of the fastest.",
-              f"held: dict of the held trajectories ({', '.join(h.name for h in held)}): [x_e; xd_e; xdd_e; F_e; F_i] "
-              "as the slower group last wrote them.",
-              "torques: (groups, nq) array, each group's last torques.",
-              "state: dict group -> its controllers' state (groups with a stateful controller)."]
+    restart = (
+        f"the next step runs at tick 0 and starts every expected trajectory at the sensed state: {', '.join(inits)}"
+        if inits
+        else "the next step runs at tick 0"
+    )
+    lines += [
+        "",
+        f"step({', '.join(p.name for p in inputs)}) returns tau (the actuators' torques); reset() "
+        f"restarts ({restart}).",
+        "tick: int, the tick the next step runs, within the slowest period (0 after a reset).",
+        "periods, ticks: each group's period [s] and its ticks of the fastest.",
+        f"held: dict of the held trajectories ({', '.join(h.name for h in held)}): [x_e; xd_e; xdd_e; F_e; F_i] "
+        "as the slower group last wrote them.",
+        "torques: (groups, nq) array, each group's last torques.",
+        "state: dict group -> its controllers' state (groups with a stateful controller).",
+    ]
     if reads_parameters:
-        lines.append("parameters: the run-time parameters the steps read, settable per key or as a whole; the "
-                     "keyword arguments set them.")
+        lines.append(
+            "parameters: the run-time parameters the steps read, settable per key or as a whole; the "
+            "keyword arguments set them."
+        )
     lines += ["", "Not thread-safe: one object per controlled tree, stepped from one thread."]
     return "\n".join(lines)
 
@@ -262,33 +339,50 @@ def _step_doc(inputs, tau) -> str:
 
 
 def _struct_comment(spec: MultiRate, groups, held) -> tuple[str, ...]:
-    lines = _wrap(f"{spec.class_name}: the rate groups' steps on one tick count of the fastest period. The caller "
-                  "owns the struct: one per controlled tree, stepped from one thread. Call reset before the first "
-                  "step.") + [""]
+    lines = _wrap(
+        f"{spec.class_name}: the rate groups' steps on one tick count of the fastest period. The caller "
+        "owns the struct: one per controlled tree, stepped from one thread. Call reset before the first "
+        "step."
+    ) + [""]
     for g in groups:
-        lines += _wrap(f"group {g.index}, {g.c_step} every {g.ticks} tick{'s' if g.ticks > 1 else ''} "
-                       f"({g.period_literal} s, {g.rate_text}): {', '.join(g.controllers)}", "    ")
+        lines += _wrap(
+            f"group {g.index}, {g.c_step} every {g.ticks} tick{'s' if g.ticks > 1 else ''} "
+            f"({g.period_literal} s, {g.rate_text}): {', '.join(g.controllers)}",
+            "    ",
+        )
     lines.append("")
     for g in groups:
         if g.state_size:
             lines.append(f"state_g{g.index}[{g.state_size}]: group {g.index}'s controllers' state")
     for h in held:
-        lines += _wrap(f"{h.name}[{h.size}]: the trajectory group {h.writer} last wrote to '{h.node}' "
-                       f"[x_e; xd_e; xdd_e; F_e; F_i], held for group {h.reader}", "    ")
+        lines += _wrap(
+            f"{h.name}[{h.size}]: the trajectory group {h.writer} last wrote to '{h.node}' "
+            f"[x_e; xd_e; xdd_e; F_e; F_i], held for group {h.reader}",
+            "    ",
+        )
     for g in groups:
         lines.append(f"tau_g{g.index}[nq]: group {g.index}'s last torques")
-    lines += _wrap(f"tick: the tick the next step runs, 0 to {spec.frame_ticks - 1} (one slowest period); "
-                   "initialised: 0 after reset, 1 after a step", "    ")
+    lines += _wrap(
+        f"tick: the tick the next step runs, 0 to {spec.frame_ticks - 1} (one slowest period); "
+        "initialised: 0 after reset, 1 after a step",
+        "    ",
+    )
     return tuple(lines)
 
 
 def _step_comment(c_type: str, groups) -> tuple[str, ...]:
     inits = [g.c_init for g in groups if g.init]
-    text = (f"{c_type}_step: one tick of the fastest period. "
-            + (f"On the first step after a reset it runs {', '.join(inits)} (the expected trajectories start at the "
-               "sensed state); then " if inits else "")
-            + "every group whose ticks divide the tick runs, the slowest first, each reading the held trajectories "
-              "its slower groups wrote (at this tick, when they ran too). tau is the sum of every group's last "
-              "torques. It works on a copy of the struct: on a nonzero status (a group's step's, returned as is) "
-              "the struct and tau are left as they were.")
+    text = (
+        f"{c_type}_step: one tick of the fastest period. "
+        + (
+            f"On the first step after a reset it runs {', '.join(inits)} (the expected trajectories start at the "
+            "sensed state); then "
+            if inits
+            else ""
+        )
+        + "every group whose ticks divide the tick runs, the slowest first, each reading the held trajectories "
+        "its slower groups wrote (at this tick, when they ran too). tau is the sum of every group's last "
+        "torques. It works on a copy of the struct: on a nonzero status (a group's step's, returned as is) "
+        "the struct and tau are left as they were."
+    )
     return tuple(_wrap(text))

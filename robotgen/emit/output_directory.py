@@ -17,6 +17,7 @@ Anything else (another file, a file of those names with other content, a directo
 symbolic link) makes robotgen refuse; so does an input of the build inside the directory.
 A planted or left-over manifest.json therefore decides nothing: the files it lists must
 have the content it lists, and it can list only names robotgen writes."""
+
 from __future__ import annotations
 
 import json
@@ -33,9 +34,21 @@ from robotgen.output_files import MAX_PROVEN_BYTES, input_inside, refusal, sha25
 
 MANIFEST = "manifest.json"
 _STAMP = re.compile(rb"[0-9a-f]{64}\n?\Z")
-_BINARY_MAGIC = (b"\x7fELF", b"\xfe\xed\xfa\xce", b"\xfe\xed\xfa\xcf", b"\xce\xfa\xed\xfe", b"\xcf\xfa\xed\xfe",
-                 b"\xca\xfe\xba\xbe", b"!<arch>\n", b"MZ", b"\x64\x86", b"\x64\xaa", b"\x4c\x01", b"BC\xc0\xde",
-                 b"\xde\xc0\x17\x0b")
+_BINARY_MAGIC = (
+    b"\x7fELF",
+    b"\xfe\xed\xfa\xce",
+    b"\xfe\xed\xfa\xcf",
+    b"\xce\xfa\xed\xfe",
+    b"\xcf\xfa\xed\xfe",
+    b"\xca\xfe\xba\xbe",
+    b"!<arch>\n",
+    b"MZ",
+    b"\x64\x86",
+    b"\x64\xaa",
+    b"\x4c\x01",
+    b"BC\xc0\xde",
+    b"\xde\xc0\x17\x0b",
+)
 
 
 @dataclass(frozen=True)
@@ -57,9 +70,15 @@ class Manifest:
             data = json.loads(path.read_text(encoding="utf-8"))
             name, files, functions = data["name"], data["files"], data["functions"]
             c_names = tuple(f["c_name"] for f in functions)
-            if not (isinstance(name, str) and PATTERN.match(name) and isinstance(data["robotgen_version"], str)
-                    and isinstance(files, dict) and all(isinstance(v, str) for v in files.values())
-                    and c_names and all(isinstance(c, str) and c.startswith(f"{name}_") for c in c_names)):
+            if not (
+                isinstance(name, str)
+                and PATTERN.match(name)
+                and isinstance(data["robotgen_version"], str)
+                and isinstance(files, dict)
+                and all(isinstance(v, str) for v in files.values())
+                and c_names
+                and all(isinstance(c, str) and c.startswith(f"{name}_") for c in c_names)
+            ):
                 return None
         except (OSError, ValueError, KeyError, TypeError, AttributeError):
             return None
@@ -72,8 +91,11 @@ class Manifest:
 
     def is_extension(self, entry: str) -> bool:
         """Whether ``entry`` is the module's extension (<name>.so or .pyd, with or without an ABI tag)."""
-        return bool(re.fullmatch(re.escape(self.name) + r"\.[A-Za-z0-9_.-]+\.(so|pyd)|" + re.escape(self.name)
-                                 + r"\.(so|pyd)", entry))
+        return bool(
+            re.fullmatch(
+                re.escape(self.name) + r"\.[A-Za-z0-9_.-]+\.(so|pyd)|" + re.escape(self.name) + r"\.(so|pyd)", entry
+            )
+        )
 
     def proves(self, path: Path) -> bool | None:
         """True: robotgen wrote ``path`` (or its Makefile made it); False: a file of a name
@@ -125,11 +147,14 @@ def replace_problem(out_dir: Path, inputs: tuple[Path, ...] = ()) -> str | None:
         return None
     manifest = Manifest.read(out_dir)
     if manifest is None:
-        return (f"{out_dir} is not empty and is not a robotgen output (no robotgen {MANIFEST}); "
-                "refusing to replace it")
+        return f"{out_dir} is not empty and is not a robotgen output (no robotgen {MANIFEST}); refusing to replace it"
     verdicts = {entry: manifest.proves(out_dir / entry) for entry in entries}
-    return refusal(out_dir, [e for e, v in verdicts.items() if v is None],
-                   [e for e, v in verdicts.items() if v is False], "replace it")
+    return refusal(
+        out_dir,
+        [e for e, v in verdicts.items() if v is None],
+        [e for e, v in verdicts.items() if v is False],
+        "replace it",
+    )
 
 
 def remove_written(directory: Path) -> list[str]:

@@ -1,4 +1,5 @@
 """Renders the templates/ layouts (one per emitted file) from a ``ModuleView``."""
+
 from __future__ import annotations
 
 from functools import lru_cache
@@ -29,8 +30,7 @@ def template_dir() -> Path:
     for candidate in _TEMPLATE_DIRS:
         if (candidate / "header.h.jinja").is_file():
             return candidate
-    raise RuntimeError("robotgen's templates are missing; looked in "
-                       + ", ".join(str(d) for d in _TEMPLATE_DIRS))
+    raise RuntimeError("robotgen's templates are missing; looked in " + ", ".join(str(d) for d in _TEMPLATE_DIRS))
 
 
 @lru_cache(maxsize=1)
@@ -50,6 +50,5 @@ def render_all(view: ModuleView) -> dict[str, str]:
     """File name -> text, for every templated file of the module."""
     env = environment()
     return {
-        file.format(name=view.name): env.get_template(template).render(m=view)
-        for file, template in TEMPLATES.items()
+        file.format(name=view.name): env.get_template(template).render(m=view) for file, template in TEMPLATES.items()
     }

@@ -18,6 +18,7 @@ so the printed literals are the same on every machine. Float kernels keep sinf a
 or a cos) is computed first, then one SINCOS step computes all their sines and cosines,
 and each sin or cos becomes a read of its lane.
 """
+
 from __future__ import annotations
 
 import math
@@ -57,10 +58,23 @@ _TWO_OVER_PI = 2 / _PI
 # sin r = r + r z (S1 + S2 z + ... + S6 z^5) and cos r = 1 + z (-1/2 + C1 z + ... + C6 z^6),
 # z = r^2, |r| <= pi/4, each within 2^-57 of the function; degree 13 and 14 where the Taylor
 # series needs 17 and 16. Printed from these decimal strings, the same literals everywhere.
-SIN_TERMS = ("-1.66666666666666324348e-01", "8.33333333332248946124e-03", "-1.98412698298579493134e-04",
-             "2.75573137070700676789e-06", "-2.50507602534068634195e-08", "1.58969099521155010221e-10")
-COS_TERMS = ("-0.5", "4.16666666666666019037e-02", "-1.38888888888741095749e-03", "2.48015872894767294178e-05",
-             "-2.75573143513906633035e-07", "2.08757232129817482790e-09", "-1.13596475577881948265e-11")
+SIN_TERMS = (
+    "-1.66666666666666324348e-01",
+    "8.33333333332248946124e-03",
+    "-1.98412698298579493134e-04",
+    "2.75573137070700676789e-06",
+    "-2.50507602534068634195e-08",
+    "1.58969099521155010221e-10",
+)
+COS_TERMS = (
+    "-0.5",
+    "4.16666666666666019037e-02",
+    "-1.38888888888741095749e-03",
+    "2.48015872894767294178e-05",
+    "-2.75573143513906633035e-07",
+    "2.08757232129817482790e-09",
+    "-1.13596475577881948265e-11",
+)
 
 
 def _c(value: Fraction | str) -> str:
@@ -80,54 +94,60 @@ def _estrin(terms: tuple[str, ...], constant=lambda text: text) -> str:
 
 def helper_source() -> str:
     """The C definition of ``rg_sincos2`` (static: each source that uses it has its own)."""
-    return "\n".join([
-        "/* sin and cos of x[0] and x[1] into s and c: reduction by pi/2 in three parts, minimax",
-        " * polynomials on [-pi/4, pi/4], quadrant by arithmetic. Absolute error <= 2.3e-16 for",
-        f" * |x| <= {ABOVE:g}; other angles (larger, infinite, NaN) through libm. Written lane by lane",
-        " * so that the compiler may compute both lanes at once. */",
-        f"static void {HELPER}(const double *x, double *s, double *c) {{",
-        "  double y[2], k[2], r[2], z[2], z2[2], z4[2], ps[2], pc[2], sr[2], cr[2], w[2], ss[2], sc[2], so[2], co[2];",
-        "  int n[2], l;",
-        f"  if (!(fabs(x[0]) <= {ABOVE!r}) || !(fabs(x[1]) <= {ABOVE!r})) {{",
-        "    for (l = 0; l < 2; ++l) {",
-        "      s[l] = sin(x[l]);",
-        "      c[l] = cos(x[l]);",
-        "    }",
-        "    return;",
-        "  }",
-        "  /* n = round(2 x / pi) (x + 65536.5 > 0, so the conversion truncates to the floor) */",
-        f"  for (l = 0; l < 2; ++l) y[l] = x[l] * {_c(_TWO_OVER_PI)} + 65536.5;",
-        "  for (l = 0; l < 2; ++l) n[l] = (int)y[l];",
-        "  for (l = 0; l < 2; ++l) k[l] = (double)n[l] - 65536.0;",
-        f"  for (l = 0; l < 2; ++l) r[l] = ((x[l] - k[l] * {_c(_P1)}) - k[l] * {_c(_P2)}) - k[l] * {_c(_P3)};",
-        "  for (l = 0; l < 2; ++l) {",
-        "    z[l] = r[l] * r[l];",
-        "    z2[l] = z[l] * z[l];",
-        "    z4[l] = z2[l] * z2[l];",
-        "  }",
-        f"  for (l = 0; l < 2; ++l) ps[l] = {_estrin(SIN_TERMS)};",
-        f"  for (l = 0; l < 2; ++l) pc[l] = {_estrin(COS_TERMS)};",
-        "  for (l = 0; l < 2; ++l) {",
-        "    sr[l] = r[l] + (r[l] * z[l]) * ps[l];",
-        "    cr[l] = 1.0 + z[l] * pc[l];",
-        "  }",
-        "  /* quadrant n mod 4: odd swaps sin and cos (w = 1); the signs of sin and cos */",
-        "  for (l = 0; l < 2; ++l) {",
-        "    w[l] = (double)(n[l] & 1);",
-        "    ss[l] = (double)(1 - (n[l] & 2));",
-        "    sc[l] = (double)(1 - ((n[l] + 1) & 2));",
-        "  }",
-        "  for (l = 0; l < 2; ++l) {",
-        "    so[l] = ss[l] * (sr[l] * (1.0 - w[l]) + cr[l] * w[l]);",
-        "    co[l] = sc[l] * (cr[l] * (1.0 - w[l]) + sr[l] * w[l]);",
-        "  }",
-        "  /* stored lane by lane: s and c may overlap, so a loop writing them would stay scalar */",
-        "  s[0] = so[0];",
-        "  s[1] = so[1];",
-        "  c[0] = co[0];",
-        "  c[1] = co[1];",
-        "}",
-    ]) + "\n"
+    return (
+        "\n".join(
+            [
+                "/* sin and cos of x[0] and x[1] into s and c: reduction by pi/2 in three parts, minimax",
+                " * polynomials on [-pi/4, pi/4], quadrant by arithmetic. Absolute error <= 2.3e-16 for",
+                f" * |x| <= {ABOVE:g}; other angles (larger, infinite, NaN) through libm. Written lane by lane",
+                " * so that the compiler may compute both lanes at once. */",
+                f"static void {HELPER}(const double *x, double *s, double *c) {{",
+                "  double y[2], k[2], r[2], z[2], z2[2], z4[2], ps[2], pc[2], sr[2], cr[2], w[2], ss[2], sc[2], "
+                "so[2], co[2];",
+                "  int n[2], l;",
+                f"  if (!(fabs(x[0]) <= {ABOVE!r}) || !(fabs(x[1]) <= {ABOVE!r})) {{",
+                "    for (l = 0; l < 2; ++l) {",
+                "      s[l] = sin(x[l]);",
+                "      c[l] = cos(x[l]);",
+                "    }",
+                "    return;",
+                "  }",
+                "  /* n = round(2 x / pi) (x + 65536.5 > 0, so the conversion truncates to the floor) */",
+                f"  for (l = 0; l < 2; ++l) y[l] = x[l] * {_c(_TWO_OVER_PI)} + 65536.5;",
+                "  for (l = 0; l < 2; ++l) n[l] = (int)y[l];",
+                "  for (l = 0; l < 2; ++l) k[l] = (double)n[l] - 65536.0;",
+                f"  for (l = 0; l < 2; ++l) r[l] = ((x[l] - k[l] * {_c(_P1)}) - k[l] * {_c(_P2)}) - k[l] * {_c(_P3)};",
+                "  for (l = 0; l < 2; ++l) {",
+                "    z[l] = r[l] * r[l];",
+                "    z2[l] = z[l] * z[l];",
+                "    z4[l] = z2[l] * z2[l];",
+                "  }",
+                f"  for (l = 0; l < 2; ++l) ps[l] = {_estrin(SIN_TERMS)};",
+                f"  for (l = 0; l < 2; ++l) pc[l] = {_estrin(COS_TERMS)};",
+                "  for (l = 0; l < 2; ++l) {",
+                "    sr[l] = r[l] + (r[l] * z[l]) * ps[l];",
+                "    cr[l] = 1.0 + z[l] * pc[l];",
+                "  }",
+                "  /* quadrant n mod 4: odd swaps sin and cos (w = 1); the signs of sin and cos */",
+                "  for (l = 0; l < 2; ++l) {",
+                "    w[l] = (double)(n[l] & 1);",
+                "    ss[l] = (double)(1 - (n[l] & 2));",
+                "    sc[l] = (double)(1 - ((n[l] + 1) & 2));",
+                "  }",
+                "  for (l = 0; l < 2; ++l) {",
+                "    so[l] = ss[l] * (sr[l] * (1.0 - w[l]) + cr[l] * w[l]);",
+                "    co[l] = sc[l] * (cr[l] * (1.0 - w[l]) + sr[l] * w[l]);",
+                "  }",
+                "  /* stored lane by lane: s and c may overlap, so a loop writing them would stay scalar */",
+                "  s[0] = so[0];",
+                "  s[1] = so[1];",
+                "  c[0] = co[0];",
+                "  c[1] = co[1];",
+                "}",
+            ]
+        )
+        + "\n"
+    )
 
 
 def lane_helper_source() -> str:
@@ -151,46 +171,52 @@ def lane_helper_source() -> str:
         return f"({x} <= {k(repr(ABOVE))}) & ({x} >= {k(repr(-ABOVE))})"
 
     one = lane_names.per_width("rg_sincos1")
-    return "\n".join([
-        "/* rg_sincos2's reduction, polynomials and quadrant on every lane of one angle x, |x| <= the bound. */",
-        f"static {lane_names.TARGET} void {one}(const {v} *x, {v} *s, {v} *c) {{",
-        f"  {v} y, k, r, z, z2, z4, ps, pc, sr, cr, w, ss, sc;",
-        f"  {vi} n;",
-        f"  y = *x * {k(_c(_TWO_OVER_PI))} + {k('65536.5')};",
-        f"  n = __builtin_convertvector(y, {vi});",
-        f"  k = __builtin_convertvector(n, {v}) - {k('65536.0')};",
-        f"  r = ((*x - k * {k(_c(_P1))}) - k * {k(_c(_P2))}) - k * {k(_c(_P3))};",
-        "  z = r * r;",
-        "  z2 = z * z;",
-        "  z4 = z2 * z2;",
-        f"  ps = {_estrin(SIN_TERMS, k).replace('[l]', '')};",
-        f"  pc = {_estrin(COS_TERMS, k).replace('[l]', '')};",
-        "  sr = r + (r * z) * ps;",
-        f"  cr = {k('1.0')} + z * pc;",
-        f"  w = __builtin_convertvector(n & {i('1')}, {v});",
-        f"  ss = __builtin_convertvector({i('1')} - (n & {i('2')}), {v});",
-        f"  sc = __builtin_convertvector({i('1')} - ((n + {i('1')}) & {i('2')}), {v});",
-        f"  *s = ss * (sr * ({k('1.0')} - w) + cr * w);",
-        f"  *c = sc * (cr * ({k('1.0')} - w) + sr * w);",
-        "}",
-        "",
-        "/* rg_sincos2 on every lane: two angles of W states, each lane computed as rg_sincos2 computes it. */",
-        f"static {lane_names.TARGET} void {lane_names.per_width(HELPER)}(const {v} *x, {v} *s, {v} *c) {{",
-        f"  {mask} near = {within('x[0]')} & {within('x[1]')};",
-        f"  {v} a0 = ({v})(({mask})x[0] & near), a1 = ({v})(({mask})x[1] & near);",
-        "  int m;",
-        f"  {one}(&a0, s, c);",
-        f"  {one}(&a1, s + 1, c + 1);",
-        f"  for (m = 0; m < {lane_names.WIDTH}; ++m) {{",
-        "    if (!near[m]) {",
-        "      s[0][m] = sin(x[0][m]);",
-        "      c[0][m] = cos(x[0][m]);",
-        "      s[1][m] = sin(x[1][m]);",
-        "      c[1][m] = cos(x[1][m]);",
-        "    }",
-        "  }",
-        "}",
-    ]) + "\n"
+    return (
+        "\n".join(
+            [
+                "/* rg_sincos2's reduction, polynomials and quadrant on every lane of one angle x, "
+                "|x| <= the bound. */",
+                f"static {lane_names.TARGET} void {one}(const {v} *x, {v} *s, {v} *c) {{",
+                f"  {v} y, k, r, z, z2, z4, ps, pc, sr, cr, w, ss, sc;",
+                f"  {vi} n;",
+                f"  y = *x * {k(_c(_TWO_OVER_PI))} + {k('65536.5')};",
+                f"  n = __builtin_convertvector(y, {vi});",
+                f"  k = __builtin_convertvector(n, {v}) - {k('65536.0')};",
+                f"  r = ((*x - k * {k(_c(_P1))}) - k * {k(_c(_P2))}) - k * {k(_c(_P3))};",
+                "  z = r * r;",
+                "  z2 = z * z;",
+                "  z4 = z2 * z2;",
+                f"  ps = {_estrin(SIN_TERMS, k).replace('[l]', '')};",
+                f"  pc = {_estrin(COS_TERMS, k).replace('[l]', '')};",
+                "  sr = r + (r * z) * ps;",
+                f"  cr = {k('1.0')} + z * pc;",
+                f"  w = __builtin_convertvector(n & {i('1')}, {v});",
+                f"  ss = __builtin_convertvector({i('1')} - (n & {i('2')}), {v});",
+                f"  sc = __builtin_convertvector({i('1')} - ((n + {i('1')}) & {i('2')}), {v});",
+                f"  *s = ss * (sr * ({k('1.0')} - w) + cr * w);",
+                f"  *c = sc * (cr * ({k('1.0')} - w) + sr * w);",
+                "}",
+                "",
+                "/* rg_sincos2 on every lane: two angles of W states, each lane computed as rg_sincos2 computes it. */",
+                f"static {lane_names.TARGET} void {lane_names.per_width(HELPER)}(const {v} *x, {v} *s, {v} *c) {{",
+                f"  {mask} near = {within('x[0]')} & {within('x[1]')};",
+                f"  {v} a0 = ({v})(({mask})x[0] & near), a1 = ({v})(({mask})x[1] & near);",
+                "  int m;",
+                f"  {one}(&a0, s, c);",
+                f"  {one}(&a1, s + 1, c + 1);",
+                f"  for (m = 0; m < {lane_names.WIDTH}; ++m) {{",
+                "    if (!near[m]) {",
+                "      s[0][m] = sin(x[0][m]);",
+                "      c[0][m] = cos(x[0][m]);",
+                "      s[1][m] = sin(x[1][m]);",
+                "      c[1][m] = cos(x[1][m]);",
+                "    }",
+                "  }",
+                "}",
+            ]
+        )
+        + "\n"
+    )
 
 
 def uses_helper(program: Program) -> bool:
@@ -246,16 +272,19 @@ def pair_angles(program: Program) -> Program:
     def args(k: int) -> tuple[int, ...]:
         return tuple(renamed.get(d, r) for d, r in zip(defs[k], steps[k].args))
 
-    front = [Instruction(steps[j].op, renamed[j], args(j), steps[j].port, steps[j].element, steps[j].constant)
-             for j in sorted(hoisted)]
+    front = [
+        Instruction(steps[j].op, renamed[j], args(j), steps[j].port, steps[j].element, steps[j].constant)
+        for j in sorted(hoisted)
+    ]
     front.append(Instruction(SINCOS, -1, tuple(renamed[j] for j in angles)))
     rest = []
     for k, step in enumerate(steps):
         if k in hoisted:
             continue
         if step.op in trig and defs[k][0] in lane:
-            rest.append(Instruction(SIN_LANE if step.op == ca.OP_SIN else COS_LANE, step.target,
-                                    element=lane[defs[k][0]]))
+            rest.append(
+                Instruction(SIN_LANE if step.op == ca.OP_SIN else COS_LANE, step.target, element=lane[defs[k][0]])
+            )
         else:
             rest.append(Instruction(step.op, step.target, args(k), step.port, step.element, step.constant))
     return Program((*front, *rest), program.unwritten_outputs)

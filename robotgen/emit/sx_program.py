@@ -4,6 +4,7 @@ CasADi evaluates an SX Function as a straight-line program over work registers; 
 turns that program into ``Instruction`` records whose input and output references are dense
 element indices of the kernel's ports, so printers and counters never touch CasADi again.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -12,9 +13,7 @@ import casadi as ca
 
 from robotgen.symbolic.kernel import Kernel
 
-OP_NAMES: dict[int, str] = {
-    getattr(ca, attr): attr for attr in sorted(dir(ca)) if attr.startswith("OP_")
-}
+OP_NAMES: dict[int, str] = {getattr(ca, attr): attr for attr in sorted(dir(ca)) if attr.startswith("OP_")}
 
 
 class KernelError(RuntimeError):
@@ -62,14 +61,15 @@ def read_program(kernel: Kernel) -> Program:
         if op == ca.OP_INPUT:
             steps.append(Instruction(op, outs[0], port=ins[0], element=in_elements[ins[0]][ins[1]]))
         elif op == ca.OP_OUTPUT:
-            steps.append(Instruction(op, -1, (ins[0],), port=outs[0],
-                                     element=out_elements[outs[0]][outs[1]]))
+            steps.append(Instruction(op, -1, (ins[0],), port=outs[0], element=out_elements[outs[0]][outs[1]]))
         elif op == ca.OP_CONST:
             steps.append(Instruction(op, outs[0], constant=float(f.instruction_constant(k))))
         else:
             if len(outs) != 1:
-                raise KernelError(f"kernel {kernel.name!r}: {OP_NAMES.get(op, op)} has "
-                                  f"{len(outs)} results; only scalar operations can be printed")
+                raise KernelError(
+                    f"kernel {kernel.name!r}: {OP_NAMES.get(op, op)} has "
+                    f"{len(outs)} results; only scalar operations can be printed"
+                )
             steps.append(Instruction(op, outs[0], tuple(ins)))
     unwritten = tuple(
         (j, tuple(sorted(set(range(port.size)) - set(out_elements[j]))))
@@ -90,14 +90,14 @@ def _check_signature(kernel: Kernel) -> None:
         ("output", kernel.outputs, f.n_out(), f.sparsity_out),
     ):
         if count != len(ports):
-            raise KernelError(f"kernel {kernel.name!r}: function has {count} {kind}s, "
-                              f"ports name {len(ports)}")
+            raise KernelError(f"kernel {kernel.name!r}: function has {count} {kind}s, ports name {len(ports)}")
         for i, port in enumerate(ports):
             rows, cols = sparsity(i).size()
             if rows * cols != port.size or min(rows, cols) > 1:
                 raise KernelError(
                     f"kernel {kernel.name!r}: {kind} {port.name!r} is {rows}x{cols}, expected "
-                    f"a column of {port.size} ({port.rows}x{port.cols} flattened row-major)")
+                    f"a column of {port.size} ({port.rows}x{port.cols} flattened row-major)"
+                )
 
 
 def _dense_elements(sparsity: ca.Sparsity) -> list[int]:

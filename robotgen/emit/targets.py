@@ -9,6 +9,7 @@ data and bss, and the compiler's version: what a firmware engineer needs to know
 linking. The numbers depend on that compiler's version, which is why only a build that asks
 for a target has them (the manifest of a plain build is the same on every machine).
 """
+
 from __future__ import annotations
 
 import re
@@ -18,8 +19,21 @@ import tempfile
 from pathlib import Path
 
 TARGETS = {
-    "cortex-m7": ("arm-none-eabi-gcc", ["-mcpu=cortex-m7", "-mfpu=fpv5-d16", "-mfloat-abi=hard", "-mthumb",
-                                        "-O2", "-std=c99", "-Wall", "-Wextra", "-Werror", "-Wdouble-promotion"]),
+    "cortex-m7": (
+        "arm-none-eabi-gcc",
+        [
+            "-mcpu=cortex-m7",
+            "-mfpu=fpv5-d16",
+            "-mfloat-abi=hard",
+            "-mthumb",
+            "-O2",
+            "-std=c99",
+            "-Wall",
+            "-Wextra",
+            "-Werror",
+            "-Wdouble-promotion",
+        ],
+    ),
 }
 INSTALL_HINT = "Debian and Ubuntu: apt-get install gcc-arm-none-eabi"
 
@@ -43,9 +57,22 @@ def measure(target: str, source_dir: Path, name: str) -> dict:
     source_dir = Path(source_dir).resolve()  # the compiler runs in a directory of its own
     with tempfile.TemporaryDirectory(prefix="robotgen-target-") as work:
         obj = Path(work) / f"{name}.o"
-        result = subprocess.run([compiler, *flags, "-fstack-usage", "-I", str(source_dir), "-c",
-                                 str(source_dir / f"{name}.c"), "-o", str(obj)],
-                                capture_output=True, text=True, cwd=work)
+        result = subprocess.run(
+            [
+                compiler,
+                *flags,
+                "-fstack-usage",
+                "-I",
+                str(source_dir),
+                "-c",
+                str(source_dir / f"{name}.c"),
+                "-o",
+                str(obj),
+            ],
+            capture_output=True,
+            text=True,
+            cwd=work,
+        )
         if result.returncode != 0:
             raise RuntimeError(f"{compiler} failed on the emitted {name}.c:\n{result.stderr}")
         code = _function_sizes(_tool(compiler, "nm", "-S", str(obj)))
@@ -56,9 +83,13 @@ def measure(target: str, source_dir: Path, name: str) -> dict:
     return {
         "compiler": version,
         "flags": flags,
-        "text_bytes": text, "data_bytes": data, "bss_bytes": bss,
-        "functions": {f: {"code_bytes": code[f], "stack_bytes": stack[f],
-                          "stack_bytes_with_calls": _deepest(f, stack, calls)} for f in sorted(code)},
+        "text_bytes": text,
+        "data_bytes": data,
+        "bss_bytes": bss,
+        "functions": {
+            f: {"code_bytes": code[f], "stack_bytes": stack[f], "stack_bytes_with_calls": _deepest(f, stack, calls)}
+            for f in sorted(code)
+        },
     }
 
 

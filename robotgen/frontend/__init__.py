@@ -1,4 +1,5 @@
 """The spec layer: a YAML spec file -> a validated RobotSystem, or located UserErrors."""
+
 from __future__ import annotations
 
 from robotgen.frontend.document import load_document

@@ -1,6 +1,7 @@
 """The error collector every part of the spec front end shares: located messages
 (FILE:LINE:COL, at a key or at a value), numbers and constant expressions, poses, formula
 expressions and name checks. Nothing is returned from a spec with errors."""
+
 from __future__ import annotations
 
 import ast
@@ -43,8 +44,7 @@ class Collector:
             return self.doc.source.text_start(path, value)
         return self.doc.source.value(path), True
 
-    def constant(self, path: Path, value: object, *, minimum: float | None = None,
-                 exclusive: bool = False) -> float:
+    def constant(self, path: Path, value: object, *, minimum: float | None = None, exclusive: bool = False) -> float:
         """A constant (a number or a constant expression such as pi/2), checked against ``minimum``; 0.0 after an
         error."""
         location, exact = self.text_location(path, value)
@@ -110,8 +110,10 @@ class Collector:
     def pose(self, path: Path, pose: dict | None) -> np.ndarray:
         """A pose {xyz [m], rpy [rad]} as a (4, 4) homogeneous transform; a missing part is zero."""
         pose = pose or {}
-        return xyz_rpy(self.vector(path + ("xyz",), pose.get("xyz"), (0, 0, 0)),
-                       self.vector(path + ("rpy",), pose.get("rpy"), (0, 0, 0)))
+        return xyz_rpy(
+            self.vector(path + ("xyz",), pose.get("xyz"), (0, 0, 0)),
+            self.vector(path + ("rpy",), pose.get("rpy"), (0, 0, 0)),
+        )
 
     def expression(self, path: Path, value: object, names: set[str]) -> Expr:
         """A formula expression over ``names``, parsed and located; after an error, the constant 0
@@ -128,16 +130,16 @@ class Collector:
         owner: dict[str, str] = {}
         for name, where, kind in entries:
             if name in FUNCTIONS or name in CONSTANTS:
-                self.at_key(where, f"{kind} '{name}' shadows the {'function' if name in FUNCTIONS else 'constant'} "
-                                   f"'{name}'")
+                self.at_key(
+                    where, f"{kind} '{name}' shadows the {'function' if name in FUNCTIONS else 'constant'} '{name}'"
+                )
             elif keyword.iskeyword(name):
                 self.at_key(where, f"{kind} '{name}' is a reserved word")
             elif name in owner:
                 self.at_key(where, f"{kind} '{name}' is already a {owner[name]} name")
             owner.setdefault(name, kind)
 
-    def vector_of_expressions(self, path: Path, values: list, length: int | None,
-                              names: set[str]) -> tuple[Expr, ...]:
+    def vector_of_expressions(self, path: Path, values: list, length: int | None, names: set[str]) -> tuple[Expr, ...]:
         """A list of formula expressions, checked to have ``length`` entries (nq) when given."""
         if length is not None and len(values) != length:
             self.at_key(path, f"expected {length} entries (nq = {length}), got {len(values)}")
@@ -147,21 +149,24 @@ class Collector:
         """Check that ``names`` of ``robot`` belong to no other robot (owner: name -> robot), then claim them."""
         for n in names:
             if n in owner and owner[n] != robot:
-                self.at_value(path, f"{kind} '{n}' of '{robot}' is also one of '{owner[n]}'; "
-                                    f"names must be unique across the robots: {fix}")
+                self.at_value(
+                    path,
+                    f"{kind} '{n}' of '{robot}' is also one of '{owner[n]}'; "
+                    f"names must be unique across the robots: {fix}",
+                )
                 return
         for n in names:
             owner.setdefault(n, robot)
 
-    def rectangle(self, path: Path, rows: list, n_rows: int | None, n_cols: int, names: set[str],
-                  columns: str) -> tuple[tuple[Expr, ...], ...]:
+    def rectangle(
+        self, path: Path, rows: list, n_rows: int | None, n_cols: int, names: set[str], columns: str
+    ) -> tuple[tuple[Expr, ...], ...]:
         """A matrix of formula expressions: n_rows rows (when given) of n_cols entries each."""
         if n_rows is not None and len(rows) != n_rows:
             self.at_key(path, f"expected {n_rows} rows (one per node coordinate), got {len(rows)}")
         for i, row in enumerate(rows):
             if len(row) != n_cols:
-                self.at_value(path + (i,), f"expected {n_cols} entries in each row (one per {columns}), "
-                                           f"got {len(row)}")
+                self.at_value(path + (i,), f"expected {n_cols} entries in each row (one per {columns}), got {len(row)}")
         return tuple(self.vector_of_expressions(path + (i,), row, None, names) for i, row in enumerate(rows))
 
     def per_joint(self, path: Path, value: object, n: int, what: str, *, positive: bool) -> np.ndarray:
@@ -179,4 +184,3 @@ class Collector:
             if positive and v <= 0:
                 self.at_value(path + (i,), f"{what} {v:g} must be positive")
         return values
-

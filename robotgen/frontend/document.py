@@ -5,6 +5,7 @@ value and sequence item; ``SourceMap`` turns a path into the document (("nodes",
 "define", "chain", "joints", 2)) into a ``Location``. Schema errors are reported at the
 offending value, at the unknown key, or at the key holding a mapping that lacks a key.
 """
+
 from __future__ import annotations
 
 import functools
@@ -33,8 +34,16 @@ def _validator(laws: tuple) -> Draft202012Validator:
     """The schema's validator, made once for the laws of the registry (``laws``, its entries)."""
     return Draft202012Validator(spec_schema())
 
-_TYPE_NAMES = {"object": "a mapping", "array": "a list", "string": "a string", "number": "a number",
-               "integer": "an integer", "boolean": "true or false", "null": "nothing"}
+
+_TYPE_NAMES = {
+    "object": "a mapping",
+    "array": "a list",
+    "string": "a string",
+    "number": "a number",
+    "integer": "an integer",
+    "boolean": "true or false",
+    "null": "nothing",
+}
 
 
 def format_path(data: object, path: Path) -> str:
@@ -86,8 +95,9 @@ class SourceMap:
     def _walk(self, path: Path) -> tuple[Location, Location]:
         """(key, value) locations of the node at ``path``; for a sequence item both are the
         item. Falls back to the closest located ancestor (e.g. keys from YAML merges)."""
-        key = value = self._location(getattr(getattr(self.root, "lc", None), "line", 0),
-                                     getattr(getattr(self.root, "lc", None), "col", 0))
+        key = value = self._location(
+            getattr(getattr(self.root, "lc", None), "line", 0), getattr(getattr(self.root, "lc", None), "col", 0)
+        )
         node: Any = self.root  # ruamel's CommentedMap and CommentedSeq, with their .lc positions
         for part in path:
             try:
@@ -118,9 +128,9 @@ class SourceMap:
         at = self.value(path)
         line = self.lines[at.line - 1] if at.line <= len(self.lines) else ""
         col = at.col - 1
-        if line[col:col + len(text)] == text:
+        if line[col : col + len(text)] == text:
             return at, True
-        if line[col:col + 1] in ("'", '"') and line[col + 1:col + 1 + len(text)] == text:
+        if line[col : col + 1] in ("'", '"') and line[col + 1 : col + 1 + len(text)] == text:
             return replace(at, col=at.col + 1), True
         return at, False
 
@@ -182,8 +192,14 @@ def _check_bounds(path: str, text: str) -> int:
                 continue
             block_scalar = None
         if indent > 4 * MAX_DEPTH:
-            raise UserErrors([UserError(Location(path, number, 1), f"YAML: indented {indent} columns: nested "
-                                        f"deeper than the {MAX_DEPTH} levels a spec may have")])
+            raise UserErrors(
+                [
+                    UserError(
+                        Location(path, number, 1),
+                        f"YAML: indented {indent} columns: nested deeper than the {MAX_DEPTH} levels a spec may have",
+                    )
+                ]
+            )
         start, code_end, keyed = indent + 1, len(line), False
         if depth == 0:  # block sequence items: "- - a: 1" holds two, and a mapping entry
             rest = body
@@ -192,7 +208,7 @@ def _check_bounds(path: str, text: str) -> int:
                 rest = rest[1:].lstrip()
             start = len(line) - len(rest) + 1
         column = start
-        for column, char in enumerate(line[start - 1:], start):
+        for column, char in enumerate(line[start - 1 :], start):
             if quote:
                 quote = "" if char == quote else quote
             elif char in "'\"":
@@ -203,19 +219,31 @@ def _check_bounds(path: str, text: str) -> int:
             elif char in "[{":
                 depth += 1
                 if depth > MAX_DEPTH:
-                    raise UserErrors([UserError(Location(path, number, column), "YAML: collections nested "
-                                                f"deeper than the {MAX_DEPTH} levels a spec may have")])
+                    raise UserErrors(
+                        [
+                            UserError(
+                                Location(path, number, column),
+                                f"YAML: collections nested deeper than the {MAX_DEPTH} levels a spec may have",
+                            )
+                        ]
+                    )
             elif char in "]}":
                 depth = max(depth - 1, 0)
             elif char == "," and depth:
                 entries += 1
-            elif char == ":" and not depth and not keyed and line[column:column + 1] in ("", " ", "\t"):
+            elif char == ":" and not depth and not keyed and line[column : column + 1] in ("", " ", "\t"):
                 entries, keyed = entries + 1, True
             if entries > MAX_VALUES:
                 break
         if entries > MAX_VALUES:
-            raise UserErrors([UserError(Location(path, number, column), f"YAML: more than {MAX_VALUES} values (list "
-                                        "and mapping entries); a spec holds a few thousand")])
+            raise UserErrors(
+                [
+                    UserError(
+                        Location(path, number, column),
+                        f"YAML: more than {MAX_VALUES} values (list and mapping entries); a spec holds a few thousand",
+                    )
+                ]
+            )
         if not depth and not quote and _BLOCK_SCALAR.search(line[:code_end]):
             block_scalar = indent
         quote = ""  # robotgen's values are one-line scalars; a quote never spans lines here
@@ -234,8 +262,10 @@ class _Constructor(RoundTripConstructor):
             text = node.value if isinstance(node.value, str) else ""
             digits = sum(c.isdigit() for c in text)
             if (tag or node.tag).endswith(":int") and digits > sys.get_int_max_str_digits() > 0:
-                reason = (f"an integer of {digits} digits; robotgen reads integers of at most "
-                          f"{sys.get_int_max_str_digits()} digits")
+                reason = (
+                    f"an integer of {digits} digits; robotgen reads integers of at most "
+                    f"{sys.get_int_max_str_digits()} digits"
+                )
             else:
                 reason = f"{_quoted(text)} cannot be read: {error}"
             raise ConstructorError(None, None, reason, node.start_mark) from None
@@ -248,8 +278,9 @@ def _parse_yaml(path: str, text: str) -> object:
     try:
         return yaml.load(text)
     except RecursionError:
-        raise UserErrors([UserError(Location(path), f"YAML: nested deeper than the {MAX_DEPTH} levels a spec "
-                                    "may have")]) from None
+        raise UserErrors(
+            [UserError(Location(path), f"YAML: nested deeper than the {MAX_DEPTH} levels a spec may have")]
+        ) from None
     except MarkedYAMLError as error:
         mark = error.problem_mark or error.context_mark
         message = error.problem or error.context or "invalid YAML"
@@ -267,24 +298,29 @@ def _parse_yaml(path: str, text: str) -> object:
         raise UserErrors([UserError(location, f"YAML: {reason}")]) from None
 
 
-def _plain(node: object, path: Path, source: SourceMap, errors: list[UserError],
-           count: list[int] | None = None) -> object:
+def _plain(
+    node: object, path: Path, source: SourceMap, errors: list[UserError], count: list[int] | None = None
+) -> object:
     """ruamel's node types as plain Python; non-string mapping keys are errors. Stops with an
     error past MAX_DEPTH levels or MAX_VALUES values (aliases count as often as they are used)."""
     count = [0] if count is None else count
     count[0] += 1
     if count[0] > MAX_VALUES or len(path) > MAX_DEPTH:
         where = format_path(source.root, path[:MAX_DEPTH])
-        what = (f"more than {MAX_VALUES} values (each use of a YAML alias counts)" if count[0] > MAX_VALUES
-                else f"nesting deeper than {MAX_DEPTH} levels")
+        what = (
+            f"more than {MAX_VALUES} values (each use of a YAML alias counts)"
+            if count[0] > MAX_VALUES
+            else f"nesting deeper than {MAX_DEPTH} levels"
+        )
         raise UserErrors([UserError(source.value(path[:MAX_DEPTH]), f"{where}: the spec holds {what}")])
     if isinstance(node, dict):
         plain = {}
         for key, value in node.items():
             if not isinstance(key, str):
                 where = format_path(source.root, path)
-                errors.append(UserError(source.key(path + (key,)),
-                                        f"{where + ': ' if where else ''}key {key!r} must be a string"))
+                errors.append(
+                    UserError(source.key(path + (key,)), f"{where + ': ' if where else ''}key {key!r} must be a string")
+                )
                 continue
             plain[str(key)] = _plain(value, path + (key,), source, errors, count)
         return plain
@@ -314,8 +350,11 @@ def _schema_errors(error: ValidationError, data: object, source: SourceMap) -> l
 
     if kind == "additionalProperties" and schema.get("additionalProperties") is False:
         allowed = ", ".join(schema.get("properties", {}))
-        return [at(source.key(path + (k,)), path + (k,), f"unknown key (allowed: {allowed})")
-                for k in instance if k not in schema.get("properties", {})]
+        return [
+            at(source.key(path + (k,)), path + (k,), f"unknown key (allowed: {allowed})")
+            for k in instance
+            if k not in schema.get("properties", {})
+        ]
     if kind == "required":
         missing = [k for k in validator_value if k not in instance]
         return [at(source.key(path), path, f"missing required key '{k}'") for k in missing]
@@ -326,11 +365,13 @@ def _schema_errors(error: ValidationError, data: object, source: SourceMap) -> l
         present = [k for k in keys if k in instance]
         if not present:
             return [at(source.key(path), path, f"needs one of: {', '.join(keys)}")]
-        return [at(source.key(path + (present[1],)), path,
-                   f"{' and '.join(present)} exclude each other; give exactly one")]
+        return [
+            at(source.key(path + (present[1],)), path, f"{' and '.join(present)} exclude each other; give exactly one")
+        ]
     if "propertyNames" in error.schema_path:
-        return [at(source.key(path + (instance,)), path,
-                   f"name {instance!r} is not an identifier ([A-Za-z_][A-Za-z0-9_]*)")]
+        return [
+            at(source.key(path + (instance,)), path, f"name {instance!r} is not an identifier ([A-Za-z_][A-Za-z0-9_]*)")
+        ]
     if kind == "type":
         expected = validator_value if isinstance(validator_value, list) else [validator_value]
         message = f"expected {' or '.join(_TYPE_NAMES[t] for t in expected)}, got {describe(instance)}"

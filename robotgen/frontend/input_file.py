@@ -3,6 +3,7 @@
 A device (/dev/zero, /dev/urandom), a FIFO, a directory or a file past the bound is refused
 with a message at the file before anything is read whole: /dev/zero would otherwise be read
 until memory runs out, and a FIFO's open or read would wait for a writer forever."""
+
 from __future__ import annotations
 
 import os
@@ -10,8 +11,13 @@ import stat
 
 from robotgen.errors import Location, UserError
 
-_KINDS = ((stat.S_ISDIR, "a directory"), (stat.S_ISFIFO, "a FIFO (named pipe)"), (stat.S_ISCHR, "a character device"),
-          (stat.S_ISBLK, "a block device"), (stat.S_ISSOCK, "a socket"))
+_KINDS = (
+    (stat.S_ISDIR, "a directory"),
+    (stat.S_ISFIFO, "a FIFO (named pipe)"),
+    (stat.S_ISCHR, "a character device"),
+    (stat.S_ISBLK, "a block device"),
+    (stat.S_ISSOCK, "a socket"),
+)
 _CHUNK = 1 << 20
 
 

@@ -2,6 +2,7 @@
 URDF-like joint lists), URDF leaves, formulas (M, C, N as expressions) and rigid payload
 bodies, with the checks the schema cannot express (inertia physically valid, joint keys
 that fit the convention, unique names, formula shapes and the names each may read)."""
+
 from __future__ import annotations
 
 import dataclasses
@@ -55,14 +56,18 @@ class LeafReader(Collector):
             # carry such estimates, and M stays positive definite with them. `accept` keeps
             # a known one quiet.
             if TRIANGLE_INEQUALITY not in tensor.get("accept", ()):
-                self.warnings.append(f"{self.doc.source.key(path)}: warning: {format_path(self.doc.data, path)}: "
-                                     f"principal moments {shown} violate the triangle inequality I1 + I2 >= I3 "
-                                     "(no rigid body has this inertia; if the data are published as such, "
-                                     "add 'accept: [triangle_inequality]' to this inertia)")
+                self.warnings.append(
+                    f"{self.doc.source.key(path)}: warning: {format_path(self.doc.data, path)}: "
+                    f"principal moments {shown} violate the triangle inequality I1 + I2 >= I3 "
+                    "(no rigid body has this inertia; if the data are published as such, "
+                    "add 'accept: [triangle_inequality]' to this inertia)"
+                )
         elif TRIANGLE_INEQUALITY in tensor.get("accept", ()):
-            self.warnings.append(f"{self.doc.source.key(path + ('accept',))}: warning: "
-                                 f"{format_path(self.doc.data, path + ('accept',))}: the principal moments "
-                                 f"{shown} satisfy the triangle inequality; 'triangle_inequality' is not needed")
+            self.warnings.append(
+                f"{self.doc.source.key(path + ('accept',))}: warning: "
+                f"{format_path(self.doc.data, path + ('accept',))}: the principal moments "
+                f"{shown} satisfy the triangle inequality; 'triangle_inequality' is not needed"
+            )
         return inertia
 
     def body(self, path: Path, link: dict | None) -> Body:
@@ -78,11 +83,15 @@ class LeafReader(Collector):
     def limits(self, path: Path, limits: dict | None) -> Limits:
         """A joint's Limits (lower, upper, velocity, effort), upper not below lower."""
         limits = limits or {}
-        values = {k: self.constant(path + (k,), limits[k], minimum=0.0 if k in ("velocity", "effort") else None)
-                  for k in ("lower", "upper", "velocity", "effort") if k in limits}
+        values = {
+            k: self.constant(path + (k,), limits[k], minimum=0.0 if k in ("velocity", "effort") else None)
+            for k in ("lower", "upper", "velocity", "effort")
+            if k in limits
+        }
         if "lower" in values and "upper" in values and values["lower"] > values["upper"]:
-            self.at_value(path + ("upper",),
-                          f"upper limit {values['upper']:g} is below lower limit {values['lower']:g}")
+            self.at_value(
+                path + ("upper",), f"upper limit {values['upper']:g} is below lower limit {values['lower']:g}"
+            )
         return Limits(**values)
 
     def check_convention_keys(self, path: Path, joint: dict, convention: str) -> None:
@@ -90,8 +99,7 @@ class LeafReader(Collector):
         needed, foreign = _CONVENTION_KEYS[convention]
         for key in foreign:
             if key in joint:
-                self.at_key(path + (key,), f"not used with convention {convention} "
-                                           f"(it needs {' and '.join(needed)})")
+                self.at_key(path + (key,), f"not used with convention {convention} (it needs {' and '.join(needed)})")
         for key in needed:
             if key not in joint:
                 self.at_key(path, f"missing required key '{key}' (convention {convention})")
@@ -116,8 +124,9 @@ class LeafReader(Collector):
             axis = self.axis(path + ("axis",), joint.get("axis"))
         else:
             dh = joint.get("dh") or {}
-            dh_row = DHParameters(**{k: self.optional(dh, path + ("dh",), k, 0.0)
-                                     for k in ("a", "alpha", "d", "theta")})
+            dh_row = DHParameters(
+                **{k: self.optional(dh, path + ("dh",), k, 0.0) for k in ("a", "alpha", "d", "theta")}
+            )
         return JointRow(
             name=joint.get("name", f"q{index + 1}"),
             type=joint["type"],
@@ -127,15 +136,16 @@ class LeafReader(Collector):
             viscous=self.optional(friction, path + ("friction",), "viscous", 0.0, minimum=0.0),
             coulomb=self.optional(friction, path + ("friction",), "coulomb", 0.0, minimum=0.0),
             limits=self.limits(path + ("limits",), joint.get("limits")),
-            dh=dh_row, origin=origin, axis=axis,
+            dh=dh_row,
+            origin=origin,
+            axis=axis,
         )
 
     def chain(self, name: str, path: Path, chain: dict) -> KinematicTree:
         """A chain leaf as a KinematicTree: its joints in its convention (DH or joint list), base and tool, names
         unique."""
         convention = chain["convention"]
-        rows = [self.joint_row(path + ("joints", i), joint, i, convention)
-                for i, joint in enumerate(chain["joints"])]
+        rows = [self.joint_row(path + ("joints", i), joint, i, convention) for i, joint in enumerate(chain["joints"])]
         seen: set[str] = set()
         for i, row in enumerate(rows):
             if row.name in seen:
@@ -145,15 +155,22 @@ class LeafReader(Collector):
         tool = self.pose(path + ("tool",), chain.get("tool"))
         joints, tool = canonical_chain(convention, rows, base, tool)
         for i in joints_without_inertia(KinematicTree(name, joints, len(joints) - 1, tool, np.array(DEFAULT_GRAVITY))):
-            self.warnings.append(f"{self.doc.source.key(path + ('joints', i))}: warning: {name}: joint "
-                                 f"'{joints[i].name}' moves no mass, inertia or motor inertia: M is singular and "
-                                 "forward dynamics returns no finite answer (give its link a mass)")
+            self.warnings.append(
+                f"{self.doc.source.key(path + ('joints', i))}: warning: {name}: joint "
+                f"'{joints[i].name}' moves no mass, inertia or motor inertia: M is singular and "
+                "forward dynamics returns no finite answer (give its link a mass)"
+            )
         return KinematicTree(
-            name=name, joints=joints, tip=len(joints) - 1, tool=tool,
+            name=name,
+            joints=joints,
+            tip=len(joints) - 1,
+            tool=tool,
             gravity=self.vector(path + ("gravity",), chain.get("gravity"), DEFAULT_GRAVITY),
-            coulomb_smoothing=self.optional(chain, path, "coulomb_smoothing", DEFAULT_COULOMB_SMOOTHING,
-                                            minimum=0.0, exclusive=True),
-            base_link="base", tip_link="tool",
+            coulomb_smoothing=self.optional(
+                chain, path, "coulomb_smoothing", DEFAULT_COULOMB_SMOOTHING, minimum=0.0, exclusive=True
+            ),
+            base_link="base",
+            tip_link="tool",
         )
 
     def matrix(self, path: Path, rows: list, nq: int, names: set[str]) -> tuple[tuple[Expr, ...], ...]:
@@ -196,44 +213,62 @@ class LeafReader(Collector):
         if "inverse_kinematics" in spec:
             if "kinematics" not in spec:
                 self.at_key(path + ("inverse_kinematics",), "needs kinematics (it inverts them)")
-            inverse = self.vector_of_expressions(path + ("inverse_kinematics",), spec["inverse_kinematics"],
-                                                 nq, set(outputs) | set(parameters))
+            inverse = self.vector_of_expressions(
+                path + ("inverse_kinematics",), spec["inverse_kinematics"], nq, set(outputs) | set(parameters)
+            )
         units = spec.get("units", {})
         for key in units:
             if key not in coordinates and key not in outputs:
-                self.at_key(path + ("units", key), f"'{key}' is not a coordinate or output of '{name}' "
-                                                   f"(coordinates: {', '.join(coordinates)}"
-                                                   f"{'; outputs: ' + ', '.join(outputs) if outputs else ''})")
+                self.at_key(
+                    path + ("units", key),
+                    f"'{key}' is not a coordinate or output of '{name}' "
+                    f"(coordinates: {', '.join(coordinates)}"
+                    f"{'; outputs: ' + ', '.join(outputs) if outputs else ''})",
+                )
         before = len(self.errors)
         mass = self.matrix(path + ("M",), spec["M"], nq, in_q)
         if len(self.errors) == before:
             self.check_mass_matrix(path + ("M",), mass, coordinates, parameters)
         return FormulaRobot(
-            name=name, coordinates=coordinates, velocities=velocities, parameters=parameters, units=dict(units),
+            name=name,
+            coordinates=coordinates,
+            velocities=velocities,
+            parameters=parameters,
+            units=dict(units),
             runtime=runtime,
             mass=mass,
             coriolis=self.matrix(path + ("C",), spec["C"], nq, in_q_qd) if "C" in spec else None,
             nonlinear=self.vector_of_expressions(path + ("N",), spec["N"], nq, in_q_qd) if "N" in spec else None,
             kinematics=self.vector_of_expressions(path + ("kinematics",), spec["kinematics"], None, in_q)
-            if "kinematics" in spec else None,
-            outputs=outputs, inverse_kinematics=inverse,
+            if "kinematics" in spec
+            else None,
+            outputs=outputs,
+            inverse_kinematics=inverse,
             mechanism=self.mechanism(name, path + ("mechanism",), spec["mechanism"], coordinates, parameters)
-            if "mechanism" in spec else None,
+            if "mechanism" in spec
+            else None,
         )
 
-    def mechanism(self, name: str, path: Path, spec: dict, coordinates: tuple[str, ...],
-                  parameters: dict[str, float]) -> Mechanism | None:
+    def mechanism(
+        self, name: str, path: Path, spec: dict, coordinates: tuple[str, ...], parameters: dict[str, float]
+    ) -> Mechanism | None:
         """A formulas leaf's bodies: a chain (every key of `chain`) and the leaf's coordinates
         as affine expressions of the chain's joint positions, theta = T q + offset, T
         invertible (checked at the unit vectors and at random q)."""
         tree = self.chain(name, path, {k: v for k, v in spec.items() if k != "coordinates"})
         joints = tuple(j.name for j in tree.joints)
         if len(joints) != len(coordinates):
-            self.at_key(path + ("joints",), f"the mechanism has {len(joints)} joints; '{name}' has {len(coordinates)} "
-                                            f"coordinates ({', '.join(coordinates)}), one per joint")
+            self.at_key(
+                path + ("joints",),
+                f"the mechanism has {len(joints)} joints; '{name}' has {len(coordinates)} "
+                f"coordinates ({', '.join(coordinates)}), one per joint",
+            )
             return None
-        self.check_names(path, [(j, path + ("joints", i), "joint") for i, j in enumerate(joints)]
-                         + [(p, path + ("coordinates",), "parameter") for p in parameters])
+        self.check_names(
+            path,
+            [(j, path + ("joints", i), "joint") for i, j in enumerate(joints)]
+            + [(p, path + ("coordinates",), "parameter") for p in parameters],
+        )
         at = path + ("coordinates",)
         before = len(self.errors)
         exprs = self.vector_of_expressions(at, spec["coordinates"], len(coordinates), set(joints) | set(parameters))
@@ -251,22 +286,32 @@ class LeafReader(Collector):
             samples = np.random.default_rng(0).uniform(-np.pi, np.pi, size=(4, n))
             worst = max(float(np.abs(theta(q) - T @ q - offset).max()) for q in samples)
         except (ArithmeticError, ValueError):
-            self.at_key(at, "cannot be evaluated at q = 0 and the unit vectors (they must be affine in the "
-                            f"joint positions {', '.join(joints)})")
+            self.at_key(
+                at,
+                "cannot be evaluated at q = 0 and the unit vectors (they must be affine in the "
+                f"joint positions {', '.join(joints)})",
+            )
             return None
         scale = 1.0 + float(np.abs(T).max()) * np.pi + float(np.abs(offset).max())
         if worst > 1e-9 * scale:
-            self.at_key(at, f"must be affine in the joint positions {', '.join(joints)} (theta = T q + offset, "
-                            f"as absolute link angles are of relative joints); off by {worst:.3g} at random q")
+            self.at_key(
+                at,
+                f"must be affine in the joint positions {', '.join(joints)} (theta = T q + offset, "
+                f"as absolute link angles are of relative joints); off by {worst:.3g} at random q",
+            )
             return None
         if abs(np.linalg.det(T)) < 1e-12 * max(1.0, float(np.abs(T).max())) ** n:
-            self.at_key(at, f"T = d({', '.join(coordinates)})/d({', '.join(joints)}) is singular: every coordinate "
-                            "of the leaf must come from the joints one to one")
+            self.at_key(
+                at,
+                f"T = d({', '.join(coordinates)})/d({', '.join(joints)}) is singular: every coordinate "
+                "of the leaf must come from the joints one to one",
+            )
             return None
         return Mechanism(tree, exprs, T, offset, self.doc.source.key(path))
 
-    def check_mass_matrix(self, path: Path, mass: tuple[tuple[Expr, ...], ...], coordinates: tuple[str, ...],
-                          parameters: dict[str, float]) -> None:
+    def check_mass_matrix(
+        self, path: Path, mass: tuple[tuple[Expr, ...], ...], coordinates: tuple[str, ...], parameters: dict[str, float]
+    ) -> None:
         """M must be symmetric and positive definite: checked at q = 0 and at 16 random
         configurations in [-pi, pi] (a fixed seed; run-time parameters at their defaults).
         Forward dynamics factorises M (L D L^T), which reads one triangle only and fails
@@ -286,13 +331,18 @@ class LeafReader(Collector):
             for i in range(n):
                 for j in range(i):
                     if abs(M[i, j] - M[j, i]) > 1e-12 * scale:
-                        self.at_value(path + (i, j), f"M is not symmetric: M[{i}][{j}] = {M[i, j]:.6g} but "
-                                                     f"M[{j}][{i}] = {M[j, i]:.6g} at {at}")
+                        self.at_value(
+                            path + (i, j),
+                            f"M is not symmetric: M[{i}][{j}] = {M[i, j]:.6g} but M[{j}][{i}] = {M[j, i]:.6g} at {at}",
+                        )
                         return
             smallest = float(np.linalg.eigvalsh(M).min())
             if smallest <= 1e-12 * scale:
-                self.at_key(path, f"M is not positive definite at {at} (smallest eigenvalue {smallest:.3g}); an "
-                                  "inertia matrix is, at every configuration")
+                self.at_key(
+                    path,
+                    f"M is not positive definite at {at} (smallest eigenvalue {smallest:.3g}); an "
+                    "inertia matrix is, at every configuration",
+                )
                 return
 
     def outputs(self, name: str, path: Path, spec: dict) -> tuple[str, ...]:
@@ -313,27 +363,44 @@ class LeafReader(Collector):
         default = DEFAULT_SPATIAL_COORDINATES if spatial else DEFAULT_BODY_COORDINATES
         coordinates = tuple(spec.get("coordinates", default))
         if len(coordinates) != len(default):
-            self.at_value(path + ("coordinates",), f"a {'spatial' if spatial else 'planar'} body has "
-                                                   f"{len(default)} coordinates, got {len(coordinates)}")
-        self.check_names(path, [(c, path + ("coordinates", i) if "coordinates" in spec else path, "coordinate")
-                                for i, c in enumerate(coordinates)])
+            self.at_value(
+                path + ("coordinates",),
+                f"a {'spatial' if spatial else 'planar'} body has {len(default)} coordinates, got {len(coordinates)}",
+            )
+        self.check_names(
+            path,
+            [
+                (c, path + ("coordinates", i) if "coordinates" in spec else path, "coordinate")
+                for i, c in enumerate(coordinates)
+            ],
+        )
         gravity_default = DEFAULT_GRAVITY if spatial else DEFAULT_PLANAR_GRAVITY
         gravity = self.vector(path + ("gravity",), spec.get("gravity"), gravity_default)
         if len(gravity) != len(gravity_default):
-            self.at_value(path + ("gravity",), f"a {'spatial' if spatial else 'planar'} body takes "
-                                               f"{len(gravity_default)} gravity components, got {len(gravity)}")
+            self.at_value(
+                path + ("gravity",),
+                f"a {'spatial' if spatial else 'planar'} body takes "
+                f"{len(gravity_default)} gravity components, got {len(gravity)}",
+            )
         kind = "spatial" if spatial else "planar"
         mass, is_runtime = self.parameter(path + (kind, "mass"), spec[kind]["mass"], PAYLOAD_MASS)
         runtime = frozenset({"mass"} if is_runtime else ())
         if spatial:
             body = spec["spatial"]
             return SpatialBody(
-                name=name, coordinates=coordinates, mass=mass, runtime=runtime,
-                inertia=self.inertia(path + ("spatial", "inertia"), body["inertia"]), gravity=gravity)
+                name=name,
+                coordinates=coordinates,
+                mass=mass,
+                runtime=runtime,
+                inertia=self.inertia(path + ("spatial", "inertia"), body["inertia"]),
+                gravity=gravity,
+            )
         planar = spec["planar"]
         return PlanarBody(
-            name=name, coordinates=coordinates,
-            mass=mass, runtime=runtime,
+            name=name,
+            coordinates=coordinates,
+            mass=mass,
+            runtime=runtime,
             inertia=self.constant(path + ("planar", "inertia"), planar["inertia"], minimum=0.0),
             gravity=gravity,
         )
@@ -353,4 +420,3 @@ class LeafReader(Collector):
         self.warnings.extend(chain.notes)
         gravity = self.vector(path + ("gravity",), spec.get("gravity"), DEFAULT_GRAVITY)
         return dataclasses.replace(chain.tree, gravity=gravity)
-

@@ -52,6 +52,7 @@ forces and tendons' stiffness, damping and friction loss acting on the kept join
 note: actuators (robotgen's inputs are joint forces) and equality constraints that do not act
 on the kept joints. Contacts and the limit constraints are not part of robotgen's dynamics.
 """
+
 from __future__ import annotations
 
 import hashlib
@@ -96,6 +97,7 @@ DEFAULT_MODEL_NAME = "MuJoCo Model"  # what MuJoCo calls a model without <mujoco
 class MjcfRobot:
     """A tree read from an MJCF file, with the located notes and warnings for the user;
     ``model_name`` is <mujoco model=...> (None when the file has none)."""
+
     tree: KinematicTree
     notes: tuple[str, ...]
     model_name: str | None
@@ -106,8 +108,17 @@ class MjcfRobot:
 class _Mjcf:
     """The compiled model, its spec (for lines) and the main file's text (for columns)."""
 
-    def __init__(self, mujoco, path: str, spec, model, lines: list[str], said: list[str], disabled: dict[str, bool],
-                 drawn: set[str]):
+    def __init__(
+        self,
+        mujoco,
+        path: str,
+        spec,
+        model,
+        lines: list[str],
+        said: list[str],
+        disabled: dict[str, bool],
+        drawn: set[str],
+    ):
         self.mujoco, self.path, self.spec, self.m, self.lines = mujoco, path, spec, model, lines
         self.warnings = said  # MuJoCo's own warnings, located at the file
         self.disabled = disabled  # <option><flag>s that switch off what robotgen reads
@@ -153,8 +164,15 @@ class _Mjcf:
         return UserError(self.loc(kind, i), message)
 
 
-_SPEC_LISTS = {"body": "bodies", "joint": "joints", "site": "sites", "equality": "equalities", "tendon": "tendons",
-               "actuator": "actuators", "flex": "flexes"}
+_SPEC_LISTS = {
+    "body": "bodies",
+    "joint": "joints",
+    "site": "sites",
+    "equality": "equalities",
+    "tendon": "tendons",
+    "actuator": "actuators",
+    "flex": "flexes",
+}
 # tags of each kind (regular expressions); equality constraints, tendons and actuators have
 # a tag per type (<weld>, <fixed>, <motor>, ...)
 _TAGS = {"joint": "joint|freejoint", "flex": "flex|flexcomp", "equality": r"\w+", "tendon": r"\w+", "actuator": r"\w+"}
@@ -162,8 +180,13 @@ _TAGS = {"joint": "joint|freejoint", "flex": "flex|flexcomp", "equality": r"\w+"
 
 # what each <option><flag> switches off; older MuJoCo releases had one flag, PASSIVE, for springs
 # and dampers
-_DISABLE_BITS = {"gravity": ("GRAVITY",), "damper": ("DAMPER", "PASSIVE"), "spring": ("SPRING", "PASSIVE"),
-                 "frictionloss": ("FRICTIONLOSS",), "constraint": ("CONSTRAINT",)}
+_DISABLE_BITS = {
+    "gravity": ("GRAVITY",),
+    "damper": ("DAMPER", "PASSIVE"),
+    "spring": ("SPRING", "PASSIVE"),
+    "frictionloss": ("FRICTIONLOSS",),
+    "constraint": ("CONSTRAINT",),
+}
 
 
 def _compile(path: str) -> _Mjcf:
@@ -184,8 +207,10 @@ def _compile(path: str) -> _Mjcf:
             raise _refused(path, text.splitlines(), str(e)) from None
     said = [f"{Location(path)}: warning: MuJoCo: {w.message}" for w in caught]
     flags = int(model.opt.disableflags)
-    disabled = {key: any(flags & int(getattr(mujoco.mjtDisableBit, f"mjDSBL_{bit}", 0)) for bit in bits)
-                for key, bits in _DISABLE_BITS.items()}
+    disabled = {
+        key: any(flags & int(getattr(mujoco.mjtDisableBit, f"mjDSBL_{bit}", 0)) for bit in bits)
+        for key, bits in _DISABLE_BITS.items()
+    }
     return _Mjcf(mujoco, path, spec, model, text.splitlines(), said, disabled, drawn)
 
 
@@ -209,11 +234,13 @@ def _quat_rotation(q) -> np.ndarray:
     R = (w^2 - v.v) E + 2 v v^T + 2 w [v]x."""
     w, x, y, z = (float(c) for c in q)
     d = exact.dot
-    return np.array([
-        [d((w, x, -y, -z), (w, x, y, z)), d((x, -w), (y, z)) * 2, d((x, w), (z, y)) * 2],
-        [d((x, w), (y, z)) * 2, d((w, -x, y, -z), (w, x, y, z)), d((y, -w), (z, x)) * 2],
-        [d((x, -w), (z, y)) * 2, d((y, w), (z, x)) * 2, d((w, -x, -y, z), (w, x, y, z))],
-    ])
+    return np.array(
+        [
+            [d((w, x, -y, -z), (w, x, y, z)), d((x, -w), (y, z)) * 2, d((x, w), (z, y)) * 2],
+            [d((x, w), (y, z)) * 2, d((w, -x, y, -z), (w, x, y, z)), d((y, -w), (z, x)) * 2],
+            [d((x, -w), (z, y)) * 2, d((y, w), (z, x)) * 2, d((w, -x, -y, z), (w, x, y, z))],
+        ]
+    )
 
 
 def _pose(pos, quat) -> np.ndarray:
@@ -265,26 +292,34 @@ def _check_numbers(mj: _Mjcf) -> None:
             for field in fields:
                 values = _field(m, field, i)
                 if not all(math.isfinite(v) and abs(v) <= MAX_MAGNITUDE for v in values):
-                    raise mj.fail(kind, i, f"{kind} '{mj.name(kind, i)}': MuJoCo's compiled {field} holds "
-                                           f"{' '.join(f'{v:g}' for v in values)}; robotgen reads finite numbers "
-                                           f"up to {MAX_MAGNITUDE:g} in magnitude")
+                    raise mj.fail(
+                        kind,
+                        i,
+                        f"{kind} '{mj.name(kind, i)}': MuJoCo's compiled {field} holds "
+                        f"{' '.join(f'{v:g}' for v in values)}; robotgen reads finite numbers "
+                        f"up to {MAX_MAGNITUDE:g} in magnitude",
+                    )
                 if field in ("dof_armature", "dof_damping", "dof_frictionloss") and min(values, default=0.0) < 0:
-                    raise mj.fail(kind, i, f"joint '{mj.name(kind, i)}': {field.split('_')[1]} "
-                                           f"{min(values):g} is negative")
+                    raise mj.fail(
+                        kind, i, f"joint '{mj.name(kind, i)}': {field.split('_')[1]} {min(values):g} is negative"
+                    )
     if m.nflex:
         raise mj.fail("flex", 0, f"flex '{mj.name('flex', 0)}': deformable bodies are not part of robotgen's model")
     g = [float(v) for v in m.opt.gravity]
     if not all(math.isfinite(v) and abs(v) <= MAX_MAGNITUDE for v in g):
-        raise UserError(mj.root_loc(), f"<option gravity> holds {' '.join(map(str, g))}; robotgen reads finite "
-                                       f"numbers up to {MAX_MAGNITUDE:g} in magnitude")
+        raise UserError(
+            mj.root_loc(),
+            f"<option gravity> holds {' '.join(map(str, g))}; robotgen reads finite "
+            f"numbers up to {MAX_MAGNITUDE:g} in magnitude",
+        )
 
 
 def _field(m, field: str, i: int) -> list[float]:
     """Row i (a joint's, for the qpos and dof fields: only hinge and slide have one each)."""
     if field == "qpos0":
-        return [float(v) for v in m.qpos0[m.jnt_qposadr[i]:m.jnt_qposadr[i] + _nq(int(m.jnt_type[i]))]]
+        return [float(v) for v in m.qpos0[m.jnt_qposadr[i] : m.jnt_qposadr[i] + _nq(int(m.jnt_type[i]))]]
     if field.startswith("dof_"):
-        return [float(v) for v in getattr(m, field)[m.jnt_dofadr[i]:m.jnt_dofadr[i] + _nv(int(m.jnt_type[i]))]]
+        return [float(v) for v in getattr(m, field)[m.jnt_dofadr[i] : m.jnt_dofadr[i] + _nv(int(m.jnt_type[i]))]]
     return [float(v) for v in np.atleast_1d(getattr(m, field)[i])]
 
 
@@ -321,8 +356,11 @@ def _find(mj: _Mjcf, label: str, name: str, sites: bool) -> tuple[int, int | Non
         return int(mj.m.site_bodyid[s]), s
     fused = name in mj.drawn_bodies
     what = "body or site" if sites else "body"
-    why = (" (MuJoCo's compiler fused it into its parent: <compiler fusestatic=\"true\">; name a site on it "
-           "or its parent)" if fused else "")
+    why = (
+        ' (MuJoCo\'s compiler fused it into its parent: <compiler fusestatic="true">; name a site on it or its parent)'
+        if fused
+        else ""
+    )
     raise UserError(mj.root_loc(), f"{label} {what} '{name}' is not in the model{why}")
 
 
@@ -330,6 +368,7 @@ def _find(mj: _Mjcf, label: str, name: str, sites: bool) -> tuple[int, int | Non
 class _Plan:
     """The base body, the joints robotgen keeps (MuJoCo's order), the bodies below the base
     (MuJoCo's topological order) and the joint equality constraints read as couplings."""
+
     base: int
     kept: list[int]
     below: list[int]
@@ -376,14 +415,22 @@ def _frames(mj: _Mjcf, plan: _Plan) -> tuple[list[Joint], dict[int, tuple[int, n
     for k, (j, parent, origin) in enumerate(origins):
         jtype, dof = int(m.jnt_type[j]), int(m.jnt_dofadr[j])
         damping = 0.0 if mj.disabled["damper"] else float(m.dof_damping[dof])
-        friction = (0.0 if mj.disabled["frictionloss"] or mj.disabled["constraint"]
-                    else float(m.dof_frictionloss[dof]))
-        joints.append(Joint(
-            name=mj.joint_names[j], type=REVOLUTE if jtype == HINGE else PRISMATIC, parent=parent,
-            origin=origin, axis=exact.unit(m.jnt_axis[j].astype(float)), body=merge_bodies(parts[k]),
-            armature=float(m.dof_armature[dof]), viscous=damping, coulomb=friction, damping=damping,
-            limits=_limits(m, j),
-        ))
+        friction = 0.0 if mj.disabled["frictionloss"] or mj.disabled["constraint"] else float(m.dof_frictionloss[dof])
+        joints.append(
+            Joint(
+                name=mj.joint_names[j],
+                type=REVOLUTE if jtype == HINGE else PRISMATIC,
+                parent=parent,
+                origin=origin,
+                axis=exact.unit(m.jnt_axis[j].astype(float)),
+                body=merge_bodies(parts[k]),
+                armature=float(m.dof_armature[dof]),
+                viscous=damping,
+                coulomb=friction,
+                damping=damping,
+                limits=_limits(m, j),
+            )
+        )
     return joints, frames, locked
 
 
@@ -425,10 +472,10 @@ def _base_pose(mj: _Mjcf, base: int) -> np.ndarray:
         for j in _joints_of(m, b):
             jtype, adr = int(m.jnt_type[j]), int(m.jnt_qposadr[j])
             if jtype == FREE:  # qpos is the body's pose in the world
-                T = _pose(m.qpos0[adr:adr + 3], m.qpos0[adr + 3:adr + 7])
+                T = _pose(m.qpos0[adr : adr + 3], m.qpos0[adr + 3 : adr + 7])
             elif jtype == BALL:
                 R = np.eye(4)
-                R[:3, :3] = _quat_rotation(m.qpos0[adr:adr + 4])
+                R[:3, :3] = _quat_rotation(m.qpos0[adr : adr + 4])
                 anchor = m.jnt_pos[j].astype(float)
                 T = exact.matmul(T, trans(*anchor), R, trans(*(-anchor)))
             else:
@@ -493,39 +540,67 @@ def _unmodelled(mj: _Mjcf, plan: _Plan, frames: dict) -> tuple[str, ...]:
         else:  # flexes are refused above; a distance constraint (removed from MuJoCo) acts
             acts = True
         if acts and m.eq_active0[e]:
-            raise mj.fail("equality", e, f"equality constraint '{mj.name('equality', e)}' acts on the joints "
-                                         "robotgen keeps, and robotgen has no constraints inside a chain or tree "
-                                         "(choose a tip or a base that leaves them out)")
+            raise mj.fail(
+                "equality",
+                e,
+                f"equality constraint '{mj.name('equality', e)}' acts on the joints "
+                "robotgen keeps, and robotgen has no constraints inside a chain or tree "
+                "(choose a tip or a base that leaves them out)",
+            )
         ignored.append(e)
     notes: list[str] = []
     if ignored:
         names = ", ".join(f"'{mj.name('equality', e)}'" for e in ignored)
         many = len(ignored) != 1
-        notes.append(f"{mj.loc('equality', ignored[0])}: note: ignored {len(ignored)} equality constraint"
-                     f"{'s' if many else ''} that do{'' if many else 'es'} not act on the joints robotgen keeps "
-                     f"(inactive, or among parts held fixed): {names}")
+        notes.append(
+            f"{mj.loc('equality', ignored[0])}: note: ignored {len(ignored)} equality constraint"
+            f"{'s' if many else ''} that do{'' if many else 'es'} not act on the joints robotgen keeps "
+            f"(inactive, or among parts held fixed): {names}"
+        )
     moving = [b for b in plan.below if frames[b][0] >= 0]
     warned = []
     stiff = [j for j in plan.kept if m.jnt_stiffness[j] != 0 and not mj.disabled["spring"]]
     if stiff:
-        warned.append((mj.loc("joint", stiff[0]), "the joint stiffness (springs) of "
-                       + ", ".join(f"'{mj.joint_names[j]}'" for j in stiff)))
+        warned.append(
+            (
+                mj.loc("joint", stiff[0]),
+                "the joint stiffness (springs) of " + ", ".join(f"'{mj.joint_names[j]}'" for j in stiff),
+            )
+        )
     gravcomp = [b for b in moving if m.body_gravcomp[b] != 0]
     if gravcomp:
-        warned.append((mj.loc("body", gravcomp[0]), "the gravity compensation (gravcomp) of "
-                       + ", ".join(f"'{mj.name('body', b)}'" for b in gravcomp)))
+        warned.append(
+            (
+                mj.loc("body", gravcomp[0]),
+                "the gravity compensation (gravcomp) of " + ", ".join(f"'{mj.name('body', b)}'" for b in gravcomp),
+            )
+        )
     if (m.opt.density or m.opt.viscosity) and moving:
-        warned.append((mj.root_loc(), f"fluid forces (<option density=\"{float(m.opt.density):g}\" "
-                                      f"viscosity=\"{float(m.opt.viscosity):g}\">)"))
-    passive = [t for t in range(m.ntendon)
-               if (m.tendon_stiffness[t] or m.tendon_damping[t] or m.tendon_frictionloss[t]) and tendon_acts(t)]
+        warned.append(
+            (
+                mj.root_loc(),
+                f'fluid forces (<option density="{float(m.opt.density):g}" viscosity="{float(m.opt.viscosity):g}">)',
+            )
+        )
+    passive = [
+        t
+        for t in range(m.ntendon)
+        if (m.tendon_stiffness[t] or m.tendon_damping[t] or m.tendon_frictionloss[t]) and tendon_acts(t)
+    ]
     if passive:
-        warned.append((mj.loc("tendon", passive[0]), "the stiffness, damping and friction loss of tendons "
-                       + ", ".join(f"'{mj.name('tendon', t)}'" for t in passive)))
+        warned.append(
+            (
+                mj.loc("tendon", passive[0]),
+                "the stiffness, damping and friction loss of tendons "
+                + ", ".join(f"'{mj.name('tendon', t)}'" for t in passive),
+            )
+        )
     notes += [f"{where}: warning: ignored {what}: robotgen's model has no such forces" for where, what in warned]
     if m.nu:
-        notes.append(f"{mj.loc('actuator', 0)}: note: ignored {m.nu} actuator{'s' if m.nu != 1 else ''}: "
-                     "robotgen's inputs are the joint forces tau (MuJoCo's qfrc_applied)")
+        notes.append(
+            f"{mj.loc('actuator', 0)}: note: ignored {m.nu} actuator{'s' if m.nu != 1 else ''}: "
+            "robotgen's inputs are the joint forces tau (MuJoCo's qfrc_applied)"
+        )
     return tuple(notes)
 
 
@@ -554,9 +629,11 @@ def _friction_note(mj: _Mjcf, tree: KinematicTree, kept: list[int]) -> tuple[str
     if not rubbing:
         return ()
     listed = ", ".join(f"'{joint.name}' {joint.coulomb:g}" for _, joint in rubbing)
-    return (f"{mj.loc('joint', rubbing[0][0])}: note: frictionloss becomes Coulomb friction "
-            f"frictionloss * tanh(qd / {tree.coulomb_smoothing:g}) ({listed}); MuJoCo's friction loss is a "
-            "constraint force up to frictionloss that can also hold the joint at rest",)
+    return (
+        f"{mj.loc('joint', rubbing[0][0])}: note: frictionloss becomes Coulomb friction "
+        f"frictionloss * tanh(qd / {tree.coulomb_smoothing:g}) ({listed}); MuJoCo's friction loss is a "
+        "constraint force up to frictionloss that can also hold the joint at rest",
+    )
 
 
 # -- readers --------------------------------------------------------------------------------------
@@ -567,12 +644,14 @@ def _below(m, base: int) -> list[int]:
 def _refuse_joint(mj: _Mjcf, j: int, why: str) -> UserError:
     jtype = int(mj.m.jnt_type[j])
     hint = f"; read the tree below it with --base {mj.name('body', int(mj.m.jnt_bodyid[j]))}" if jtype == FREE else ""
-    return mj.fail("joint", j, f"joint '{mj.joint_names[j]}' is {_JOINT_WORDS[jtype]} ({why}), which robotgen "
-                               f"does not support{hint}")
+    return mj.fail(
+        "joint",
+        j,
+        f"joint '{mj.joint_names[j]}' is {_JOINT_WORDS[jtype]} ({why}), which robotgen does not support{hint}",
+    )
 
 
-def _robot(mj: _Mjcf, plan: _Plan, tip: tuple[int, int | None] | None, name: str | None,
-           chain: bool) -> MjcfRobot:
+def _robot(mj: _Mjcf, plan: _Plan, tip: tuple[int, int | None] | None, name: str | None, chain: bool) -> MjcfRobot:
     """The tree of ``plan``; its tip the body (and site) ``tip``, or for None the first leaf
     body that moves with a kept joint."""
     m = mj.m
@@ -582,8 +661,11 @@ def _robot(mj: _Mjcf, plan: _Plan, tip: tuple[int, int | None] | None, name: str
         parents = {int(m.body_parentid[b]) for b in range(1, m.nbody)}
         leaf_body = next((b for b in plan.below if b not in parents and frames[b][0] >= 0), None)
         if leaf_body is None:
-            raise mj.fail("body", plan.base, f"no body below base body '{mj.name('body', plan.base)}' moves with "
-                                             "a joint robotgen keeps")
+            raise mj.fail(
+                "body",
+                plan.base,
+                f"no body below base body '{mj.name('body', plan.base)}' moves with a joint robotgen keeps",
+            )
         tip_body = leaf_body
     else:
         tip_body, site = tip
@@ -596,20 +678,30 @@ def _robot(mj: _Mjcf, plan: _Plan, tip: tuple[int, int | None] | None, name: str
         tool = exact.matmul(tool, _pose(m.site_pos[site], m.site_quat[site]))
     model_name = mj.spec.modelname if mj.spec.modelname != DEFAULT_MODEL_NAME else None
     tree = KinematicTree(
-        name=name or model_name or Path(mj.path).stem, joints=tuple(joints), tip=owner, tool=tool,
-        gravity=_gravity(mj, plan.base), base_link=mj.name("body", plan.base), tip_link=tip_name,
-        locked_joints=tuple(mj.joint_names[j] for j in locked), coupling=coupling_of(plan.kept, plan.equalities),
+        name=name or model_name or Path(mj.path).stem,
+        joints=tuple(joints),
+        tip=owner,
+        tool=tool,
+        gravity=_gravity(mj, plan.base),
+        base_link=mj.name("body", plan.base),
+        tip_link=tip_name,
+        locked_joints=tuple(mj.joint_names[j] for j in locked),
+        coupling=coupling_of(plan.kept, plan.equalities),
     )
     notes = tuple(mj.warnings)
     left_out = [j for b in plan.below if frames[b][0] < 0 for j in _joints_of(m, b)]
     if chain and left_out:
-        notes += (f"{mj.loc('joint', left_out[0])}: note: left out {len(left_out)} joint"
-                  f"{'s' if len(left_out) != 1 else ''} of bodies that do not move with the chain: "
-                  + ", ".join(f"'{mj.joint_names[j]}'" for j in left_out),)
+        notes += (
+            f"{mj.loc('joint', left_out[0])}: note: left out {len(left_out)} joint"
+            f"{'s' if len(left_out) != 1 else ''} of bodies that do not move with the chain: "
+            + ", ".join(f"'{mj.joint_names[j]}'" for j in left_out),
+        )
     notes += coupled_note(mj, _couplings(plan)) + _unmodelled(mj, plan, frames) + _friction_note(mj, tree, plan.kept)
-    notes += tuple(f"{mj.loc('joint', plan.kept[i])}: warning: joint '{tree.joints[i].name}' moves no mass or "
-                   "inertia (massless bodies after it): M is singular and forward dynamics returns no finite answer"
-                   for i in joints_without_inertia(tree))
+    notes += tuple(
+        f"{mj.loc('joint', plan.kept[i])}: warning: joint '{tree.joints[i].name}' moves no mass or "
+        "inertia (massless bodies after it): M is singular and forward dynamics returns no finite answer"
+        for i in joints_without_inertia(tree)
+    )
     return MjcfRobot(tree, notes, model_name, mj.root_loc(), _digest(mj, bool(_couplings(plan))))
 
 
@@ -624,7 +716,7 @@ def read_mjcf(path: str, tip: str, base: str | None = None, name: str | None = N
     path_bodies = _ancestors(m, tip_body)
     if base_body not in path_bodies[1:]:
         raise mj.fail("body", tip_body, f"tip '{tip}' is not below base body '{mj.name('body', base_body)}'")
-    path_bodies = path_bodies[:path_bodies.index(base_body)][::-1]  # base (exclusive) -> tip
+    path_bodies = path_bodies[: path_bodies.index(base_body)][::-1]  # base (exclusive) -> tip
     on_path = [j for b in path_bodies for j in _joints_of(m, b)]
     for j in on_path:
         if int(m.jnt_type[j]) in (BALL, FREE):
@@ -634,8 +726,7 @@ def read_mjcf(path: str, tip: str, base: str | None = None, name: str | None = N
     return _robot(mj, _with_coupled(mj, base_body, _below(m, base_body), on_path), (tip_body, site), name, chain=True)
 
 
-def read_mjcf_tree(path: str, base: str | None = None, tip: str | None = None,
-                   name: str | None = None) -> MjcfRobot:
+def read_mjcf_tree(path: str, base: str | None = None, tip: str | None = None, name: str | None = None) -> MjcfRobot:
     """Every hinge and slide joint below body ``base`` (default: the world), in MuJoCo's
     order. The fk/Jacobian tip is the body or site ``tip``, or the first leaf body (a body
     without children) in that order that moves with a joint."""
@@ -651,8 +742,10 @@ def read_mjcf_tree(path: str, base: str | None = None, tip: str | None = None,
                 raise _refuse_joint(mj, j, f"below the base body '{mj.name('body', base_body)}'")
             kept.append(j)
     if not kept:
-        raise UserError(mj.root_loc() if base_body == 0 else mj.loc("body", base_body),
-                        f"no joint below base body '{mj.name('body', base_body)}'")
+        raise UserError(
+            mj.root_loc() if base_body == 0 else mj.loc("body", base_body),
+            f"no joint below base body '{mj.name('body', base_body)}'",
+        )
     tip_at = _find(mj, "tip", tip, sites=True) if tip is not None else None
     return _robot(mj, _with_coupled(mj, base_body, below, kept), tip_at, name, chain=False)
 
@@ -663,9 +756,29 @@ def _digest(mj: _Mjcf, equalities: bool) -> str:
     spec_sha256). ``equalities``: joint equality constraints were read as couplings."""
     m = mj.m
     h = hashlib.sha256(Path(mj.path).read_bytes())
-    for field in ("body_parentid", "body_jntadr", "body_jntnum", "body_pos", "body_quat", "body_ipos", "body_iquat",
-                  "body_inertia", "body_mass", "jnt_type", "jnt_pos", "jnt_axis", "qpos0", "jnt_limited", "jnt_range",
-                  "dof_armature", "dof_damping", "dof_frictionloss", "site_bodyid", "site_pos", "site_quat"):
+    for field in (
+        "body_parentid",
+        "body_jntadr",
+        "body_jntnum",
+        "body_pos",
+        "body_quat",
+        "body_ipos",
+        "body_iquat",
+        "body_inertia",
+        "body_mass",
+        "jnt_type",
+        "jnt_pos",
+        "jnt_axis",
+        "qpos0",
+        "jnt_limited",
+        "jnt_range",
+        "dof_armature",
+        "dof_damping",
+        "dof_frictionloss",
+        "site_bodyid",
+        "site_pos",
+        "site_quat",
+    ):
         h.update(field.encode() + np.ascontiguousarray(getattr(m, field)).tobytes())
     if equalities:
         for field_name in ("eq_type", "eq_obj1id", "eq_obj2id", "eq_active0", "eq_data"):
@@ -681,8 +794,9 @@ def load_mjcf_system(path: str, tip: str, base: str | None = None, name: str | N
     return _single_leaf_system(path, read_mjcf(path, tip, base, name), name is not None)
 
 
-def load_mjcf_tree_system(path: str, base: str | None = None, tip: str | None = None,
-                          name: str | None = None) -> RobotSystem:
+def load_mjcf_tree_system(
+    path: str, base: str | None = None, tip: str | None = None, name: str | None = None
+) -> RobotSystem:
     """A single-leaf system of the whole tree below ``base`` (``read_mjcf_tree``)."""
     return _single_leaf_system(path, read_mjcf_tree(path, base, tip, name), name is not None)
 
@@ -693,8 +807,12 @@ def _single_leaf_system(path: str, robot: MjcfRobot, named: bool) -> RobotSystem
     module_name = module_identifier(robot.tree.name)
     notes = robot.notes
     if not named and module_name != robot.tree.name:
-        source = (f'<mujoco model="{robot.model_name}">' if robot.model_name is not None
-                  else f"the file name '{Path(path).name}'")
+        source = (
+            f'<mujoco model="{robot.model_name}">'
+            if robot.model_name is not None
+            else f"the file name '{Path(path).name}'"
+        )
         notes += (f"{robot.root}: note: module name '{module_name}' (from {source}); pass --name to choose another",)
-    return RobotSystem(module_name, path, robot.digest, {module_name: DefineNode(module_name, robot.tree)},
-                       module_name, warnings=notes)
+    return RobotSystem(
+        module_name, path, robot.digest, {module_name: DefineNode(module_name, robot.tree)}, module_name, warnings=notes
+    )

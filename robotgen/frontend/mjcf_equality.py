@@ -18,6 +18,7 @@ constant), a joint B that is not a hinge or slide joint below the base, a polyno
 degree 1, a1 = 0, a second constraint on one joint A, and joints that follow each other round
 a cycle. Inactive constraints are not read (``mjcf`` notes them).
 """
+
 from __future__ import annotations
 
 from collections.abc import Sequence
@@ -74,22 +75,32 @@ def joint_equalities(mj: Compiled, joints: set[int], base: str) -> list[JointEqu
         coefficients = [float(v) for v in m.eq_data[e, :5]]
         problem = None
         if b < 0:
-            problem = (f"{what} holds joint '{mj.joint_names[a]}' at a constant (no joint2), which robotgen does "
-                       "not model: a body without that joint says so")
+            problem = (
+                f"{what} holds joint '{mj.joint_names[a]}' at a constant (no joint2), which robotgen does "
+                "not model: a body without that joint says so"
+            )
         elif b not in joints:
-            problem = (f"{what} couples joint '{mj.joint_names[a]}' to '{mj.joint_names[b]}', which is not a hinge "
-                       f"or slide joint below the base body '{base}'")
+            problem = (
+                f"{what} couples joint '{mj.joint_names[a]}' to '{mj.joint_names[b]}', which is not a hinge "
+                f"or slide joint below the base body '{base}'"
+            )
         elif any(coefficients[2:]):
             degree = max(k for k in range(5) if coefficients[k])
-            problem = (f"{what} is a polynomial of degree {degree} in joint '{mj.joint_names[b]}' (polycoef=\""
-                       f"{' '.join(f'{c:g}' for c in coefficients)}\"); robotgen couples joints linearly, "
-                       "polycoef=\"a0 a1 0 0 0\"")
+            problem = (
+                f"{what} is a polynomial of degree {degree} in joint '{mj.joint_names[b]}' (polycoef=\""
+                f'{" ".join(f"{c:g}" for c in coefficients)}"); robotgen couples joints linearly, '
+                'polycoef="a0 a1 0 0 0"'
+            )
         elif coefficients[1] == 0:
-            problem = (f"{what} holds joint '{mj.joint_names[a]}' at a constant (its polycoef's a1 is 0), which "
-                       "robotgen does not model")
+            problem = (
+                f"{what} holds joint '{mj.joint_names[a]}' at a constant (its polycoef's a1 is 0), which "
+                "robotgen does not model"
+            )
         elif a in read:
-            problem = (f"{what} couples joint '{mj.joint_names[a]}', which equality constraint "
-                       f"'{mj.name('equality', read[a])}' couples already")
+            problem = (
+                f"{what} couples joint '{mj.joint_names[a]}', which equality constraint "
+                f"'{mj.name('equality', read[a])}' couples already"
+            )
         if problem is not None:
             out.append(JointEquality(e, a, b, problem=problem))
             continue
@@ -117,12 +128,15 @@ def leading_joints(mj: Compiled, read: Sequence[JointEquality]) -> dict[int, int
         while line[-1] in equalities and line[-1] not in found:
             leader = equalities[line[-1]].leader
             if leader in line:
-                cycle = line[line.index(leader):]
+                cycle = line[line.index(leader) :]
                 first = min(cycle, key=lambda j: equalities[j].equality)
                 at = cycle.index(first)
                 listed = " -> ".join(f"'{mj.joint_names[j]}'" for j in cycle[at:] + cycle[:at] + [first])
-                raise mj.fail("equality", equalities[first].equality,
-                              f"joint equality constraints couple joints round a cycle: {listed}")
+                raise mj.fail(
+                    "equality",
+                    equalities[first].equality,
+                    f"joint equality constraints couple joints round a cycle: {listed}",
+                )
             line.append(leader)
         end = found.get(line[-1], line[-1])
         for j in line[:-1] if line[-1] not in found else line:
@@ -134,8 +148,14 @@ def coupling_of(kept: list[int], read: Sequence[JointEquality]) -> Coupling | No
     """The coupling of the kept joints (MuJoCo ids, in the tree's order) by the constraints
     read; each kept coupled joint's leader is kept."""
     index = {j: k for k, j in enumerate(kept)}
-    return couple(len(kept), [Mimic(index[q.joint], index[q.leader], q.multiplier, q.offset)
-                              for q in read if q.problem is None and q.joint in index])
+    return couple(
+        len(kept),
+        [
+            Mimic(index[q.joint], index[q.leader], q.multiplier, q.offset)
+            for q in read
+            if q.problem is None and q.joint in index
+        ],
+    )
 
 
 def coupled_note(mj: Compiled, read: list[JointEquality]) -> tuple[str, ...]:
@@ -143,10 +163,13 @@ def coupled_note(mj: Compiled, read: list[JointEquality]) -> tuple[str, ...]:
     if not read:
         return ()
     read = sorted(read, key=lambda q: q.equality)
-    listed = ", ".join(f"'{mj.joint_names[q.joint]}' = {affine(q.multiplier, repr(mj.joint_names[q.leader]), q.offset)}"
-                       for q in read)
+    listed = ", ".join(
+        f"'{mj.joint_names[q.joint]}' = {affine(q.multiplier, repr(mj.joint_names[q.leader]), q.offset)}" for q in read
+    )
     many = len(read) != 1
-    return (f"{mj.loc('equality', read[0].equality)}: note: read {len(read)} joint equality constraint"
-            f"{'s' if many else ''} as exact coupling{'s' if many else ''} (MuJoCo enforces "
-            f"{'them' if many else 'it'} softly): the coupled joint{'s have' if many else ' has'} no coordinate of "
-            f"{'their' if many else 'its'} own, q = a1 q_joint2 + offset: {listed}",)
+    return (
+        f"{mj.loc('equality', read[0].equality)}: note: read {len(read)} joint equality constraint"
+        f"{'s' if many else ''} as exact coupling{'s' if many else ''} (MuJoCo enforces "
+        f"{'them' if many else 'it'} softly): the coupled joint{'s have' if many else ' has'} no coordinate of "
+        f"{'their' if many else 'its'} own, q = a1 q_joint2 + offset: {listed}",
+    )

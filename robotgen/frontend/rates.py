@@ -1,5 +1,6 @@
 """The controllers' periods of a spec (robotgen.model.rate_groups): each checked where the spec
 sets it, against the fastest period, the controllers above it and the slowest period."""
+
 from __future__ import annotations
 
 import math
@@ -27,9 +28,12 @@ class RateReader(Collector):
         if isinstance(root_node, ControlNode) and LAWS[root_node.law].is_root:
             for name, n in controls.items():
                 if n.period is not None and name != root:  # the root law's own is refused by its reader
-                    self.at_key(self._path(name), f"the root '{root}' is law {root_node.law}, which makes the "
-                                                  "module's functions itself; a period applies to a tree of "
-                                                  f"tree laws ({', '.join(tree_laws())}) compiled into servo steps")
+                    self.at_key(
+                        self._path(name),
+                        f"the root '{root}' is law {root_node.law}, which makes the "
+                        "module's functions itself; a period applies to a tree of "
+                        f"tree laws ({', '.join(tree_laws())}) compiled into servo steps",
+                    )
             return
         dt_given = simulation is not None and "dt" in simulation.locations
         default = simulation.dt if simulation is not None else DEFAULT_PERIOD
@@ -81,31 +85,54 @@ class RateReader(Collector):
             wrong.add(name)
             ratio = p / f
             if not ratio < MAX_TICKS + 0.5:
-                self.at_value(path, f"{p:g} s is {ratio:.4g} times the fastest period in the tree ({f:g} s of "
-                                    f"{source(fastest)}); a group may span at most {MAX_TICKS} fastest periods")
+                self.at_value(
+                    path,
+                    f"{p:g} s is {ratio:.4g} times the fastest period in the tree ({f:g} s of "
+                    f"{source(fastest)}); a group may span at most {MAX_TICKS} fastest periods",
+                )
             elif ticks_of(p, f) is None:
-                self.at_value(path, f"{p:g} s is not an integer multiple of the fastest period in the tree ({f:g} s "
-                                    f"of {source(fastest)}): the groups run on ticks of the fastest")
+                self.at_value(
+                    path,
+                    f"{p:g} s is not an integer multiple of the fastest period in the tree ({f:g} s "
+                    f"of {source(fastest)}): the groups run on ticks of the fastest",
+                )
             elif (above := parent[name]) is not None and owner(above) not in wrong and not divides(p, periods[above]):
                 slower = "longer than" if periods[above] < p else "not a divisor of"
-                self.at_value(path, f"{p:g} s is {slower} the period of '{above}' above it ({periods[above]:g} s of "
-                                    f"{source(above)}): a controller runs at the rate of the one above it or an "
-                                    "integer multiple of it, whose writes it holds between their ticks")
+                self.at_value(
+                    path,
+                    f"{p:g} s is {slower} the period of '{above}' above it ({periods[above]:g} s of "
+                    f"{source(above)}): a controller runs at the rate of the one above it or an "
+                    "integer multiple of it, whose writes it holds between their ticks",
+                )
             else:
                 wrong.discard(name)
         for name, p in periods.items():
-            if controls[name].period is not None and name not in wrong and owner(slowest) not in wrong \
-                    and not divides(p, s):
-                self.at_value(self._path(name), f"{p:g} s does not divide the slowest period in the tree ({s:g} s of "
-                                                f"{source(slowest)}): the groups' ticks must line up once per slowest "
-                                                "period")
+            if (
+                controls[name].period is not None
+                and name not in wrong
+                and owner(slowest) not in wrong
+                and not divides(p, s)
+            ):
+                self.at_value(
+                    self._path(name),
+                    f"{p:g} s does not divide the slowest period in the tree ({s:g} s of "
+                    f"{source(slowest)}): the groups' ticks must line up once per slowest "
+                    "period",
+                )
         tops = [name for name in periods if parent[name] is None]
-        if dt_given and simulation is not None and all(controls[name].period is not None for name in tops) \
-                and ticks_of(simulation.dt, f) != 1:
-            self.at_value(("simulation", "dt"), f"{simulation.dt:g} s is not the fastest controller period "
-                                                f"({f:g} s of '{fastest}'): every topmost controller sets its "
-                                                "period, and the plant steps at the fastest; drop dt or make it "
-                                                f"{f:g}")
+        if (
+            dt_given
+            and simulation is not None
+            and all(controls[name].period is not None for name in tops)
+            and ticks_of(simulation.dt, f) != 1
+        ):
+            self.at_value(
+                ("simulation", "dt"),
+                f"{simulation.dt:g} s is not the fastest controller period "
+                f"({f:g} s of '{fastest}'): every topmost controller sets its "
+                "period, and the plant steps at the fastest; drop dt or make it "
+                f"{f:g}",
+            )
 
     @staticmethod
     def _path(name: str) -> Path:

@@ -1,6 +1,7 @@
 """The pieces the spec's JSON Schema is written in (robotgen.frontend.schema): numbers that may
 be constant expressions, weights, vectors, closed objects. A law's settings block
 (robotgen.model.laws.registry: its ``schema``) is written in them too."""
+
 from __future__ import annotations
 
 IDENTIFIER = "^[A-Za-z_][A-Za-z0-9_]*$"
@@ -13,10 +14,14 @@ def number(description: str, **bounds: float) -> dict:
 
 def parameter(description: str, **bounds: float) -> dict:
     """A number, or {runtime: number}: a run-time parameter with that default."""
-    return {"type": ["number", "string", "object"],
-            "description": f"{description}; {{runtime: value}} makes it a run-time parameter",
-            "properties": {"runtime": {"$ref": "#/$defs/number"}}, "required": ["runtime"],
-            "additionalProperties": False, **bounds}
+    return {
+        "type": ["number", "string", "object"],
+        "description": f"{description}; {{runtime: value}} makes it a run-time parameter",
+        "properties": {"runtime": {"$ref": "#/$defs/number"}},
+        "required": ["runtime"],
+        "additionalProperties": False,
+        **bounds,
+    }
 
 
 def weights(description: str) -> dict:
@@ -26,26 +31,38 @@ def weights(description: str) -> dict:
 
 def weight_matrix(description: str) -> dict:
     """Schema of a weight matrix: one number, a diagonal list, or a list of rows."""
-    return {"type": ["number", "string", "array"], "description": description,
-            "items": {"anyOf": [{"$ref": "#/$defs/number"}, {"type": "array", "items": {"$ref": "#/$defs/number"}}]}}
+    return {
+        "type": ["number", "string", "array"],
+        "description": description,
+        "items": {"anyOf": [{"$ref": "#/$defs/number"}, {"type": "array", "items": {"$ref": "#/$defs/number"}}]},
+    }
 
 
 def vector3(description: str) -> dict:
     """Schema of a 3-vector of numbers."""
-    return {"type": "array", "description": description, "minItems": 3, "maxItems": 3,
-            "items": {"$ref": "#/$defs/number"}}
+    return {
+        "type": "array",
+        "description": description,
+        "minItems": 3,
+        "maxItems": 3,
+        "items": {"$ref": "#/$defs/number"},
+    }
 
 
 def vector2(description: str) -> dict:
     """Schema of a 2-vector of numbers."""
-    return {"type": "array", "description": description, "minItems": 2, "maxItems": 2,
-            "items": {"$ref": "#/$defs/number"}}
+    return {
+        "type": "array",
+        "description": description,
+        "minItems": 2,
+        "maxItems": 2,
+        "items": {"$ref": "#/$defs/number"},
+    }
 
 
 def names(description: str, **bounds: int) -> dict:
     """Schema of a list of identifiers (``bounds``: minItems, maxItems)."""
-    return {"type": "array", "description": description,
-            "items": {"type": "string", "pattern": IDENTIFIER}, **bounds}
+    return {"type": "array", "description": description, "items": {"type": "string", "pattern": IDENTIFIER}, **bounds}
 
 
 def expressions(description: str, **bounds: int) -> dict:
@@ -55,14 +72,17 @@ def expressions(description: str, **bounds: int) -> dict:
 
 def expression_matrix(description: str) -> dict:
     """Schema of a matrix of expressions, as a list of rows."""
-    return {"type": "array", "description": description, "minItems": 1,
-            "items": {"type": "array", "items": {"$ref": "#/$defs/expression"}}}
+    return {
+        "type": "array",
+        "description": description,
+        "minItems": 1,
+        "items": {"type": "array", "items": {"$ref": "#/$defs/expression"}},
+    }
 
 
 def closed_object(description: str, properties: dict, required: tuple[str, ...] = ()) -> dict:
     """Schema of an object with these properties and no others; ``required`` must be present."""
-    schema = {"type": "object", "description": description, "additionalProperties": False,
-              "properties": properties}
+    schema = {"type": "object", "description": description, "additionalProperties": False, "properties": properties}
     if required:
         schema["required"] = list(required)
     return schema

@@ -2,6 +2,7 @@
 control), that they form one tree below the root, that every ATTACH and CONTROL fits the
 dimensions of its children (robotgen.model.signature), and the simulation section.
 Every problem is collected; nothing is returned unless there are none."""
+
 from __future__ import annotations
 
 from robotgen.errors import UserErrors
@@ -30,8 +31,16 @@ from robotgen.model.system import (
 )
 
 
-class SpecReader(LeafReader, AttachReader, ForceLawReader, ResolvedRateReader, HandLawReader, ControlReader,
-                 SimulationReader, RateReader):
+class SpecReader(
+    LeafReader,
+    AttachReader,
+    ForceLawReader,
+    ResolvedRateReader,
+    HandLawReader,
+    ControlReader,
+    SimulationReader,
+    RateReader,
+):
     """The whole spec: every part's reader over one collector."""
 
     def node(self, name: str, node: dict) -> Node:
@@ -78,8 +87,11 @@ class SpecReader(LeafReader, AttachReader, ForceLawReader, ResolvedRateReader, H
                     self.at_value(path, f"'{child}' is the root; the root cannot be used by another node")
                     reported.add(name)
                 elif child in used_by:
-                    self.at_value(path, f"'{child}' is already used by {format_path(self.doc.data, used_by[child])}; "
-                                        "each node is used at most once")
+                    self.at_value(
+                        path,
+                        f"'{child}' is already used by {format_path(self.doc.data, used_by[child])}; "
+                        "each node is used at most once",
+                    )
                 else:
                     used_by[child] = path
 
@@ -97,7 +109,7 @@ class SpecReader(LeafReader, AttachReader, ForceLawReader, ResolvedRateReader, H
                 elif child in stack:
                     ok = False
                     if child != root:  # a use of the root is reported above
-                        loop = stack[stack.index(child):]
+                        loop = stack[stack.index(child) :]
                         reported.update(loop)
                         self.at_value(path, f"'{child}' makes a cycle: {' -> '.join(loop + [child])}")
                 elif not visit(child):
@@ -119,16 +131,20 @@ class SpecReader(LeafReader, AttachReader, ForceLawReader, ResolvedRateReader, H
                         frontier.append(child)
             for name in nodes:
                 if name not in reached:
-                    self.at_key(("nodes", name), f"node '{name}' is not reachable from the root '{root}' "
-                                                 "(every node but the root is used as a robot, payload or "
-                                                 "controlled robot)")
+                    self.at_key(
+                        ("nodes", name),
+                        f"node '{name}' is not reachable from the root '{root}' "
+                        "(every node but the root is used as a robot, payload or "
+                        "controlled robot)",
+                    )
         return {name for name, ok in whole.items() if ok}
 
     def signatures(self, nodes: dict[str, Node], root: str, whole: set[str]) -> dict[str, Node]:
         """Checks every attach and control node against its children's signatures, children
         first, and completes them (constraint formulas, gains). Returns the final nodes."""
-        system = RobotSystem(name=self.doc.data["name"], source=self.doc.path, source_sha256=self.doc.sha256,
-                             nodes=nodes, root=root)
+        system = RobotSystem(
+            name=self.doc.data["name"], source=self.doc.path, source_sha256=self.doc.sha256, nodes=nodes, root=root
+        )
         known: dict[str, Signature | None] = {}
 
         def sig(name: str) -> Signature | None:
@@ -188,12 +204,18 @@ class SpecReader(LeafReader, AttachReader, ForceLawReader, ResolvedRateReader, H
         simulation = self.simulation(data["simulation"], nodes, root) if "simulation" in data else None
         self.check_periods(nodes, root, simulation)
         derivatives = self.derivatives(data.get("derivatives", {}))
-        return RobotSystem(name=data["name"], source=self.doc.path, source_sha256=self.doc.sha256,
-                           nodes=nodes, root=root, warnings=tuple(self.warnings), simulation=simulation,
-                           derivatives=derivatives,
-                           dependencies=tuple(self.dependencies),
-                           node_locations={name: self.doc.source.key(("nodes", name)) for name in nodes})
-
+        return RobotSystem(
+            name=data["name"],
+            source=self.doc.path,
+            source_sha256=self.doc.sha256,
+            nodes=nodes,
+            root=root,
+            warnings=tuple(self.warnings),
+            simulation=simulation,
+            derivatives=derivatives,
+            dependencies=tuple(self.dependencies),
+            node_locations={name: self.doc.source.key(("nodes", name)) for name in nodes},
+        )
 
 
 def to_system(doc: Document) -> RobotSystem:

@@ -40,6 +40,7 @@ other characters '_') unless a name is given; when that changes the name, a note
 Every constant placed into the model (origins, merged inertias, unit axes) is computed with
 robotgen.numeric.exact, so the emitted C is the same to the bit on every machine.
 """
+
 from __future__ import annotations
 
 import difflib
@@ -124,13 +125,16 @@ class _Reader:
         except ValueError:
             values = []
         if len(values) != n:
-            raise self.fail(where, f"<{where.tag}> attribute '{name}' must hold {n} number{'s' if n > 1 else ''}, "
-                                   f"got '{text}'")
+            raise self.fail(
+                where, f"<{where.tag}> attribute '{name}' must hold {n} number{'s' if n > 1 else ''}, got '{text}'"
+            )
         if finite and not all(math.isfinite(v) for v in values):
             raise self.fail(where, f"<{where.tag}> attribute '{name}' must hold finite numbers, got '{text}'")
         if finite and any(abs(v) > MAX_MAGNITUDE for v in values):
-            raise self.fail(where, f"<{where.tag}> attribute '{name}' holds a number larger than {MAX_MAGNITUDE:g} "
-                                f"in magnitude: '{text}'")
+            raise self.fail(
+                where,
+                f"<{where.tag}> attribute '{name}' holds a number larger than {MAX_MAGNITUDE:g} in magnitude: '{text}'",
+            )
         return np.array(values)
 
     def number(self, el: Element, name: str, default: str | None = None, finite: bool = True) -> float:
@@ -162,8 +166,7 @@ class _Reader:
         if mass < 0:
             raise self.fail(mass_el, f"negative mass {mass}")
         v = {k: self.number(inertia_el, k) for k in ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")}
-        I = np.array([[v["ixx"], v["ixy"], v["ixz"]], [v["ixy"], v["iyy"], v["iyz"]],
-                      [v["ixz"], v["iyz"], v["izz"]]])
+        I = np.array([[v["ixx"], v["ixy"], v["ixz"]], [v["ixy"], v["iyy"], v["iyz"]], [v["ixz"], v["iyz"], v["izz"]]])
         if np.linalg.eigvalsh(I).min() < -1e-12 * max(1.0, np.abs(I).max()):
             raise self.fail(inertia_el, "inertia tensor is not positive semi-definite")
         T = self.origin(inertial)
@@ -185,8 +188,12 @@ def merge_bodies(parts: list[tuple[np.ndarray, Body]]) -> Body:
         return Body.zero()
     # sum m c / sum m, exact and rounded once (one body keeps its com to the bit)
     total = sum((Fraction(float(m)) for m, _, _ in placed), Fraction(0))
-    com = np.array([float(sum((Fraction(float(m)) * Fraction(float(c[i])) for m, c, _ in placed),
-                              Fraction(0)) / total) for i in range(3)])
+    com = np.array(
+        [
+            float(sum((Fraction(float(m)) * Fraction(float(c[i])) for m, c, _ in placed), Fraction(0)) / total)
+            for i in range(3)
+        ]
+    )
     terms = []
     for m, c, I in placed:
         d = c - com
@@ -200,6 +207,7 @@ class UrdfChain:
     """A tree read from a URDF, with the located notes and warnings for the user (what was
     ignored or locked); ``robot`` is where <robot> starts and ``robot_name`` its name
     attribute (None if absent), for the module-name note."""
+
     tree: KinematicTree
     notes: tuple[str, ...]
     robot: Location | None = None
@@ -237,17 +245,27 @@ def read_urdf(path: str, tip: str, base: str | None = None, name: str | None = N
     robot_name = name or f.root.attrib.get("name", Path(path).stem)
     names = [j.attrib["name"] for j in kept]
     tree = KinematicTree(
-        name=robot_name, joints=tuple(canonical), tip=tip_owner, tool=tool,
-        gravity=np.array([0.0, 0.0, -9.81]), base_link=base, tip_link=tip, locked_joints=tuple(locked),
+        name=robot_name,
+        joints=tuple(canonical),
+        tip=tip_owner,
+        tool=tool,
+        gravity=np.array([0.0, 0.0, -9.81]),
+        base_link=base,
+        tip_link=tip,
+        locked_joints=tuple(locked),
         coupling=coupling_of(names, mimics),
     )
-    notes = (f.notes + coupled_note(r, [m for m in mimics.values() if end[m.name] in moving])
-             + limit_notes + _foreign_dynamics_attributes(r, kept) + _massless(r, kept, tree))
+    notes = (
+        f.notes
+        + coupled_note(r, [m for m in mimics.values() if end[m.name] in moving])
+        + limit_notes
+        + _foreign_dynamics_attributes(r, kept)
+        + _massless(r, kept, tree)
+    )
     return UrdfChain(tree, notes, r.loc(f.root), f.root.attrib.get("name"))
 
 
-def read_urdf_tree(path: str, base: str | None = None, tip: str | None = None,
-                   name: str | None = None) -> UrdfChain:
+def read_urdf_tree(path: str, base: str | None = None, tip: str | None = None, name: str | None = None) -> UrdfChain:
     """The whole tree of movable joints below ``base`` (default: the root link), e.g. every
     joint of a humanoid below its pelvis.
 
@@ -284,12 +302,22 @@ def read_urdf_tree(path: str, base: str | None = None, tip: str | None = None,
         raise UserError(r.loc(f.links[tip]), f"no movable joint between '{base}' and '{tip}'")
     robot_name = name or f.root.attrib.get("name", Path(path).stem)
     tree = KinematicTree(
-        name=robot_name, joints=tuple(canonical), tip=tip_owner, tool=tool,
-        gravity=np.array([0.0, 0.0, -9.81]), base_link=base, tip_link=tip,
+        name=robot_name,
+        joints=tuple(canonical),
+        tip=tip_owner,
+        tool=tool,
+        gravity=np.array([0.0, 0.0, -9.81]),
+        base_link=base,
+        tip_link=tip,
         coupling=coupling_of([j.attrib["name"] for j in actuated], mimics),
     )
-    notes = (f.notes + coupled_note(r, list(mimics.values())) + limit_notes
-             + _foreign_dynamics_attributes(r, actuated) + _massless(r, actuated, tree))
+    notes = (
+        f.notes
+        + coupled_note(r, list(mimics.values()))
+        + limit_notes
+        + _foreign_dynamics_attributes(r, actuated)
+        + _massless(r, actuated, tree)
+    )
     return UrdfChain(tree, notes, r.loc(f.root), f.root.attrib.get("name"))
 
 
@@ -320,9 +348,11 @@ class UrdfFile:
         if link in self.links:
             return link
         near = difflib.get_close_matches(link, self.links, n=3, cutoff=0.6)
-        hint = (f"; nearest: {', '.join(repr(n) for n in near)}" if near else "")
-        raise UserError(self.r.loc(self.root), f"{label} link '{link}' is not in the URDF{hint} "
-                                               f"(robotgen info {Path(self.r.path).name} lists its links)")
+        hint = f"; nearest: {', '.join(repr(n) for n in near)}" if near else ""
+        raise UserError(
+            self.r.loc(self.root),
+            f"{label} link '{link}' is not in the URDF{hint} (robotgen info {Path(self.r.path).name} lists its links)",
+        )
 
 
 def read_urdf_file(path: str) -> UrdfFile:
@@ -364,8 +394,11 @@ def read_urdf_file(path: str) -> UrdfFile:
                 raise r.fail(ref, f"joint '{el.attrib.get('name')}' names unknown link '{ref.attrib['link']}'")
         child = r.link(el, "child")
         if child in joints:
-            raise r.fail(el, f"link '{child}' has two parent joints ('{joints[child].attrib.get('name')}' "
-                             f"and '{el.attrib.get('name')}'): closed loops are not supported")
+            raise r.fail(
+                el,
+                f"link '{child}' has two parent joints ('{joints[child].attrib.get('name')}' "
+                f"and '{el.attrib.get('name')}'): closed loops are not supported",
+            )
         joints[child] = el
     parent_of = {c: r.link(j, "parent") for c, j in joints.items()}
     roots = [l for l in links if l not in joints]
@@ -392,17 +425,23 @@ def _below_base(f: UrdfFile, base: str | None) -> tuple[str, list[str]]:
         if at_root:
             j = at_root[0]
             child = r.link(j, "child")
-            raise r.fail(j, f"joint '{j.attrib.get('name')}' is a floating joint at the root, which robotgen "
-                            f"does not support; read the robot below it with base='{child}' (--base {child})")
+            raise r.fail(
+                j,
+                f"joint '{j.attrib.get('name')}' is a floating joint at the root, which robotgen "
+                f"does not support; read the robot below it with base='{child}' (--base {child})",
+            )
     base = f.known_link("base", base)
     order = _depth_first(base, f.children_of)
     for link in order[1:]:
         j = f.joints[link]
         jtype = j.attrib["type"]
         if jtype in _UNSUPPORTED_TYPES:
-            raise r.fail(j, f"joint '{j.attrib.get('name')}' is {_UNSUPPORTED_TYPES[jtype]}, which robotgen does "
-                            f"not support below the base ('{base}'); a base at or below its child link "
-                            f"'{link}' leaves it out")
+            raise r.fail(
+                j,
+                f"joint '{j.attrib.get('name')}' is {_UNSUPPORTED_TYPES[jtype]}, which robotgen does "
+                f"not support below the base ('{base}'); a base at or below its child link "
+                f"'{link}' leaves it out",
+            )
     return base, order
 
 
@@ -424,8 +463,7 @@ def _children_of(parent_of: dict[str, str]) -> dict[str, list[str]]:
     return children_of
 
 
-def _normalise(f: UrdfFile, base: str, actuated: list[Element]
-               ) -> tuple[list[Joint], dict, list[str], tuple[str, ...]]:
+def _normalise(f: UrdfFile, base: str, actuated: list[Element]) -> tuple[list[Joint], dict, list[str], tuple[str, ...]]:
     """Canonical joints for the movable joints ``actuated`` (topologically ordered), the
     frame of every link below ``base`` as (owner index or -1 for the base, T owner->link),
     the movable joints below base not in ``actuated`` (locked at q = 0), and the notes on
@@ -474,11 +512,20 @@ def _normalise(f: UrdfFile, base: str, actuated: list[Element]
             raise r.fail(dyn, f"joint '{j.attrib.get('name')}': <dynamics> damping and friction must be >= 0")
         joint_type = _JOINT_TYPES[j.attrib["type"]]
         assert joint_type is not None, "fixed joints are merged, not actuated"
-        canonical.append(Joint(
-            name=r.attr(j, "name"), type=joint_type, parent=owner,
-            origin=exact.matmul(T_parent, r.origin(j)), axis=exact.unit(axis), body=merge_bodies(parts[k]),
-            viscous=damping, coulomb=friction, damping=damping, limits=_limits(r, j, markers),
-        ))
+        canonical.append(
+            Joint(
+                name=r.attr(j, "name"),
+                type=joint_type,
+                parent=owner,
+                origin=exact.matmul(T_parent, r.origin(j)),
+                axis=exact.unit(axis),
+                body=merge_bodies(parts[k]),
+                viscous=damping,
+                coulomb=friction,
+                damping=damping,
+                limits=_limits(r, j, markers),
+            )
+        )
     return canonical, frames, locked, markers.notes(r)
 
 
@@ -491,9 +538,10 @@ class _NoLimitMarkers:
 
     def notes(self, r: _Reader) -> tuple[str, ...]:
         out = []
-        for found, marker in ((self.large, "a magnitude of 1e15 or more"),
-                              (self.inverted, 'lower above upper as pybullet writes it (lower="1" upper="-1" '
-                                              'or lower="0" upper="-1")')):
+        for found, marker in (
+            (self.large, "a magnitude of 1e15 or more"),
+            (self.inverted, 'lower above upper as pybullet writes it (lower="1" upper="-1" or lower="0" upper="-1")'),
+        ):
             if found:
                 listed = ", ".join(f"'{j.attrib.get('name')}' ({' and '.join(names)})" for j, _, names in found)
                 out.append(f"{r.loc(found[0][1])}: note: read as no limit, marked by {marker}: {listed}")
@@ -520,9 +568,12 @@ def _limits(r: _Reader, j: Element, markers: _NoLimitMarkers) -> Limits:
         lower, upper = values["lower"], values["upper"]
         if lower is not None and upper is not None and lower > upper:
             if (lower, upper) not in NO_LIMIT_PAIRS:
-                raise r.fail(limit, f"joint '{name}': <limit> lower {lower:g} is above upper {upper:g} (the "
-                                    "\"no limit\" markers robotgen reads are a magnitude of 1e15 or more and "
-                                    "pybullet's lower=\"1\" upper=\"-1\")")
+                raise r.fail(
+                    limit,
+                    f"joint '{name}': <limit> lower {lower:g} is above upper {upper:g} (the "
+                    '"no limit" markers robotgen reads are a magnitude of 1e15 or more and '
+                    'pybullet\'s lower="1" upper="-1")',
+                )
             markers.inverted.append((j, limit, ["lower", "upper"]))
             values["lower"] = values["upper"] = None
     for key in ("velocity", "effort"):
@@ -533,9 +584,11 @@ def _limits(r: _Reader, j: Element, markers: _NoLimitMarkers) -> Limits:
 
 def _massless(r: _Reader, actuated: list[Element], tree: KinematicTree) -> tuple[str, ...]:
     """A warning at each joint that moves no mass or inertia: M is singular there."""
-    return tuple(f"{r.loc(actuated[i])}: warning: joint '{tree.joints[i].name}' moves no mass or inertia "
-                 "(massless links after it): M is singular and forward dynamics returns no finite answer"
-                 for i in joints_without_inertia(tree))
+    return tuple(
+        f"{r.loc(actuated[i])}: warning: joint '{tree.joints[i].name}' moves no mass or inertia "
+        "(massless links after it): M is singular and forward dynamics returns no finite answer"
+        for i in joints_without_inertia(tree)
+    )
 
 
 def _foreign_elements(r: _Reader, foreign: list[Element]) -> tuple[str, ...]:
@@ -548,8 +601,10 @@ def _foreign_elements(r: _Reader, foreign: list[Element]) -> tuple[str, ...]:
         first.setdefault(el.tag, el)
     listed = ", ".join(f"<{tag}> (line {el.line})" for tag, el in first.items())
     n = len(foreign)
-    return (f"{r.loc(foreign[0])}: note: ignored {n} element{'s' if n != 1 else ''} robotgen does not use "
-            f"under <robot>: {listed}",)
+    return (
+        f"{r.loc(foreign[0])}: note: ignored {n} element{'s' if n != 1 else ''} robotgen does not use "
+        f"under <robot>: {listed}",
+    )
 
 
 def _foreign_dynamics_attributes(r: _Reader, joints: list[Element]) -> tuple[str, ...]:
@@ -574,8 +629,9 @@ def load_urdf_system(path: str, tip: str, base: str | None = None, name: str | N
     return _single_leaf_system(path, read_urdf(path, tip, base, name), name is not None)
 
 
-def load_urdf_tree_system(path: str, base: str | None = None, tip: str | None = None,
-                          name: str | None = None) -> RobotSystem:
+def load_urdf_tree_system(
+    path: str, base: str | None = None, tip: str | None = None, name: str | None = None
+) -> RobotSystem:
     """A single-leaf system of the whole tree below ``base`` (``read_urdf_tree``)."""
     return _single_leaf_system(path, read_urdf_tree(path, base, tip, name), name is not None)
 
@@ -587,10 +643,15 @@ def _single_leaf_system(path: str, chain: UrdfChain, named: bool) -> RobotSystem
     module_name = module_identifier(chain.tree.name)
     notes = chain.notes
     if not named and module_name != chain.tree.name:
-        source = (f'<robot name="{chain.robot_name}">' if chain.robot_name is not None
-                  else f"the file name '{Path(path).name}'")
-        notes += (f"{chain.robot or Location(path, 1, 1)}: note: module name '{module_name}' (from {source}); "
-                  "pass --name to choose another",)
+        source = (
+            f'<robot name="{chain.robot_name}">'
+            if chain.robot_name is not None
+            else f"the file name '{Path(path).name}'"
+        )
+        notes += (
+            f"{chain.robot or Location(path, 1, 1)}: note: module name '{module_name}' (from {source}); "
+            "pass --name to choose another",
+        )
     node = DefineNode(module_name, chain.tree)
     sha = hashlib.sha256(Path(path).read_bytes()).hexdigest()
     return RobotSystem(module_name, path, sha, {module_name: node}, module_name, warnings=notes)
@@ -599,6 +660,6 @@ def _single_leaf_system(path: str, chain: UrdfChain, named: bool) -> RobotSystem
 def module_identifier(name: str) -> str:
     """A module name from a robot's name: ASCII letters, digits and _, and _robot appended
     where the name would be a keyword or hide a standard name (robotgen.model.names)."""
-    out = "".join(c if c.isascii() and (c.isalnum() or c == "_") else "_" for c in name.lower())[:MAX_LENGTH - 6]
+    out = "".join(c if c.isascii() and (c.isalnum() or c == "_") else "_" for c in name.lower())[: MAX_LENGTH - 6]
     out = out if out and not out[0].isdigit() else "_" + out
     return out + "_robot" if name_problem(out) else out

@@ -22,6 +22,7 @@ it, accept it unread, skip it with a note, or refuse it.
   element name says so, at its first occurrence. Inside <inertial> every element is read, so
   anything else there is refused.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field
@@ -30,8 +31,16 @@ from robotgen.errors import Location, UserError
 from robotgen.frontend.urdf_xml import Element
 
 # URDF's elements without dynamic meaning, accepted unread wherever they stand
-KNOWN_UNREAD = {"visual", "collision", "material", "transmission", "gazebo", "calibration", "safety_controller",
-                "sensor"}
+KNOWN_UNREAD = {
+    "visual",
+    "collision",
+    "material",
+    "transmission",
+    "gazebo",
+    "calibration",
+    "safety_controller",
+    "sensor",
+}
 READ = {
     "link": {"inertial"},
     "joint": {"origin", "parent", "child", "axis", "limit", "dynamics", "mimic"},
@@ -42,8 +51,19 @@ _MISPLACED_INERTIA = {
     "joint": {"mass", "inertia", "inertial"},
 }
 # joint dynamics URDF does not have (or keeps in <dynamics> attributes), by local name
-_JOINT_DYNAMICS = {"damping", "friction", "spring", "stiffness", "spring_stiffness", "spring_reference",
-                   "springref", "armature", "rotor_inertia", "reflected_inertia", "gear_ratio"}
+_JOINT_DYNAMICS = {
+    "damping",
+    "friction",
+    "spring",
+    "stiffness",
+    "spring_stiffness",
+    "spring_reference",
+    "springref",
+    "armature",
+    "rotor_inertia",
+    "reflected_inertia",
+    "gear_ratio",
+}
 # why a skipped element has no rigid-body meaning, for the note
 _SKIPPED_BECAUSE = {
     ("link", "contact"): "a simulator's contact parameters",
@@ -79,11 +99,15 @@ def _default_content_problem(parent: str, el: Element) -> str | None:
     dynamics as written (None when it is at its default)."""
     text = el.text.strip().lower()
     if (parent, el.tag) == ("link", "gravity") and text not in ("1", "true"):
-        return f"<gravity>{el.text.strip()}</gravity> takes the link out of gravity in Gazebo; robotgen applies " \
-               "gravity to every link (remove the element to do the same)"
+        return (
+            f"<gravity>{el.text.strip()}</gravity> takes the link out of gravity in Gazebo; robotgen applies "
+            "gravity to every link (remove the element to do the same)"
+        )
     if (parent, el.tag) == ("link", "kinematic") and text not in ("0", "false"):
-        return f"<kinematic>{el.text.strip()}</kinematic> makes the link kinematic (moved, not pushed) in " \
-               "Gazebo; robotgen has no such links"
+        return (
+            f"<kinematic>{el.text.strip()}</kinematic> makes the link kinematic (moved, not pushed) in "
+            "Gazebo; robotgen has no such links"
+        )
     if (parent, el.tag) == ("joint", "joint_properties"):
         named = {k: v for k, v in el.attrib.items() if k in ("damping", "friction") and not _is_number(v, 0.0)}
         if named:
@@ -93,8 +117,10 @@ def _default_content_problem(parent: str, el: Element) -> str | None:
         for scaling in (c for c in el.children if c.tag == "inertia_scaling"):
             value = scaling.attrib.get("value", "")
             if not _is_number(value, 1.0):
-                return f"<inertia_scaling value=\"{value}\"> inside it scales the link's inertia in pybullet; " \
-                       "scale <inertia> itself instead"
+                return (
+                    f'<inertia_scaling value="{value}"> inside it scales the link\'s inertia in pybullet; '
+                    "scale <inertia> itself instead"
+                )
     return None
 
 
@@ -118,8 +144,11 @@ class ElementCheck:
             tag = child.tag
             if tag in read:
                 if tag in seen and _content(seen[tag]) != _content(child):
-                    raise self.fail(child, f"<{el.tag}> has a second <{tag}> that differs from the first (line "
-                                           f"{seen[tag].line}); robotgen reads one")
+                    raise self.fail(
+                        child,
+                        f"<{el.tag}> has a second <{tag}> that differs from the first (line "
+                        f"{seen[tag].line}); robotgen reads one",
+                    )
                 seen.setdefault(tag, child)
                 if tag == "inertial":
                     self.check(child)
@@ -141,8 +170,7 @@ class ElementCheck:
         if local in _MISPLACED_INERTIA.get(parent, ()):
             return "inertia belongs inside a link's <inertial>; robotgen refuses it here rather than lose it"
         if parent == "joint" and local in _JOINT_DYNAMICS:
-            return ("it would change the joint's dynamics, which URDF gives as <dynamics damping=... friction=...> "
-                    "only")
+            return "it would change the joint's dynamics, which URDF gives as <dynamics damping=... friction=...> only"
         return _default_content_problem(parent, el)
 
     @property
@@ -153,6 +181,8 @@ class ElementCheck:
             first = elements[0]
             why = _SKIPPED_BECAUSE.get((parent, tag), "not a URDF element")
             what = f"{len(elements)} <{tag}> elements" if len(elements) > 1 else f"<{tag}>"
-            notes.append(f"{Location(self.path, first.line, first.col)}: note: skipped {what} inside <{parent}> "
-                         f"({why}): no rigid-body meaning for robotgen")
+            notes.append(
+                f"{Location(self.path, first.line, first.col)}: note: skipped {what} inside <{parent}> "
+                f"({why}): no rigid-body meaning for robotgen"
+            )
         return tuple(notes)

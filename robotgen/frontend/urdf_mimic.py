@@ -8,6 +8,7 @@ file (the nearest names suggested), a fixed joint, or a joint not below the base
 of 0 (the joint would be held: a fixed joint says so); numbers that are not finite; mimic
 joints that follow each other round a cycle.
 """
+
 from __future__ import annotations
 
 import difflib
@@ -67,8 +68,11 @@ def read_mimics(r: Reader, joints: dict[str, Element], below: list[Element], bas
             raise r.fail(el, f"joint '{name}' mimics '{leader}', which is not below base link '{base}'")
         multiplier, offset = r.number(el, "multiplier", "1"), r.number(el, "offset", "0")
         if multiplier == 0:
-            raise r.fail(el, f"joint '{name}' mimics '{leader}' with multiplier 0, which holds it at its offset: "
-                             "a fixed joint says so")
+            raise r.fail(
+                el,
+                f"joint '{name}' mimics '{leader}' with multiplier 0, which holds it at its offset: "
+                "a fixed joint says so",
+            )
         out[name] = MimicElement(j, el, name, leader, multiplier, offset)
     return out
 
@@ -82,7 +86,7 @@ def independent_joints(r: Reader, mimics: dict[str, MimicElement]) -> dict[str, 
         while line[-1] in mimics and line[-1] not in found:
             leader = mimics[line[-1]].leader
             if leader in line:
-                cycle = line[line.index(leader):]
+                cycle = line[line.index(leader) :]
                 first = min(cycle, key=lambda n: (mimics[n].element.line, mimics[n].element.col))
                 at = cycle.index(first)
                 listed = " -> ".join(f"'{n}'" for n in cycle[at:] + cycle[:at] + [first])
@@ -98,8 +102,10 @@ def coupling_of(kept: list[str], mimics: dict[str, MimicElement]) -> Coupling | 
     """The coupling of the kept joints (by name, in the tree's order) of which ``mimics``
     follow others; each kept mimic joint's leader is kept."""
     index = {name: k for k, name in enumerate(kept)}
-    return couple(len(kept), [Mimic(index[m.name], index[m.leader], m.multiplier, m.offset)
-                              for m in mimics.values() if m.name in index])
+    return couple(
+        len(kept),
+        [Mimic(index[m.name], index[m.leader], m.multiplier, m.offset) for m in mimics.values() if m.name in index],
+    )
 
 
 def coupled_note(r: Reader, mimics: list[MimicElement]) -> tuple[str, ...]:
@@ -109,6 +115,9 @@ def coupled_note(r: Reader, mimics: list[MimicElement]) -> tuple[str, ...]:
     mimics = sorted(mimics, key=lambda m: (m.element.line, m.element.col))
     listed = ", ".join(f"'{m.name}' = {affine(m.multiplier, repr(m.leader), m.offset)}" for m in mimics)
     n = len(mimics)
-    which = ("a mimic joint moves with the coordinate of the joint it follows (no coordinate of its own)" if n == 1
-             else f"{n} mimic joints move with the coordinates of the joints they follow (no coordinates of their own)")
+    which = (
+        "a mimic joint moves with the coordinate of the joint it follows (no coordinate of its own)"
+        if n == 1
+        else f"{n} mimic joints move with the coordinates of the joints they follow (no coordinates of their own)"
+    )
     return (f"{r.loc(mimics[0].element)}: note: {which}: {listed}",)

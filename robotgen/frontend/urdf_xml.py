@@ -6,6 +6,7 @@ with blank lines or a comment in front of it (pybullet_data's biped2d and diff_r
 other URDF readers take them. Such a declaration is read as if it came first, with a note;
 what follows it keeps its line and column. Entities are refused: no URDF needs one, and
 expanding them is how a small file becomes gigabytes."""
+
 from __future__ import annotations
 
 import re
@@ -49,9 +50,11 @@ def declaration_first(path: str, data: bytes) -> tuple[bytes, tuple[str, ...]]:
     line = prefix.count(b"\n") + 1
     col = len(prefix) - (prefix.rfind(b"\n") + 1) + 1
     before = "a comment" if b"<!--" in prefix else "whitespace"
-    note = (f"{Location(path, line, col)}: note: the XML declaration comes after {before}, which XML does not "
-            "allow; read as if it were at the start of the file")
-    return bom + one_line + prefix + blank + data[m.end():], (note,)
+    note = (
+        f"{Location(path, line, col)}: note: the XML declaration comes after {before}, which XML does not "
+        "allow; read as if it were at the start of the file"
+    )
+    return bom + one_line + prefix + blank + data[m.end() :], (note,)
 
 
 def parse_xml(path: str, data: bytes) -> Element:
@@ -72,8 +75,10 @@ def parse_xml(path: str, data: bytes) -> Element:
 
     def entity(name, *_):
         # the expat in use may predate its amplification limit
-        raise UserError(Location(path, parser.CurrentLineNumber, parser.CurrentColumnNumber + 1),
-                        f"the URDF declares an XML entity ('{name}'); robotgen reads URDFs without entities")
+        raise UserError(
+            Location(path, parser.CurrentLineNumber, parser.CurrentColumnNumber + 1),
+            f"the URDF declares an XML entity ('{name}'); robotgen reads URDFs without entities",
+        )
 
     parser.StartElementHandler = start
     parser.EndElementHandler = lambda tag: stack.pop()
@@ -82,13 +87,16 @@ def parse_xml(path: str, data: bytes) -> Element:
     try:
         parser.Parse(data, True)
     except xml.parsers.expat.ExpatError as e:
-        raise UserError(Location(path, e.lineno, e.offset + 1),
-                        f"not well-formed XML: {xml.parsers.expat.ErrorString(e.code)}") from None
+        raise UserError(
+            Location(path, e.lineno, e.offset + 1), f"not well-formed XML: {xml.parsers.expat.ErrorString(e.code)}"
+        ) from None
     except LookupError as e:  # the XML declaration names an encoding Python does not know
         first = data.split(b"\n", 1)[0]
         col = first.find(b"encoding") + 1 if b"encoding" in first else 1
-        raise UserError(Location(path, 1, col), f"the XML declaration names an encoding Python does not know ({e}); "
-                                                "save the URDF as UTF-8") from None
+        raise UserError(
+            Location(path, 1, col),
+            f"the XML declaration names an encoding Python does not know ({e}); save the URDF as UTF-8",
+        ) from None
     if not root or root[0].tag != "robot":
         raise UserError(Location(path, 1, 1), "a URDF file must have a <robot> root element")
     return root[0]

@@ -9,6 +9,7 @@ where ``motion`` is a rotation about ``axis`` (revolute) or a translation along 
 (prismatic), both in joint i's frame. Link i is rigidly attached to frame(i); its
 inertial data is expressed in frame(i). The base frame is frame(-1) = identity.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
@@ -137,8 +138,10 @@ def with_payload(tree: KinematicTree, mass: float, point: np.ndarray) -> Kinemat
     if total == 0:
         return tree
     com = exact.add((b.mass / total, b.com), (mass / total, np.asarray(point, dtype=float)))
-    inertia = exact.add(exact.parallel_axis(b.inertia, b.mass, exact.add(b.com, (-1.0, com))),
-                        exact.parallel_axis(np.zeros((3, 3)), mass, exact.add(point, (-1.0, com))))
+    inertia = exact.add(
+        exact.parallel_axis(b.inertia, b.mass, exact.add(b.com, (-1.0, com))),
+        exact.parallel_axis(np.zeros((3, 3)), mass, exact.add(point, (-1.0, com))),
+    )
     joints[tree.tip] = replace(j, body=Body(total, com, inertia))
     return replace(tree, joints=tuple(joints))
 

@@ -16,6 +16,7 @@ the joint forces tau^T S qd gives tau_r = S^T tau (robotgen.symbolic.rigid_body.
 The composed multipliers and offsets are exact (rationals on the file's doubles), rounded once,
 so they are the same on every machine.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -98,7 +99,7 @@ def couple(n_joints: int, mimics: list[Mimic]) -> Coupling | None:
         j = i
         while j in follows and j not in resolved:
             if j in path:
-                raise MimicCycle(tuple(path[path.index(j):]))
+                raise MimicCycle(tuple(path[path.index(j) :]))
             path.append(j)
             j = follows[j].leader
         own, m, c = resolved.get(j, (j, Fraction(1), Fraction(0)))
@@ -112,5 +113,10 @@ def couple(n_joints: int, mimics: list[Mimic]) -> Coupling | None:
     rows = [resolve(i) for i in range(n_joints)]
     independent = tuple(i for i in range(n_joints) if i not in follows)
     index = {joint: k for k, joint in enumerate(independent)}
-    return Coupling(independent, tuple(index[own] for own, _, _ in rows), tuple(float(m) for _, m, _ in rows),
-                    tuple(float(c) for _, _, c in rows), tuple(follows.values()))
+    return Coupling(
+        independent,
+        tuple(index[own] for own, _, _ in rows),
+        tuple(float(m) for _, m, _ in rows),
+        tuple(float(c) for _, _, c in rows),
+        tuple(follows.values()),
+    )

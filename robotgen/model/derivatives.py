@@ -1,6 +1,7 @@
 """Which derivative functions a module offers (the spec's `derivatives` section): the
 partial derivatives of the dynamics, M^-1, and one step of a discrete-time model with its
 Jacobians, for trajectory optimisation and model-predictive control."""
+
 from __future__ import annotations
 
 from dataclasses import dataclass

@@ -1,4 +1,5 @@
 """A robot system as plain data: printed by `robotgen info`, returned by the module's info()."""
+
 from __future__ import annotations
 
 from robotgen.model.chain import KinematicTree
@@ -22,10 +23,14 @@ def system_info(system: RobotSystem) -> dict:
     nodes = {}
     for node in system.walk():
         sig = signature(system, node.name)
-        entry = {"primitive": node.primitive, "coordinates": list(sig.external),
-                 "internal_motions": list(sig.internal_motions),
-                 "internal_forces": list(sig.internal_forces), "nq": sig.n_velocity,
-                 "units": list(coordinate_units(system, node.name))}
+        entry = {
+            "primitive": node.primitive,
+            "coordinates": list(sig.external),
+            "internal_motions": list(sig.internal_motions),
+            "internal_forces": list(sig.internal_forces),
+            "nq": sig.n_velocity,
+            "units": list(coordinate_units(system, node.name)),
+        }
         if isinstance(node, DefineNode):
             leaf = node.leaf
             entry["kind"] = type(leaf).__name__
@@ -64,15 +69,26 @@ def coupled_joints(tree: KinematicTree) -> list[dict]:
     c = tree.coupling
     if c is None:
         return []
-    return [{"joint": tree.joints[i].name, "coordinate": tree.joints[c.independent[c.coordinate[i]]].name,
-             "multiplier": c.multiplier[i], "offset": c.offset[i]} for i in c.followers()]
+    return [
+        {
+            "joint": tree.joints[i].name,
+            "coordinate": tree.joints[c.independent[c.coordinate[i]]].name,
+            "multiplier": c.multiplier[i],
+            "offset": c.offset[i],
+        }
+        for i in c.followers()
+    ]
 
 
 def _joint_info(joint) -> dict:
     lim = joint.limits
     return {
-        "name": joint.name, "type": joint.type, "parent": joint.parent,
-        "armature": joint.armature, "viscous": joint.viscous, "coulomb": joint.coulomb,
+        "name": joint.name,
+        "type": joint.type,
+        "parent": joint.parent,
+        "armature": joint.armature,
+        "viscous": joint.viscous,
+        "coulomb": joint.coulomb,
         "damping": joint.damping,
         "limits": {"lower": lim.lower, "upper": lim.upper, "velocity": lim.velocity, "effort": lim.effort},
     }

@@ -15,6 +15,7 @@ Joint list (URDF): origin_i as given, axis normalised; the link frame is the joi
 
 In every convention the base transform pre-multiplies joint 1's origin.
 """
+
 from __future__ import annotations
 
 from collections.abc import Sequence
@@ -76,7 +77,7 @@ def unit_axis(axis) -> np.ndarray:
 
 def armature(motor_inertia: float, gear_ratio: float) -> float:
     """Reflected rotor inertia on the joint side."""
-    return motor_inertia * gear_ratio ** 2
+    return motor_inertia * gear_ratio**2
 
 
 def body_in_frame(body: Body, T: np.ndarray) -> Body:
@@ -105,14 +106,22 @@ def _dh(row: JointRow) -> DHParameters:
 
 def _joint(row: JointRow, index: int, origin: np.ndarray, axis: np.ndarray, body: Body) -> Joint:
     return Joint(
-        name=row.name, type=row.type, parent=index - 1, origin=origin, axis=axis, body=body,
+        name=row.name,
+        type=row.type,
+        parent=index - 1,
+        origin=origin,
+        axis=axis,
+        body=body,
         armature=armature(row.motor_inertia, row.gear_ratio),
-        viscous=row.viscous, coulomb=row.coulomb, limits=row.limits,
+        viscous=row.viscous,
+        coulomb=row.coulomb,
+        limits=row.limits,
     )
 
 
-def dh_standard_chain(rows: Sequence[JointRow], base: np.ndarray,
-                      tool: np.ndarray) -> tuple[tuple[Joint, ...], np.ndarray]:
+def dh_standard_chain(
+    rows: Sequence[JointRow], base: np.ndarray, tool: np.ndarray
+) -> tuple[tuple[Joint, ...], np.ndarray]:
     """Canonical joints of a standard-DH chain (Denavit-Hartenberg 1955) after ``base``, and the tip with ``tool``."""
     joints = []
     before = base  # P_{i-1}, with P_0 = base
@@ -123,29 +132,35 @@ def dh_standard_chain(rows: Sequence[JointRow], base: np.ndarray,
     return tuple(joints), exact.matmul(before, tool)
 
 
-def dh_modified_chain(rows: Sequence[JointRow], base: np.ndarray,
-                      tool: np.ndarray) -> tuple[tuple[Joint, ...], np.ndarray]:
+def dh_modified_chain(
+    rows: Sequence[JointRow], base: np.ndarray, tool: np.ndarray
+) -> tuple[tuple[Joint, ...], np.ndarray]:
     """Canonical joints of a modified-DH chain (Craig's convention) after ``base``, and the tool."""
     joints = tuple(
-        _joint(row, i, exact.matmul(base if i == 0 else np.eye(4), dh_modified_origin(_dh(row))), Z_AXIS.copy(),
-               row.body)
-        for i, row in enumerate(rows))
+        _joint(
+            row, i, exact.matmul(base if i == 0 else np.eye(4), dh_modified_origin(_dh(row))), Z_AXIS.copy(), row.body
+        )
+        for i, row in enumerate(rows)
+    )
     return joints, tool.copy()
 
 
-def joint_list_chain(rows: Sequence[JointRow], base: np.ndarray,
-                     tool: np.ndarray) -> tuple[tuple[Joint, ...], np.ndarray]:
+def joint_list_chain(
+    rows: Sequence[JointRow], base: np.ndarray, tool: np.ndarray
+) -> tuple[tuple[Joint, ...], np.ndarray]:
     """Canonical joints of a joint list (origin and axis per joint) after ``base``, and the tool."""
     joints = tuple(
         _joint(row, i, exact.matmul(base if i == 0 else np.eye(4), row.origin), unit_axis(row.axis), row.body)
-        for i, row in enumerate(rows))
+        for i, row in enumerate(rows)
+    )
     return joints, tool.copy()
 
 
 _NORMALISERS = {DH_STANDARD: dh_standard_chain, DH_MODIFIED: dh_modified_chain, JOINT_LIST: joint_list_chain}
 
 
-def canonical_chain(convention: str, rows: Sequence[JointRow], base: np.ndarray,
-                    tool: np.ndarray) -> tuple[tuple[Joint, ...], np.ndarray]:
+def canonical_chain(
+    convention: str, rows: Sequence[JointRow], base: np.ndarray, tool: np.ndarray
+) -> tuple[tuple[Joint, ...], np.ndarray]:
     """Canonical joints of a serial chain and the tool transform in the last joint's frame."""
     return _NORMALISERS[convention](rows, base, tool)

@@ -6,6 +6,7 @@ and calls of the functions in ``FUNCTIONS`` by bare name. Spec text is never exe
 ``evaluate`` walks the checked tree with a caller-supplied function library, so the same
 tree becomes a float (``MATH_LIB``) or a CasADi graph (the symbolic layer's library).
 """
+
 from __future__ import annotations
 
 import ast
@@ -19,9 +20,23 @@ from robotgen.numeric import exact
 
 # name -> number of arguments
 FUNCTIONS: dict[str, int] = {
-    "sin": 1, "cos": 1, "tan": 1, "asin": 1, "acos": 1, "atan": 1, "atan2": 2,
-    "exp": 1, "log": 1, "sqrt": 1, "abs": 1, "tanh": 1, "sinh": 1, "cosh": 1,
-    "sign": 1, "min": 2, "max": 2,
+    "sin": 1,
+    "cos": 1,
+    "tan": 1,
+    "asin": 1,
+    "acos": 1,
+    "atan": 1,
+    "atan2": 2,
+    "exp": 1,
+    "log": 1,
+    "sqrt": 1,
+    "abs": 1,
+    "tanh": 1,
+    "sinh": 1,
+    "cosh": 1,
+    "sign": 1,
+    "min": 2,
+    "max": 2,
 }
 CONSTANTS: dict[str, float] = {"pi": math.pi, "e": math.e}
 # The largest magnitude of a numeric field: far beyond any robot's lengths, masses, angles or
@@ -44,8 +59,11 @@ class Expr:
     @property
     def names(self) -> frozenset[str]:
         """Every variable name the expression reads (constants pi and e excluded)."""
-        return frozenset(n.id for n in ast.walk(self.node)
-                         if isinstance(n, ast.Name) and n.id not in FUNCTIONS and n.id not in CONSTANTS)
+        return frozenset(
+            n.id
+            for n in ast.walk(self.node)
+            if isinstance(n, ast.Name) and n.id not in FUNCTIONS and n.id not in CONSTANTS
+        )
 
 
 def _sign(x: float) -> float:
@@ -56,10 +74,24 @@ def _sign(x: float) -> float:
 # rounded (robotgen.numeric.exact), so a constant such as "pi/3" or "0.1^2" is the same double
 # on every machine.
 MATH_LIB: dict[str, Callable[..., float]] = {
-    "sin": exact.sin, "cos": exact.cos, "tan": exact.tan, "asin": exact.asin, "acos": exact.acos,
-    "atan": exact.atan, "atan2": exact.atan2, "exp": exact.exp, "log": exact.log, "sqrt": exact.sqrt,
-    "abs": math.fabs, "tanh": exact.tanh, "sinh": exact.sinh, "cosh": exact.cosh, "sign": _sign,
-    "min": min, "max": max, "pow": exact.power,
+    "sin": exact.sin,
+    "cos": exact.cos,
+    "tan": exact.tan,
+    "asin": exact.asin,
+    "acos": exact.acos,
+    "atan": exact.atan,
+    "atan2": exact.atan2,
+    "exp": exact.exp,
+    "log": exact.log,
+    "sqrt": exact.sqrt,
+    "abs": math.fabs,
+    "tanh": exact.tanh,
+    "sinh": exact.sinh,
+    "cosh": exact.cosh,
+    "sign": _sign,
+    "min": min,
+    "max": max,
+    "pow": exact.power,
 }
 
 
@@ -84,8 +116,9 @@ def _prepare(text: str) -> tuple[str, list[int]]:
 class _Checker:
     """Walks a parsed tree and raises UserError at the first node outside the whitelist."""
 
-    def __init__(self, text: str, prepared: str, origin: list[int], location: Location,
-                 names: set[str], exact_columns: bool):
+    def __init__(
+        self, text: str, prepared: str, origin: list[int], location: Location, names: set[str], exact_columns: bool
+    ):
         self.text = text
         self.prepared = prepared
         self.origin = origin
@@ -113,7 +146,7 @@ class _Checker:
         """Error at the token that makes ``node`` illegal."""
         if isinstance(node, ast.BinOp):
             start = self.index(node.left.end_col_offset)
-            rest = self.prepared[start:self.index(node.right.col_offset)]
+            rest = self.prepared[start : self.index(node.right.col_offset)]
             index = start + len(rest) - len(rest.lstrip(" ()"))
         elif isinstance(node, ast.Attribute):
             index = self.token_after(node.value, ".")
@@ -169,8 +202,7 @@ class _Checker:
                 raise self.fail(arg, f"{name}() takes no unpacked arguments")
         arity = FUNCTIONS[name]
         if len(node.args) != arity:
-            raise self.fail(node, f"{name}() takes {arity} argument{'s' if arity > 1 else ''}, "
-                                  f"got {len(node.args)}")
+            raise self.fail(node, f"{name}() takes {arity} argument{'s' if arity > 1 else ''}, got {len(node.args)}")
         for arg in node.args:
             self.check(arg)
 
@@ -206,8 +238,13 @@ class _Checker:
             else:
                 value = _FLOAT_LIB[_called(node)](*values)
         except (ArithmeticError, ValueError) as error:
-            reason = "division by zero" if isinstance(error, ZeroDivisionError) else \
-                "too large" if isinstance(error, OverflowError) else "outside the function's domain"
+            reason = (
+                "division by zero"
+                if isinstance(error, ZeroDivisionError)
+                else "too large"
+                if isinstance(error, OverflowError)
+                else "outside the function's domain"
+            )
             raise self.fail(node, f"the constant {self.shown(node)!r} cannot be evaluated ({reason})") from None
         if not isinstance(value, float) or not math.isfinite(value):
             raise self.fail(node, f"the constant {self.shown(node)!r} is not a finite real number")
@@ -222,13 +259,30 @@ class _Checker:
 # Plain float arithmetic for check_constants (only whether a constant part is finite and real
 # is asked of it; the value the build uses comes from MATH_LIB or CasADi).
 _FLOAT_BINARY: dict[type, Callable[[float, float], object]] = {
-    ast.Add: lambda a, b: a + b, ast.Sub: lambda a, b: a - b, ast.Mult: lambda a, b: a * b,
-    ast.Div: lambda a, b: a / b, ast.Pow: lambda a, b: a ** b,
+    ast.Add: lambda a, b: a + b,
+    ast.Sub: lambda a, b: a - b,
+    ast.Mult: lambda a, b: a * b,
+    ast.Div: lambda a, b: a / b,
+    ast.Pow: lambda a, b: a**b,
 }
 _FLOAT_LIB: dict[str, Callable[..., float]] = {
-    "sin": math.sin, "cos": math.cos, "tan": math.tan, "asin": math.asin, "acos": math.acos, "atan": math.atan,
-    "atan2": math.atan2, "exp": math.exp, "log": math.log, "sqrt": math.sqrt, "abs": math.fabs,
-    "tanh": math.tanh, "sinh": math.sinh, "cosh": math.cosh, "sign": _sign, "min": min, "max": max,
+    "sin": math.sin,
+    "cos": math.cos,
+    "tan": math.tan,
+    "asin": math.asin,
+    "acos": math.acos,
+    "atan": math.atan,
+    "atan2": math.atan2,
+    "exp": math.exp,
+    "log": math.log,
+    "sqrt": math.sqrt,
+    "abs": math.fabs,
+    "tanh": math.tanh,
+    "sinh": math.sinh,
+    "cosh": math.cosh,
+    "sign": _sign,
+    "min": min,
+    "max": max,
 }
 
 
@@ -248,12 +302,26 @@ def _called(node: ast.Call) -> str:
 
 def _describe(node: ast.AST) -> str:
     kinds = {
-        ast.Attribute: "attribute access", ast.Subscript: "indexing", ast.Lambda: "lambda",
-        ast.Compare: "comparison", ast.BoolOp: "boolean operator", ast.IfExp: "conditional",
-        ast.Tuple: "tuple", ast.List: "list", ast.Dict: "dict", ast.Set: "set",
-        ast.ListComp: "comprehension", ast.SetComp: "comprehension", ast.DictComp: "comprehension",
-        ast.GeneratorExp: "comprehension", ast.NamedExpr: "assignment", ast.Starred: "unpacking",
-        ast.JoinedStr: "string", ast.Await: "await", ast.Yield: "yield", ast.YieldFrom: "yield",
+        ast.Attribute: "attribute access",
+        ast.Subscript: "indexing",
+        ast.Lambda: "lambda",
+        ast.Compare: "comparison",
+        ast.BoolOp: "boolean operator",
+        ast.IfExp: "conditional",
+        ast.Tuple: "tuple",
+        ast.List: "list",
+        ast.Dict: "dict",
+        ast.Set: "set",
+        ast.ListComp: "comprehension",
+        ast.SetComp: "comprehension",
+        ast.DictComp: "comprehension",
+        ast.GeneratorExp: "comprehension",
+        ast.NamedExpr: "assignment",
+        ast.Starred: "unpacking",
+        ast.JoinedStr: "string",
+        ast.Await: "await",
+        ast.Yield: "yield",
+        ast.YieldFrom: "yield",
         ast.Slice: "slice",
     }
     if isinstance(node, ast.Constant):
@@ -263,8 +331,7 @@ def _describe(node: ast.AST) -> str:
     return kinds.get(type(node), type(node).__name__)
 
 
-def parse_expression(text: object, location: Location, names: set[str], *,
-                     exact_columns: bool = True) -> Expr:
+def parse_expression(text: object, location: Location, names: set[str], *, exact_columns: bool = True) -> Expr:
     """Parse and check ``text``; names it may read are ``names`` plus pi and e.
 
     ``location`` is where the first character of ``text`` stands in the file. Errors point
@@ -277,8 +344,10 @@ def parse_expression(text: object, location: Location, names: set[str], *,
         try:
             finite = math.isfinite(text)
         except OverflowError:  # an integer past the largest double (YAML reads up to 4300 digits)
-            raise UserError(location, f"the integer (about 10^{int(math.log10(abs(text)))}) is out of range (a "
-                                      "double reaches 1.8e308)") from None
+            raise UserError(
+                location,
+                f"the integer (about 10^{int(math.log10(abs(text)))}) is out of range (a double reaches 1.8e308)",
+            ) from None
         if not finite:
             raise UserError(location, f"number {text!r} is not finite")
         return Expr(repr(text), ast.Constant(value=text, lineno=1, col_offset=0), location)
@@ -288,11 +357,16 @@ def parse_expression(text: object, location: Location, names: set[str], *,
         raise UserError(location, "empty expression")
     if not prepared.isascii():  # Python would read look-alikes (ｍ2, sⅰn, ℯ) as other names (NFKC)
         index = next(i for i, c in enumerate(prepared) if not c.isascii())
-        raise UserError(checker.at(index), f"character {prepared[index]!r} (U+{ord(prepared[index]):04X}) "
-                                           "is not allowed in an expression: names and numbers are ASCII")
+        raise UserError(
+            checker.at(index),
+            f"character {prepared[index]!r} (U+{ord(prepared[index]):04X}) "
+            "is not allowed in an expression: names and numbers are ASCII",
+        )
     if "#" in prepared:  # Python's parser would drop the rest as a comment: "1 # + q^2" would read as 1
-        raise UserError(checker.at(prepared.index("#")), "'#' is not allowed in an expression (Python would drop "
-                                                         "the text after it as a comment)")
+        raise UserError(
+            checker.at(prepared.index("#")),
+            "'#' is not allowed in an expression (Python would drop the text after it as a comment)",
+        )
     try:
         tree = ast.parse(prepared, mode="eval")
     except SyntaxError as error:
@@ -322,7 +396,7 @@ def evaluate(expr: Expr, env: Mapping[str, object], lib: object) -> Any:
     Numbers enter as floats, so integer powers never grow into huge Python ints. The value is
     whatever ``lib``'s functions and the operators make of floats and ``env``'s values (a float,
     a CasADi SX, ...), hence Any."""
-    power = _function(lib, "pow") or (lambda a, b: a ** b)
+    power = _function(lib, "pow") or (lambda a, b: a**b)
 
     def visit(node: ast.expr) -> Any:
         if isinstance(node, ast.Constant):
@@ -367,6 +441,8 @@ def parse_constant(value: object, location: Location, *, exact_columns: bool = T
     if not math.isfinite(result):
         raise UserError(location, f"{expr.text!r} is not a finite number")
     if abs(result) > MAX_MAGNITUDE:
-        raise UserError(location, f"{expr.text!r} is too large: a spec's numbers (SI units) are at most "
-                                  f"{MAX_MAGNITUDE:g} in magnitude")
+        raise UserError(
+            location,
+            f"{expr.text!r} is too large: a spec's numbers (SI units) are at most {MAX_MAGNITUDE:g} in magnitude",
+        )
     return result

@@ -1,6 +1,7 @@
 """DEFINE by formulas (Deno et al. 1990, eq 3.1 and StyxDefinitions.m): named coordinates
 and M, C, N written as expressions. The expressions are parsed and checked by
 robotgen.model.expression; they become CasADi graphs in robotgen.symbolic.formulas."""
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field

@@ -1,6 +1,7 @@
 """What a module name may be: it becomes a Python module, the prefix of every C function, and
 the names of the emitted files (<name>.c, <name>.h, <name>_module.c, lib<name>.a), so it must be
 an identifier in both languages and must not stand where a standard name is expected."""
+
 from __future__ import annotations
 
 import keyword
@@ -14,12 +15,14 @@ MAX_LENGTH = 64  # the longest emitted file name, <name>.cpython-3xx-<platform>.
 C_KEYWORDS = frozenset(
     "auto break case char const continue default do double else enum extern float for goto if inline int "
     "long register restrict return short signed sizeof static struct switch typedef union unsigned void "
-    "volatile while".split())
+    "volatile while".split()
+)
 # <name>.h beside the code would be found by #include <math.h> in place of the standard header
 C_HEADERS = frozenset(
     "assert complex ctype errno fenv float inttypes iso646 limits locale math setjmp signal stdalign stdarg "
     "stdatomic stdbool stddef stdint stdio stdlib stdnoreturn string tgmath threads time uchar wchar "
-    "wctype".split())
+    "wctype".split()
+)
 # modules a user of the generated module imports beside it
 PYTHON_PACKAGES = frozenset({"numpy", "casadi", "robotgen", "scipy", "matplotlib", "yaml", "pinocchio"})
 OTHER = frozenset({"main"})  # the C entry point

@@ -1,5 +1,6 @@
 """The module's parameter struct: every run-time parameter of a robot system, in walk order
 (robotgen.model.parameters says what a run-time parameter is)."""
+
 from __future__ import annotations
 
 from robotgen.model.formula import FormulaRobot
@@ -19,8 +20,13 @@ from robotgen.model.system import (
 
 # the internal-force loop's gains (robotgen.symbolic.servo: its poles); ki_internal dt < 2 (1 -
 # kf_internal) as well, checked against the simulation's dt (robotgen.frontend.simulation)
-KF_INTERNAL = Bounds("gain kf_internal", minimum=0.0, maximum=1.0, exclusive_maximum=True,
-                     note="sensed a period late, the loop's pole is at -kf_internal")
+KF_INTERNAL = Bounds(
+    "gain kf_internal",
+    minimum=0.0,
+    maximum=1.0,
+    exclusive_maximum=True,
+    note="sensed a period late, the loop's pole is at -kf_internal",
+)
 KI_INTERNAL = Bounds("gain ki_internal", minimum=0.0, note="[1/s]; stable for ki_internal dt < 2 (1 - kf_internal)")
 
 
@@ -35,12 +41,26 @@ def runtime_parameters(system: RobotSystem) -> list[RuntimeParameter]:
         elif isinstance(node, DefineNode):
             leaf = node.leaf
             if isinstance(leaf, FormulaRobot):
-                out += [RuntimeParameter(f"{node.name}_{p}", (), (float(leaf.parameters[p]),),
-                                         f"parameter {p} of formulas leaf '{node.name}'")
-                        for p in leaf.parameters if p in leaf.runtime]
+                out += [
+                    RuntimeParameter(
+                        f"{node.name}_{p}",
+                        (),
+                        (float(leaf.parameters[p]),),
+                        f"parameter {p} of formulas leaf '{node.name}'",
+                    )
+                    for p in leaf.parameters
+                    if p in leaf.runtime
+                ]
             elif isinstance(leaf, PAYLOAD_BODIES) and "mass" in leaf.runtime:
-                out.append(RuntimeParameter(f"{node.name}_mass", (), (float(leaf.mass),),
-                                            f"mass of payload '{node.name}' [kg]", PAYLOAD_MASS))
+                out.append(
+                    RuntimeParameter(
+                        f"{node.name}_mass",
+                        (),
+                        (float(leaf.mass),),
+                        f"mass of payload '{node.name}' [kg]",
+                        PAYLOAD_MASS,
+                    )
+                )
     return out
 
 
@@ -57,21 +77,47 @@ def _gains(system: RobotSystem, node: ControlNode) -> list[RuntimeParameter]:
         if not LAWS[node.law].gains:
             continue  # the law reads no kp, kv (feedforward: both zero; an impedance has its own matrices)
         shape, values = written_shape(form, K)
-        out.append(RuntimeParameter(gain_parameter_name(node, key), shape, values,
-                                    f"{'position' if key == 'kp' else 'velocity'} gain {key} of controller "
-                                    f"'{node.name}' on {', '.join(robot.external)}",
-                                    GAIN_MATRIX if form == MATRIX_GAIN else GAIN))
+        out.append(
+            RuntimeParameter(
+                gain_parameter_name(node, key),
+                shape,
+                values,
+                f"{'position' if key == 'kp' else 'velocity'} gain {key} of controller "
+                f"'{node.name}' on {', '.join(robot.external)}",
+                GAIN_MATRIX if form == MATRIX_GAIN else GAIN,
+            )
+        )
     if robot.n_velocity > n:  # internal motions below: their damping (eq 5.13)
-        out.append(RuntimeParameter(gain_parameter_name(node, "kv_internal"), (), (float(node.kv_internal),),
-                                    f"damping kv_internal of controller '{node.name}' on internal motions", DAMPING))
+        out.append(
+            RuntimeParameter(
+                gain_parameter_name(node, "kv_internal"),
+                (),
+                (float(node.kv_internal),),
+                f"damping kv_internal of controller '{node.name}' on internal motions",
+                DAMPING,
+            )
+        )
     if node.kf_internal is not None:  # the loop on sensed internal forces
-        out.append(RuntimeParameter(gain_parameter_name(node, "kf_internal"), (), (float(node.kf_internal),),
-                                    f"gain kf_internal of controller '{node.name}' on the sensed internal forces",
-                                    KF_INTERNAL))
+        out.append(
+            RuntimeParameter(
+                gain_parameter_name(node, "kf_internal"),
+                (),
+                (float(node.kf_internal),),
+                f"gain kf_internal of controller '{node.name}' on the sensed internal forces",
+                KF_INTERNAL,
+            )
+        )
     if node.ki_internal is not None:
-        out.append(RuntimeParameter(gain_parameter_name(node, "ki_internal"), (), (float(node.ki_internal),),
-                                    f"gain ki_internal of controller '{node.name}' on the integral of the sensed "
-                                    "internal forces' error [1/s]", KI_INTERNAL))
+        out.append(
+            RuntimeParameter(
+                gain_parameter_name(node, "ki_internal"),
+                (),
+                (float(node.ki_internal),),
+                f"gain ki_internal of controller '{node.name}' on the integral of the sensed "
+                "internal forces' error [1/s]",
+                KI_INTERNAL,
+            )
+        )
     if node.force is not None:  # an impedance's or a hybrid law's own
         out += node.force.parameters(node.name, ", ".join(robot.external))
     return out

@@ -10,6 +10,7 @@ message (``Bounds.violation``; the C twin is templates/params_check.c.jinja).
 
 Folding is faster (the compiler multiplies by known numbers and drops zeros); a run-time
 parameter costs a load and the full product (docs/python-api.md, docs/c-api.md)."""
+
 from __future__ import annotations
 
 import math
@@ -125,8 +126,11 @@ def _definite(bounds: Bounds, a: np.ndarray) -> Violation | None:
     for i in range(n):
         for j in range(i + 1, n):
             if abs(a[i, j] - a[j, i]) > SYMMETRY_TOLERANCE * scale:
-                return Violation((i, j), f"{bounds.what} must be symmetric{bounds.suffix}: entry ({i}, {j}) = "
-                                         f"{a[i, j]:g} but ({j}, {i}) = {a[j, i]:g}")
+                return Violation(
+                    (i, j),
+                    f"{bounds.what} must be symmetric{bounds.suffix}: entry ({i}, {j}) = "
+                    f"{a[i, j]:g} but ({j}, {i}) = {a[j, i]:g}",
+                )
     L = [[0.0] * n for _ in range(n)]
     d = [0.0] * n
     for j in range(n):
@@ -158,8 +162,11 @@ def written_shape(form: str, K: np.ndarray) -> tuple[tuple[int, ...], tuple[floa
     """(shape, row-major values) of the run-time parameter of matrix ``K`` (n x n) written in
     ``form``: () its [0, 0], (n,) its diagonal, (n, n) all of it."""
     K = np.asarray(K, dtype=float)
-    shape, values = {SCALAR_GAIN: ((), (K[0, 0],)), DIAGONAL_GAIN: ((K.shape[0],), tuple(np.diag(K))),
-                     MATRIX_GAIN: (K.shape, tuple(K.ravel()))}[form]
+    shape, values = {
+        SCALAR_GAIN: ((), (K[0, 0],)),
+        DIAGONAL_GAIN: ((K.shape[0],), tuple(np.diag(K))),
+        MATRIX_GAIN: (K.shape, tuple(K.ravel())),
+    }[form]
     return shape, tuple(map(float, values))
 
 
@@ -187,7 +194,13 @@ class RuntimeParameter:
 
     def __post_init__(self):
         assert len(self.default) == self.size, (self.name, self.shape, self.default)
-        assert self.bounds is None or not self.bounds.positive_definite or (
-            len(self.shape) == 2 and self.shape[0] == self.shape[1]), (self.name, self.shape)
+        assert (
+            self.bounds is None
+            or not self.bounds.positive_definite
+            or (len(self.shape) == 2 and self.shape[0] == self.shape[1])
+        ), (self.name, self.shape)
         assert self.bounds is None or self.bounds.violation(np.reshape(self.default, self.shape)) is None, (
-            self.name, self.default, self.bounds)
+            self.name,
+            self.default,
+            self.bounds,
+        )

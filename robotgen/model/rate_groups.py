@@ -17,6 +17,7 @@ until the writer's next tick. Measurements go the other way without a buffer: ev
 reads the leaves' sensed state at its own ticks. Nodes above every controller (a root ATTACH)
 are evaluated by each group that has a controller below them, from the root trajectory the
 caller writes each tick; a leaf no controller drives takes its torque from the fastest group."""
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field
@@ -176,11 +177,18 @@ def partition(system: RobotSystem, group_of: dict[str, int], periods: tuple[floa
     controllers = [[c for c, g in group_of.items() if g == k] for k in range(n)]
     order = {node.name: i for i, node in enumerate(system.walk())}
     groups = tuple(
-        RateGroup(k, periods[k], max(1, round(periods[k] / periods[0])),
-                  tuple(sorted(controllers[k], key=order.__getitem__)), reads_root[k],
-                  tuple(sorted(reads[k], key=order.__getitem__)), tuple(sorted(writes[k], key=order.__getitem__)),
-                  tuple(drives[k]))
-        for k in range(n))
+        RateGroup(
+            k,
+            periods[k],
+            max(1, round(periods[k] / periods[0])),
+            tuple(sorted(controllers[k], key=order.__getitem__)),
+            reads_root[k],
+            tuple(sorted(reads[k], key=order.__getitem__)),
+            tuple(sorted(writes[k], key=order.__getitem__)),
+            tuple(drives[k]),
+        )
+        for k in range(n)
+    )
     return RateGroups(groups, dict(group_of))
 
 

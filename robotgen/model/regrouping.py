@@ -22,6 +22,7 @@ frame origin, the spatial Coriolis matrix and the derivative recursions are.
 The arithmetic is exact (rationals on the model's doubles) and each parameter is rounded once,
 so the printed constants are the same on every machine.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -52,12 +53,16 @@ class _Exact:
     I: _Matrix
 
     def plus(self, other: _Exact) -> _Exact:
-        return _Exact(self.m + other.m, [a + b for a, b in zip(self.h, other.h)],
-                      [[a + b for a, b in zip(r, s)] for r, s in zip(self.I, other.I)])
+        return _Exact(
+            self.m + other.m,
+            [a + b for a, b in zip(self.h, other.h)],
+            [[a + b for a, b in zip(r, s)] for r, s in zip(self.I, other.I)],
+        )
 
     def rounded(self) -> OriginParameters:
-        return OriginParameters(float(self.m), np.array([float(x) for x in self.h]),
-                                np.array([[float(x) for x in row] for row in self.I]))
+        return OriginParameters(
+            float(self.m), np.array([float(x) for x in self.h]), np.array([[float(x) for x in row] for row in self.I])
+        )
 
 
 def _exact(a) -> list:
@@ -85,8 +90,11 @@ def _split(p: _Exact, joint_type: str, axis: np.ndarray) -> tuple[_Exact, _Exact
             for i in range(3):
                 if i != k:
                     moved.I[i][i] = alpha
-    kept = _Exact(p.m - moved.m, [a - b for a, b in zip(p.h, moved.h)],
-                  [[a - b for a, b in zip(r, s)] for r, s in zip(p.I, moved.I)])
+    kept = _Exact(
+        p.m - moved.m,
+        [a - b for a, b in zip(p.h, moved.h)],
+        [[a - b for a, b in zip(r, s)] for r, s in zip(p.I, moved.I)],
+    )
     return kept, moved
 
 
@@ -99,8 +107,13 @@ def _to_parent(p: _Exact, origin: np.ndarray) -> _Exact:
     I = [[sum(RI[i][k] * R[j][k] for k in range(3)) for j in range(3)] for i in range(3)]
     rr = sum(x * x for x in r)
     rh = sum(a * b for a, b in zip(r, h))
-    shifted = [[I[i][j] - p.m * r[i] * r[j] - r[i] * h[j] - h[i] * r[j] + ((p.m * rr + 2 * rh) if i == j else 0)
-                for j in range(3)] for i in range(3)]
+    shifted = [
+        [
+            I[i][j] - p.m * r[i] * r[j] - r[i] * h[j] - h[i] * r[j] + ((p.m * rr + 2 * rh) if i == j else 0)
+            for j in range(3)
+        ]
+        for i in range(3)
+    ]
     return _Exact(p.m, [a + p.m * b for a, b in zip(h, r)], shifted)
 
 

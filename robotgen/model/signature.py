@@ -7,6 +7,7 @@ null space (m robot coordinates, fewer constraint rows) and internal forces when
 map G has one (more contact components than node coordinates); the children's unresolved
 ones are appended (eqs 5.2, 5.6). CONTROL may resolve them, masking them from above.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -96,7 +97,7 @@ def coordinate_units(system: RobotSystem, name: str) -> tuple[str, ...]:
     if isinstance(node, DefineNode):
         return leaf_units(node.leaf)
     if isinstance(node, ControlNode):
-        return coordinate_units(system, node.robot)[:sig.n_external] + internal
+        return coordinate_units(system, node.robot)[: sig.n_external] + internal
     c = node.constraint
     payload = system.leaf(node.payload) if node.payload else None
     if isinstance(payload, (PlanarBody, SpatialBody)):
@@ -174,9 +175,11 @@ def _attach_structure(system: RobotSystem, node: AttachNode) -> tuple[tuple[str,
             raise SignatureError(f"{c.kind} on '{node.name}' needs its contact points")
         external = leaf_coordinates(payload)
         if m != grasp.tip_dim * len(c.contacts):
-            raise SignatureError(f"attach '{node.name}': {len(c.contacts)} contacts need "
-                                 f"{grasp.tip_dim * len(c.contacts)} robot coordinates (fingertip "
-                                 f"{grasp.axes} each), got {m}")
+            raise SignatureError(
+                f"attach '{node.name}': {len(c.contacts)} contacts need "
+                f"{grasp.tip_dim * len(c.contacts)} robot coordinates (fingertip "
+                f"{grasp.axes} each), got {m}"
+            )
         rows = m  # J = I
         n_forces = m - grasp.pose_dim
     elif c.kind == CONSTRAINT_FORMULAS:
@@ -187,8 +190,10 @@ def _attach_structure(system: RobotSystem, node: AttachNode) -> tuple[tuple[str,
         raise SignatureError(f"unknown constraint kind '{c.kind}'")
     n_motions = m - rows
     if n_motions < 0 or n_forces < 0:
-        raise SignatureError(f"attach '{node.name}': {m} robot coordinates, {rows} constraint rows and "
-                             f"{len(external)} node coordinates do not fit (need m >= rows >= n)")
+        raise SignatureError(
+            f"attach '{node.name}': {m} robot coordinates, {rows} constraint rows and "
+            f"{len(external)} node coordinates do not fit (need m >= rows >= n)"
+        )
     return external, n_motions, n_forces
 
 
@@ -203,8 +208,10 @@ def _attach_signature(system: RobotSystem, node: AttachNode) -> Signature:
 
 def created_names(node: AttachNode, n_motions: int, n_forces: int) -> tuple[tuple[str, ...], tuple[str, ...]]:
     """Names of the internal motions and forces an ATTACH creates: <node>_m1.., <node>_f1.."""
-    return (tuple(f"{node.name}_m{k + 1}" for k in range(n_motions)),
-            tuple(f"{node.name}_f{k + 1}" for k in range(n_forces)))
+    return (
+        tuple(f"{node.name}_m{k + 1}" for k in range(n_motions)),
+        tuple(f"{node.name}_f{k + 1}" for k in range(n_forces)),
+    )
 
 
 def robot_leaves(system: RobotSystem, name: str | None = None) -> list[str]:

@@ -1,4 +1,5 @@
 """A spec's `simulation` section: how `robotgen simulate` runs the closed loop."""
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field

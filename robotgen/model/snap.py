@@ -13,6 +13,7 @@ removed: a rotation entry of 4.9e-12 (an rpy written as 1.57079632679, as the UR
 KUKA, Baxter and TIAGo files have it) or 1e-9 (romeo_laas_small's rpy) is what the file
 says, and robotgen keeps it as every other reader does (Pinocchio to 1e-12 on every file).
 """
+
 from __future__ import annotations
 
 import dataclasses
@@ -58,6 +59,5 @@ def snap_axis(axis: np.ndarray) -> np.ndarray:
 
 def snap_tree(tree: KinematicTree) -> KinematicTree:
     """The tree with every joint origin, axis and the tool snapped."""
-    joints = tuple(dataclasses.replace(j, origin=snap_rotation(j.origin), axis=snap_axis(j.axis))
-                   for j in tree.joints)
+    joints = tuple(dataclasses.replace(j, origin=snap_rotation(j.origin), axis=snap_axis(j.axis)) for j in tree.joints)
     return dataclasses.replace(tree, joints=joints, tool=snap_rotation(tree.tool))

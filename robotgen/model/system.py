@@ -3,6 +3,7 @@
 DEFINE makes a leaf (a chain, a URDF chain, formulas, or a payload body), ATTACH joins
 robots to a payload through a constraint, CONTROL puts a controller on a robot. Each node
 names its children; the tree is walked the same way at every level."""
+
 from __future__ import annotations
 
 from collections.abc import Iterator
@@ -270,9 +271,11 @@ class ControlNode:
         kf = self.kf_internal or 0.0
         if self.ki_internal * dt < 2 * (1 - kf):
             return None
-        return (f"ki_internal {self.ki_internal:g} with dt = {dt:g} s: the internal-force loop needs ki_internal dt "
-                f"< 2 (1 - kf_internal) = {2 * (1 - kf):g}, got {self.ki_internal * dt:g} (its poles leave the unit "
-                f"circle); lower ki_internal below {2 * (1 - kf) / dt:g} or dt")
+        return (
+            f"ki_internal {self.ki_internal:g} with dt = {dt:g} s: the internal-force loop needs ki_internal dt "
+            f"< 2 (1 - kf_internal) = {2 * (1 - kf):g}, got {self.ki_internal * dt:g} (its poles leave the unit "
+            f"circle); lower ki_internal below {2 * (1 - kf) / dt:g} or dt"
+        )
 
 
 Node = DefineNode | AttachNode | ControlNode

@@ -1,5 +1,6 @@
 """4x4 homogeneous transforms of constant geometry (DH rows, origins, tools), computed with
 robotgen.numeric.exact so that every entry is the same on every machine."""
+
 from __future__ import annotations
 
 import numpy as np

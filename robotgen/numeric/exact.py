@@ -16,6 +16,7 @@ and show in the emitted C. Every constant of the model is therefore computed her
 So each result is the correctly rounded value of its exact definition, the same on every
 machine and with every numpy, and no BLAS or libm call can change it.
 """
+
 from __future__ import annotations
 
 import math
@@ -74,8 +75,9 @@ def unit(v) -> np.ndarray:
 
 def cross(a, b) -> np.ndarray:
     """a x b for (3,) vectors, each entry an exact two-term dot product rounded once."""
-    return np.array([dot((a[1], -a[2]), (b[2], b[1])), dot((a[2], -a[0]), (b[0], b[2])),
-                     dot((a[0], -a[1]), (b[1], b[0]))])
+    return np.array(
+        [dot((a[1], -a[2]), (b[2], b[1])), dot((a[2], -a[0]), (b[0], b[2])), dot((a[0], -a[1]), (b[1], b[0]))]
+    )
 
 
 def outer(a, b) -> np.ndarray:
@@ -85,6 +87,7 @@ def outer(a, b) -> np.ndarray:
 
 def add(*terms) -> np.ndarray:
     """The exact sum of arrays (and scalars times arrays, as (s, A) pairs), rounded once."""
+
     def fractions(term):
         if isinstance(term, tuple):
             s, A = term
@@ -167,7 +170,7 @@ def _atan_dec(x: Decimal) -> Decimal:
         if t == 0 or abs(t) < Decimal(10) ** (-2 * _DIGITS):
             break
         s += t
-    return s * (2 ** halvings)
+    return s * (2**halvings)
 
 
 def _atan2_dec(y: Decimal, x: Decimal) -> Decimal:
@@ -185,12 +188,14 @@ def _atan2_dec(y: Decimal, x: Decimal) -> Decimal:
 def _cached(function):
     """``function`` of doubles, cached by each double's value and sign: a spec repeats its
     constants. (An lru_cache alone would answer f(-0.0) with f(0.0), the two being equal.)"""
+
     @lru_cache(maxsize=4096)
     def by_key(key: tuple[tuple[float, float], ...]) -> float:
         return function(*(value for value, _ in key))
 
     def f(*args: float) -> float:
         return by_key(tuple((a, math.copysign(1.0, a)) for a in map(float, args)))
+
     f.__name__ = function.__name__
     return f
 
@@ -200,6 +205,7 @@ def _rounded(compute, digits: int = _DIGITS):
     ``digits`` digits (rounding half to even, whatever the caller's context), rounded once
     to a double; a result past the decimal exponent range is an OverflowError, as the math
     module's."""
+
     def f(*args: float) -> float:
         with localcontext(DefaultContext) as ctx:
             ctx.prec = digits
@@ -207,12 +213,14 @@ def _rounded(compute, digits: int = _DIGITS):
                 return float(compute(*(_dec(a) for a in args)))
             except Overflow:
                 raise OverflowError(f"{compute.__name__}: result too large") from None
+
     f.__name__ = compute.__name__
     return _cached(f)
 
 
 def _trig(compute):
     """sin, cos or tan of a double, correctly rounded (``compute`` takes sin and cos of it)."""
+
     def f(x: float) -> float:
         if not math.isfinite(x):
             raise ValueError(f"math domain error in {compute.__name__}")
@@ -221,6 +229,7 @@ def _trig(compute):
         with localcontext(DefaultContext) as ctx:
             ctx.prec = _TRIG_DIGITS
             return float(compute(*_sin_cos_dec(x)))
+
     f.__name__ = compute.__name__
     return _cached(f)
 
@@ -313,7 +322,7 @@ def power(x: Decimal, y: Decimal) -> Decimal:
         _check_domain(x != 0 or y >= 0, "pow")
         return x ** int(y)
     _check_domain(x > 0 or (x == 0 and y > 0), "pow")
-    return x ** y
+    return x**y
 
 
 def sin_cos(angle: float) -> tuple[float, float]:
@@ -333,5 +342,9 @@ def parallel_axis(inertia, mass: float, d) -> np.ndarray:
     m = Fraction(float(mass))
     d = [Fraction(float(x)) for x in d]
     dd = sum((x * x for x in d), Fraction(0))
-    return np.array([[float(Fraction(float(I[i, j])) + m * ((dd if i == j else 0) - d[i] * d[j]))
-                      for j in range(3)] for i in range(3)])
+    return np.array(
+        [
+            [float(Fraction(float(I[i, j])) + m * ((dd if i == j else 0) - d[i] * d[j])) for j in range(3)]
+            for i in range(3)
+        ]
+    )

@@ -39,6 +39,7 @@ Wm f_(k+1/2) + W1 f_k) with f = C^T Q r and M = A_c^T,
 which is RK4 expanded for a linear equation (our algebra). Every product is the riccati
 module's fixed-order elementwise one, so the costate is the same on every machine.
 """
+
 from __future__ import annotations
 
 from collections.abc import Callable
@@ -111,8 +112,9 @@ def _forcing(C: np.ndarray, Q: np.ndarray, reference: Reference, half_grid: np.n
     return _matmul(r, _matmul(Q, C))
 
 
-def costate(servo: LinearServo, reference: Reference, t0: float, tf: float, steps: int
-            ) -> tuple[np.ndarray, np.ndarray]:
+def costate(
+    servo: LinearServo, reference: Reference, t0: float, tf: float, steps: int
+) -> tuple[np.ndarray, np.ndarray]:
     """(times (N+1,), g (N+1, nx)) of the steady servo on [t0, tf]: (S3) with A_c, from
     g(tf) = g_f (S4), the reference held at r(tf) after tf."""
     half, h = _grid(t0, tf, steps)
@@ -131,12 +133,11 @@ def costate(servo: LinearServo, reference: Reference, t0: float, tf: float, step
     g[steps] = servo.held_costate(np.ravel(reference(float(tf))))
     Tt = T.T
     for k in range(steps - 1, -1, -1):
-        g[k] = _matmul(g[k + 1:k + 2], Tt)[0] + c[k]
+        g[k] = _matmul(g[k + 1 : k + 2], Tt)[0] + c[k]
     return half[::2], g
 
 
-def finite_horizon(A, B, C, Q, R, reference: Reference, t0: float, tf: float, steps: int,
-                   F=None) -> FiniteHorizonServo:
+def finite_horizon(A, B, C, Q, R, reference: Reference, t0: float, tf: float, steps: int, F=None) -> FiniteHorizonServo:
     """The time-varying servo of (S2, S3) on [t0, tf] with the terminal cost
     (y - r)^T F (y - r) at tf (F default zero): P(tf) = C^T F C, g(tf) = C^T F r(tf),
     integrated backwards together by RK4."""

@@ -16,6 +16,7 @@ Method (Roberts 1980; Byers 1987; Kleinman 1968):
    (A - B K)^T P + P (A - B K) + Q + K^T R K = 0 (over the n(n+1)/2 entries of a symmetric
    P), which restores full accuracy.
 """
+
 from __future__ import annotations
 
 import math
@@ -37,7 +38,7 @@ def _matmul(A: np.ndarray, B: np.ndarray) -> np.ndarray:
     A, B = np.asarray(A, float), np.asarray(B, float)
     out = np.zeros((A.shape[0], B.shape[1]))
     for k in range(A.shape[1]):
-        out = out + A[:, k:k + 1] * B[k:k + 1, :]
+        out = out + A[:, k : k + 1] * B[k : k + 1, :]
     return out
 
 
@@ -52,9 +53,9 @@ def _solve(M: np.ndarray, rhs: np.ndarray) -> np.ndarray:
         if p != k:
             a[[k, p]] = a[[p, k]]
         a[k] = a[k] / a[k, k]
-        factors = a[:, k:k + 1].copy()
+        factors = a[:, k : k + 1].copy()
         factors[k] = 0.0
-        a = a - factors * a[k:k + 1, :]
+        a = a - factors * a[k : k + 1, :]
     return a[:, n:]
 
 
@@ -76,8 +77,9 @@ def _sign(H: np.ndarray) -> np.ndarray:
         Z = Z_next
         if change <= SIGN_TOLERANCE * _frobenius(Z):
             return Z
-    raise RiccatiError("the sign iteration did not converge (eigenvalues of the Hamiltonian "
-                       "on or near the imaginary axis)")
+    raise RiccatiError(
+        "the sign iteration did not converge (eigenvalues of the Hamiltonian on or near the imaginary axis)"
+    )
 
 
 def _lyapunov(Ac: np.ndarray, S: np.ndarray) -> np.ndarray:

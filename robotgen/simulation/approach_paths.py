@@ -11,6 +11,7 @@ rates are held over one control period dt (eq 12, theta = theta_i + integral of 
 ``module`` is a built module with both steps: a chain's (q, a 4x4 target pose) or a
 composite robot's (theta, its external coordinates).
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -37,8 +38,9 @@ class ApproachPath:
         return np.linalg.norm(self.error[:, rows], axis=1)
 
 
-def approach_paths(module, q0, target, arrival_time: float, dt: float,
-                   duration: float | None = None) -> tuple[ApproachPath, ApproachPath]:
+def approach_paths(
+    module, q0, target, arrival_time: float, dt: float, duration: float | None = None
+) -> tuple[ApproachPath, ApproachPath]:
     """(exponential, arrival) from joint positions q0 to ``target`` over ``duration``
     (default arrival_time) at control period dt. The spec's ``arrival.minimum_remaining``
     should be dt, so that the last call before arrival_time carries the hand onto the

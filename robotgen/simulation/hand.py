@@ -10,6 +10,7 @@ start (eq 11), or a MuJoCo model of the same chain whose hand holds each payload
 state and its torques are held over the period. An adaptive controller is run three times: adapting,
 with its identification frozen (adapt = False), and replaced by resolved acceleration
 control with its default gains, so that the plot compares them."""
+
 from __future__ import annotations
 
 import csv
@@ -54,7 +55,7 @@ class HandRun:
     def rms(self, mask: np.ndarray) -> float:
         """RMS of the hand position error's norm over the samples in ``mask`` [m]."""
         e = np.linalg.norm(self.position_error[mask], axis=1)
-        return float(np.sqrt(np.mean(e ** 2))) if e.size else float("nan")
+        return float(np.sqrt(np.mean(e**2))) if e.size else float("nan")
 
     def largest_torque_step(self, mask: np.ndarray | None = None) -> float:
         """max |tau(k+1) - tau(k)| over joints and the periods ending in ``mask`` [N m]."""
@@ -110,7 +111,7 @@ class Trajectory:
         """(pose (4, 4), twist (6,) [m/s, rad/s], its derivative (6,)) of the desired hand path at t [s]."""
         s, c = np.sin(self.w * t), np.cos(self.w * t)
         x = np.r_[self.p0, self.rpy0] + self.a * s
-        xd, xdd = self.a * self.w * c, -self.a * self.w ** 2 * s
+        xd, xdd = self.a * self.w * c, -self.a * self.w**2 * s
         R, omega, domega = (np.array(v) for v in self._angular(x[3:], xd[3:], xdd[3:]))
         pose = np.eye(4)
         pose[:3, :3], pose[:3, 3] = R, x[:3]
@@ -126,8 +127,11 @@ def rk4_step(tree, T: float) -> ca.Function:
     k2 = (qd + T / 2 * k1[1], f(q + T / 2 * k1[0], qd + T / 2 * k1[1], tau))
     k3 = (qd + T / 2 * k2[1], f(q + T / 2 * k2[0], qd + T / 2 * k2[1], tau))
     k4 = (qd + T * k3[1], f(q + T * k3[0], qd + T * k3[1], tau))
-    return ca.Function("rk4", [q, qd, tau], [q + T / 6 * (k1[0] + 2 * k2[0] + 2 * k3[0] + k4[0]),
-                                             qd + T / 6 * (k1[1] + 2 * k2[1] + 2 * k3[1] + k4[1])])
+    return ca.Function(
+        "rk4",
+        [q, qd, tau],
+        [q + T / 6 * (k1[0] + 2 * k2[0] + 2 * k3[0] + k4[0]), qd + T / 6 * (k1[1] + 2 * k2[1] + 2 * k3[1] + k4[1])],
+    )
 
 
 def refusal(system: RobotSystem) -> str | None:
@@ -143,22 +147,30 @@ def comparison_system(system: RobotSystem) -> RobotSystem | None:
     node = system.root_control
     if not isinstance(node.hand, AdaptiveSettings):
         return None
-    hand = ResolvedAccelerationSettings(node.hand.period, node.hand.tool, np.full(HAND_DOF, DEFAULT_KP),
-                                        np.full(HAND_DOF, DEFAULT_KV))
+    hand = ResolvedAccelerationSettings(
+        node.hand.period, node.hand.tool, np.full(HAND_DOF, DEFAULT_KP), np.full(HAND_DOF, DEFAULT_KV)
+    )
     root = dataclasses.replace(node, law=RESOLVED_ACCELERATION, hand=hand)
     return dataclasses.replace(system, name=f"{system.name}_rac", nodes={**system.nodes, system.root: root})
 
 
-def simulate(module, system: RobotSystem, s: SimulationSettings, plant: str, comparison=None
-             ) -> tuple[HandResult, str | None]:
+def simulate(
+    module, system: RobotSystem, s: SimulationSettings, plant: str, comparison=None
+) -> tuple[HandResult, str | None]:
     """Every run against ``plant`` (``comparison``: the module of comparison_system, if any),
     and the MuJoCo plant's MJCF or None: the laws' simulation entry (robotgen.model.laws.registry)."""
     result = run(module, system, s, comparison, plant=plant)
     return result, result.mjcf
 
 
-def run(module, system: RobotSystem, s: SimulationSettings, comparison=None,
-        keys: tuple[str, ...] | None = None, plant: str = ROBOTGEN_PLANT) -> HandResult:
+def run(
+    module,
+    system: RobotSystem,
+    s: SimulationSettings,
+    comparison=None,
+    keys: tuple[str, ...] | None = None,
+    plant: str = ROBOTGEN_PLANT,
+) -> HandResult:
     """Every run of the spec's controller (``comparison``: the module of comparison_system,
     run too when the controller is adaptive), or those of ``keys`` (adaptive, frozen, rac),
     against ``plant`` (robotgen or mujoco)."""
@@ -187,6 +199,7 @@ def run(module, system: RobotSystem, s: SimulationSettings, comparison=None,
         def rk4_plant(stage: int, q: np.ndarray, qd: np.ndarray, tau: np.ndarray) -> tuple[np.ndarray, ...]:
             with np.errstate(all="ignore"):
                 return tuple(np.array(v).ravel() for v in plants[stage](q, qd, tau))
+
         step = rk4_plant
     _, p0, rpy0 = (np.array(v) for v in pose_f(q0))
     trajectory = Trajectory(p0.ravel(), rpy0.ravel(), s.amplitude, s.frequency)
@@ -199,10 +212,17 @@ def run(module, system: RobotSystem, s: SimulationSettings, comparison=None,
     if isinstance(node.hand, AdaptiveSettings):
         setups: list[tuple[str, str, type, bool | None]] = [
             ("adaptive", "adaptive", module.AdaptiveController, True),
-                  ("frozen", "identification frozen (adapt = False)", module.AdaptiveController, False)]
+            ("frozen", "identification frozen (adapt = False)", module.AdaptiveController, False),
+        ]
         if comparison is not None:
-            setups.append(("rac", f"resolved acceleration (Kp = {DEFAULT_KP:g}, Kv = {DEFAULT_KV:g})",
-                           comparison.ResolvedAccelerationController, None))
+            setups.append(
+                (
+                    "rac",
+                    f"resolved acceleration (Kp = {DEFAULT_KP:g}, Kv = {DEFAULT_KV:g})",
+                    comparison.ResolvedAccelerationController,
+                    None,
+                )
+            )
     else:
         setups = [("rac", node.law.replace("_", " "), module.ResolvedAccelerationController, None)]
     switch = np.searchsorted([c.at for c in s.payload_changes], t, side="right")  # the plant at each t
@@ -239,8 +259,10 @@ def _closed_loop(controller, trajectory: Trajectory, step, switch, pose_f, q0, q
         except Diverged:
             q = np.full_like(q, np.nan)
         if not (np.all(np.abs(q) < DIVERGED) and np.all(np.abs(qd) < DIVERGED)):
-            raise SimulationError(f"the {label} loop diverged at t = {t[k + 1]:.4f} s (q = {np.round(q, 4)}); "
-                                  "lower the controller's gains or weights")
+            raise SimulationError(
+                f"the {label} loop diverged at t = {t[k + 1]:.4f} s (q = {np.round(q, 4)}); "
+                "lower the controller's gains or weights"
+            )
     return HandRun(key, label, np.array(P), np.array(EP), np.array(EO), np.array(TAU))
 
 
@@ -314,8 +336,11 @@ def _windows(result: HandResult) -> tuple[list[str], list[np.ndarray]]:
 def _header(result: HandResult) -> list[str]:
     lines = []
     for change in result.changes:
-        com = "" if not any(change.com) else f", centre of mass ({', '.join(f'{v:g}' for v in change.com)}) m " \
-                                             "in the hand frame"
+        com = (
+            ""
+            if not any(change.com)
+            else f", centre of mass ({', '.join(f'{v:g}' for v in change.com)}) m in the hand frame"
+        )
         lines.append(f"payload {change.mass:g} kg at the hand from t = {change.at:g} s{com}")
     return lines
 
@@ -323,31 +348,46 @@ def _header(result: HandResult) -> list[str]:
 def summary(result: HandResult) -> str:
     """Per run: the RMS hand position error before the first change, over the first second
     after each change and over the last second, and the largest torque step per period."""
-    lines = [f"simulated {result.t[-1]:.3f} s in {len(result.t) - 1} periods on the {result.plant} plant "
-             f"({result.plant_note})"] + _header(result)
+    lines = [
+        f"simulated {result.t[-1]:.3f} s in {len(result.t) - 1} periods on the {result.plant} plant "
+        f"({result.plant_note})"
+    ] + _header(result)
     columns, windows = _windows(result)
     lines.append("RMS hand position error [mm], and the largest torque step per period [N m]:")
     lines.append(f"  {'':40} " + " ".join(f"{c:>12}" for c in columns) + f" {'max |dtau|':>11}")
     for r in result.runs:
-        lines.append(f"  {r.label:>40} " + " ".join(f"{1e3 * r.rms(m):12.4f}" for m in windows)
-                     + f" {r.largest_torque_step():11.2f}")
+        lines.append(
+            f"  {r.label:>40} "
+            + " ".join(f"{1e3 * r.rms(m):12.4f}" for m in windows)
+            + f" {r.largest_torque_step():11.2f}"
+        )
     return "\n".join(lines)
 
 
 def compare(a: HandResult, b: HandResult) -> str:
     """Both plants' runs side by side, and how closely the hand paths agree."""
-    lines = [f"simulated {a.t[-1]:.3f} s in {len(a.t) - 1} periods on both plants:",
-             f"  {a.plant}: {a.plant_note}", f"  {b.plant}: {b.plant_note}"] + _header(a)
+    lines = [
+        f"simulated {a.t[-1]:.3f} s in {len(a.t) - 1} periods on both plants:",
+        f"  {a.plant}: {a.plant_note}",
+        f"  {b.plant}: {b.plant_note}",
+    ] + _header(a)
     columns, windows = _windows(a)
     lines.append("RMS hand position error [mm], and the largest torque step per period [N m]:")
     lines.append(f"  {'':40} {'plant':>9} " + " ".join(f"{c:>12}" for c in columns) + f" {'max |dtau|':>11}")
     for ra, rb in zip(a.runs, b.runs):
         for plant, r in ((a.plant, ra), (b.plant, rb)):
-            lines.append(f"  {r.label:>40} {plant:>9} " + " ".join(f"{1e3 * r.rms(m):12.4f}" for m in windows)
-                         + f" {r.largest_torque_step():11.2f}")
-    worst = [(ra.label, float(np.abs(ra.p - rb.p).max()), float(np.abs(ra.tau - rb.tau).max()))
-             for ra, rb in zip(a.runs, b.runs)]
-    lines.append(f"the plants agree: largest |p_{a.plant} - p_{b.plant}| over the run (hand position), and "
-                 f"|tau_{a.plant} - tau_{b.plant}|:")
+            lines.append(
+                f"  {r.label:>40} {plant:>9} "
+                + " ".join(f"{1e3 * r.rms(m):12.4f}" for m in windows)
+                + f" {r.largest_torque_step():11.2f}"
+            )
+    worst = [
+        (ra.label, float(np.abs(ra.p - rb.p).max()), float(np.abs(ra.tau - rb.tau).max()))
+        for ra, rb in zip(a.runs, b.runs)
+    ]
+    lines.append(
+        f"the plants agree: largest |p_{a.plant} - p_{b.plant}| over the run (hand position), and "
+        f"|tau_{a.plant} - tau_{b.plant}|:"
+    )
     lines += [f"  {label:>40} {dp:.3g} m, {dtau:.3g} N m" for label, dp, dtau in worst]
     return "\n".join(lines)

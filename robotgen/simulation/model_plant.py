@@ -2,6 +2,7 @@
 tree's composite dynamics, Deno et al. 1990, eq 2.3) integrated by classical RK4, with the
 spec's wall pushing on it (robotgen.simulation.wall_contact) and its payloads' masses set
 mid-run (run-time parameters)."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -45,12 +46,13 @@ class ModulePlant:
 
     def position(self, theta: np.ndarray) -> np.ndarray:
         """The root's external positions at leaf positions theta (nq,), by the module's plant_position."""
-        return self.module.plant_position(theta)[:self.n_ext]
+        return self.module.plant_position(theta)[: self.n_ext]
 
     def internal_forces(self, tau: np.ndarray) -> np.ndarray:
         """The plant's internal forces under leaf torques tau (nq,), the wall's push included."""
-        return self.module.plant_internal_forces(self.theta, self.v, self._pushed(self.theta, self.v, tau),
-                                                 **self.masses)
+        return self.module.plant_internal_forces(
+            self.theta, self.v, self._pushed(self.theta, self.v, tau), **self.masses
+        )
 
     def sensed_forces(self, tau_before: np.ndarray) -> np.ndarray:
         """What the leaves exert through the grasps and on the wall now, the last torques still
@@ -71,15 +73,19 @@ class ModulePlant:
 
     def step(self, tau: np.ndarray, dt: float, when: str) -> None:
         """One period on; ``when`` says which, for the message if the loop diverges."""
-        theta_next, v_next = _rk4(lambda th, vel: self.module.plant_dynamics(th, vel, self._pushed(th, vel, tau),
-                                                                             **self.masses),
-                                  self.theta, self.v, dt)
+        theta_next, v_next = _rk4(
+            lambda th, vel: self.module.plant_dynamics(th, vel, self._pushed(th, vel, tau), **self.masses),
+            self.theta,
+            self.v,
+            dt,
+        )
         if not (np.all(np.abs(theta_next) < DIVERGED) and np.all(np.abs(v_next) < DIVERGED)):
             raise SimulationError(
                 f"the closed loop diverged {when}: the state before the blow-up was theta = "
                 f"{format_values(self.theta)}, root velocity = {format_values(self.v)}, torque = "
                 f"{format_values(tau)}; the gains are too high for dt = {dt:g} s or the loop is unstable: lower kp "
-                "and kv, or dt")
+                "and kv, or dt"
+            )
         self.theta, self.v = theta_next, v_next
 
 
@@ -93,5 +99,7 @@ def _rk4(f, theta, v, dt):
             k4 = f(theta + dt * k3[0], v + dt * k3[1])
         except FloatingPointError:  # a stage left the finite numbers: the checked plant refuses it
             return np.full_like(theta, np.nan), np.full_like(v, np.nan)
-        return (theta + dt / 6 * (k1[0] + 2 * k2[0] + 2 * k3[0] + k4[0]),
-                v + dt / 6 * (k1[1] + 2 * k2[1] + 2 * k3[1] + k4[1]))
+        return (
+            theta + dt / 6 * (k1[0] + 2 * k2[0] + 2 * k3[0] + k4[0]),
+            v + dt / 6 * (k1[1] + 2 * k2[1] + 2 * k3[1] + k4[1]),
+        )

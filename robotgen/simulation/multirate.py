@@ -3,6 +3,7 @@ own period, the plant stepped at the fastest) beside the single-rate servo_step 
 (every controller at the fastest period), on one plant; the report gives each run's tracking
 error and its cost in arithmetic operations per second of control (each group's operations
 per step times its rate, summed)."""
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -55,12 +56,11 @@ def cost(info: dict) -> Cost:
 def run(module, settings, rest, plant=ModulePlant) -> tuple[Result, Result]:
     """(the multi-rate run, the single-rate run), both stepping the plant every settings.dt
     (the fastest period)."""
-    return (simulate.run(module, settings, rest, plant, multirate=True),
-            simulate.run(module, settings, rest, plant))
+    return (simulate.run(module, settings, rest, plant, multirate=True), simulate.run(module, settings, rest, plant))
 
 
 def _rms(e: np.ndarray) -> np.ndarray:
-    return np.sqrt(np.mean(e ** 2, axis=0))
+    return np.sqrt(np.mean(e**2, axis=0))
 
 
 def compare(multi: Result, single: Result, info: dict) -> str:
@@ -68,26 +68,33 @@ def compare(multi: Result, single: Result, info: dict) -> str:
     cost of each."""
     c = cost(info)
     base = c.groups[0].period
-    lines = [f"simulated {multi.t[-1]:.3f} s in {len(multi.t) - 1} steps of {base:g} s on the {multi.plant} plant"
-             + (f" ({multi.plant_note})" if multi.plant_note else ""),
-             "rate groups:"]
+    lines = [
+        f"simulated {multi.t[-1]:.3f} s in {len(multi.t) - 1} steps of {base:g} s on the {multi.plant} plant"
+        + (f" ({multi.plant_note})" if multi.plant_note else ""),
+        "rate groups:",
+    ]
     for g in c.groups:
         lines.append(f"  {g.step}: {', '.join(g.controllers)} at {1 / g.period:g} Hz")
     head = f"single rate (every controller at {1 / base:g} Hz)"
     late = multi.t >= multi.t[-1] / 2
-    lines += ["tracking error x - x_d (RMS over the run, and largest over its second half), side by side:",
-              f"  {'':>12}  {'multi-rate':<33}  {'':>12}{head}"]
+    lines += [
+        "tracking error x - x_d (RMS over the run, and largest over its second half), side by side:",
+        f"  {'':>12}  {'multi-rate':<33}  {'':>12}{head}",
+    ]
     for i, name in enumerate(multi.names):
         unit = multi.units[i] if i < len(multi.units) else ""
         em, es = multi.error[:, i], single.error[:, i]
-        lines.append(f"  {name:>12}  rms {_rms(em):.3e}, late max {np.abs(em[late]).max():.3e}  {'':>12}"
-                     f"rms {_rms(es):.3e}, late max {np.abs(es[late]).max():.3e}{f' [{unit}]' if unit else ''}")
+        lines.append(
+            f"  {name:>12}  rms {_rms(em):.3e}, late max {np.abs(em[late]).max():.3e}  {'':>12}"
+            f"rms {_rms(es):.3e}, late max {np.abs(es[late]).max():.3e}{f' [{unit}]' if unit else ''}"
+        )
     lines.append("operations per second of control (each step's arithmetic operations times its rate):")
     for g in c.groups:
         lines.append(f"  multi-rate   {g.step}: {g.operations:6d} x {1 / g.period:8g} Hz = {g.per_second:12.0f}")
     lines.append(f"  multi-rate   total: {c.multi_rate:31.0f}")
-    lines.append(f"  single rate  {c.single.step}: {c.single.operations:6d} x {1 / base:8g} Hz = "
-                 f"{c.single.per_second:12.0f}")
+    lines.append(
+        f"  single rate  {c.single.step}: {c.single.operations:6d} x {1 / base:8g} Hz = {c.single.per_second:12.0f}"
+    )
     lines.append(f"the multi-rate tree costs {c.multi_rate / c.single.per_second:.3f} of the single-rate one")
     for label, result in (("the multi-rate run", multi), ("the single-rate run", single)):
         contacts = simulate.contact_lines(result)

@@ -6,6 +6,7 @@ outputs torques. The chain starts at the simulation's theta0 at rest and the reg
 brings it back to the nominal posture q0: the "tracking error" is q - q0. The plant is the
 chain's forward dynamics integrated by RK4 (robotgen.simulation.hand.rk4_step) or a MuJoCo model of
 the same chain (robotgen.simulation.mujoco), the torque held over each period dt."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -30,9 +31,11 @@ def refusal(system: RobotSystem) -> str | None:
     rates, so only a chain's regulator (lqr settings) is simulated."""
     if system.rate_controls_composite or system.root_control.chain_rate.lqr is None:
         where = hint("python-api", "Resolved-rate controllers")
-        return ("simulate runs torque controllers; a resolved_rate controller outputs joint rates (with lqr "
-                "settings its regulator's lqr_step is simulated): integrate its rate_step / position_step "
-                f"({where} shows how)")
+        return (
+            "simulate runs torque controllers; a resolved_rate controller outputs joint rates (with lqr "
+            "settings its regulator's lqr_step is simulated): integrate its rate_step / position_step "
+            f"({where} shows how)"
+        )
     return None
 
 
@@ -41,8 +44,9 @@ def comparison_system(system: RobotSystem) -> None:
     return None
 
 
-def simulate(module, system: RobotSystem, s: SimulationSettings, plant: str, comparison=None
-             ) -> tuple[Result, str | None]:
+def simulate(
+    module, system: RobotSystem, s: SimulationSettings, plant: str, comparison=None
+) -> tuple[Result, str | None]:
     """The laws' simulation entry (robotgen.model.laws.registry): ``run``; ``comparison`` is
     always None."""
     return run(module, system, s, plant)
@@ -68,6 +72,7 @@ def run(module, system: RobotSystem, s: SimulationSettings, plant: str = ROBOTGE
         def rk4_plant(stage: int, q: np.ndarray, qd: np.ndarray, tau: np.ndarray) -> tuple[np.ndarray, ...]:
             with np.errstate(all="ignore"):
                 return tuple(np.array(v).ravel() for v in rk4(q, qd, tau))
+
         step = rk4_plant
     steps = int(round(s.duration / s.dt))
     T, Q, TAU = [], [], []
@@ -83,14 +88,26 @@ def run(module, system: RobotSystem, s: SimulationSettings, plant: str = ROBOTGE
         except Diverged:
             q_next = qd_next = np.full_like(q, np.nan)
         if not (np.all(np.abs(q_next) < DIVERGED) and np.all(np.abs(qd_next) < DIVERGED)):
-            raise SimulationError(f"the regulated loop diverged at t = {(k + 1) * s.dt:.4f} s (step {k + 1} of "
-                                  f"{steps}): the state before the blow-up was q = {format_values(q)}, qd = "
-                                  f"{format_values(qd)}, torque = {format_values(tau)}; lower dt")
+            raise SimulationError(
+                f"the regulated loop diverged at t = {(k + 1) * s.dt:.4f} s (step {k + 1} of "
+                f"{steps}): the state before the blow-up was q = {format_values(q)}, qd = "
+                f"{format_values(qd)}, torque = {format_values(tau)}; lower dt"
+            )
         q, qd = q_next, qd_next
     names = [j.name for j in tree.joints]
     units = [RADIAN if j.type == REVOLUTE else METRE for j in tree.joints]
     t = np.array(T)
-    result = Result(t, np.array(Q), np.tile(nominal, (t.size, 1)), np.array(TAU), np.array(Q), names, units,
-                    names, units, plant=plant, plant_note=note)
+    result = Result(
+        t,
+        np.array(Q),
+        np.tile(nominal, (t.size, 1)),
+        np.array(TAU),
+        np.array(Q),
+        names,
+        units,
+        names,
+        units,
+        plant=plant,
+        plant_note=note,
+    )
     return result, mjcf
-

@@ -11,6 +11,7 @@ the leaves exert, as a period's end senses them), and its torques are held over 
 (robotgen.simulation.mujoco.run.TreePlant: a MuJoCo model of the same bodies, with contacts) can
 take its place.
 """
+
 from __future__ import annotations
 
 import csv
@@ -36,6 +37,7 @@ RESIDUAL_TOLERANCE = 1e-6
 @dataclass
 class Result:
     """A servo simulation: times t [s], root positions x and x_d, torques tau, leaf positions theta, names and units."""
+
     t: np.ndarray
     x: np.ndarray  # root positions
     x_d: np.ndarray
@@ -84,8 +86,9 @@ def desired(s: Settings, x0: np.ndarray, t: float):
     return x0 + a * np.sin(w * t), a * w * np.cos(w * t), -a * w * w * np.sin(w * t)
 
 
-def _start(module, s: Settings, rest: Sequence[float] | np.ndarray,
-           n_ext: int) -> tuple[np.ndarray, np.ndarray, str | None]:
+def _start(
+    module, s: Settings, rest: Sequence[float] | np.ndarray, n_ext: int
+) -> tuple[np.ndarray, np.ndarray, str | None]:
     """(theta at t = 0, x_d(0), the field that chose theta or None for the rest posture)."""
     if s.theta0 is not None:
         theta = np.asarray(s.theta0, float)
@@ -93,9 +96,12 @@ def _start(module, s: Settings, rest: Sequence[float] | np.ndarray,
         return theta, x0, "theta0"
     if s.start is not None:
         if not hasattr(module, "plant_inverse"):
-            raise SimulationError("start needs inverse kinematics in every attach (formulas leaves with "
-                                  "inverse_kinematics, or h_inverse); give theta0 (the leaf joint "
-                                  "positions) instead", "start")
+            raise SimulationError(
+                "start needs inverse kinematics in every attach (formulas leaves with "
+                "inverse_kinematics, or h_inverse); give theta0 (the leaf joint "
+                "positions) instead",
+                "start",
+            )
         x0 = np.asarray(s.start, float)
         err = np.zeros(n_ext) if not s.initial_error else np.asarray(s.initial_error, float)
         return module.plant_inverse(x0 + err), x0, "start"
@@ -109,24 +115,34 @@ def _check_constraints(module, theta: np.ndarray, source: str | None) -> None:
         return
     r = module.constraint_residual(theta)
     if not np.all(np.isfinite(r)):
-        raise SimulationError("the start posture is outside the reach of the inverse kinematics (the "
-                              f"constraint residual is {format_values(r)}); give simulation.start inside the "
-                              "workspace, or theta0", source)
+        raise SimulationError(
+            "the start posture is outside the reach of the inverse kinematics (the "
+            f"constraint residual is {format_values(r)}); give simulation.start inside the "
+            "workspace, or theta0",
+            source,
+        )
     worst = int(np.argmax(np.abs(r)))
     if abs(r[worst]) <= RESIDUAL_TOLERANCE:
         return
     name = info["constraint_residual"][worst]
     attach, coordinate = name.split(".", 1)
-    what = {"theta0": "theta0 violates", "start": "the plant's start (start + initial_error) violates",
-            None: "with no simulation section (neither theta0 nor start), the simulation starts at the "
-                  "joints' mid-range (or zero) posture, which violates"}[source]
+    what = {
+        "theta0": "theta0 violates",
+        "start": "the plant's start (start + initial_error) violates",
+        None: "with no simulation section (neither theta0 nor start), the simulation starts at the "
+        "joints' mid-range (or zero) posture, which violates",
+    }[source]
     advice = "" if source else "; give simulation.start (root positions) or theta0"
-    raise SimulationError(f"{what} the constraint of attach '{attach}': residual {r[worst]:.3g} in "
-                          f"'{coordinate}' (y - h^-1(h(y)), largest of {format_values(r)}){advice}", source)
+    raise SimulationError(
+        f"{what} the constraint of attach '{attach}': residual {r[worst]:.3g} in "
+        f"'{coordinate}' (y - h^-1(h(y)), largest of {format_values(r)}){advice}",
+        source,
+    )
 
 
-def run(module, s: Settings, rest: Sequence[float] | np.ndarray | None = None, plant=ModulePlant,
-        multirate: bool = False) -> Result:
+def run(
+    module, s: Settings, rest: Sequence[float] | np.ndarray | None = None, plant=ModulePlant, multirate: bool = False
+) -> Result:
     """The closed loop from the settings; ``rest`` is the leaf posture used when the
     settings give neither theta0 nor start; ``plant(module, theta, theta_dot, v, n_ext)``
     makes the plant it is closed around, given the settings' wall (set_wall) and its payloads'
@@ -197,12 +213,26 @@ def run(module, s: Settings, rest: Sequence[float] | np.ndarray | None = None, p
     on_root = bool(s.force) and s.wall is not None and info["nodes"][s.wall.node]["coordinates"] == root["coordinates"]
     # pushed into the wall
     commanded = float(-f_e[:n_ext] @ np.asarray(s.wall.normal)) if on_root and s.wall is not None else float("nan")
-    return Result(np.array(T), np.array(X), np.array(XD), np.array(TAU), np.array(TH),
-                  list(root["coordinates"]), list(root["units"][:n_ext]), joints, joint_units, names,
-                  np.array(FI) if reads_forces else None,
-                  np.array([commands.get(n, np.nan) for n in names]) if reads_forces else None,
-                  p.name, getattr(p, "history", None), getattr(p, "note", ""),
-                  np.array(WALL) if s.wall is not None else None, commanded, tuple(s.payload_changes))
+    return Result(
+        np.array(T),
+        np.array(X),
+        np.array(XD),
+        np.array(TAU),
+        np.array(TH),
+        list(root["coordinates"]),
+        list(root["units"][:n_ext]),
+        joints,
+        joint_units,
+        names,
+        np.array(FI) if reads_forces else None,
+        np.array([commands.get(n, np.nan) for n in names]) if reads_forces else None,
+        p.name,
+        getattr(p, "history", None),
+        getattr(p, "note", ""),
+        np.array(WALL) if s.wall is not None else None,
+        commanded,
+        tuple(s.payload_changes),
+    )
 
 
 def _pad(a: np.ndarray, n: int) -> np.ndarray:
@@ -223,8 +253,13 @@ def write_csv(result: Result, path: Path) -> None:
     contact_keys = ("normal", "tangential", "usage", "slip", "gap")
     with open(path, "w", newline="") as f:
         w = csv.writer(f)
-        header = (["t"] + [f"x_{n}" for n in result.names] + [f"xref_{n}" for n in result.names]
-                  + [f"tau_{j}" for j in result.joints] + [f"f_{n}" for n in fi])
+        header = (
+            ["t"]
+            + [f"x_{n}" for n in result.names]
+            + [f"xref_{n}" for n in result.names]
+            + [f"tau_{j}" for j in result.joints]
+            + [f"f_{n}" for n in fi]
+        )
         if result.wall_force is not None:
             header.append("fn_wall")
         if pose is not None:
@@ -234,9 +269,13 @@ def write_csv(result: Result, path: Path) -> None:
         w.writerow(header)
         columns = [c.array(key) for key in contact_keys] if c is not None else []
         for k in range(len(result.t)):
-            row = ([f"{result.t[k]:.6f}"] + [f"{v:.10g}" for v in result.x[k]]
-                   + [f"{v:.10g}" for v in result.x_d[k]] + [f"{v:.10g}" for v in result.tau[k]]
-                   + [f"{v:.10g}" for v in (result.f_actual[k] if fi and result.f_actual is not None else [])])
+            row = (
+                [f"{result.t[k]:.6f}"]
+                + [f"{v:.10g}" for v in result.x[k]]
+                + [f"{v:.10g}" for v in result.x_d[k]]
+                + [f"{v:.10g}" for v in result.tau[k]]
+                + [f"{v:.10g}" for v in (result.f_actual[k] if fi and result.f_actual is not None else [])]
+            )
             if result.wall_force is not None:
                 row.append(f"{result.wall_force[k]:.10g}")
             row += [f"{v:.10g}" for v in (pose[k] if pose is not None else [])]
@@ -261,8 +300,13 @@ def plot(result: Result, path: Path, title: str) -> None:
     force_groups = _by_unit(result.joints, [FORCE_UNITS[u] for u in result.joint_units])
     contacts = result.contacts
     pose = result.payload_pose
-    n_rows = (2 * len(groups) + len(force_groups) + (result.f_actual is not None) + 2 * (contacts is not None)
-              + (result.wall_force is not None))
+    n_rows = (
+        2 * len(groups)
+        + len(force_groups)
+        + (result.f_actual is not None)
+        + 2 * (contacts is not None)
+        + (result.wall_force is not None)
+    )
     fig, grid = plt.subplots(n_rows, 1, figsize=(9, 2.3 * n_rows), sharex=True, squeeze=False)
     axes = list(grid[:, 0])
     colors = plt.rcParams["axes.prop_cycle"].by_key()["color"]
@@ -271,8 +315,9 @@ def plot(result: Result, path: Path, title: str) -> None:
         for n, i in enumerate(indices):
             c = colors[n % len(colors)]
             ax.plot(result.t, result.x[:, i], color=c, label=f"{result.names[i]}")
-            ax.plot(result.t, result.x_d[:, i], color=c, linestyle="--", linewidth=1,
-                    label=f"{result.names[i]} desired")
+            ax.plot(
+                result.t, result.x_d[:, i], color=c, linestyle="--", linewidth=1, label=f"{result.names[i]} desired"
+            )
         ax.set_ylabel(f"position{_unit(unit)}")
         ax.legend(loc="upper right", fontsize=7, ncol=2)
         ax.grid(True, alpha=0.3)
@@ -280,8 +325,13 @@ def plot(result: Result, path: Path, title: str) -> None:
         for n, i in enumerate(indices):
             ax.plot(result.t, result.error[:, i], color=colors[n % len(colors)], label=result.names[i])
             if pose is not None:
-                ax.plot(result.t, pose[:, i] - result.x_d[:, i], color=colors[n % len(colors)], linestyle=":",
-                        label=f"{result.names[i]}, payload's true pose")
+                ax.plot(
+                    result.t,
+                    pose[:, i] - result.x_d[:, i],
+                    color=colors[n % len(colors)],
+                    linestyle=":",
+                    label=f"{result.names[i]}, payload's true pose",
+                )
         ax.set_ylabel(f"error x - x_d{_unit(unit)}")
         ax.legend(loc="upper right", fontsize=7, ncol=3)
         ax.grid(True, alpha=0.3)
@@ -299,8 +349,14 @@ def plot(result: Result, path: Path, title: str) -> None:
             c = colors[n % len(colors)]
             ax.plot(result.t, result.f_actual[:, n], color=c, label=name)
             if np.isfinite(result.f_commanded[n]):
-                ax.plot(result.t, np.full_like(result.t, result.f_commanded[n]), color=c, linestyle="--",
-                        linewidth=1, label=f"{name} commanded")
+                ax.plot(
+                    result.t,
+                    np.full_like(result.t, result.f_commanded[n]),
+                    color=c,
+                    linestyle="--",
+                    linewidth=1,
+                    label=f"{name} commanded",
+                )
         ax.set_ylabel("internal force")
         ax.legend(loc="upper right", fontsize=7, ncol=3)
         ax.grid(True, alpha=0.3)
@@ -308,8 +364,14 @@ def plot(result: Result, path: Path, title: str) -> None:
         ax = axes.pop(0)
         ax.plot(result.t, result.wall_force, color=colors[0], label="normal force on the wall")
         if np.isfinite(result.wall_commanded):
-            ax.plot(result.t, np.full_like(result.t, result.wall_commanded), color=colors[0], linestyle="--",
-                    linewidth=1, label="commanded (f_e along the normal)")
+            ax.plot(
+                result.t,
+                np.full_like(result.t, result.wall_commanded),
+                color=colors[0],
+                linestyle="--",
+                linewidth=1,
+                label="commanded (f_e along the normal)",
+            )
         ax.set_ylabel("wall force\nf_n [N]")
         ax.legend(loc="upper right", fontsize=7, ncol=2)
         ax.grid(True, alpha=0.3)
@@ -348,10 +410,12 @@ def _by_unit(names: list[str], units: list[str]) -> dict[str, list[int]]:
 
 def summary(result: Result) -> str:
     """The lines simulate prints: the run, then each root coordinate's largest and final tracking error."""
-    lines = [f"simulated {result.t[-1]:.3f} s in {len(result.t) - 1} steps on the {result.plant} plant "
-             f"({result.plant_note})" if result.plant_note else
-             f"simulated {result.t[-1]:.3f} s in {len(result.t) - 1} steps on the {result.plant} plant",
-             "tracking error x - x_d (largest over the run, and at the end):"]
+    lines = [
+        f"simulated {result.t[-1]:.3f} s in {len(result.t) - 1} steps on the {result.plant} plant ({result.plant_note})"
+        if result.plant_note
+        else f"simulated {result.t[-1]:.3f} s in {len(result.t) - 1} steps on the {result.plant} plant",
+        "tracking error x - x_d (largest over the run, and at the end):",
+    ]
     for i, name in enumerate(result.names):
         unit = result.units[i] if i < len(result.units) else ""
         e = result.error[:, i]
@@ -367,8 +431,10 @@ def _force_lines(result: Result) -> list[str]:
     and at the end); the wall's normal force (largest, final) and what was commanded into it."""
     lines = []
     if result.changes:
-        lines.append("the plant's payload: " + ", ".join(f"{c.payload or 'hand'} {c.mass:g} kg from t = {c.at:g} s"
-                                                         for c in result.changes))
+        lines.append(
+            "the plant's payload: "
+            + ", ".join(f"{c.payload or 'hand'} {c.mass:g} kg from t = {c.at:g} s" for c in result.changes)
+        )
     if result.f_actual is not None and result.f_commanded is not None and np.any(np.isfinite(result.f_commanded)):
         lines.append("internal forces f - f_commanded (largest over the run, and at the end):")
         for n, name in enumerate(result.internal_forces):
@@ -394,8 +460,10 @@ def contact_lines(result: Result) -> list[str]:
         e = pose - result.x_d
         lines.append("the payload's true pose (MuJoCo) against x_d, largest over the run and at the end:")
         for i, name in enumerate(result.names):
-            lines.append(f"  {name:>12}: max {np.abs(e[:, i]).max():.3e}, final {e[-1, i]:+.3e}"
-                         f"{_unit(result.units[i] if i < len(result.units) else '')}")
+            lines.append(
+                f"  {name:>12}: max {np.abs(e[:, i]).max():.3e}, final {e[-1, i]:+.3e}"
+                f"{_unit(result.units[i] if i < len(result.units) else '')}"
+            )
     return lines
 
 
@@ -413,19 +481,26 @@ def agreement(a: Result, b: Result) -> dict[str, tuple[float, str, float]]:
 def compare(a: Result, b: Result) -> str:
     """Two plants' runs of one spec side by side: each coordinate's tracking error on both,
     and how closely the two trajectories agree."""
-    lines = [f"simulated {a.t[-1]:.3f} s in {len(a.t) - 1} steps on both plants:",
-             f"  {a.plant}: {a.plant_note}", f"  {b.plant}: {b.plant_note}",
-             "tracking error x - x_d (largest over the run, and at the end), side by side:",
-             f"  {'':>12}  {a.plant:>30}  {b.plant:>30}  {'|x_' + a.plant + ' - x_' + b.plant + '|':>24}"]
+    lines = [
+        f"simulated {a.t[-1]:.3f} s in {len(a.t) - 1} steps on both plants:",
+        f"  {a.plant}: {a.plant_note}",
+        f"  {b.plant}: {b.plant_note}",
+        "tracking error x - x_d (largest over the run, and at the end), side by side:",
+        f"  {'':>12}  {a.plant:>30}  {b.plant:>30}  {'|x_' + a.plant + ' - x_' + b.plant + '|':>24}",
+    ]
     for i, name in enumerate(a.names):
         unit = a.units[i] if i < len(a.units) else ""
         ea, eb = a.error[:, i], b.error[:, i]
-        lines.append(f"  {name:>12}  max {np.abs(ea).max():.3e}, final {ea[-1]:+.3e}  "
-                     f"max {np.abs(eb).max():.3e}, final {eb[-1]:+.3e}  "
-                     f"{np.abs(a.x[:, i] - b.x[:, i]).max():24.3e}{_unit(unit)}")
+        lines.append(
+            f"  {name:>12}  max {np.abs(ea).max():.3e}, final {ea[-1]:+.3e}  "
+            f"max {np.abs(eb).max():.3e}, final {eb[-1]:+.3e}  "
+            f"{np.abs(a.x[:, i] - b.x[:, i]).max():24.3e}{_unit(unit)}"
+        )
     for unit, (worst, name, t) in agreement(a, b).items():
-        lines.append(f"the plants agree to {worst:.3g}{' ' + unit if unit else ''}: the largest |x_{a.plant} - "
-                     f"x_{b.plant}| over the run ({name} at t = {t:.3f} s)")
+        lines.append(
+            f"the plants agree to {worst:.3g}{' ' + unit if unit else ''}: the largest |x_{a.plant} - "
+            f"x_{b.plant}| over the run ({name} at t = {t:.3f} s)"
+        )
     lines.append(f"largest |tau_{a.plant} - tau_{b.plant}|: {np.abs(a.tau - b.tau).max():.3g}")
     for r in (a, b):
         forces = _force_lines(r)

@@ -11,6 +11,7 @@ never pulling. That force acts on the leaves as joint torques J^T n f_n, added t
 actuators' in every stage of the plant's RK4 step. What a leaf senses (tau_sensed, rd's force
 term) is what it exerts on everything it touches: the grasps' share from the module's
 plant_sensed_forces, and -J^T n f_n on the wall."""
+
 from __future__ import annotations
 
 import numpy as np

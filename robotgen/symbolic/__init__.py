@@ -4,6 +4,7 @@ rigid_body/ holds the algorithms on one kinematic tree (kinematics, Jacobian, CR
 Coriolis, L D L^T); define, attach and control/ the three primitives of Deno et al. 1990;
 system composes them over a robot tree, servo into one servo step, plant into the true
 constrained dynamics; module says what a system's module emits."""
+
 from robotgen.symbolic.leaf_kernels import leaf_kernels
 from robotgen.symbolic.module import controllers_for, kernels_for, module_extras
 

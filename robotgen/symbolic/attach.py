@@ -12,6 +12,7 @@ J(y) ydot = G^T(x) xdot (eq 3.2), as CasADi graphs.
 Constraints: frame_change (nil payload, G = I, x the robots' kinematic outputs),
 planar_contacts and point_contacts (fingertips at points of a rigid payload, G from the
 contact geometry), and the user's formulas for h, h^-1, J, G."""
+
 from __future__ import annotations
 
 from collections.abc import Callable
@@ -38,9 +39,16 @@ from robotgen.symbolic.rigid_body.spatial import skew
 from robotgen.symbolic.rows import rows
 
 
-def attach_graph(node: AttachNode, sig: Signature, kids: list[NodeGraph], leaves: list[NodeGraph],
-                 payload: Leaf | None, theta: ca.SX, theta_dot: ca.SX,
-                 payload_values: dict[str, ca.SX] | None = None) -> NodeGraph:
+def attach_graph(
+    node: AttachNode,
+    sig: Signature,
+    kids: list[NodeGraph],
+    leaves: list[NodeGraph],
+    payload: Leaf | None,
+    theta: ca.SX,
+    theta_dot: ca.SX,
+    payload_values: dict[str, ca.SX] | None = None,
+) -> NodeGraph:
     """ATTACH's graphs from its robots' (``kids``, in order; ``leaves``: the leaf under each,
     through control nodes, for a frame change) and its payload's leaf; every graph a
     function of the sensed (theta, theta_dot)."""
@@ -71,7 +79,7 @@ def attach_graph(node: AttachNode, sig: Signature, kids: list[NodeGraph], leaves
     blocks, e0, i0 = [], 0, 0
     for k in kids:
         ne, ni = k.sig.n_external, k.sig.n_velocity - k.sig.n_external
-        blocks += [A_ext[e0:e0 + ne, :], A_int[i0:i0 + ni, :]]
+        blocks += [A_ext[e0 : e0 + ne, :], A_int[i0 : i0 + ni, :]]
         e0, i0 = e0 + ne, i0 + ni
     A = ca.vertcat(*blocks)
     Adot = ca.jtimes(A, theta, theta_dot)
@@ -90,9 +98,7 @@ def attach_graph(node: AttachNode, sig: Signature, kids: list[NodeGraph], leaves
     return NodeGraph(node.name, sig, x, v, M, C, N, attach=maps)
 
 
-
-def _payload(payload: Leaf | None, x: ca.SX, xd: ca.SX,
-             values: dict[str, ca.SX] | None) -> tuple[ca.SX, ca.SX, ca.SX]:
+def _payload(payload: Leaf | None, x: ca.SX, xd: ca.SX, values: dict[str, ca.SX] | None) -> tuple[ca.SX, ca.SX, ca.SX]:
     """The payload's DEFINE attributes at the node's positions and rates (nil: zero)."""
     n = x.shape[0]
     if payload is None:
@@ -102,11 +108,13 @@ def _payload(payload: Leaf | None, x: ca.SX, xd: ca.SX,
     M, C, N = ca.substitute([a.M, a.C, a.N], [q, qd], [x, xd])
     return M, C, N
 
+
 def _point_contacts(pts: np.ndarray, y: ca.SX, m: int):
     """Fingertips held at body points c_k of a spatial payload, x = (p, rpy). The pose
     comes from the first three contacts: the triad they span in the body frame and the
     one their fingertips span in the world give R; p = p_1 - R c_1. A fingertip force f_k
     acts on (p, rpy) as (f_k, E^T (R c_k) x f_k), the columns of G."""
+
     def triad(a, b, c, lib):
         u, w = b - a, c - a
         e1 = u / lib.norm_2(u)
@@ -116,7 +124,7 @@ def _point_contacts(pts: np.ndarray, y: ca.SX, m: int):
 
     c1, c2, c3 = (ca.DM(p) for p in pts[:3])
     body = np.array(ca.DM(triad(c1, c2, c3, ca)))
-    P = [y[3 * k:3 * k + 3] for k in range(3)]
+    P = [y[3 * k : 3 * k + 3] for k in range(3)]
     R = triad(P[0], P[1], P[2], ca) @ body.T
     p = P[0] - R @ ca.DM(pts[0])
     rpy = rpy_of(R)
@@ -138,6 +146,7 @@ def _point_contacts(pts: np.ndarray, y: ca.SX, m: int):
             squeezes.append(ca.vertcat(*parts))
         H = gram_schmidt(squeezes)
     return x, ca.SX.eye(m), G, h_inverse, None, H
+
 
 def _kinematics(graph: NodeGraph) -> Callable[[str], ca.SX]:
     """A frame change's robot's kinematic outputs (the front end refuses a robot without them)."""

@@ -1,5 +1,6 @@
 """DEFINE's attributes (Deno et al. 1990, §3.2) for every kind of leaf, in one shape:
 M(q), C(q, qd), N(q, qd), and the kinematic output map an ATTACH frame change uses."""
+
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping
@@ -46,8 +47,11 @@ def leaf_attributes(leaf, q: ca.SX, qd: ca.SX, values: Mapping[str, ca.SX] | Non
     if isinstance(leaf, FormulaRobot):
         fg = FormulaGraphs(leaf, sym, values)
         kin = (lambda output: fg.kinematics()) if leaf.kinematics else None
-        ik = (expression_map(leaf.inverse_kinematics, leaf.outputs, {**leaf.parameters, **values})
-              if leaf.inverse_kinematics else None)
+        ik = (
+            expression_map(leaf.inverse_kinematics, leaf.outputs, {**leaf.parameters, **values})
+            if leaf.inverse_kinematics
+            else None
+        )
         return LeafAttributes(fg.mass(), fg.coriolis(), fg.n_term(qd), kin, ik)
     if isinstance(leaf, PlanarBody):
         if "mass" in values:
@@ -63,7 +67,8 @@ def leaf_attributes(leaf, q: ca.SX, qd: ca.SX, values: Mapping[str, ca.SX] | Non
         RE = R.T @ E  # body-frame angular velocity per rpy rate
         mass: ca.SX | float = values["mass"] if "mass" in values else leaf.mass
         M = ca.diagcat(mass * ca.SX.eye(3), RE.T @ const(leaf.inertia) @ RE)
-        N = ca.vertcat(-mass * const(leaf.gravity) if "mass" in values else const(-leaf.mass * leaf.gravity),
-                       ca.SX.zeros(3, 1))
+        N = ca.vertcat(
+            -mass * const(leaf.gravity) if "mass" in values else const(-leaf.mass * leaf.gravity), ca.SX.zeros(3, 1)
+        )
         return LeafAttributes(M, coriolis_matrix(M, q, qd), N, None, None)
     raise TypeError(f"unknown leaf type {type(leaf).__name__}")

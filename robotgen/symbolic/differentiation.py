@@ -1,5 +1,6 @@
 """Derivatives of SX graphs by CasADi's algorithmic differentiation, in the sweep order that
 suits their shape."""
+
 from __future__ import annotations
 
 import casadi as ca

@@ -9,6 +9,7 @@ theorem), and d qdd/d tau = M^-1; one L D L^T factorisation of M serves every co
 Past DERIVATIVE_LOOPS_ABOVE_OPS the kernels of both are built as schedules (robotgen.symbolic.schedule):
 on a serial chain the recursion's steps and joint pairs are loops (derivative_loops), and
 M^-1 d tau/dz is a loop over the rows of M^-1, formed once (it is d qdd/d tau)."""
+
 from __future__ import annotations
 
 import casadi as ca
@@ -85,8 +86,9 @@ class DynamicsDerivatives:
         n = s.q.shape[0]
         b = ScheduleBuilder([s.q, s.qd, s.tau], [n * n] * 3)
         if (chain := self._looped()) is not None:
-            schedule_forward_dynamics_derivatives(b, chain.tree, chain.axes_and_inertias(), s.qd, s.tau,
-                                                  ((OUTPUT, 0), (OUTPUT, 1), (OUTPUT, 2)))
+            schedule_forward_dynamics_derivatives(
+                b, chain.tree, chain.axes_and_inertias(), s.qd, s.tau, ((OUTPUT, 0), (OUTPUT, 1), (OUTPUT, 2))
+            )
             return b
         factor = cholesky_factor(self.graphs.mass())  # forward_dynamics' own, after CSE
         inverse = row_major(cholesky_substitute_columns(factor, ca.SX.eye(n)))
@@ -107,21 +109,35 @@ class DynamicsDerivatives:
         b = ScheduleBuilder([s.q, s.qd, s.tau, dt], [n, n, 4 * n * n, 2 * n * n])
         Q, QD, DT, EYE = b.local(s.q), b.local(s.qd), b.local(dt), b.local(ca.SX.eye(n))
         FQ, FQD, MINV = (b.local(size=n * n) for _ in range(3))
-        QDD = schedule_forward_dynamics_derivatives(b, chain.tree, chain.axes_and_inertias(), s.qd, s.tau,
-                                                    ((LOCAL, FQ), (LOCAL, FQD), (LOCAL, MINV)))
+        QDD = schedule_forward_dynamics_derivatives(
+            b, chain.tree, chain.axes_and_inertias(), s.qd, s.tau, ((LOCAL, FQ), (LOCAL, FQD), (LOCAL, MINV))
+        )
         # qd+ = qd + dt qdd, q+ = q + dt qd+; row i of A = [[I + dt^2 Fq, dt I + dt^2 Fqd], [dt Fq, I + dt Fqd]]
         # and of B = [dt^2 M^-1; dt M^-1]
         q, qd, qdd, h = ca.SX.sym("q"), ca.SX.sym("qd"), ca.SX.sym("qdd"), ca.SX.sym("dt")
         fq, fqd, minv, e = (ca.SX.sym(name, n) for name in ("fq", "fqd", "minv", "e"))
         qd_next = qd + h * qdd
-        rows = [ca.vertcat(e + h * h * fq, h * e + h * h * fqd), ca.vertcat(h * fq, e + h * fqd), h * h * minv,
-                h * minv]
+        rows = [
+            ca.vertcat(e + h * h * fq, h * e + h * h * fqd),
+            ca.vertcat(h * fq, e + h * fqd),
+            h * h * minv,
+            h * minv,
+        ]
         at = lambda array, width: Slice(LOCAL, array, i_stride=width)  # noqa: E731
-        b.loop(body("step_rows", [q, qd, qdd, h, fq, fqd, minv, e], [q + h * qd_next, qd_next, *rows]), RANGE, n,
-               [at(Q, 1), at(QD, 1), at(QDD, 1), Slice(LOCAL, DT), at(FQ, n), at(FQD, n), at(MINV, n), at(EYE, n)],
-               [Slice(OUTPUT, 0, i_stride=1), Slice(OUTPUT, 1, i_stride=1), Slice(OUTPUT, 2, i_stride=2 * n),
-                Slice(OUTPUT, 2, 2 * n * n, i_stride=2 * n), Slice(OUTPUT, 3, i_stride=n),
-                Slice(OUTPUT, 3, n * n, i_stride=n)])
+        b.loop(
+            body("step_rows", [q, qd, qdd, h, fq, fqd, minv, e], [q + h * qd_next, qd_next, *rows]),
+            RANGE,
+            n,
+            [at(Q, 1), at(QD, 1), at(QDD, 1), Slice(LOCAL, DT), at(FQ, n), at(FQD, n), at(MINV, n), at(EYE, n)],
+            [
+                Slice(OUTPUT, 0, i_stride=1),
+                Slice(OUTPUT, 1, i_stride=1),
+                Slice(OUTPUT, 2, i_stride=2 * n),
+                Slice(OUTPUT, 2, 2 * n * n, i_stride=2 * n),
+                Slice(OUTPUT, 3, i_stride=n),
+                Slice(OUTPUT, 3, n * n, i_stride=n),
+            ],
+        )
         return b
 
     def _inverse_into(self, b: ScheduleBuilder, qdd: ca.SX, dq: tuple[str, int], dqd: tuple[str, int]) -> None:
@@ -145,8 +161,11 @@ class DynamicsDerivatives:
         large for straight-line code: past DERIVATIVE_LOOPS_ABOVE_OPS their solve runs faster as
         loops."""
         s = self.sym
-        return self._large() or (isinstance(self.graphs, ChainGraphs) and count_operations(
-            [s.q, s.qd, s.tau], list(self.forward_dynamics_derivatives()[1:]))["total"] > DERIVATIVE_LOOPS_ABOVE_OPS)
+        return self._large() or (
+            isinstance(self.graphs, ChainGraphs)
+            and count_operations([s.q, s.qd, s.tau], list(self.forward_dynamics_derivatives()[1:]))["total"]
+            > DERIVATIVE_LOOPS_ABOVE_OPS
+        )
 
     def _looped(self) -> ChainGraphs | None:
         """The chain's graphs if the recursion's loops are used (derivative_loops), else None:
@@ -175,7 +194,7 @@ class DynamicsDerivatives:
         qdd = self.graphs.forward_dynamics()  # its factorisation of M and this one are one after CSE
         dq, dqd = self._id(s.q, s.qd, qdd)
         solved = cholesky_substitute_columns(cholesky_factor(self.graphs.mass()), ca.horzcat(dq, dqd, ca.SX.eye(n)))
-        return qdd, -solved[:, :n], -solved[:, n:2 * n], solved[:, 2 * n:]
+        return qdd, -solved[:, :n], -solved[:, n : 2 * n], solved[:, 2 * n :]
 
     def _forward(self) -> ca.Function:
         if self._fd is None:
@@ -212,8 +231,11 @@ class DynamicsDerivatives:
             raise ValueError(f"unknown integrator {integrator!r}")
         # x+ = x + dt/6 (k1 + 2 k2 + 2 k3 + k4), k = (qd, qdd) at the four stages; with the
         # Jacobians, each stage's d k/d(x, tau) by the chain rule through the previous stage.
-        fd = self._forward() if with_jacobians else ca.Function("fd", [s.q, s.qd, s.tau],
-                                                                 [self.graphs.forward_dynamics()])
+        fd = (
+            self._forward()
+            if with_jacobians
+            else ca.Function("fd", [s.q, s.qd, s.tau], [self.graphs.forward_dynamics()])
+        )
         weights, offsets = (1, 2, 2, 1), (0, 0.5, 0.5, 1)
         k_prev = None
         dk_prev = None
@@ -240,4 +262,4 @@ class DynamicsDerivatives:
         if not with_jacobians:
             return x_next[:n], x_next[n:], None, None
         J = eye_x + dt / 6 * sum_dk
-        return x_next[:n], x_next[n:], J[:, :2 * n], J[:, 2 * n:]
+        return x_next[:n], x_next[n:], J[:, : 2 * n], J[:, 2 * n :]

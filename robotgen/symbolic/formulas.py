@@ -1,4 +1,5 @@
 """A formula-defined leaf robot (Deno et al. 1990, eq 3.1) as CasADi SX expressions."""
+
 from __future__ import annotations
 
 import casadi as ca
@@ -19,15 +20,33 @@ def _folding(name: str, graph):
 
     def apply(*args):
         return fold(*args) if all(isinstance(a, float) for a in args) else graph(*args)
+
     return apply
 
 
-CASADI_LIB = {name: _folding(name, graph) for name, graph in {
-    "sin": ca.sin, "cos": ca.cos, "tan": ca.tan, "asin": ca.asin, "acos": ca.acos,
-    "atan": ca.atan, "atan2": ca.atan2, "exp": ca.exp, "log": ca.log, "sqrt": ca.sqrt,
-    "abs": ca.fabs, "tanh": ca.tanh, "sinh": ca.sinh, "cosh": ca.cosh, "sign": ca.sign,
-    "min": ca.fmin, "max": ca.fmax, "pow": lambda a, b: a ** b,
-}.items()}
+CASADI_LIB = {
+    name: _folding(name, graph)
+    for name, graph in {
+        "sin": ca.sin,
+        "cos": ca.cos,
+        "tan": ca.tan,
+        "asin": ca.asin,
+        "acos": ca.acos,
+        "atan": ca.atan,
+        "atan2": ca.atan2,
+        "exp": ca.exp,
+        "log": ca.log,
+        "sqrt": ca.sqrt,
+        "abs": ca.fabs,
+        "tanh": ca.tanh,
+        "sinh": ca.sinh,
+        "cosh": ca.cosh,
+        "sign": ca.sign,
+        "min": ca.fmin,
+        "max": ca.fmax,
+        "pow": lambda a, b: a**b,
+    }.items()
+}
 
 
 def expression_column(exprs, env) -> ca.SX:
@@ -43,10 +62,12 @@ def expression_matrix(rows, env) -> ca.SX:
 def expression_map(exprs, names, parameters):
     """x -> the expressions with ``names`` bound to the entries of x (an inverse map given
     as formulas: StyxDefinitions.m's RobotInverse, an attach's h^-1)."""
+
     def apply(x: ca.SX) -> ca.SX:
         env = dict(parameters)
         env.update({name: x[i] for i, name in enumerate(names)})
         return expression_column(exprs, env)
+
     return apply
 
 

@@ -1,4 +1,5 @@
 """The hand-over between the symbolic layer and the emitters."""
+
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
@@ -112,9 +113,16 @@ class ParameterSymbols:
 NO_PARAMETERS = ParameterSymbols((), {})
 
 
-def make_kernel(name: str, doc: str, inputs: Sequence[tuple], outputs: Sequence[tuple[str, ca.SX | None, Shape]],
-                parameters: ParameterSymbols = NO_PARAMETERS, *, guarded: bool = False,
-                schedule: ScheduleBuilder | None = None) -> Kernel:
+def make_kernel(
+    name: str,
+    doc: str,
+    inputs: Sequence[tuple],
+    outputs: Sequence[tuple[str, ca.SX | None, Shape]],
+    parameters: ParameterSymbols = NO_PARAMETERS,
+    *,
+    guarded: bool = False,
+    schedule: ScheduleBuilder | None = None,
+) -> Kernel:
     """The one way a kernel is built: ``inputs`` are (port name, SX column[, (rows, cols)
     the port shows, default a column]), ``outputs`` (port name, SX, (rows, cols), a Matrix for
     one that stays two-dimensional with one column); matrices leave row-major, and CasADi's
@@ -131,14 +139,23 @@ def make_kernel(name: str, doc: str, inputs: Sequence[tuple], outputs: Sequence[
     def columns() -> list[ca.SX]:
         flat = schedule.outputs() if schedule is not None else []  # (an output given as None has a schedule)
         return [flat[k] if e is None else row_major(e) for k, (_, e, _) in enumerate(outputs)]
+
     if parameters.parameters and any(ca.depends_on(e, parameters.vector) for e in columns()):
         inputs = [*inputs, parameters.port()]
     ports_in = tuple(Port(i[0], *(i[2] if len(i) > 2 else (i[1].shape[0], 1)), *i[3:]) for i in inputs)
 
     def function() -> ca.Function:
-        return ca.Function(name, [i[1] for i in inputs], columns(),
-                           [i[0] for i in inputs], [o[0] for o in outputs], {"cse": True})
+        return ca.Function(
+            name, [i[1] for i in inputs], columns(), [i[0] for i in inputs], [o[0] for o in outputs], {"cse": True}
+        )
+
     ports_out = tuple(Port(o[0], *o[2], matrix=isinstance(o[2], Matrix)) for o in outputs)
-    return Kernel(name, doc, ports_in, ports_out,
-                  function if schedule is not None else function(), guarded,
-                  schedule.finish([i[1] for i in inputs]) if schedule is not None else None)
+    return Kernel(
+        name,
+        doc,
+        ports_in,
+        ports_out,
+        function if schedule is not None else function(),
+        guarded,
+        schedule.finish([i[1] for i in inputs]) if schedule is not None else None,
+    )

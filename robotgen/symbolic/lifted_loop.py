@@ -21,6 +21,7 @@ integrated trajectory that nothing below reads at the operating point (computed 
 expected trajectory under a feedforward node, a squeeze direction no motion can follow) is a
 neutral mode the plant never sees: only the modes observable from the plant's state (Theta, v)
 count, the Kalman decomposition's observable part (Krylov subspace of the state rows)."""
+
 from __future__ import annotations
 
 from collections.abc import Mapping
@@ -90,9 +91,13 @@ class TickMaps:
         pg = plant.graphs
         self.n, self.n_v = pg.n, plant.n_v
         root = g.graph(system.root).sig
-        self.root = {"x_e": np.zeros(root.n_external), "xd_e": np.zeros(root.n_velocity),
-                     "xdd_e": np.zeros(root.n_velocity), "f_e": np.zeros(root.n_velocity),
-                     "f_i": np.zeros(root.n_internal_forces)}
+        self.root = {
+            "x_e": np.zeros(root.n_external),
+            "xd_e": np.zeros(root.n_velocity),
+            "xdd_e": np.zeros(root.n_velocity),
+            "f_e": np.zeros(root.n_velocity),
+            "f_i": np.zeros(root.n_internal_forces),
+        }
 
         def known(name: str, inputs: list[ca.SX], outputs: list[ca.SX]) -> ca.Function:
             """A Function of ``inputs`` with the parameters at their values."""
@@ -140,8 +145,11 @@ class TickMaps:
         tau_before = sum((part[f"tau_g{grp.index}"] for grp in self.groups.groups), ca.SX.zeros(self.n))
         new = dict(part)
         for k in due:
-            args: dict[str, ca.SX | ca.DM] = {"theta": theta, "theta_dot": theta_dot,
-                                              **{key: ca.DM(val) for key, val in self.root.items()}}
+            args: dict[str, ca.SX | ca.DM] = {
+                "theta": theta,
+                "theta_dot": theta_dot,
+                **{key: ca.DM(val) for key, val in self.root.items()},
+            }
             args.update({key: new[key] for key in new if key.startswith(HELD.format(""))})
             if f"state_g{k}" in new:  # a group with a state
                 args["state"] = new[f"state_g{k}"]
@@ -176,8 +184,10 @@ def _rk4(f, theta, v, tau, dt):
     k2 = f(theta + dt / 2 * k1[0], v + dt / 2 * k1[1], tau)
     k3 = f(theta + dt / 2 * k2[0], v + dt / 2 * k2[1], tau)
     k4 = f(theta + dt * k3[0], v + dt * k3[1], tau)
-    return (theta + dt / 6 * (k1[0] + 2 * k2[0] + 2 * k3[0] + k4[0]),
-            v + dt / 6 * (k1[1] + 2 * k2[1] + 2 * k3[1] + k4[1]))
+    return (
+        theta + dt / 6 * (k1[0] + 2 * k2[0] + 2 * k3[0] + k4[0]),
+        v + dt / 6 * (k1[1] + 2 * k2[1] + 2 * k3[1] + k4[1]),
+    )
 
 
 def operating_point(system: RobotSystem, maps: TickMaps) -> tuple[np.ndarray, np.ndarray]:
@@ -202,12 +212,21 @@ def lifted_loop(system: RobotSystem, groups: RateGroups) -> LiftedLoop:
     if maps.residual is not None:
         residual = np.abs(np.asarray(maps.residual(theta0)).ravel())
         if not np.all(residual <= RESIDUAL_TOLERANCE):  # also NaN: out of the inverse kinematics' reach
-            where = ("simulation.theta0" if s.theta0 is not None else "simulation.start" if s.start is not None
-                     else "the rest posture (no simulation.start or theta0)")
-            how = (f"constraint residual up to {residual.max():.3g}" if np.all(np.isfinite(residual))
-                   else "out of the inverse kinematics' reach")
-            raise OperatingPointError(f"the start pose, from {where}, breaks a grasp ({how}); give simulation.start "
-                                      "or theta0 on every grasp")
+            where = (
+                "simulation.theta0"
+                if s.theta0 is not None
+                else "simulation.start"
+                if s.start is not None
+                else "the rest posture (no simulation.start or theta0)"
+            )
+            how = (
+                f"constraint residual up to {residual.max():.3g}"
+                if np.all(np.isfinite(residual))
+                else "out of the inverse kinematics' reach"
+            )
+            raise OperatingPointError(
+                f"the start pose, from {where}, breaks a grasp ({how}); give simulation.start or theta0 on every grasp"
+            )
     maps.root["x_e"] = x0
     if s.internal_forces:
         maps.root["f_i"] = np.asarray(s.internal_forces, float)

@@ -1,6 +1,7 @@
 """What a system's module holds, by its root: one leaf robot's functions
 (robotgen.symbolic.leaf_kernels), a root law's (robotgen.symbolic.root_laws), or a
 robot tree's (robotgen.symbolic.system_kernels)."""
+
 from __future__ import annotations
 
 from robotgen.model.chain import KinematicTree
@@ -24,8 +25,9 @@ def kernels_for(system: RobotSystem) -> list[Kernel]:
         root = system.define(system.root)
         if not isinstance(root.leaf, (KinematicTree, FormulaRobot)):  # the front end refuses a lone payload
             raise TypeError(f"a module of one leaf needs a robot; '{system.root}' is a {type(root.leaf).__name__}")
-        return leaf_kernels(root.leaf, parameters=parameters, values=leaf_values(parameters, root),
-                            derivatives=system.derivatives)
+        return leaf_kernels(
+            root.leaf, parameters=parameters, values=leaf_values(parameters, root), derivatives=system.derivatives
+        )
     if system.root_law is not None:
         return _root_law(system).kernels(system)
     return system_kernels(system)

@@ -1,6 +1,7 @@
 """What the symbolic layer knows of one node of a robot system (Deno et al. 1990, ch. 3):
 its positions and velocity in its own coordinates (rd), its attributes M, C, N, and for an
 ATTACH the maps that carry a written trajectory down to its robots."""
+
 from __future__ import annotations
 
 from collections.abc import Callable
@@ -49,6 +50,3 @@ class NodeGraph:
         if self.attach is None:
             raise TypeError(f"'{self.name}' is no ATTACH node")
         return self.attach
-
-
-

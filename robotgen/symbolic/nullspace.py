@@ -9,6 +9,7 @@ eq 2.4). An SVD has no symbolic form, so:
   independent, which for generic directions is everywhere but a set of measure zero.
 Blocks of a block-diagonal matrix are handled one block at a time, so two redundant
 fingers give two orthonormal rows with disjoint support."""
+
 from __future__ import annotations
 
 import random
@@ -58,7 +59,7 @@ def block_null_rows(A: ca.SX, row_blocks: list[int], col_blocks: list[int]) -> c
     out = []
     r0 = c0 = 0
     for nr, nc in zip(row_blocks, col_blocks):
-        K = null_rows(A[r0:r0 + nr, c0:c0 + nc])
+        K = null_rows(A[r0 : r0 + nr, c0 : c0 + nc])
         if K.shape[0]:
             out.append(ca.horzcat(ca.SX(K.shape[0], c0), K, ca.SX(K.shape[0], m - c0 - nc)))
         r0, c0 = r0 + nr, c0 + nc

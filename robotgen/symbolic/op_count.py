@@ -1,6 +1,7 @@
 """Arithmetic operations of a graph, by kind, as its emitted C performs them (CasADi's SX
 instruction list after common-subexpression elimination): the counts set beside Lee and
 Lee's Table 1 and used to choose between equivalent forms."""
+
 from __future__ import annotations
 
 import casadi as ca

@@ -1,6 +1,7 @@
 """The true constrained plant of a robot tree: its uncontrolled composite dynamics
 (Deno et al. 1990, eq 2.3) in the root's velocity coordinates v, with the sensed leaf
 state carried along: Theta_dot = A(Theta) v, M~ vdot + C~ v + N~ = A^T tau."""
+
 from __future__ import annotations
 
 import dataclasses
@@ -101,6 +102,7 @@ def internal_forces(g: SystemGraphs, v: ca.SX, v_dot: ca.SX, leaf_v: ca.SX, tau:
     external coordinates, F_c = A_c^T tau the actuators' force on them (A_c: the robot's
     velocity to its leaves' rates). w, wdot flow down from the root: w = A v, wdot = A vdot
     + Adot v (eq 3.8). Functions of (theta, v, tau), with vdot the plant's."""
+
     def on_plant(x: ca.SX) -> ca.SX:  # sensed rates are the plant's
         return ca.substitute(x, g.theta_dot, leaf_v) if ca.depends_on(x, g.theta_dot) else x
 
@@ -195,5 +197,6 @@ def leaf_velocities(g: SystemGraphs, v: ca.SX) -> ca.SX:
 
 def leaf_positions(g: SystemGraphs, x: ca.SX) -> ca.SX | None:
     """Leaf positions from root positions through every ATTACH's h^-1, if all have one."""
-    return _to_leaves(g, x, lambda maps, pos: maps.h_inverse(pos) if maps.h_inverse else None,
-                      lambda sig: sig.n_external)
+    return _to_leaves(
+        g, x, lambda maps, pos: maps.h_inverse(pos) if maps.h_inverse else None, lambda sig: sig.n_external
+    )

@@ -13,6 +13,7 @@ controllers' next states; its period is folded in as the stateful laws' dt.
 
 A held trajectory is [x_e; xd_e; xdd_e; F_e; F_i] in the receiving controller's coordinates
 (eq 5.1), x_e left out where no ATTACH above has h^-1."""
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -66,8 +67,9 @@ class GroupServo(Servo):
         self.groups, self.k = groups, k
         self.below = False  # a controller of this group is above the node being written
         self.written: dict[str, Trajectory] = {}
-        self.reads_forces = any(reads_forces(n) for n in graphs.system.walk()
-                                if isinstance(n, ControlNode) and n.name in own)
+        self.reads_forces = any(
+            reads_forces(n) for n in graphs.system.walk() if isinstance(n, ControlNode) and n.name in own
+        )
 
     def write(self, name: str, t: Trajectory) -> None:
         """Write ``t`` to node ``name``; a faster group's controller gets it held, another group's work is skipped."""
@@ -118,28 +120,47 @@ def rate_kernels(g: SystemGraphs, groups: RateGroups) -> list[Kernel]:
         for name in group.writes:
             t = servo.written[name]
             sig = g.graph(name).sig
-            layouts[name] = HeldLayout(sig.n_external if t.x is not None else 0, sig.n_velocity,
-                                       sig.n_internal_forces)
+            layouts[name] = HeldLayout(sig.n_external if t.x is not None else 0, sig.n_velocity, sig.n_internal_forces)
             outputs.append((HELD.format(name), layouts[name].vector(t), (layouts[name].size, 1)))
         if servo.n_state:
             inputs.append(("state", servo.state))
             outputs.append(("state_next", servo.state_next(), (servo.n_state, 1)))
-        read = ["sensed leaf states"] + (["the desired root trajectory"] if group.reads_root else []) \
+        read = (
+            ["sensed leaf states"]
+            + (["the desired root trajectory"] if group.reads_root else [])
             + ([f"the trajectories held at {', '.join(group.reads)}"] if group.reads else [])
-        given = [f"the torques of the leaves it drives ({', '.join(group.drives)}; 0 for the others)" if group.drives
-                 else "tau 0 (faster groups drive the leaves below it)"] \
-            + ([f"the trajectories it writes to {', '.join(group.writes)}"] if group.writes else []) \
+        )
+        given = (
+            [
+                f"the torques of the leaves it drives ({', '.join(group.drives)}; 0 for the others)"
+                if group.drives
+                else "tau 0 (faster groups drive the leaves below it)"
+            ]
+            + ([f"the trajectories it writes to {', '.join(group.writes)}"] if group.writes else [])
             + (["its controllers' next state"] if servo.n_state else [])
+        )
         every = f"{group.ticks} periods of group 0" if k else "the fastest"
-        steps.append(make_kernel(
-            STEP.format(k), f"One step of rate group {k} ({', '.join(group.controllers)}), every {group.period:g} s "
-            f"({every}): {', '.join(read)} in; {', '.join(given)} out.", inputs, outputs, g.parameters,
-            guarded=True))
+        steps.append(
+            make_kernel(
+                STEP.format(k),
+                f"One step of rate group {k} ({', '.join(group.controllers)}), every {group.period:g} s "
+                f"({every}): {', '.join(read)} in; {', '.join(given)} out.",
+                inputs,
+                outputs,
+                g.parameters,
+                guarded=True,
+            )
+        )
         if servo.n_state:
-            inits.append(make_kernel(
-                INIT.format(k), f"Controller state of rate group {k} that starts its expected trajectories at "
-                                "the current state.", [("theta", g.theta), ("theta_dot", g.theta_dot)],
-                [("state", servo.initial_state(), (servo.n_state, 1))], g.parameters))
+            inits.append(
+                make_kernel(
+                    INIT.format(k),
+                    f"Controller state of rate group {k} that starts its expected trajectories at the current state.",
+                    [("theta", g.theta), ("theta_dot", g.theta_dot)],
+                    [("state", servo.initial_state(), (servo.n_state, 1))],
+                    g.parameters,
+                )
+            )
     return [*reversed(steps), *reversed(inits)]
 
 
@@ -180,12 +201,24 @@ MULTI_RATE_CLASS = "MultiRateController"
 
 def multi_rate(system: RobotSystem, groups: RateGroups) -> MultiRate:
     """The MultiRateController of ``system`` with these groups."""
+
     def stateful(k: int) -> bool:
         nodes = [system.nodes[name] for name in groups.groups[k].controllers]  # a stateful law, or an integral
-        return any(isinstance(n, ControlNode) and (tree_law(n.law).stateful or n.ki_internal is not None)
-                   for n in nodes)
+        return any(
+            isinstance(n, ControlNode) and (tree_law(n.law).stateful or n.ki_internal is not None) for n in nodes
+        )
 
-    return MultiRate(MULTI_RATE_CLASS, tuple(
-        GroupStep(STEP.format(g.index), INIT.format(g.index) if stateful(g.index) else None, g.period, g.ticks,
-                  g.controllers) for g in groups.groups),
-        tuple(HELD.format(name) for name in groups.boundaries))
+    return MultiRate(
+        MULTI_RATE_CLASS,
+        tuple(
+            GroupStep(
+                STEP.format(g.index),
+                INIT.format(g.index) if stateful(g.index) else None,
+                g.period,
+                g.ticks,
+                g.controllers,
+            )
+            for g in groups.groups
+        ),
+        tuple(HELD.format(name) for name in groups.boundaries),
+    )

@@ -1,5 +1,6 @@
 """Row slices of CasADi column vectors that stay columns: SX slicing of a 1 x 1 matrix
 yields a 1 x 0 matrix for an empty range, which then concatenates the wrong way."""
+
 from __future__ import annotations
 
 import casadi as ca

@@ -10,6 +10,7 @@ The schedule is the one source of the kernel's graph: ``outputs()`` applies each
 SX slices in order, and is the kernel's CasADi function, so the graph and the loops cannot
 differ. Adding a loop only checks that what it reads was written: a build prints the loops and
 never needs the flattened graph, which takes a large tree's build noticeable time."""
+
 from __future__ import annotations
 
 from collections.abc import Sequence
@@ -158,8 +159,9 @@ class ScheduleBuilder:
             standing.append(symbol)
             arrays.append(len(self._locals) - 1)
         self._flat = None
-        self._stages.append(_StageValues(name, [o for o, _ in outputs], [ca.vec(v) for _, v in outputs], standing,
-                                         arrays))
+        self._stages.append(
+            _StageValues(name, [o for o, _ in outputs], [ca.vec(v) for _, v in outputs], standing, arrays)
+        )
         return arrays
 
     def prologue(self, target: Slice, values: ca.SX) -> None:
@@ -172,8 +174,15 @@ class ScheduleBuilder:
         self._prologue.append((values, target))
         self._flat = None
 
-    def loop(self, body: ca.Function, space: str, n: int, reads: list[Slice], writes: list[Slice],
-             pairs: Sequence[tuple[int, int]] = ()) -> None:
+    def loop(
+        self,
+        body: ca.Function,
+        space: str,
+        n: int,
+        reads: list[Slice],
+        writes: list[Slice],
+        pairs: Sequence[tuple[int, int]] = (),
+    ) -> None:
         """Add a loop, checking that every element it reads was written before."""
         loop = Loop(body, space, n, tuple(reads), tuple(writes), tuple(pairs))
         if (space == PAIRS) != bool(pairs):
@@ -220,7 +229,9 @@ class ScheduleBuilder:
         """The stages' symbols and the prologue's values (which only go to elements no loop
         wrote before them), then the loops in order."""
         arrays: tuple[list[list[ca.SX | None]], list[list[ca.SX | None]]] = (
-            [[None] * len(a) for a in self._locals], [[None] * size for size in self.output_sizes])
+            [[None] * len(a) for a in self._locals],
+            [[None] * size for size in self.output_sizes],
+        )
         for st in self._stages:
             for symbol, index in zip(st.symbols, st.arrays):
                 arrays[0][index] = [symbol[e] for e in range(symbol.numel())]
@@ -228,8 +239,9 @@ class ScheduleBuilder:
             self._store(target, [values[e] for e in range(values.numel())], 0, 0, arrays)
         for loop in self._loops:
             for i, j in loop.iterations():
-                args = [ca.vertcat(*self._load(s, loop.body.size1_in(k), i, j, arrays))
-                        for k, s in enumerate(loop.reads)]
+                args = [
+                    ca.vertcat(*self._load(s, loop.body.size1_in(k), i, j, arrays)) for k, s in enumerate(loop.reads)
+                ]
                 results = loop.body(*args)
                 results = [results] if loop.body.n_out() == 1 else results
                 for s, value in zip(loop.writes, results):
@@ -238,8 +250,9 @@ class ScheduleBuilder:
         columns = [ca.vertcat(*[ca.SX(0) if v is None else v for v in out]) for out in arrays[1]]
         if not self._stages:
             return columns
-        return ca.substitute(columns, [s for st in self._stages for s in st.symbols],
-                             [v for st in self._stages for v in st.values])
+        return ca.substitute(
+            columns, [s for st in self._stages for s in st.symbols], [v for st in self._stages for v in st.values]
+        )
 
     def finish(self, inputs: list[ca.SX] | None = None) -> Schedule:
         """``inputs``: the kernel's input symbols if they differ from the builder's (a run-time
@@ -251,10 +264,19 @@ class ScheduleBuilder:
             function = ca.Function(st.name, [inputs[k] for k in read], st.values, {"cse": True})
             stages.append(Stage(st.name, function, read, tuple(st.arrays), tuple(st.names)))
         prologue = ca.Function("prologue", inputs, [v for v, _ in self._prologue], {"cse": True})
-        unwritten = tuple((k, tuple(e for e, v in enumerate(out) if v is None))
-                          for k, out in enumerate(self._outputs) if any(v is None for v in out))
-        return Schedule(tuple(len(a) for a in self._locals), prologue, tuple(s for _, s in self._prologue),
-                        tuple(self._loops), unwritten, tuple(stages))
+        unwritten = tuple(
+            (k, tuple(e for e, v in enumerate(out) if v is None))
+            for k, out in enumerate(self._outputs)
+            if any(v is None for v in out)
+        )
+        return Schedule(
+            tuple(len(a) for a in self._locals),
+            prologue,
+            tuple(s for _, s in self._prologue),
+            tuple(self._loops),
+            unwritten,
+            tuple(stages),
+        )
 
 
 def body(name: str, inputs: list[ca.SX], outputs: list[ca.SX]) -> ca.Function:

@@ -14,6 +14,7 @@ e; a law may read F_s (impedance, hybrid force/position control). Stateful laws 
 an expected trajectory (x_e, xd_e) from xdd_e (§3.4) or a force error; that state and the
 internal-force integrals are the controller state, passed in and out of the step (the
 emitted C keeps no state of its own)."""
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -66,8 +67,9 @@ class Servo:
     this step carries; ``period`` folds the servo period in as a constant instead of the input dt
     (a rate group's step, robotgen.symbolic.rate_steps)."""
 
-    def __init__(self, graphs: SystemGraphs, top: str, controllers: set[str] | None = None,
-                 period: float | None = None):
+    def __init__(
+        self, graphs: SystemGraphs, top: str, controllers: set[str] | None = None, period: float | None = None
+    ):
         self.g = graphs
         self.blocks = [b for b in state_blocks(graphs, top) if controllers is None or b[0].name in controllers]
         self.layout: dict[tuple[str, str], tuple[int, int]] = {}  # (controller, kind) -> (offset, size)
@@ -97,8 +99,7 @@ class Servo:
 
     def tau(self) -> ca.SX:
         """Every leaf's torques, stacked in leaf order (zero for a leaf nothing drives)."""
-        return ca.vertcat(*[self.torques.get(leaf, ca.SX.zeros(self.g.sizes[leaf]))
-                            for leaf in self.g.leaves])
+        return ca.vertcat(*[self.torques.get(leaf, ca.SX.zeros(self.g.sizes[leaf])) for leaf in self.g.leaves])
 
     def state_next(self) -> ca.SX:
         """The next controller state, block by block in the state's order."""
@@ -142,13 +143,28 @@ class Servo:
             if t.x is None:
                 raise PositionsUnavailable(
                     f"controller '{node.name}' needs desired positions, but an attach above it has no "
-                    "inverse kinematics (give the robots inverse_kinematics or the constraint h_inverse)")
+                    "inverse kinematics (give the robots inverse_kinematics or the constraint h_inverse)"
+                )
             return t.x - child.x
 
         law = tree_law(node.law)
         state = self.block(node, LAW_STATE) if law.stateful else None
-        out = law.write(Command(child, v_d, a_d, F_d, feedback, position_error, t.x, state, self.dt, node,
-                                parameters, lambda: self.sensed(node.robot)))
+        out = law.write(
+            Command(
+                child,
+                v_d,
+                a_d,
+                F_d,
+                feedback,
+                position_error,
+                t.x,
+                state,
+                self.dt,
+                node,
+                parameters,
+                lambda: self.sensed(node.robot),
+            )
+        )
         if law.stateful:
             if out.next_state is None:
                 raise TypeError(f"law {node.law} keeps a state and wrote no next one")
@@ -164,8 +180,10 @@ class Servo:
         e(k) = f_d - f(k-1): characteristic polynomial q^2 + (kf - 1 + ki dt) q - kf, stable
         for 0 <= kf < 1 and 0 < ki dt < 2 (1 - kf) (Jury), and a constant disturbance d is
         removed when ki > 0."""
-        kf, ki = internal_force_gain(node, "kf_internal", self.g.parameters), \
-            internal_force_gain(node, "ki_internal", self.g.parameters)
+        kf, ki = (
+            internal_force_gain(node, "kf_internal", self.g.parameters),
+            internal_force_gain(node, "ki_internal", self.g.parameters),
+        )
         error = f_d - self.sensed(node.robot)[1]
         out = f_d + kf * error if kf is not None else f_d
         if ki is not None:
@@ -190,9 +208,16 @@ class Servo:
             ne_c, nv_c, nf_c = sc.n_external, sc.n_velocity, sc.n_internal_forces
             ni_c = nv_c - ne_c
             F_c = ca.vertcat(rows(tau_e, e0, e0 + ne_c), rows(F_int, i0, i0 + ni_c))
-            self.write(r, Trajectory(
-                rows(y, e0, e0 + ne_c) if y is not None else None,
-                rows(w, row, row + nv_c), rows(wa, row, row + nv_c), F_c, rows(Fi_int, fi0, fi0 + nf_c)))
+            self.write(
+                r,
+                Trajectory(
+                    rows(y, e0, e0 + ne_c) if y is not None else None,
+                    rows(w, row, row + nv_c),
+                    rows(wa, row, row + nv_c),
+                    F_c,
+                    rows(Fi_int, fi0, fi0 + nf_c),
+                ),
+            )
             row, e0, i0, fi0 = row + nv_c, e0 + ne_c, i0 + ni_c, fi0 + nf_c
 
     # -- rd's force term ----------------------------------------------------------------

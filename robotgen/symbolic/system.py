@@ -6,6 +6,7 @@ attributes M, C, N, built once each, children first: DEFINE by robotgen.symbolic
 
 The attributes are evaluated at the current configuration, as the paper does for all its
 control laws (§5.2, last paragraph)."""
+
 from __future__ import annotations
 
 import casadi as ca
@@ -83,9 +84,16 @@ class SystemGraphs:
 
     def _attach(self, node: AttachNode) -> NodeGraph:
         payload = self.system.define(node.payload) if node.payload else None
-        return attach_graph(node, signature(self.system, node.name), [self.graph(r) for r in node.robots],
-                            [self.underlying_leaf(r) for r in node.robots], payload.leaf if payload else None,
-                            self.theta, self.theta_dot, leaf_values(self.parameters, payload) if payload else {})
+        return attach_graph(
+            node,
+            signature(self.system, node.name),
+            [self.graph(r) for r in node.robots],
+            [self.underlying_leaf(r) for r in node.robots],
+            payload.leaf if payload else None,
+            self.theta,
+            self.theta_dot,
+            leaf_values(self.parameters, payload) if payload else {},
+        )
 
 
 def leaf_values(parameters: ParameterSymbols, node: DefineNode) -> dict[str, ca.SX]:

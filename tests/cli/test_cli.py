@@ -1,5 +1,6 @@
 """The command line's promises (docs/cli.md): exit statuses, FILE:LINE:COL messages with no
 traceback, no output directory on failure, schema and info output."""
+
 from __future__ import annotations
 
 import json
@@ -109,8 +110,9 @@ def test_version():
 
 def test_a_closed_pipe_ends_quietly():
     """`robotgen schema | head -1`: the reader has what it wanted; no traceback, status 0."""
-    p = subprocess.Popen([sys.executable, "-m", "robotgen", "schema"], stdout=subprocess.PIPE,
-                         stderr=subprocess.PIPE, cwd=ROOT)
+    p = subprocess.Popen(
+        [sys.executable, "-m", "robotgen", "schema"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, cwd=ROOT
+    )
     first = p.stdout.readline()
     p.stdout.close()
     err = p.stderr.read().decode()
@@ -143,16 +145,26 @@ def test_progress_on_request_and_quiet(tmp_path):
 
     spec = ROOT / "specs" / "two_link.yaml"
     env = dict(os.environ, ROBOTGEN_PROGRESS="1")
-    shown = subprocess.run([sys.executable, "-m", "robotgen", "build", str(spec), "-o", str(tmp_path / "a")],
-                           capture_output=True, text=True, cwd=ROOT, env=env)
+    shown = subprocess.run(
+        [sys.executable, "-m", "robotgen", "build", str(spec), "-o", str(tmp_path / "a")],
+        capture_output=True,
+        text=True,
+        cwd=ROOT,
+        env=env,
+    )
     assert shown.returncode == 0
     stages = [line.split("] ", 1)[1] for line in shown.stderr.splitlines() if line.startswith("robotgen: [")]
     assert len(stages) == len(shown.stderr.splitlines())  # nothing but progress on stderr
     assert [s.split(" ", 1)[0] for s in stages[:3]] == ["reading", "building", "printing"]
     assert "printing 17 C functions" in stages[2] and stages[3] == "printing C: fk (1/17)"
     assert stages[-2] == "printing C: jacobian_derivative (17/17)" and stages[-1].startswith("compiling the extension")
-    quiet = subprocess.run([sys.executable, "-m", "robotgen", "build", "-q", str(spec), "-o", str(tmp_path / "b")],
-                           capture_output=True, text=True, cwd=ROOT, env=env)
+    quiet = subprocess.run(
+        [sys.executable, "-m", "robotgen", "build", "-q", str(spec), "-o", str(tmp_path / "b")],
+        capture_output=True,
+        text=True,
+        cwd=ROOT,
+        env=env,
+    )
     assert quiet.returncode == 0 and quiet.stderr == ""
     assert "built two_link" in shown.stdout and "built two_link" in quiet.stdout  # results stay on stdout
 
@@ -170,9 +182,12 @@ def test_accepted_deviations_keep_a_build_quiet(tmp_path):
     assert result.returncode == 0 and result.stderr.count("violate the triangle inequality") == 2
     assert "add 'accept: [triangle_inequality]'" in result.stderr
     needless = tmp_path / "puma_needless.yaml"
-    needless.write_text(text.replace("inertia: {ixx: 0.13, iyy: 0.524, izz: 0.539, ixy: 0, ixz: 0, iyz: 0}",
-                                     "inertia: {ixx: 0.13, iyy: 0.524, izz: 0.539, ixy: 0, ixz: 0, iyz: 0, "
-                                     "accept: [triangle_inequality]}"))
+    needless.write_text(
+        text.replace(
+            "inertia: {ixx: 0.13, iyy: 0.524, izz: 0.539, ixy: 0, ixz: 0, iyz: 0}",
+            "inertia: {ixx: 0.13, iyy: 0.524, izz: 0.539, ixy: 0, ixz: 0, iyz: 0, accept: [triangle_inequality]}",
+        )
+    )
     result = run_cli("check", str(needless))
     assert result.returncode == 0
     assert "satisfy the triangle inequality; 'triangle_inequality' is not needed" in result.stderr
@@ -192,8 +207,13 @@ def test_a_missing_compiler_is_the_machines_not_a_bug(tmp_path):
     import os
 
     out = tmp_path / "out"
-    result = subprocess.run([sys.executable, "-m", "robotgen", "build", str(PUMA), "-o", str(out)],
-                            capture_output=True, text=True, cwd=ROOT, env=dict(os.environ, CC="no-such-cc"))
+    result = subprocess.run(
+        [sys.executable, "-m", "robotgen", "build", str(PUMA), "-o", str(out)],
+        capture_output=True,
+        text=True,
+        cwd=ROOT,
+        env=dict(os.environ, CC="no-such-cc"),
+    )
     assert result.returncode == 1
     assert "no C compiler: cannot run 'no-such-cc'" in result.stderr and "Traceback" not in result.stderr
     assert not out.exists()

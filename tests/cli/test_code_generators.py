@@ -2,6 +2,7 @@
 agreement check expects of a peer is Pinocchio's result on the peers' model, the harness finds a
 peer that disagrees, and, where the peers' packages are installed, their generated C agrees
 with robotgen's kernels on the harness's 256 states."""
+
 from __future__ import annotations
 
 import sys
@@ -43,7 +44,7 @@ def test_the_check_expects_pinocchio_on_the_peers_model(panda):
     x = np.hstack([rng.uniform(-np.pi, np.pi, (5, n)), rng.uniform(-2, 2, (5, 2 * n))])
     ref = harness.reference(panda, x)
     upper = np.triu_indices(n)
-    for s, (q, v, u) in enumerate(zip(x[:, :n], x[:, n:2 * n], x[:, 2 * n:])):
+    for s, (q, v, u) in enumerate(zip(x[:, :n], x[:, n : 2 * n], x[:, 2 * n :])):
         mass = pin.crba(model, data, q)[upper]
         minv = pin.computeMinverse(model, data, q)
         minv = np.triu(minv) + np.triu(minv, 1).T
@@ -53,12 +54,18 @@ def test_the_check_expects_pinocchio_on_the_peers_model(panda):
         da = np.triu(da) + np.triu(da, 1).T  # M; the code generation's writes its upper triangle
         fq, fv, ft = (m.copy() for m in pin.computeABADerivatives(model, data, q, v, u))
         ft = np.triu(ft) + np.triu(ft, 1).T
-        want = {"mass_upper": mass, "mass_inverse_upper": minv[upper], "mass_inverse": minv.ravel(), "tau": tau,
-                "ddq": ddq, "dtau_dq_dv": np.hstack([dq.ravel(), dv.ravel()]),
-                "dtau_dq_dv_da": np.hstack([dq.ravel(), dv.ravel(), np.triu(da).ravel()]),
-                "rnea_jacobian": np.hstack([dq, dv, da]).ravel(),
-                "dddq": np.hstack([fq.ravel(), fv.ravel(), ft.ravel()]),
-                "aba_jacobian": np.hstack([fq, fv, ft]).ravel()}
+        want = {
+            "mass_upper": mass,
+            "mass_inverse_upper": minv[upper],
+            "mass_inverse": minv.ravel(),
+            "tau": tau,
+            "ddq": ddq,
+            "dtau_dq_dv": np.hstack([dq.ravel(), dv.ravel()]),
+            "dtau_dq_dv_da": np.hstack([dq.ravel(), dv.ravel(), np.triu(da).ravel()]),
+            "rnea_jacobian": np.hstack([dq, dv, da]).ravel(),
+            "dddq": np.hstack([fq.ravel(), fv.ravel(), ft.ravel()]),
+            "aba_jacobian": np.hstack([fq, fv, ft]).ravel(),
+        }
         for layout, value in want.items():
             assert harness.relative_difference(ref[layout][s], value) < 1e-10, layout
 
@@ -84,8 +91,21 @@ int fake_rnea_damped(const double **arg, double **res, long long int *iw, double
 def test_the_harness_finds_a_peer_that_disagrees(panda, tmp_path):
     source = tmp_path / "fake_peer.c"
     source.write_text(FAKE_PEER % ", ".join(repr(d) for d in panda.damping))
-    fakes = [pinocchio_cg.PeerFunction("inverse_dynamics", "casadi_kin_dyn", name, name, source, "casadi", "tau", 7,
-                                       out_sizes=(7,), work=(3, 1, 0, 0)) for name in ("fake_rnea", "fake_rnea_damped")]
+    fakes = [
+        pinocchio_cg.PeerFunction(
+            "inverse_dynamics",
+            "casadi_kin_dyn",
+            name,
+            name,
+            source,
+            "casadi",
+            "tau",
+            7,
+            out_sizes=(7,),
+            work=(3, 1, 0, 0),
+        )
+        for name in ("fake_rnea", "fake_rnea_damped")
+    ]
     exe, rows = harness.build(panda, fakes, tmp_path / "harness", QUICK)
     assert [(r["who"], r["kernel"]) for r in rows[:6]] == [("robotgen", k) for k in harness.KERNELS]
     differences = dict(zip([r["variant"] for r in rows], harness.check(panda, exe, rows)))
@@ -135,4 +155,3 @@ def test_with_fixed_joints_fixes_only_the_locked():
     out = arms.with_fixed_joints(urdf, ["f1"])
     assert '<joint name="f1" type="fixed"><parent link="b" /><child link="c" /></joint>' in out
     assert '<joint name="j1" type="revolute">' in out and '<axis xyz="0 0 1" />' in out
-

@@ -3,6 +3,7 @@ one chain or formulas leaf), keeps every joint inside its limits, and turns away
 trees and controllers with a message that says where to go instead. It leaves the module in
 generated/<name>/ (where `robotgen build` puts it), so that the README's Python snippet that
 follows imports it, and a second run does not rebuild it."""
+
 from __future__ import annotations
 
 import re
@@ -18,8 +19,9 @@ ROOT = Path(__file__).resolve().parents[2]
 
 def demo(*args: str, cwd: Path) -> subprocess.CompletedProcess:
     """The demo run from ``cwd`` (where it writes generated/), as a user runs it from a clone."""
-    return subprocess.run([sys.executable, str(ROOT / "examples" / "demo.py"), *args], capture_output=True,
-                          text=True, cwd=cwd)
+    return subprocess.run(
+        [sys.executable, str(ROOT / "examples" / "demo.py"), *args], capture_output=True, text=True, cwd=cwd
+    )
 
 
 @pytest.mark.parametrize("spec", ["puma560", "stanford"])
@@ -33,8 +35,10 @@ def test_demo_tracks_inside_the_joint_limits(spec, tmp_path):
     assert errors[0] > 1e-2 and errors[-1] < 1e-4  # the 0.05 offset decays under computed torque
 
 
-@pytest.mark.parametrize("spec, says", [("styx_high_ct", "robotgen simulate specs/styx_high_ct.yaml"),
-                                        ("puma560_rmrc", "resolved_rate controller")])
+@pytest.mark.parametrize(
+    "spec, says",
+    [("styx_high_ct", "robotgen simulate specs/styx_high_ct.yaml"), ("puma560_rmrc", "resolved_rate controller")],
+)
 def test_demo_turns_away_what_it_cannot_run(spec, says):
     r = demo(f"specs/{spec}.yaml", cwd=ROOT)
     assert r.returncode == 2

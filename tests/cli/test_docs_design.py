@@ -1,5 +1,6 @@
 """docs/ARCHITECTURE.md is the design: every module named, each rule's threshold the one the
 code uses, and no measurement (those go to docs/performance-log.md, dated)."""
+
 from __future__ import annotations
 
 import re
@@ -24,8 +25,17 @@ def flat(text: str) -> str:
 
 
 # what a measurement looks like: a time, a benchmark's vocabulary, a before -> after
-MEASUREMENT = [r"\b\d[\d.,-]*\s*(ns|us|ms|s)\b", r"\bZen\b", r"A/B", r"alternating", r"\b[Mm]easured\b",
-               r"\d\s*->\s*\d", r"\bfrom \d[\d.]* to \d", r"\d[\d.]* against \d", r"\d+(\.\d+)? times (faster|slower)"]
+MEASUREMENT = [
+    r"\b\d[\d.,-]*\s*(ns|us|ms|s)\b",
+    r"\bZen\b",
+    r"A/B",
+    r"alternating",
+    r"\b[Mm]easured\b",
+    r"\d\s*->\s*\d",
+    r"\bfrom \d[\d.]* to \d",
+    r"\d[\d.]* against \d",
+    r"\d+(\.\d+)? times (faster|slower)",
+]
 
 
 def test_architecture_quotes_no_measurement():
@@ -43,28 +53,31 @@ def test_performance_log_entries_are_dated():
     assert not undated, undated
 
 
-@pytest.mark.parametrize("said", [
-    f"past {LOOPS_ABOVE_DOF} joints: M, C",
-    f"past {LOOPS_ABOVE_OPS} operations: loops",
-    f"The Coriolis matrix past {CORIOLIS_LOOPS_ABOVE_OPS} operations: loops",
-    f"d tau/dqd past {DERIVATIVE_LOOPS_ABOVE_OPS} operations: the recursion's loops",
-    f"Forward dynamics' derivatives past {DERIVATIVE_LOOPS_ABOVE_OPS} operations",
-    f"at most {round(100 * (RECURSION_LOOPS_WITHIN - 1))} % more operations than the sweeps",
-    f"`AD_CORIOLIS_MAX_DOF` = {AD_CORIOLIS_MAX_DOF} joints",
-    f"within {SNAP_ULPS} units in the last place",
-    f"fewer than {ISSUE_WIDTH} operations per modelled cycle",
-    f"up to {ISSUE_WIDTH} ready steps",
-    f"past {COMPILE_PARTS_ABOVE:,} characters is compiled in {COMPILE_PARTS} parts".replace(",", " "),
-    f"those in loop bodies counted {LOOP_STATEMENT_COST} times",
-    f"A run of {FILL_RUN} or more stores of one value",
-])
+@pytest.mark.parametrize(
+    "said",
+    [
+        f"past {LOOPS_ABOVE_DOF} joints: M, C",
+        f"past {LOOPS_ABOVE_OPS} operations: loops",
+        f"The Coriolis matrix past {CORIOLIS_LOOPS_ABOVE_OPS} operations: loops",
+        f"d tau/dqd past {DERIVATIVE_LOOPS_ABOVE_OPS} operations: the recursion's loops",
+        f"Forward dynamics' derivatives past {DERIVATIVE_LOOPS_ABOVE_OPS} operations",
+        f"at most {round(100 * (RECURSION_LOOPS_WITHIN - 1))} % more operations than the sweeps",
+        f"`AD_CORIOLIS_MAX_DOF` = {AD_CORIOLIS_MAX_DOF} joints",
+        f"within {SNAP_ULPS} units in the last place",
+        f"fewer than {ISSUE_WIDTH} operations per modelled cycle",
+        f"up to {ISSUE_WIDTH} ready steps",
+        f"past {COMPILE_PARTS_ABOVE:,} characters is compiled in {COMPILE_PARTS} parts".replace(",", " "),
+        f"those in loop bodies counted {LOOP_STATEMENT_COST} times",
+        f"A run of {FILL_RUN} or more stores of one value",
+    ],
+)
 def test_architecture_states_the_thresholds_the_code_uses(said):
     assert said in flat((DOCS / "ARCHITECTURE.md").read_text())
 
 
 def test_architecture_names_every_module():
     text = (DOCS / "ARCHITECTURE.md").read_text()
-    table = text[text.index("## Every module"):].split("\n## ")[0]
+    table = text[text.index("## Every module") :].split("\n## ")[0]
     named = set(re.findall(r"`(?:[\w/]+/)?(\w+\.py)`", table))
     modules = {p.name for p in (ROOT / "robotgen").rglob("*.py") if p.name != "__init__.py"}
     assert not modules - named, f"modules missing from ARCHITECTURE.md's table: {sorted(modules - named)}"

@@ -2,6 +2,7 @@
 (a console block's command, a Python snippet, the C program of c-api.md) and compares its
 output with the docs' text, so that a change that moves a figure fails here rather than
 leaving the docs stale. (The README's adaptive-PUMA figures: tests/control/test_hand_control.py.)"""
+
 from __future__ import annotations
 
 import contextlib
@@ -53,10 +54,10 @@ def doc(name: str) -> str:
 
 def block_after(text: str, marker: str, fence: str = "```") -> str:
     """The body of the first fenced block that starts after ``marker``."""
-    rest = text[text.index(marker):]
+    rest = text[text.index(marker) :]
     start = rest.index(fence)
-    body = rest[rest.index("\n", start) + 1:]
-    return body[:body.index("```")]
+    body = rest[rest.index("\n", start) + 1 :]
+    return body[: body.index("```")]
 
 
 def block_with(text: str, inside: str, fence: str = "```python") -> tuple[str, str]:
@@ -97,14 +98,19 @@ def test_function_counts_are_what_build_prints(tmp_path):
     robotgen build prints for that spec (or for cli.md's arm2.urdf)."""
     (tmp_path / "arm2.urdf").write_text(ARM2)
     urdf = str(tmp_path / "arm2.urdf")
-    systems = {"arm_2": lambda: load_urdf_system(urdf, tip="tool"),
-               "arm2_tree": lambda: load_urdf_tree_system(urdf, name="arm2_tree"),
-               "planar_manipulator": lambda: load_mjcf_system(str(dm_control_suite() / "manipulator.xml"),
-                                                              tip="grasp"),
-               "cheetah_legs": lambda: load_mjcf_tree_system(str(dm_control_suite() / "cheetah.xml"), base="torso",
-                                                             name="cheetah_legs")}
-    quoted = [(page.name, name, int(n)) for page in sorted(DOCS.glob("*.md"))
-              for name, n in re.findall(r"robotgen: built (\w+) \((\d+) functions\)", page.read_text())]
+    systems = {
+        "arm_2": lambda: load_urdf_system(urdf, tip="tool"),
+        "arm2_tree": lambda: load_urdf_tree_system(urdf, name="arm2_tree"),
+        "planar_manipulator": lambda: load_mjcf_system(str(dm_control_suite() / "manipulator.xml"), tip="grasp"),
+        "cheetah_legs": lambda: load_mjcf_tree_system(
+            str(dm_control_suite() / "cheetah.xml"), base="torso", name="cheetah_legs"
+        ),
+    }
+    quoted = [
+        (page.name, name, int(n))
+        for page in sorted(DOCS.glob("*.md"))
+        for name, n in re.findall(r"robotgen: built (\w+) \((\d+) functions\)", page.read_text())
+    ]
     assert len(quoted) >= 6, quoted
     counts = {}
     for page, name, n in quoted:
@@ -121,8 +127,12 @@ def test_cli_info_and_simulate_print_what_cli_md_shows(tmp_path, capsys):
     shown = block_after(cli, "$ robotgen info specs/puma560.yaml", "")
     assert capsys.readouterr().out == shown
     env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")]))
-    simulated = subprocess.run([sys.executable, "-m", "robotgen", "simulate", str(SPECS["styx_high_ct"]), "-o",
-                                str(tmp_path), "-q"], capture_output=True, text=True, env=env)  # its own process:
+    simulated = subprocess.run(
+        [sys.executable, "-m", "robotgen", "simulate", str(SPECS["styx_high_ct"]), "-o", str(tmp_path), "-q"],
+        capture_output=True,
+        text=True,
+        env=env,
+    )  # its own process:
     assert simulated.returncode == 0, simulated.stderr  # it imports a styx_high_ct of its own
     printed = simulated.stdout.splitlines()
     shown = block_after(cli, "$ robotgen simulate specs/styx_high_ct.yaml -o sim", "").splitlines()
@@ -145,7 +155,7 @@ def test_python_api_snippets_print_what_they_say(modules):
     assert run(loop)[0].strip() == said
 
     rates, after = block_with(api, "qd, error, w, cond = arm.position_step(q, target)")
-    assert run(rates)[0] == after[after.index("```\n") + 4:].split("```")[0]
+    assert run(rates)[0] == after[after.index("```\n") + 4 :].split("```")[0]
 
     step, _ = block_with(api, "hand.servo_step(theta, theta_dot")
     names = run(step)[1]
@@ -173,7 +183,15 @@ def test_c_api_program_prints_what_c_api_md_shows(modules, tmp_path):
     source = block_after(api, "`app.c` computes")
     (tmp_path / "app.c").write_text(source)
     out = Path(modules["puma560"].__file__).parent
-    common = ["gcc", "-std=c99", f"-I{out}", str(tmp_path / "app.c"), str(out / "puma560.c"), "-o", str(tmp_path / "app")]
+    common = [
+        "gcc",
+        "-std=c99",
+        f"-I{out}",
+        str(tmp_path / "app.c"),
+        str(out / "puma560.c"),
+        "-o",
+        str(tmp_path / "app"),
+    ]
     subprocess.run([*common, "-lm"], check=True, capture_output=True)
     printed = subprocess.run([str(tmp_path / "app")], capture_output=True, text=True, check=True).stdout
     shown = block_after(api, "**Straight from the output directory**", "```console").splitlines()[1:]
@@ -194,9 +212,12 @@ def test_spec_format_quotes_what_info_prints(capsys):
     loop = re.search(r"spectral radius (\S+) .*slowest time constant (\S+) ms", printed)
     assert f"radius {loop.group(1)}, a slowest time constant of {loop.group(2)} ms" in text
     feedforward = printed.split("    feedforward\n")[1].split("    feedback\n")[0]
-    rows = {m.group(1): m.groups()[1:] for m in re.finditer(r"^\s+(\d) .*?\s(\d+)\s+(\d+)\s+(\d+)\s+(\d+)\s+\d+\s+\d+",
-                                                              feedforward, re.M)}
+    rows = {
+        m.group(1): m.groups()[1:]
+        for m in re.finditer(r"^\s+(\d) .*?\s(\d+)\s+(\d+)\s+(\d+)\s+(\d+)\s+\d+\s+\d+", feedforward, re.M)
+    }
     stage2, stage3 = rows["2"], rows["3"]
-    assert (f"stage 2 costs {stage2[2]} multiplications and {stage2[3]} additions (the paper {stage2[0]} and "
-            f"{stage2[1]};") in text
+    assert (
+        f"stage 2 costs {stage2[2]} multiplications and {stage2[3]} additions (the paper {stage2[0]} and {stage2[1]};"
+    ) in text
     assert f"stage 3 adds {stage3[2]} and {stage3[3]} (the paper {stage3[0]} and {stage3[1]}," in text

@@ -6,6 +6,7 @@ robotgen's wall is a spring of stiffness k_w = 1e5 N/m (and a damper), MuJoCo's 
 contact; on either, the impedance's statics (xd = xdd = 0) give F_s = K (x_d - x): the tip
 presses with its stiffness times how far the desired point lies beyond where the tip stopped,
 K p k_w / (K + k_w) on robotgen's spring (p the desired point's depth in the wall)."""
+
 from __future__ import annotations
 
 import dataclasses
@@ -30,8 +31,11 @@ IMPEDANCE, HYBRID, SQUEEZE = (ROOT / "specs" / f"{n}.yaml" for n in ("impedance_
 
 def run(system, module, plant: str, **changes):
     s = dataclasses.replace(system.simulation, **changes)
-    return simulate.run(module, s) if plant == "robotgen" else simulate.run(module, s, plant=tree_plant(system, module,
-                                                                                                       s.dt)[1])
+    return (
+        simulate.run(module, s)
+        if plant == "robotgen"
+        else simulate.run(module, s, plant=tree_plant(system, module, s.dt)[1])
+    )
 
 
 def test_a_leaf_senses_the_wall(build_module):
@@ -46,19 +50,24 @@ def test_a_leaf_senses_the_wall(build_module):
     for depth in (1e-3, 2e-4):
         y = rng.uniform(0.2, 0.6)
         x = wall.point[0] + depth
-        c2 = (x * x + y * y - l1 ** 2 - l2 ** 2) / (2 * l1 * l2)
+        c2 = (x * x + y * y - l1**2 - l2**2) / (2 * l1 * l2)
         q2 = -np.arccos(c2)
         q = np.array([np.arctan2(y, x) - np.arctan2(l2 * np.sin(q2), l1 + l2 * np.cos(q2)), q2])
-        J = np.array([[-l1 * np.sin(q[0]) - l2 * np.sin(q.sum()), -l2 * np.sin(q.sum())],
-                      [l1 * np.cos(q[0]) + l2 * np.cos(q.sum()), l2 * np.cos(q.sum())]])
+        J = np.array(
+            [
+                [-l1 * np.sin(q[0]) - l2 * np.sin(q.sum()), -l2 * np.sin(q.sum())],
+                [l1 * np.cos(q[0]) + l2 * np.cos(q.sum()), l2 * np.cos(q.sum())],
+            ]
+        )
         qd = rng.normal(size=2) * 0.05
         plant = ModulePlant(module, q, qd, module.plant_velocity(q, qd), 2)
         plant.set_wall(wall)
         tau = rng.normal(size=2) * 5
         tip_rate = (J @ qd)[0]  # d(depth)/dt: the tip goes in along +x
         push = wall.stiffness * depth + wall.damping * tip_rate
-        np.testing.assert_allclose(np.linalg.solve(J.T, plant.sensed_forces(tau)), [max(push, 0.0), 0.0],
-                                   rtol=1e-9, atol=1e-9)
+        np.testing.assert_allclose(
+            np.linalg.solve(J.T, plant.sensed_forces(tau)), [max(push, 0.0), 0.0], rtol=1e-9, atol=1e-9
+        )
         np.testing.assert_allclose(plant.wall_force(), max(push, 0.0), rtol=1e-12)
         np.testing.assert_allclose(module.plant_sensed_forces(q, module.plant_velocity(q, qd), tau), 0, atol=1e-12)
 
@@ -74,8 +83,10 @@ def test_impedance_settles_at_stiffness_times_penetration(build_module, plant):
     x_wall, p = system.simulation.wall.point[0], system.simulation.start[0] - system.simulation.wall.point[0]
     spring = K * (r.x_d[-1, 0] - r.x[-1, 0])
     f = r.wall_force[-1]
-    print(f"\n  {plant}: wall force {f:.5f} N, K (x_d - x) {spring:.5f} N, K p {K * p:g} N, tip {r.x[-1, 0] - x_wall:+.2e} m "
-          "from the wall")
+    print(
+        f"\n  {plant}: wall force {f:.5f} N, K (x_d - x) {spring:.5f} N, K p {K * p:g} N, tip {r.x[-1, 0] - x_wall:+.2e} m "
+        "from the wall"
+    )
     assert f == pytest.approx(spring, rel=1e-4)
     assert f == pytest.approx(K * p, rel=5e-3)
     if plant == "robotgen":
@@ -95,8 +106,10 @@ def test_hybrid_holds_the_normal_force_while_sliding(build_module, plant):
     force_error = np.abs(r.wall_force[after] - 10.0).max()
     tangential = np.abs(r.error[after, 1]).max()
     depth = np.abs(r.x[after, 0] - system.simulation.wall.point[0]).max()
-    print(f"\n  {plant}: |f - 10 N| <= {force_error:.2e} N, |y - y_d| <= {tangential:.2e} m, off the wall "
-          f"<= {depth:.2e} m, y swept {np.ptp(r.x[:, 1]):.3f} m")
+    print(
+        f"\n  {plant}: |f - 10 N| <= {force_error:.2e} N, |y - y_d| <= {tangential:.2e} m, off the wall "
+        f"<= {depth:.2e} m, y swept {np.ptp(r.x[:, 1]):.3f} m"
+    )
     assert r.wall_commanded == 10.0
     assert np.ptp(r.x[:, 1]) > 0.29  # it slid up and down
     assert force_error < 0.05 and tangential < 5e-5 and depth < 2e-4
@@ -118,8 +131,10 @@ def static_squeeze_shift(spec: Path, extra_mass: float) -> float:
 
     def ik(x, y):  # the left finger, elbow out (specs/styx_high_ct.yaml's header)
         u, v = x + b, y
-        s = np.sqrt(4 * l ** 4 - (u * u + v * v - 2 * l * l) ** 2)
-        return np.array([np.arctan2(v, u) + np.arctan2(s, u * u + v * v), np.arctan2(v, u) - np.arctan2(s, u * u + v * v)])
+        s = np.sqrt(4 * l**4 - (u * u + v * v - 2 * l * l) ** 2)
+        return np.array(
+            [np.arctan2(v, u) + np.arctan2(s, u * u + v * v), np.arctan2(v, u) - np.arctan2(s, u * u + v * v)]
+        )
 
     theta = ik(x0 - r, y0)
     J = np.array([[-l * np.sin(theta[0]), -l * np.sin(theta[1])], [l * np.cos(theta[0]), l * np.cos(theta[1])]])
@@ -160,9 +175,11 @@ def test_squeeze_loop_holds_after_a_payload_step(open_squeeze, build_module, pla
         errors[name] = (before, after, e[-1])
         assert r.contacts is None or r.contacts.holds
     predicted = static_squeeze_shift(SQUEEZE, 0.3)
-    print(f"\n  {plant}: squeeze error (before, after the step, at the end): "
-          + ", ".join(f"{k} ({a:+.5f}, {b:+.5f}, {c:.1e}) N" for k, (a, b, c) in errors.items())
-          + f"; predicted open-loop shift {predicted:+.5f} N")
+    print(
+        f"\n  {plant}: squeeze error (before, after the step, at the end): "
+        + ", ".join(f"{k} ({a:+.5f}, {b:+.5f}, {c:.1e}) N" for k, (a, b, c) in errors.items())
+        + f"; predicted open-loop shift {predicted:+.5f} N"
+    )
     (open_before, open_after, open_end), (pi_before, pi_after, pi_end) = errors["open"], errors["PI"]
     if plant == "robotgen":
         assert abs(open_before) < 1e-6 and abs(pi_before) < 1e-6
@@ -176,10 +193,15 @@ def test_squeeze_loop_holds_after_a_payload_step(open_squeeze, build_module, pla
 def test_cli_md_shows_what_simulate_prints(tmp_path):
     """docs/cli.md's run of specs/hybrid_arm.yaml is what simulate prints."""
     cli = (ROOT / "docs" / "cli.md").read_text()
-    rest = cli[cli.index("$ robotgen simulate specs/hybrid_arm.yaml -o sim -q\n"):]
-    shown = rest[rest.index("\n") + 1:rest.index("```")].splitlines()
+    rest = cli[cli.index("$ robotgen simulate specs/hybrid_arm.yaml -o sim -q\n") :]
+    shown = rest[rest.index("\n") + 1 : rest.index("```")].splitlines()
     env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")]))
-    printed = subprocess.run([sys.executable, "-m", "robotgen", "simulate", str(HYBRID), "-o", str(tmp_path), "-q"],
-                             capture_output=True, text=True, env=env, check=True).stdout.splitlines()
+    printed = subprocess.run(
+        [sys.executable, "-m", "robotgen", "simulate", str(HYBRID), "-o", str(tmp_path), "-q"],
+        capture_output=True,
+        text=True,
+        env=env,
+        check=True,
+    ).stdout.splitlines()
     assert printed[:-1] == shown[:-1]
     assert printed[-1] == shown[-1].replace("sim/", f"{tmp_path}/")

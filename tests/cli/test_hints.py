@@ -1,6 +1,7 @@
 """Error hints point to what an installed user has: `robotgen docs PAGE` (the pages a wheel
 installs as robotgen/docs) or `robotgen --help`, never to docs/ or examples/ paths that only
 a clone of the repository has."""
+
 from __future__ import annotations
 
 import ast
@@ -26,23 +27,36 @@ def strings_outside_docstrings(path: Path) -> list[tuple[int, str]]:
             first = node.body[0]
             if isinstance(first, ast.Expr) and isinstance(first.value, ast.Constant):
                 docstrings.add(id(first.value))
-    return [(node.lineno, node.value) for node in ast.walk(tree)
-            if isinstance(node, ast.Constant) and isinstance(node.value, str) and id(node) not in docstrings]
+    return [
+        (node.lineno, node.value)
+        for node in ast.walk(tree)
+        if isinstance(node, ast.Constant) and isinstance(node.value, str) and id(node) not in docstrings
+    ]
 
 
 def test_no_message_names_a_path_of_the_clone():
-    found = [f"{path.relative_to(ROOT)}:{line}: {text!r}"
-             for path in sorted((ROOT / "robotgen").rglob("*.py"))
-             for line, text in strings_outside_docstrings(path) if CLONE_ONLY.search(text)]
-    found += [f"{path.relative_to(ROOT)}: {line.strip()}" for path in sorted((ROOT / "templates").glob("*.jinja"))
-              for line in path.read_text().splitlines() if CLONE_ONLY.search(line)]
+    found = [
+        f"{path.relative_to(ROOT)}:{line}: {text!r}"
+        for path in sorted((ROOT / "robotgen").rglob("*.py"))
+        for line, text in strings_outside_docstrings(path)
+        if CLONE_ONLY.search(text)
+    ]
+    found += [
+        f"{path.relative_to(ROOT)}: {line.strip()}"
+        for path in sorted((ROOT / "templates").glob("*.jinja"))
+        for line in path.read_text().splitlines()
+        if CLONE_ONLY.search(line)
+    ]
     assert found == []
 
 
 def test_every_page_a_hint_names_exists():
     pages = documentation.pages()
-    named = {m.group(1) for path in (ROOT / "robotgen").rglob("*.py")
-             for m in re.finditer(r"hint\(['\"]([\w-]+)['\"]", path.read_text())}
+    named = {
+        m.group(1)
+        for path in (ROOT / "robotgen").rglob("*.py")
+        for m in re.finditer(r"hint\(['\"]([\w-]+)['\"]", path.read_text())
+    }
     assert named and named <= set(pages), named - set(pages)
     assert {"cli", "spec-format", "python-api", "c-api"} <= set(pages)
 
@@ -61,11 +75,16 @@ def test_robotgen_docs_lists_and_prints_the_pages(capsys):
     assert "Documentation: robotgen docs" in " ".join(capsys.readouterr().out.split())
 
 
-@pytest.mark.parametrize("spec, says", [
-    ("puma560", "a chain's module closes a loop in a few lines of Python: `robotgen docs python-api`, \"A chain\""),
-    ("puma560_rmrc_no_lqr", "integrate its rate_step / position_step (`robotgen docs python-api`, "
-                            "\"Resolved-rate controllers\""),
-])
+@pytest.mark.parametrize(
+    "spec, says",
+    [
+        ("puma560", 'a chain\'s module closes a loop in a few lines of Python: `robotgen docs python-api`, "A chain"'),
+        (
+            "puma560_rmrc_no_lqr",
+            'integrate its rate_step / position_step (`robotgen docs python-api`, "Resolved-rate controllers"',
+        ),
+    ],
+)
 def test_simulate_points_to_the_installed_docs(capsys, tmp_path, spec, says):
     path = ROOT / "specs" / f"{spec}.yaml"
     if spec == "puma560_rmrc_no_lqr":  # a resolved-rate controller without a regulator to simulate

@@ -2,6 +2,7 @@
 environment: every CLI command the README shows works, simulate included (its plots need
 matplotlib, which is a dependency), and the documentation pages error hints name are there
 (`robotgen docs`)."""
+
 from __future__ import annotations
 
 import subprocess
@@ -15,16 +16,18 @@ def test_plain_install_runs_every_readme_command(tmp_path):
     env_dir = tmp_path / "venv"
     venv.EnvBuilder(with_pip=True).create(env_dir)
     python = env_dir / "bin" / "python"
-    install = subprocess.run([str(python), "-m", "pip", "install", "--quiet", str(ROOT)],
-                             capture_output=True, text=True)
+    install = subprocess.run(
+        [str(python), "-m", "pip", "install", "--quiet", str(ROOT)], capture_output=True, text=True
+    )
     assert install.returncode == 0, install.stdout + install.stderr
     robotgen = env_dir / "bin" / "robotgen"
     work = tmp_path / "work"
     work.mkdir()
 
     def start(*args: str) -> subprocess.Popen:
-        return subprocess.Popen([str(robotgen), *args], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                                cwd=work)
+        return subprocess.Popen(
+            [str(robotgen), *args], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=work
+        )
 
     def run(*args: str) -> subprocess.CompletedProcess:
         return finish(start(*args))
@@ -52,9 +55,17 @@ def test_plain_install_runs_every_readme_command(tmp_path):
     built, simulated = finish(building), finish(simulating)
     assert built.returncode == 0, built.stderr
     assert (work / "generated" / "puma560" / "puma560.h").is_file()
-    probe = subprocess.run([str(python), "-c", "import sys; sys.path.insert(0, 'generated/puma560'); "
-                            "import puma560, numpy as np; print(puma560.mass(np.zeros(6))[0, 0])"],
-                           capture_output=True, text=True, cwd=work)
+    probe = subprocess.run(
+        [
+            str(python),
+            "-c",
+            "import sys; sys.path.insert(0, 'generated/puma560'); "
+            "import puma560, numpy as np; print(puma560.mass(np.zeros(6))[0, 0])",
+        ],
+        capture_output=True,
+        text=True,
+        cwd=work,
+    )
     assert probe.returncode == 0 and float(probe.stdout) > 1.0, probe.stderr
     assert simulated.returncode == 0, simulated.stderr
     assert (work / "sim" / "styx_high_ct.csv").is_file()

@@ -1,6 +1,7 @@
 """A build interrupted by SIGINT or SIGTERM at any moment leaves the previous output whole (or
 the new one, if it was already in place), no staging directories, and one line on stderr:
 exit 130 or 143, never a traceback."""
+
 from __future__ import annotations
 
 import json
@@ -21,8 +22,12 @@ SPEC = str(Path(__file__).resolve().parents[2] / "specs" / "two_link.yaml")
 
 
 def start(out: Path) -> subprocess.Popen:
-    return subprocess.Popen([sys.executable, "-m", "robotgen", "build", SPEC, "-o", str(out), "--no-compile", "-q"],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    return subprocess.Popen(
+        [sys.executable, "-m", "robotgen", "build", SPEC, "-o", str(out), "--no-compile", "-q"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
 
 
 @pytest.mark.parametrize("signum, status", [(signal.SIGINT, 130), (signal.SIGTERM, 143)])
@@ -79,8 +84,9 @@ def test_a_signal_while_python_imports_robotgen_is_one_line(tmp_path, signum, st
     inside a C extension's import once surfaced as an ImportError traceback). Earlier, Python's
     own start-up (site) is running, whose KeyboardInterrupt traceback no program can catch."""
     for k in range(10):
-        proc = subprocess.Popen([sys.executable, "-m", "robotgen", "check", SPEC], stdout=subprocess.PIPE,
-                                stderr=subprocess.PIPE, text=True)
+        proc = subprocess.Popen(
+            [sys.executable, "-m", "robotgen", "check", SPEC], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
+        )
         time.sleep(0.1 + 0.05 * k)
         proc.send_signal(signum)
         _, err = proc.communicate(timeout=60)
@@ -211,9 +217,13 @@ def _during_the_graphs(tmp_path: Path, runs: int, signum: int, status: int) -> l
     rng = np.random.default_rng(11)
     statuses = []
     for _ in range(runs):
-        proc = subprocess.Popen([sys.executable, "-m", "robotgen", "build", str(spec), "-o", str(out), "--no-compile"],
-                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                                env={**os.environ, "ROBOTGEN_PROGRESS": "1"})
+        proc = subprocess.Popen(
+            [sys.executable, "-m", "robotgen", "build", str(spec), "-o", str(out), "--no-compile"],
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+            env={**os.environ, "ROBOTGEN_PROGRESS": "1"},
+        )
         for line in proc.stderr:
             if "building the CasADi graphs" in line:
                 break

@@ -2,6 +2,7 @@
 function without a docstring fails), not on tests/, bench/ or examples/, and the tree passes;
 then mypy on robotgen/ ([tool.mypy]), which the tree passes and which refuses reading a node's
 fields through the DefineNode | AttachNode | ControlNode union without narrowing it."""
+
 from __future__ import annotations
 
 import subprocess
@@ -15,17 +16,25 @@ UNDOCUMENTED = "def public(x):\n    return x\n\n\nclass Thing:\n    def method(s
 
 
 def ruff(*args: str, source: str | None = None) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "ruff", "check", "--no-cache", *args], input=source,
-                          capture_output=True, text=True, cwd=ROOT)
+    return subprocess.run(
+        [sys.executable, "-m", "ruff", "check", "--no-cache", *args],
+        input=source,
+        capture_output=True,
+        text=True,
+        cwd=ROOT,
+    )
 
 
-@pytest.mark.parametrize("where, codes", [
-    ("robotgen/emit/probe.py", {"D100", "D101", "D102", "D103"}),
-    ("robotgen/symbolic/rigid_body/probe.py", {"D100", "D101", "D102", "D103"}),
-    ("tests/cli/probe.py", set()),
-    ("bench/probe.py", set()),
-    ("examples/probe.py", set()),
-])
+@pytest.mark.parametrize(
+    "where, codes",
+    [
+        ("robotgen/emit/probe.py", {"D100", "D101", "D102", "D103"}),
+        ("robotgen/symbolic/rigid_body/probe.py", {"D100", "D101", "D102", "D103"}),
+        ("tests/cli/probe.py", set()),
+        ("bench/probe.py", set()),
+        ("examples/probe.py", set()),
+    ],
+)
 def test_d1_holds_on_robotgen_alone(where, codes):
     found = ruff("--output-format", "concise", "--stdin-filename", where, "-", source=UNDOCUMENTED)
     reported = {line.split()[1] for line in found.stdout.splitlines() if line.startswith(where)}
@@ -48,17 +57,22 @@ def test_the_tree_passes_mypy():
     assert "no issues found" in checked.stdout and " 0 source files" not in checked.stdout, checked.stdout
 
 
-@pytest.mark.parametrize("body, error", [
-    ("return system.root_node.robot", "union-attr"),  # a CONTROL node's field, read off the union
-    ("return system.nodes[name].leaf", "union-attr"),  # a DEFINE node's
-    ("return system.control(name).robot", None),  # narrowed by type: RobotSystem's typed accessors
-    ("return system.leaf(name).nq", None),
-    ("node = system.nodes[name]\n    return node.robot if isinstance(node, ControlNode) else name", None),
-])
+@pytest.mark.parametrize(
+    "body, error",
+    [
+        ("return system.root_node.robot", "union-attr"),  # a CONTROL node's field, read off the union
+        ("return system.nodes[name].leaf", "union-attr"),  # a DEFINE node's
+        ("return system.control(name).robot", None),  # narrowed by type: RobotSystem's typed accessors
+        ("return system.leaf(name).nq", None),
+        ("node = system.nodes[name]\n    return node.robot if isinstance(node, ControlNode) else name", None),
+    ],
+)
 def test_mypy_holds_the_node_union_to_narrowing(body, error, tmp_path):
     probe = tmp_path / "probe.py"
-    probe.write_text("from robotgen.model.system import ControlNode, RobotSystem\n\n\n"
-                     f"def probe(system: RobotSystem, name: str) -> object:\n    {body}\n")
+    probe.write_text(
+        "from robotgen.model.system import ControlNode, RobotSystem\n\n\n"
+        f"def probe(system: RobotSystem, name: str) -> object:\n    {body}\n"
+    )
     checked = mypy(str(probe))  # under pyproject.toml's settings, robotgen found from the repository root
     if error is None:
         assert checked.returncode == 0, checked.stdout

@@ -1,6 +1,7 @@
 """`robotgen build ROBOT.xml` end to end: dm_control's acrobot built to its tip site, the
 module imported and its compiled C checked against MuJoCo; `info` and `check` on an MJCF
 file; the build cache sees a change in an included file."""
+
 from __future__ import annotations
 
 import importlib
@@ -68,8 +69,10 @@ def test_info_and_check(capsys):
 def test_a_changed_included_file_is_rebuilt(tmp_path, capsys):
     main_file = tmp_path / "arm.xml"
     main_file.write_text('<mujoco model="arm">\n  <include file="links.xml"/>\n</mujoco>\n')
-    links = ('<mujoco><worldbody><body name="a"><joint name="j" axis="0 1 0"/>'
-             '<geom type="capsule" fromto="0 0 0 {} 0 0" size="0.05"/></body></worldbody></mujoco>')
+    links = (
+        '<mujoco><worldbody><body name="a"><joint name="j" axis="0 1 0"/>'
+        '<geom type="capsule" fromto="0 0 0 {} 0 0" size="0.05"/></body></worldbody></mujoco>'
+    )
     (tmp_path / "links.xml").write_text(links.format(0.5))
     argv = ["build", str(main_file), "--tip", "a", "-o", str(tmp_path / "out"), "--no-compile", "-q"]
     assert main(argv) == 0

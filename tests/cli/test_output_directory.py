@@ -1,6 +1,7 @@
 """`-o DIR` replaces only what robotgen wrote: a user's folder that happens to hold a
 manifest.json, the current directory or one of its parents is refused (exit 1) and left as it
 was; an earlier output, also after `make` ran in it, is replaced."""
+
 from __future__ import annotations
 
 import errno
@@ -207,8 +208,11 @@ def test_output_directory_errors_are_the_users(tmp_path, capsys, monkeypatch, ca
     """NotADirectoryError, OSError 36 and a PermissionError (an immutable directory) were
     internal errors (exit 3)."""
     (tmp_path / "file.txt").write_text("x")
-    out = {"through a file": tmp_path / "file.txt" / "out", "name too long": tmp_path / ("x" * 300),
-           "rename refused": tmp_path / "gen"}[case]
+    out = {
+        "through a file": tmp_path / "file.txt" / "out",
+        "name too long": tmp_path / ("x" * 300),
+        "rename refused": tmp_path / "gen",
+    }[case]
     if case == "rename refused":
         assert build(out) == 0
         (out / ".robotgen-build").unlink()
@@ -220,8 +224,11 @@ def test_output_directory_errors_are_the_users(tmp_path, capsys, monkeypatch, ca
         monkeypatch.setattr(Path, "rename", refused)
     assert build(out) == 1
     err = capsys.readouterr().err
-    words = {"through a file": f"{tmp_path / 'file.txt'} is a file, not a directory",
-             "name too long": "File name too long", "rename refused": "Operation not permitted"}[case]
+    words = {
+        "through a file": f"{tmp_path / 'file.txt'} is a file, not a directory",
+        "name too long": "File name too long",
+        "rename refused": "Operation not permitted",
+    }[case]
     assert err.startswith(f"robotgen: error: cannot write the output directory {out}: ") and words in err, err
     if case == "rename refused":
         monkeypatch.undo()

@@ -1,6 +1,7 @@
 """`make test-quick`, the README's first check: a sample of the suite named by paths in the
 Makefile. Every path must exist and be collected (a renamed test file would silently shrink
 the sample), and the sample must reach every layer."""
+
 from __future__ import annotations
 
 import os
@@ -26,36 +27,51 @@ def test_the_quick_sample_exists_and_spans_the_layers():
     layers = {p.split("/")[1] for p in paths}
     assert {"spec", "dynamics", "emit", "control", "cli"} <= layers
     env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")]))
-    collected = subprocess.run([sys.executable, "-m", "pytest", "--collect-only", "-q", "-p", "no:cacheprovider",
-                                *paths], capture_output=True, text=True, cwd=ROOT, env=env)
+    collected = subprocess.run(
+        [sys.executable, "-m", "pytest", "--collect-only", "-q", "-p", "no:cacheprovider", *paths],
+        capture_output=True,
+        text=True,
+        cwd=ROOT,
+        env=env,
+    )
     assert collected.returncode == 0, collected.stdout[-2000:] + collected.stderr
     count = int(re.search(r"(\d+)(?:/\d+)? tests? (?:collected|selected)", collected.stdout).group(1))
-    total = subprocess.run([sys.executable, "-m", "pytest", "--collect-only", "-q", "-p", "no:cacheprovider"],
-                           capture_output=True, text=True, cwd=ROOT, env=env)
+    total = subprocess.run(
+        [sys.executable, "-m", "pytest", "--collect-only", "-q", "-p", "no:cacheprovider"],
+        capture_output=True,
+        text=True,
+        cwd=ROOT,
+        env=env,
+    )
     everything = int(re.search(r"(\d+)(?:/\d+)? tests? (?:collected|selected)", total.stdout).group(1))
     assert 300 <= count < everything, (count, everything)
 
 
-LINT = ["python -m ruff check .", "python -m mypy"]  # mypy's files and settings: pyproject.toml [tool.mypy]
+LINT = [
+    "python -m ruff check .",
+    "python -m ruff format --check .",
+    "python -m mypy",
+]  # mypy's files and settings: pyproject.toml [tool.mypy]
 
 
 def plan_of(target: str) -> list[str]:
     """The commands ``make -n target`` would run."""
-    plan = subprocess.run(["make", "--no-print-directory", "-n", target, "PYTHON=python"], capture_output=True,
-                          text=True, cwd=ROOT)  # run from make test, make would name the directory it enters
+    plan = subprocess.run(
+        ["make", "--no-print-directory", "-n", target, "PYTHON=python"], capture_output=True, text=True, cwd=ROOT
+    )  # run from make test, make would name the directory it enters
     assert plan.returncode == 0, plan.stderr
     return plan.stdout.splitlines()
 
 
 @pytest.mark.skipif(shutil.which("make") is None, reason="needs make")
-def test_make_lint_runs_ruff_then_mypy():
+def test_make_lint_runs_ruff_its_formatter_check_then_mypy():
     assert plan_of("lint") == LINT
 
 
 @pytest.mark.skipif(shutil.which("make") is None, reason="needs make")
 def test_make_test_quick_runs_lint_then_the_sample():
     lines = plan_of("test-quick")
-    assert lines[:len(LINT)] == LINT
+    assert lines[: len(LINT)] == LINT
     assert lines[len(LINT)].split() == ["python", "-m", "pytest", "-q", *quick_tests()]
     assert len(lines) == len(LINT) + 1, lines
 

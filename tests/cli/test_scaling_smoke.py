@@ -1,6 +1,7 @@
 """Smoke test of bench/scaling.py --quick: chains of 2 and 6 links are built (timed in parts),
 checked against CasADi, timed by the C harness, and the table, JSON and PNG come out (the
 real scaling run, 2..30 links and a humanoid tree, is part of `make bench`)."""
+
 from __future__ import annotations
 
 import json

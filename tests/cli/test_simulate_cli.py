@@ -1,5 +1,6 @@
 """`robotgen simulate`: exit statuses, the CSV (header, rows, values that follow the closed-loop
 error of §3.4) and the PNG, run as a user runs it (a subprocess in the project root)."""
+
 from __future__ import annotations
 
 import csv
@@ -36,8 +37,13 @@ def test_simulate_writes_csv_and_png(tmp_path):
         table = list(csv.reader(f))
     header, rows = table[0], np.array(table[1:], dtype=float)
     coords = ["x", "y", "psi"]
-    assert header == (["t"] + [f"x_{c}" for c in coords] + [f"xref_{c}" for c in coords]
-                      + [f"tau_{j}" for j in ("lth1", "lth2", "rth1", "rth2")] + ["f_hand_f1"])
+    assert header == (
+        ["t"]
+        + [f"x_{c}" for c in coords]
+        + [f"xref_{c}" for c in coords]
+        + [f"tau_{j}" for j in ("lth1", "lth2", "rth1", "rth2")]
+        + ["f_hand_f1"]
+    )
     with open(HIGH) as f:
         sim = yaml.safe_load(f)["simulation"]
     dt = const(sim["dt"])
@@ -81,8 +87,10 @@ def spec_with(tmp_path, base: Path, change) -> Path:
 def test_a_diverging_loop_is_the_users_gains(tmp_path):
     """PD gains far too high for the step: exit 1 at the controller's line, with the time
     and the state that blew up; no output directory."""
+
     def stiff(data):
         data["nodes"]["ct_hand"]["control"].update(law="pd", kp=1e6, kv=1e3)
+
     spec = spec_with(tmp_path, HIGH, stiff)
     out = tmp_path / "sim"
     r = run_cli("simulate", str(spec), "-o", str(out), "--dt", "0.01", "--duration", "0.5")
@@ -104,6 +112,7 @@ def test_simulation_lists_are_checked_at_their_lines(tmp_path):
     def wrong(data):
         data["simulation"].update(start=[0.0, 0.12], amplitude=[0.01, 0.01, 0.2, 0.0], theta0=[1.0, 2.0])
         del data["simulation"]["initial_error"]
+
     spec = spec_with(tmp_path, HIGH, wrong)
     r = run_cli("check", str(spec))
     assert r.returncode == 1
@@ -129,6 +138,7 @@ def test_a_theta0_off_the_grasp_reports_the_residual(tmp_path, build_module):
     def at(data):
         del data["simulation"]["initial_error"]
         data["simulation"]["theta0"] = [float(v) for v in theta_off]
+
     spec = spec_with(tmp_path, HIGH, at)
     r = run_cli("simulate", str(spec), "-o", str(tmp_path / "sim"))
     assert r.returncode == 1
@@ -137,8 +147,10 @@ def test_a_theta0_off_the_grasp_reports_the_residual(tmp_path, build_module):
     name = module.info()["constraint_residual"][worst]
     assert name.startswith("hand.")
     line = spec.read_text().splitlines().index("  theta0:") + 1
-    assert r.stderr.startswith(f"{spec}:{line}:3: simulation.theta0: theta0 violates the constraint of attach "
-                               f"'hand': residual {residual[worst]:.3g} in '{name[5:]}'"), r.stderr
+    assert r.stderr.startswith(
+        f"{spec}:{line}:3: simulation.theta0: theta0 violates the constraint of attach "
+        f"'hand': residual {residual[worst]:.3g} in '{name[5:]}'"
+    ), r.stderr
     assert abs(residual[worst]) > 1e-4
 
 

@@ -9,6 +9,7 @@ under computed torque, 3e-16 m on the adaptive hand); a different integrator sho
 
 With contacts (the Styx hands) the grasp is unilateral and frictional: the demo specs' squeeze
 must keep every contact closed and inside its friction cone, and none loses the box."""
+
 from __future__ import annotations
 
 import csv
@@ -122,10 +123,12 @@ def test_computed_torque_puma_tracks_alike_on_both_plants(puma):
     print(f"\n  PUMA computed torque, 2 s: |q_robotgen - q_mujoco| <= {gap:.1e} rad")
     assert gap < ROUNDING
     plant = plant_model(system, system.simulation.dt)
-    fine = dataclasses.replace(plant, xml=plant.xml.replace('timestep="0.001"', 'timestep="0.0001"'), substeps=10,
-                               timestep=1e-4)
-    finer = simulate.run(module, system.simulation, plant=lambda m, th, thd, v, n: TreePlant(
-        MujocoPlant(fine), m, th, thd, n, None))
+    fine = dataclasses.replace(
+        plant, xml=plant.xml.replace('timestep="0.001"', 'timestep="0.0001"'), substeps=10, timestep=1e-4
+    )
+    finer = simulate.run(
+        module, system.simulation, plant=lambda m, th, thd, v, n: TreePlant(MujocoPlant(fine), m, th, thd, n, None)
+    )
     truncation = np.abs(robotgen_run.x - finer.x).max()
     print(f"  ten MuJoCo steps per period: {truncation:.2e} rad (robotgen's RK4 at 1 ms)")
     assert 1e-9 < truncation < 1e-5
@@ -137,15 +140,18 @@ def test_adaptive_hand_agrees_on_both_plants(build_module):
     agree to rounding, adapting and frozen."""
     system, module = load_system(str(RMAC)), build_module(RMAC)
     s = dataclasses.replace(system.simulation, duration=2.0)
-    runs = {p: hand_simulation.run(module, system, s, keys=("adaptive", "frozen"), plant=p)
-            for p in ("robotgen", "mujoco")}
+    runs = {
+        p: hand_simulation.run(module, system, s, keys=("adaptive", "frozen"), plant=p) for p in ("robotgen", "mujoco")
+    }
     for a, b in zip(runs["robotgen"].runs, runs["mujoco"].runs):
         gap = np.abs(a.p - b.p).max()
-        print(f"\n  {a.label}: |p_robotgen - p_mujoco| <= {gap:.1e} m, RMS after the pickup "
-              f"{1e3 * a.rms(runs['robotgen'].window(1.0)):.4f} / {1e3 * b.rms(runs['mujoco'].window(1.0)):.4f} mm")
+        print(
+            f"\n  {a.label}: |p_robotgen - p_mujoco| <= {gap:.1e} m, RMS after the pickup "
+            f"{1e3 * a.rms(runs['robotgen'].window(1.0)):.4f} / {1e3 * b.rms(runs['mujoco'].window(1.0)):.4f} mm"
+        )
         assert gap < ROUNDING
         assert a.rms(runs["robotgen"].window(1.0)) > 10 * a.rms(runs["robotgen"].before)  # the payload was felt
-    assert "<body name=\"hand_payload\"" in runs["mujoco"].mjcf
+    assert '<body name="hand_payload"' in runs["mujoco"].mjcf
 
 
 def test_regulator_runs_on_both_plants(tmp_path):
@@ -172,8 +178,10 @@ def test_styx_demo_grasp_holds_on_mujocos_contacts(spec, build_module):
     robotgen_run, mujoco_run = both_plants(module, system)
     c = mujoco_run.contacts
     usage = c.worst_usage()
-    print(f"\n  {spec.stem}: max |f_t|/(mu f_n) {np.round(usage, 4)}, slip {np.round(1e3 * c.largest_slip(), 3)} mm, "
-          f"|x_robotgen - x_mujoco| {np.abs(robotgen_run.x - mujoco_run.x).max(axis=0)}")
+    print(
+        f"\n  {spec.stem}: max |f_t|/(mu f_n) {np.round(usage, 4)}, slip {np.round(1e3 * c.largest_slip(), 3)} mm, "
+        f"|x_robotgen - x_mujoco| {np.abs(robotgen_run.x - mujoco_run.x).max(axis=0)}"
+    )
     assert c.holds and c.first_loss is None
     assert np.all(usage < 0.2)
     assert np.all(c.array("normal")[c.settled()] > 0.5)  # each tip presses with about 1/sqrt(2) N
@@ -197,8 +205,10 @@ def test_tripod_holds_its_box_up_by_friction(build_module):
     settled = mujoco_run.t > 0.05
     np.testing.assert_allclose(mujoco_run.f_actual[settled], 10.0, rtol=5e-3)
     gap = np.abs(robotgen_run.x - mujoco_run.x).max(axis=0)
-    print(f"\n  tripod: max |f_t|/(mu f_n) {np.round(c.worst_usage(), 3)}, slid "
-          f"{np.round(1e3 * c.array('sliding')[-1], 4)} mm, |x_robotgen - x_mujoco| {gap}")
+    print(
+        f"\n  tripod: max |f_t|/(mu f_n) {np.round(c.worst_usage(), 3)}, slid "
+        f"{np.round(1e3 * c.array('sliding')[-1], 4)} mm, |x_robotgen - x_mujoco| {gap}"
+    )
     assert np.all(gap[:3] < 5e-5) and np.all(gap[3:] < 2e-3)
     assert np.all(c.array("sliding")[-1] < 5e-5)  # the noslip solver: no creep under the weight
 
@@ -239,8 +249,9 @@ def test_sensed_forces_close_the_squeeze_loop(tmp_path, build_module):
             tips.append(np.linalg.solve(J.T, s))
         psi = closed.plant_position(theta)[2]
         u = np.array([np.cos(psi), np.sin(psi)])
-        np.testing.assert_allclose((u @ tips[0] - u @ tips[1]) / np.sqrt(2), closed.plant_internal_forces(theta, v, tau),
-                                   rtol=1e-10)
+        np.testing.assert_allclose(
+            (u @ tips[0] - u @ tips[1]) / np.sqrt(2), closed.plant_internal_forces(theta, v, tau), rtol=1e-10
+        )
         np.testing.assert_allclose(tips[0] + tips[1], m_box * closed.plant_dynamics(theta, v, tau)[1][:2], rtol=1e-9)
     system_closed, system_open = load_system(str(spec)), load_system(str(HIGH))
     ratios = {}
@@ -248,8 +259,11 @@ def test_sensed_forces_close_the_squeeze_loop(tmp_path, build_module):
         errors = []
         for system, module in ((system_open, open_loop), (system_closed, closed)):
             s = dataclasses.replace(system.simulation, duration=1.5)
-            run = (simulate.run(module, s) if plant == "robotgen"
-                   else simulate.run(module, s, plant=tree_plant(system, module, s.dt)[1]))
+            run = (
+                simulate.run(module, s)
+                if plant == "robotgen"
+                else simulate.run(module, s, plant=tree_plant(system, module, s.dt)[1])
+            )
             settled = run.t > 0.05
             errors.append(np.sqrt(np.mean((run.f_actual[settled, 0] - 1.0) ** 2)))
         ratios[plant] = errors[1] / errors[0]
@@ -269,8 +283,10 @@ def test_kf_internal_is_checked(tmp_path):
 
 def test_plant_flag_and_spec_setting(tmp_path):
     """simulation.plant: both writes each plant's CSV and PNG and the MJCF; --plant overrides."""
+
     def both(data):
         data["simulation"].update(plant="both", duration=0.2)
+
     spec = variant(tmp_path, HIGH, "styx_both", both)
     out = tmp_path / "sim"
     r = run_cli("simulate", str(spec), "-o", str(out), "-q")
@@ -307,15 +323,19 @@ def test_missing_mujoco_gives_the_install_hint(monkeypatch, capsys, tmp_path):
 def test_what_mujoco_cannot_model_is_a_located_error(tmp_path, build_module):
     """A formulas leaf without a mechanism (a tripod gantry's taken out), a mechanism that is not the
     formulas' (a wrong mass), and coordinates that are not affine in the joints."""
-    bare = variant(tmp_path, SPECS / "tripod_grasp.yaml", "tripod_bare",
-                   lambda d: d["nodes"]["f1"]["define"]["formulas"].pop("mechanism"))
+    bare = variant(
+        tmp_path,
+        SPECS / "tripod_grasp.yaml",
+        "tripod_bare",
+        lambda d: d["nodes"]["f1"]["define"]["formulas"].pop("mechanism"),
+    )
     r = run_cli("simulate", str(bare), "--plant", "mujoco", "-o", str(tmp_path / "t"))
     line = bare.read_text().splitlines().index("  f1:") + 1
-    assert r.returncode == 1 and r.stderr.startswith(f"{bare}:{line}:3: ") and "needs a mechanism" in r.stderr, \
-        r.stderr
+    assert r.returncode == 1 and r.stderr.startswith(f"{bare}:{line}:3: ") and "needs a mechanism" in r.stderr, r.stderr
 
     def heavy(data):
         data["nodes"]["left"]["define"]["formulas"]["mechanism"]["joints"][1]["link"]["mass"] = 0.25
+
     spec = variant(tmp_path, HIGH, "styx_heavy", heavy)
     system, module = load_system(str(spec)), build_module(spec)
     theta = module.plant_inverse(np.array([0.0, 0.12, 0.0]))
@@ -327,6 +347,7 @@ def test_what_mujoco_cannot_model_is_a_located_error(tmp_path, build_module):
 
     def sine(data):
         data["nodes"]["left"]["define"]["formulas"]["mechanism"]["coordinates"] = ["la1", "sin(la1) + la2"]
+
     r = run_cli("check", str(variant(tmp_path, HIGH, "styx_sine", sine)))
     assert r.returncode == 1 and "must be affine in the joint positions la1, la2" in r.stderr
 
@@ -336,8 +357,13 @@ def test_agreement_check_sees_a_wrong_fingertip(build_module):
     1 mm off is refused at the mechanism."""
     system, module = load_system(str(HIGH)), build_module(HIGH)
     plant = plant_model(system, 1e-3)
-    moved = dataclasses.replace(plant, xml=plant.xml.replace('<site name="left/tip" size="0.0005" pos="0.1 0.0 0.0"',
-                                                            '<site name="left/tip" size="0.0005" pos="0.101 0.0 0.0"'))
+    moved = dataclasses.replace(
+        plant,
+        xml=plant.xml.replace(
+            '<site name="left/tip" size="0.0005" pos="0.1 0.0 0.0"',
+            '<site name="left/tip" size="0.0005" pos="0.101 0.0 0.0"',
+        ),
+    )
     theta = module.plant_inverse(np.array([0.0, 0.12, 0.0]))
     robots = system.nodes["hand"].robots
 
@@ -346,8 +372,13 @@ def test_agreement_check_sees_a_wrong_fingertip(build_module):
         return [("left", y[:2]), ("right", y[2:])]
 
     def leaf_dynamics(th, thd):
-        return [(getattr(module, f"{n}_mass")(th), getattr(module, f"{n}_coriolis")(th, thd) @ thd[s]
-                 + getattr(module, f"{n}_n")(th, thd)) for n, s in (("left", slice(0, 2)), ("right", slice(2, 4)))]
+        return [
+            (
+                getattr(module, f"{n}_mass")(th),
+                getattr(module, f"{n}_coriolis")(th, thd) @ thd[s] + getattr(module, f"{n}_n")(th, thd),
+            )
+            for n, s in (("left", slice(0, 2)), ("right", slice(2, 4)))
+        ]
 
     check_agreement(MujocoPlant(plant), leaf_dynamics, theta, np.random.default_rng(0), tips)
     with pytest.raises(UserError, match="puts the fingertip of leaf 'left' at"):

@@ -5,6 +5,7 @@ error settles (the last second's RMS is at most the first second's after the cha
 small), below the same controller's with its identification frozen and below resolved
 acceleration control with its default gains, and its torque changes per period are what the
 plant demands. `robotgen simulate` shows the same comparison."""
+
 from __future__ import annotations
 
 import csv
@@ -32,8 +33,10 @@ def rac_spec(tmp_path: Path) -> Path:
     data = yaml.safe_load(RMAC.read_text())
     control = data["nodes"]["rmac"]["control"]
     control["law"] = "resolved_acceleration"
-    control["resolved_acceleration"] = {"period": control["resolved_adaptive"]["period"],
-                                        "tool": control.pop("resolved_adaptive")["tool"]}
+    control["resolved_acceleration"] = {
+        "period": control["resolved_adaptive"]["period"],
+        "tool": control.pop("resolved_adaptive")["tool"],
+    }
     data["name"] = "puma560_rac_nominal"  # another module than test_emit_controllers' puma560_rac
     path = tmp_path / "puma560_rac_nominal.yaml"
     path.write_text(yaml.safe_dump(data, sort_keys=False))
@@ -47,20 +50,26 @@ def loops(build_module, tmp_path_factory):
     return rmac, build_module(RMAC), build_module(rac_path)
 
 
-@pytest.mark.parametrize("change", [PayloadChange(1.0, 2.0), PayloadChange(1.0, 5.0),
-                                    PayloadChange(1.0, 5.0, (0.05, 0.05, 0.03))],
-                         ids=["2kg", "5kg", "5kg_off_axis"])
+@pytest.mark.parametrize(
+    "change",
+    [PayloadChange(1.0, 2.0), PayloadChange(1.0, 5.0), PayloadChange(1.0, 5.0, (0.05, 0.05, 0.03))],
+    ids=["2kg", "5kg", "5kg_off_axis"],
+)
 def test_adaptive_control_settles_after_a_payload_step(loops, change):
     system, module, rac_module = loops
     settings = dataclasses.replace(system.simulation, duration=10.0, payload_changes=(change,))
     result = run(module, system, settings, rac_module)
     runs = {r.key: r for r in result.runs}
     first, last = result.window(change.at), result.last_window
-    print(f"\n  PUMA 560, {change.mass:g} kg at {change.com} in the hand frame from t = {change.at:g} s; "
-          "RMS hand position error [mm] before, 1 s after, last second; max |dtau| [N m]:")
+    print(
+        f"\n  PUMA 560, {change.mass:g} kg at {change.com} in the hand frame from t = {change.at:g} s; "
+        "RMS hand position error [mm] before, 1 s after, last second; max |dtau| [N m]:"
+    )
     for key, r in runs.items():
-        print(f"    {key:9s} {1e3 * r.rms(result.before):8.4f} {1e3 * r.rms(first):8.4f} {1e3 * r.rms(last):8.4f} "
-              f"{r.largest_torque_step():7.2f}")
+        print(
+            f"    {key:9s} {1e3 * r.rms(result.before):8.4f} {1e3 * r.rms(first):8.4f} {1e3 * r.rms(last):8.4f} "
+            f"{r.largest_torque_step():7.2f}"
+        )
     adaptive = runs["adaptive"]
     assert adaptive.rms(last) <= adaptive.rms(first)  # settles, does not drift
     assert np.linalg.norm(adaptive.position_error[last], axis=1).max() < 1e-4  # below 0.1 mm at the end
@@ -95,16 +104,21 @@ def test_weight_rule_gives_the_bandwidth(loops):
     assert len(fast) == 6 and len(slow) == 6
     assert all(abs(m - (2 - sigma * T) / (2 + sigma * T)) < 0.01 for m in slow)
     old = dataclasses.replace(s, q=np.repeat([1e6, 1e6, 1e4, 1e4], 3), r=np.full(6, 1e-5))
-    old_system = dataclasses.replace(system, nodes={**system.nodes, system.root: dataclasses.replace(
-        system.root_node, hand=old)})
+    old_system = dataclasses.replace(
+        system, nodes={**system.nodes, system.root: dataclasses.replace(system.root_node, hand=old)}
+    )
     first_defaults = closed_loop(old_system)  # moduli to 4 digits
     assert sorted(first_defaults["moduli"])[-6] >= 0.9999
 
 
 def test_simulate_writes_the_comparison(tmp_path):
     out = tmp_path / "sim"
-    r = subprocess.run([sys.executable, "-m", "robotgen", "simulate", str(RMAC), "-o", str(out), "--duration", "1.5"],
-                       capture_output=True, text=True, cwd=ROOT)
+    r = subprocess.run(
+        [sys.executable, "-m", "robotgen", "simulate", str(RMAC), "-o", str(out), "--duration", "1.5"],
+        capture_output=True,
+        text=True,
+        cwd=ROOT,
+    )
     assert r.returncode == 0, r.stderr
     for label in ("adaptive", "identification frozen (adapt = False)", "resolved acceleration (Kp = 400, Kv = 40)"):
         assert f"  {label} " in r.stdout
@@ -117,8 +131,12 @@ def test_simulate_writes_the_comparison(tmp_path):
     assert rows.shape[0] == 1501  # 1.5 s at the controller's 1 ms period, both ends
     png = (out / "puma560_rmac.png").read_bytes()
     assert png[:8] == b"\x89PNG\r\n\x1a\n"
-    bad = subprocess.run([sys.executable, "-m", "robotgen", "simulate", str(RMAC), "-o", str(out), "--dt", "0.01"],
-                         capture_output=True, text=True, cwd=ROOT)
+    bad = subprocess.run(
+        [sys.executable, "-m", "robotgen", "simulate", str(RMAC), "-o", str(out), "--dt", "0.01"],
+        capture_output=True,
+        text=True,
+        cwd=ROOT,
+    )
     assert bad.returncode == 2 and "runs at its own period" in bad.stderr
 
 
@@ -126,19 +144,29 @@ def test_readme_quotes_what_simulate_and_info_print(tmp_path):
     """The README's figures for the adaptive PUMA are the ones `robotgen simulate` (the full
     10 s of the spec) and `robotgen info` print now."""
     readme = " ".join((ROOT / "README.md").read_text().split())
-    sim = subprocess.run([sys.executable, "-m", "robotgen", "simulate", str(RMAC), "-q", "-o", str(tmp_path)],
-                         capture_output=True, text=True, cwd=ROOT)
+    sim = subprocess.run(
+        [sys.executable, "-m", "robotgen", "simulate", str(RMAC), "-q", "-o", str(tmp_path)],
+        capture_output=True,
+        text=True,
+        cwd=ROOT,
+    )
     assert sim.returncode == 0, sim.stderr
     last = {}
     for line in sim.stdout.splitlines():
-        for key, label in (("adaptive", "adaptive"), ("frozen", "identification frozen"),
-                           ("rac", "resolved acceleration")):
+        for key, label in (
+            ("adaptive", "adaptive"),
+            ("frozen", "identification frozen"),
+            ("rac", "resolved acceleration"),
+        ):
             if line.strip().startswith(label):
                 last[key] = line.split()[-2]  # the last second's RMS [mm], then max |dtau|
     assert set(last) == {"adaptive", "frozen", "rac"}, sim.stdout
-    assert (f"{last['adaptive']} mm adapting, {last['frozen']} mm frozen, {last['rac']} mm under resolved "
-            f"acceleration control") in readme
-    info = subprocess.run([sys.executable, "-m", "robotgen", "info", str(RMAC)], capture_output=True, text=True,
-                          cwd=ROOT)
+    assert (
+        f"{last['adaptive']} mm adapting, {last['frozen']} mm frozen, {last['rac']} mm under resolved "
+        f"acceleration control"
+    ) in readme
+    info = subprocess.run(
+        [sys.executable, "-m", "robotgen", "info", str(RMAC)], capture_output=True, text=True, cwd=ROOT
+    )
     radius = info.stdout.split("spectral radius ")[1].split()[0]
     assert f"spectral radius at the start pose ({radius})" in readme

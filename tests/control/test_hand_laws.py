@@ -1,6 +1,7 @@
 """The pieces of resolved acceleration and resolved motion adaptive control (Lee and Lee 1983)
 against independent references: forward maps, finite differences, a brute-force minimiser,
 and known linear systems. Graphs are evaluated with CasADi (what the C is printed from)."""
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -46,8 +47,11 @@ def test_resolved_rates_and_accelerations_invert_the_forward_maps():
     acceleration J qdd + Jdot qd (eq 10)."""
     hand, cases = states(np.random.default_rng(1))
     q, qd, a = (ca.SX.sym(s, 6) for s in ("q", "qd", "a"))
-    f = function("maps", [q, qd, a], [hand.jacobian(q), hand.bias(q, qd), hand.joint_rates(q, qd),
-                                      hand.joint_accelerations(q, qd, a)])
+    f = function(
+        "maps",
+        [q, qd, a],
+        [hand.jacobian(q), hand.bias(q, qd), hand.joint_rates(q, qd), hand.joint_accelerations(q, qd, a)],
+    )
     worst = 0.0
     for qv, twist, accel in cases:
         J, bias, rates, _ = (np.array(v) for v in f(qv, twist, accel))
@@ -86,7 +90,9 @@ def test_linearised_hand_dynamics_match_finite_differences():
     equations (eq 19) along joint-space perturbations mapped through x(q, qd)."""
     hand, cases = states(np.random.default_rng(3), n=3)
     q, qd, u = (ca.SX.sym(s, 6) for s in ("q", "qd", "u"))
-    qdd = ca.Function("fd", [hand.sym.q, hand.sym.qd, hand.sym.tau], [hand._accel(hand.sym.q, hand.sym.qd, hand.sym.tau)])(q, qd, u)
+    qdd = ca.Function(
+        "fd", [hand.sym.q, hand.sym.qd, hand.sym.tau], [hand._accel(hand.sym.q, hand.sym.qd, hand.sym.tau)]
+    )(q, qd, u)
     F, L = hand.linearisation(q, qd, qdd)  # at the acceleration the torques u give
     f = function("f", [q, qd, u], [hand.hand_dynamics(q, qd, u), hand.state(q, qd), F, L])
     h = 1e-6
@@ -97,7 +103,7 @@ def test_linearised_hand_dynamics_match_finite_differences():
             e = np.zeros(6)
             e[k] = h
             fp, fm = np.array(f(qv, qdv, uv + e)[0]), np.array(f(qv, qdv, uv - e)[0])
-            np.testing.assert_allclose(Lv[:, k:k + 1], (fp - fm) / (2 * h), rtol=1e-6, atol=1e-7)
+            np.testing.assert_allclose(Lv[:, k : k + 1], (fp - fm) / (2 * h), rtol=1e-6, atol=1e-7)
         for k in range(12):  # F applied to the state change of a joint perturbation
             dz = np.zeros(12)
             dz[k] = h
@@ -155,8 +161,10 @@ def test_rls_identifies_a_known_system_and_tracks_a_change():
     changed[:, 18] += 0.5  # and the offset moved
     Theta2, P2, x2 = run(changed, Theta, P, 0.8, 1500, x)
     rigid, _, _ = run(changed, Theta, P, 1.0, 1500, x)
-    print(f"  after the change, 1500 samples: |[A B c] - true| = {np.abs(Theta2 - changed).max():.1e} at mu = 0.8, "
-          f"{np.abs(rigid - changed).max():.1e} at mu = 1")
+    print(
+        f"  after the change, 1500 samples: |[A B c] - true| = {np.abs(Theta2 - changed).max():.1e} at mu = 0.8, "
+        f"{np.abs(rigid - changed).max():.1e} at mu = 1"
+    )
     assert np.abs(Theta2 - changed).max() < 1e-2 and np.abs(rigid - changed).max() > 0.1
     frozen = [np.array(v) for v in f(Theta2, P2, rng.normal(size=19), rng.normal(size=12), 0.95, 0)]
     for before, after in zip((Theta2, P2), frozen):
@@ -184,8 +192,10 @@ def test_directional_forgetting_keeps_the_covariance_bounded_in_closed_loop():
         P = P_next
         Pphi = P_exp @ phi  # eq 37 as printed
         P_exp = (P_exp - np.outer(Pphi, Pphi) / (phi @ Pphi + mu)) / mu
-    print(f"\n  2000 closed-loop samples, mu = {mu}: trace P = {np.trace(P):.3g} directional, "
-          f"{np.trace(P_exp):.3g} exponential (eq 37)")
+    print(
+        f"\n  2000 closed-loop samples, mu = {mu}: trace P = {np.trace(P):.3g} directional, "
+        f"{np.trace(P_exp):.3g} exponential (eq 37)"
+    )
     assert np.trace(P) < 2 * 19 and np.linalg.eigvalsh(P).min() > 0
     assert np.trace(P_exp) > 1e6
     no_affine = rls(18, limit=1e4)
@@ -235,8 +245,11 @@ def test_one_step_control_minimises_eq_38():
             # at dx = 0 the holding torque leaves what B cannot reach, up to the regularisation:
             # B^T Q x' = -delta R u_c
             at_rest = np.array(given(Av, Bv, cv, np.zeros(12), Qv, Rv)).ravel()
-            np.testing.assert_allclose(Bv.T @ Qv @ (Bv @ at_rest + cv), -HOLD_REGULARISATION * Rv @ at_rest,
-                                       atol=1e-9 * np.abs(Bv.T @ Qv @ cv).max())
+            np.testing.assert_allclose(
+                Bv.T @ Qv @ (Bv @ at_rest + cv),
+                -HOLD_REGULARISATION * Rv @ at_rest,
+                atol=1e-9 * np.abs(Bv.T @ Qv @ cv).max(),
+            )
         tiny = np.array(given(Av, 1e-9 * Bv, cv, np.zeros(12), Qv, Rrule)).ravel()
         assert np.all(np.isfinite(tiny)) and np.abs(tiny).max() < 1e-3  # an arm held fast: no runaway
 

@@ -3,6 +3,7 @@ law's tool) and how far a desired pose is from it (hand_distance), and their con
 refuse, on the first step after a reset, a pose_d farther from the hand than START_DISTANCE
 or START_ANGLE (status 3 in C, nothing written; a ValueError in Python) instead of
 commanding the torques that close such a gap at once."""
+
 from __future__ import annotations
 
 import shutil
@@ -71,14 +72,18 @@ def test_a_far_pose_d_on_the_first_step_is_refused(modules, cls):
     arm = modules[cls]
     c = getattr(arm, cls)()
     hand = arm.hand_pose(Q0)
-    far = [moved(hand, (2 * START_DISTANCE, 0, 0)), moved(hand, turn=(0, 0, 2 * START_ANGLE)),
-           arm.fk(Q0)]  # the last: the tool frame left out
+    far = [
+        moved(hand, (2 * START_DISTANCE, 0, 0)),
+        moved(hand, turn=(0, 0, 2 * START_ANGLE)),
+        arm.fk(Q0),
+    ]  # the last: the tool frame left out
     for pose_d in far:
         with pytest.raises(ValueError) as caught:
             c.step(Q0, ZERO, pose_d, ZERO, ZERO)
         assert str(caught.value).startswith(f"{cls}.step(): on the first step after a reset, pose_d is ")
         assert "from the hand (at most 0.01 m and 0.05 rad): start the desired path at hand_pose(q)" in str(
-            caught.value)
+            caught.value
+        )
         assert not c.state.any() and c.last == {}  # nothing written: still reset
     assert "pose_d is 0.02 m and 0 rad from the hand" in _message(c, far[0])
     assert "pose_d is 0.1 m and 1.57 rad from the hand" in _message(c, far[2])
@@ -118,6 +123,7 @@ def test_the_c_step_returns_3_and_writes_nothing(modules, tmp_path):
 
     def array(values) -> str:
         return "{" + ", ".join(repr(float(v)) for v in np.ravel(values)) + "}"
+
     harness = tmp_path / "start.c"
     harness.write_text(f"""#include <stdio.h>
 #include "{name}.h"
@@ -135,6 +141,21 @@ int main(void) {{
 }}
 """)
     exe = tmp_path / "start"
-    subprocess.run(["gcc", "-std=c99", "-Wall", "-Wextra", "-Werror", f"-I{out}", str(harness), str(out / f"{name}.c"),
-                    "-lm", "-o", str(exe)], check=True, capture_output=True)
+    subprocess.run(
+        [
+            "gcc",
+            "-std=c99",
+            "-Wall",
+            "-Wextra",
+            "-Werror",
+            f"-I{out}",
+            str(harness),
+            str(out / f"{name}.c"),
+            "-lm",
+            "-o",
+            str(exe),
+        ],
+        check=True,
+        capture_output=True,
+    )
     assert subprocess.run([str(exe)], capture_output=True, text=True, check=True).stdout.split() == ["3", "1", "0", "1"]

@@ -3,6 +3,7 @@
 hand Jacobian and Jdot qd (Newton-Euler's forward pass); the singular neighbourhoods against
 Hadamard's ratio computed from J alone (tests/reference.py); Table 1's counts. Graphs are
 evaluated with CasADi (what the C is printed from)."""
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -36,8 +37,10 @@ def general_hand(tmp_path) -> Hand:
     data = yaml.safe_load(PUMA.read_text())
     data["name"] = "general_elbow"
     chain = data["nodes"]["arm"]["define"]["chain"]
-    chain.update(base={"xyz": [0.2, -0.1, 0.5], "rpy": [0.3, -0.2, 0.1]},
-                 tool={"xyz": [0.01, 0.02, 0.1], "rpy": [0.4, 0.5, -0.6]})
+    chain.update(
+        base={"xyz": [0.2, -0.1, 0.5], "rpy": [0.3, -0.2, 0.1]},
+        tool={"xyz": [0.01, 0.02, 0.1], "rpy": [0.4, 0.5, -0.6]},
+    )
     for i, dh in {0: {"a": 0.1, "alpha": "pi/3", "d": 0.3}, 4: {"theta": "pi/2"}, 5: {"d": 0.05}}.items():
         chain["joints"][i]["dh"].update(dh)
     path = tmp_path / "general_elbow.yaml"
@@ -57,8 +60,12 @@ class Maps:
         self.accelerations = ca.Function("accelerations", [q, qd, accel], [hand.joint_accelerations(q, qd, accel)])
 
     def __call__(self, q, qd, twist, accel) -> tuple[np.ndarray, ...]:
-        return (np.array(self.J(q)), np.array(self.bias(q, qd)).ravel(), np.array(self.rates(q, twist)).ravel(),
-                np.array(self.accelerations(q, qd, accel)).ravel())
+        return (
+            np.array(self.J(q)),
+            np.array(self.bias(q, qd)).ravel(),
+            np.array(self.rates(q, twist)).ravel(),
+            np.array(self.accelerations(q, qd, accel)).ravel(),
+        )
 
 
 @pytest.mark.parametrize("which", ["puma560_rmac", "general"])
@@ -111,8 +118,17 @@ def neighbourhood(maps: Maps, pose: np.ndarray, joint: int, bracket: tuple[float
         return np.linalg.det((J11, J22)[block])
 
     singular = brentq(det, *bracket, xtol=1e-15)
-    edges = [brentq(lambda d, side=side: hadamard_ratios(np.array(maps.J(at(singular + side * d))))[block]
-                    - SINGULAR_DETERMINANT, 1e-10, 1e-3, xtol=1e-16) for side in (-1, 1)]
+    edges = [
+        brentq(
+            lambda d, side=side: (
+                hadamard_ratios(np.array(maps.J(at(singular + side * d))))[block] - SINGULAR_DETERMINANT
+            ),
+            1e-10,
+            1e-3,
+            xtol=1e-16,
+        )
+        for side in (-1, 1)
+    ]
     for side, edge in zip((-1, 1), edges):
         for x, expect_nan in ((0, True), (0.9 * edge, True), (1.1 * edge, False), (10 * edge, False)):
             _, _, rates, accelerations = maps(at(singular + side * x), qd, twist, accel)

@@ -1,5 +1,6 @@
 """The law registry (robotgen.model.laws.registry): every law's named parts exist, are of the
 kind its floor expects, and agree with the descriptor's flags."""
+
 from __future__ import annotations
 
 import pytest

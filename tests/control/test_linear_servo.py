@@ -1,6 +1,7 @@
 """The optimal linear servo (robotgen.numeric.linear_servo; Whitney 1972's "optimal linear servo
 theory"): closed forms of the scalar and double-integrator cases, a direct minimisation of the
 same cost over the whole horizon, optimality against other laws, and the emitted servo_step."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -59,24 +60,23 @@ def transcription(A, B, C, Q, R, F, reference, x0, t_end, h):
     CtQC, CtQ = C.T @ Q @ C, C.T @ Q
     for k in range(N + 1):
         z = k * (nx + nu)
-        H[z:z + nx, z:z + nx] = 2 * w[k] * CtQC
-        H[z + nx:z + nx + nu, z + nx:z + nx + nu] = 2 * w[k] * R
-        c[z:z + nx] = -2 * w[k] * CtQ @ r[k]
+        H[z : z + nx, z : z + nx] = 2 * w[k] * CtQC
+        H[z + nx : z + nx + nu, z + nx : z + nx + nu] = 2 * w[k] * R
+        c[z : z + nx] = -2 * w[k] * CtQ @ r[k]
     z = N * (nx + nu)
-    H[z:z + nx, z:z + nx] += 2 * C.T @ F @ C
-    c[z:z + nx] -= 2 * C.T @ F @ r[-1]
+    H[z : z + nx, z : z + nx] += 2 * C.T @ F @ C
+    c[z : z + nx] -= 2 * C.T @ F @ r[-1]
     E = sparse.lil_matrix((nx * (N + 1), nz))
     E[:nx, :nx] = np.eye(nx)
     for k in range(N):
         row, z = nx * (k + 1), k * (nx + nu)
-        E[row:row + nx, z:z + nx + nu] = np.hstack([np.eye(nx) + h / 2 * A, h / 2 * B])
-        E[row:row + nx, z + nx + nu:z + 2 * (nx + nu)] = np.hstack([-np.eye(nx) + h / 2 * A, h / 2 * B])
+        E[row : row + nx, z : z + nx + nu] = np.hstack([np.eye(nx) + h / 2 * A, h / 2 * B])
+        E[row : row + nx, z + nx + nu : z + 2 * (nx + nu)] = np.hstack([-np.eye(nx) + h / 2 * A, h / 2 * B])
     kkt = sparse.bmat([[H, E.T], [E, None]], format="csc")
     sol = spsolve(kkt, np.r_[-c, x0, np.zeros(nx * N)])[:nz].reshape(N + 1, nx + nu)
     x, u = sol[:, :nx], sol[:, nx:]
     e = x @ C.T - r
-    cost = (np.einsum("k,ki,ij,kj->", w, e, Q, e) + np.einsum("k,ki,ij,kj->", w, u, R, u)
-            + e[-1] @ F @ e[-1])
+    cost = np.einsum("k,ki,ij,kj->", w, e, Q, e) + np.einsum("k,ki,ij,kj->", w, u, R, u) + e[-1] @ F @ e[-1]
     return u, float(cost)
 
 
@@ -89,7 +89,7 @@ def test_scalar_servo_matches_the_closed_form():
     a, b, q, rho, w, tf = 0.5, 2.0, 9.0, 0.25, 3.0, 2.0
     lam = np.sqrt(a * a + b * b * q / rho)
     servo = design([[a]], [[b]], [[1.0]], [[q]], [[rho]])
-    assert servo.P[0, 0] == pytest.approx(rho * (a + lam) / b ** 2, rel=1e-14)
+    assert servo.P[0, 0] == pytest.approx(rho * (a + lam) / b**2, rel=1e-14)
     assert servo.closed[0, 0] == pytest.approx(-lam, rel=1e-14)
 
     def reference(t):
@@ -98,7 +98,7 @@ def test_scalar_servo_matches_the_closed_form():
     assert servo.held_costate(reference(tf))[0] == pytest.approx(q * np.sin(w * tf) / lam, rel=1e-14)
 
     def particular(t):
-        return q * (lam * np.sin(w * t) + w * np.cos(w * t)) / (lam ** 2 + w ** 2)
+        return q * (lam * np.sin(w * t) + w * np.cos(w * t)) / (lam**2 + w**2)
 
     gaps = []
     for steps in (200, 400):
@@ -115,12 +115,14 @@ def test_scalar_finite_horizon_riccati_matches_the_closed_form():
     / b^2, so (P - P+)/(P - P-) = (P+/P-) exp(-2 lambda tau)."""
     a, b, q, rho, tf = -0.3, 1.5, 4.0, 0.5, 1.5
     lam = np.sqrt(a * a + b * b * q / rho)
-    plus, minus = rho * (a + lam) / b ** 2, rho * (a - lam) / b ** 2
+    plus, minus = rho * (a + lam) / b**2, rho * (a - lam) / b**2
     fh = finite_horizon([[a]], [[b]], [[1.0]], [[q]], [[rho]], lambda t: np.array([1.0]), 0.0, tf, 600)
     ratio = plus / minus * np.exp(-2 * lam * (tf - fh.times))
     exact = (plus - ratio * minus) / (1 - ratio)
-    print(f"\nscalar Riccati: max |P - closed form| {np.abs(fh.P[:, 0, 0] - exact).max():.2e}, P(0) "
-          f"{fh.P[0, 0, 0]:.12f} against the steady {plus:.12f}")
+    print(
+        f"\nscalar Riccati: max |P - closed form| {np.abs(fh.P[:, 0, 0] - exact).max():.2e}, P(0) "
+        f"{fh.P[0, 0, 0]:.12f} against the steady {plus:.12f}"
+    )
     np.testing.assert_allclose(fh.P[:, 0, 0], exact, rtol=0, atol=1e-9)
     np.testing.assert_allclose(fh.K[:, 0, 0], b / rho * exact, rtol=0, atol=1e-8)
 
@@ -139,16 +141,38 @@ def test_double_integrator_follows_a_ramp_without_lag():
 
     steps = int(round(tf / h))
     _, g = costate(servo, reference, 0.0, tf, 2 * steps)
-    x, _, _ = closed_loop_cost(DOUBLE_A, DOUBLE_B, POSITION, np.array([[q]]), np.array([[rho]]),
-                               lambda i: servo.K, servo.feedforward(g), reference, np.zeros(2), h)
+    x, _, _ = closed_loop_cost(
+        DOUBLE_A,
+        DOUBLE_B,
+        POSITION,
+        np.array([[q]]),
+        np.array([[rho]]),
+        lambda i: servo.K,
+        servo.feedforward(g),
+        reference,
+        np.zeros(2),
+        h,
+    )
     feedback = np.array([[k1 * c * 0.5 * h * i] for i in range(2 * steps + 1)])  # K1 r: the error-only law
-    y, _, _ = closed_loop_cost(DOUBLE_A, DOUBLE_B, POSITION, np.array([[q]]), np.array([[rho]]),
-                               lambda i: servo.K, feedback, reference, np.zeros(2), h)
+    y, _, _ = closed_loop_cost(
+        DOUBLE_A,
+        DOUBLE_B,
+        POSITION,
+        np.array([[q]]),
+        np.array([[rho]]),
+        lambda i: servo.K,
+        feedback,
+        reference,
+        np.zeros(2),
+        h,
+    )
     mid = steps // 2
     servo_error = x[mid, 0] - c * mid * h
     lag = y[mid, 0] - c * mid * h
-    print(f"\nramp at t = {mid * h:g} s: servo error {servo_error:.2e}, error-only lag {lag:.6f} "
-          f"(closed form {-servo.K[0, 1] * c / k1:.6f})")
+    print(
+        f"\nramp at t = {mid * h:g} s: servo error {servo_error:.2e}, error-only lag {lag:.6f} "
+        f"(closed form {-servo.K[0, 1] * c / k1:.6f})"
+    )
     assert abs(servo_error) < 1e-9
     assert lag == pytest.approx(-servo.K[0, 1] * c / k1, abs=1e-9)
 
@@ -177,15 +201,16 @@ def test_finite_horizon_servo_is_the_direct_minimum():
     e_end = C @ x_end - reference(tf)
     servo_cost = running + e_end @ F @ e_end
 
-    coarse, fine, finest = (transcription(A, B, C, Q, R, F, reference, x0, tf, step)
-                            for step in (0.01, 0.005, 0.0025))
+    coarse, fine, finest = (transcription(A, B, C, Q, R, F, reference, x0, tf, step) for step in (0.01, 0.005, 0.0025))
     once = [(4 * b[1] - a[1]) / 3 for a, b in ((coarse, fine), (fine, finest))]  # h^2 gone
     direct_cost = (8 * once[1] - once[0]) / 7  # h^3 gone
     direct_u = (4 * fine[0][::2] - coarse[0]) / 3
     gap_u = np.abs(direct_u - u[::10])[1:-1].max()
-    print(f"\nfinite horizon: servo cost {servo_cost:.10f}, direct {direct_cost:.10f} (at 10 ms alone "
-          f"{coarse[1]:.10f}, after one Richardson step {once[1]:.10f}); inputs within {gap_u:.2e} "
-          f"(peak {np.abs(u).max():.3f})")
+    print(
+        f"\nfinite horizon: servo cost {servo_cost:.10f}, direct {direct_cost:.10f} (at 10 ms alone "
+        f"{coarse[1]:.10f}, after one Richardson step {once[1]:.10f}); inputs within {gap_u:.2e} "
+        f"(peak {np.abs(u).max():.3f})"
+    )
     assert abs(direct_cost - servo_cost) < 1e-8 * servo_cost
     assert abs(once[1] - servo_cost) > 10 * abs(direct_cost - servo_cost)  # each step converges
     assert gap_u < 1e-5 * np.abs(u).max()
@@ -194,8 +219,10 @@ def test_finite_horizon_servo_is_the_direct_minimum():
     _, g = costate(steady, reference, 0.0, tf, 2 * steps)
     others = {
         "steady servo": (lambda i: steady.K, steady.feedforward(g)),
-        "error-only gains": (lambda i: fh.K[i], np.array([fh.K[i] @ np.r_[reference(0.5 * h * i), 0.0]
-                                                         for i in range(2 * steps + 1)])),
+        "error-only gains": (
+            lambda i: fh.K[i],
+            np.array([fh.K[i] @ np.r_[reference(0.5 * h * i), 0.0] for i in range(2 * steps + 1)]),
+        ),
     }
     for label, (gains, v) in others.items():
         x, _, running = closed_loop_cost(A, B, C, Q, R, gains, v, reference, x0, h)

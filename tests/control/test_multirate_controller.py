@@ -3,6 +3,7 @@ its torques are the group steps' composed by hand (what the slow group wrote hel
 tick, the fast group on every tick), a failed step leaves it as it was; the lifted closed loop's
 spectral radius against the error's growth in simulation, for a stable and an unstable choice of
 the upper level's period; `robotgen simulate` and `robotgen info` on it."""
+
 from __future__ import annotations
 
 import dataclasses
@@ -31,8 +32,15 @@ def hand(build_module):
 
 def _inputs(module, rng, k: int):
     theta = module.plant_inverse(np.array([0.0, 0.12, 0.0])) + 1e-3 * rng.standard_normal(4)
-    return (theta, 0.1 * rng.standard_normal(4), np.array([0.002 * k, 0.12, 0.01]), 0.01 * rng.standard_normal(3),
-            0.01 * rng.standard_normal(3), np.zeros(3), np.array([1.0]))
+    return (
+        theta,
+        0.1 * rng.standard_normal(4),
+        np.array([0.002 * k, 0.12, 0.01]),
+        0.01 * rng.standard_normal(3),
+        0.01 * rng.standard_normal(3),
+        np.zeros(3),
+        np.array([1.0]),
+    )
 
 
 def test_the_slow_groups_writes_are_held_between_its_ticks(hand):
@@ -96,8 +104,9 @@ def test_run_time_parameters_reach_every_group(hand):
     for a in args:
         tau_soft, tau_default = soft.step(*a), default.step(*a)
     state = hand.servo_init_g1(args[0][0], args[0][1])
-    _, left, right, _ = hand.servo_step_g1(*args[10], hand.servo_step_g1(*args[0], state, ct_hand_kp=40.0)[3],
-                                           ct_hand_kp=40.0)
+    _, left, right, _ = hand.servo_step_g1(
+        *args[10], hand.servo_step_g1(*args[0], state, ct_hand_kp=40.0)[3], ct_hand_kp=40.0
+    )
     fast = hand.servo_step_g0(args[11][0], args[11][1], left, right, ct_hand_kp=40.0, pd_left_kp=1.0)
     np.testing.assert_array_equal(tau_soft, fast)
     assert np.abs(tau_soft - tau_default).max() > 1e-6
@@ -122,19 +131,22 @@ def _growth(module, system, frames: int, window: int, apart: int) -> float:
     """The error's growth per slowest period in simulation: the largest |x - x_d| over the
     last ``window`` periods against the same ``apart`` periods earlier, per period."""
     groups = rate_groups(system)
-    settings = dataclasses.replace(system.simulation, dt=groups.base_period,
-                                   duration=frames * groups.groups[-1].period)
+    settings = dataclasses.replace(system.simulation, dt=groups.base_period, duration=frames * groups.groups[-1].period)
     result = simulate.run(module, settings, multirate=True)
-    e = np.abs(result.error[::groups.frame_ticks]).max(axis=1)
-    return (e[-window:].max() / e[-window - apart:-apart].max()) ** (1 / apart)
+    e = np.abs(result.error[:: groups.frame_ticks]).max(axis=1)
+    return (e[-window:].max() / e[-window - apart : -apart].max()) ** (1 / apart)
 
 
-@pytest.mark.parametrize("period, name, offset, frames, window, apart", [
-    (0.005, "styx_rates_stable", 1e-4, 300, 80, 200),  # its slowest mode turns 0.083 rad per period: 76 a turn
-    (0.1, "styx_rates_unstable", 1e-11, 40, 6, 30),  # 1.06 rad per period: 6 periods a turn
-])
-def test_the_lifted_spectral_radius_is_the_errors_growth_in_simulation(tmp_path, build_module, period, name, offset,
-                                                                        frames, window, apart):
+@pytest.mark.parametrize(
+    "period, name, offset, frames, window, apart",
+    [
+        (0.005, "styx_rates_stable", 1e-4, 300, 80, 200),  # its slowest mode turns 0.083 rad per period: 76 a turn
+        (0.1, "styx_rates_unstable", 1e-11, 40, 6, 30),  # 1.06 rad per period: 6 periods a turn
+    ],
+)
+def test_the_lifted_spectral_radius_is_the_errors_growth_in_simulation(
+    tmp_path, build_module, period, name, offset, frames, window, apart
+):
     path = _variant(tmp_path, period, name, offset)
     system = load_system(str(path))
     loop = lifted_loop(system, rate_groups(system))
@@ -151,14 +163,17 @@ def test_the_lifted_loop_of_one_rate_is_the_single_rate_servo_steps():
     5 ms in continuous time)."""
     system = load_system(str(SPEC))
     one = lifted_loop(system, partition(system, dict.fromkeys(["pd_left", "pd_right", "ff", "ct_hand"], 0), (0.0005,)))
-    two = lifted_loop(system, partition(system, {"pd_left": 0, "pd_right": 0, "ff": 1, "ct_hand": 1},
-                                        (0.0005, 0.0005)))
+    two = lifted_loop(system, partition(system, {"pd_left": 0, "pd_right": 0, "ff": 1, "ct_hand": 1}, (0.0005, 0.0005)))
     assert two.spectral_radius == pytest.approx(one.spectral_radius, rel=1e-12)
     multi = lifted_loop(system, rate_groups(system))
-    assert multi.spectral_radius == pytest.approx(one.spectral_radius ** 10, abs=0.01)
+    assert multi.spectral_radius == pytest.approx(one.spectral_radius**10, abs=0.01)
     assert 0.94 < multi.spectral_radius < 0.97
-    slower = {period: lifted_loop(system, partition(system, {"pd_left": 0, "pd_right": 0, "ff": 1, "ct_hand": 1},
-                                                    (0.0005, period))).spectral_radius for period in (0.02, 0.1)}
+    slower = {
+        period: lifted_loop(
+            system, partition(system, {"pd_left": 0, "pd_right": 0, "ff": 1, "ct_hand": 1}, (0.0005, period))
+        ).spectral_radius
+        for period in (0.02, 0.1)
+    }
     said = f"the radius is {slower[0.1]:.3f} (UNSTABLE, per 100 ms), at 0.02 s {slower[0.02]:.4f}"
     assert said in " ".join((ROOT / "docs" / "cli.md").read_text().split()), said
 
@@ -166,32 +181,37 @@ def test_the_lifted_loop_of_one_rate_is_the_single_rate_servo_steps():
 def _block(page: str, marker: str) -> str:
     """The body of the first fenced block after ``marker`` in docs/``page``."""
     text = (ROOT / "docs" / page).read_text()
-    rest = text[text.index(marker):]
-    body = rest[rest.index("\n", rest.index("```")) + 1:]
-    return body[:body.index("```")]
+    rest = text[text.index(marker) :]
+    body = rest[rest.index("\n", rest.index("```")) + 1 :]
+    return body[: body.index("```")]
 
 
 def _output(page: str, command: str) -> list[str]:
     """The lines a console block of docs/``page`` shows after ``command``, to the block's end."""
     text = (ROOT / "docs" / page).read_text()
-    rest = text[text.index(command):]
-    return rest[rest.index("\n") + 1:rest.index("```")].splitlines()
+    rest = text[text.index(command) :]
+    return rest[rest.index("\n") + 1 : rest.index("```")].splitlines()
 
 
 def test_simulate_runs_both_and_reports_their_cost(tmp_path, hand):
     """The run cli.md shows, its figures as shown; each cost is operations times rate."""
     out = tmp_path / "sim"
-    r = subprocess.run([sys.executable, "-m", "robotgen", "simulate", str(SPEC), "-o", str(out), "-q"],
-                       capture_output=True, text=True, cwd=ROOT)
+    r = subprocess.run(
+        [sys.executable, "-m", "robotgen", "simulate", str(SPEC), "-o", str(out), "-q"],
+        capture_output=True,
+        text=True,
+        cwd=ROOT,
+    )
     assert r.returncode == 0, r.stderr
     text = r.stdout
     shown = _output("cli.md", "$ robotgen simulate specs/styx_multirate.yaml")
-    assert text.splitlines()[:len(shown) - 1] == shown[:-1], text  # the last names the files
+    assert text.splitlines()[: len(shown) - 1] == shown[:-1], text  # the last names the files
     assert "simulated 3.000 s in 6000 steps of 0.0005 s on the robotgen plant" in text, text
     info = hand.info()["multirate"]
     rows = re.findall(r"multi-rate\s+(servo_step_g\d): +(\d+) x +([\d.]+) Hz = +(\d+)", text)
-    assert [(step, int(ops), float(hz)) for step, ops, hz, _ in rows] == \
-        [(g["step"], g["operations"], 1 / g["period"]) for g in info["groups"]]
+    assert [(step, int(ops), float(hz)) for step, ops, hz, _ in rows] == [
+        (g["step"], g["operations"], 1 / g["period"]) for g in info["groups"]
+    ]
     assert all(int(each) == int(ops) * float(hz) for _, ops, hz, each in rows)
     total = int(re.search(r"multi-rate\s+total: +(\d+)", text).group(1))
     single = int(re.search(r"single rate\s+servo_step: +\d+ x +2000 Hz = +(\d+)", text).group(1))
@@ -207,10 +227,16 @@ def test_simulate_runs_both_and_reports_their_cost(tmp_path, hand):
     tau = multi[:, 7:11]  # the ZOH of the 200 Hz level: the torque's steps fall every 10 ticks
     jumps = np.abs(np.diff(tau, axis=0)).max(axis=1)
     assert np.median(jumps[9::10]) > 3 * np.median(np.delete(jumps, np.s_[9::10]))
-    for args, words in ((["--dt", "0.001"], "--dt applies to single-rate trees"),
-                        (["--plant", "both"], "choose --plant robotgen or --plant mujoco")):
-        bad = subprocess.run([sys.executable, "-m", "robotgen", "simulate", str(SPEC), *args, "-o", str(out), "-q"],
-                             capture_output=True, text=True, cwd=ROOT)
+    for args, words in (
+        (["--dt", "0.001"], "--dt applies to single-rate trees"),
+        (["--plant", "both"], "choose --plant robotgen or --plant mujoco"),
+    ):
+        bad = subprocess.run(
+            [sys.executable, "-m", "robotgen", "simulate", str(SPEC), *args, "-o", str(out), "-q"],
+            capture_output=True,
+            text=True,
+            cwd=ROOT,
+        )
         assert bad.returncode == 2 and words in bad.stderr, bad.stderr
 
 
@@ -221,7 +247,7 @@ def test_info_prints_the_groups_and_the_lifted_radius():
     radius = lifted_loop(system, rate_groups(system)).spectral_radius
     assert f"spectral radius {radius:.4f}, stable" in r.stdout, r.stdout
     shown = _output("cli.md", "$ robotgen info specs/styx_multirate.yaml")[1:]  # after "..."
-    assert r.stdout.splitlines()[-len(shown):] == shown, r.stdout
+    assert r.stdout.splitlines()[-len(shown) :] == shown, r.stdout
 
 
 def test_info_says_why_a_start_off_the_grasp_is_not_linearised(tmp_path):
@@ -231,7 +257,8 @@ def test_info_says_why_a_start_off_the_grasp_is_not_linearised(tmp_path):
     r = subprocess.run([sys.executable, "-m", "robotgen", "info", str(path)], capture_output=True, text=True, cwd=ROOT)
     assert r.returncode == 0 and r.stdout.splitlines()[-1] == (
         "  lifted closed loop: not linearised: the start pose, from the rest posture (no simulation.start or theta0), "
-        "breaks a grasp (out of the inverse kinematics' reach); give simulation.start or theta0 on every grasp"), r.stdout
+        "breaks a grasp (out of the inverse kinematics' reach); give simulation.start or theta0 on every grasp"
+    ), r.stdout
 
 
 def test_the_c_struct_and_the_python_class_agree_as_the_docs_say(tmp_path, hand):
@@ -244,8 +271,24 @@ def test_the_c_struct_and_the_python_class_agree_as_the_docs_say(tmp_path, hand)
     out = Path(hand.__file__).parent
     sanitize = ["-fsanitize=address,undefined", "-fno-sanitize-recover=all"] if shutil.which("gcc") else []
     cc = "gcc" if sanitize else "cc"
-    subprocess.run([cc, "-std=c99", "-Wall", "-Wextra", "-Werror", *sanitize, "-O1", str(tmp_path / "multirate_app.c"),
-                    f"-I{out}", str(out / "styx_multirate.c"), "-lm", "-o", str(tmp_path / "app")], check=True)
+    subprocess.run(
+        [
+            cc,
+            "-std=c99",
+            "-Wall",
+            "-Wextra",
+            "-Werror",
+            *sanitize,
+            "-O1",
+            str(tmp_path / "multirate_app.c"),
+            f"-I{out}",
+            str(out / "styx_multirate.c"),
+            "-lm",
+            "-o",
+            str(tmp_path / "app"),
+        ],
+        check=True,
+    )
     printed = subprocess.run([str(tmp_path / "app")], capture_output=True, text=True, check=True).stdout
     assert printed.splitlines() == _output("c-api.md", "$ ./multirate_app")
     c = hand.MultiRateController()
@@ -262,7 +305,7 @@ def test_a_period_error_is_reported_as_spec_format_shows(tmp_path):
     path = tmp_path / "styx_multirate.yaml"
     path.write_text(SPEC.read_text().replace("kv: 0.1, period: 0.0005}", "kv: 0.1, period: 0.01}", 1))
     r = subprocess.run([sys.executable, "-m", "robotgen", "check", str(path)], capture_output=True, text=True, cwd=ROOT)
-    assert r.returncode == 1 and r.stderr.strip() == str(path) + shown[len("styx_multirate.yaml"):], r.stderr
+    assert r.returncode == 1 and r.stderr.strip() == str(path) + shown[len("styx_multirate.yaml") :], r.stderr
 
 
 def test_groups_below_an_attach_root_without_holds_or_state(tmp_path, build_module):

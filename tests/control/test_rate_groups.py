@@ -2,6 +2,7 @@
 spec's periods checked where they are wrong, the groups a tree falls into, and the group steps
 against the fused servo_step: run at one period, slowest first with the holds passed at once,
 they give servo_step's torques and next state to the last bit."""
+
 from __future__ import annotations
 
 import re
@@ -62,7 +63,7 @@ def test_the_root_period_defaults_to_simulation_dt_and_a_single_rate_tree_is_one
     text = MULTIRATE.replace("      period: 0.005              # 200 Hz; ff below takes it too\n", "")
     text = text.replace("simulation:\n", "simulation:\n  dt: 0.004\n")
     assert [g.period for g in rate_groups(load(tmp_path, text)).groups] == [0.0005, 0.004]
-    no_section = text[:text.index("simulation:")]
+    no_section = text[: text.index("simulation:")]
     assert [g.period for g in rate_groups(load(tmp_path, no_section)).groups] == [0.0005, 0.001]
 
 
@@ -76,15 +77,31 @@ def test_controllers_below_an_attach_root_each_read_the_root_trajectory(tmp_path
 
 
 PERIOD_ERRORS = [
-    ("not a multiple of the fastest", ("period: 0.005  ", "period: 0.0012  "), ("period: ", 2),
-     "0.0012 s is not an integer multiple of the fastest period in the tree (0.0005 s of 'pd_left')"),
-    ("slower than the controller above", ("kv: 0.1, period: 0.0005}", "kv: 0.1, period: 0.01}"), ("period: ", 0),
-     "0.01 s is longer than the period of 'ff' above it (0.005 s of 'ff', from 'ct_hand')"),
-    ("too many ticks", ("period: 0.005  ", "period: 6  "), ("period: ", 2),
-     "6 s is 1.2e+04 times the fastest period in the tree (0.0005 s of 'pd_left'); a group may span at most "
-     "10000 fastest periods"),
-    ("dt unused", ("simulation:\n", "simulation:\n  dt: 0.001\n"), ("simulation:\n  dt: ", 0),
-     "0.001 s is not the fastest controller period (0.0005 s of 'pd_left')"),
+    (
+        "not a multiple of the fastest",
+        ("period: 0.005  ", "period: 0.0012  "),
+        ("period: ", 2),
+        "0.0012 s is not an integer multiple of the fastest period in the tree (0.0005 s of 'pd_left')",
+    ),
+    (
+        "slower than the controller above",
+        ("kv: 0.1, period: 0.0005}", "kv: 0.1, period: 0.01}"),
+        ("period: ", 0),
+        "0.01 s is longer than the period of 'ff' above it (0.005 s of 'ff', from 'ct_hand')",
+    ),
+    (
+        "too many ticks",
+        ("period: 0.005  ", "period: 6  "),
+        ("period: ", 2),
+        "6 s is 1.2e+04 times the fastest period in the tree (0.0005 s of 'pd_left'); a group may span at most "
+        "10000 fastest periods",
+    ),
+    (
+        "dt unused",
+        ("simulation:\n", "simulation:\n  dt: 0.001\n"),
+        ("simulation:\n  dt: ", 0),
+        "0.001 s is not the fastest controller period (0.0005 s of 'pd_left')",
+    ),
 ]
 
 
@@ -104,14 +121,18 @@ def test_every_period_divides_the_slowest(tmp_path):
     left = "control: {robot: left, law: computed_torque, kp: 100, kv: 20, gains: folded}"
     right = "control: {robot: right, law: computed_torque, kp: 100, kv: 20, gains: folded}"
     assert LOW.count(left) == LOW.count(right) == 1
-    text = LOW.replace(left, "control: {robot: pd_left, law: computed_torque, kp: 100, kv: 20, period: 0.002}\n"
-                             "  pd_left:\n    control: {robot: left, law: pd, kp: 1, kv: 0.1, period: 0.001}")
+    text = LOW.replace(
+        left,
+        "control: {robot: pd_left, law: computed_torque, kp: 100, kv: 20, period: 0.002}\n"
+        "  pd_left:\n    control: {robot: left, law: pd, kp: 1, kv: 0.1, period: 0.001}",
+    )
     text = text.replace(right, right[:-1] + ", period: 0.003}").replace("  dt: 0.001\n", "")
     found = errors(tmp_path, text)
     line, col = position(text, "kv: 20, period: ", 0)
     assert len(found) == 1 and found[0].endswith(
         f"spec.yaml:{line}:{col}: nodes.ct_left.control.period: 0.002 s does not divide the slowest period in the tree "
-        "(0.003 s of 'ct_right'): the groups' ticks must line up once per slowest period"), found
+        "(0.003 s of 'ct_right'): the groups' ticks must line up once per slowest period"
+    ), found
     fits = text.replace("period: 0.003}", "period: 0.004}")
     assert [g.ticks for g in rate_groups(load(tmp_path, fits)).groups] == [1, 2, 4]
 
@@ -124,8 +145,11 @@ def test_a_period_under_a_root_law_is_refused(tmp_path):
 
 
 def test_a_period_that_is_no_positive_number_is_refused(tmp_path):
-    for value, words in (("0", "less than or equal to the minimum of 0"), ("-0.001", "is less than or equal to"),
-                         ("'1/0'", "")):
+    for value, words in (
+        ("0", "less than or equal to the minimum of 0"),
+        ("-0.001", "is less than or equal to"),
+        ("'1/0'", ""),
+    ):
         found = errors(tmp_path, MULTIRATE.replace("period: 0.005  ", f"period: {value}  ", 1))
         assert len(found) == 1 and "nodes.ct_hand.control.period" in found[0] and words in found[0], found
 
@@ -140,10 +164,18 @@ def _servo_vs_groups(system, group_of: dict[str, int], period: float, seed: int)
     fused = {k.name: k for k in system_kernels(system)}
     rng = np.random.default_rng(seed)
     theta = np.array(fused["plant_inverse"].function([0.0, 0.12, 0.0])).ravel() + 0.01 * rng.standard_normal(4)
-    values = {"theta": theta, "theta_dot": rng.standard_normal(4), "x_e": [0, 0.12, 0] + 0.01 * rng.standard_normal(3),
-              "xd_e": rng.standard_normal(3), "xdd_e": rng.standard_normal(3), "f_e": rng.standard_normal(3),
-              "f_i": [1.0], "tau_sensed": rng.standard_normal(4), "dt": period,
-              "params": np.array([v for p in parameters.parameters for v in np.ravel(p.default)]) * (1 + 0.1 * seed)}
+    values = {
+        "theta": theta,
+        "theta_dot": rng.standard_normal(4),
+        "x_e": [0, 0.12, 0] + 0.01 * rng.standard_normal(3),
+        "xd_e": rng.standard_normal(3),
+        "xdd_e": rng.standard_normal(3),
+        "f_e": rng.standard_normal(3),
+        "f_i": [1.0],
+        "tau_sensed": rng.standard_normal(4),
+        "dt": period,
+        "params": np.array([v for p in parameters.parameters for v in np.ravel(p.default)]) * (1 + 0.1 * seed),
+    }
     state = np.array(fused["servo_init"].function(values["theta"], values["theta_dot"])).ravel()
     values["state"] = state + 1e-3 * rng.standard_normal(state.size)
     step = fused["servo_step"]
@@ -155,8 +187,10 @@ def _servo_vs_groups(system, group_of: dict[str, int], period: float, seed: int)
         given = {**values, **held}
         if any(p.name == "state" for p in kernel.inputs):
             size = next(p.size for p in kernel.inputs if p.name == "state")
-            given["state"] = values["state"][offset:offset + size]
-        result = dict(zip([p.name for p in kernel.outputs], kernel.function.call([given[p.name] for p in kernel.inputs])))
+            given["state"] = values["state"][offset : offset + size]
+        result = dict(
+            zip([p.name for p in kernel.outputs], kernel.function.call([given[p.name] for p in kernel.inputs]))
+        )
         tau += np.array(result.pop("tau")).ravel()
         if "state_next" in result:
             next_state[group.index] = np.array(result.pop("state_next")).ravel()
@@ -169,11 +203,14 @@ def _servo_vs_groups(system, group_of: dict[str, int], period: float, seed: int)
 def test_group_steps_at_one_period_are_the_fused_servo_step(tmp_path, seed):
     """Fig 4.3 cut between the PD loops and the levels above (the trajectories ff writes held
     and passed at once), and with ct_hand closing a loop on the sensed squeeze (tau_sensed)."""
-    text = (SPECS / "styx_multilevel.yaml").read_text().replace("      kv: 20\n", "      kv: 20\n      kf_internal: 0.5\n")
+    text = (
+        (SPECS / "styx_multilevel.yaml").read_text().replace("      kv: 20\n", "      kv: 20\n      kf_internal: 0.5\n")
+    )
     for system in (load_system(str(SPECS / "styx_multilevel.yaml")), load(tmp_path, text)):
         # state order: the walk's (ff before ct_hand), which is also the slow group's own order
         tau, state, tau_groups, states, groups = _servo_vs_groups(
-            system, {"pd_left": 0, "pd_right": 0, "ff": 1, "ct_hand": 1}, 0.001, seed)
+            system, {"pd_left": 0, "pd_right": 0, "ff": 1, "ct_hand": 1}, 0.001, seed
+        )
         assert groups.boundaries == ("pd_left", "pd_right")
         assert np.array_equal(tau, tau_groups), (tau, tau_groups)
         assert np.array_equal(state, states[1])
@@ -195,10 +232,17 @@ def test_a_group_step_folds_its_own_period():
     g1, fused = kernels["servo_step_g1"], kernels["servo_step"]
     assert "dt" not in [p.name for p in g1.inputs]
     rng = np.random.default_rng(3)
-    values = {"theta": np.array(kernels["plant_inverse"].function([0.0, 0.12, 0.0])).ravel(),
-              "theta_dot": rng.standard_normal(4), "x_e": [0.001, 0.12, 0.01], "xd_e": rng.standard_normal(3),
-              "xdd_e": rng.standard_normal(3), "f_e": np.zeros(3), "f_i": [1.0], "dt": 0.005,
-              "params": [2, 0.1, 2, 0.1, 100, 20]}
+    values = {
+        "theta": np.array(kernels["plant_inverse"].function([0.0, 0.12, 0.0])).ravel(),
+        "theta_dot": rng.standard_normal(4),
+        "x_e": [0.001, 0.12, 0.01],
+        "xd_e": rng.standard_normal(3),
+        "xdd_e": rng.standard_normal(3),
+        "f_e": np.zeros(3),
+        "f_i": [1.0],
+        "dt": 0.005,
+        "params": [2, 0.1, 2, 0.1, 100, 20],
+    }
     values["state"] = np.array(kernels["servo_init"].function(values["theta"], values["theta_dot"])).ravel()
     out_g1 = g1.function.call([values[p.name] for p in g1.inputs])
     out = fused.function.call([values[p.name] for p in fused.inputs])

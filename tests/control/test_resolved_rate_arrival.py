@@ -7,6 +7,7 @@ ideal joint-rate servo (robotgen.simulation.approach_paths: each call's rates he
 The composite robot (styx_redundant's hand) evaluates the CasADi graphs the C is printed
 from. Every test prints its numbers.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -100,13 +101,15 @@ def test_the_hand_arrives_at_T_on_a_straight_line_at_constant_speed(puma):
         m["exp_short"] = exponential.distance()[-1]
         m["exp_rates"] = (np.abs(np.diff(exponential.q, axis=0)) / dt / LIMITS).max()
         results[dt] = m
-        print(f"\ndt {dt:g} s, arrival at T = {T_ARRIVAL:g} s: |p - p_f| {m['arrived']:.2e} m, rotation left "
-              f"{m['arrived_rot']:.2e} rad; off the line {m['off_line']:.2e} m, speed (max - min) / 0.1 m/s "
-              f"{m['speed']:.2e}, at T/2 {m['half']:.2e} m from half way, rotation vector off the plan "
-              f"{m['axis']:.2e} rad; min rate_scale {m['scale']:g}\n  exponential (horizon {HORIZON} s): error "
-              f"after T {m['exp_short'] * 1e3:.2f} mm, factor {m['exp_position']:.6f} (rotation {m['exp_rotation']:.6f})"
-              f"; exp(-T/horizon) {np.exp(-T_ARRIVAL / HORIZON):.6f}, (1 - dt/horizon)^(T/dt) "
-              f"{(1 - dt / HORIZON) ** round(T_ARRIVAL / dt):.6f}; its rates at most {m['exp_rates']:.3f} of the limits")
+        print(
+            f"\ndt {dt:g} s, arrival at T = {T_ARRIVAL:g} s: |p - p_f| {m['arrived']:.2e} m, rotation left "
+            f"{m['arrived_rot']:.2e} rad; off the line {m['off_line']:.2e} m, speed (max - min) / 0.1 m/s "
+            f"{m['speed']:.2e}, at T/2 {m['half']:.2e} m from half way, rotation vector off the plan "
+            f"{m['axis']:.2e} rad; min rate_scale {m['scale']:g}\n  exponential (horizon {HORIZON} s): error "
+            f"after T {m['exp_short'] * 1e3:.2f} mm, factor {m['exp_position']:.6f} (rotation {m['exp_rotation']:.6f})"
+            f"; exp(-T/horizon) {np.exp(-T_ARRIVAL / HORIZON):.6f}, (1 - dt/horizon)^(T/dt) "
+            f"{(1 - dt / HORIZON) ** round(T_ARRIVAL / dt):.6f}; its rates at most {m['exp_rates']:.3f} of the limits"
+        )
     fine, coarse = results[DT], results[2 * DT]
     for m, dt in ((fine, DT), (coarse, 2 * DT)):
         assert m["scale"] == 1 and m["exp_rates"] < 1  # no rate limit acted in either approach
@@ -115,7 +118,7 @@ def test_the_hand_arrives_at_T_on_a_straight_line_at_constant_speed(puma):
             assert m[key] < 0.02 * dt, key
         assert m["speed"] < 1.0 * dt and m["axis"] < 0.05 * dt
         exact = (1 - dt / HORIZON) ** round(T_ARRIVAL / dt)
-        first_order = T_ARRIVAL * dt / (2 * HORIZON ** 2)  # log((1 - h)^(T/dt)) = -T/horizon - T dt / 2 horizon^2
+        first_order = T_ARRIVAL * dt / (2 * HORIZON**2)  # log((1 - h)^(T/dt)) = -T/horizon - T dt / 2 horizon^2
         for key in ("exp_position", "exp_rotation"):
             assert abs(m[key] / exact - 1) < 1e-3, key
             assert abs(m[key] / np.exp(-T_ARRIVAL / HORIZON) - 1) < 2 * first_order, key
@@ -168,9 +171,11 @@ def test_rate_limits_make_the_arrival_late_and_rate_scale_says_so(puma):
     arrived = arrival.t[np.flatnonzero(left > 1e-6).max() + 1]
     ratio = (np.abs(np.diff(arrival.q, axis=0)) / DT / LIMITS).max()
     limited = arrival.rate_scale < 1
-    print(f"\ntarget in {T} s: rate_scale min {arrival.rate_scale.min():.3f} on {limited.sum()} of "
-          f"{len(limited)} calls, |qd_i| / limit_i at most {ratio:.12f}; {arrival.distance()[at_T] * 1e3:.1f} mm "
-          f"left at T, arrived (within 1e-6 m and rad) at {arrived:.3f} s; off the line {m['off_line']:.2e} m")
+    print(
+        f"\ntarget in {T} s: rate_scale min {arrival.rate_scale.min():.3f} on {limited.sum()} of "
+        f"{len(limited)} calls, |qd_i| / limit_i at most {ratio:.12f}; {arrival.distance()[at_T] * 1e3:.1f} mm "
+        f"left at T, arrived (within 1e-6 m and rad) at {arrived:.3f} s; off the line {m['off_line']:.2e} m"
+    )
     assert limited[0] and arrival.rate_scale.min() < 0.5 and ratio <= 1 + 1e-12
     assert arrival.distance()[at_T] > 0.01 and T < arrived < 0.5
     assert np.all(arrival.rate_scale[~limited] == 1)
@@ -204,23 +209,28 @@ def test_composite_arrival_moves_the_box_on_a_straight_line(tmp_path):
     off = np.abs(x - x0 - np.outer(along, move)).max()
     grasp = max(np.abs(h_inverse(xi) - g.fingers_read(th, np.zeros(6))[0]).max() for xi, th in zip(x, arrival.q))
     short = np.abs(exponential.error[-1]).max() / np.abs(move).max()
-    print(f"\nbox {x0} -> {x[-1]} (target {x0 + move}): |x - target| at T {np.abs(x[-1] - x0 - move).max():.2e}; "
-          f"off the line {off:.2e}, off the schedule x0 + (t/T) move {schedule:.2e}; fingertips off the box "
-          f"{grasp:.2e} m; min rate_scale {arrival.rate_scale.min()}; exponential (horizon 0.25 s) short by "
-          f"{short:.5f} of the move (exp(-4) = {np.exp(-4):.5f})")
+    print(
+        f"\nbox {x0} -> {x[-1]} (target {x0 + move}): |x - target| at T {np.abs(x[-1] - x0 - move).max():.2e}; "
+        f"off the line {off:.2e}, off the schedule x0 + (t/T) move {schedule:.2e}; fingertips off the box "
+        f"{grasp:.2e} m; min rate_scale {arrival.rate_scale.min()}; exponential (horizon 0.25 s) short by "
+        f"{short:.5f} of the move (exp(-4) = {np.exp(-4):.5f})"
+    )
     assert np.abs(x[-1] - x0 - move).max() < 1e-6
     assert off < 1e-5 and schedule < 0.02 * DT and grasp < 0.02 * DT
     assert arrival.rate_scale.min() == 1
-    assert abs(short / np.exp(-T / 0.25) - 1) < 2 * T * DT / (2 * 0.25 ** 2)
+    assert abs(short / np.exp(-T / 0.25) - 1) < 2 * T * DT / (2 * 0.25**2)
     np.testing.assert_allclose(arrival.error[0], move, atol=1e-12)
 
 
 # -- the spec layer ---------------------------------------------------------------------------
-@pytest.mark.parametrize("settings, message", [
-    ("arrival: {minimum_remaining: 0}", "minimum_remaining: 0 is less than or equal to the minimum of 0"),
-    ("arrival: {minimum_remaining: -1e-3}", "minimum_remaining: -0.001 is less than or equal to the minimum of 0"),
-    ("arrival: {period: 1e-3}", "arrival.period: unknown key (allowed: minimum_remaining)"),
-])
+@pytest.mark.parametrize(
+    "settings, message",
+    [
+        ("arrival: {minimum_remaining: 0}", "minimum_remaining: 0 is less than or equal to the minimum of 0"),
+        ("arrival: {minimum_remaining: -1e-3}", "minimum_remaining: -0.001 is less than or equal to the minimum of 0"),
+        ("arrival: {period: 1e-3}", "arrival.period: unknown key (allowed: minimum_remaining)"),
+    ],
+)
 def test_located_errors(tmp_path, settings, message):
     leaf = PUMA_RMRC.read_text().split("  arm:\n    define:\n")[1]
     spec = write_spec(tmp_path, "bad", leaf, "        " + settings)

@@ -5,6 +5,7 @@ leaf) are compiled and their generated steps integrated; the other variants (Pan
 arm, tool and spherical frames) evaluate the CasADi graphs the C is printed from
 (robotgen.symbolic.kernels_for), which keeps the suite fast. Every test prints its numbers.
 """
+
 from __future__ import annotations
 
 import shutil
@@ -56,16 +57,21 @@ class Graphs:
         def call(*args):
             out = kernel.function(*[np.asarray(a, float).reshape(-1) for a in args])
             out = out if isinstance(out, (list, tuple)) else [out]
-            shaped = [np.asarray(o).reshape(p.rows, p.cols) if p.is_matrix else np.asarray(o).reshape(-1)
-                      for o, p in zip(out, kernel.outputs)]
+            shaped = [
+                np.asarray(o).reshape(p.rows, p.cols) if p.is_matrix else np.asarray(o).reshape(-1)
+                for o, p in zip(out, kernel.outputs)
+            ]
             return shaped[0] if len(shaped) == 1 else tuple(shaped)
+
         return call
 
 
 def write_spec(tmp_path: Path, name: str, leaf: str, settings: str) -> Path:
     spec = tmp_path / f"{name}.yaml"
-    spec.write_text(f"robotgen: 1\nname: {name}\nroot: ctl\nnodes:\n  ctl:\n    control:\n      robot: arm\n"
-                    f"      law: resolved_rate\n      resolved_rate:\n{settings}\n  arm:\n    define:\n{leaf}\n")
+    spec.write_text(
+        f"robotgen: 1\nname: {name}\nroot: ctl\nnodes:\n  ctl:\n    control:\n      robot: arm\n"
+        f"      law: resolved_rate\n      resolved_rate:\n{settings}\n  arm:\n    define:\n{leaf}\n"
+    )
     return spec
 
 
@@ -114,8 +120,10 @@ def test_puma_reach_moves_along_the_initial_reach_axis(puma):
     reach = T0[:3, 1]
     lateral = np.linalg.norm(d - (d @ reach) * reach)
     drift = angle(T0[:3, :3].T @ T[:3, :3])
-    print(f"\nPUMA reach 2 s: along {d @ reach:.9f} m, lateral {lateral:.2e} m, orientation {drift:.2e} rad, "
-          f"min manipulability {w_min[0]:.4f}")
+    print(
+        f"\nPUMA reach 2 s: along {d @ reach:.9f} m, lateral {lateral:.2e} m, orientation {drift:.2e} rad, "
+        f"min manipulability {w_min[0]:.4f}"
+    )
     assert abs(d @ reach - 0.1) < 1e-9
     assert lateral < 1e-6 and drift < 1e-6
 
@@ -164,8 +172,10 @@ def test_position_control_reaches_targets_from_random_starts(puma):
     pos, rot = np.linalg.norm(error[:, :3], axis=1), np.linalg.norm(error[:, 3:], axis=1)
     fk = puma.fk(q)
     direct = [angle(a[:3, :3].T @ b[:3, :3]) for a, b in zip(fk, goal)]
-    print(f"\n{len(starts)} starts (initial rotations up to {max(angles0):.6f} rad): final position error "
-          f"max {pos.max():.2e} m, rotation {rot.max():.2e} rad (directly {max(direct):.2e})")
+    print(
+        f"\n{len(starts)} starts (initial rotations up to {max(angles0):.6f} rad): final position error "
+        f"max {pos.max():.2e} m, rotation {rot.max():.2e} rad (directly {max(direct):.2e})"
+    )
     assert pos.max() < 1e-6 and rot.max() < 1e-6 and max(direct) < 1e-6
     assert np.abs(fk[:, :3, 3] - goal[:, :3, 3]).max() < 1e-6
 
@@ -198,8 +208,12 @@ def test_axis_angle_of_eqs_15_to_18_handles_every_angle():
 def test_a_nan_or_infinite_measurement_is_status_1(puma, ur5, bad):
     q = np.array([0.2, 0.6, 2.9, 0.0, 0.3, 0.0])
     broken = np.where(np.arange(6) == 3, bad, q)
-    for call in (lambda: puma.rate_step(broken, np.ones(6)), lambda: puma.rate_step(q, np.where(q > 1, bad, 0)),
-                 lambda: puma.position_step(broken, puma.fk(q)), lambda: ur5.lqr_step(broken, np.zeros(6))):
+    for call in (
+        lambda: puma.rate_step(broken, np.ones(6)),
+        lambda: puma.rate_step(q, np.where(q > 1, bad, 0)),
+        lambda: puma.position_step(broken, puma.fk(q)),
+        lambda: ur5.lqr_step(broken, np.zeros(6)),
+    ):
         with pytest.raises(FloatingPointError, match="status 1"):
             call()
     qd, w, cond = puma.rate_step(q, np.ones(6))
@@ -239,9 +253,11 @@ def test_through_a_wrist_singularity_rates_stay_bounded(puma):
 
         rk4(lambda q: step(q)[0], q0, 1e-3, 2000, track)
         results[label] = stats
-        print(f"\n{label}: max |qd_i|/limit_i {stats['ratio']:.6f}, min manipulability {stats['w']:.2e}, "
-              f"hand position error {stats['pos']:.2e} m, orientation error {stats['rot']:.2e} rad, "
-              f"q5 {min(stats['q5']):+.3f}..{max(stats['q5']):+.3f}")
+        print(
+            f"\n{label}: max |qd_i|/limit_i {stats['ratio']:.6f}, min manipulability {stats['w']:.2e}, "
+            f"hand position error {stats['pos']:.2e} m, orientation error {stats['rot']:.2e} rad, "
+            f"q5 {min(stats['q5']):+.3f}..{max(stats['q5']):+.3f}"
+        )
     through, lost = results["through"], results["lost axis"]
     assert min(through["q5"]) < -0.29 and through["w"] < 1e-4  # it did pass the singularity
     assert through["ratio"] <= 1 + 1e-12 and through["pos"] < 1e-3 and through["rot"] < 1e-3
@@ -343,8 +359,10 @@ def test_panda_null_space_objective_keeps_the_hand_command_exact(tmp_path):
     lateral = np.linalg.norm(d - (d @ T0[:3, 1]) * T0[:3, 1])
     drift = angle(T0[:3, :3].T @ T[:3, :3])
     H0, H, Hp = (float(g.objective(x)[0]) for x in (q0, q, plain))
-    print(f"\nPanda 2 s reach: |J qd - S| max {worst[0]:.2e}, along {d @ T0[:3, 1]:.9f} m, lateral {lateral:.2e} m, "
-          f"orientation {drift:.2e} rad; joint-limit objective {H0:.4f} -> {H:.4f} (pseudo-inverse alone {Hp:.4f})")
+    print(
+        f"\nPanda 2 s reach: |J qd - S| max {worst[0]:.2e}, along {d @ T0[:3, 1]:.9f} m, lateral {lateral:.2e} m, "
+        f"orientation {drift:.2e} rad; joint-limit objective {H0:.4f} -> {H:.4f} (pseudo-inverse alone {Hp:.4f})"
+    )
     assert worst[0] < 1e-10 and lateral < 1e-6 and drift < 1e-6 and abs(d @ T0[:3, 1] - 0.08) < 1e-9
     assert H > H0 + 0.01 and H > Hp + 0.01
 
@@ -359,8 +377,10 @@ def test_panda_manipulability_gradient_in_the_null_space(tmp_path):
     T = g.fk(q)
     w0, w = g.rate_step(q0, np.zeros(6))[1][0], g.rate_step(q, np.zeros(6))[1][0]
     moved = np.linalg.norm(T[:3, 3] - T0[:3, 3])
-    print(f"\nPanda self-motion: manipulability {w0:.5f} -> {w:.5f}, hand moved {moved:.2e} m, "
-          f"turned {angle(T0[:3, :3].T @ T[:3, :3]):.2e} rad, joints moved {np.linalg.norm(q - q0):.3f} rad")
+    print(
+        f"\nPanda self-motion: manipulability {w0:.5f} -> {w:.5f}, hand moved {moved:.2e} m, "
+        f"turned {angle(T0[:3, :3].T @ T[:3, :3]):.2e} rad, joints moved {np.linalg.norm(q - q0):.3f} rad"
+    )
     np.testing.assert_allclose(g.objective(q)[0], w, rtol=1e-9)
     assert w > 1.5 * w0 and moved < 1e-8 and angle(T0[:3, :3].T @ T[:3, :3]) < 1e-8
 
@@ -378,14 +398,16 @@ def test_extended_jacobian_planar_arm(tmp_path):
     def condition(q):
         J = g.jacobian(q)[:2]
         z = np.linalg.svd(J)[2][-1]
-        grad = np.array([-(q[0]) / 2.5 ** 2, -(q[1]) / 2.5 ** 2, -(q[2]) / 0.5 ** 2]) / 3
+        grad = np.array([-(q[0]) / 2.5**2, -(q[1]) / 2.5**2, -(q[2]) / 0.5**2]) / 3
         return z @ grad
 
     p0 = g.fk(q0)[:2, 3]
     q = rk4(lambda q: g.rate_step(q, command)[0], q0, 2e-3, 1000)  # 2 s
     p = g.fk(q)[:2, 3]
-    print(f"\nextended Jacobian: hand moved {p - p0} (commanded {2 * command[:2]}), z^T grad H "
-          f"{condition(q0):.3e} -> {condition(q):.3e}, joints {q0} -> {q}")
+    print(
+        f"\nextended Jacobian: hand moved {p - p0} (commanded {2 * command[:2]}), z^T grad H "
+        f"{condition(q0):.3e} -> {condition(q):.3e}, joints {q0} -> {q}"
+    )
     np.testing.assert_allclose(p - p0, 2 * command[:2], atol=1e-9)
     assert abs(condition(q)) < 1e-4 * abs(condition(q0))
 
@@ -403,11 +425,13 @@ def test_lqr_closes_the_loop_on_the_linear_and_the_nonlinear_model(ur5):
     fd_B = np.zeros((2 * n, n))
     for i in range(n):
         e = np.eye(n)[i] * h
-        fd_A[n:, i] = (ur5.forward_dynamics(q0 + e, np.zeros(n), tau0) -
-                       ur5.forward_dynamics(q0 - e, np.zeros(n), tau0)) / (2 * h)
+        fd_A[n:, i] = (
+            ur5.forward_dynamics(q0 + e, np.zeros(n), tau0) - ur5.forward_dynamics(q0 - e, np.zeros(n), tau0)
+        ) / (2 * h)
         fd_A[n:, n + i] = (ur5.forward_dynamics(q0, e, tau0) - ur5.forward_dynamics(q0, -e, tau0)) / (2 * h)
-        fd_B[n:, i] = (ur5.forward_dynamics(q0, np.zeros(n), tau0 + e) -
-                       ur5.forward_dynamics(q0, np.zeros(n), tau0 - e)) / (2 * h)
+        fd_B[n:, i] = (
+            ur5.forward_dynamics(q0, np.zeros(n), tau0 + e) - ur5.forward_dynamics(q0, np.zeros(n), tau0 - e)
+        ) / (2 * h)
     fd_A[:n, n:] = np.eye(n)
     np.testing.assert_allclose(A, fd_A, atol=1e-5 * np.abs(A).max())
     np.testing.assert_allclose(B, fd_B, atol=1e-5 * np.abs(B).max())
@@ -440,10 +464,12 @@ def test_lqr_closes_the_loop_on_the_linear_and_the_nonlinear_model(ur5):
     linear = expm(closed * t_end) @ s0
     nonlinear = x - np.r_[q0, np.zeros(n)]
     poles = np.linalg.eigvals(closed)
-    print(f"\nLQR about {q0}: closed-loop poles max real {poles.real.max():.3f} (open loop "
-          f"{report['open_loop_max_real_part']:.3f}); |s| {np.abs(s0).max():.3f} -> after {t_end:g} s linear "
-          f"{np.abs(linear).max():.2e}, nonlinear {np.abs(nonlinear).max():.2e}; nonlinear - linear at most "
-          f"{gap:.2e} (peak of the linear response {peak:.2e})")
+    print(
+        f"\nLQR about {q0}: closed-loop poles max real {poles.real.max():.3f} (open loop "
+        f"{report['open_loop_max_real_part']:.3f}); |s| {np.abs(s0).max():.3f} -> after {t_end:g} s linear "
+        f"{np.abs(linear).max():.2e}, nonlinear {np.abs(nonlinear).max():.2e}; nonlinear - linear at most "
+        f"{gap:.2e} (peak of the linear response {peak:.2e})"
+    )
     assert np.abs(linear).max() < 1e-6 and np.abs(nonlinear).max() < 1e-6
     assert gap < 0.1 * peak
 
@@ -451,8 +477,17 @@ def test_lqr_closes_the_loop_on_the_linear_and_the_nonlinear_model(ur5):
 # -- the spec layer -----------------------------------------------------------------------
 def test_module_functions_and_info(puma):
     info = puma.info()
-    for name in ("fk", "jacobian", "jacobian_hand", "mass", "forward_dynamics", "command_jacobian",
-                 "rate_step", "position_step", "lqr_step"):
+    for name in (
+        "fk",
+        "jacobian",
+        "jacobian_hand",
+        "mass",
+        "forward_dynamics",
+        "command_jacobian",
+        "rate_step",
+        "position_step",
+        "lqr_step",
+    ):
         assert name in info["functions"], name
     assert "servo_step" not in info["functions"]  # only with lqr: {servo: true}
     rc = info["rate_control"]
@@ -460,16 +495,21 @@ def test_module_functions_and_info(puma):
     assert info["nodes"]["rmrc"]["kind"] == "resolved_rate" and info["leaves"] == ["arm"]
 
 
-@pytest.mark.parametrize("settings, message", [
-    ("frame: line_of_sight", "frame line_of_sight needs 'eye'"),
-    ("frame: hand\n        eye: [0, 0, 1]", "'eye' belongs to frame line_of_sight, not hand"),
-    ("active: [reach, wobble]", "'wobble' is not a command axis of frame hand"),
-    ("active: [reach]\n        free: [reach]", "axis 'reach' is both active and free"),
-    ("redundancy: {method: extended_jacobian, objective: joint_limits}",
-     "extended_jacobian needs exactly one degree of redundancy"),
-    ("rate_limits: [1, 2]", "expected 6 entries (one per joint), got 2"),
-    ("lqr: {nominal: [0, 0]}", "expected 6 joint positions, got 2"),
-])
+@pytest.mark.parametrize(
+    "settings, message",
+    [
+        ("frame: line_of_sight", "frame line_of_sight needs 'eye'"),
+        ("frame: hand\n        eye: [0, 0, 1]", "'eye' belongs to frame line_of_sight, not hand"),
+        ("active: [reach, wobble]", "'wobble' is not a command axis of frame hand"),
+        ("active: [reach]\n        free: [reach]", "axis 'reach' is both active and free"),
+        (
+            "redundancy: {method: extended_jacobian, objective: joint_limits}",
+            "extended_jacobian needs exactly one degree of redundancy",
+        ),
+        ("rate_limits: [1, 2]", "expected 6 entries (one per joint), got 2"),
+        ("lqr: {nominal: [0, 0]}", "expected 6 joint positions, got 2"),
+    ],
+)
 def test_located_errors(tmp_path, settings, message):
     leaf = PUMA_RMRC.read_text().split("  arm:\n    define:\n")[1]
     spec = write_spec(tmp_path, "bad", leaf, "        " + settings)

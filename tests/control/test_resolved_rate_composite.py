@@ -9,6 +9,7 @@ variants (the fingers' frame change, a multilevel tree with controllers below, t
 fingers with internal motions, damping and rate limits) evaluate the CasADi graphs the C is
 printed from. Every test prints its numbers.
 """
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -27,8 +28,15 @@ CONTACTS = np.array([[-0.05, 0.0], [0.05, 0.0]])  # the box's contact points, bo
 START = np.array([0.0, 0.12, 0.0])  # the box pose of the Styx examples
 
 
-def variant(tmp: Path, source: str, name: str, robot: str, settings: dict | None = None,
-            keep: tuple[str, ...] | None = None, drop: tuple[str, ...] = ("ct_hand",)) -> Path:
+def variant(
+    tmp: Path,
+    source: str,
+    name: str,
+    robot: str,
+    settings: dict | None = None,
+    keep: tuple[str, ...] | None = None,
+    drop: tuple[str, ...] = ("ct_hand",),
+) -> Path:
     """specs/<source>.yaml with its root replaced by `rr: control: {law: resolved_rate, robot}`:
     ``drop`` nodes removed (the old root), or only ``keep`` nodes kept."""
     data = yaml.safe_load((SPECS / f"{source}.yaml").read_text())
@@ -80,9 +88,11 @@ def test_box_moves_with_the_commanded_velocity_and_stays_grasped(hand):
         worst["xd"] = max(worst["xd"], np.abs(xd_read - command).max())
 
     theta = rk4(lambda th: hand.rate_step(th, command)[0], theta0, dt, 1000, check)
-    print(f"\nbox {x0} -> {hand.plant_position(theta)} in 1 s: |x - (x0 + v t)| max {worst['pose']:.2e}, "
-          f"|hand_read - plant_position| {worst['read']:.2e}, |h^-1(x) - fingertips| {worst['grasp']:.2e}, "
-          f"|hand_read xd - command| {worst['xd']:.2e}")
+    print(
+        f"\nbox {x0} -> {hand.plant_position(theta)} in 1 s: |x - (x0 + v t)| max {worst['pose']:.2e}, "
+        f"|hand_read - plant_position| {worst['read']:.2e}, |h^-1(x) - fingertips| {worst['grasp']:.2e}, "
+        f"|hand_read xd - command| {worst['xd']:.2e}"
+    )
     assert worst["pose"] < 1e-9 and worst["read"] < 1e-12 and worst["grasp"] < 1e-9 and worst["xd"] < 1e-12
     np.testing.assert_allclose(hand.plant_position(theta), x0 + command, atol=1e-9)
 
@@ -98,8 +108,9 @@ def test_velocity_map_is_the_tree_of_attach_maps(hand):
         theta = hand.plant_inverse(x)
         A, J = hand.velocity_map(theta), hand.command_jacobian(theta)
         h = 1e-6
-        fd = np.array([(hand.plant_position(theta + h * a) - hand.plant_position(theta - h * a)) / (2 * h)
-                       for a in A.T]).T
+        fd = np.array(
+            [(hand.plant_position(theta + h * a) - hand.plant_position(theta - h * a)) / (2 * h) for a in A.T]
+        ).T
         U = np.linalg.svd(A, full_matrices=False)[0]  # orthonormal basis of the grasp-keeping rates
         sv = np.linalg.svd(J @ U, compute_uv=False)
         _, w, cond = hand.rate_step(theta, np.zeros(3))
@@ -109,8 +120,10 @@ def test_velocity_map_is_the_tree_of_attach_maps(hand):
         worst["cond"] = max(worst["cond"], abs(cond[0] / (sv[0] / sv[-1]) - 1))
         # all of J's singular values would overstate it: they include the leaf rates that squeeze
         assert w[0] < np.prod(np.linalg.svd(J, compute_uv=False))
-    print(f"\n10 poses: |J A - I| {worst['JA']:.2e}, |d plant_position / d theta A - I| {worst['fd']:.2e}, "
-          f"manipulability rel. error {worst['w']:.2e}, condition rel. error {worst['cond']:.2e}")
+    print(
+        f"\n10 poses: |J A - I| {worst['JA']:.2e}, |d plant_position / d theta A - I| {worst['fd']:.2e}, "
+        f"manipulability rel. error {worst['w']:.2e}, condition rel. error {worst['cond']:.2e}"
+    )
     assert worst["JA"] < 1e-12 and worst["fd"] < 1e-8 and worst["w"] < 1e-9 and worst["cond"] < 1e-7
 
 
@@ -128,9 +141,11 @@ def test_position_control_brings_the_box_to_reachable_targets(hand):
     for x0, xt in zip(starts, targets):
         theta = rk4(lambda th: hand.position_step(th, xt)[0], hand.plant_inverse(x0), 2e-3, 1250, check)  # 2.5 s
         finals.append((np.abs(hand.plant_position(theta) - xt).max(), np.abs(hand.position_step(theta, xt)[1]).max()))
-    print(f"\n{len(starts)} starts, horizon T = {hand.info()['rate_control']['horizon']} s, 2.5 s: final |x - target| "
-          f"{', '.join(f'{a:.1e}' for a, _ in finals)}; reported error {max(b for _, b in finals):.1e}; "
-          f"|h^-1(x) - fingertips| max {worst_grasp[0]:.1e}")
+    print(
+        f"\n{len(starts)} starts, horizon T = {hand.info()['rate_control']['horizon']} s, 2.5 s: final |x - target| "
+        f"{', '.join(f'{a:.1e}' for a, _ in finals)}; reported error {max(b for _, b in finals):.1e}; "
+        f"|h^-1(x) - fingertips| max {worst_grasp[0]:.1e}"
+    )
     assert max(a for a, _ in finals) < 1e-6 and max(b for _, b in finals) < 1e-6 and worst_grasp[0] < 1e-9
 
 
@@ -150,8 +165,17 @@ def test_position_error_wraps_psi_only(hand):
 def test_module_functions_and_info(hand):
     info = hand.info()
     functions = info["functions"]
-    for name in ("rate_step", "position_step", "velocity_map", "command_jacobian", "hand_read", "fingers_read",
-                 "plant_position", "plant_inverse", "hand_write"):
+    for name in (
+        "rate_step",
+        "position_step",
+        "velocity_map",
+        "command_jacobian",
+        "hand_read",
+        "fingers_read",
+        "plant_position",
+        "plant_inverse",
+        "hand_write",
+    ):
         assert name in functions, name
     assert "servo_step" not in functions  # the torque tree's step is hand_write here
     rc = info["rate_control"]
@@ -211,17 +235,21 @@ def test_internal_motions_are_a_null_space_command(tmp_path):
     x = g.plant_position(theta)
     self_motion = rk4(lambda th: g.rate_step(th, np.r_[0, 0, 0, 0.3, -0.2])[0], theta0, 1e-3, 1000)
     tips = g.fingers_read(theta, np.zeros(6))[0]
-    print(f"\nbox {x0} -> {x}; self-motion alone moved the joints {np.linalg.norm(self_motion - theta0):.3f} rad "
-          f"and the box {np.abs(g.plant_position(self_motion) - x0).max():.1e}")
+    print(
+        f"\nbox {x0} -> {x}; self-motion alone moved the joints {np.linalg.norm(self_motion - theta0):.3f} rad "
+        f"and the box {np.abs(g.plant_position(self_motion) - x0).max():.1e}"
+    )
     np.testing.assert_allclose(x, x0 + command[:3], atol=1e-9)
     np.testing.assert_allclose(h_inverse(x), tips, atol=1e-9)
     np.testing.assert_allclose(g.hand_read(theta, g.rate_step(theta, command)[0])[1], command, atol=1e-12)
     assert np.linalg.norm(self_motion - theta0) > 0.1
     assert np.abs(g.plant_position(self_motion) - x0).max() < 1e-9
-    np.testing.assert_allclose(over_ct.rate_step(theta0, command[:3])[0], g.rate_step(theta0, np.r_[command[:3], 0, 0])[0],
-                               atol=1e-14)
-    np.testing.assert_allclose(over_ct.position_step(theta0, x0 + 0.01)[0], g.position_step(theta0, x0 + 0.01)[0],
-                               atol=1e-14)
+    np.testing.assert_allclose(
+        over_ct.rate_step(theta0, command[:3])[0], g.rate_step(theta0, np.r_[command[:3], 0, 0])[0], atol=1e-14
+    )
+    np.testing.assert_allclose(
+        over_ct.position_step(theta0, x0 + 0.01)[0], g.position_step(theta0, x0 + 0.01)[0], atol=1e-14
+    )
 
 
 # -- singularities and rate limits ------------------------------------------------------------
@@ -244,9 +272,11 @@ def test_damping_near_stretched_fingers_keeps_rates_bounded_and_the_grasp(tmp_pa
 
     theta = rk4(lambda th: g.rate_step(th, command)[0], g.plant_inverse(START), 1e-3, 2000, check)
     x = g.plant_position(theta)
-    print(f"\ndamped lift 2 s: box y {START[1]} -> {x[1]:.5f} (commanded {START[1] + 0.1:.2f}, reach 0.1936), "
-          f"min manipulability {stats['w']:.2e}, max |theta_dot| {stats['qd']:.3f} rad/s, "
-          f"|h^-1(x) - fingertips| {stats['grasp']:.1e}")
+    print(
+        f"\ndamped lift 2 s: box y {START[1]} -> {x[1]:.5f} (commanded {START[1] + 0.1:.2f}, reach 0.1936), "
+        f"min manipulability {stats['w']:.2e}, max |theta_dot| {stats['qd']:.3f} rad/s, "
+        f"|h^-1(x) - fingertips| {stats['grasp']:.1e}"
+    )
     assert 0.185 < x[1] < 0.1936 and abs(x[0]) < 1e-9 and abs(x[2]) < 1e-9
     assert stats["qd"] < 1.0 and stats["grasp"] < 1e-9 and stats["w"] < 1e-3
 
@@ -266,13 +296,19 @@ def test_rate_limits_scale_the_whole_vector(tmp_path):
 
 
 # -- the spec layer ---------------------------------------------------------------------------
-@pytest.mark.parametrize("settings, message", [
-    ({"frame": "base"}, "'frame' applies to a chain leaf; over the composite robot 'hand' the command is its "
-                        "velocity in its own coordinates (x, y, psi)"),
-    ({"lqr": {"nominal": [0, 0, 0, 0]}}, "'lqr' applies to a chain leaf"),
-    ({"redundancy": {"objective": "joint_limits"}}, "'redundancy' applies to a chain leaf"),
-    ({"rate_limits": [1, 2]}, "expected 4 entries (one per joint), got 2"),
-])
+@pytest.mark.parametrize(
+    "settings, message",
+    [
+        (
+            {"frame": "base"},
+            "'frame' applies to a chain leaf; over the composite robot 'hand' the command is its "
+            "velocity in its own coordinates (x, y, psi)",
+        ),
+        ({"lqr": {"nominal": [0, 0, 0, 0]}}, "'lqr' applies to a chain leaf"),
+        ({"redundancy": {"objective": "joint_limits"}}, "'redundancy' applies to a chain leaf"),
+        ({"rate_limits": [1, 2]}, "expected 4 entries (one per joint), got 2"),
+    ],
+)
 def test_located_errors(tmp_path, settings, message):
     spec = variant(tmp_path, "styx_high_ct", "bad", "hand", settings)
     with pytest.raises(UserErrors) as error:

@@ -7,6 +7,7 @@ task (3 rows, a 4-dimensional null space) or its whole twist (6 rows). The CasAD
 C is printed from are evaluated (robotgen.symbolic.kernels_for) against numpy's closed forms.
 Every test prints its numbers.
 """
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -47,7 +48,7 @@ def task_jacobian(g: Graphs, q: np.ndarray, rows: int) -> np.ndarray:
 
 def null_basis(J: np.ndarray) -> np.ndarray:
     """Orthonormal columns spanning null(J), from the SVD."""
-    return np.linalg.svd(J)[2][J.shape[0]:].T
+    return np.linalg.svd(J)[2][J.shape[0] :].T
 
 
 @pytest.mark.parametrize("task, rows", [("position", 3), ("twist", 6)])
@@ -68,15 +69,19 @@ def test_weighted_rates_are_the_closed_form_and_the_least_weighted_norm(tmp_path
         cost = qd @ W @ qd
         worst["task"] = max(worst["task"], np.abs(J @ qd - S).max())
         worst["closed"] = max(worst["closed"], np.abs(qd - closed).max() / np.abs(closed).max())
-        worst["gradient"] = max(worst["gradient"], np.abs(Z.T @ W @ qd).max() / (np.linalg.norm(W) * np.linalg.norm(qd)))
+        worst["gradient"] = max(
+            worst["gradient"], np.abs(Z.T @ W @ qd).max() / (np.linalg.norm(W) * np.linalg.norm(qd))
+        )
         for _ in range(20):
             delta = Z @ rng.normal(size=Z.shape[1]) * 0.01 * np.linalg.norm(qd)
             rise = (qd + delta) @ W @ (qd + delta) - cost
             assert rise > 0
             worst["rise"] = max(worst["rise"], abs(rise - delta @ W @ delta) / cost)
-    print(f"\n{task} task ({rows} rows), W = diag({WEIGHTS.tolist()}), 20 poses: |J qd - S| {worst['task']:.1e}, "
-          f"|qd - closed form| / |qd| {worst['closed']:.1e}, |Z^T W qd| / (|W| |qd|) {worst['gradient']:.1e}, "
-          f"null-space perturbations: |rise - delta^T W delta| / cost up to {worst['rise']:.1e}")
+    print(
+        f"\n{task} task ({rows} rows), W = diag({WEIGHTS.tolist()}), 20 poses: |J qd - S| {worst['task']:.1e}, "
+        f"|qd - closed form| / |qd| {worst['closed']:.1e}, |Z^T W qd| / (|W| |qd|) {worst['gradient']:.1e}, "
+        f"null-space perturbations: |rise - delta^T W delta| / cost up to {worst['rise']:.1e}"
+    )
     assert worst["task"] < 1e-12 and worst["closed"] < 1e-12 and worst["gradient"] < 1e-13 and worst["rise"] < 1e-14
 
 
@@ -97,8 +102,10 @@ def test_a_heavily_weighted_joint_moves_less(tmp_path):
         assert abs(qd[0]) <= abs(unit[0]) * (1 + 1e-12)
         ratios.append(abs(qd[0]) / abs(unit[0]))
         others.append(np.linalg.norm(qd[1:]) / np.linalg.norm(unit[1:]))
-    print(f"\n20 poses, joint 1 weighted 100: |qd_1| / |qd_1 (unit weights)| {min(ratios):.4f}..{max(ratios):.4f} "
-          f"(median {np.median(ratios):.4f}); the other joints' |qd| / unit {min(others):.3f}..{max(others):.3f}")
+    print(
+        f"\n20 poses, joint 1 weighted 100: |qd_1| / |qd_1 (unit weights)| {min(ratios):.4f}..{max(ratios):.4f} "
+        f"(median {np.median(ratios):.4f}); the other joints' |qd| / unit {min(others):.3f}..{max(others):.3f}"
+    )
     assert np.median(ratios) < 0.1 and min(others) >= 1 - 1e-12  # the others make up for it
 
 
@@ -124,15 +131,20 @@ def test_damped_weighted_rates(tmp_path):
     (J W^-1 J^T + lambda^2 I)^-1 Sdot, lambda^2 = lambda_max^2 (1 - w / threshold)^2, w the
     manipulability sqrt(det(J J^T)) of the unweighted task Jacobian."""
     lam, threshold = 0.05, 10.0
-    g = panda(tmp_path, "panda_wd", TASKS["position"], weighted(WEIGHTS),
-              f"\n        damping: {{lambda_max: {lam}, threshold: {threshold}}}")
+    g = panda(
+        tmp_path,
+        "panda_wd",
+        TASKS["position"],
+        weighted(WEIGHTS),
+        f"\n        damping: {{lambda_max: {lam}, threshold: {threshold}}}",
+    )
     Wi = np.diag(1 / WEIGHTS)
     worst, smallest = 0.0, np.inf
     for q, S in samples(3):
         qd, w, _ = g.rate_step(q, np.r_[S, 0, 0, 0])
         J = task_jacobian(g, q, 3)
         np.testing.assert_allclose(w[0], np.sqrt(np.linalg.det(J @ J.T)), rtol=1e-10)
-        lam2 = lam ** 2 * (1 - w[0] / threshold) ** 2
+        lam2 = lam**2 * (1 - w[0] / threshold) ** 2
         closed = Wi @ J.T @ np.linalg.solve(J @ Wi @ J.T + lam2 * np.eye(3), S)
         worst = max(worst, np.abs(qd - closed).max() / np.abs(closed).max())
         smallest = min(smallest, np.abs(J @ qd - S).max())
@@ -146,9 +158,13 @@ def test_null_space_objective_is_projected_in_the_weighted_metric(tmp_path):
     objective(q). Its null-space part n is the W-orthogonal projection of W^-1 k grad H onto
     null(J): J n = 0 and Z^T W (W^-1 k grad H - n) = 0; it raises H (grad H . n >= 0)."""
     gain = 2.0
-    g = panda(tmp_path, "panda_wh", TASKS["position"],
-              f"{{method: weighted_pseudo_inverse, joint_weights: {WEIGHTS.tolist()}, objective: joint_limits, "
-              f"gain: {gain}}}")
+    g = panda(
+        tmp_path,
+        "panda_wh",
+        TASKS["position"],
+        f"{{method: weighted_pseudo_inverse, joint_weights: {WEIGHTS.tolist()}, objective: joint_limits, "
+        f"gain: {gain}}}",
+    )
     W, Wi = np.diag(WEIGHTS), np.diag(1 / WEIGHTS)
     worst = {"closed": 0.0, "task": 0.0, "orthogonal": 0.0}
     for q, S in samples(3):
@@ -162,26 +178,42 @@ def test_null_space_objective_is_projected_in_the_weighted_metric(tmp_path):
         Z = null_basis(J)
         worst["closed"] = max(worst["closed"], np.abs(qd - closed).max() / np.abs(closed).max())
         worst["task"] = max(worst["task"], np.abs(J @ qd - S).max())
-        worst["orthogonal"] = max(worst["orthogonal"], np.abs(Z.T @ (gain * grad - W @ n)).max() / np.abs(gain * grad).max())
+        worst["orthogonal"] = max(
+            worst["orthogonal"], np.abs(Z.T @ (gain * grad - W @ n)).max() / np.abs(gain * grad).max()
+        )
         assert grad @ n >= 0
-    print(f"\nweighted + joint_limits, 20 poses: |qd - closed form| / |qd| {worst['closed']:.1e} (grad H by central "
-          f"differences), |J qd - S| {worst['task']:.1e}, |Z^T W (W^-1 k grad H - n)| / |k grad H| "
-          f"{worst['orthogonal']:.1e}")
+    print(
+        f"\nweighted + joint_limits, 20 poses: |qd - closed form| / |qd| {worst['closed']:.1e} (grad H by central "
+        f"differences), |J qd - S| {worst['task']:.1e}, |Z^T W (W^-1 k grad H - n)| / |k grad H| "
+        f"{worst['orthogonal']:.1e}"
+    )
     assert worst["closed"] < 1e-8 and worst["task"] < 1e-12 and worst["orthogonal"] < 1e-8
 
 
 # -- the spec layer ---------------------------------------------------------------------------
-@pytest.mark.parametrize("settings, message", [
-    ("redundancy: {method: weighted_pseudo_inverse, joint_weights: [1, 2]}", "expected 6 entries (one per joint), got 2"),
-    ("redundancy: {method: weighted_pseudo_inverse, joint_weights: [1, 1, 0, 1, 1, 1]}",
-     "joint_weights[2]: joint weight 0 must be positive"),
-    ("redundancy: {method: weighted_pseudo_inverse, joint_weights: -2}", "joint weight -2 must be positive"),
-    ("redundancy: {method: weighted_pseudo_inverse}", "method weighted_pseudo_inverse needs joint_weights"),
-    ("redundancy: {method: pseudo_inverse, joint_weights: 2}",
-     "joint_weights belong to method weighted_pseudo_inverse, not pseudo_inverse"),
-    ("redundancy: {joint_weights: [1, 1, 1, 1, 1, 1]}",
-     "joint_weights belong to method weighted_pseudo_inverse, not pseudo_inverse"),
-])
+@pytest.mark.parametrize(
+    "settings, message",
+    [
+        (
+            "redundancy: {method: weighted_pseudo_inverse, joint_weights: [1, 2]}",
+            "expected 6 entries (one per joint), got 2",
+        ),
+        (
+            "redundancy: {method: weighted_pseudo_inverse, joint_weights: [1, 1, 0, 1, 1, 1]}",
+            "joint_weights[2]: joint weight 0 must be positive",
+        ),
+        ("redundancy: {method: weighted_pseudo_inverse, joint_weights: -2}", "joint weight -2 must be positive"),
+        ("redundancy: {method: weighted_pseudo_inverse}", "method weighted_pseudo_inverse needs joint_weights"),
+        (
+            "redundancy: {method: pseudo_inverse, joint_weights: 2}",
+            "joint_weights belong to method weighted_pseudo_inverse, not pseudo_inverse",
+        ),
+        (
+            "redundancy: {joint_weights: [1, 1, 1, 1, 1, 1]}",
+            "joint_weights belong to method weighted_pseudo_inverse, not pseudo_inverse",
+        ),
+    ],
+)
 def test_located_errors(tmp_path, settings, message):
     leaf = PUMA_RMRC.read_text().split("  arm:\n    define:\n")[1]
     spec = write_spec(tmp_path, "bad", leaf, "        " + settings)

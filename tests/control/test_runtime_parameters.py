@@ -2,6 +2,7 @@
 defaults equals the folded build; passing other gains equals a build folded with those
 gains; a payload mass or formulas parameter marked {runtime: v} behaves as the spec value it
 replaces; `gains: folded` reproduces the folded kernels byte for byte."""
+
 from __future__ import annotations
 
 import importlib
@@ -92,12 +93,17 @@ def test_runtime_payload_mass_and_formulas_parameter(tmp_path):
     heavier = yaml.safe_load(HIGH.read_text())
     heavier["nodes"]["box"]["define"]["rigid_body"]["planar"]["mass"] = 0.5
     heavier["nodes"]["left"]["define"]["formulas"]["parameters"]["m1"] = 0.45
-    a, b, c = build(tmp_path, plain, "mass_plain"), build(tmp_path, marked, "mass_marked"), build(tmp_path, heavier, "mass_heavier")
+    a, b, c = (
+        build(tmp_path, plain, "mass_plain"),
+        build(tmp_path, marked, "mass_marked"),
+        build(tmp_path, heavier, "mass_heavier"),
+    )
     assert b.parameters == {"left_m1": 0.3, "box_mass": 0.2, "ct_hand_kp": 100.0, "ct_hand_kv": 20.0}
     theta = a.plant_inverse(np.array([0.0, 0.12, 0.1]))
     v, tau = np.array([0.01, -0.02, 0.3]), np.array([0.01, 0.02, -0.01, 0.03])
     np.testing.assert_allclose(b.plant_dynamics(theta, v, tau)[1], a.plant_dynamics(theta, v, tau)[1], rtol=1e-13)
-    np.testing.assert_allclose(b.plant_dynamics(theta, v, tau, box_mass=0.5, left_m1=0.45)[1],
-                               c.plant_dynamics(theta, v, tau)[1], rtol=1e-12)
+    np.testing.assert_allclose(
+        b.plant_dynamics(theta, v, tau, box_mass=0.5, left_m1=0.45)[1], c.plant_dynamics(theta, v, tau)[1], rtol=1e-12
+    )
     np.testing.assert_allclose(b.hand_mass(theta, box_mass=0.5, left_m1=0.45), c.hand_mass(theta), rtol=1e-12)
     assert np.abs(b.hand_mass(theta, box_mass=0.5) - a.hand_mass(theta)).max() > 1e-3

@@ -3,6 +3,7 @@ symbolic law, its settings reader and its schema block) and one registry line, h
 place for the test. The toy law is PD with its gains scaled by a factor read from its own
 settings block; its servo step must equal PD's with the scaled gains, and its block is
 checked like every law's (located messages, exit 1)."""
+
 from __future__ import annotations
 
 import subprocess
@@ -77,7 +78,9 @@ def toy_law(tmp_path, monkeypatch):
     """The recipe: the law's module, and its line in the registry."""
     (tmp_path / "toy_law.py").write_text(TOY_MODULE)
     monkeypatch.syspath_prepend(str(tmp_path))
-    monkeypatch.setitem(registry.LAWS, "toy", Law("toy", "toy_law:LAW", settings="toy_law:read", schema="toy_law:SCHEMA"))
+    monkeypatch.setitem(
+        registry.LAWS, "toy", Law("toy", "toy_law:LAW", settings="toy_law:read", schema="toy_law:SCHEMA")
+    )
 
 
 def spec(tmp_path: Path, name: str, law: str, kp, kv, extra: str = "") -> Path:
@@ -103,12 +106,15 @@ def test_a_toy_law_added_by_the_recipe_builds(tmp_path, toy_law):
     assert '"toy"' in schema_json() and "toy_law" not in schema_json()
 
 
-@pytest.mark.parametrize("extra, line, column, message", [
-    ("toy:\n  scale: -1\n", 23, 16, "toy.scale: -1.0 is less than or equal to the minimum of 0"),
-    ("toy:\n  scale: 1\n  offset: 2\n", 24, 9, "toy.offset: unknown key (allowed: scale)"),
-    ("", 16, 5, "missing required key 'toy' (the settings of law toy)"),
-    ("toy:\n  scale: 1\nresolved_rate: {}\n", 24, 7, "settings of law resolved_rate; this node's law is toy"),
-])
+@pytest.mark.parametrize(
+    "extra, line, column, message",
+    [
+        ("toy:\n  scale: -1\n", 23, 16, "toy.scale: -1.0 is less than or equal to the minimum of 0"),
+        ("toy:\n  scale: 1\n  offset: 2\n", 24, 9, "toy.offset: unknown key (allowed: scale)"),
+        ("", 16, 5, "missing required key 'toy' (the settings of law toy)"),
+        ("toy:\n  scale: 1\nresolved_rate: {}\n", 24, 7, "settings of law resolved_rate; this node's law is toy"),
+    ],
+)
 def test_a_toy_laws_block_is_checked_where_it_is_written(tmp_path, toy_law, extra, line, column, message):
     path = spec(tmp_path, "toy", "toy", 30, 4, extra)
     with pytest.raises(UserErrors) as error:
@@ -119,6 +125,5 @@ def test_a_toy_laws_block_is_checked_where_it_is_written(tmp_path, toy_law, extr
 
 def test_without_its_registry_line_the_law_is_refused(tmp_path):
     path = spec(tmp_path, "toy", "toy", 30, 4, "toy:\n  scale: 1\n")
-    r = subprocess.run([sys.executable, "-m", "robotgen", "check", str(path)], capture_output=True, text=True,
-                       cwd=ROOT)
+    r = subprocess.run([sys.executable, "-m", "robotgen", "check", str(path)], capture_output=True, text=True, cwd=ROOT)
     assert r.returncode == 1 and f"{path}:18:12:" in r.stderr and "'toy' is not one of" in r.stderr, r.stderr

@@ -1,6 +1,7 @@
 """The friction-free DH example chains (two_link; stanford, whose joint 3 is prismatic)
 against Pinocchio built independently from the same DH numbers (tests/reference.py).
 The PUMA 560 has its own file, with a friction-free copy and the published gravity check."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -53,7 +54,5 @@ def test_jacobian_hand(pair):
         pytest.skip("module has no jacobian_hand")
     import pinocchio as pin
 
-    expect = np.stack([
-        pin.computeFrameJacobian(ref.model, ref.data, x, ref.fid, pin.LOCAL) for x in q
-    ])
+    expect = np.stack([pin.computeFrameJacobian(ref.model, ref.data, x, ref.fid, pin.LOCAL) for x in q])
     np.testing.assert_allclose(mod.jacobian_hand(q), expect, rtol=0, atol=TOL)

@@ -16,6 +16,7 @@ c_ijk = (dM_ij/dq_k + dM_ik/dq_j - dM_jk/dq_i) / 2, with dM12/dth1 = -k s, dM12/
     C = k sin(th1 - th2) [[0, dth2], [-dth1, 0]],
 so C qd = k s [dth2^2, -dth1^2], the centripetal terms of the absolute-angle two-link.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -46,18 +47,28 @@ def tl_params():
     assert ch.gravity[2] == 0
     j1, j2 = ch.joints
     return dict(
-        m1=j1.mass, m2=j2.mass, l1=j1.a, l2=j2.a,
-        lc1=j1.a + j1.com[0], lc2=j2.a + j2.com[0],
-        I1=j1.inertia[2, 2], I2=j2.inertia[2, 2],
-        gx=ch.gravity[0], gy=ch.gravity[1],
+        m1=j1.mass,
+        m2=j2.mass,
+        l1=j1.a,
+        l2=j2.a,
+        lc1=j1.a + j1.com[0],
+        lc2=j2.a + j2.com[0],
+        I1=j1.inertia[2, 2],
+        I2=j2.inertia[2, 2],
+        gx=ch.gravity[0],
+        gy=ch.gravity[1],
     )
 
 
 def tl_mass(p, q):
     c2 = np.cos(q[:, 1])
     M = np.empty((len(q), 2, 2))
-    M[:, 0, 0] = p["m1"] * p["lc1"] ** 2 + p["m2"] * (
-        p["l1"] ** 2 + p["lc2"] ** 2 + 2 * p["l1"] * p["lc2"] * c2) + p["I1"] + p["I2"]
+    M[:, 0, 0] = (
+        p["m1"] * p["lc1"] ** 2
+        + p["m2"] * (p["l1"] ** 2 + p["lc2"] ** 2 + 2 * p["l1"] * p["lc2"] * c2)
+        + p["I1"]
+        + p["I2"]
+    )
     M[:, 0, 1] = M[:, 1, 0] = p["m2"] * (p["lc2"] ** 2 + p["l1"] * p["lc2"] * c2) + p["I2"]
     M[:, 1, 1] = p["m2"] * p["lc2"] ** 2 + p["I2"]
     return M
@@ -121,8 +132,11 @@ def test_two_link_nonlinear(two_link, tl_params):
 def test_two_link_inverse_dynamics(two_link, tl_params):
     p = tl_params
     q, qd, qdd = _states(np.random.default_rng(5))
-    expect = (np.einsum("bij,bj->bi", tl_mass(p, q), qdd)
-              + np.einsum("bij,bj->bi", tl_coriolis(p, q, qd), qd) + tl_gravity(p, q))
+    expect = (
+        np.einsum("bij,bj->bi", tl_mass(p, q), qdd)
+        + np.einsum("bij,bj->bi", tl_coriolis(p, q, qd), qd)
+        + tl_gravity(p, q)
+    )
     np.testing.assert_allclose(two_link.inverse_dynamics(q, qd, qdd), expect, **TOL)
 
 
@@ -231,6 +245,5 @@ def test_finger_kinematics(finger, finger_params):
     s1, c1, s2, c2 = np.sin(q[:, 0]), np.cos(q[:, 0]), np.sin(q[:, 1]), np.cos(q[:, 1])
     x = np.stack([p["l1"] * c1 + p["l2"] * c2, p["l1"] * s1 + p["l2"] * s2], 1)
     np.testing.assert_allclose(finger.kinematics(q), x, **TOL)
-    J = np.stack([np.stack([-p["l1"] * s1, -p["l2"] * s2], 1),
-                  np.stack([p["l1"] * c1, p["l2"] * c2], 1)], 1)
+    J = np.stack([np.stack([-p["l1"] * s1, -p["l2"] * s2], 1), np.stack([p["l1"] * c1, p["l2"] * c2], 1)], 1)
     np.testing.assert_allclose(finger.kinematics_jacobian(q), J, **TOL)

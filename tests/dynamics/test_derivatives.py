@@ -2,6 +2,7 @@
 (independent of AD): a formulas leaf (where Pinocchio has no counterpart), the planar
 two-link chain, and the discrete model under both integrators; and which modules offer them
 (the spec's `derivatives` section)."""
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -16,8 +17,13 @@ from robotgen.model.derivatives import RK4, SEMI_IMPLICIT_EULER, DerivativeSetti
 from robotgen.symbolic import leaf_kernels
 
 SPECS = Path(__file__).resolve().parents[2] / "specs"
-DERIVATIVES = ("inverse_dynamics_derivatives", "forward_dynamics_derivatives", "mass_inverse",
-               "discrete_dynamics", "discrete_dynamics_derivatives")
+DERIVATIVES = (
+    "inverse_dynamics_derivatives",
+    "forward_dynamics_derivatives",
+    "mass_inverse",
+    "discrete_dynamics",
+    "discrete_dynamics_derivatives",
+)
 H = 1e-6
 
 
@@ -63,6 +69,7 @@ def test_semi_implicit_euler_step_and_its_jacobians(build_module, spec):
 
         def step(x, u=tau):
             return np.concatenate(m.discrete_dynamics(x[:n], x[n:], u, dt))
+
         assert_close(np.concatenate([q1, qd1]), step(np.concatenate([q, qd])), 1e-14)
         assert_close(A, central(step, np.concatenate([q, qd])))
         assert_close(B, central(lambda u: step(np.concatenate([q, qd]), u), tau))
@@ -74,6 +81,7 @@ def planar_two_link() -> KinematicTree:
         origin[0, 3] = a
         body = Body(1.0 + 0.3 * i, np.array([0.3, 0.02, 0.0]), np.diag([0.01, 0.05, 0.06]))
         return Joint(f"j{i}", "revolute", i - 1, origin, np.array([0.0, 0.0, 1.0]), body, viscous=0.1)
+
     return KinematicTree("two", (joint(0, 0.0), joint(1, 0.6)), 1, np.eye(4), np.array([0.0, -9.81, 0.0]))
 
 
@@ -86,6 +94,7 @@ def test_rk4_step_and_its_jacobians():
     def rk4(x, u):
         def rate(y):
             return np.concatenate([y[n:], np.array(qdd(y[:n], y[n:], u)).ravel()])
+
         k1 = rate(x)
         k2 = rate(x + dt / 2 * k1)
         k3 = rate(x + dt / 2 * k2)
@@ -180,6 +189,7 @@ def test_a_robot_trees_plant_derivatives_match_finite_differences(build_module, 
 
         def f(th=theta, vv=v, u=tau):
             return np.concatenate(m.plant_dynamics(th, vv, u))
+
         d_theta = central(lambda x: f(th=x), theta)
         d_v = central(lambda x: f(vv=x), v)
         d_tau = central(lambda x: f(u=x), tau)

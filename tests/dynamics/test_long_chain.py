@@ -1,6 +1,7 @@
 """A 16-joint DH chain (one prismatic joint, armature, off-diagonal inertias): its kernels are
 loops (robotgen.symbolic.rigid_body.chain_loops) and are checked against Pinocchio built from
 the same DH numbers (tests/reference.py), and C against the Christoffel property."""
+
 from __future__ import annotations
 
 import re
@@ -25,19 +26,37 @@ def _spec(path):
         ixx, iyy, izz = m / 12 * (b * b + c * c), m / 12 * (a * a + c * c), m / 12 * (a * a + b * b)
         off = 0.1 * min(ixx, iyy, izz)
         joint = {
-            "name": f"j{i + 1}", "type": "prismatic" if prismatic else "revolute",
-            "dh": {"a": round(float(rng.uniform(0, 0.12)), 3), "alpha": ["pi/2", "-pi/2", "0", "0.3"][i % 4],
-                   "d": round(float(rng.uniform(0.02, 0.1)), 3), "theta": 0},
-            "link": {"mass": m, "com": [round(float(x), 3) for x in rng.uniform(-0.03, 0.03, 3)],
-                     "inertia": {"ixx": float(ixx), "iyy": float(iyy), "izz": float(izz),
-                                 "ixy": float(off), "ixz": float(-off / 2), "iyz": float(off / 3)}},
+            "name": f"j{i + 1}",
+            "type": "prismatic" if prismatic else "revolute",
+            "dh": {
+                "a": round(float(rng.uniform(0, 0.12)), 3),
+                "alpha": ["pi/2", "-pi/2", "0", "0.3"][i % 4],
+                "d": round(float(rng.uniform(0.02, 0.1)), 3),
+                "theta": 0,
+            },
+            "link": {
+                "mass": m,
+                "com": [round(float(x), 3) for x in rng.uniform(-0.03, 0.03, 3)],
+                "inertia": {
+                    "ixx": float(ixx),
+                    "iyy": float(iyy),
+                    "izz": float(izz),
+                    "ixy": float(off),
+                    "ixz": float(-off / 2),
+                    "iyz": float(off / 3),
+                },
+            },
             "motor": {"inertia": 0.001 * (i % 3), "gear_ratio": 10},
         }
         if prismatic:
             joint["limits"] = {"lower": 0.0, "upper": 0.3}
         joints.append(joint)
-    doc = {"robotgen": 1, "name": "long_chain", "root": "arm",
-           "nodes": {"arm": {"define": {"chain": {"convention": "dh_standard", "joints": joints}}}}}
+    doc = {
+        "robotgen": 1,
+        "name": "long_chain",
+        "root": "arm",
+        "nodes": {"arm": {"define": {"chain": {"convention": "dh_standard", "joints": joints}}}},
+    }
     path.write_text(yaml.safe_dump(doc, sort_keys=False))
     return path
 
@@ -71,11 +90,20 @@ def test_the_looped_kernels_share_one_kinematics_helper(case):
     kernel calls them instead of repeating them."""
     source = (Path(case[0].__file__).parent / "long_chain.c").read_text()
     # static, or compiled in one part and linked from the others (RG_SHARED: the file is large)
-    assert len(re.findall(r"^(static|RG_SHARED) void rg_kinematics\(const double \*q, double \*axes, "
-                          r"double \*inertias\) \{", source, re.M)) == 1
+    assert (
+        len(
+            re.findall(
+                r"^(static|RG_SHARED) void rg_kinematics\(const double \*q, double \*axes, "
+                r"double \*inertias\) \{",
+                source,
+                re.M,
+            )
+        )
+        == 1
+    )
     for name in ("mass", "coriolis", "nonlinear", "inverse_dynamics", "forward_dynamics", "servo_terms"):
         start = source.index(f"int long_chain_{name}(")
-        definition = source[start:source.index("\n}\n", start)]
+        definition = source[start : source.index("\n}\n", start)]
         assert definition.count("  rg_kinematics(q, t0, t1);") == 1, name
 
 
@@ -86,8 +114,9 @@ def test_dynamics_against_pinocchio(case):
         M = ref.mass(q[k])
         np.testing.assert_allclose(mod.mass(q[k]), M, rtol=0, atol=TOL)
         tau = ref.rnea(q[k], qd[k], qdd[k])
-        np.testing.assert_allclose(mod.inverse_dynamics(q[k], qd[k], qdd[k]), tau, rtol=0,
-                                   atol=TOL * max(1, np.abs(tau).max()))
+        np.testing.assert_allclose(
+            mod.inverse_dynamics(q[k], qd[k], qdd[k]), tau, rtol=0, atol=TOL * max(1, np.abs(tau).max())
+        )
         h = ref.rnea(q[k], qd[k], np.zeros(N))
         np.testing.assert_allclose(mod.nonlinear(q[k], qd[k]), h, rtol=0, atol=TOL * max(1, np.abs(h).max()))
         # forward dynamics (articulated bodies, with armature) against M^-1 (tau - h) from Pinocchio

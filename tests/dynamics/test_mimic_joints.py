@@ -8,6 +8,7 @@ qfrc_bias, mj_jacSite) of an MJCF with joint equality constraints, at the full c
 (MuJoCo enforces the constraint softly, so its constrained motion is no reference). Plus the
 properties: Mdot - 2C skew, forward then inverse dynamics, the derivatives against central
 differences. Evaluated through CasADi (Kernel.function), no compile."""
+
 from __future__ import annotations
 
 from dataclasses import replace
@@ -35,8 +36,9 @@ def rel_err(a, b) -> float:
 
 
 def central(f, x: np.ndarray) -> np.ndarray:
-    return np.stack([(np.asarray(f(x + H * e), float) - np.asarray(f(x - H * e), float)) / (2 * H)
-                     for e in np.eye(len(x))], axis=-1)
+    return np.stack(
+        [(np.asarray(f(x + H * e), float) - np.asarray(f(x - H * e), float)) / (2 * H) for e in np.eye(len(x))], axis=-1
+    )
 
 
 def functions(tree, derivatives: bool = False) -> dict:
@@ -74,8 +76,9 @@ def reference(tree, q, qd, qdd):
     S, c = tree.coupling.matrix(), tree.coupling.offsets()
     qf, vf, af = S @ q + c, S @ qd, S @ qdd
     armature = np.array([j.armature for j in tree.joints])
-    friction = np.array([j.viscous * v + j.coulomb * np.tanh(v / tree.coulomb_smoothing)
-                         for j, v in zip(tree.joints, vf)])
+    friction = np.array(
+        [j.viscous * v + j.coulomb * np.tanh(v / tree.coulomb_smoothing) for j, v in zip(tree.joints, vf)]
+    )
     M = pin.crba(model, data, qf)
     M = np.triu(M) + np.triu(M, 1).T + np.diag(armature)
     pin.computeJointJacobians(model, data, qf)
@@ -83,17 +86,20 @@ def reference(tree, q, qd, qdd):
     J = pin.getFrameJacobian(model, data, fid, pin.LOCAL_WORLD_ALIGNED)
     pin.forwardKinematics(model, data, qf, vf, 0 * vf)
     acc = pin.getFrameClassicalAcceleration(model, data, fid, pin.LOCAL_WORLD_ALIGNED)
-    return {"mass": S.T @ M @ S,
-            "gravity": S.T @ pin.computeGeneralizedGravity(model, data, qf),
-            "inverse_dynamics": S.T @ (pin.rnea(model, data, qf, vf, af) + armature * af + friction),
-            "nonlinear": S.T @ (pin.rnea(model, data, qf, vf, 0 * af) + friction),
-            "coriolis": S.T @ pin.computeCoriolisMatrix(model, data, qf, vf) @ S,
-            "jacobian": J @ S,
-            "jacobian_dot_qd": np.r_[acc.linear, acc.angular]}
+    return {
+        "mass": S.T @ M @ S,
+        "gravity": S.T @ pin.computeGeneralizedGravity(model, data, qf),
+        "inverse_dynamics": S.T @ (pin.rnea(model, data, qf, vf, af) + armature * af + friction),
+        "nonlinear": S.T @ (pin.rnea(model, data, qf, vf, 0 * af) + friction),
+        "coriolis": S.T @ pin.computeCoriolisMatrix(model, data, qf, vf) @ S,
+        "jacobian": J @ S,
+        "jacobian_dot_qd": np.r_[acc.linear, acc.angular],
+    }
 
 
-@pytest.mark.parametrize("parents, mimics, looped", [(SHORT, SHORT_MIMICS, False), (LONG, LONG_MIMICS, True)],
-                         ids=["straight_line", "loops"])
+@pytest.mark.parametrize(
+    "parents, mimics, looped", [(SHORT, SHORT_MIMICS, False), (LONG, LONG_MIMICS, True)], ids=["straight_line", "loops"]
+)
 def test_coupled_tree_matches_pinocchio_projected(parents, mimics, looped):
     tree = coupled_tree(parents, mimics, seed=0)
     assert tree.n_joints == len(parents) and tree.nq == len(parents) - len(mimics)
@@ -105,16 +111,20 @@ def test_coupled_tree_matches_pinocchio_projected(parents, mimics, looped):
     for _ in range(STATES):
         q, qd, qdd = rng.normal(size=n), rng.normal(size=n), rng.normal(size=n)
         expected = reference(tree, q, qd, qdd)
-        got = {"mass": value(f["mass"].function, q).reshape(n, n), "gravity": value(f["gravity"].function, q),
-               "inverse_dynamics": value(f["inverse_dynamics"].function, q, qd, qdd),
-               "nonlinear": value(f["nonlinear"].function, q, qd),
-               "coriolis": value(f["coriolis"].function, q, qd).reshape(n, n),
-               "jacobian": value(f["jacobian"].function, q).reshape(6, n),
-               "jacobian_dot_qd": value(f["jacobian_dot_qd"].function, q, qd)}
+        got = {
+            "mass": value(f["mass"].function, q).reshape(n, n),
+            "gravity": value(f["gravity"].function, q),
+            "inverse_dynamics": value(f["inverse_dynamics"].function, q, qd, qdd),
+            "nonlinear": value(f["nonlinear"].function, q, qd),
+            "coriolis": value(f["coriolis"].function, q, qd).reshape(n, n),
+            "jacobian": value(f["jacobian"].function, q).reshape(6, n),
+            "jacobian_dot_qd": value(f["jacobian_dot_qd"].function, q, qd),
+        }
         servo = value(f["servo_terms"].function, q, qd)
         got.update(servo_mass=servo[0].reshape(n, n), servo_nonlinear=servo[1], servo_jacobian=servo[2].reshape(6, n))
-        expected.update(servo_mass=expected["mass"], servo_nonlinear=expected["nonlinear"],
-                        servo_jacobian=expected["jacobian"])
+        expected.update(
+            servo_mass=expected["mass"], servo_nonlinear=expected["nonlinear"], servo_jacobian=expected["jacobian"]
+        )
         for key in got:
             worst[key] = max(worst.get(key, 0.0), rel_err(got[key].ravel(), expected[key].ravel()))
         # forward dynamics, then inverse dynamics: the round trip
@@ -172,40 +182,81 @@ def test_loops_derivatives_of_a_long_coupled_tree_match_finite_differences():
 
 # --- a URDF gripper: fingers and a four-bar-like linkage ------------------------------------------
 
+
 def _link(name: str, mass: float, com: str = "0 0 0") -> str:
-    return (f'<link name="{name}"><inertial><origin xyz="{com}"/><mass value="{mass}"/>'
-            f'<inertia ixx="0.01" iyy="0.02" izz="0.015" ixy="0.001" ixz="0" iyz="0.002"/></inertial></link>')
+    return (
+        f'<link name="{name}"><inertial><origin xyz="{com}"/><mass value="{mass}"/>'
+        f'<inertia ixx="0.01" iyy="0.02" izz="0.015" ixy="0.001" ixz="0" iyz="0.002"/></inertial></link>'
+    )
 
 
 def _joint(name, kind, parent, child, xyz, axis, extra=""):
     limit = '<limit lower="-3" upper="3" effort="10" velocity="10"/>' if kind != "continuous" else ""
-    return (f'<joint name="{name}" type="{kind}"><parent link="{parent}"/><child link="{child}"/>'
-            f'<origin xyz="{xyz}" rpy="0.1 -0.2 0.3"/><axis xyz="{axis}"/>{limit}{extra}</joint>')
+    return (
+        f'<joint name="{name}" type="{kind}"><parent link="{parent}"/><child link="{child}"/>'
+        f'<origin xyz="{xyz}" rpy="0.1 -0.2 0.3"/><axis xyz="{axis}"/>{limit}{extra}</joint>'
+    )
 
 
-GRIPPER = "\n".join([
-    '<?xml version="1.0"?>', '<robot name="gripper">', '<link name="base"/>',
-    _link("arm", 2.0, "0.2 0 0"), _link("palm", 0.5, "0 0 0.02"), _link("left", 0.1, "0 0.01 0.03"),
-    _link("right", 0.12, "0 -0.01 0.03"), _link("crank", 0.05, "0.03 0 0"), _link("rocker", 0.04, "0.02 0.01 0"),
-    _link("coupler", 0.03, "0.01 0 0"),
-    _joint("shoulder", "revolute", "base", "arm", "0 0 0.1", "0 1 0", '<dynamics damping="0.3"/>'),
-    _joint("wrist", "continuous", "arm", "palm", "0.4 0 0", "1 0 0"),
-    _joint("left_finger", "prismatic", "palm", "left", "0.05 0.02 0", "0 1 0"),
-    _joint("right_finger", "prismatic", "palm", "right", "0.05 -0.02 0", "0 -1 0",
-           '<dynamics damping="0.2" friction="0.05"/><mimic joint="left_finger"/>'),
-    _joint("crank", "revolute", "palm", "crank", "0.1 0 0", "0 0 1"),
-    _joint("rocker", "revolute", "crank", "rocker", "0.06 0 0", "0 0 1",
-           '<mimic joint="crank" multiplier="-1" offset="0.3"/>'),
-    _joint("coupler", "revolute", "rocker", "coupler", "0.05 0 0", "0 0 1",
-           '<mimic joint="rocker" multiplier="0.5" offset="-0.1"/>'),
-    "</robot>", ""])
+GRIPPER = "\n".join(
+    [
+        '<?xml version="1.0"?>',
+        '<robot name="gripper">',
+        '<link name="base"/>',
+        _link("arm", 2.0, "0.2 0 0"),
+        _link("palm", 0.5, "0 0 0.02"),
+        _link("left", 0.1, "0 0.01 0.03"),
+        _link("right", 0.12, "0 -0.01 0.03"),
+        _link("crank", 0.05, "0.03 0 0"),
+        _link("rocker", 0.04, "0.02 0.01 0"),
+        _link("coupler", 0.03, "0.01 0 0"),
+        _joint("shoulder", "revolute", "base", "arm", "0 0 0.1", "0 1 0", '<dynamics damping="0.3"/>'),
+        _joint("wrist", "continuous", "arm", "palm", "0.4 0 0", "1 0 0"),
+        _joint("left_finger", "prismatic", "palm", "left", "0.05 0.02 0", "0 1 0"),
+        _joint(
+            "right_finger",
+            "prismatic",
+            "palm",
+            "right",
+            "0.05 -0.02 0",
+            "0 -1 0",
+            '<dynamics damping="0.2" friction="0.05"/><mimic joint="left_finger"/>',
+        ),
+        _joint("crank", "revolute", "palm", "crank", "0.1 0 0", "0 0 1"),
+        _joint(
+            "rocker",
+            "revolute",
+            "crank",
+            "rocker",
+            "0.06 0 0",
+            "0 0 1",
+            '<mimic joint="crank" multiplier="-1" offset="0.3"/>',
+        ),
+        _joint(
+            "coupler",
+            "revolute",
+            "rocker",
+            "coupler",
+            "0.05 0 0",
+            "0 0 1",
+            '<mimic joint="rocker" multiplier="0.5" offset="-0.1"/>',
+        ),
+        "</robot>",
+        "",
+    ]
+)
 # each joint's (coordinate, multiplier, offset), worked out by hand from the file: the coupler
 # follows the rocker, which follows the crank: 0.5 (-q + 0.3) - 0.1 = -0.5 q + 0.05, the offset
 # exact on the file's doubles and rounded once (0.04999999999999999, not 0.05)
-COUPLED = {"shoulder": ("shoulder", 1.0, 0.0), "wrist": ("wrist", 1.0, 0.0),
-           "left_finger": ("left_finger", 1.0, 0.0), "right_finger": ("left_finger", 1.0, 0.0),
-           "crank": ("crank", 1.0, 0.0), "rocker": ("crank", -1.0, 0.3),
-           "coupler": ("crank", -0.5, float(Fraction(0.5) * Fraction(0.3) - Fraction(0.1)))}
+COUPLED = {
+    "shoulder": ("shoulder", 1.0, 0.0),
+    "wrist": ("wrist", 1.0, 0.0),
+    "left_finger": ("left_finger", 1.0, 0.0),
+    "right_finger": ("left_finger", 1.0, 0.0),
+    "crank": ("crank", 1.0, 0.0),
+    "rocker": ("crank", -1.0, 0.3),
+    "coupler": ("crank", -0.5, float(Fraction(0.5) * Fraction(0.3) - Fraction(0.1))),
+}
 
 
 def _pinocchio_projected(model, names, coordinates, tip, smoothing):
@@ -227,9 +278,14 @@ def _pinocchio_projected(model, names, coordinates, tip, smoothing):
         M = np.triu(M) + np.triu(M, 1).T
         friction = model.damping * vf + model.friction * np.tanh(vf / smoothing)
         J = pin.computeFrameJacobian(model, data, qp, frame, pin.LOCAL_WORLD_ALIGNED)
-        return {"mass": S.T @ M @ S, "gravity": S.T @ pin.computeGeneralizedGravity(model, data, qp),
-                "inverse_dynamics": S.T @ (pin.rnea(model, data, qp, vf, af) + friction),
-                "coriolis": S.T @ pin.computeCoriolisMatrix(model, data, qp, vf) @ S, "jacobian": J @ S}
+        return {
+            "mass": S.T @ M @ S,
+            "gravity": S.T @ pin.computeGeneralizedGravity(model, data, qp),
+            "inverse_dynamics": S.T @ (pin.rnea(model, data, qp, vf, af) + friction),
+            "coriolis": S.T @ pin.computeCoriolisMatrix(model, data, qp, vf) @ S,
+            "jacobian": J @ S,
+        }
+
     return evaluate
 
 
@@ -242,8 +298,11 @@ def test_urdf_gripper_matches_pinocchio_projected(tmp_path, tip):
     tree = read_urdf_tree(str(path), tip="coupler").tree if tip is None else read_urdf(str(path), tip).tree
     names = [j.name for j in tree.joints]
     coordinates = [j.name for j in tree.coordinate_joints]
-    expected_names = {None: list(COUPLED), "right": ["shoulder", "wrist", "left_finger", "right_finger"],
-                      "coupler": ["shoulder", "wrist", "crank", "rocker", "coupler"]}[tip]
+    expected_names = {
+        None: list(COUPLED),
+        "right": ["shoulder", "wrist", "left_finger", "right_finger"],
+        "coupler": ["shoulder", "wrist", "crank", "rocker", "coupler"],
+    }[tip]
     assert names == expected_names
     assert coordinates == [n for n in names if COUPLED[n][0] == n]
     for i, name in enumerate(names):  # the reader's coupling is the one worked out by hand
@@ -259,9 +318,13 @@ def test_urdf_gripper_matches_pinocchio_projected(tmp_path, tip):
     for _ in range(STATES):
         q, qd, qdd = rng.uniform(-1, 1, n), rng.normal(size=n), rng.normal(size=n)
         expected = reference_at(q, qd, qdd)
-        got = {"mass": value(f["mass"], q).reshape(n, n), "gravity": value(f["gravity"], q).ravel(),
-               "inverse_dynamics": value(f["inverse_dynamics"], q, qd, qdd).ravel(),
-               "coriolis": value(f["coriolis"], q, qd).reshape(n, n), "jacobian": value(f["jacobian"], q).reshape(6, n)}
+        got = {
+            "mass": value(f["mass"], q).reshape(n, n),
+            "gravity": value(f["gravity"], q).ravel(),
+            "inverse_dynamics": value(f["inverse_dynamics"], q, qd, qdd).ravel(),
+            "coriolis": value(f["coriolis"], q, qd).reshape(n, n),
+            "jacobian": value(f["jacobian"], q).reshape(6, n),
+        }
         for key in got:
             worst[key] = max(worst.get(key, 0.0), rel_err(got[key], expected[key]))
     print(tip, {k: f"{v:.1e}" for k, v in worst.items()})
@@ -321,8 +384,11 @@ def test_mjcf_joint_equalities_match_mujoco_projected(tmp_path, tip):
     model = mujoco.MjModel.from_xml_path(str(path))
     data = mujoco.MjData(model)
     names = [j.name for j in tree.joints]
-    assert names == (["shoulder", "wrist", "left", "right", "crank", "rocker"] if tip is None
-                     else ["shoulder", "wrist", "crank", "rocker"])
+    assert names == (
+        ["shoulder", "wrist", "left", "right", "crank", "rocker"]
+        if tip is None
+        else ["shoulder", "wrist", "crank", "rocker"]
+    )
     # right = left - 0.01 + 0.002; rocker = 0.1 - (crank + 0.3)
     c = dict(zip(names, tree.coupling.offsets()))
     assert c["rocker"] == pytest.approx(-0.2, abs=1e-15) and (tip is not None or c["right"] == pytest.approx(-0.008))
@@ -344,8 +410,11 @@ def test_mjcf_joint_equalities_match_mujoco_projected(tmp_path, tip):
         damping = model.dof_damping * data.qvel
         jp, jr = np.zeros((3, model.nv)), np.zeros((3, model.nv))
         mujoco.mj_jacSite(model, data, jp, jr, model.site("tip").id)
-        got = {"mass": value(f["mass"], q).reshape(n, n), "bias": value(f["nonlinear"], q, qd).ravel(),
-               "jacobian": value(f["jacobian"], q).reshape(6, n)}
+        got = {
+            "mass": value(f["mass"], q).reshape(n, n),
+            "bias": value(f["nonlinear"], q, qd).ravel(),
+            "jacobian": value(f["jacobian"], q).reshape(6, n),
+        }
         expected = {"mass": S.T @ M @ S, "bias": S.T @ (data.qfrc_bias + damping), "jacobian": np.vstack([jp, jr]) @ S}
         data.qvel[:] = 0
         mujoco.mj_forward(model, data)

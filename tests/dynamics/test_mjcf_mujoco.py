@@ -21,6 +21,7 @@ The references:
   (from frictionloss) has no counterpart in MuJoCo's unconstrained qacc, so forward dynamics
   is given tau plus that term.
 """
+
 from __future__ import annotations
 
 import importlib.util
@@ -138,8 +139,13 @@ def agreement(path: Path, tip, base, tree, samples: int = 6, seed: int = 0) -> d
     site = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, robot.tip_link)
     body = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, robot.tip_link)
 
-    others = [j for j in range(model.njnt) if j not in ids and model.jnt_type[j] in HINGE_OR_SLIDE
-              and model.body(robot.base_link).id in ancestors(model, model.jnt_bodyid[j])]
+    others = [
+        j
+        for j in range(model.njnt)
+        if j not in ids
+        and model.jnt_type[j] in HINGE_OR_SLIDE
+        and model.body(robot.base_link).id in ancestors(model, model.jnt_bodyid[j])
+    ]
     assert all(model.qpos0[model.jnt_qposadr[j]] == 0 for j in others)  # welding holds them at qpos = 0
     plant = welded(path, names)
     assert [plant.joint(j).name for j in range(plant.njnt)] == names
@@ -212,8 +218,9 @@ def test_the_sweep_reads_what_it_claims():
     finger = read_mjcf_tree(str(SUITE / "finger.xml")).tree
     model = mujoco.MjModel.from_xml_path(str(SUITE / "finger.xml"))
     assert model.qpos0[model.joint("proximal").qposadr[0]] == pytest.approx(-np.pi / 2)
-    assert [j.coulomb for j in finger.joints] == [float(model.dof_frictionloss[model.joint(j.name).dofadr[0]])
-                                                  for j in finger.joints]
+    assert [j.coulomb for j in finger.joints] == [
+        float(model.dof_frictionloss[model.joint(j.name).dofadr[0]]) for j in finger.joints
+    ]
     assert max(j.coulomb for j in finger.joints) > 0
     swimmer = read_mjcf_tree(str(SUITE / "swimmer.xml")).tree
     assert [j.parent for j in swimmer.joints] == [-1, 0, 1]

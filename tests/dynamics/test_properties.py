@@ -7,6 +7,7 @@ code behind the Python extension). So the test checks the emitted C against deri
 the graphs it was printed from, plus identities that do not depend on robotgen at all
 (symmetry, positive definiteness, skew symmetry, M qdd + C qd + N = tau, friction law).
 """
+
 from __future__ import annotations
 
 import zlib
@@ -217,5 +218,6 @@ def test_compiled_equals_casadi_graph(case):
         want = f.map(N_STATES)(*[a.T for a in args])
         want = want if isinstance(want, tuple) else (want,)
         for g, w in zip(got, want, strict=True):
-            np.testing.assert_allclose(np.asarray(g).reshape(N_STATES, -1), np.asarray(w).T,
-                                       rtol=1e-12, atol=1e-12, err_msg=name)
+            np.testing.assert_allclose(
+                np.asarray(g).reshape(N_STATES, -1), np.asarray(w).T, rtol=1e-12, atol=1e-12, err_msg=name
+            )

@@ -8,6 +8,7 @@ Friction: Pinocchio has no tanh-Coulomb model, so M, gravity and RNEA are compar
 of the spec with friction removed (and a unique module name); fk and the Jacobian do not
 depend on friction.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -146,7 +147,15 @@ def test_friction_spec_adds_exactly_the_friction_law(build_module, puma, states)
     # the documented conversion from the toolbox's motor-side values
     G = np.array([62.6111, 107.815, 53.7063, 76.0364, 71.923, 76.686])
     B = np.array([1.48e-3, 0.817e-3, 1.38e-3, 71.2e-6, 82.6e-6, 36.7e-6])
-    Tc = np.array([[0.395, -0.435], [0.126, -0.071], [0.132, -0.105],
-                   [11.2e-3, -16.9e-3], [9.26e-3, -14.5e-3], [3.96e-3, -10.5e-3]])
+    Tc = np.array(
+        [
+            [0.395, -0.435],
+            [0.126, -0.071],
+            [0.132, -0.105],
+            [11.2e-3, -16.9e-3],
+            [9.26e-3, -14.5e-3],
+            [3.96e-3, -10.5e-3],
+        ]
+    )
     np.testing.assert_allclose([j.viscous for j in chain.joints], B * G**2, rtol=1e-12)
     np.testing.assert_allclose([j.coulomb for j in chain.joints], np.abs(Tc).mean(1) * G, rtol=1e-12)

@@ -1,6 +1,7 @@
 """Regrouped inertial parameters: the zeros they promise, a closed form on the planar two-link
 arm, the same M, C and torques as the bodies' own parameters on real robots and on a branched
 tree with a prismatic joint and oblique axes, and fewer operations."""
+
 from __future__ import annotations
 
 import casadi as ca
@@ -53,8 +54,9 @@ def test_planar_two_link_closed_form():
         origin[0, 3] = x
         return Joint(f"j{i}", "revolute", parent, origin, np.array([0.0, 0.0, 1.0]), Body(m, c, Ic))
 
-    tree = KinematicTree("two", (joint(0, -1, 0.0, m1, c1, I1), joint(1, 0, a, m2, c2, I2)), 1, np.eye(4),
-                         np.array([0.0, -9.81, 0.0]))
+    tree = KinematicTree(
+        "two", (joint(0, -1, 0.0, m1, c1, I1), joint(1, 0, a, m2, c2, I2)), 1, np.eye(4), np.array([0.0, -9.81, 0.0])
+    )
     p1, p2 = regrouped_inertias(tree)
     bar2 = I2 + m2 * (c2 @ c2 * np.eye(3) - np.outer(c2, c2))  # about joint 2's origin
     bar1 = I1 + m1 * (c1 @ c1 * np.eye(3) - np.outer(c1, c1))
@@ -76,15 +78,21 @@ def graphs_both_ways(tree: KinematicTree):
 
 @pytest.mark.parametrize("which", ["ur5", "panda", "coordinate_axes_tree", "oblique_tree"])
 def test_same_dynamics_as_the_bodies_own_parameters(which):
-    tree = {"ur5": lambda: urdf_tree(UR5), "panda": lambda: urdf_tree(PANDA),
-            "coordinate_axes_tree": lambda: with_coordinate_axes(random_tree(1)),
-            "oblique_tree": lambda: random_tree(2)}[which]()
+    tree = {
+        "ur5": lambda: urdf_tree(UR5),
+        "panda": lambda: urdf_tree(PANDA),
+        "coordinate_axes_tree": lambda: with_coordinate_axes(random_tree(1)),
+        "oblique_tree": lambda: random_tree(2),
+    }[which]()
     g, s, own = graphs_both_ways(tree)
     regrouped = g.inertias
     outs = []
     for inertias in (own, regrouped):
-        outs += [crba(g.tree, g.motions, inertias), rnea(g.tree, g.motions, inertias, s.qd, s.qdd),
-                 coriolis_spatial(g.tree, g.motions, inertias, s.qd)]
+        outs += [
+            crba(g.tree, g.motions, inertias),
+            rnea(g.tree, g.motions, inertias, s.qd, s.qdd),
+            coriolis_spatial(g.tree, g.motions, inertias, s.qd),
+        ]
     f = ca.Function("f", [s.q, s.qd, s.qdd], outs)
     rng = np.random.default_rng(7)
     for _ in range(20):
@@ -100,7 +108,9 @@ def test_fewer_operations_on_real_arms():
         g, s, own = graphs_both_ways(urdf_tree(which))
         counts = {}
         for label, inertias in (("own", own), ("regrouped", g.inertias)):
-            counts[label] = [count_operations([s.q, s.qd, s.qdd], [e])["total"] for e in (
-                rnea(g.tree, g.motions, inertias, s.qd, s.qdd), crba(g.tree, g.motions, inertias))]
+            counts[label] = [
+                count_operations([s.q, s.qd, s.qdd], [e])["total"]
+                for e in (rnea(g.tree, g.motions, inertias, s.qd, s.qdd), crba(g.tree, g.motions, inertias))
+            ]
         assert counts["regrouped"][0] < 0.9 * counts["own"][0], (which, counts)
         assert counts["regrouped"][1] < counts["own"][1], (which, counts)

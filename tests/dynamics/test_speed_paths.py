@@ -1,5 +1,6 @@
 """The speed measures keep the numbers: snapped constants, the O(n^2) spatial Coriolis
 matrix, the fused servo terms, and the content-hash build cache."""
+
 from __future__ import annotations
 
 from dataclasses import replace
@@ -32,7 +33,7 @@ def test_snapping_removes_only_noise():
     tree = read_urdf(str(robots_dir() / PANDA[0]), PANDA[1]).tree
     snapped = snap_tree(tree)
     noise = max(np.abs(a.origin - b.origin).max() for a, b in zip(tree.joints, snapped.joints))
-    assert 0 < noise <= noise_bound(1.0) == 4 * 2.0 ** -52
+    assert 0 < noise <= noise_bound(1.0) == 4 * 2.0**-52
     n = tree.nq
     raw_sym, snap_sym = Symbols.make(n), Symbols.make(n)
     raw = ChainGraphs(tree, raw_sym, snap=False)
@@ -40,8 +41,10 @@ def test_snapping_removes_only_noise():
     for name in ("mass", "gravity", "fk", "jacobian"):
         f_raw = ca.Function("a", [raw_sym.q], [getattr(raw, name)()])
         f_new = ca.Function("b", [snap_sym.q], [getattr(new, name)()])
-        assert (count_operations([snap_sym.q], [getattr(new, name)()])["total"]
-                < count_operations([raw_sym.q], [getattr(raw, name)()])["total"]), name
+        assert (
+            count_operations([snap_sym.q], [getattr(new, name)()])["total"]
+            < count_operations([raw_sym.q], [getattr(raw, name)()])["total"]
+        ), name
         for q in np.random.default_rng(0).uniform(-2, 2, (20, n)):
             np.testing.assert_allclose(np.array(f_new(q)), np.array(f_raw(q)), rtol=0, atol=1e-14, err_msg=name)
     ur5 = read_urdf(str(robots_dir() / UR5[0]), UR5[1]).tree
@@ -70,7 +73,7 @@ def test_snapping_bounds():
     T[:3, 3] = [0.3, 1e-9, 0.0]
     np.testing.assert_array_equal(snap_rotation(T), T)
     np.testing.assert_array_equal(snap_axis(np.array([1e-9, 0.0, 1.0])), exact.unit(np.array([1e-9, 0.0, 1.0])))
-    np.testing.assert_array_equal(snap_axis(np.array([4e-16, 0.0, 1.0 - 2 ** -53])), [0.0, 0.0, 1.0])
+    np.testing.assert_array_equal(snap_axis(np.array([4e-16, 0.0, 1.0 - 2**-53])), [0.0, 0.0, 1.0])
     assert noise_bound(0.3) == 4 * np.spacing(0.3)
 
 
@@ -88,8 +91,9 @@ def test_every_coriolis_form_equals_pinocchio():
         for q, qd in np.random.default_rng(5).normal(size=(20, 2, n)):
             expected = pin.computeCoriolisMatrix(model, data, q, qd)
             for name, C in zip(candidates, f(q, qd)):
-                np.testing.assert_allclose(np.array(C), expected, atol=1e-12 * max(1, np.abs(expected).max()),
-                                           err_msg=name)
+                np.testing.assert_allclose(
+                    np.array(C), expected, atol=1e-12 * max(1, np.abs(expected).max()), err_msg=name
+                )
 
 
 def test_fused_servo_terms_equal_the_separate_functions():
@@ -114,8 +118,11 @@ def test_the_first_joints_turn_factored_out_changes_nothing():
     origin = first.origin.copy()
     origin[:3, 3] = 0.4 * (origin[:3, :3] @ first.axis)
     oblique = replace(tree, joints=(replace(first, origin=origin), *tree.joints[1:]))
-    for t in (oblique, read_urdf(str(robots_dir() / UR5[0]), UR5[1]).tree,
-              read_urdf(str(robots_dir() / PANDA[0]), PANDA[1]).tree):
+    for t in (
+        oblique,
+        read_urdf(str(robots_dir() / UR5[0]), UR5[1]).tree,
+        read_urdf(str(robots_dir() / PANDA[0]), PANDA[1]).tree,
+    ):
         n = t.nq
         sym = Symbols.make(n)
         g = ChainGraphs(t, sym)

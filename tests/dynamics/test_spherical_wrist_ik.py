@@ -3,6 +3,7 @@ against forward kinematics: the eight solutions of random reachable poses, the b
 by q_near, unwrapping past +-pi, the singular and unreachable cases; which arms belong to
 the family; and the adaptive controller built around it. Graphs are evaluated with CasADi
 (what the C is printed from), the last test through the compiled module."""
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -114,10 +115,13 @@ def test_a_general_member_of_the_family(tmp_path):
     axis 6 perpendicular to axis 4 at q = 0; a tool turned and moved: still solved exactly
     (the shoulder's two sides now put the elbow at different distances, so some poses have
     four solutions)."""
-    path = variant(tmp_path, "general_elbow", {0: {"a": 0.1, "alpha": "pi/3", "d": 0.3}, 4: {"theta": "pi/2"},
-                                               5: {"d": 0.05}},
-                   base={"xyz": [0.2, -0.1, 0.5], "rpy": [0.3, -0.2, 0.1]},
-                   tool={"xyz": [0.01, 0.02, 0.1], "rpy": [0.4, 0.5, -0.6]})
+    path = variant(
+        tmp_path,
+        "general_elbow",
+        {0: {"a": 0.1, "alpha": "pi/3", "d": 0.3}, 4: {"theta": "pi/2"}, 5: {"d": 0.05}},
+        base={"xyz": [0.2, -0.1, 0.5], "rpy": [0.3, -0.2, 0.1]},
+        tool={"xyz": [0.01, 0.02, 0.1], "rpy": [0.4, 0.5, -0.6]},
+    )
     solver = Solver(puma_tree(path))
     arm = solver.arm
     assert abs(abs(arm.w1 @ arm.w2) - 0.5) < 1e-12 and abs(arm.a @ arm.c) < 1e-12
@@ -141,8 +145,16 @@ def test_solve_picks_the_branch_of_q_near():
         np.testing.assert_allclose(back, q0, atol=1e-9)
         Q = solver.solutions(q0)
         # each branch pair apart by more than the perturbation (shoulder q1, elbow q3, wrist q4)
-        if min(np.abs(wrapped(Q[i, j] - Q[k, j])) for j, pairs in ((0, 4), (2, 2), (3, 1))
-               for i in range(8) for k in range(8) if k == i ^ pairs) < 0.2:
+        if (
+            min(
+                np.abs(wrapped(Q[i, j] - Q[k, j]))
+                for j, pairs in ((0, 4), (2, 2), (3, 1))
+                for i in range(8)
+                for k in range(8)
+                if k == i ^ pairs
+            )
+            < 0.2
+        ):
             continue
         tried += 1
         for q in Q:
@@ -238,7 +250,7 @@ def test_adaptive_controller_resolves_by_the_closed_form(build_module):
         R, p = solver.pose(q)
         pose = np.block([[R, p[:, None]], [np.zeros((1, 3)), np.ones((1, 1))]])
         state = np.asarray(module.adaptive_init(q, zeros, pose, zeros, zeros)).ravel()
-        np.testing.assert_allclose(state[o:o + n], q, atol=1e-10)
+        np.testing.assert_allclose(state[o : o + n], q, atol=1e-10)
     pose[0, 3] += 2.0
     with pytest.raises(FloatingPointError):
         module.adaptive_init(q, zeros, pose, zeros, zeros)

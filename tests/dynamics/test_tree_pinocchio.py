@@ -1,6 +1,7 @@
 """The symbolic algorithms on random branched trees (revolute joints about arbitrary axes,
 a prismatic joint, arbitrary joint origins and inertias) against Pinocchio built from the
 same canonical model. Evaluated with CasADi, so it checks the graphs, not the emitted C."""
+
 from __future__ import annotations
 
 from dataclasses import replace
@@ -30,8 +31,9 @@ def random_tree(seed: int, parents: list[int] = PARENTS) -> KinematicTree:
         axis = rng.normal(size=3)
         R = random_rotation(rng)
         body = Body(rng.uniform(0.5, 2.0), rng.normal(size=3) * 0.1, R @ np.diag(rng.uniform(0.01, 0.1, 3)) @ R.T)
-        joints.append(Joint(f"j{i}", "prismatic" if i == 3 else "revolute", parent, T,
-                            axis / np.linalg.norm(axis), body))
+        joints.append(
+            Joint(f"j{i}", "prismatic" if i == 3 else "revolute", parent, T, axis / np.linalg.norm(axis), body)
+        )
     tool = np.eye(4)
     tool[:3, :3], tool[:3, 3] = random_rotation(rng), [0.1, 0.2, 0.05]
     return KinematicTree("t", tuple(joints), 6, tool, np.array([0.3, -0.2, -9.81]))
@@ -51,7 +53,9 @@ def pinocchio_model(tree: KinematicTree):
     ids = []
     for j in tree.joints:
         jm = (pin.JointModelPrismaticUnaligned if j.type == "prismatic" else pin.JointModelRevoluteUnaligned)(j.axis)
-        jid = model.addJoint(0 if j.parent < 0 else ids[j.parent], jm, pin.SE3(j.origin[:3, :3], j.origin[:3, 3]), j.name)
+        jid = model.addJoint(
+            0 if j.parent < 0 else ids[j.parent], jm, pin.SE3(j.origin[:3, :3], j.origin[:3, 3]), j.name
+        )
         model.appendBodyToJoint(jid, pin.Inertia(j.body.mass, j.body.com, j.body.inertia), pin.SE3.Identity())
         ids.append(jid)
     tool = pin.SE3(tree.tool[:3, :3], tree.tool[:3, 3])
@@ -59,8 +63,9 @@ def pinocchio_model(tree: KinematicTree):
     return model, fid
 
 
-@pytest.mark.parametrize("seed, axes", [(0, "oblique"), (1, "oblique"), (2, "oblique"), (3, "coordinate"),
-                                        (4, "coordinate")])
+@pytest.mark.parametrize(
+    "seed, axes", [(0, "oblique"), (1, "oblique"), (2, "oblique"), (3, "coordinate"), (4, "coordinate")]
+)
 def test_branched_tree_matches_pinocchio(seed, axes):
     tree = random_tree(seed) if axes == "oblique" else with_coordinate_axes(random_tree(seed))
     f = {k.name: k.function for k in leaf_kernels(tree)}
@@ -75,10 +80,12 @@ def test_branched_tree_matches_pinocchio(seed, axes):
         tau = pin.rnea(model, data, q, qd, qdd)
         np.testing.assert_allclose(np.array(f["mass"](q)).reshape(n, n), Mp, atol=1e-12)
         np.testing.assert_allclose(np.array(f["inverse_dynamics"](q, qd, qdd)).ravel(), tau, atol=1e-11)
-        np.testing.assert_allclose(np.array(f["gravity"](q)).ravel(),
-                                   pin.computeGeneralizedGravity(model, data, q), atol=1e-11)
-        np.testing.assert_allclose(np.array(f["coriolis"](q, qd)).reshape(n, n),
-                                   pin.computeCoriolisMatrix(model, data, q, qd), atol=1e-12)
+        np.testing.assert_allclose(
+            np.array(f["gravity"](q)).ravel(), pin.computeGeneralizedGravity(model, data, q), atol=1e-11
+        )
+        np.testing.assert_allclose(
+            np.array(f["coriolis"](q, qd)).reshape(n, n), pin.computeCoriolisMatrix(model, data, q, qd), atol=1e-12
+        )
         np.testing.assert_allclose(np.array(f["forward_dynamics"](q, qd, tau)).ravel(), qdd, atol=1e-10)
         pin.framesForwardKinematics(model, data, q)
         np.testing.assert_allclose(np.array(f["fk"](q)).reshape(4, 4), data.oMf[fid].homogeneous, atol=1e-12)
@@ -112,7 +119,8 @@ def test_long_branched_tree_as_loops_matches_pinocchio(tmp_path):
     # the zeroed accumulators and untouched outputs of M and C are printed as fill loops
     assert "for (int rg_e = " in (tmp_path / "long_tree" / "long_tree.c").read_text()
     spec = importlib.util.spec_from_file_location(
-        "long_tree", tmp_path / "long_tree" / f"long_tree{emit_compile.extension_suffix()}")
+        "long_tree", tmp_path / "long_tree" / f"long_tree{emit_compile.extension_suffix()}"
+    )
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
     f = {k.name: k.function for k in kernels}
@@ -128,11 +136,20 @@ def test_long_branched_tree_as_loops_matches_pinocchio(tmp_path):
         h = pin.rnea(model, data, q, qd, np.zeros(n))
         C = pin.computeCoriolisMatrix(model, data, q, qd)
         for M, t, hh, CC, a in [
-            (np.array(f["mass"](q)).reshape(n, n), np.array(f["inverse_dynamics"](q, qd, qdd)).ravel(),
-             np.array(f["nonlinear"](q, qd)).ravel(), np.array(f["coriolis"](q, qd)).reshape(n, n),
-             np.array(f["forward_dynamics"](q, qd, tau)).ravel()),
-            (module.mass(q), module.inverse_dynamics(q, qd, qdd), module.nonlinear(q, qd), module.coriolis(q, qd),
-             module.forward_dynamics(q, qd, tau)),
+            (
+                np.array(f["mass"](q)).reshape(n, n),
+                np.array(f["inverse_dynamics"](q, qd, qdd)).ravel(),
+                np.array(f["nonlinear"](q, qd)).ravel(),
+                np.array(f["coriolis"](q, qd)).reshape(n, n),
+                np.array(f["forward_dynamics"](q, qd, tau)).ravel(),
+            ),
+            (
+                module.mass(q),
+                module.inverse_dynamics(q, qd, qdd),
+                module.nonlinear(q, qd),
+                module.coriolis(q, qd),
+                module.forward_dynamics(q, qd, tau),
+            ),
         ]:
             np.testing.assert_allclose(M, Mp, atol=1e-11)
             np.testing.assert_allclose(t, tau, atol=1e-10)
@@ -174,7 +191,10 @@ def test_branched_tree_derivatives_match_pinocchio(seed):
         close(f["mass_inverse"](q), Minv)
         pin.computeJointJacobiansTimeVariation(model, data, q, qd)
         pin.updateFramePlacements(model, data)
-        close(f["jacobian_derivative"](q, qd), pin.getFrameJacobianTimeVariation(model, data, fid, pin.LOCAL_WORLD_ALIGNED))
+        close(
+            f["jacobian_derivative"](q, qd),
+            pin.getFrameJacobianTimeVariation(model, data, fid, pin.LOCAL_WORLD_ALIGNED),
+        )
 
 
 @pytest.mark.parametrize("seed", [0, 1])
@@ -191,8 +211,15 @@ def test_derivative_algorithms_agree(seed):
     g = ChainGraphs(tree, Symbols.make(tree.nq))
     s = g.sym
     tau = g.inverse_dynamics()
-    f = ca.Function("f", [s.q, s.qd, s.qdd], [*rnea_derivatives(g.tree, g.motions, g.inertias, s.qd, s.qdd),
-                                               reverse_jacobian(tau, s.q), reverse_jacobian(tau, s.qd)])
+    f = ca.Function(
+        "f",
+        [s.q, s.qd, s.qdd],
+        [
+            *rnea_derivatives(g.tree, g.motions, g.inertias, s.qd, s.qdd),
+            reverse_jacobian(tau, s.q),
+            reverse_jacobian(tau, s.qd),
+        ],
+    )
     rng = np.random.default_rng(seed)
     for _ in range(10):
         a, b, c, d = (np.array(m) for m in f(*(rng.normal(size=tree.nq) for _ in range(3))))

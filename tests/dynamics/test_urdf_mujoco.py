@@ -4,6 +4,7 @@ What had to be matched: MuJoCo loads the URDF with <visual>/<collision> removed 
 files needed, and no geom-derived inertia), armature 0 (robotgen's URDF model has none),
 and damping does not enter qfrc_bias (MuJoCo keeps it in qfrc_passive), so robotgen's
 damping term is subtracted; MuJoCo's fusestatic merges the fixed links as robotgen does."""
+
 from __future__ import annotations
 
 import re

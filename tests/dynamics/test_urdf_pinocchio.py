@@ -1,6 +1,7 @@
 """URDF leaves against Pinocchio on real robots (UR5, Panda with its fingers locked):
 the generated module's fk, Jacobian, M, gravity, C, inverse and forward dynamics on 1000
 random states each, max relative error <= 1e-9."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -106,8 +107,12 @@ def test_derivatives_against_pinocchio(robot):
         pin.computeABADerivatives(model, data, q[k], qd[k], x[k] - D @ qd[k])
         Minv_p = np.triu(data.Minv) + np.triu(data.Minv, 1).T
         Fq, Fqd = data.ddq_dq, data.ddq_dv - Minv_p @ D
-        errs |= {"dqdd_dq": rel_err(dqdd_dq[k], Fq), "dqdd_dqd": rel_err(dqdd_dqd[k], Fqd),
-                 "dqdd_dtau": rel_err(dqdd_dtau[k], Minv_p), "mass_inverse": rel_err(Minv[k], Minv_p)}
+        errs |= {
+            "dqdd_dq": rel_err(dqdd_dq[k], Fq),
+            "dqdd_dqd": rel_err(dqdd_dqd[k], Fqd),
+            "dqdd_dtau": rel_err(dqdd_dtau[k], Minv_p),
+            "mass_inverse": rel_err(Minv[k], Minv_p),
+        }
         # qd1 = qd + dt qdd(q, qd, tau), q1 = q + dt qd1
         dt, eye = 0.01, np.eye(model.nq)
         _, _, A, B = module.discrete_dynamics_derivatives(q[k], qd[k], x[k], dt)
@@ -117,7 +122,8 @@ def test_derivatives_against_pinocchio(robot):
         pin.computeJointJacobiansTimeVariation(model, data, q[k], qd[k])
         pin.updateFramePlacements(model, data)
         errs["jacobian_derivative"] = rel_err(
-            Jdot[k], pin.getFrameJacobianTimeVariation(model, data, fid, pin.LOCAL_WORLD_ALIGNED))
+            Jdot[k], pin.getFrameJacobianTimeVariation(model, data, fid, pin.LOCAL_WORLD_ALIGNED)
+        )
         for key, e in errs.items():
             worst[key] = max(worst.get(key, 0.0), e)
     print({k: f"{v:.1e}" for k, v in worst.items()})

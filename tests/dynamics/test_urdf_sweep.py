@@ -6,6 +6,7 @@ listed in docs/robots.md with its reason.
 against Pinocchio to 1e-12), and the refusals that docs/robots.md lists (each file still
 refused as the table says). `make test-slow` sweeps every file: the whole tables must be what
 `python tests/urdf_sweep.py --write` writes, and every build must agree with Pinocchio."""
+
 from __future__ import annotations
 
 import pytest
@@ -15,16 +16,28 @@ TOL = 1e-12
 
 # (collection, file, what it shows, the builds that Pinocchio must agree with)
 SAMPLE = [
-    ("example-robot-data", "anymal_b_simple_description/robots/anymal.urdf", "pybullet's <contact> skipped",
-     ("tree", "chain")),
+    (
+        "example-robot-data",
+        "anymal_b_simple_description/robots/anymal.urdf",
+        "pybullet's <contact> skipped",
+        ("tree", "chain"),
+    ),
     ("example-robot-data", "iris_description/robots/iris.urdf", "limits of 1e16: no limit", ("tree", "chain")),
     ("example-robot-data", "so_arm_description/urdf/so101.urdf", "an <origin> in a link skipped", ("tree", "chain")),
-    ("example-robot-data", "ur_description/urdf/ur5_robot.urdf", "rpy 1.57079632679 kept, not snapped",
-     ("tree", "chain")),
-    ("example-robot-data", "romeo_description/urdf/romeo_laas_small.urdf",
-     "rpy of 1e-8 .. 1e-11 kept; the tree has a bad inertia", ("chain",)),
+    (
+        "example-robot-data",
+        "ur_description/urdf/ur5_robot.urdf",
+        "rpy 1.57079632679 kept, not snapped",
+        ("tree", "chain"),
+    ),
+    (
+        "example-robot-data",
+        "romeo_description/urdf/romeo_laas_small.urdf",
+        "rpy of 1e-8 .. 1e-11 kept; the tree has a bad inertia",
+        ("chain",),
+    ),
     ("pybullet_data", "differential/diff_ring.urdf", "a declaration after whitespace", ("tree", "chain")),
-    ("pybullet_data", "cube_no_rotation.urdf", "pybullet's lower=\"1\" upper=\"-1\"", ("tree", "chain")),
+    ("pybullet_data", "cube_no_rotation.urdf", 'pybullet\'s lower="1" upper="-1"', ("tree", "chain")),
     ("pybullet_data", "r2d2.urdf", "<joint_properties> with 0 damping and friction", ("tree", "chain")),
 ]
 
@@ -72,8 +85,9 @@ def test_every_file_is_swept_and_the_table_is_current(source):
     builds (as a tree and as a chain) agrees with Pinocchio to 1e-12."""
     _source(source)
     reads = sweep.read_all(source)
-    assert sweep.table(source, reads) == sweep.current_section(source), \
+    assert sweep.table(source, reads) == sweep.current_section(source), (
         "docs/robots.md is out of date: python tests/urdf_sweep.py --write"
+    )
     worst: dict[str, float] = {}
     for r in reads:
         if r.builds:

@@ -5,6 +5,7 @@ and without a remainder, on the UR5 and the Panda (straight-line and looped kern
 branched tree past 12 joints (loops through parent tables, a prismatic joint). States include
 angles past rg_sincos2's bound (libm in that lane) and, for checked functions, a NaN state and a
 singular one: each state's outputs are what its single call leaves (untouched, zeros)."""
+
 from __future__ import annotations
 
 import ctypes
@@ -55,16 +56,29 @@ def branched_tree(seed: int = 3, parents: tuple[int, ...] = (-1, 0, 1, 2, 1, 4, 
             T[:3, 2] *= -1
         T[:3, 3] = rng.normal(size=3) * 0.2
         axis = rng.normal(size=3)
-        joints.append(Joint(f"j{i}", "prismatic" if i == 3 else "revolute", parent, T, axis / np.linalg.norm(axis),
-                            Body(rng.uniform(0.5, 2.0), rng.normal(size=3) * 0.1, np.diag(rng.uniform(0.01, 0.1, 3)))))
+        joints.append(
+            Joint(
+                f"j{i}",
+                "prismatic" if i == 3 else "revolute",
+                parent,
+                T,
+                axis / np.linalg.norm(axis),
+                Body(rng.uniform(0.5, 2.0), rng.normal(size=3) * 0.1, np.diag(rng.uniform(0.01, 0.1, 3))),
+            )
+        )
     return KinematicTree("branched", tuple(joints), 7, np.eye(4), np.array([0.0, 0.0, -9.81]))
 
 
 @pytest.fixture(scope="module")
 def ur5(tmp_path_factory):
     system = load_urdf_system(str(robots_dir() / UR5[0]), UR5[1])
-    return built(tmp_path_factory, "lanes_ur5", kernels_for(system), system_nq(system),
-                 ("mass", "inverse_dynamics", "forward_dynamics", "discrete_dynamics_derivatives"))
+    return built(
+        tmp_path_factory,
+        "lanes_ur5",
+        kernels_for(system),
+        system_nq(system),
+        ("mass", "inverse_dynamics", "forward_dynamics", "discrete_dynamics_derivatives"),
+    )
 
 
 @pytest.fixture(scope="module")
@@ -72,14 +86,15 @@ def panda(tmp_path_factory):
     system = load_urdf_system(str(robots_dir() / PANDA[0]), PANDA[1])
     kernels = kernels_for(system)
     assert next(k for k in kernels if k.name == "forward_dynamics_derivatives").schedule is not None
-    return built(tmp_path_factory, "lanes_panda", kernels, system_nq(system),
-                 ("mass", "forward_dynamics_derivatives"))
+    return built(tmp_path_factory, "lanes_panda", kernels, system_nq(system), ("mass", "forward_dynamics_derivatives"))
 
 
 @pytest.fixture(scope="module")
 def tree(tmp_path_factory):
     t = branched_tree()
-    return built(tmp_path_factory, "lanes_tree", leaf_kernels(t), t.nq, ("mass", "inverse_dynamics", "forward_dynamics"))
+    return built(
+        tmp_path_factory, "lanes_tree", leaf_kernels(t), t.nq, ("mass", "inverse_dynamics", "forward_dynamics")
+    )
 
 
 def widths(module) -> list[int]:
@@ -132,8 +147,9 @@ def assert_batch_is_single_calls(module, kernels, names, ns, rng, poison=False):
             expected, failed = single_calls(fn, arrays, n, kernel.outputs)
             for cap in WIDTHS:
                 got = [np.full((n, p.size), -7.0) for p in kernel.outputs]
-                out = tuple(g.reshape((n, p.rows, p.cols) if p.cols > 1 else (n, p.rows))
-                            for g, p in zip(got, kernel.outputs))
+                out = tuple(
+                    g.reshape((n, p.rows, p.cols) if p.cols > 1 else (n, p.rows)) for g, p in zip(got, kernel.outputs)
+                )
                 os.environ["ROBOTGEN_BATCH_LANES"] = str(cap)
                 try:
                     fn(*arrays, out=out if len(out) > 1 else out[0])
@@ -145,22 +161,26 @@ def assert_batch_is_single_calls(module, kernels, names, ns, rng, poison=False):
                 assert raised == bool(failed), (kernel.name, n, cap)
                 for g, e, p in zip(got, expected, kernel.outputs):
                     same = np.all(g.view(np.uint64) == e.view(np.uint64), axis=1)
-                    assert same.all(), (f"{kernel.name}.{p.name}, n={n}, lanes {cap}: states "
-                                        f"{np.flatnonzero(~same)[:8]} differ from single calls")
+                    assert same.all(), (
+                        f"{kernel.name}.{p.name}, n={n}, lanes {cap}: states "
+                        f"{np.flatnonzero(~same)[:8]} differ from single calls"
+                    )
     return seen
 
 
 def test_ur5_batches_are_single_calls_bit_for_bit(ur5):
     module, kernels = ur5
-    seen = assert_batch_is_single_calls(module, kernels, lanes.BATCH_FUNCTIONS, (1, 3, 7, 8, 9, 1023),
-                                        np.random.default_rng(1), poison=True)
+    seen = assert_batch_is_single_calls(
+        module, kernels, lanes.BATCH_FUNCTIONS, (1, 3, 7, 8, 9, 1023), np.random.default_rng(1), poison=True
+    )
     print("widths run:", seen)
 
 
 def test_panda_batches_are_single_calls_bit_for_bit(panda):
     module, kernels = panda
-    assert_batch_is_single_calls(module, kernels, lanes.BATCH_FUNCTIONS, (1, 7, 8, 1023), np.random.default_rng(2),
-                                 poison=True)
+    assert_batch_is_single_calls(
+        module, kernels, lanes.BATCH_FUNCTIONS, (1, 7, 8, 1023), np.random.default_rng(2), poison=True
+    )
 
 
 def test_branched_tree_batches_are_single_calls_bit_for_bit(tree):
@@ -209,8 +229,24 @@ def test_the_batch_c_builds_pedantic_and_without_lanes(ur5, compiler, tmp_path):
     module, _ = ur5
     source = os.path.join(os.path.dirname(module.__file__), "lanes_ur5.c")
     for extra in ([], ["-DRG_NO_LANES"]):
-        result = subprocess.run([compiler, "-std=c99", "-pedantic", "-Wall", "-Wextra", "-Werror", "-O1",
-                                 *extra, "-c", source, "-o", str(tmp_path / "lanes.o")], capture_output=True, text=True)
+        result = subprocess.run(
+            [
+                compiler,
+                "-std=c99",
+                "-pedantic",
+                "-Wall",
+                "-Wextra",
+                "-Werror",
+                "-O1",
+                *extra,
+                "-c",
+                source,
+                "-o",
+                str(tmp_path / "lanes.o"),
+            ],
+            capture_output=True,
+            text=True,
+        )
         assert result.returncode == 0, result.stderr[-3000:]
 
 
@@ -245,8 +281,21 @@ def test_a_users_build_in_gnu_mode_keeps_the_bits(ur5, compiler, tmp_path):
     manifest = json.loads(open(os.path.join(out, "manifest.json")).read())
     (tmp_path / "check.c").write_text(bench_batch.harness("lanes_ur5", "double", manifest["functions"], 1))
     exe = tmp_path / "check"
-    subprocess.run([compiler, "-O2", "-std=gnu99", "-I", out, str(tmp_path / "check.c"),
-                    os.path.join(out, "lanes_ur5.c"), "-lm", "-o", str(exe)], check=True)
+    subprocess.run(
+        [
+            compiler,
+            "-O2",
+            "-std=gnu99",
+            "-I",
+            out,
+            str(tmp_path / "check.c"),
+            os.path.join(out, "lanes_ur5.c"),
+            "-lm",
+            "-o",
+            str(exe),
+        ],
+        check=True,
+    )
     result = subprocess.run([str(exe)], capture_output=True, text=True)
     assert result.returncode == 0, result.stderr
     assert json.loads(result.stdout)["widths"] == widths(module)
@@ -255,10 +304,17 @@ def test_a_users_build_in_gnu_mode_keeps_the_bits(ur5, compiler, tmp_path):
 def test_float_batches_are_single_calls_bit_for_bit(tmp_path_factory):
     """--precision float: 16 and 8 floats a vector, sinf and cosf lane by lane."""
     system = load_urdf_system(str(robots_dir() / UR5[0]), UR5[1])
-    module, kernels = built(tmp_path_factory, "lanes_ur5f", kernels_for(system), system_nq(system),
-                            ("mass", "forward_dynamics"), precision="float")
-    assert_batch_is_single_calls(module, kernels, lanes.BATCH_FUNCTIONS, (1, 15, 16, 17, 1023),
-                                 np.random.default_rng(6))
+    module, kernels = built(
+        tmp_path_factory,
+        "lanes_ur5f",
+        kernels_for(system),
+        system_nq(system),
+        ("mass", "forward_dynamics"),
+        precision="float",
+    )
+    assert_batch_is_single_calls(
+        module, kernels, lanes.BATCH_FUNCTIONS, (1, 15, 16, 17, 1023), np.random.default_rng(6)
+    )
 
 
 def test_a_tree_specs_plant_reads_the_parameters_in_every_lane(build_module):

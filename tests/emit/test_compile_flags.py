@@ -1,6 +1,7 @@
 """$CFLAGS reaches the extension's compile and the build cache. -std=c99 -ffp-contract=off
 come after it (no a * b + c fused into one multiply-add), so a build for this CPU's widest
 instruction set at -O3 computes the same bits as the portable -O2 build, with gcc and clang."""
+
 from __future__ import annotations
 
 import importlib.util
@@ -34,8 +35,10 @@ def set_cflags(monkeypatch, cflags: str | None) -> None:
 
 def build_panda(out: Path, monkeypatch, cflags: str | None) -> None:
     set_cflags(monkeypatch, cflags)
-    assert main(["build", str(robots_dir() / PANDA[0]), "--tip", PANDA[1], "--name", "pandaflags",
-                 "-o", str(out), "-q"]) == 0
+    assert (
+        main(["build", str(robots_dir() / PANDA[0]), "--tip", PANDA[1], "--name", "pandaflags", "-o", str(out), "-q"])
+        == 0
+    )
 
 
 @pytest.mark.parametrize("cc", ["gcc", "clang"])
@@ -54,8 +57,9 @@ def test_a_native_build_computes_the_portable_builds_bits(tmp_path, monkeypatch,
     compared = 0
     for f in functions:
         for _ in range(20):
-            args = [rng.uniform(-3, 3, port["shape"]) if port["name"] != "dt" else np.array([1e-3])
-                    for port in f["inputs"]]
+            args = [
+                rng.uniform(-3, 3, port["shape"]) if port["name"] != "dt" else np.array([1e-3]) for port in f["inputs"]
+            ]
             x, y = getattr(a, f["name"])(*args), getattr(b, f["name"])(*args)
             x, y = (r if isinstance(r, tuple) else (r,) for r in (x, y))
             for u, v in zip(x, y):

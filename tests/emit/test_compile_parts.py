@@ -1,6 +1,7 @@
 """A large module's <name>.c is compiled in parts at once (-DRG_PART=k): each function is in
 exactly one part, the file without RG_PART holds them all, and the extension built from the
 parts works. The threshold is lowered so that the two-link arm is split."""
+
 from __future__ import annotations
 
 import importlib.util
@@ -40,14 +41,20 @@ def test_parts_partition_the_functions_and_the_module_works(tmp_path, monkeypatc
     parts = []
     for k in range(context.COMPILE_PARTS):
         obj = tmp_path / f"part{k}.o"
-        subprocess.run(["cc", "-std=c99", "-c", f"-DRG_PART={k}", str(out / "two_link_parts.c"), "-I", str(out),
-                        "-o", str(obj)], check=True)
+        subprocess.run(
+            ["cc", "-std=c99", "-c", f"-DRG_PART={k}", str(out / "two_link_parts.c"), "-I", str(out), "-o", str(obj)],
+            check=True,
+        )
         parts.append(_defined(obj))
     whole = tmp_path / "whole.o"
-    subprocess.run(["cc", "-std=c99", "-c", str(out / "two_link_parts.c"), "-I", str(out), "-o", str(whole)], check=True)
+    subprocess.run(
+        ["cc", "-std=c99", "-c", str(out / "two_link_parts.c"), "-I", str(out), "-o", str(whole)], check=True
+    )
     assert all(p for p in parts) and not set.intersection(*parts)
     assert set.union(*parts) == _defined(whole)
-    spec = importlib.util.spec_from_file_location("two_link_parts", out / f"two_link_parts{emit_compile.extension_suffix()}")
+    spec = importlib.util.spec_from_file_location(
+        "two_link_parts", out / f"two_link_parts{emit_compile.extension_suffix()}"
+    )
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
     q = np.array([0.3, -0.7])
@@ -57,13 +64,25 @@ def test_parts_partition_the_functions_and_the_module_works(tmp_path, monkeypatc
 
 def _chain_spec(path: Path, n: int) -> Path:
     """An n-joint DH chain (past 12 joints its dynamics are loops, sharing rg_kinematics)."""
-    joints = [{"name": f"j{i + 1}", "type": "revolute",
-               "dh": {"a": 0.05 * (i % 3), "alpha": ["pi/2", "-pi/2", "0"][i % 3], "d": 0.1, "theta": 0},
-               "link": {"mass": 1.0 + 0.1 * i, "com": [0.01, -0.02, 0.03],
-                        "inertia": {"ixx": 0.02, "iyy": 0.03, "izz": 0.01, "ixy": 0.001, "ixz": 0.0, "iyz": 0.0}}}
-              for i in range(n)]
-    doc = {"robotgen": 1, "name": "chain13", "root": "arm",
-           "nodes": {"arm": {"define": {"chain": {"convention": "dh_standard", "joints": joints}}}}}
+    joints = [
+        {
+            "name": f"j{i + 1}",
+            "type": "revolute",
+            "dh": {"a": 0.05 * (i % 3), "alpha": ["pi/2", "-pi/2", "0"][i % 3], "d": 0.1, "theta": 0},
+            "link": {
+                "mass": 1.0 + 0.1 * i,
+                "com": [0.01, -0.02, 0.03],
+                "inertia": {"ixx": 0.02, "iyy": 0.03, "izz": 0.01, "ixy": 0.001, "ixz": 0.0, "iyz": 0.0},
+            },
+        }
+        for i in range(n)
+    ]
+    doc = {
+        "robotgen": 1,
+        "name": "chain13",
+        "root": "arm",
+        "nodes": {"arm": {"define": {"chain": {"convention": "dh_standard", "joints": joints}}}},
+    }
     path.write_text(yaml.safe_dump(doc, sort_keys=False))
     return path
 
@@ -82,15 +101,32 @@ def test_a_stage_helper_is_compiled_in_one_part_and_called_from_the_others(tmp_p
     source = (out / "chain13.c").read_text()
     assert source.count("RG_SHARED void rg_kinematics(") == 2  # the definition and one declaration
     # the kernels (a batch entry point's first parameter is an int: robotgen.emit.lanes)
-    functions = re.findall(r"#if !defined\(RG_PART\) \|\| RG_PART == (\d)\n(int chain13_\w*\((?!int ).*?\n}\n)",
-                           source, re.S)
+    functions = re.findall(
+        r"#if !defined\(RG_PART\) \|\| RG_PART == (\d)\n(int chain13_\w*\((?!int ).*?\n}\n)", source, re.S
+    )
     calling = {int(k) for k, definition in functions if "  rg_kinematics(q, " in definition}
     assert len(calling) > 1 and set(range(context.COMPILE_PARTS)) - calling and len(functions) == len(kernels)
 
     def symbol(flags: list[str], name: str) -> str:
         obj = tmp_path / f"{name}.o"
-        subprocess.run(["cc", "-std=c99", "-O0", "-Wall", "-Wextra", "-Werror", "-c", *flags,
-                        str(out / "chain13.c"), "-I", str(out), "-o", str(obj)], check=True)
+        subprocess.run(
+            [
+                "cc",
+                "-std=c99",
+                "-O0",
+                "-Wall",
+                "-Wextra",
+                "-Werror",
+                "-c",
+                *flags,
+                str(out / "chain13.c"),
+                "-I",
+                str(out),
+                "-o",
+                str(obj),
+            ],
+            check=True,
+        )
         symbols = subprocess.run(["nm", str(obj)], capture_output=True, text=True, check=True).stdout
         found = re.search(r"^\s*\S*\s+([A-Za-z]) rg_kinematics$", symbols, re.M)
         return found.group(1) if found else ""
@@ -101,8 +137,9 @@ def test_a_stage_helper_is_compiled_in_one_part_and_called_from_the_others(tmp_p
     assert {k for k, kind in kinds.items() if kind == "U"} == calling - defined, kinds
     assert not {kind for k, kind in kinds.items() if k not in calling} - {""}, kinds
     assert symbol([], "whole") == "t"
-    exported = subprocess.run(["nm", "-D", str(out / f"chain13{emit_compile.extension_suffix()}")],
-                              capture_output=True, text=True, check=True).stdout
+    exported = subprocess.run(
+        ["nm", "-D", str(out / f"chain13{emit_compile.extension_suffix()}")], capture_output=True, text=True, check=True
+    ).stdout
     assert "rg_kinematics" not in exported
     spec = importlib.util.spec_from_file_location("chain13", out / f"chain13{emit_compile.extension_suffix()}")
     module = importlib.util.module_from_spec(spec)

@@ -4,6 +4,7 @@ toolchain (Debian's gcc-arm-none-eabi): warning-free under -Wall -Wextra -Werror
 memset or memcpy but where a controller struct zeroes or copies its state), every function's
 stack use static. Prints code size and stack per function;
 `robotgen build --target cortex-m7` puts the same numbers in manifest.json."""
+
 from __future__ import annotations
 
 import json
@@ -18,10 +19,42 @@ from robotgen.cli import main
 
 SPECS = Path(__file__).resolve().parents[2] / "specs"
 CC = shutil.which("arm-none-eabi-gcc")
-FLAGS = ["-mcpu=cortex-m7", "-mfpu=fpv5-d16", "-mfloat-abi=hard", "-mthumb", "-O2", "-std=c99",
-         "-Wall", "-Wextra", "-Werror", "-Wdouble-promotion", "-fstack-usage"]
-MATH = {"sin", "cos", "tan", "asin", "acos", "atan", "atan2", "exp", "log", "sqrt", "tanh", "sinh", "cosh",
-        "pow", "fabs", "fmin", "fmax", "copysign", "floor", "ceil", "remainder"}
+FLAGS = [
+    "-mcpu=cortex-m7",
+    "-mfpu=fpv5-d16",
+    "-mfloat-abi=hard",
+    "-mthumb",
+    "-O2",
+    "-std=c99",
+    "-Wall",
+    "-Wextra",
+    "-Werror",
+    "-Wdouble-promotion",
+    "-fstack-usage",
+]
+MATH = {
+    "sin",
+    "cos",
+    "tan",
+    "asin",
+    "acos",
+    "atan",
+    "atan2",
+    "exp",
+    "log",
+    "sqrt",
+    "tanh",
+    "sinh",
+    "cosh",
+    "pow",
+    "fabs",
+    "fmin",
+    "fmax",
+    "copysign",
+    "floor",
+    "ceil",
+    "remainder",
+}
 
 
 @pytest.mark.skipif(CC is None, reason="arm-none-eabi-gcc is not installed (Debian: apt-get install gcc-arm-none-eabi)")
@@ -32,15 +65,37 @@ def test_cortex_m7_build(tmp_path, monkeypatch, spec, precision):
     # the C alone first; it compiles here while robotgen builds it again and compiles it for
     # the target (one process each, side by side)
     plain = tmp_path / "plain"
-    assert main(["build", str(SPECS / f"{spec}.yaml"), "-o", str(plain), "--precision", precision, "--no-compile",
-                 "-q"]) == 0
+    assert (
+        main(["build", str(SPECS / f"{spec}.yaml"), "-o", str(plain), "--precision", precision, "--no-compile", "-q"])
+        == 0
+    )
     obj = tmp_path / f"{spec}.o"
-    compiling = subprocess.Popen([CC, *FLAGS, "-c", str(plain / f"{spec}.c"), "-o", str(obj)], stdout=subprocess.PIPE,
-                                 stderr=subprocess.PIPE, text=True, cwd=tmp_path)
+    compiling = subprocess.Popen(
+        [CC, *FLAGS, "-c", str(plain / f"{spec}.c"), "-o", str(obj)],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        cwd=tmp_path,
+    )
     out = Path(spec)  # relative, as a user types it
     try:
-        assert main(["build", str(SPECS / f"{spec}.yaml"), "-o", str(out), "--precision", precision, "--no-compile",
-                     "--target", "cortex-m7", "-q"]) == 0
+        assert (
+            main(
+                [
+                    "build",
+                    str(SPECS / f"{spec}.yaml"),
+                    "-o",
+                    str(out),
+                    "--precision",
+                    precision,
+                    "--no-compile",
+                    "--target",
+                    "cortex-m7",
+                    "-q",
+                ]
+            )
+            == 0
+        )
     finally:
         stderr = compiling.communicate()[1]
     assert compiling.returncode == 0, stderr
@@ -48,17 +103,21 @@ def test_cortex_m7_build(tmp_path, monkeypatch, spec, precision):
     size = subprocess.run(["arm-none-eabi-size", str(obj)], capture_output=True, text=True, check=True).stdout
     text, data, bss = (int(v) for v in size.splitlines()[1].split()[:3])
     assert data == 0 and bss == 0, size
-    undefined = set(subprocess.run(["arm-none-eabi-nm", "-u", str(obj)], capture_output=True, text=True,
-                                   check=True).stdout.split()) - {"U"}
+    undefined = set(
+        subprocess.run(["arm-none-eabi-nm", "-u", str(obj)], capture_output=True, text=True, check=True).stdout.split()
+    ) - {"U"}
     suffix = "f" if precision == "float" else ""
     # gcc asks any freestanding environment for memcpy, memmove, memset and memcmp: it turns the
     # loops that zero and copy a controller's state (the adaptive law's: 5.6 kB; a multi-rate tree's
     # struct, copied whole so that a failed step changes nothing) into calls to them
     assert undefined <= {f + suffix for f in MATH} | {"memcpy", "memset"}, undefined
     for f, (called, tail) in _callees(obj).items():
-        assert not (called | tail) & {"memcpy", "memset"} or re.fullmatch(r"\w+_(controller|multirate)_(reset|step)", f), (f, called, tail)
-    symbols = subprocess.run(["arm-none-eabi-nm", "-S", "--size-sort", str(obj)], capture_output=True, text=True,
-                             check=True).stdout
+        assert not (called | tail) & {"memcpy", "memset"} or re.fullmatch(
+            r"\w+_(controller|multirate)_(reset|step)", f
+        ), (f, called, tail)
+    symbols = subprocess.run(
+        ["arm-none-eabi-nm", "-S", "--size-sort", str(obj)], capture_output=True, text=True, check=True
+    ).stdout
     code = {line.split()[3]: int(line.split()[1], 16) for line in symbols.splitlines() if line.split()[2] in "Tt"}
     stack = {}
     for line in (tmp_path / f"{spec}.su").read_text().splitlines():
@@ -72,8 +131,9 @@ def test_cortex_m7_build(tmp_path, monkeypatch, spec, precision):
     # the manifest's report is these numbers (same compiler, same flags)
     report = json.loads((out / "manifest.json").read_text())["targets"]["cortex-m7"]
     assert (report["text_bytes"], report["data_bytes"], report["bss_bytes"]) == (text, 0, 0)
-    assert {f: (v["code_bytes"], v["stack_bytes"]) for f, v in report["functions"].items()} == \
-        {f: (code[f], stack[f]) for f in code}
+    assert {f: (v["code_bytes"], v["stack_bytes"]) for f, v in report["functions"].items()} == {
+        f: (code[f], stack[f]) for f in code
+    }
     callees, functions = _callees(obj), report["functions"]
 
     def deepest(names: set[str]) -> int:
@@ -89,22 +149,27 @@ def test_cortex_m7_build(tmp_path, monkeypatch, spec, precision):
 
 def _callees(obj: Path) -> dict[str, tuple[set[str], set[str]]]:
     """The functions each function calls (bl) and tail-calls (b to another function)."""
-    listing = subprocess.run(["arm-none-eabi-objdump", "-d", str(obj)], capture_output=True, text=True,
-                             check=True).stdout
+    listing = subprocess.run(
+        ["arm-none-eabi-objdump", "-d", str(obj)], capture_output=True, text=True, check=True
+    ).stdout
     callees = {}
     for block in listing.split("\n\n"):
         header = re.match(r"[0-9a-f]+ <([\w.]+)>:", block)
         if header:
             name = header.group(1)
             branches = re.findall(r"\s(bl|b\w{0,2}(?:\.[nw])?)\s+[0-9a-f]+ <([\w.]+?)(?:\+0x[0-9a-f]+)?>", block)
-            callees[name] = ({g for op, g in branches if op == "bl" and g != name},
-                             {g for op, g in branches if op != "bl" and g != name})
+            callees[name] = (
+                {g for op, g in branches if op == "bl" and g != name},
+                {g for op, g in branches if op != "bl" and g != name},
+            )
     return callees
 
 
 def test_target_without_its_compiler_is_the_users_to_fix(tmp_path, monkeypatch, capsys):
     monkeypatch.setenv("PATH", str(tmp_path))  # no arm-none-eabi-gcc here
     out = tmp_path / "out"
-    assert main(["build", str(SPECS / "two_link.yaml"), "-o", str(out), "--target", "cortex-m7", "--no-compile",
-                 "-q"]) == 1
+    assert (
+        main(["build", str(SPECS / "two_link.yaml"), "-o", str(out), "--target", "cortex-m7", "--no-compile", "-q"])
+        == 1
+    )
     assert "arm-none-eabi-gcc" in capsys.readouterr().err and not out.exists()

@@ -1,5 +1,6 @@
 """robotgen.emit: printed C, compiled extension, manifest and atomic output, checked against
 CasADi's own evaluation of kernels built directly with casadi (no specs involved)."""
+
 from __future__ import annotations
 
 import ast
@@ -28,8 +29,16 @@ from robotgen.symbolic.kernel import Kernel, Port
 GCC = shutil.which("gcc")
 CLANG = shutil.which("clang")
 STRICT = ["-std=c99", "-Wall", "-Wextra", "-Werror"]
-SOURCES = ["{name}.h", "{name}.c", "{name}_module.c", "{name}.pyi", "Makefile", "{name}.pc.in",
-           "{name}Config.cmake.in", "manifest.json"]
+SOURCES = [
+    "{name}.h",
+    "{name}.c",
+    "{name}_module.c",
+    "{name}.pyi",
+    "Makefile",
+    "{name}.pc.in",
+    "{name}Config.cmake.in",
+    "manifest.json",
+]
 pytestmark = pytest.mark.skipif(GCC is None, reason="gcc is required")
 
 # a static object (not const) in C; a static function (code, like rg_sincos2) is not state
@@ -38,14 +47,24 @@ MUTABLE_STATIC = r"\bstatic\b(?!\s+const\b)(?![^;={(]*\()"
 
 # ---------------------------------------------------------------- kernels built with casadi
 
+
 def _bounded(x):
     return 0.9 * ca.tanh(x)
 
 
 UNARY = [
-    ca.sin, ca.cos, ca.tanh, ca.atan, ca.fabs, ca.erf, ca.sign, ca.floor, ca.ceil, ca.asinh,
+    ca.sin,
+    ca.cos,
+    ca.tanh,
+    ca.atan,
+    ca.fabs,
+    ca.erf,
+    ca.sign,
+    ca.floor,
+    ca.ceil,
+    ca.asinh,
     lambda x: -x,
-    lambda x: x ** 2,
+    lambda x: x**2,
     lambda x: 2 * x,
     lambda x: ca.constpow(x, 3),
     lambda x: ca.sqrt(x * x + 1),
@@ -67,7 +86,11 @@ BINARY = [
     lambda a, b: a - b,
     lambda a, b: a * b,
     lambda a, b: a / (1 + b * b),
-    ca.atan2, ca.fmin, ca.fmax, ca.hypot, ca.copysign,
+    ca.atan2,
+    ca.fmin,
+    ca.fmax,
+    ca.hypot,
+    ca.copysign,
     lambda a, b: ca.power(ca.fabs(a) + 0.5, ca.tanh(b)),
     lambda a, b: ca.if_else(a > b, a, b * b),
     lambda a, b: ca.fmod(a, ca.fabs(b) + 1),
@@ -86,8 +109,7 @@ def random_expression(rng, leaves, depth):
     return op(random_expression(rng, leaves, depth - 1), random_expression(rng, leaves, depth - 1))
 
 
-def make_kernel(name, seed, inputs=(("q", 3), ("qd", 2)), outputs=(("y", 4, 1), ("M", 3, 3)),
-                depth=6):
+def make_kernel(name, seed, inputs=(("q", 3), ("qd", 2)), outputs=(("y", 4, 1), ("M", 3, 3)), depth=6):
     """A random nonlinear kernel; matrix outputs leave flattened row-major."""
     rng = np.random.default_rng(seed)
     symbols = [ca.SX.sym(port, size) for port, size in inputs]
@@ -100,28 +122,72 @@ def make_kernel(name, seed, inputs=(("q", 3), ("qd", 2)), outputs=(("y", 4, 1), 
                 matrix[r, c] = random_expression(rng, leaves, depth)
         columns.append(ca.vec(matrix.T))
     function = ca.Function(name, symbols, columns)
-    return Kernel(name, f"Random kernel {name} (seed {seed}).",
-                  tuple(Port(p, n) for p, n in inputs),
-                  tuple(Port(p, r, c) for p, r, c in outputs), function)
+    return Kernel(
+        name,
+        f"Random kernel {name} (seed {seed}).",
+        tuple(Port(p, n) for p, n in inputs),
+        tuple(Port(p, r, c) for p, r, c in outputs),
+        function,
+    )
 
 
 def every_operation_kernel():
     x = ca.SX.sym("x", 3)
     a, b, c = x[0], x[1], x[2]
     exprs = [
-        a + b, a - b, a * b, a / b, -a, a ** 2, 2 * a, 1 / a, ca.sqrt(ca.fabs(a)), ca.exp(a),
-        ca.log(ca.fabs(a)), ca.power(ca.fabs(a), b), ca.constpow(a, 3.5), ca.sin(a), ca.cos(a),
-        ca.tan(a), ca.asin(_bounded(a)), ca.acos(_bounded(a)), ca.atan(a), ca.atan2(a, b),
-        ca.sinh(a), ca.cosh(a), ca.tanh(a), ca.asinh(a), ca.acosh(ca.fabs(a) + 1),
-        ca.atanh(_bounded(a)), ca.fabs(a), ca.sign(a), ca.copysign(a, b), ca.fmin(a, b),
-        ca.fmax(a, b), ca.floor(a), ca.ceil(a), ca.fmod(a, b), ca.remainder(a, b),
-        ca.if_else(a < b, a, c), a < b, a <= b, a == b, a != b, ca.logic_not(a),
-        ca.logic_and(a, b), ca.logic_or(a, b), ca.erf(a), ca.log1p(ca.fabs(a)), ca.expm1(a),
-        ca.hypot(a, b), ca.inf * a, 1e300 * 1e300, 0.1 + a,
+        a + b,
+        a - b,
+        a * b,
+        a / b,
+        -a,
+        a**2,
+        2 * a,
+        1 / a,
+        ca.sqrt(ca.fabs(a)),
+        ca.exp(a),
+        ca.log(ca.fabs(a)),
+        ca.power(ca.fabs(a), b),
+        ca.constpow(a, 3.5),
+        ca.sin(a),
+        ca.cos(a),
+        ca.tan(a),
+        ca.asin(_bounded(a)),
+        ca.acos(_bounded(a)),
+        ca.atan(a),
+        ca.atan2(a, b),
+        ca.sinh(a),
+        ca.cosh(a),
+        ca.tanh(a),
+        ca.asinh(a),
+        ca.acosh(ca.fabs(a) + 1),
+        ca.atanh(_bounded(a)),
+        ca.fabs(a),
+        ca.sign(a),
+        ca.copysign(a, b),
+        ca.fmin(a, b),
+        ca.fmax(a, b),
+        ca.floor(a),
+        ca.ceil(a),
+        ca.fmod(a, b),
+        ca.remainder(a, b),
+        ca.if_else(a < b, a, c),
+        a < b,
+        a <= b,
+        a == b,
+        a != b,
+        ca.logic_not(a),
+        ca.logic_and(a, b),
+        ca.logic_or(a, b),
+        ca.erf(a),
+        ca.log1p(ca.fabs(a)),
+        ca.expm1(a),
+        ca.hypot(a, b),
+        ca.inf * a,
+        1e300 * 1e300,
+        0.1 + a,
     ]
     function = ca.Function("every_op", [x], [ca.vertcat(*exprs)])
-    return Kernel("every_op", "Each printable operation once.", (Port("x", 3),),
-                  (Port("y", len(exprs)),), function)
+    return Kernel("every_op", "Each printable operation once.", (Port("x", 3),), (Port("y", len(exprs)),), function)
 
 
 def planar_arm_kernels():
@@ -139,12 +205,15 @@ def planar_arm_kernels():
     mass = jac.T @ jac + ca.SX.eye(3)
     flat = lambda m: ca.vec(m.T)  # noqa: E731
     return [
-        Kernel("fk", "Tip pose.", (Port("q", 3),), (Port("T", 4, 4),),
-               ca.Function("fk", [q], [flat(pose)])),
-        Kernel("jacobian", "Planar Jacobian.", (Port("q", 3),), (Port("J", 3, 3),),
-               ca.Function("jacobian", [q], [flat(jac)])),
-        Kernel("mass", "J^T J + I.", (Port("q", 3),), (Port("M", 3, 3),),
-               ca.Function("mass", [q], [flat(mass)])),
+        Kernel("fk", "Tip pose.", (Port("q", 3),), (Port("T", 4, 4),), ca.Function("fk", [q], [flat(pose)])),
+        Kernel(
+            "jacobian",
+            "Planar Jacobian.",
+            (Port("q", 3),),
+            (Port("J", 3, 3),),
+            ca.Function("jacobian", [q], [flat(jac)]),
+        ),
+        Kernel("mass", "J^T J + I.", (Port("q", 3),), (Port("M", 3, 3),), ca.Function("mass", [q], [flat(mass)])),
     ]
 
 
@@ -155,32 +224,52 @@ def special_kernels():
     sparse[1] = ca.sin(x[0])
     sparse[3] = x[1] * 2.5
     return [
-        Kernel("unused_input", "Ignores its second input.", (Port("x", 2), Port("unused", 3)),
-               (Port("out", 2),), ca.Function("u", [x, unused], [ca.cos(x)])),
-        Kernel("constant", "Returns constants only.", (Port("x", 2),), (Port("c", 3),),
-               ca.Function("c", [x], [ca.DM([1.5, -2.0, 1e-300])])),
-        Kernel("sparse_out", "Structural zeros in the output.", (Port("x", 2),),
-               (Port("s", 2, 2),), ca.Function("s", [x], [sparse])),
+        Kernel(
+            "unused_input",
+            "Ignores its second input.",
+            (Port("x", 2), Port("unused", 3)),
+            (Port("out", 2),),
+            ca.Function("u", [x, unused], [ca.cos(x)]),
+        ),
+        Kernel(
+            "constant",
+            "Returns constants only.",
+            (Port("x", 2),),
+            (Port("c", 3),),
+            ca.Function("c", [x], [ca.DM([1.5, -2.0, 1e-300])]),
+        ),
+        Kernel(
+            "sparse_out",
+            "Structural zeros in the output.",
+            (Port("x", 2),),
+            (Port("s", 2, 2),),
+            ca.Function("s", [x], [sparse]),
+        ),
     ]
 
 
-KERNELS = [make_kernel("rand_a", 1), make_kernel("rand_b", 2, outputs=(("m", 2, 3),)),
-           make_kernel("rand_c", 3, inputs=(("u", 4),), outputs=(("v", 5, 1),), depth=7),
-           every_operation_kernel(), *special_kernels()]
+KERNELS = [
+    make_kernel("rand_a", 1),
+    make_kernel("rand_b", 2, outputs=(("m", 2, 3),)),
+    make_kernel("rand_c", 3, inputs=(("u", 4),), outputs=(("v", 5, 1),), depth=7),
+    every_operation_kernel(),
+    *special_kernels(),
+]
 
 
 def reference(kernel, args):
     """CasADi's own evaluation, shaped per Port."""
     values = kernel.function(*[np.asarray(a, float) for a in args])
     values = values if isinstance(values, (list, tuple)) else [values]
-    return [np.array(v, float).ravel().reshape(p.rows, p.cols) if p.is_matrix
-            else np.array(v, float).ravel() for v, p in zip(values, kernel.outputs)]
+    return [
+        np.array(v, float).ravel().reshape(p.rows, p.cols) if p.is_matrix else np.array(v, float).ravel()
+        for v, p in zip(values, kernel.outputs)
+    ]
 
 
 def random_args(kernel, rng, batch=None):
     lead = () if batch is None else (batch,)
-    return [rng.normal(size=lead + ((p.rows, p.cols) if p.is_matrix else (p.rows,))) * 1.5
-            for p in kernel.inputs]
+    return [rng.normal(size=lead + ((p.rows, p.cols) if p.is_matrix else (p.rows,))) * 1.5 for p in kernel.inputs]
 
 
 def load_module(directory: Path, name: str):
@@ -200,8 +289,15 @@ def assert_close(actual, expected, rtol):
 @pytest.fixture(scope="module")
 def built(tmp_path_factory):
     out = tmp_path_factory.mktemp("double") / "randbot"
-    build.emit(out, "randbot", KERNELS, nq=3, spec_sha256="ab" * 32,
-               extra_info={"nodes": ["arm"]}, attributes={"dt": 0.001, "tool": "gripper"})
+    build.emit(
+        out,
+        "randbot",
+        KERNELS,
+        nq=3,
+        spec_sha256="ab" * 32,
+        extra_info={"nodes": ["arm"]},
+        attributes={"dt": 0.001, "tool": "gripper"},
+    )
     return out
 
 
@@ -212,16 +308,23 @@ def module(built):
 
 # ------------------------------------------------------------------ (a) C compiles strictly
 
+
 @pytest.mark.parametrize("extra", [[], ["-DNDEBUG", "-O2"], ["-O3", "-pedantic"]])
 def test_source_compiles_warning_free_with_gcc(built, tmp_path, extra):
-    subprocess.run([GCC, *STRICT, *extra, "-c", str(built / "randbot.c"),
-                    "-o", str(tmp_path / "randbot.o")], check=True, capture_output=True)
+    subprocess.run(
+        [GCC, *STRICT, *extra, "-c", str(built / "randbot.c"), "-o", str(tmp_path / "randbot.o")],
+        check=True,
+        capture_output=True,
+    )
 
 
 @pytest.mark.skipif(CLANG is None, reason="clang not installed")
 def test_source_compiles_warning_free_with_clang(built, tmp_path):
-    subprocess.run([CLANG, *STRICT, "-O2", "-c", str(built / "randbot.c"),
-                    "-o", str(tmp_path / "randbot.o")], check=True, capture_output=True)
+    subprocess.run(
+        [CLANG, *STRICT, "-O2", "-c", str(built / "randbot.c"), "-o", str(tmp_path / "randbot.o")],
+        check=True,
+        capture_output=True,
+    )
 
 
 def test_makefile_builds_static_library(built, tmp_path):
@@ -234,23 +337,48 @@ def test_makefile_builds_static_library(built, tmp_path):
 
 # ---------------------------------------------------------- (b) a C harness agrees with casadi
 
+
 def harness_source(name, kernels):
-    lines = ["#include <stdio.h>", f'#include "{name}.h"', "",
-             "static int read_values(FILE *f, double *v, int n)", "{", "    int i;",
-             "    for (i = 0; i < n; ++i) {", '        if (fscanf(f, "%lf", &v[i]) != 1) {',
-             "            return -1;", "        }", "    }", "    return 0;", "}", "",
-             "static void print_values(const double *v, int n)", "{", "    int i;",
-             "    for (i = 0; i < n; ++i) {", '        printf("%.17g\\n", v[i]);', "    }", "}",
-             "", "int main(int argc, char **argv)", "{", "    FILE *f;", "    int samples, s;",
-             '    if (argc != 2 || (f = fopen(argv[1], "r")) == NULL) {', "        return 2;",
-             "    }", '    if (fscanf(f, "%d", &samples) != 1) {', "        return 3;", "    }",
-             "    for (s = 0; s < samples; ++s) {"]
+    lines = [
+        "#include <stdio.h>",
+        f'#include "{name}.h"',
+        "",
+        "static int read_values(FILE *f, double *v, int n)",
+        "{",
+        "    int i;",
+        "    for (i = 0; i < n; ++i) {",
+        '        if (fscanf(f, "%lf", &v[i]) != 1) {',
+        "            return -1;",
+        "        }",
+        "    }",
+        "    return 0;",
+        "}",
+        "",
+        "static void print_values(const double *v, int n)",
+        "{",
+        "    int i;",
+        "    for (i = 0; i < n; ++i) {",
+        '        printf("%.17g\\n", v[i]);',
+        "    }",
+        "}",
+        "",
+        "int main(int argc, char **argv)",
+        "{",
+        "    FILE *f;",
+        "    int samples, s;",
+        '    if (argc != 2 || (f = fopen(argv[1], "r")) == NULL) {',
+        "        return 2;",
+        "    }",
+        '    if (fscanf(f, "%d", &samples) != 1) {',
+        "        return 3;",
+        "    }",
+        "    for (s = 0; s < samples; ++s) {",
+    ]
     for k in kernels:
         ports = [*k.inputs, *k.outputs]
         lines.append("        {")
         lines += [f"            double {p.name}[{p.size}];" for p in ports]
-        lines += [f"            if (read_values(f, {p.name}, {p.size}) != 0) return 4;"
-                  for p in k.inputs]
+        lines += [f"            if (read_values(f, {p.name}, {p.size}) != 0) return 4;" for p in k.inputs]
         lines.append(f"            if ({name}_{k.name}({', '.join(p.name for p in ports)}) != 0) return 5;")
         lines += [f"            print_values({p.name}, {p.size});" for p in k.outputs]
         lines.append("        }")
@@ -261,19 +389,29 @@ def harness_source(name, kernels):
 def run_harness(built, tmp_path, name, kernels, samples):
     (tmp_path / "harness.c").write_text(harness_source(name, kernels))
     exe = tmp_path / "harness"
-    subprocess.run([GCC, *STRICT, "-O2", f"-I{built}", str(tmp_path / "harness.c"),
-                    str(built / f"{name}.c"), "-o", str(exe), "-lm"], check=True,
-                   capture_output=True)
+    subprocess.run(
+        [
+            GCC,
+            *STRICT,
+            "-O2",
+            f"-I{built}",
+            str(tmp_path / "harness.c"),
+            str(built / f"{name}.c"),
+            "-o",
+            str(exe),
+            "-lm",
+        ],
+        check=True,
+        capture_output=True,
+    )
     values = [str(len(samples))]
     for args in samples:
         for k_args in args:
             values += [repr(float(v)) for a in k_args for v in np.ravel(a)]
     (tmp_path / "inputs.txt").write_text("\n".join(values) + "\n")
-    result = subprocess.run([str(exe), str(tmp_path / "inputs.txt")], check=True,
-                            capture_output=True, text=True)
+    result = subprocess.run([str(exe), str(tmp_path / "inputs.txt")], check=True, capture_output=True, text=True)
     numbers = iter(float(v) for v in result.stdout.split())
-    return [[[np.array([next(numbers) for _ in range(p.size)]) for p in k.outputs]
-             for k in kernels] for _ in samples]
+    return [[[np.array([next(numbers) for _ in range(p.size)]) for p in k.outputs] for k in kernels] for _ in samples]
 
 
 def test_c_harness_agrees_with_casadi(built, tmp_path):
@@ -288,6 +426,7 @@ def test_c_harness_agrees_with_casadi(built, tmp_path):
 
 # --------------------------------------------------------- (c) the Python module agrees too
 
+
 def test_module_agrees_with_casadi_and_c_harness(built, module, tmp_path):
     rng = np.random.default_rng(11)
     samples = [[random_args(k, rng) for k in KERNELS] for _ in range(10)]
@@ -297,10 +436,8 @@ def test_module_agrees_with_casadi_and_c_harness(built, module, tmp_path):
             got = getattr(module, kernel.name)(*args)
             got = got if isinstance(got, tuple) else (got,)
             assert len(got) == len(kernel.outputs)
-            for value, expected, c_value, port in zip(got, reference(kernel, args), c_values,
-                                                      kernel.outputs):
-                assert value.shape == expected.shape == ((port.rows, port.cols) if port.is_matrix
-                                                         else (port.rows,))
+            for value, expected, c_value, port in zip(got, reference(kernel, args), c_values, kernel.outputs):
+                assert value.shape == expected.shape == ((port.rows, port.cols) if port.is_matrix else (port.rows,))
                 assert_close(value, expected, 1e-12)
                 np.testing.assert_array_equal(value.ravel(), c_value)
 
@@ -332,12 +469,15 @@ def test_empty_batch_and_argument_conversion(module):
     assert kernel.name == "rand_a"
 
 
-@pytest.mark.parametrize("args, message", [
-    ((np.zeros(4), np.zeros(2)), r"rand_a\(\): argument 'q' must have shape \(3,\) or \(B, 3\), got \(4,\)"),
-    ((np.zeros((2, 3)), np.zeros((3, 2))), r"batch lengths differ: 'q' has 2, 'qd' has 3"),
-    ((np.zeros((1, 2, 3)), np.zeros(2)), r"argument 'q' must have shape"),
-    ((np.zeros(()), np.zeros(2)), r"argument 'q' must have shape"),
-])
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        ((np.zeros(4), np.zeros(2)), r"rand_a\(\): argument 'q' must have shape \(3,\) or \(B, 3\), got \(4,\)"),
+        ((np.zeros((2, 3)), np.zeros((3, 2))), r"batch lengths differ: 'q' has 2, 'qd' has 3"),
+        ((np.zeros((1, 2, 3)), np.zeros(2)), r"argument 'q' must have shape"),
+        ((np.zeros(()), np.zeros(2)), r"argument 'q' must have shape"),
+    ],
+)
 def test_wrong_shapes_raise_value_error(module, args, message):
     with pytest.raises(ValueError, match=message):
         module.rand_a(*args)
@@ -361,6 +501,7 @@ def test_wrong_argument_count_raises_type_error(module):
 
 # ------------------------------------------------- keyword arguments and argument errors
 
+
 def test_keyword_calls_equal_positional_calls(module):
     rng = np.random.default_rng(21)
     for kernel in KERNELS:
@@ -374,8 +515,11 @@ def test_keyword_calls_equal_positional_calls(module):
                 for value, expected in zip(positional, reference(kernel, args)):
                     assert_close(value, expected, 1e-12)
             by_name = dict(zip(names, args))
-            calls = [fn(**by_name), fn(**dict(reversed(by_name.items()))),
-                     fn(args[0], **dict(list(by_name.items())[1:]))]
+            calls = [
+                fn(**by_name),
+                fn(**dict(reversed(by_name.items()))),
+                fn(args[0], **dict(list(by_name.items())[1:])),
+            ]
             for got in calls:
                 got = got if isinstance(got, tuple) else (got,)
                 assert len(got) == len(positional)
@@ -387,12 +531,14 @@ def test_signature_is_positional_or_keyword_then_out(module):
     for kernel in KERNELS:
         parameters = inspect.signature(getattr(module, kernel.name)).parameters
         assert list(parameters) == [p.name for p in kernel.inputs] + ["out"]
-        assert [p.kind for p in parameters.values()] == \
-            [inspect.Parameter.POSITIONAL_OR_KEYWORD] * len(kernel.inputs) + [inspect.Parameter.KEYWORD_ONLY]
+        assert [p.kind for p in parameters.values()] == [inspect.Parameter.POSITIONAL_OR_KEYWORD] * len(
+            kernel.inputs
+        ) + [inspect.Parameter.KEYWORD_ONLY]
         assert parameters["out"].default is None
 
 
 # --------------------------------------------------- out=: results written into given arrays
+
 
 def _results_like(value):
     return tuple(np.full_like(v, np.nan) for v in value) if isinstance(value, tuple) else np.full_like(value, np.nan)
@@ -430,34 +576,73 @@ def test_out_as_keyword_with_keyword_arguments(module):
 _Y, _M, _BUFFER = np.empty(4), np.empty((3, 3)), np.empty(9)
 
 
-@pytest.mark.parametrize("call, kind, message", [
-    (lambda m: m.rand_a(_Q, _QD, out=_Y), TypeError,
-     "rand_a(): out must be a tuple of 2 float64 arrays (one per result), got numpy.ndarray"),
-    (lambda m: m.rand_a(_Q, _QD, out=(_Y,)), TypeError, "rand_a(): out must be a tuple of 2"),
-    (lambda m: m.rand_a(_Q, _QD, out=[_Y, _M]), TypeError, "rand_a(): out must be a tuple of 2 float64 "
-     "arrays (one per result), got list"),
-    (lambda m: m.rand_a(_Q, _QD, out=(_Y, np.empty((3, 3), np.float32))), TypeError,
-     "rand_a(): out[1] must be a float64 numpy array for 'M', got an array of another dtype"),
-    (lambda m: m.rand_a(_Q, _QD, out=(_Y, [[0.0] * 3] * 3)), TypeError,
-     "rand_a(): out[1] must be a float64 numpy array for 'M', got list"),
-    (lambda m: m.rand_a(_Q, _QD, out=(_Y, np.empty((3, 4)))), ValueError,
-     "rand_a(): out for 'M' must have shape (3, 3), got (3, 4)"),
-    (lambda m: m.rand_a(np.zeros((2, 3)), _QD, out=(_Y, _M)), ValueError,
-     "rand_a(): out for 'y' must have shape (B, 4) (B of the batched arguments), got (4,)"),
-    (lambda m: m.rand_a(np.zeros((2, 3)), _QD, out=(np.empty((3, 4)), np.empty((2, 3, 3)))), ValueError,
-     "rand_a(): out for 'y' must have shape (B, 4) (B of the batched arguments), got (3, 4)"),
-    (lambda m: m.rand_a(_Q, _QD, out=(_Y, np.empty((3, 3)).T)), ValueError,
-     "rand_a(): out for 'M' must be writeable, aligned and C-contiguous"),
-    (lambda m: m.rand_a(_Q, _QD, out=(np.empty(8)[::2], _M)), ValueError,
-     "rand_a(): out for 'y' must be writeable, aligned and C-contiguous"),
-    (lambda m: m.rand_a(_Q, _QD, out=(np.frombuffer(bytes(32)), _M)), ValueError,
-     "rand_a(): out for 'y' must be writeable, aligned and C-contiguous"),
-    (lambda m: m.rand_a(_Q, _QD, out=(_M.reshape(-1)[:4], _M)), ValueError,
-     "rand_a(): out for 'M' shares memory with out for 'y'"),
-    (lambda m: m.rand_c(_BUFFER[:4], out=_BUFFER[3:8]), ValueError,
-     "rand_c(): out for 'v' shares memory with the argument 'u'"),
-    (lambda m: m.rand_c(_BUFFER[:4], out=_BUFFER[4:9]), None, None),  # adjacent, not shared: valid
-])
+@pytest.mark.parametrize(
+    "call, kind, message",
+    [
+        (
+            lambda m: m.rand_a(_Q, _QD, out=_Y),
+            TypeError,
+            "rand_a(): out must be a tuple of 2 float64 arrays (one per result), got numpy.ndarray",
+        ),
+        (lambda m: m.rand_a(_Q, _QD, out=(_Y,)), TypeError, "rand_a(): out must be a tuple of 2"),
+        (
+            lambda m: m.rand_a(_Q, _QD, out=[_Y, _M]),
+            TypeError,
+            "rand_a(): out must be a tuple of 2 float64 arrays (one per result), got list",
+        ),
+        (
+            lambda m: m.rand_a(_Q, _QD, out=(_Y, np.empty((3, 3), np.float32))),
+            TypeError,
+            "rand_a(): out[1] must be a float64 numpy array for 'M', got an array of another dtype",
+        ),
+        (
+            lambda m: m.rand_a(_Q, _QD, out=(_Y, [[0.0] * 3] * 3)),
+            TypeError,
+            "rand_a(): out[1] must be a float64 numpy array for 'M', got list",
+        ),
+        (
+            lambda m: m.rand_a(_Q, _QD, out=(_Y, np.empty((3, 4)))),
+            ValueError,
+            "rand_a(): out for 'M' must have shape (3, 3), got (3, 4)",
+        ),
+        (
+            lambda m: m.rand_a(np.zeros((2, 3)), _QD, out=(_Y, _M)),
+            ValueError,
+            "rand_a(): out for 'y' must have shape (B, 4) (B of the batched arguments), got (4,)",
+        ),
+        (
+            lambda m: m.rand_a(np.zeros((2, 3)), _QD, out=(np.empty((3, 4)), np.empty((2, 3, 3)))),
+            ValueError,
+            "rand_a(): out for 'y' must have shape (B, 4) (B of the batched arguments), got (3, 4)",
+        ),
+        (
+            lambda m: m.rand_a(_Q, _QD, out=(_Y, np.empty((3, 3)).T)),
+            ValueError,
+            "rand_a(): out for 'M' must be writeable, aligned and C-contiguous",
+        ),
+        (
+            lambda m: m.rand_a(_Q, _QD, out=(np.empty(8)[::2], _M)),
+            ValueError,
+            "rand_a(): out for 'y' must be writeable, aligned and C-contiguous",
+        ),
+        (
+            lambda m: m.rand_a(_Q, _QD, out=(np.frombuffer(bytes(32)), _M)),
+            ValueError,
+            "rand_a(): out for 'y' must be writeable, aligned and C-contiguous",
+        ),
+        (
+            lambda m: m.rand_a(_Q, _QD, out=(_M.reshape(-1)[:4], _M)),
+            ValueError,
+            "rand_a(): out for 'M' shares memory with out for 'y'",
+        ),
+        (
+            lambda m: m.rand_c(_BUFFER[:4], out=_BUFFER[3:8]),
+            ValueError,
+            "rand_c(): out for 'v' shares memory with the argument 'u'",
+        ),
+        (lambda m: m.rand_c(_BUFFER[:4], out=_BUFFER[4:9]), None, None),  # adjacent, not shared: valid
+    ],
+)
 def test_wrong_out_is_refused_naming_it(module, call, kind, message):
     if kind is None:  # a valid out, for contrast
         call(module)
@@ -515,10 +700,13 @@ def test_results_a_caller_holds_are_never_written_again(module):
     assert ref() is None  # let go with only a weak reference: freed, not handed out again
 
 
-@pytest.mark.parametrize("change", [
-    lambda M: setattr(M, "shape", (9,)),
-    lambda M: setattr(M.flags, "writeable", False),
-])
+@pytest.mark.parametrize(
+    "change",
+    [
+        lambda M: setattr(M, "shape", (9,)),
+        lambda M: setattr(M.flags, "writeable", False),
+    ],
+)
 def test_a_result_changed_before_it_was_let_go_is_not_handed_out(module, change):
     Q, QD = _states(4)
     expected = module.rand_a(Q, QD)
@@ -534,31 +722,47 @@ def test_a_result_changed_before_it_was_let_go_is_not_handed_out(module, change)
 _Q, _QD = np.zeros(3), np.zeros(2)
 
 
-@pytest.mark.parametrize("call, message", [
-    (lambda m: m.rand_a(), "rand_a() missing 2 required positional arguments: 'q' and 'qd'"),
-    (lambda m: m.rand_a(qd=_QD), "rand_a() missing 1 required positional argument: 'q'"),
-    (lambda m: m.rand_a(_Q), "rand_a() missing 1 required positional argument: 'qd'"),
-    (lambda m: m.rand_a(_Q, _QD, _QD), "rand_a() takes 2 positional arguments but 3 were given"),
-    (lambda m: m.rand_c(_Q, _Q), "rand_c() takes 1 positional argument but 2 were given"),
-    (lambda m: m.rand_a(_Q, _QD, x=_Q), "rand_a() got an unexpected keyword argument 'x'"),
-    (lambda m: m.rand_a(q=_Q, qd=_QD, Q=_Q), "rand_a() got an unexpected keyword argument 'Q'"),
-    (lambda m: m.rand_a(_Q, _QD, q=_Q), "rand_a() got multiple values for argument 'q'"),
-    (lambda m: m.rand_a(_Q, qd=_QD, q=_Q), "rand_a() got multiple values for argument 'q'"),
-    (lambda m: m.rand_c(_Q, _Q, u=_Q), "rand_c() takes 1 positional argument but 2 were given"),
-    (lambda m: m.rand_a(None, _QD),
-     "rand_a(): argument 'q' must be a float64 array of shape (3,) or (B, 3), got None"),
-    (lambda m: m.rand_a(_Q, qd=None),
-     "rand_a(): argument 'qd' must be a float64 array of shape (2,) or (B, 2), got None"),
-    (lambda m: m.rand_b("1.5", _QD),
-     "rand_b(): argument 'q' must be a float64 array of shape (3,) or (B, 3), got str"),
-    (lambda m: m.rand_c(u=b"1234"),
-     "rand_c(): argument 'u' must be a float64 array of shape (4,) or (B, 4), got bytes"),
-    (lambda m: m.rand_a(_Q, {"a": 1}),
-     "rand_a(): argument 'qd' must be a float64 array of shape (2,) or (B, 2), got dict: "
-     "float() argument must be a string or a real number, not 'dict'"),
-    (lambda m: m.rand_a(_Q, np.zeros(2, complex)), "rand_a(): argument 'qd' must be a float64 "
-     "array of shape (2,) or (B, 2), got numpy.ndarray: Cannot cast array data"),
-])
+@pytest.mark.parametrize(
+    "call, message",
+    [
+        (lambda m: m.rand_a(), "rand_a() missing 2 required positional arguments: 'q' and 'qd'"),
+        (lambda m: m.rand_a(qd=_QD), "rand_a() missing 1 required positional argument: 'q'"),
+        (lambda m: m.rand_a(_Q), "rand_a() missing 1 required positional argument: 'qd'"),
+        (lambda m: m.rand_a(_Q, _QD, _QD), "rand_a() takes 2 positional arguments but 3 were given"),
+        (lambda m: m.rand_c(_Q, _Q), "rand_c() takes 1 positional argument but 2 were given"),
+        (lambda m: m.rand_a(_Q, _QD, x=_Q), "rand_a() got an unexpected keyword argument 'x'"),
+        (lambda m: m.rand_a(q=_Q, qd=_QD, Q=_Q), "rand_a() got an unexpected keyword argument 'Q'"),
+        (lambda m: m.rand_a(_Q, _QD, q=_Q), "rand_a() got multiple values for argument 'q'"),
+        (lambda m: m.rand_a(_Q, qd=_QD, q=_Q), "rand_a() got multiple values for argument 'q'"),
+        (lambda m: m.rand_c(_Q, _Q, u=_Q), "rand_c() takes 1 positional argument but 2 were given"),
+        (
+            lambda m: m.rand_a(None, _QD),
+            "rand_a(): argument 'q' must be a float64 array of shape (3,) or (B, 3), got None",
+        ),
+        (
+            lambda m: m.rand_a(_Q, qd=None),
+            "rand_a(): argument 'qd' must be a float64 array of shape (2,) or (B, 2), got None",
+        ),
+        (
+            lambda m: m.rand_b("1.5", _QD),
+            "rand_b(): argument 'q' must be a float64 array of shape (3,) or (B, 3), got str",
+        ),
+        (
+            lambda m: m.rand_c(u=b"1234"),
+            "rand_c(): argument 'u' must be a float64 array of shape (4,) or (B, 4), got bytes",
+        ),
+        (
+            lambda m: m.rand_a(_Q, {"a": 1}),
+            "rand_a(): argument 'qd' must be a float64 array of shape (2,) or (B, 2), got dict: "
+            "float() argument must be a string or a real number, not 'dict'",
+        ),
+        (
+            lambda m: m.rand_a(_Q, np.zeros(2, complex)),
+            "rand_a(): argument 'qd' must be a float64 "
+            "array of shape (2,) or (B, 2), got numpy.ndarray: Cannot cast array data",
+        ),
+    ],
+)
 def test_argument_errors_raise_type_error(module, call, message):
     with pytest.raises(TypeError) as caught:
         call(module)
@@ -568,8 +772,10 @@ def test_argument_errors_raise_type_error(module, call, message):
 def test_unconvertible_values_raise_value_error_naming_the_argument(module):
     with pytest.raises(ValueError) as caught:
         module.rand_a(["a", "b", "c"], _QD)
-    assert str(caught.value) == ("rand_a(): argument 'q' must be a float64 array of shape (3,) or "
-                                 "(B, 3), got list: could not convert string to float: 'a'")
+    assert str(caught.value) == (
+        "rand_a(): argument 'q' must be a float64 array of shape (3,) or "
+        "(B, 3), got list: could not convert string to float: 'a'"
+    )
     assert isinstance(caught.value.__cause__, ValueError)
     with pytest.raises(ValueError, match=r"argument 'qd' must be a float64 array .* got list: "):
         module.rand_a(_Q, [[1.0, 2.0], [3.0]])
@@ -579,9 +785,13 @@ def test_argument_errors_leak_no_references(module):
     q, qd = np.zeros(3), np.zeros(2)
     before = sys.getrefcount(q), sys.getrefcount(qd)
     for _ in range(200):
-        for call in (lambda: module.rand_a(q, qd=qd, x=q), lambda: module.rand_a(q, qd, q=q),
-                     lambda: module.rand_a(q), lambda: module.rand_a(q, qd=None),
-                     lambda: module.rand_a(q, ["x", "y"])):
+        for call in (
+            lambda: module.rand_a(q, qd=qd, x=q),
+            lambda: module.rand_a(q, qd, q=q),
+            lambda: module.rand_a(q),
+            lambda: module.rand_a(q, qd=None),
+            lambda: module.rand_a(q, ["x", "y"]),
+        ):
             with pytest.raises((TypeError, ValueError)):
                 call()
         module.rand_a(q=q, qd=qd)
@@ -590,13 +800,13 @@ def test_argument_errors_leak_no_references(module):
 
 # ------------------------------------------------------------------------- the .pyi stub
 
+
 def test_stub_declares_every_function_attribute_and_signature(built, module):
     tree = ast.parse((built / "randbot.pyi").read_text())
     assert ast.get_docstring(tree).startswith("randbot: robot functions generated by robotgen")
     functions = {node.name: node for node in tree.body if isinstance(node, ast.FunctionDef)}
     assert sorted(functions) == sorted([k.name for k in KERNELS] + ["info"])
-    variables = {node.target.id: ast.unparse(node.annotation) for node in tree.body
-                 if isinstance(node, ast.AnnAssign)}
+    variables = {node.target.id: ast.unparse(node.annotation) for node in tree.body if isinstance(node, ast.AnnAssign)}
     assert variables == {"nq": "int", "dt": "Any", "tool": "Any"}
     assert ast.unparse(functions["info"].returns) == "dict[str, Any]"
     array = "npt.NDArray[np.float64]"
@@ -606,11 +816,11 @@ def test_stub_declares_every_function_attribute_and_signature(built, module):
         assert not (arguments.posonlyargs or arguments.vararg or arguments.kwarg or arguments.defaults)
         assert [a.arg for a in arguments.args] == [p.name for p in kernel.inputs]
         assert [a.arg for a in arguments.kwonlyargs] == ["out"]
-        assert list(inspect.signature(getattr(module, kernel.name)).parameters) == \
-            [a.arg for a in arguments.args] + ["out"]
+        assert list(inspect.signature(getattr(module, kernel.name)).parameters) == [a.arg for a in arguments.args] + [
+            "out"
+        ]
         assert {ast.unparse(a.annotation) for a in arguments.args} == {"npt.ArrayLike"}
-        expected = (array if len(kernel.outputs) == 1
-                    else f"tuple[{', '.join([array] * len(kernel.outputs))}]")
+        expected = array if len(kernel.outputs) == 1 else f"tuple[{', '.join([array] * len(kernel.outputs))}]"
         assert ast.unparse(node.returns) == expected
         assert ast.unparse(arguments.kwonlyargs[0].annotation) == f"{expected} | None"
         assert ast.unparse(arguments.kw_defaults[0]) == "None"
@@ -619,12 +829,18 @@ def test_stub_declares_every_function_attribute_and_signature(built, module):
 
 def test_stub_docstrings_are_escaped(tmp_path):
     x = ca.SX.sym("x")
-    kernel = Kernel("odd", 'Says "hi" \\ with \u00e9 and """ quotes\tand tabs.\n\nSecond paragraph.',
-                    (Port("x", 1),), (Port("y", 1),), ca.Function("f", [x], [2 * x]))
+    kernel = Kernel(
+        "odd",
+        'Says "hi" \\ with \u00e9 and """ quotes\tand tabs.\n\nSecond paragraph.',
+        (Port("x", 1),),
+        (Port("y", 1),),
+        ca.Function("f", [x], [2 * x]),
+    )
     build.emit(tmp_path / "odd", "odd", [kernel], nq=1, compile=False)
     tree = ast.parse((tmp_path / "odd" / "odd.pyi").read_text(encoding="ascii"))
-    assert ast.get_docstring(tree.body[-1], clean=False) == \
-        'Says "hi" \\ with \u00e9 and """ quotes and tabs.'  # one line, whitespace collapsed
+    assert (
+        ast.get_docstring(tree.body[-1], clean=False) == 'Says "hi" \\ with \u00e9 and """ quotes and tabs.'
+    )  # one line, whitespace collapsed
 
 
 def test_stub_names_are_reserved(tmp_path):
@@ -641,16 +857,22 @@ def test_mypy_checks_calls_against_the_stub(built, tmp_path):
         "y, M = randbot.rand_a(q=np.zeros(3), qd=[1.0, 2.0])\n"
         "m: float = float(randbot.rand_b(np.zeros(3), qd=np.zeros(2))[0, 0])\n"
         "n: int = randbot.nq + len(randbot.info())\n"
-        "print(randbot.dt, y.shape, M.shape)\n")
+        "print(randbot.dt, y.shape, M.shape)\n"
+    )
     (tmp_path / "bad.py").write_text(
         "import numpy as np\nimport randbot\n\n"
         "randbot.rand_a(np.zeros(3), qdd=np.zeros(2))\n"
         "randbot.rand_c()\n"
-        "y: int = randbot.rand_c(np.zeros(4))\n")
+        "y: int = randbot.rand_c(np.zeros(4))\n"
+    )
     env = {**os.environ, "MYPYPATH": str(built)}
-    result = subprocess.run([sys.executable, "-m", "mypy", "--strict", "--no-incremental",
-                             "--cache-dir", os.devnull, "good.py", "bad.py"],
-                            cwd=tmp_path, env=env, capture_output=True, text=True)
+    result = subprocess.run(
+        [sys.executable, "-m", "mypy", "--strict", "--no-incremental", "--cache-dir", os.devnull, "good.py", "bad.py"],
+        cwd=tmp_path,
+        env=env,
+        capture_output=True,
+        text=True,
+    )
     errors = [line for line in result.stdout.splitlines() if ": error:" in line]
     assert not [e for e in errors if e.startswith("good.py")], result.stdout
     bad = "\n".join(e for e in errors if e.startswith("bad.py"))
@@ -664,17 +886,23 @@ def test_mypy_checks_calls_against_the_stub(built, tmp_path):
 def test_stub_agrees_with_the_runtime_module(built, tmp_path):
     """mypy's stubtest imports the extension and compares every name and signature."""
     env = {**os.environ, "MYPYPATH": str(built), "PYTHONPATH": str(built)}
-    result = subprocess.run([sys.executable, "-m", "mypy.stubtest", "randbot"], cwd=tmp_path,
-                            env=env, capture_output=True, text=True)
+    result = subprocess.run(
+        [sys.executable, "-m", "mypy.stubtest", "randbot"], cwd=tmp_path, env=env, capture_output=True, text=True
+    )
     assert result.returncode == 0, result.stdout + result.stderr
 
 
 def test_module_attributes_and_info(module):
     info = module.info()
     assert info == {
-        "name": "randbot", "nq": 3, "nodes": ["arm"], "functions": [k.name for k in KERNELS],
-        "robotgen_version": info["robotgen_version"], "spec_sha256": "ab" * 32,
-        "precision": "double"}
+        "name": "randbot",
+        "nq": 3,
+        "nodes": ["arm"],
+        "functions": [k.name for k in KERNELS],
+        "robotgen_version": info["robotgen_version"],
+        "spec_sha256": "ab" * 32,
+        "precision": "double",
+    }
     module.info()["nq"] = 99
     assert module.info()["nq"] == 3 == module.nq
     assert (module.dt, module.tool) == (0.001, "gripper")
@@ -687,8 +915,7 @@ def test_manifest(built):
     assert manifest["name"] == "randbot" and manifest["casadi_version"] == ca.__version__
     assert manifest["precision"] == "double" and manifest["nq"] == 3
     by_name = {f["name"]: f for f in manifest["functions"]}
-    assert by_name["rand_a"]["outputs"] == [{"name": "y", "shape": [4]},
-                                            {"name": "M", "shape": [3, 3]}]
+    assert by_name["rand_a"]["outputs"] == [{"name": "y", "shape": [4]}, {"name": "M", "shape": [3, 3]}]
     assert by_name["every_op"]["sin_cos_ops"] == 2
     assert by_name["constant"]["arithmetic_ops"] == 0
     assert all(f["arithmetic_ops"] > 10 for f in manifest["functions"] if f["name"].startswith("rand"))
@@ -703,6 +930,7 @@ def test_every_operation_is_printed():
 
 
 # ------------------------------------------------------------ (d) determinism, (e) atomicity
+
 
 def test_emitting_twice_is_byte_identical(tmp_path):
     first, second = tmp_path / "a" / "bot", tmp_path / "b" / "elsewhere"
@@ -731,8 +959,7 @@ def test_failed_emit_keeps_previous_output(tmp_path, monkeypatch):
     out = tmp_path / "bot"
     build.emit(out, "bot", KERNELS[:1], nq=3, compile=False)
     before = {p.name: p.read_bytes() for p in out.iterdir()}
-    monkeypatch.setattr(emit_compile, "compile_extension",
-                        lambda *a, **k: (_ for _ in ()).throw(RuntimeError("boom")))
+    monkeypatch.setattr(emit_compile, "compile_extension", lambda *a, **k: (_ for _ in ()).throw(RuntimeError("boom")))
     with pytest.raises(RuntimeError, match="boom"):
         build.emit(out, "bot", KERNELS[:2], nq=3)
     assert {p.name: p.read_bytes() for p in out.iterdir()} == before
@@ -755,14 +982,16 @@ def test_compiler_errors_carry_the_compiler_output(tmp_path):
 
 # ------------------------------------------------------------------------ (f) float precision
 
+
 def test_float_precision_agrees_to_single_precision(tmp_path):
     kernels = planar_arm_kernels()
     out = tmp_path / "armf"
     build.emit(out, "armf", kernels, nq=3, precision="float")
     source = (out / "armf.c").read_text()
     assert "float *q" in source and "sinf(" in source and "double" not in source
-    subprocess.run([GCC, *STRICT, "-O2", "-c", str(out / "armf.c"), "-o", str(tmp_path / "a.o")],
-                   check=True, capture_output=True)
+    subprocess.run(
+        [GCC, *STRICT, "-O2", "-c", str(out / "armf.c"), "-o", str(tmp_path / "a.o")], check=True, capture_output=True
+    )
     module = load_module(out, "armf")
     assert module.info()["precision"] == "float"
     rng = np.random.default_rng(3)
@@ -774,11 +1003,11 @@ def test_float_precision_agrees_to_single_precision(tmp_path):
             np.testing.assert_array_equal(getattr(module, kernel.name)(q=q), got)
             assert_close(got, reference(kernel, [q])[0], 1e-5)
         batch = rng.uniform(-np.pi, np.pi, (4, 3))
-        np.testing.assert_array_equal(getattr(module, kernel.name)(batch)[2],
-                                      getattr(module, kernel.name)(batch[2]))
+        np.testing.assert_array_equal(getattr(module, kernel.name)(batch)[2], getattr(module, kernel.name)(batch[2]))
 
 
 # ------------------------------------------------------------- (g) no state, heap or I/O in C
+
 
 def test_c_library_has_no_mutable_statics_heap_or_io(built):
     for file in ("randbot.c", "randbot.h"):
@@ -789,10 +1018,10 @@ def test_c_library_has_no_mutable_statics_heap_or_io(built):
 
 # ------------------------------------------------------------------- internal errors are clear
 
+
 def test_unprintable_operation_is_an_internal_error(tmp_path):
     x = ca.SX.sym("x")
-    kernel = Kernel("inv_erf", "", (Port("x", 1),), (Port("y", 1),),
-                    ca.Function("f", [x], [ca.erfinv(x)]))
+    kernel = Kernel("inv_erf", "", (Port("x", 1),), (Port("y", 1),), ca.Function("f", [x], [ca.erfinv(x)]))
     with pytest.raises(KernelError, match="OP_ERFINV"):
         build.emit(tmp_path / "bad", "bad", [kernel], nq=1, compile=False)
     assert not (tmp_path / "bad").exists()
@@ -802,20 +1031,28 @@ _X, _MX, _FREE = ca.SX.sym("x"), ca.MX.sym("x"), ca.SX.sym("free")
 _IDENTITY = ca.Function("f", [_X], [_X])
 
 
-@pytest.mark.parametrize("kernel, message", [
-    (Kernel("mx", "", (Port("x", 1),), (Port("y", 1),), ca.Function("f", [_MX], [2 * _MX])),
-     "SX Function"),
-    (Kernel("free", "", (Port("x", 1),), (Port("y", 1),),
-            ca.Function("f", [_X], [_X * _FREE], {"allow_free": True})), "free symbols"),
-    (Kernel("shape", "", (Port("x", 1),), (Port("y", 2, 2),),
-            ca.Function("f", [_X], [ca.SX.zeros(2, 2)])), "flattened row-major"),
-    (Kernel("count", "", (Port("x", 1), Port("z", 1)), (Port("y", 1),), _IDENTITY), "1 inputs"),
-    (Kernel("w1", "", (Port("w1", 1),), (Port("y", 1),), _IDENTITY), "reserved"),
-    (Kernel("names", "", (Port("sin", 1),), (Port("y", 1),), _IDENTITY), "reserved"),
-    (Kernel("same", "", (Port("y", 1),), (Port("y", 1),), _IDENTITY), "repeat"),
-    (Kernel("info", "", (Port("x", 1),), (Port("y", 1),), _IDENTITY), "repeat"),
-    (Kernel("bad-name", "", (Port("x", 1),), (Port("y", 1),), _IDENTITY), "identifier"),
-])
+@pytest.mark.parametrize(
+    "kernel, message",
+    [
+        (Kernel("mx", "", (Port("x", 1),), (Port("y", 1),), ca.Function("f", [_MX], [2 * _MX])), "SX Function"),
+        (
+            Kernel(
+                "free", "", (Port("x", 1),), (Port("y", 1),), ca.Function("f", [_X], [_X * _FREE], {"allow_free": True})
+            ),
+            "free symbols",
+        ),
+        (
+            Kernel("shape", "", (Port("x", 1),), (Port("y", 2, 2),), ca.Function("f", [_X], [ca.SX.zeros(2, 2)])),
+            "flattened row-major",
+        ),
+        (Kernel("count", "", (Port("x", 1), Port("z", 1)), (Port("y", 1),), _IDENTITY), "1 inputs"),
+        (Kernel("w1", "", (Port("w1", 1),), (Port("y", 1),), _IDENTITY), "reserved"),
+        (Kernel("names", "", (Port("sin", 1),), (Port("y", 1),), _IDENTITY), "reserved"),
+        (Kernel("same", "", (Port("y", 1),), (Port("y", 1),), _IDENTITY), "repeat"),
+        (Kernel("info", "", (Port("x", 1),), (Port("y", 1),), _IDENTITY), "repeat"),
+        (Kernel("bad-name", "", (Port("x", 1),), (Port("y", 1),), _IDENTITY), "identifier"),
+    ],
+)
 def test_broken_kernels_are_internal_errors(tmp_path, kernel, message):
     with pytest.raises(KernelError, match=message):
         build.emit(tmp_path / "bad", "bad", [kernel], nq=1, compile=False)
@@ -828,11 +1065,14 @@ def test_long_runs_of_one_value_are_printed_as_fill_loops():
     broken = [f"t1[{k}] = w{k % 2};" for k in range(2 * n)]  # the value alternates
     gap = [f"t2[{k}] = 1e-05;" for k in (*range(10), *range(11, 12 + n))]  # t2[10] is missing
     assert c_kernel.fills(["w0 = 0.0;", *run, "w1 = w0 + q[0];"]) == [
-        "w0 = 0.0;", f"for (int rg_e = 4; rg_e < {4 + n}; rg_e += 2) {{ t3[rg_e] = w0; t3[rg_e + 1] = w0; }}",
-        "w1 = w0 + q[0];"]
+        "w0 = 0.0;",
+        f"for (int rg_e = 4; rg_e < {4 + n}; rg_e += 2) {{ t3[rg_e] = w0; t3[rg_e + 1] = w0; }}",
+        "w1 = w0 + q[0];",
+    ]
     assert c_kernel.fills(short) == short
     assert c_kernel.fills(broken) == broken
     # n + 1 stores from t2[11]: a loop over n (two a step), then the last store
     assert c_kernel.fills(gap) == gap[:10] + [
         f"for (int rg_e = 11; rg_e < {11 + n}; rg_e += 2) {{ t2[rg_e] = 1e-05; t2[rg_e + 1] = 1e-05; }}",
-        f"t2[{11 + n}] = 1e-05;"]
+        f"t2[{11 + n}] = 1e-05;",
+    ]

@@ -4,6 +4,7 @@ manifest. The specs' controllers are checked against CasADi's evaluation of the 
 kernels (robotgen.symbolic.kernels_for), with the controller state carried by hand; a toy
 controller built with make_kernel covers what the specs do not (no run-time parameters, no
 init, several flags, single precision)."""
+
 from __future__ import annotations
 
 import importlib.util
@@ -43,6 +44,7 @@ MUTABLE_STATIC = r"\bstatic\b(?!\s+const\b)(?![^;={(]*\()"
 
 # ------------------------------------------------------------------------------ helpers
 
+
 def load_module(directory: Path, name: str):
     path = directory / (name + emit_compile.extension_suffix())
     spec = importlib.util.spec_from_file_location(name, path)
@@ -81,8 +83,11 @@ class Chain:
         port = kernel.inputs[-1]
         if port.name != PARAMS:
             return []
-        return [np.concatenate([np.ravel(np.asarray(self.parameters.get(p.name, p.default), float))
-                                for p in port.parameters])]
+        return [
+            np.concatenate(
+                [np.ravel(np.asarray(self.parameters.get(p.name, p.default), float)) for p in port.parameters]
+            )
+        ]
 
     def step(self, q, qd, pose_d, twist_d, accel_d) -> tuple[np.ndarray, dict]:
         args = [q, qd, np.ravel(pose_d), twist_d, accel_d]
@@ -96,8 +101,10 @@ class Chain:
         flags = [1.0 if self.flags[f] else 0.0 for f in self.controller.flags]
         result = self.step_kernel.function(*args, *state, *flags, *self._params(self.step_kernel))
         result = result if isinstance(result, (list, tuple)) else [result]
-        outputs = {p.name: np.array(v, float).ravel().reshape((p.rows, p.cols) if p.is_matrix else (p.rows,))
-                   for v, p in zip(result, self.step_kernel.outputs)}
+        outputs = {
+            p.name: np.array(v, float).ravel().reshape((p.rows, p.cols) if p.is_matrix else (p.rows,))
+            for v, p in zip(result, self.step_kernel.outputs)
+        }
         if n:
             self.state = outputs.pop("state_next")
         tau = outputs.pop(self.step_kernel.outputs[0].name)
@@ -105,7 +112,7 @@ class Chain:
 
     def view(self, name: str) -> np.ndarray:
         v = next(v for v in self.controller.views if v.name == name)
-        block = self.state[v.offset:v.offset + v.rows * v.cols]
+        block = self.state[v.offset : v.offset + v.rows * v.cols]
         return block.reshape(v.rows, v.cols) if v.cols > 1 else block
 
 
@@ -117,8 +124,9 @@ def hand_trajectory(system, steps: int, period: float) -> list[tuple]:
     q, qd, qdd = ca.SX.sym("q", 6), ca.SX.sym("qd", 6), ca.SX.sym("qdd", 6)
     R, p = hand.pose(q)
     J = hand.jacobian(q)
-    f = ca.Function("f", [q, qd, qdd], [ca.vertcat(ca.horzcat(R, p), ca.DM([[0, 0, 0, 1]])), J @ qd,
-                                        J @ qdd + hand.bias(q, qd)])
+    f = ca.Function(
+        "f", [q, qd, qdd], [ca.vertcat(ca.horzcat(R, p), ca.DM([[0, 0, 0, 1]])), J @ qd, J @ qdd + hand.bias(q, qd)]
+    )
     q0 = np.array([0.1, 0.6, -0.4, 0.3, 0.5, 0.2])
     a, w = np.array([0.2, -0.1, 0.15, 0.3, -0.2, 0.25]), 2.0
     out = []
@@ -135,8 +143,7 @@ def hand_trajectory(system, steps: int, period: float) -> list[tuple]:
 def rac_spec_text() -> str:
     text = RMAC_SPEC.read_text()
     assert text.count("resolved_adaptive") == 2 and text.count("name: puma560_rmac") == 1
-    return text.replace("resolved_adaptive", "resolved_acceleration").replace("name: puma560_rmac",
-                                                                              "name: puma560_rac")
+    return text.replace("resolved_adaptive", "resolved_acceleration").replace("name: puma560_rmac", "name: puma560_rac")
 
 
 class Built:
@@ -174,6 +181,7 @@ def rac(build_module, rac_spec_path) -> Built:
 
 
 # ------------------------------------------------------------------ the adaptive controller
+
 
 def test_adaptive_controller_follows_the_casadi_kernel_chain(rmac):
     controller, chain = rmac.cls(), rmac.chain()
@@ -292,6 +300,7 @@ def test_period(rmac, rac):
 
 # -------------------------------------------------------- the resolved acceleration controller
 
+
 def test_resolved_acceleration_controller_equals_its_kernel(rac):
     controller, chain = rac.cls(), rac.chain()
     assert controller.state.shape == (0,) and controller.last == {}
@@ -402,40 +411,69 @@ def test_a_nan_or_infinite_measurement_is_status_1(rac, rmac, bad):
 POINT = (np.zeros(6), np.zeros(6), np.eye(4), np.zeros(6), np.zeros(6))
 
 
-@pytest.mark.parametrize("call, kind, message", [
-    (lambda c: c.step(np.zeros(5), *POINT[1:]), ValueError,
-     "AdaptiveController.step(): argument 'q' must have shape (6,) (one point, no batch axis), got (5,)"),
-    (lambda c: c.step(POINT[0], POINT[1], np.zeros(16), *POINT[3:]), ValueError,
-     "argument 'pose_d' must have shape (4, 4) (one point, no batch axis), got (16,)"),
-    (lambda c: c.step(np.zeros((2, 6)), *POINT[1:]), ValueError, "argument 'q' must have shape (6,)"),
-    (lambda c: c.step(POINT[0], None, *POINT[2:]), TypeError,
-     "AdaptiveController.step(): argument 'qd' must be a float64 array of shape (6,), got None"),
-    (lambda c: c.step(*POINT[:4], "abc"), TypeError, "argument 'accel_d' must be a float64 array of shape (6,), got str"),
-    (lambda c: c.step(*POINT[:4], ["x"] * 6), ValueError, "argument 'accel_d' must be a float64 array of shape (6,)"),
-    (lambda c: c.step(*POINT[:4]), TypeError, "AdaptiveController.step() missing 1 required positional argument: "
-                                              "'accel_d'"),
-    (lambda c: c.step(*POINT, POINT[0]), TypeError, "takes 5 positional arguments but 6 were given"),
-    (lambda c: c.step(*POINT, rmac_forgetting=0.9), TypeError, "unexpected keyword argument 'rmac_forgetting'"),
-    (lambda c: type(c)(0.9), TypeError, "AdaptiveController() takes no positional arguments"),
-    (lambda c: type(c)(forgetting=0.9), TypeError,
-     "AdaptiveController() got an unexpected keyword argument 'forgetting' (its run-time parameters are rmac_q, "
-     "rmac_torque_weight, rmac_forgetting)"),
-    (lambda c: type(c)(rmac_q=np.ones(5)), ValueError, "argument 'rmac_q' must have shape (12,), got (5,)"),
-    (lambda c: type(c)(rmac_forgetting=None), TypeError, "argument 'rmac_forgetting' must be a number"),
-    (lambda c: c.parameters.__setitem__("rmac_q", np.ones(3)), ValueError,
-     "AdaptiveController.parameters(): argument 'rmac_q' must have shape (12,), got (3,)"),
-    (lambda c: c.parameters.__setitem__("rmac_s", 1.0), KeyError, "'rmac_s' is not a run-time parameter"),
-    (lambda c: c.parameters.__delitem__("rmac_q"), TypeError, "cannot be deleted"),
-    (lambda c: c.parameters["nope"], KeyError, "nope"),
-    (lambda c: setattr(c, "parameters", [1.0]), TypeError, "AdaptiveController.parameters must be a mapping"),
-    (lambda c: setattr(c, "parameters", {"rmac_q": "x"}), TypeError, "argument 'rmac_q' must be"),
-    (lambda c: delattr(c, "parameters"), AttributeError, "cannot delete"),
-    (lambda c: setattr(c, "adapt", "no"), TypeError, "AdaptiveController.adapt must be a bool, got str"),
-    (lambda c: delattr(c, "adapt"), AttributeError, "cannot delete"),
-    (lambda c: setattr(c, "A", np.eye(12)), AttributeError, "not writable"),
-    (lambda c: setattr(c, "state", np.zeros(698)), AttributeError, "not writable"),
-    (lambda c: setattr(c, "x", 1), AttributeError, "x"),
-])
+@pytest.mark.parametrize(
+    "call, kind, message",
+    [
+        (
+            lambda c: c.step(np.zeros(5), *POINT[1:]),
+            ValueError,
+            "AdaptiveController.step(): argument 'q' must have shape (6,) (one point, no batch axis), got (5,)",
+        ),
+        (
+            lambda c: c.step(POINT[0], POINT[1], np.zeros(16), *POINT[3:]),
+            ValueError,
+            "argument 'pose_d' must have shape (4, 4) (one point, no batch axis), got (16,)",
+        ),
+        (lambda c: c.step(np.zeros((2, 6)), *POINT[1:]), ValueError, "argument 'q' must have shape (6,)"),
+        (
+            lambda c: c.step(POINT[0], None, *POINT[2:]),
+            TypeError,
+            "AdaptiveController.step(): argument 'qd' must be a float64 array of shape (6,), got None",
+        ),
+        (
+            lambda c: c.step(*POINT[:4], "abc"),
+            TypeError,
+            "argument 'accel_d' must be a float64 array of shape (6,), got str",
+        ),
+        (
+            lambda c: c.step(*POINT[:4], ["x"] * 6),
+            ValueError,
+            "argument 'accel_d' must be a float64 array of shape (6,)",
+        ),
+        (
+            lambda c: c.step(*POINT[:4]),
+            TypeError,
+            "AdaptiveController.step() missing 1 required positional argument: 'accel_d'",
+        ),
+        (lambda c: c.step(*POINT, POINT[0]), TypeError, "takes 5 positional arguments but 6 were given"),
+        (lambda c: c.step(*POINT, rmac_forgetting=0.9), TypeError, "unexpected keyword argument 'rmac_forgetting'"),
+        (lambda c: type(c)(0.9), TypeError, "AdaptiveController() takes no positional arguments"),
+        (
+            lambda c: type(c)(forgetting=0.9),
+            TypeError,
+            "AdaptiveController() got an unexpected keyword argument 'forgetting' (its run-time parameters are rmac_q, "
+            "rmac_torque_weight, rmac_forgetting)",
+        ),
+        (lambda c: type(c)(rmac_q=np.ones(5)), ValueError, "argument 'rmac_q' must have shape (12,), got (5,)"),
+        (lambda c: type(c)(rmac_forgetting=None), TypeError, "argument 'rmac_forgetting' must be a number"),
+        (
+            lambda c: c.parameters.__setitem__("rmac_q", np.ones(3)),
+            ValueError,
+            "AdaptiveController.parameters(): argument 'rmac_q' must have shape (12,), got (3,)",
+        ),
+        (lambda c: c.parameters.__setitem__("rmac_s", 1.0), KeyError, "'rmac_s' is not a run-time parameter"),
+        (lambda c: c.parameters.__delitem__("rmac_q"), TypeError, "cannot be deleted"),
+        (lambda c: c.parameters["nope"], KeyError, "nope"),
+        (lambda c: setattr(c, "parameters", [1.0]), TypeError, "AdaptiveController.parameters must be a mapping"),
+        (lambda c: setattr(c, "parameters", {"rmac_q": "x"}), TypeError, "argument 'rmac_q' must be"),
+        (lambda c: delattr(c, "parameters"), AttributeError, "cannot delete"),
+        (lambda c: setattr(c, "adapt", "no"), TypeError, "AdaptiveController.adapt must be a bool, got str"),
+        (lambda c: delattr(c, "adapt"), AttributeError, "cannot delete"),
+        (lambda c: setattr(c, "A", np.eye(12)), AttributeError, "not writable"),
+        (lambda c: setattr(c, "state", np.zeros(698)), AttributeError, "not writable"),
+        (lambda c: setattr(c, "x", 1), AttributeError, "x"),
+    ],
+)
 def test_errors_are_clear(rmac, call, kind, message):
     controller = rmac.cls()
     with pytest.raises(kind) as error:
@@ -469,6 +507,7 @@ def test_errors_leak_no_references(rmac):
 
 # ------------------------------------------------------------- documentation, stub, manifest
 
+
 def test_docs_info_and_manifest(rmac, rac):
     import inspect
     import json
@@ -481,12 +520,24 @@ def test_docs_info_and_manifest(rmac, rac):
     assert "Resolved motion adaptive control" in rmac.cls.__doc__
     assert "Resolved motion adaptive control" in rmac.cls.step.__doc__
     assert "eq 29" in rmac.cls.A.__doc__
-    expected = {"class": "AdaptiveController", "c_type": "puma560_rmac_adaptive_controller", "step": "adaptive_step",
-                "init": "adaptive_init", "period": 0.001, "state_size": 698, "flags": ["adapt"],
-                "outputs": ["dx"], "reads_parameters": True,
-                "start_check": {"function": "hand_distance", "limits": [0.01, 0.05], "units": ["m", "rad"]},
-                "views": [{"name": "A", "offset": 0, "shape": [12, 12]}, {"name": "B", "offset": 144, "shape": [12, 6]},
-                          {"name": "c", "offset": 216, "shape": [12]}, {"name": "P", "offset": 228, "shape": [19, 19]}]}
+    expected = {
+        "class": "AdaptiveController",
+        "c_type": "puma560_rmac_adaptive_controller",
+        "step": "adaptive_step",
+        "init": "adaptive_init",
+        "period": 0.001,
+        "state_size": 698,
+        "flags": ["adapt"],
+        "outputs": ["dx"],
+        "reads_parameters": True,
+        "start_check": {"function": "hand_distance", "limits": [0.01, 0.05], "units": ["m", "rad"]},
+        "views": [
+            {"name": "A", "offset": 0, "shape": [12, 12]},
+            {"name": "B", "offset": 144, "shape": [12, 6]},
+            {"name": "c", "offset": 216, "shape": [12]},
+            {"name": "P", "offset": 228, "shape": [19, 19]},
+        ],
+    }
     (info,) = rmac.module.info()["controllers"]
     for view in info["views"]:
         assert view.pop("doc")
@@ -494,17 +545,28 @@ def test_docs_info_and_manifest(rmac, rac):
     manifest = json.loads((rmac.dir / "manifest.json").read_text())
     assert [c["class"] for c in manifest["controllers"]] == ["AdaptiveController"]
     (info,) = rac.module.info()["controllers"]
-    assert info == {"class": "ResolvedAccelerationController", "c_type": "puma560_rac_resolved_acceleration_controller",
-                    "step": "resolved_acceleration_step", "init": None, "period": 0.001, "state_size": 0,
-                    "flags": [], "outputs": ["error"], "reads_parameters": True, "views": [],
-                    "start_check": expected["start_check"]}
+    assert info == {
+        "class": "ResolvedAccelerationController",
+        "c_type": "puma560_rac_resolved_acceleration_controller",
+        "step": "resolved_acceleration_step",
+        "init": None,
+        "period": 0.001,
+        "state_size": 0,
+        "flags": [],
+        "outputs": ["error"],
+        "reads_parameters": True,
+        "views": [],
+        "start_check": expected["start_check"],
+    }
     assert "AdaptiveController" in rmac.module.__doc__ and "controllers" in rmac.module.info.__doc__
 
 
 def test_header_declares_the_struct_and_functions(rmac, rac):
     header = (rmac.dir / "puma560_rmac.h").read_text()
-    assert ("typedef struct {\n    double state[PUMA560_RMAC_ADAPTIVE_CONTROLLER_STATE_SIZE];\n    double dx[12];\n"
-            "    int initialised;\n    int adapt;\n} puma560_rmac_adaptive_controller;") in header
+    assert (
+        "typedef struct {\n    double state[PUMA560_RMAC_ADAPTIVE_CONTROLLER_STATE_SIZE];\n    double dx[12];\n"
+        "    int initialised;\n    int adapt;\n} puma560_rmac_adaptive_controller;"
+    ) in header
     assert "#define PUMA560_RMAC_ADAPTIVE_CONTROLLER_STATE_SIZE 698" in header
     assert "#define PUMA560_RMAC_ADAPTIVE_CONTROLLER_P_OFFSET 228" in header
     assert "[228, 589) P (19, 19) row-major: the RLS covariance P (eq 37)" in header
@@ -512,12 +574,15 @@ def test_header_declares_the_struct_and_functions(rmac, rac):
     assert "The caller owns the struct: one per controlled arm, stepped from one thread" in comments
     assert "a struct is not for sharing between threads" in comments
     assert "void puma560_rmac_adaptive_controller_reset(puma560_rmac_adaptive_controller *controller);" in header
-    assert ("int puma560_rmac_adaptive_controller_step(puma560_rmac_adaptive_controller *controller, const double *q, "
-            "const double *qd, const double *pose_d, const double *twist_d, const double *accel_d, "
-            "const puma560_rmac_params *params, double *tau);") in header
+    assert (
+        "int puma560_rmac_adaptive_controller_step(puma560_rmac_adaptive_controller *controller, const double *q, "
+        "const double *qd, const double *pose_d, const double *twist_d, const double *accel_d, "
+        "const puma560_rmac_params *params, double *tau);"
+    ) in header
     header = (rac.dir / "puma560_rac.h").read_text()
-    assert ("typedef struct {\n    double error[6];\n    int initialised;\n} "
-            "puma560_rac_resolved_acceleration_controller;") in header
+    assert (
+        "typedef struct {\n    double error[6];\n    int initialised;\n} puma560_rac_resolved_acceleration_controller;"
+    ) in header
 
 
 def test_no_mutable_state_beyond_what_cpython_needs(rmac):
@@ -525,22 +590,38 @@ def test_no_mutable_state_beyond_what_cpython_needs(rmac):
         text = (rmac.dir / file).read_text()
         assert not re.search(MUTABLE_STATIC, text)
         assert not re.search(r"\b(malloc|calloc|realloc|free|printf|fopen)\s*\(", text)
-    found = set(re.findall(r"^static (?!const\b)[^(=;]*?\**(\w+)(?:\[[^]]*\])?\s*(?:=|;)",
-                           (rmac.dir / "puma560_rmac_module.c").read_text(), re.M))
+    found = set(
+        re.findall(
+            r"^static (?!const\b)[^(=;]*?\**(\w+)(?:\[[^]]*\])?\s*(?:=|;)",
+            (rmac.dir / "puma560_rmac_module.c").read_text(),
+            re.M,
+        )
+    )
     # each function's spare results (handed out again once let go of: test_emit.py)
     spares = {f"k_{name}_spare" for name in rmac.module.info()["functions"]}
     assert spares <= found
     # the keyword names made at import, and CPython's type, method and module tables
-    assert found - spares == {"rg_keys", "rg_methods", "rg_module", "rg_parameters_type", "rg_parameters_mapping",
-                     "rg_parameters_sequence", "rg_parameters_methods", "rgc_AdaptiveController_methods",
-                     "rgc_AdaptiveController_getset", "rgc_AdaptiveController_type"}
+    assert found - spares == {
+        "rg_keys",
+        "rg_methods",
+        "rg_module",
+        "rg_parameters_type",
+        "rg_parameters_mapping",
+        "rg_parameters_sequence",
+        "rg_parameters_methods",
+        "rgc_AdaptiveController_methods",
+        "rgc_AdaptiveController_getset",
+        "rgc_AdaptiveController_type",
+    }
 
 
 def test_stub_declares_the_classes(rmac):
     stub = (rmac.dir / "puma560_rmac.pyi").read_text()
     assert "@final\nclass AdaptiveController:" in stub
-    assert ("    def __init__(self, *, rmac_q: npt.ArrayLike = ..., rmac_torque_weight: float = ..., "
-            "rmac_forgetting: float = ...) -> None: ...") in stub
+    assert (
+        "    def __init__(self, *, rmac_q: npt.ArrayLike = ..., rmac_torque_weight: float = ..., "
+        "rmac_forgetting: float = ...) -> None: ..."
+    ) in stub
     assert "    adapt: bool\n" in stub and "    def P(self) -> npt.NDArray[np.float64]:" in stub
 
 
@@ -556,29 +637,38 @@ def test_mypy_and_stubtest(rmac, tmp_path):
         "period: float = c.period\n"
         "A = c.A + c.B.sum() + c.P.trace() + c.state.sum() + c.last['dx'].sum()\n"
         "c.reset()\n"
-        "print(tau.shape, A.shape, period, dict(c.parameters), list(c.parameters))\n")
+        "print(tau.shape, A.shape, period, dict(c.parameters), list(c.parameters))\n"
+    )
     (tmp_path / "bad.py").write_text(
         "import numpy as np\nimport puma560_rmac as m\n\n"
         "c = m.AdaptiveController(rmac_forgeting=0.95)\n"
         "c.step(np.zeros(6))\n"
         "c.period = 0.002\n"
-        "c.A = np.eye(12)\n")
+        "c.A = np.eye(12)\n"
+    )
     env = {**os.environ, "MYPYPATH": str(rmac.dir)}
-    result = subprocess.run([sys.executable, "-m", "mypy", "--strict", "--no-incremental", "--cache-dir", os.devnull,
-                             "good.py", "bad.py"], cwd=tmp_path, env=env, capture_output=True, text=True)
+    result = subprocess.run(
+        [sys.executable, "-m", "mypy", "--strict", "--no-incremental", "--cache-dir", os.devnull, "good.py", "bad.py"],
+        cwd=tmp_path,
+        env=env,
+        capture_output=True,
+        text=True,
+    )
     errors = [line for line in result.stdout.splitlines() if ": error:" in line]
     assert not [e for e in errors if e.startswith("good.py")], result.stdout
     assert 'bad.py:4: error: Unexpected keyword argument "rmac_forgeting"' in result.stdout
-    assert 'bad.py:5: error: Missing positional arguments' in result.stdout
+    assert "bad.py:5: error: Missing positional arguments" in result.stdout
     assert 'bad.py:6: error: Property "period" defined in "AdaptiveController" is read-only' in result.stdout
     assert 'bad.py:7: error: Property "A" defined in "AdaptiveController" is read-only' in result.stdout
     env["PYTHONPATH"] = str(rmac.dir)
-    result = subprocess.run([sys.executable, "-m", "mypy.stubtest", "puma560_rmac"], cwd=tmp_path, env=env,
-                            capture_output=True, text=True)
+    result = subprocess.run(
+        [sys.executable, "-m", "mypy.stubtest", "puma560_rmac"], cwd=tmp_path, env=env, capture_output=True, text=True
+    )
     assert result.returncode == 0, result.stdout + result.stderr
 
 
 # ------------------------------------------------------------------------------------ C
+
 
 def c_program(built: Built, points: list[tuple]) -> str:
     """Resets a controller struct and steps it through ``points``, printing tau (and the
@@ -587,18 +677,36 @@ def c_program(built: Built, points: list[tuple]) -> str:
     prefix = f"{name}_{snake_case(c.class_name)}_controller"
     rows = [", ".join(repr(float(v)) for part in point for v in np.ravel(part)) for point in points]
     outputs = [p for p in built.kernels[c.step].outputs[1:] if p.name != "state_next"]
-    lines = ["#include <stdio.h>", f'#include "{name}.h"', "",
-             f"static const double points[{len(points)}][40] = {{", *(f"    {{{row}}}," for row in rows), "};", "",
-             "int main(void)", "{", f"    {prefix} controller;", f"    {name}_params params = {name.upper()}_PARAMS_DEFAULT;",
-             "    double tau[6];", "    int k, i;", f"    {prefix}_reset(&controller);",
-             f"    for (k = 0; k < {len(points)}; ++k) {{",
-             "        const double *x = points[k];",
-             f"        if ({prefix}_step(&controller, x, x + 6, x + 12, x + 28, x + 34, &params, tau) != 0) {{",
-             "            return 1;", "        }",
-             "        for (i = 0; i < 6; ++i) {", '            printf("%.17g\\n", tau[i]);', "        }"]
+    lines = [
+        "#include <stdio.h>",
+        f'#include "{name}.h"',
+        "",
+        f"static const double points[{len(points)}][40] = {{",
+        *(f"    {{{row}}}," for row in rows),
+        "};",
+        "",
+        "int main(void)",
+        "{",
+        f"    {prefix} controller;",
+        f"    {name}_params params = {name.upper()}_PARAMS_DEFAULT;",
+        "    double tau[6];",
+        "    int k, i;",
+        f"    {prefix}_reset(&controller);",
+        f"    for (k = 0; k < {len(points)}; ++k) {{",
+        "        const double *x = points[k];",
+        f"        if ({prefix}_step(&controller, x, x + 6, x + 12, x + 28, x + 34, &params, tau) != 0) {{",
+        "            return 1;",
+        "        }",
+        "        for (i = 0; i < 6; ++i) {",
+        '            printf("%.17g\\n", tau[i]);',
+        "        }",
+    ]
     for p in outputs:
-        lines += [f"        for (i = 0; i < {p.size}; ++i) {{", f'            printf("%.17g\\n", controller.{p.name}[i]);',
-                  "        }"]
+        lines += [
+            f"        for (i = 0; i < {p.size}; ++i) {{",
+            f'            printf("%.17g\\n", controller.{p.name}[i]);',
+            "        }",
+        ]
     lines += ["    }", "    return 0;", "}", ""]
     return "\n".join(lines)
 
@@ -613,9 +721,15 @@ def c_objects(rmac, rac, tmp_path_factory):
             if compiler is None:
                 continue
             target = out / f"{built.name}-{Path(compiler).name}.o"
-            jobs[built.name, compiler] = (target, subprocess.Popen(
-                [compiler, *STRICT, "-O2", "-c", str(built.dir / f"{built.name}.c"), "-o", str(target)],
-                stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True))
+            jobs[built.name, compiler] = (
+                target,
+                subprocess.Popen(
+                    [compiler, *STRICT, "-O2", "-c", str(built.dir / f"{built.name}.c"), "-o", str(target)],
+                    stdout=subprocess.PIPE,
+                    stderr=subprocess.STDOUT,
+                    text=True,
+                ),
+            )
     objects = {}
     for key, (target, job) in jobs.items():
         output, _ = job.communicate()
@@ -632,11 +746,25 @@ def test_c_program_agrees_with_python(request, c_objects, tmp_path, which, compi
     built = request.getfixturevalue(which)
     (tmp_path / "main.c").write_text(c_program(built, built.trajectory))
     exe = tmp_path / "main"
-    subprocess.run([compiler, *STRICT, "-O2", f"-I{built.dir}", str(tmp_path / "main.c"),
-                    str(c_objects[built.name, compiler]), "-o", str(exe), "-lm"], check=True, capture_output=True,
-                   text=True)
-    printed = np.array([float(v) for v in subprocess.run([str(exe)], check=True, capture_output=True,
-                                                         text=True).stdout.split()])
+    subprocess.run(
+        [
+            compiler,
+            *STRICT,
+            "-O2",
+            f"-I{built.dir}",
+            str(tmp_path / "main.c"),
+            str(c_objects[built.name, compiler]),
+            "-o",
+            str(exe),
+            "-lm",
+        ],
+        check=True,
+        capture_output=True,
+        text=True,
+    )
+    printed = np.array(
+        [float(v) for v in subprocess.run([str(exe)], check=True, capture_output=True, text=True).stdout.split()]
+    )
     controller, expected = built.cls(), []
     for point in built.trajectory:
         expected.append(controller.step(*point))
@@ -648,6 +776,7 @@ def test_c_program_agrees_with_python(request, c_objects, tmp_path, which, compi
 
 # ------------------------------------------------------------------- a toy controller
 
+
 def toy_kernels():
     """A stateful step without init and without run-time parameters, two flags, a 2-joint
     arm: tau = (1 + boost) (pose_d[0, 3] - q + K qd) + state[0]; the state's K (2x2 at 1)
@@ -658,16 +787,33 @@ def toy_kernels():
     K = ca.reshape(state[1:5], 2, 2).T
     tau = (1 + boost) * (pose_d[3] - q + K @ qd) + state[0] + ca.sin(twist_d[:2]) * accel_d[:2]
     grown = ca.vertcat(state[0] + 0.5, state[1:5] + ca.vertcat(q, qd), state[5] - 1)
-    step = make_kernel("toy_step", "A toy step: tau from q, the state's K and two flags.",
-                       [("q", q), ("qd", qd), ("pose_d", pose_d, (4, 4)), ("twist_d", twist_d), ("accel_d", accel_d),
-                        ("state", state), ("hold", hold), ("boost", boost)],
-                       [("tau", tau, (2, 1)), ("gap", pose_d[3] - q, (2, 1)),
-                        ("state_next", ca.if_else(hold, state, grown), (6, 1))])
+    step = make_kernel(
+        "toy_step",
+        "A toy step: tau from q, the state's K and two flags.",
+        [
+            ("q", q),
+            ("qd", qd),
+            ("pose_d", pose_d, (4, 4)),
+            ("twist_d", twist_d),
+            ("accel_d", accel_d),
+            ("state", state),
+            ("hold", hold),
+            ("boost", boost),
+        ],
+        [("tau", tau, (2, 1)), ("gap", pose_d[3] - q, (2, 1)), ("state_next", ca.if_else(hold, state, grown), (6, 1))],
+    )
     return [step]
 
 
-TOY = Controller("ToyController", "toy_step", 0.0025, 6, None, ("hold", "boost"),
-                 (StateView("K", 1, 2, 2, "a toy gain"), StateView("count", 5, 1, 1, "minus the steps taken")))
+TOY = Controller(
+    "ToyController",
+    "toy_step",
+    0.0025,
+    6,
+    None,
+    ("hold", "boost"),
+    (StateView("K", 1, 2, 2, "a toy gain"), StateView("count", 5, 1, 1, "minus the steps taken")),
+)
 
 
 @pytest.mark.parametrize("precision", ["double", "float"])
@@ -684,8 +830,13 @@ def test_toy_controller(tmp_path, precision):
     rng = np.random.default_rng(3)
     rtol = 1e-12 if precision == "double" else 1e-5
     for k in range(6):
-        point = (rng.normal(size=2), rng.normal(size=2), rng.normal(size=(4, 4)), rng.normal(size=6),
-                 rng.normal(size=6))
+        point = (
+            rng.normal(size=2),
+            rng.normal(size=2),
+            rng.normal(size=(4, 4)),
+            rng.normal(size=6),
+            rng.normal(size=6),
+        )
         if k == 3:
             controller.boost = False
             chain.flags["boost"] = False
@@ -699,10 +850,14 @@ def test_toy_controller(tmp_path, precision):
         module.ToyController(x=1)
     header = (out / "toy.h").read_text()
     real = "double" if precision == "double" else "float"
-    assert (f"typedef struct {{\n    {real} state[TOY_TOY_CONTROLLER_STATE_SIZE];\n    {real} gap[2];\n"
-            "    int initialised;\n    int hold;\n    int boost;\n} toy_toy_controller;") in header
-    assert (f"int toy_toy_controller_step(toy_toy_controller *controller, const {real} *q, const {real} *qd, "
-            f"const {real} *pose_d, const {real} *twist_d, const {real} *accel_d, {real} *tau);") in header
+    assert (
+        f"typedef struct {{\n    {real} state[TOY_TOY_CONTROLLER_STATE_SIZE];\n    {real} gap[2];\n"
+        "    int initialised;\n    int hold;\n    int boost;\n} toy_toy_controller;"
+    ) in header
+    assert (
+        f"int toy_toy_controller_step(toy_toy_controller *controller, const {real} *q, const {real} *qd, "
+        f"const {real} *pose_d, const {real} *twist_d, const {real} *accel_d, {real} *tau);"
+    ) in header
     (tmp_path / "main.c").write_text(
         f'#include <stdio.h>\n#include "toy.h"\n\nint main(void)\n{{\n    toy_toy_controller c;\n'
         f"    const {real} q[2] = {{1, 2}}, pose[16] = {{0}}, six[6] = {{0}};\n    {real} tau[2];\n"
@@ -710,10 +865,25 @@ def test_toy_controller(tmp_path, precision):
         "    if (toy_toy_controller_step(&c, q, q, pose, six, six, tau) != 0\n"
         "        || toy_toy_controller_step(&c, q, q, pose, six, six, tau) != 0) {\n        return 1;\n    }\n"
         '    printf("%g %g %g\\n", (double)tau[0], (double)tau[1], (double)c.state[TOY_TOY_CONTROLLER_K_OFFSET]);\n'
-        "    return 0;\n}\n")
+        "    return 0;\n}\n"
+    )
     for compiler in filter(None, (GCC, CLANG)):
-        subprocess.run([compiler, *STRICT, "-O2", f"-I{out}", str(tmp_path / "main.c"), str(out / "toy.c"), "-o",
-                        str(tmp_path / "main"), "-lm"], check=True, capture_output=True, text=True)
+        subprocess.run(
+            [
+                compiler,
+                *STRICT,
+                "-O2",
+                f"-I{out}",
+                str(tmp_path / "main.c"),
+                str(out / "toy.c"),
+                "-o",
+                str(tmp_path / "main"),
+                "-lm",
+            ],
+            check=True,
+            capture_output=True,
+            text=True,
+        )
         printed = subprocess.run([str(tmp_path / "main")], check=True, capture_output=True, text=True).stdout
         c = module.ToyController()
         c.hold = False
@@ -734,27 +904,38 @@ def test_no_controllers_emits_as_before(tmp_path):
         assert "ontroller" not in text, file
     built = build.emit(tmp_path / "with", "toy", kernels, nq=2, compile=False, controllers=[TOY])
     header, plain = (built / "toy.h").read_text(), (without / "toy.h").read_text()
-    assert plain[plain.index("#define TOY_NQ"):plain.index("#ifdef __cplusplus\n}")] in header
+    assert plain[plain.index("#define TOY_NQ") : plain.index("#ifdef __cplusplus\n}")] in header
 
 
 def _toy_with(**changes) -> Controller:
-    fields = {"class_name": TOY.class_name, "step": TOY.step, "period": TOY.period, "state_size": TOY.state_size,
-              "init": TOY.init, "flags": TOY.flags, "views": TOY.views, **changes}
+    fields = {
+        "class_name": TOY.class_name,
+        "step": TOY.step,
+        "period": TOY.period,
+        "state_size": TOY.state_size,
+        "init": TOY.init,
+        "flags": TOY.flags,
+        "views": TOY.views,
+        **changes,
+    }
     return Controller(**fields)
 
 
-@pytest.mark.parametrize("controller, message", [
-    (_toy_with(step="nope"), "step kernel 'nope' is not among"),
-    (_toy_with(state_size=5), "input 'state' of 'toy_step' holds 6, the state 5"),
-    (_toy_with(flags=("boost", "hold")), "has inputs"),
-    (_toy_with(flags=("hold",)), "has inputs"),
-    (_toy_with(views=(StateView("K", 4, 2, 2, ""),)), "is not inside the state of 6"),
-    (_toy_with(views=(StateView("step", 0, 1, 1, ""),)), "attribute names repeat or are reserved"),
-    (_toy_with(class_name="toy_step"), "names repeat"),
-    (_toy_with(class_name="Mapping"), "reserved"),
-    (_toy_with(period=0.0), "is not positive"),
-    (_toy_with(init="toy_step"), "init kernel 'toy_step' has inputs"),
-])
+@pytest.mark.parametrize(
+    "controller, message",
+    [
+        (_toy_with(step="nope"), "step kernel 'nope' is not among"),
+        (_toy_with(state_size=5), "input 'state' of 'toy_step' holds 6, the state 5"),
+        (_toy_with(flags=("boost", "hold")), "has inputs"),
+        (_toy_with(flags=("hold",)), "has inputs"),
+        (_toy_with(views=(StateView("K", 4, 2, 2, ""),)), "is not inside the state of 6"),
+        (_toy_with(views=(StateView("step", 0, 1, 1, ""),)), "attribute names repeat or are reserved"),
+        (_toy_with(class_name="toy_step"), "names repeat"),
+        (_toy_with(class_name="Mapping"), "reserved"),
+        (_toy_with(period=0.0), "is not positive"),
+        (_toy_with(init="toy_step"), "init kernel 'toy_step' has inputs"),
+    ],
+)
 def test_broken_controllers_are_internal_errors(tmp_path, controller, message):
     with pytest.raises(KernelError, match=re.escape(message)):
         build.emit(tmp_path / "toy", "toy", toy_kernels(), nq=2, compile=False, controllers=[controller])

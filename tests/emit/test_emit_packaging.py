@@ -1,6 +1,7 @@
 """The emitted C library as a package: its Makefile honours CC/CFLAGS/AR/PREFIX/DESTDIR, and
 `make install` gives a pkg-config file and a CMake package that build working programs,
 whose numbers equal the Python module's."""
+
 from __future__ import annotations
 
 import importlib.util
@@ -20,8 +21,7 @@ NAME = "two_link"
 GCC = shutil.which("gcc")
 PKG_CONFIG = shutil.which("pkg-config")
 CMAKE = shutil.which("cmake")
-pytestmark = pytest.mark.skipif(GCC is None or shutil.which("make") is None,
-                                reason="gcc and make are required")
+pytestmark = pytest.mark.skipif(GCC is None or shutil.which("make") is None, reason="gcc and make are required")
 Q = (0.3, -0.75)
 
 APP = f"""#include <stdio.h>
@@ -68,10 +68,14 @@ def copy_of(built: Path, tmp_path: Path) -> Path:
 
 def make(directory: Path, *args: str, env: dict | None = None) -> str:
     """Runs make in ``directory`` with a clean make environment; returns its output."""
-    clean = {k: v for k, v in os.environ.items()
-             if k not in ("CC", "CFLAGS", "CPPFLAGS", "AR", "PREFIX", "DESTDIR", "MAKEFLAGS")}
-    result = subprocess.run(["make", "-C", str(directory), *args], env={**clean, **(env or {})},
-                            capture_output=True, text=True)
+    clean = {
+        k: v
+        for k, v in os.environ.items()
+        if k not in ("CC", "CFLAGS", "CPPFLAGS", "AR", "PREFIX", "DESTDIR", "MAKEFLAGS")
+    }
+    result = subprocess.run(
+        ["make", "-C", str(directory), *args], env={**clean, **(env or {})}, capture_output=True, text=True
+    )
     assert result.returncode == 0, result.stdout + result.stderr
     return result.stdout
 
@@ -88,6 +92,7 @@ def run_app(executable: Path) -> np.ndarray:
 
 # ----------------------------------------------------------------------------- the Makefile
 
+
 def test_make_honours_cc_and_cflags(built, tmp_path):
     lib = copy_of(built, tmp_path)
     words = compile_line(make(lib, "CC=gcc", "CFLAGS=-O1"))
@@ -101,8 +106,9 @@ def test_make_defaults_are_strict_and_c99_is_always_added(built, tmp_path):
     lib = copy_of(built, tmp_path)
     words = compile_line(make(lib, "-n"))
     assert {"-O2", "-Wall", "-Wextra", "-Werror", "-std=c99"} <= set(words)
-    words = compile_line(make(lib, "-n", env={"CC": "gcc", "CFLAGS": "-O0 -g -std=gnu11",
-                                              "CPPFLAGS": "-DROBOT=1", "AR": "gcc-ar"}))
+    words = compile_line(
+        make(lib, "-n", env={"CC": "gcc", "CFLAGS": "-O0 -g -std=gnu11", "CPPFLAGS": "-DROBOT=1", "AR": "gcc-ar"})
+    )
     assert words[0] == "gcc" and {"-O0", "-g", "-DROBOT=1"} <= set(words)
     assert words.index("-std=c99") > words.index("-std=gnu11")  # C99 wins
     assert f"gcc-ar rcs lib{NAME}.a {NAME}.o" in make(lib, "-n", "AR=gcc-ar")
@@ -114,8 +120,11 @@ def test_install_with_destdir_writes_the_final_prefix(built, tmp_path):
     make(lib, "install", "PREFIX=/opt/robots", f"DESTDIR={stage}")
     root = stage / "opt" / "robots"
     assert sorted(str(p.relative_to(root)) for p in root.rglob("*") if p.is_file()) == [
-        "include/two_link.h", f"lib/cmake/{NAME}/{NAME}Config.cmake", f"lib/lib{NAME}.a",
-        f"lib/pkgconfig/{NAME}.pc"]
+        "include/two_link.h",
+        f"lib/cmake/{NAME}/{NAME}Config.cmake",
+        f"lib/lib{NAME}.a",
+        f"lib/pkgconfig/{NAME}.pc",
+    ]
     pc = (root / "lib" / "pkgconfig" / f"{NAME}.pc").read_text()
     assert "prefix=/opt/robots\n" in pc and "@" not in pc and str(stage) not in pc
     config = (root / "lib" / "cmake" / NAME / f"{NAME}Config.cmake").read_text()
@@ -126,6 +135,7 @@ def test_install_with_destdir_writes_the_final_prefix(built, tmp_path):
 
 
 # ------------------------------------------------------------------------- installed library
+
 
 @pytest.fixture(scope="module")
 def prefix(built, tmp_path_factory) -> Path:
@@ -141,21 +151,25 @@ def prefix(built, tmp_path_factory) -> Path:
 @pytest.mark.skipif(PKG_CONFIG is None, reason="pkg-config not installed")
 def test_pkg_config_flags_build_a_program_that_agrees_with_python(prefix, python_mass, tmp_path):
     env = {**os.environ, "PKG_CONFIG_PATH": str(prefix / "lib" / "pkgconfig")}
-    flags = subprocess.run([PKG_CONFIG, "--cflags", "--libs", NAME], env=env, check=True,
-                           capture_output=True, text=True).stdout.split()
+    flags = subprocess.run(
+        [PKG_CONFIG, "--cflags", "--libs", NAME], env=env, check=True, capture_output=True, text=True
+    ).stdout.split()
     assert flags == [f"-I{prefix}/include", f"-L{prefix}/lib", f"-l{NAME}", "-lm"]
-    variable = subprocess.run([PKG_CONFIG, "--variable=prefix", NAME], env=env, check=True,
-                              capture_output=True, text=True).stdout.strip()
+    variable = subprocess.run(
+        [PKG_CONFIG, "--variable=prefix", NAME], env=env, check=True, capture_output=True, text=True
+    ).stdout.strip()
     assert variable == str(prefix)
     (tmp_path / "app.c").write_text(APP)
-    subprocess.run([GCC, "-std=c99", "-Wall", "-Wextra", "-Werror", str(tmp_path / "app.c"),
-                    "-o", str(tmp_path / "app"), *flags], check=True, capture_output=True)
+    subprocess.run(
+        [GCC, "-std=c99", "-Wall", "-Wextra", "-Werror", str(tmp_path / "app.c"), "-o", str(tmp_path / "app"), *flags],
+        check=True,
+        capture_output=True,
+    )
     np.testing.assert_allclose(run_app(tmp_path / "app"), python_mass, rtol=1e-13, atol=0)
 
 
 @pytest.mark.skipif(CMAKE is None, reason="cmake not installed")
-def test_cmake_find_package_builds_a_program_that_agrees_with_python(prefix, python_mass,
-                                                                     tmp_path):
+def test_cmake_find_package_builds_a_program_that_agrees_with_python(prefix, python_mass, tmp_path):
     app = tmp_path / "app"
     app.mkdir()
     (app / "app.c").write_text(APP)
@@ -164,11 +178,13 @@ def test_cmake_find_package_builds_a_program_that_agrees_with_python(prefix, pyt
         "project(app C)\n"
         f"find_package({NAME} REQUIRED)\n"
         "add_executable(app app.c)\n"
-        f"target_link_libraries(app PRIVATE {NAME}::{NAME})\n")
+        f"target_link_libraries(app PRIVATE {NAME}::{NAME})\n"
+    )
     build = tmp_path / "build"
-    for command in ([CMAKE, "-S", str(app), "-B", str(build), f"-DCMAKE_PREFIX_PATH={prefix}",
-                     f"-DCMAKE_C_COMPILER={GCC}"],
-                    [CMAKE, "--build", str(build)]):
+    for command in (
+        [CMAKE, "-S", str(app), "-B", str(build), f"-DCMAKE_PREFIX_PATH={prefix}", f"-DCMAKE_C_COMPILER={GCC}"],
+        [CMAKE, "--build", str(build)],
+    ):
         result = subprocess.run(command, capture_output=True, text=True)
         assert result.returncode == 0, result.stdout + result.stderr
     np.testing.assert_allclose(run_app(build / "app"), python_mass, rtol=1e-13, atol=0)

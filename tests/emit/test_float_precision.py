@@ -2,6 +2,7 @@
 dynamics of the leaves, the servo step of the trees, on random inputs. The relative error
 (largest difference over the largest magnitude of each output) is printed per function and
 must stay within FLOAT_BOUND, the bound docs/c-api.md states."""
+
 from __future__ import annotations
 
 import importlib

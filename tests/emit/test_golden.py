@@ -3,6 +3,7 @@
 must equal it byte for byte, on every machine: CI runs this file under several
 OPENBLAS_CORETYPE values and with the lowest numpy and scipy that pyproject.toml allows.
 Two builds in one process are equal too."""
+
 from __future__ import annotations
 
 import json

@@ -3,6 +3,7 @@ for latency-bound kernels, an order holding few values live for the others. Each
 what CasADi's order computes, bit for bit, and reads every value after it is written; the list
 schedule keeps the longest chain and is chosen for the kernels bound by it and only for them;
 the other order holds fewer values live than CasADi's."""
+
 from __future__ import annotations
 
 import math
@@ -17,13 +18,29 @@ from robotgen.emit.sx_program import read_program
 from robotgen.frontend.urdf import load_urdf_system
 from robotgen.symbolic import kernels_for
 
-_BINARY = {ca.OP_ADD: lambda a, b: a + b, ca.OP_SUB: lambda a, b: a - b, ca.OP_MUL: lambda a, b: a * b,
-           ca.OP_DIV: lambda a, b: a / b, ca.OP_LT: lambda a, b: float(a < b), ca.OP_LE: lambda a, b: float(a <= b),
-           ca.OP_AND: lambda a, b: float(bool(a) and bool(b)), ca.OP_OR: lambda a, b: float(bool(a) or bool(b)),
-           ca.OP_IF_ELSE_ZERO: lambda c, x: x if c else 0.0}
-_UNARY = {ca.OP_NEG: lambda a: -a, ca.OP_SQ: lambda a: a * a, ca.OP_TWICE: lambda a: 2 * a,
-          ca.OP_INV: lambda a: 1 / a, ca.OP_SQRT: math.sqrt, ca.OP_SIN: math.sin, ca.OP_COS: math.cos,
-          ca.OP_NOT: lambda a: float(not a), ca.OP_FABS: abs, ca.OP_ASSIGN: lambda a: a}
+_BINARY = {
+    ca.OP_ADD: lambda a, b: a + b,
+    ca.OP_SUB: lambda a, b: a - b,
+    ca.OP_MUL: lambda a, b: a * b,
+    ca.OP_DIV: lambda a, b: a / b,
+    ca.OP_LT: lambda a, b: float(a < b),
+    ca.OP_LE: lambda a, b: float(a <= b),
+    ca.OP_AND: lambda a, b: float(bool(a) and bool(b)),
+    ca.OP_OR: lambda a, b: float(bool(a) or bool(b)),
+    ca.OP_IF_ELSE_ZERO: lambda c, x: x if c else 0.0,
+}
+_UNARY = {
+    ca.OP_NEG: lambda a: -a,
+    ca.OP_SQ: lambda a: a * a,
+    ca.OP_TWICE: lambda a: 2 * a,
+    ca.OP_INV: lambda a: 1 / a,
+    ca.OP_SQRT: math.sqrt,
+    ca.OP_SIN: math.sin,
+    ca.OP_COS: math.cos,
+    ca.OP_NOT: lambda a: float(not a),
+    ca.OP_FABS: abs,
+    ca.OP_ASSIGN: lambda a: a,
+}
 
 
 def run(program, inputs: list[np.ndarray]) -> dict[tuple[int, int], float]:
@@ -46,13 +63,23 @@ def run(program, inputs: list[np.ndarray]) -> dict[tuple[int, int], float]:
 
 @pytest.fixture(scope="module")
 def kernels():
-    return {name: {k.name: k for k in kernels_for(load_urdf_system(str(robots_dir() / urdf), tip))}
-            for name, (urdf, tip) in (("ur5", UR5), ("panda", PANDA))}
+    return {
+        name: {k.name: k for k in kernels_for(load_urdf_system(str(robots_dir() / urdf), tip))}
+        for name, (urdf, tip) in (("ur5", UR5), ("panda", PANDA))
+    }
 
 
-@pytest.mark.parametrize("robot, kernel", [("panda", "mass"), ("panda", "jacobian"), ("panda", "gravity"),
-                                           ("ur5", "inverse_dynamics"), ("ur5", "forward_dynamics"),
-                                           ("panda", "mass_inverse")])
+@pytest.mark.parametrize(
+    "robot, kernel",
+    [
+        ("panda", "mass"),
+        ("panda", "jacobian"),
+        ("panda", "gravity"),
+        ("ur5", "inverse_dynamics"),
+        ("ur5", "forward_dynamics"),
+        ("panda", "mass_inverse"),
+    ],
+)
 def test_the_schedule_computes_the_same_bits_in_a_valid_order(kernels, robot, kernel):
     program = read_program(kernels[robot][kernel])
     scheduled = issue_order.list_scheduled(program)
@@ -74,8 +101,9 @@ def assert_same_bits_in_a_valid_order(kernel, program, scheduled):
     rng = np.random.default_rng(7)
     n = kernel.inputs[0].size
     for _ in range(5):
-        inputs = [rng.uniform(-np.pi, np.pi, p.size) if p.name == "q" else rng.uniform(-2, 2, p.size)
-                  for p in kernel.inputs]
+        inputs = [
+            rng.uniform(-np.pi, np.pi, p.size) if p.name == "q" else rng.uniform(-2, 2, p.size) for p in kernel.inputs
+        ]
         expected, got = run(program, inputs), run(scheduled, inputs)
         assert got.keys() == expected.keys() and len(got) >= n
         assert all(got[k] == expected[k] or (math.isnan(got[k]) and math.isnan(expected[k])) for k in got)
@@ -96,9 +124,16 @@ def test_the_order_is_deterministic(kernels):
     assert issue_order.list_scheduled(program) == issue_order.list_scheduled(program)
 
 
-@pytest.mark.parametrize("robot, kernel", [("panda", "servo_terms"), ("ur5", "servo_terms"),
-                                           ("panda", "forward_dynamics"), ("ur5", "coriolis"),
-                                           ("ur5", "inverse_dynamics_derivatives")])
+@pytest.mark.parametrize(
+    "robot, kernel",
+    [
+        ("panda", "servo_terms"),
+        ("ur5", "servo_terms"),
+        ("panda", "forward_dynamics"),
+        ("ur5", "coriolis"),
+        ("ur5", "inverse_dynamics_derivatives"),
+    ],
+)
 def test_the_pressure_order_computes_the_same_bits_with_constants_read_at_once(kernels, robot, kernel):
     """The order of every other straight-line kernel: the same bits, each value written before
     it is read, and each constant and input printed just before the step that first reads it

@@ -2,6 +2,7 @@
 valgrind on a short run (single points, batches, strided views, results written into out=,
 results let go of and filled anew, refused arguments), and a
 batch of 10^7 states is computed right; one whose arguments cannot be copied is a MemoryError."""
+
 from __future__ import annotations
 
 import os
@@ -23,7 +24,8 @@ def test_valgrind_finds_nothing_in_the_module(build_module, tmp_path):
         pytest.skip("valgrind is not installed (CI installs it)")
     module = build_module(SPECS / "two_link.yaml")
     script = tmp_path / "run.py"
-    script.write_text(textwrap.dedent(f"""
+    script.write_text(
+        textwrap.dedent(f"""
         import sys
         import weakref
         sys.path.insert(0, {str(Path(module.__file__).parent)!r})
@@ -60,17 +62,26 @@ def test_valgrind_finds_nothing_in_the_module(build_module, tmp_path):
         except FloatingPointError:
             pass
         print("done")
-    """))
+    """)
+    )
     log = tmp_path / "valgrind.log"
     env = {**os.environ, "PYTHONMALLOC": "malloc"}
-    result = subprocess.run(["valgrind", "--leak-check=no", f"--log-file={log}", sys.executable, str(script)],
-                            capture_output=True, text=True, env=env, timeout=600)
+    result = subprocess.run(
+        ["valgrind", "--leak-check=no", f"--log-file={log}", sys.executable, str(script)],
+        capture_output=True,
+        text=True,
+        env=env,
+        timeout=600,
+    )
     assert result.returncode == 0 and "done" in result.stdout, result.stderr
     # CPython itself (not built for valgrind) reports errors of its own; the module's are those
     # whose stack passes through the extension
     blocks = re.split(r"\n==\d+== \n", log.read_text())
-    ours = [b for b in blocks if re.search(r"== (Invalid|Conditional|Use of|Syscall|Mismatched|Source and)", b)
-            and "two_link" in b]
+    ours = [
+        b
+        for b in blocks
+        if re.search(r"== (Invalid|Conditional|Use of|Syscall|Mismatched|Source and)", b) and "two_link" in b
+    ]
     assert not ours, "\n\n".join(ours[:3])
 
 

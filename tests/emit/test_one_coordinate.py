@@ -2,6 +2,7 @@
 collapsed ones: M and C (1, 1), J (6, 1), the derivatives (1, 1), A (2, 2) and B (2, 1), and
 a batch puts B in front; out= takes those shapes. The values against the pendulum's closed
 forms."""
+
 from __future__ import annotations
 
 import importlib
@@ -23,13 +24,24 @@ PENDULUM = """<?xml version="1.0"?>
   <joint name="end" type="fixed"><parent link="arm"/><child link="tip"/><origin xyz="0 0 -1"/></joint>
 </robot>
 """
-M = 0.02 + 2 * 0.5 ** 2  # I_yy + m l^2
+M = 0.02 + 2 * 0.5**2  # I_yy + m l^2
 SHAPES = {  # docs/python-api.md with nq = 1
-    "fk": (4, 4), "jacobian": (6, 1), "jacobian_hand": (6, 1), "jacobian_dot_qd": (6,), "mass": (1, 1),
-    "coriolis": (1, 1), "gravity": (1,), "nonlinear": (1,), "inverse_dynamics": (1,), "forward_dynamics": (1,),
-    "servo_terms": ((1, 1), (1,), (6, 1), (6,)), "inverse_dynamics_derivatives": ((1, 1), (1, 1)),
-    "forward_dynamics_derivatives": ((1, 1), (1, 1), (1, 1)), "mass_inverse": (1, 1),
-    "discrete_dynamics": ((1,), (1,)), "discrete_dynamics_derivatives": ((1,), (1,), (2, 2), (2, 1)),
+    "fk": (4, 4),
+    "jacobian": (6, 1),
+    "jacobian_hand": (6, 1),
+    "jacobian_dot_qd": (6,),
+    "mass": (1, 1),
+    "coriolis": (1, 1),
+    "gravity": (1,),
+    "nonlinear": (1,),
+    "inverse_dynamics": (1,),
+    "forward_dynamics": (1,),
+    "servo_terms": ((1, 1), (1,), (6, 1), (6,)),
+    "inverse_dynamics_derivatives": ((1, 1), (1, 1)),
+    "forward_dynamics_derivatives": ((1, 1), (1, 1), (1, 1)),
+    "mass_inverse": (1, 1),
+    "discrete_dynamics": ((1,), (1,)),
+    "discrete_dynamics_derivatives": ((1,), (1,), (2, 2), (2, 1)),
     "jacobian_derivative": (6, 1),
 }
 
@@ -51,12 +63,27 @@ def pendulum(tmp_path_factory):
 def call(module, name: str, batch: int | None = None, **kw):
     lead = () if batch is None else (batch,)
     rng = np.random.default_rng(4)
-    args = {"q": rng.uniform(-1, 1, (*lead, 1)), "qd": rng.uniform(-1, 1, (*lead, 1)),
-            "qdd": rng.uniform(-1, 1, (*lead, 1)), "tau": rng.uniform(-1, 1, (*lead, 1)), "dt": 0.01}
-    inputs = {"fk": "q", "jacobian": "q", "jacobian_hand": "q", "mass": "q", "gravity": "q", "mass_inverse": "q",
-              "inverse_dynamics": "q qd qdd", "inverse_dynamics_derivatives": "q qd qdd",
-              "forward_dynamics": "q qd tau", "forward_dynamics_derivatives": "q qd tau",
-              "discrete_dynamics": "q qd tau dt", "discrete_dynamics_derivatives": "q qd tau dt"}.get(name, "q qd")
+    args = {
+        "q": rng.uniform(-1, 1, (*lead, 1)),
+        "qd": rng.uniform(-1, 1, (*lead, 1)),
+        "qdd": rng.uniform(-1, 1, (*lead, 1)),
+        "tau": rng.uniform(-1, 1, (*lead, 1)),
+        "dt": 0.01,
+    }
+    inputs = {
+        "fk": "q",
+        "jacobian": "q",
+        "jacobian_hand": "q",
+        "mass": "q",
+        "gravity": "q",
+        "mass_inverse": "q",
+        "inverse_dynamics": "q qd qdd",
+        "inverse_dynamics_derivatives": "q qd qdd",
+        "forward_dynamics": "q qd tau",
+        "forward_dynamics_derivatives": "q qd tau",
+        "discrete_dynamics": "q qd tau dt",
+        "discrete_dynamics_derivatives": "q qd tau dt",
+    }.get(name, "q qd")
     return getattr(module, name)(*(args[a] for a in inputs.split()), **kw)
 
 

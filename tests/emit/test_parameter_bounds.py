@@ -4,6 +4,7 @@ message `robotgen check` gives for it in a spec, through every way of setting it
 function's keyword, a controller's constructor, `parameters[name] = `, `parameters = {...}`),
 and `<name>_params_check` in C finds the same field. The C check and the Python one are
 separate code: random values, many of them outside, must be judged alike."""
+
 from __future__ import annotations
 
 import importlib.util
@@ -63,8 +64,9 @@ def toy(request, tmp_path_factory):
     symbols = ParameterSymbols.of(PARAMETERS)
     x = ca.SX.sym("x", 1)
     total = x + sum((ca.sum1(symbols.symbols[p.name]) for p in PARAMETERS[:-1]), ca.SX(0))
-    kernel = make_kernel("total", "x plus every bounded parameter's entries.", [("x", x)],
-                         [("y", total, (1, 1))], parameters=symbols)
+    kernel = make_kernel(
+        "total", "x plus every bounded parameter's entries.", [("x", x)], [("y", total, (1, 1))], parameters=symbols
+    )
     build.emit(out, name, [kernel], nq=1, spec_sha256="ab" * 32, precision=request.param)
     return load_module(out, name), out, request.param
 
@@ -75,8 +77,11 @@ def expected_message(parameter: RuntimeParameter, value) -> str | None:
     if violation is None:
         return None
     entry = ""
-    if parameter.shape and violation.index and not (parameter.bounds.positive_definite and len(violation.index) == 2
-                                                    and "symmetric" in violation.message):
+    if (
+        parameter.shape
+        and violation.index
+        and not (parameter.bounds.positive_definite and len(violation.index) == 2 and "symmetric" in violation.message)
+    ):
         entry = "[" + ", ".join(map(str, violation.index)) + "]"
     return f"total(): argument '{parameter.name}'{entry}: {violation.message}"
 
@@ -86,14 +91,23 @@ CASES = [
     ("mu", 0.0, "argument 'mu': forgetting factor 0 must be in (0, 1] (eq 37)"),
     ("mu", float("nan"), "argument 'mu': forgetting factor nan must be finite (eq 37)"),
     ("w", [1.0, 2.0, -0.5, 1.0], "argument 'w'[2]: weight -0.5 must be positive"),
-    ("K", [[1, 1, 1], [1, 0, 1]], "argument 'K'[1, 1]: gain 0 must be positive (the gain matrix must be positive "
-                                  "definite)"),
+    (
+        "K",
+        [[1, 1, 1], [1, 0, 1]],
+        "argument 'K'[1, 1]: gain 0 must be positive (the gain matrix must be positive definite)",
+    ),
     ("c", -1e-3, "argument 'c': damping kv_internal -0.001 must be at least 0"),
     ("a", -1.5, "argument 'a': fraction -1.5 must be in [-1, 1]"),
-    ("Q", [[1, 0, 0], [0.5, 1, 0], [0, 0, 1]], "argument 'Q': Q must be symmetric (eq 38): entry (0, 1) = 0 but "
-                                               "(1, 0) = 0.5"),
-    ("Q", [[1, 2, 0], [2, 1, 0], [0, 0, 1]], "argument 'Q': Q must be positive definite (eq 38): its smallest "
-                                             "eigenvalue is -1"),
+    (
+        "Q",
+        [[1, 0, 0], [0.5, 1, 0], [0, 0, 1]],
+        "argument 'Q': Q must be symmetric (eq 38): entry (0, 1) = 0 but (1, 0) = 0.5",
+    ),
+    (
+        "Q",
+        [[1, 2, 0], [2, 1, 0], [0, 0, 1]],
+        "argument 'Q': Q must be positive definite (eq 38): its smallest eigenvalue is -1",
+    ),
     ("Q", [[1, 0, 0], [0, np.inf, 0], [0, 0, 1]], "argument 'Q'[1, 1]: Q entry inf must be finite (eq 38)"),
 ]
 
@@ -177,19 +191,48 @@ int main(void) {{
 }}
 """)
     exe = tmp_path / "check"
-    subprocess.run([GCC, "-std=c99", "-Wall", "-Wextra", "-Werror", f"-I{out}", str(harness), str(out / f"{name}.c"),
-                    "-lm", "-o", str(exe)], check=True, capture_output=True)
-    assert subprocess.run([str(exe)], capture_output=True, text=True, check=True).stdout.split() == \
-        ["0", "6", "3", "3", "6", "6"]
+    subprocess.run(
+        [
+            GCC,
+            "-std=c99",
+            "-Wall",
+            "-Wextra",
+            "-Werror",
+            f"-I{out}",
+            str(harness),
+            str(out / f"{name}.c"),
+            "-lm",
+            "-o",
+            str(exe),
+        ],
+        check=True,
+        capture_output=True,
+    )
+    assert subprocess.run([str(exe)], capture_output=True, text=True, check=True).stdout.split() == [
+        "0",
+        "6",
+        "3",
+        "3",
+        "6",
+        "6",
+    ]
     header = (out / f"{name}.h").read_text()
     assert "     * range: in (0, 1]\n" in header and "     * range: symmetric positive definite\n" in header
     assert re.search(r"\*   7 free \(any number\)", header)
     info = {p["name"]: p["range"] for p in module.info()["parameters"]}
-    assert info == {"mu": "in (0, 1]", "w": "positive", "Q": "symmetric positive definite", "K": "positive",
-                    "c": "at least 0", "a": "in [-1, 1]", "free": None}
+    assert info == {
+        "mu": "in (0, 1]",
+        "w": "positive",
+        "Q": "symmetric positive definite",
+        "K": "positive",
+        "c": "at least 0",
+        "a": "in [-1, 1]",
+        "free": None,
+    }
 
 
 # ------------------------------------------------- the specs' parameters, check and run time
+
 
 def check_message(tmp_path, spec: Path, old: str, new: str) -> str:
     """The message of `robotgen check` (after FILE:LINE:COL: and the key's path) on ``spec``
@@ -207,25 +250,41 @@ def check_message(tmp_path, spec: Path, old: str, new: str) -> str:
 ANCHOR = "        tool: {xyz: [0, 0, 0.1], rpy: [0, pi/2, 0]}   # hand x along the tool: pitch 0 at the start\n"
 
 
-@pytest.mark.parametrize("setting, keyword, value", [
-    ("forgetting: 2.0", "rmac_forgetting", 2.0),
-    ("forgetting: 0.0", "rmac_forgetting", 0.0),
-    ("torque_weight: -1", "rmac_torque_weight", -1.0),
-    ("q: [40000, 40000, 40000, 40000, 40000, 40000, 1, 1, -2, 1, 1, 1]", "rmac_q",
-     np.r_[np.full(6, 4e4), 1, 1, -2, 1, 1, 1]),
-])
+@pytest.mark.parametrize(
+    "setting, keyword, value",
+    [
+        ("forgetting: 2.0", "rmac_forgetting", 2.0),
+        ("forgetting: 0.0", "rmac_forgetting", 0.0),
+        ("torque_weight: -1", "rmac_torque_weight", -1.0),
+        (
+            "q: [40000, 40000, 40000, 40000, 40000, 40000, 1, 1, -2, 1, 1, 1]",
+            "rmac_q",
+            np.r_[np.full(6, 4e4), 1, 1, -2, 1, 1, 1],
+        ),
+    ],
+)
 def test_the_adaptive_controller_refuses_what_check_refuses(build_module, tmp_path, setting, keyword, value):
     module = build_module(RMAC)
     said = check_message(tmp_path, RMAC, ANCHOR, ANCHOR + f"        {setting}\n")
     refusals = []
-    for fn, call in (("AdaptiveController", lambda: module.AdaptiveController(**{keyword: value})),
-                     ("AdaptiveController.parameters", lambda: module.AdaptiveController().parameters.__setitem__(
-                         keyword, value)),
-                     ("AdaptiveController.parameters", lambda: setattr(module.AdaptiveController(), "parameters",
-                                                                       {keyword: value})),
-                     ("adaptive_step", lambda: module.adaptive_step(
-                         np.zeros(6), np.zeros(6), np.eye(4), np.zeros(6), np.zeros(6), state=np.zeros(698), adapt=1.0,
-                         **{keyword: value}))):
+    for fn, call in (
+        ("AdaptiveController", lambda: module.AdaptiveController(**{keyword: value})),
+        ("AdaptiveController.parameters", lambda: module.AdaptiveController().parameters.__setitem__(keyword, value)),
+        ("AdaptiveController.parameters", lambda: setattr(module.AdaptiveController(), "parameters", {keyword: value})),
+        (
+            "adaptive_step",
+            lambda: module.adaptive_step(
+                np.zeros(6),
+                np.zeros(6),
+                np.eye(4),
+                np.zeros(6),
+                np.zeros(6),
+                state=np.zeros(698),
+                adapt=1.0,
+                **{keyword: value},
+            ),
+        ),
+    ):
         with pytest.raises(ValueError) as caught:
             call()
         refusals.append(str(caught.value))
@@ -236,11 +295,14 @@ def test_the_adaptive_controller_refuses_what_check_refuses(build_module, tmp_pa
 def test_matrix_weights_and_tree_gains_are_refused_as_check_refuses_them(tmp_path, build_module):
     """Q given as a matrix (check at the spec) and the toy's Q, which has the law's own
     bounds; the Styx hand's scalar gain at run time against check on the spec."""
-    rows = "".join(f"          - [{', '.join(str(v) for v in row)}]\n"
-                   for row in np.diag(np.r_[np.full(6, 4e4), np.ones(6)]) - np.eye(12, k=1) * 3e4 - np.eye(12, k=-1) * 3e4)
+    rows = "".join(
+        f"          - [{', '.join(str(v) for v in row)}]\n"
+        for row in np.diag(np.r_[np.full(6, 4e4), np.ones(6)]) - np.eye(12, k=1) * 3e4 - np.eye(12, k=-1) * 3e4
+    )
     said = check_message(tmp_path, RMAC, ANCHOR, ANCHOR + "        q:\n" + rows)
-    violation = Q_MATRIX.violation(np.diag(np.r_[np.full(6, 4e4), np.ones(6)]) - np.eye(12, k=1) * 3e4
-                                   - np.eye(12, k=-1) * 3e4)
+    violation = Q_MATRIX.violation(
+        np.diag(np.r_[np.full(6, 4e4), np.ones(6)]) - np.eye(12, k=1) * 3e4 - np.eye(12, k=-1) * 3e4
+    )
     assert said == violation.message and said.startswith("Q must be positive definite (eq 38): its smallest eigenvalue")
     assert R_MATRIX.violation(np.eye(6)) is None
     hand = build_module(HIGH)
@@ -248,8 +310,15 @@ def test_matrix_weights_and_tree_gains_are_refused_as_check_refuses_them(tmp_pat
     theta = hand.plant_inverse([0.0, 0.12, 0.0])
     state = hand.servo_init(theta, np.zeros(4))
     with pytest.raises(ValueError) as caught:
-        hand.servo_step(theta, np.zeros(4), **{k: np.zeros(3) for k in ("x_e", "xd_e", "xdd_e", "f_e")},
-                        f_i=[1.0], state=state, dt=1e-3, ct_hand_kp=-100.0)
+        hand.servo_step(
+            theta,
+            np.zeros(4),
+            **{k: np.zeros(3) for k in ("x_e", "xd_e", "xdd_e", "f_e")},
+            f_i=[1.0],
+            state=state,
+            dt=1e-3,
+            ct_hand_kp=-100.0,
+        )
     assert str(caught.value) == f"servo_step(): argument 'ct_hand_kp': {said}"
 
 
@@ -258,9 +327,25 @@ def test_the_docs_quote_the_messages_the_bounds_give():
     docs = (ROOT / "docs" / "spec-format.md").read_text()
     table = docs.split("## Run-time parameters")[1].split("\n## ")[0]
     quoted = re.findall(r"^\| .* \| `([^`]+)` \|$", table, re.M)
-    said = [bounds.violation(value).message for bounds, value in (
-        (GAIN, -2.0), (GAIN_MATRIX, [[1, 2, 0], [2, 1, 0], [0, 0, 1]]), (DAMPING, -1.0), (KF_INTERNAL, 1.5),
-        (KI_INTERNAL, -1.0), (force.STIFFNESS[0], -1.0), (force.DAMPING[0], 0.0), (force.INERTIA[1], [[1, 2], [2, 1]]),
-        (force.SELECTION, 1.5), (force.FORCE_INTEGRAL_GAIN, -1.0), (PAYLOAD_MASS, -1.0),
-        (HAND_GAIN, -1.0), (WEIGHT, -2.0), (Q_MATRIX, [[1, 0], [0.5, 1]]), (TORQUE_WEIGHT, -1.0), (FORGETTING, 2.0))]
+    said = [
+        bounds.violation(value).message
+        for bounds, value in (
+            (GAIN, -2.0),
+            (GAIN_MATRIX, [[1, 2, 0], [2, 1, 0], [0, 0, 1]]),
+            (DAMPING, -1.0),
+            (KF_INTERNAL, 1.5),
+            (KI_INTERNAL, -1.0),
+            (force.STIFFNESS[0], -1.0),
+            (force.DAMPING[0], 0.0),
+            (force.INERTIA[1], [[1, 2], [2, 1]]),
+            (force.SELECTION, 1.5),
+            (force.FORCE_INTEGRAL_GAIN, -1.0),
+            (PAYLOAD_MASS, -1.0),
+            (HAND_GAIN, -1.0),
+            (WEIGHT, -2.0),
+            (Q_MATRIX, [[1, 0], [0.5, 1]]),
+            (TORQUE_WEIGHT, -1.0),
+            (FORGETTING, 2.0),
+        )
+    ]
     assert quoted == said

@@ -3,6 +3,7 @@ without BLAS, LAPACK or libm (robotgen.numeric.exact, robotgen.numeric.riccati),
 correctly rounded. The generated-output test (test_golden.py) is run by CI under several
 OPENBLAS_CORETYPE values and with the lowest numpy/scipy allowed; here the pieces are
 checked against independent references."""
+
 from __future__ import annotations
 
 import math
@@ -61,7 +62,7 @@ def test_two_argument_and_domain_functions():
         assert abs(exact.acos(u) - math.acos(u)) <= math.ulp(math.acos(u))
         a = rng.uniform(0.01, 4)
         assert abs(exact.log(a) - math.log(a)) <= math.ulp(math.log(a))
-        assert abs(exact.power(a, y) - a ** y) <= 2 * math.ulp(a ** y)
+        assert abs(exact.power(a, y) - a**y) <= 2 * math.ulp(a**y)
     assert exact.atan2(0.0, -1.0) == math.pi and exact.cos(math.pi / 2) == 6.123233995736766e-17
     assert exact.power(0.1, 2.0) == 0.1 * 0.1 and exact.power(2.0, -3.0) == 0.125
     for f, x in ((exact.log, 0.0), (exact.asin, 1.5), (exact.acos, -2.0)):
@@ -118,8 +119,10 @@ def test_riccati_matches_scipy_on_the_stiff_puma_regulator():
     def residual(X):
         return np.abs(model.A.T @ X + X @ model.A - X @ model.B @ np.linalg.solve(R, model.B.T) @ X + Q).max()
 
-    print(f"\n  PUMA regulator: |P - P_scipy| / |P| = {np.abs(P - reference).max() / np.abs(reference).max():.2e}, "
-          f"residual {residual(P):.2e} (scipy {residual(reference):.2e})")
+    print(
+        f"\n  PUMA regulator: |P - P_scipy| / |P| = {np.abs(P - reference).max() / np.abs(reference).max():.2e}, "
+        f"residual {residual(P):.2e} (scipy {residual(reference):.2e})"
+    )
     np.testing.assert_allclose(P, reference, rtol=0, atol=1e-9 * np.abs(reference).max())
     assert residual(P) <= residual(reference)
     np.testing.assert_array_equal(P, P.T)
@@ -144,8 +147,13 @@ def test_riccati_on_random_systems_and_an_unstabilisable_one():
 
 def _build_under(coretype: str, spec: Path, out: Path) -> subprocess.CompletedProcess:
     env = dict(os.environ, OPENBLAS_CORETYPE=coretype)
-    return subprocess.run([sys.executable, "-m", "robotgen", "build", str(spec), "-o", str(out), "--no-compile",
-                           "-q"], capture_output=True, text=True, env=env, cwd=ROOT)
+    return subprocess.run(
+        [sys.executable, "-m", "robotgen", "build", str(spec), "-o", str(out), "--no-compile", "-q"],
+        capture_output=True,
+        text=True,
+        env=env,
+        cwd=ROOT,
+    )
 
 
 def coretypes() -> list[str]:

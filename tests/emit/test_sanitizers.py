@@ -3,6 +3,7 @@ function called on random inputs with huge values, zeros, NaN and Inf among them
 spec's parameter defaults; every batch entry point (robotgen.emit.lanes) on BATCH states, one
 round in ten. No finding is allowed (the sanitizers abort the program on the first
 one); a NaN or Inf result is not a finding (the inputs ask for it)."""
+
 from __future__ import annotations
 
 import json
@@ -32,32 +33,41 @@ def harness(manifest: dict) -> str:
     name = manifest["name"]
     size = max([1] + [max(1, _size(p)) for f in manifest["functions"] for p in f["inputs"] + f["outputs"]])
     batched = [f for f in manifest["functions"] if f["name"] in BATCH_FUNCTIONS]
-    lines = [f'#include "{name}.h"', "#include <math.h>", "#include <stdio.h>",
-             f"static double in[16][{size}], out[16][{size}];",
-             *([f"static double bin[16][{BATCH * size}], bout[16][{BATCH * size}];"] if batched else []),
-             "static unsigned long long s = 88172645463325252ULL;",
-             "static double next(void) {",
-             "    static const double special[8] = {0.0, -0.0, 1e300, -1e300, 1e-310, 0.0, 0.0, 0.0};",
-             "    unsigned r;",
-             "    s = s * 6364136223846793005ULL + 1442695040888963407ULL;",
-             "    r = (unsigned)(s >> 40);",
-             "    if ((r & 7) == 0) { int k = (int)((r >> 3) & 7); return k == 5 ? NAN : k == 6 ? INFINITY : "
-             "k == 7 ? -INFINITY : special[k]; }",
-             "    return ((double)(s >> 11) / 9007199254740992.0 - 0.5) * 8.0;",
-             "}",
-             "int main(void) {"]
+    lines = [
+        f'#include "{name}.h"',
+        "#include <math.h>",
+        "#include <stdio.h>",
+        f"static double in[16][{size}], out[16][{size}];",
+        *([f"static double bin[16][{BATCH * size}], bout[16][{BATCH * size}];"] if batched else []),
+        "static unsigned long long s = 88172645463325252ULL;",
+        "static double next(void) {",
+        "    static const double special[8] = {0.0, -0.0, 1e300, -1e300, 1e-310, 0.0, 0.0, 0.0};",
+        "    unsigned r;",
+        "    s = s * 6364136223846793005ULL + 1442695040888963407ULL;",
+        "    r = (unsigned)(s >> 40);",
+        "    if ((r & 7) == 0) { int k = (int)((r >> 3) & 7); return k == 5 ? NAN : k == 6 ? INFINITY : "
+        "k == 7 ? -INFINITY : special[k]; }",
+        "    return ((double)(s >> 11) / 9007199254740992.0 - 0.5) * 8.0;",
+        "}",
+        "int main(void) {",
+    ]
     if manifest.get("parameters"):
         lines.append(f"    const {name}_params params = {name.upper()}_PARAMS_DEFAULT;")
-    lines += ["    int round, i, status = 0;", f"    for (round = 0; round < {CALLS}; ++round) {{",
-              f"        for (i = 0; i < 16 * {size}; ++i) in[i / {size}][i % {size}] = next();"]
+    lines += [
+        "    int round, i, status = 0;",
+        f"    for (round = 0; round < {CALLS}; ++round) {{",
+        f"        for (i = 0; i < 16 * {size}; ++i) in[i / {size}][i % {size}] = next();",
+    ]
     for f in manifest["functions"]:
         args = [f"in[{k}]" for k in range(len(f["inputs"]))]
         args += ["&params"] if f.get("reads_parameters") else []
         args += [f"out[{k}]" for k in range(len(f["outputs"]))]
         lines.append(f"        status |= {f['c_name']}({', '.join(args)});")
     if batched:
-        lines += ["        if (round % 10 == 0) {",
-                  f"            for (i = 0; i < 16 * {BATCH * size}; ++i) bin[i / {BATCH * size}][i % {BATCH * size}] = next();"]
+        lines += [
+            "        if (round % 10 == 0) {",
+            f"            for (i = 0; i < 16 * {BATCH * size}; ++i) bin[i / {BATCH * size}][i % {BATCH * size}] = next();",
+        ]
     for f in batched:
         args = [f"bin[{k}]" for k in range(len(f["inputs"]))]
         args += ["&params"] if f.get("reads_parameters") else []
@@ -76,8 +86,19 @@ def _size(port: dict) -> int:
 
 
 @pytest.mark.skipif(not COMPILERS, reason="no C compiler")
-@pytest.mark.parametrize("spec", ["two_link", "puma560", "styx_finger", "styx_high_ct", "styx_redundant",
-                                  "puma560_rmrc", "tripod_grasp", "styx_multirate"])
+@pytest.mark.parametrize(
+    "spec",
+    [
+        "two_link",
+        "puma560",
+        "styx_finger",
+        "styx_high_ct",
+        "styx_redundant",
+        "puma560_rmrc",
+        "tripod_grasp",
+        "styx_multirate",
+    ],
+)
 def test_emitted_c_is_clean_under_sanitizers(tmp_path, spec):
     sanitized(tmp_path, spec, lanes=spec in LANES)
 
@@ -104,15 +125,19 @@ def sanitized(tmp_path: Path, spec: str, lanes: bool) -> None:
 
     try:  # gcc's and clang's builds, then their runs, side by side (each is one process)
         flags = [] if lanes else ["-DRG_NO_LANES"]
-        builds = {cc: start([cc, *SANITIZE, *flags, "-std=c99", f"-I{out}", *sources, "-lm", "-o", str(exe)])
-                  for cc, exe in exes.items()}
+        builds = {
+            cc: start([cc, *SANITIZE, *flags, "-std=c99", f"-I{out}", *sources, "-lm", "-o", str(exe)])
+            for cc, exe in exes.items()
+        }
         for cc, build in builds.items():
             stderr = build.communicate()[1]
             if build.returncode != 0 and "sanitize" in stderr and "unsupported" in stderr.lower():
                 pytest.skip(f"{cc} has no sanitizer runtime here: {stderr.strip()[:200]}")
             assert build.returncode == 0, stderr
-        runs = {cc: start([str(exe)], env={"ASAN_OPTIONS": "detect_leaks=1", "UBSAN_OPTIONS": "print_stacktrace=1"})
-                for cc, exe in exes.items()}
+        runs = {
+            cc: start([str(exe)], env={"ASAN_OPTIONS": "detect_leaks=1", "UBSAN_OPTIONS": "print_stacktrace=1"})
+            for cc, exe in exes.items()
+        }
         for cc, run in runs.items():
             stdout, stderr = run.communicate(timeout=600)
             assert run.returncode == 0 and stdout.startswith("done"), f"{cc}: {stderr[-3000:]}"
@@ -127,9 +152,10 @@ def sanitized(tmp_path: Path, spec: str, lanes: bool) -> None:
 def test_the_sanitizers_see_a_planted_bug(tmp_path):
     """The flags above do catch what they are for: a use after free and a signed overflow."""
     for cc in COMPILERS:
-        for body, finding in (("double *p = malloc(4 * sizeof *p); free(p); return (int)p[argc];",
-                               "heap-use-after-free"),
-                              ("int x = 2147483647; x += argc; return x;", "overflow")):
+        for body, finding in (
+            ("double *p = malloc(4 * sizeof *p); free(p); return (int)p[argc];", "heap-use-after-free"),
+            ("int x = 2147483647; x += argc; return x;", "overflow"),
+        ):
             src = tmp_path / "bug.c"
             src.write_text(f"#include <stdlib.h>\nint main(int argc, char **argv) {{ (void)argv; {body} }}\n")
             exe = tmp_path / f"bug-{cc}"

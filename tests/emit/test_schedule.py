@@ -1,6 +1,7 @@
 """Scheduled kernels (robotgen.symbolic.schedule): the emitted loops visit their index space in
 the documented order, a body reads before it writes, and the product with M^-1 solves. Each is
 compiled and run through the Python module and compared with numpy written independently."""
+
 from __future__ import annotations
 
 import importlib.util
@@ -67,10 +68,20 @@ def _order_kernel():
     S = b.local(ca.SX(0.25))
     prev, xi = ca.SX.sym("prev"), ca.SX.sym("xi")
     # prefix (RANGE) and suffix (DESCENDING) recurrences, each element reading the last
-    b.loop(body("prefix", [prev, xi], [0.5 * prev + xi]), RANGE, N,
-           [Slice(LOCAL, PRE, i_stride=1), Slice(LOCAL, X, i_stride=1)], [Slice(LOCAL, PRE, 1, i_stride=1)])
-    b.loop(body("suffix", [prev, xi], [0.7 * prev + xi]), DESCENDING, N,
-           [Slice(LOCAL, SUF, 1, i_stride=1), Slice(LOCAL, Y, i_stride=1)], [Slice(LOCAL, SUF, i_stride=1)])
+    b.loop(
+        body("prefix", [prev, xi], [0.5 * prev + xi]),
+        RANGE,
+        N,
+        [Slice(LOCAL, PRE, i_stride=1), Slice(LOCAL, X, i_stride=1)],
+        [Slice(LOCAL, PRE, 1, i_stride=1)],
+    )
+    b.loop(
+        body("suffix", [prev, xi], [0.7 * prev + xi]),
+        DESCENDING,
+        N,
+        [Slice(LOCAL, SUF, 1, i_stride=1), Slice(LOCAL, Y, i_stride=1)],
+        [Slice(LOCAL, SUF, i_stride=1)],
+    )
     whole = ca.SX.sym("whole", N + 1)
     for k, array in enumerate((PRE, SUF)):
         b.loop(body("copy", [whole], [whole]), ONCE, 1, [Slice(LOCAL, array)], [Slice(OUTPUT, k)])
@@ -78,21 +89,31 @@ def _order_kernel():
     s, a, c = ca.SX.sym("s"), ca.SX.sym("a"), ca.SX.sym("c")
     step = 0.9 * s + a * c
     for k, space in enumerate(PAIR_SPACES):
-        b.loop(body("pair_" + space.replace(" ", "_"), [s, a, c], [step, step]), space, N,
-               [Slice(LOCAL, S), Slice(LOCAL, X, i_stride=1), Slice(LOCAL, Y, j_stride=1)],
-               [Slice(LOCAL, S), Slice(OUTPUT, 2 + k, i_stride=N, j_stride=1)])
+        b.loop(
+            body("pair_" + space.replace(" ", "_"), [s, a, c], [step, step]),
+            space,
+            N,
+            [Slice(LOCAL, S), Slice(LOCAL, X, i_stride=1), Slice(LOCAL, Y, j_stride=1)],
+            [Slice(LOCAL, S), Slice(OUTPUT, 2 + k, i_stride=N, j_stride=1)],
+        )
     # a body whose write overlaps what it reads: swap neighbours, all reads first
     pair = ca.SX.sym("pair", 2)
-    b.loop(body("swap", [pair], [ca.vertcat(pair[1], pair[0])]), RANGE, N - 1,
-           [Slice(LOCAL, E, i_stride=1)], [Slice(LOCAL, E, i_stride=1)])
+    b.loop(
+        body("swap", [pair], [ca.vertcat(pair[1], pair[0])]),
+        RANGE,
+        N - 1,
+        [Slice(LOCAL, E, i_stride=1)],
+        [Slice(LOCAL, E, i_stride=1)],
+    )
     everything = ca.SX.sym("e", N)
     b.loop(body("copy", [everything], [everything]), ONCE, 1, [Slice(LOCAL, E)], [Slice(OUTPUT, 2 + len(PAIR_SPACES))])
     b.loop(body("total", [s], [s]), ONCE, 1, [Slice(LOCAL, S)], [Slice(OUTPUT, 3 + len(PAIR_SPACES))])
     names = ["prefix", "suffix", *(f"pairs_{space.replace(' ', '_')}" for space in PAIR_SPACES), "swapped", "total"]
     shapes = [(N + 1, 1), (N + 1, 1), *[(N, N)] * len(PAIR_SPACES), (N, 1), (1, 1)]
     values = [ca.reshape(v, shape[1], shape[0]).T for v, shape in zip(b.outputs(), shapes)]
-    return make_kernel("order", "Order-sensitive loops.", [("x", x), ("y", y)],
-                       list(zip(names, values, shapes)), schedule=b)
+    return make_kernel(
+        "order", "Order-sensitive loops.", [("x", x), ("y", y)], list(zip(names, values, shapes)), schedule=b
+    )
 
 
 def _order_reference(x, y):
@@ -122,8 +143,13 @@ def _solve_kernel(n: int, width: int):
     b.prologue(Slice(LOCAL, rows), r)
     schedule_inverse_product(b, n, inverse, rows, width, [((OUTPUT, 0), 0, 1.0), ((OUTPUT, 1), n, -2.0)])
     values = [ca.reshape(v, n, n).T for v in b.outputs()]
-    return make_kernel("solve", "M^-1 R, row by row.", [("m", m, (n, n)), ("r", r, (n, width))],
-                       [("first", values[0], (n, n)), ("second", values[1], (n, n))], schedule=b)
+    return make_kernel(
+        "solve",
+        "M^-1 R, row by row.",
+        [("m", m, (n, n)), ("r", r, (n, width))],
+        [("first", values[0], (n, n)), ("second", values[1], (n, n))],
+        schedule=b,
+    )
 
 
 def _staged_kernel(name: str, scale: float):
@@ -134,13 +160,16 @@ def _staged_kernel(name: str, scale: float):
     TOTAL = b.local(size=N + 1)
     b.prologue(Slice(LOCAL, TOTAL), ca.SX(0.0))
     prev, square, sine = ca.SX.sym("prev"), ca.SX.sym("square"), ca.SX.sym("sine")
-    b.loop(body("running", [prev, square, sine], [prev + square * sine]), RANGE, N,
-           [Slice(LOCAL, TOTAL, i_stride=1), Slice(LOCAL, SQUARES, i_stride=1), Slice(LOCAL, SINES, i_stride=1)],
-           [Slice(LOCAL, TOTAL, 1, i_stride=1)])
+    b.loop(
+        body("running", [prev, square, sine], [prev + square * sine]),
+        RANGE,
+        N,
+        [Slice(LOCAL, TOTAL, i_stride=1), Slice(LOCAL, SQUARES, i_stride=1), Slice(LOCAL, SINES, i_stride=1)],
+        [Slice(LOCAL, TOTAL, 1, i_stride=1)],
+    )
     whole = ca.SX.sym("whole", N)
     b.loop(body("copy", [whole], [whole]), ONCE, 1, [Slice(LOCAL, TOTAL, 1)], [Slice(OUTPUT, 0)])
-    return make_kernel(name, "A running sum over a stage.", [("x", x)], [("total", b.outputs()[0], (N, 1))],
-                       schedule=b)
+    return make_kernel(name, "A running sum over a stage.", [("x", x)], [("total", b.outputs()[0], (N, 1))], schedule=b)
 
 
 def _load(directory: Path, name: str):
@@ -153,8 +182,13 @@ def _load(directory: Path, name: str):
 @pytest.fixture(scope="module")
 def module(tmp_path_factory):
     out = tmp_path_factory.mktemp("scheduled") / "loops"
-    kernels = [_order_kernel(), _solve_kernel(4, 8), _staged_kernel("staged", 1.0), _staged_kernel("again", 1.0),
-               _staged_kernel("other", 2.0)]
+    kernels = [
+        _order_kernel(),
+        _solve_kernel(4, 8),
+        _staged_kernel("staged", 1.0),
+        _staged_kernel("again", 1.0),
+        _staged_kernel("other", 2.0),
+    ]
     build.emit(out, "loops", kernels, nq=1, spec_sha256="cd" * 32)
     return _load(out, "loops")
 

@@ -1,6 +1,7 @@
 """The double kernels' own sin and cos (robotgen.emit.sincos): within the documented bound of
 a higher-precision reference over the whole reduced range, libm's answer past it, and the
 program rewrite (angles first, one SINCOS step) computing what the graph computes."""
+
 from __future__ import annotations
 
 import importlib.util
@@ -22,16 +23,18 @@ N = 7  # odd: the last pair is padded
 
 def _angles_kernel():
     x = ca.SX.sym("x", N)
-    return make_kernel("angles", "sin and cos of each x", [("x", x)],
-                       [("s", ca.sin(x), (N, 1)), ("c", ca.cos(x), (N, 1))])
+    return make_kernel(
+        "angles", "sin and cos of each x", [("x", x)], [("s", ca.sin(x), (N, 1)), ("c", ca.cos(x), (N, 1))]
+    )
 
 
 def _mixed_kernel():
     """An offset angle, a product, an angle computed late, a sin of a sin (libm), one sin alone."""
     x = ca.SX.sym("x", 3)
     late = x[0] * x[1] + ca.exp(x[2])
-    out = ca.vertcat(ca.sin(x[0] + 0.3) * ca.cos(x[1]), ca.cos(ca.sin(x[2])), ca.sin(late) - ca.cos(late),
-                     ca.sin(x[1] - x[0]))
+    out = ca.vertcat(
+        ca.sin(x[0] + 0.3) * ca.cos(x[1]), ca.cos(ca.sin(x[2])), ca.sin(late) - ca.cos(late), ca.sin(x[1] - x[0])
+    )
     return make_kernel("mixed", "a mix", [("x", x)], [("y", out, (4, 1))])
 
 
@@ -59,12 +62,18 @@ def _sample():
     rng = np.random.default_rng(11)
     quarter = np.pi / 4
     k = np.arange(-4000, 4000)
-    return np.concatenate([
-        rng.uniform(-2 * np.pi, 2 * np.pi, 200_000),
-        rng.uniform(-1e5, 1e5, 100_000),
-        k * quarter, np.nextafter(k * quarter, np.inf), np.nextafter(k * quarter, -np.inf),  # at the reduction's edges
-        k * (np.pi / 2), np.linspace(-1e-3, 1e-3, 2001), [1e-300, 5e-324, 1e5, -1e5],
-    ])
+    return np.concatenate(
+        [
+            rng.uniform(-2 * np.pi, 2 * np.pi, 200_000),
+            rng.uniform(-1e5, 1e5, 100_000),
+            k * quarter,
+            np.nextafter(k * quarter, np.inf),
+            np.nextafter(k * quarter, -np.inf),  # at the reduction's edges
+            k * (np.pi / 2),
+            np.linspace(-1e-3, 1e-3, 2001),
+            [1e-300, 5e-324, 1e5, -1e5],
+        ]
+    )
 
 
 def test_error_within_the_documented_bound(built):
@@ -116,25 +125,27 @@ def test_angles_come_first_and_only_nested_trig_keeps_libm(built):
 
 
 def test_float_kernels_keep_sinf_and_cosf(tmp_path):
-    build.emit(tmp_path / "f", "trigf", [_angles_kernel()], nq=1, spec_sha256="ab" * 32,
-               precision="float", compile=False)
+    build.emit(
+        tmp_path / "f", "trigf", [_angles_kernel()], nq=1, spec_sha256="ab" * 32, precision="float", compile=False
+    )
     source = (tmp_path / "f" / "trigf.c").read_text()
     assert sincos.HELPER not in source and "sinf(" in source and "cosf(" in source
 
 
 def test_polynomials_within_2_to_the_minus_57_and_pi_splits_exactly():
     from fractions import Fraction
+
     assert sincos._P1 + sincos._P2 + sincos._P3 == sincos._PI / 2
     for part in (sincos._P1, sincos._P2):  # 33 significant bits: n * part is exact for |n| < 2^20
-        assert float(part) == part and (part * 2 ** 80).denominator == 1
-        mantissa = int(part * 2 ** 80)
+        assert float(part) == part and (part * 2**80).denominator == 1
+        mantissa = int(part * 2**80)
         assert mantissa.bit_length() - (len(bin(mantissa)) - len(bin(mantissa).rstrip("0"))) <= 33
     # the polynomials themselves, in exact arithmetic, against sin and cos of long double on
     # [-pi/4, pi/4]: within 2^-57 (sin relative to r, cos absolute), as stated
     r = np.linspace(-np.pi / 4, np.pi / 4, 2001, dtype=np.longdouble)
     z = r * r
-    ps = sum(np.longdouble(float(c)) * z ** k for k, c in enumerate(sincos.SIN_TERMS))
-    pc = sum(np.longdouble(float(c)) * z ** k for k, c in enumerate(sincos.COS_TERMS))
-    assert float(np.max(np.abs((r + r * z * ps - np.sin(r)) / np.where(r == 0, 1, r)))) <= 2.0 ** -57
-    assert float(np.max(np.abs(1 + z * pc - np.cos(r)))) <= 2.0 ** -57
+    ps = sum(np.longdouble(float(c)) * z**k for k, c in enumerate(sincos.SIN_TERMS))
+    pc = sum(np.longdouble(float(c)) * z**k for k, c in enumerate(sincos.COS_TERMS))
+    assert float(np.max(np.abs((r + r * z * ps - np.sin(r)) / np.where(r == 0, 1, r)))) <= 2.0**-57
+    assert float(np.max(np.abs(1 + z * pc - np.cos(r)))) <= 2.0**-57
     assert Fraction(sincos.COS_TERMS[0]) == Fraction(-1, 2)

@@ -3,6 +3,7 @@
 
 The script's references are closed forms written from StyxDefinitions.m; here each number
 is held to what the paper says (or, where it claims only a trend, to that trend)."""
+
 from __future__ import annotations
 
 import importlib.util

@@ -1,6 +1,7 @@
 """examples/papers/lee_lee_1983.py in quick mode: Table 1 in the paper's accounting beside
 robotgen's counts, a run with a payload step, and the paper's controller as printed (the
 first defaults) beside robotgen's."""
+
 from __future__ import annotations
 
 import importlib.util
@@ -11,14 +12,31 @@ import pytest
 
 SCRIPT = Path(__file__).resolve().parents[2] / "examples" / "papers" / "lee_lee_1983.py"
 PAPER = {  # Table 1, as printed
-    "feedforward 1": (39, 32), "feedforward 2": (516, 242), "feedforward 3": (108, 102),
-    "feedforward 4": (678, 597), "feedback 1a": (48, 22), "feedback 1b": (168, 138),
-    "feedback 2": (1111, 1109), "feedback 3": (2148, 1790),
-    "feedforward": (1341, 973), "feedback": (3427, 3037), "period": (3427, 3037),
+    "feedforward 1": (39, 32),
+    "feedforward 2": (516, 242),
+    "feedforward 3": (108, 102),
+    "feedforward 4": (678, 597),
+    "feedback 1a": (48, 22),
+    "feedback 1b": (168, 138),
+    "feedback 2": (1111, 1109),
+    "feedback 3": (2148, 1790),
+    "feedforward": (1341, 973),
+    "feedback": (3427, 3037),
+    "period": (3427, 3037),
 }
 # rows where robotgen computes the paper's quantity (or less): fewer operations than the paper
-SAME_QUANTITY = ("feedforward 2", "feedforward 3", "feedforward 4", "feedback 1a", "feedback 1b", "feedback 2",
-                 "feedback 3", "feedforward", "feedback", "period")
+SAME_QUANTITY = (
+    "feedforward 2",
+    "feedforward 3",
+    "feedforward 4",
+    "feedback 1a",
+    "feedback 1b",
+    "feedback 2",
+    "feedback 3",
+    "feedforward",
+    "feedback",
+    "period",
+)
 
 
 @pytest.fixture(scope="module")

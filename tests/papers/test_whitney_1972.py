@@ -1,5 +1,6 @@
 """examples/papers/whitney_1972.py in quick mode: Fig 5's three-link arm under the optimal
 linear servo, against the full nonlinear dynamics."""
+
 from __future__ import annotations
 
 import importlib.util
@@ -47,8 +48,9 @@ def test_errors_stay_within_the_bound_from_the_design(reproduced):
     e = x - x_linear obeys edot = A_c e + (0, d), d the linearisation residual along the run."""
     _, x = reproduced
     for name in JOINTS:
-        measured, linear, bound = (x[f"{k}_{name}_rad"] for k in ("servo_max_error", "servo_linear_max_error",
-                                                                  "error_bound"))
+        measured, linear, bound = (
+            x[f"{k}_{name}_rad"] for k in ("servo_max_error", "servo_linear_max_error", "error_bound")
+        )
         print(f"\n{name}: max error {measured:.2e} rad, eq 19 predicts {linear:.2e}, bound {bound:.2e}")
         assert measured <= bound
         assert bound < 0.01  # "the errors are quite small": below 0.6 degrees
@@ -58,9 +60,11 @@ def test_the_feedforward_beats_the_same_gains_on_the_error(reproduced):
     _, x = reproduced
     for model in ("", "_linear"):
         s, r = f"servo{model}", f"regulator{model}"
-        print(f"\n{model or 'nonlinear'}: max error {x[s + '_max_error_rad']:.2e} against {x[r + '_max_error_rad']:.2e}, "
-              f"RMS {x[s + '_rms_error_rad']:.2e} against {x[r + '_rms_error_rad']:.2e}, cost {x[s + '_cost']:.4g} "
-              f"against {x[r + '_cost']:.4g}")
+        print(
+            f"\n{model or 'nonlinear'}: max error {x[s + '_max_error_rad']:.2e} against {x[r + '_max_error_rad']:.2e}, "
+            f"RMS {x[s + '_rms_error_rad']:.2e} against {x[r + '_rms_error_rad']:.2e}, cost {x[s + '_cost']:.4g} "
+            f"against {x[r + '_cost']:.4g}"
+        )
         assert x[s + "_max_error_rad"] < 0.5 * x[r + "_max_error_rad"]
         assert x[s + "_rms_error_rad"] < 0.5 * x[r + "_rms_error_rad"]
         assert x[s + "_cost"] < x[r + "_cost"]
@@ -70,8 +74,10 @@ def test_the_torques_are_those_the_path_needs(reproduced):
     """The servo's torque against inverse dynamics along the reference (generated RNEA)."""
     _, x = reproduced
     needed = x["needed_peak_torque_nm"]
-    print(f"\npeak torque {x['servo_peak_torque_nm']:.3f} N m, the path needs {needed:.3f}; largest "
-          f"difference {x['servo_torque_minus_needed_nm']:.3f} N m")
+    print(
+        f"\npeak torque {x['servo_peak_torque_nm']:.3f} N m, the path needs {needed:.3f}; largest "
+        f"difference {x['servo_torque_minus_needed_nm']:.3f} N m"
+    )
     assert x["servo_torque_minus_needed_nm"] < 0.05 * needed
     for name in JOINTS:
         assert abs(x[f"servo_peak_torque_{name}_nm"] - x[f"needed_peak_torque_{name}_nm"]) < 0.05 * needed
@@ -82,8 +88,10 @@ def test_the_servo_is_the_direct_minimum_of_its_cost(reproduced):
     """The steady servo with g_f solves the finite problem with the terminal cost s^T P s - 2 g_f^T s;
     the same problem minimised directly over the whole horizon (sparse, extrapolated) agrees."""
     _, x = reproduced
-    print(f"\ndirect {x['direct_cost']:.10g}, servo {x['servo_linear_cost_with_terminal']:.10g}; inputs "
-          f"{x['direct_input_gap_nm']:.2e} N m apart ({x['direct_input_coarse_gap_nm']:.2e} before extrapolation)")
+    print(
+        f"\ndirect {x['direct_cost']:.10g}, servo {x['servo_linear_cost_with_terminal']:.10g}; inputs "
+        f"{x['direct_input_gap_nm']:.2e} N m apart ({x['direct_input_coarse_gap_nm']:.2e} before extrapolation)"
+    )
     assert x["direct_cost_relative_gap"] < 1e-8
     assert x["direct_input_gap_nm"] < 1e-5 * x["servo_linear_peak_torque_nm"]
     assert x["direct_input_gap_nm"] < 0.1 * x["direct_input_coarse_gap_nm"]

@@ -1,6 +1,7 @@
 """ATTACH with the user's own constraint formulas: the Styx box grasp written as h, h^-1
 and G (StyxDefinitions.m's g, RobotInverse[g] and G, with the angle measured from the left
 to the right fingertip) gives the same hand as the built-in planar_contacts constraint."""
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -37,8 +38,9 @@ def test_formula_grasp_equals_planar_contacts(tmp_path, build_module):
         for fn in ("hand_mass", "hand_n"):
             args = (theta,) if fn == "hand_mass" else (theta, theta_dot)
             np.testing.assert_allclose(getattr(formula, fn)(*args), getattr(builtin, fn)(*args), atol=1e-12)
-        np.testing.assert_allclose(formula.hand_coriolis(theta, theta_dot), builtin.hand_coriolis(theta, theta_dot),
-                                   atol=1e-12)
+        np.testing.assert_allclose(
+            formula.hand_coriolis(theta, theta_dot), builtin.hand_coriolis(theta, theta_dot), atol=1e-12
+        )
         x_f, xd_f = formula.hand_read(theta, theta_dot)
         np.testing.assert_allclose(x_f, x, atol=1e-12)
         np.testing.assert_allclose(xd_f, xd, atol=1e-10)

@@ -2,6 +2,7 @@
 body points. The composite attributes of the grasp equal an independent Lagrangian
 computation in the box's minimal coordinates, internal forces move nothing, and computed
 torque at the box tracks all six coordinates."""
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -83,10 +84,17 @@ def test_internal_forces_move_nothing(build_module):
 
 def test_computed_torque_tracks_six_coordinates(build_module):
     mod = build_module(SPEC)
-    result = run(mod, SimulationSettings(duration=1.5, dt=1e-3, start=(0, 0, 0.3, 0, 0, 0),
-                                         initial_error=(0.005, -0.005, 0.005, 0.05, -0.05, 0.05),
-                                         amplitude=(0.02, 0.02, 0.02, 0.2, 0.2, 0.3),
-                                         frequency=(0.5, 0.3, 0.4, 0.25, 0.35, 0.2)))
+    result = run(
+        mod,
+        SimulationSettings(
+            duration=1.5,
+            dt=1e-3,
+            start=(0, 0, 0.3, 0, 0, 0),
+            initial_error=(0.005, -0.005, 0.005, 0.05, -0.05, 0.05),
+            amplitude=(0.02, 0.02, 0.02, 0.2, 0.2, 0.3),
+            frequency=(0.5, 0.3, 0.4, 0.25, 0.35, 0.2),
+        ),
+    )
     e = np.linalg.norm(result.error, axis=1)
     print(f"tripod grasp: |e| {e[0]:.2e} at 0 s, {e[500]:.2e} at 0.5 s, {e[-1]:.2e} at 1.5 s")
     assert e[0] > 0.05 and e[-1] < 1e-4 and e[1000] < 1e-3

@@ -7,6 +7,7 @@ formulas), the point-mass kinetic energy and the three-link Gauss-Newton solve a
 below with CasADi / NumPy. Closed loops are integrated by the RK4 loop in this file (checked
 once against `robotgen.simulation.tree.run`), with the servo's torque held over each step.
 """
+
 from __future__ import annotations
 
 import math
@@ -31,6 +32,7 @@ def spec_data(path: Path) -> dict:
 
 # ---- an independent model of the two-fingered hand (Fig 2.1), from the YAML numbers ----------
 
+
 def _rot(psi):
     c, s = ca.cos(psi), ca.sin(psi)
     return ca.vertcat(ca.horzcat(c, -s), ca.horzcat(s, c))
@@ -46,8 +48,9 @@ def _box(data: dict) -> tuple[float, float]:
 
 
 def _contacts(data: dict) -> np.ndarray:
-    return np.array([[const(c) for c in p] for p in data["nodes"]["hand"]["attach"]["constraint"]
-                     ["planar_contacts"]["points"]])
+    return np.array(
+        [[const(c) for c in p] for p in data["nodes"]["hand"]["attach"]["constraint"]["planar_contacts"]["points"]]
+    )
 
 
 class StyxModel:
@@ -66,8 +69,9 @@ class StyxModel:
         self.points = _contacts(data)
         xb, xd = ca.SX.sym("xb", 3), ca.SX.sym("xd", 3)
         tips = [xb[:2] + _rot(xb[2]) @ ca.DM(p) for p in self.points]
-        theta = ca.vertcat(*[self._ik(tip, f, base, s)
-                             for tip, f, base, s in zip(tips, self.fingers, self.bases, self.signs)])
+        theta = ca.vertcat(
+            *[self._ik(tip, f, base, s) for tip, f, base, s in zip(tips, self.fingers, self.bases, self.signs)]
+        )
         A = ca.jacobian(theta, xb)  # theta_dot = A xd (eq 3.3, here J^-1 G^T by the chain rule)
         th, thd = ca.SX.sym("th", 4), ca.SX.sym("thd", 4)
         Mf = self._finger_mass(th)
@@ -98,7 +102,7 @@ class StyxModel:
         """Joint-space M of both fingers from the point masses' kinetic energy."""
         blocks = []
         for k, (f, base) in enumerate(zip(self.fingers, self.bases)):
-            q = th[2 * k:2 * k + 2]
+            q = th[2 * k : 2 * k + 2]
             p1 = ca.DM(base) + f["l1"] * ca.vertcat(ca.cos(q[0]), ca.sin(q[0]))
             p2 = p1 + f["l2"] * ca.vertcat(ca.cos(q[1]), ca.sin(q[1]))
             J1, J2 = ca.jacobian(p1, q), ca.jacobian(p2, q)
@@ -111,8 +115,12 @@ class StyxModel:
 
     def finger_jacobian(self, k: int, q) -> np.ndarray:
         f = self.fingers[k]
-        return np.array([[-f["l1"] * math.sin(q[0]), -f["l2"] * math.sin(q[1])],
-                         [f["l1"] * math.cos(q[0]), f["l2"] * math.cos(q[1])]])
+        return np.array(
+            [
+                [-f["l1"] * math.sin(q[0]), -f["l2"] * math.sin(q[1])],
+                [f["l1"] * math.cos(q[0]), f["l2"] * math.cos(q[1])],
+            ]
+        )
 
 
 def grasp_map(points: np.ndarray, psi: float) -> np.ndarray:
@@ -141,6 +149,7 @@ def random_poses(rng, n: int) -> np.ndarray:
 
 # ---- the closed loop: compiled servo step around the compiled true plant ----------------------
 
+
 def closed_loop(mod, theta, v, desired, dt: float, steps: int, f_i=None):
     """RK4 on (theta, v) with the servo's tau held over each step (zero-order hold). Returns
     t, root positions, desired positions, root velocities v and leaf angles per step."""
@@ -153,7 +162,7 @@ def closed_loop(mod, theta, v, desired, dt: float, steps: int, f_i=None):
 
     def pad(a):
         out = np.zeros(n_v)
-        out[:len(a)] = a
+        out[: len(a)] = a
         return out
 
     T, X, XD, V, TH = [], [], [], [], []
@@ -199,6 +208,7 @@ def sinusoid(data: dict, x0: np.ndarray):
 
 # ---- modules, each built once --------------------------------------------------------------
 
+
 @pytest.fixture(scope="module")
 def high(build_module):
     return build_module(HIGH)
@@ -221,10 +231,11 @@ def styx():
 
 # ---- 1. Appendix A: RobotMass[HighCThand] is zero, RobotMass[LowCThand] is the box -----------
 
+
 def test_appendix_a_masses(high, low, styx):
     rng = np.random.default_rng(10)
     mb, Ib = _box(spec_data(LOW))
-    assert (mb, Ib) == (0.2, pytest.approx(0.2 * (0.1 ** 2 + 0.06 ** 2) / 12))
+    assert (mb, Ib) == (0.2, pytest.approx(0.2 * (0.1**2 + 0.06**2) / 12))
     for xb in random_poses(rng, 10):
         theta = styx(xb)[0]
         theta_dot = rng.normal(size=4)
@@ -240,6 +251,7 @@ def test_appendix_a_masses(high, low, styx):
 
 # ---- 2. composite attributes of the uncontrolled hand (eqs 3.3-3.6) ----------------------------
 
+
 def test_composite_mass_and_coriolis_against_kinetic_energy(high, styx):
     rng = np.random.default_rng(2)
     worst = dict(theta=0.0, M=0.0, C=0.0, skew=0.0, skew_fd=0.0, plant=0.0, read=0.0)
@@ -248,8 +260,7 @@ def test_composite_mass_and_coriolis_against_kinetic_energy(high, styx):
         theta, A, M, C, Mdot = styx(xb, xd)
         theta_dot = A @ xd  # consistent with the grasp constraint
         worst["theta"] = max(worst["theta"], np.abs(high.plant_inverse(xb) - theta).max())
-        np.testing.assert_allclose(high.left_mass(theta),
-                                   np.array(styx.finger_mass(theta))[:2, :2], atol=1e-15)
+        np.testing.assert_allclose(high.left_mass(theta), np.array(styx.finger_mass(theta))[:2, :2], atol=1e-15)
         M_r, C_r = high.hand_mass(theta), high.hand_coriolis(theta, theta_dot)
         worst["M"] = max(worst["M"], np.abs(M_r - M).max())
         worst["C"] = max(worst["C"], np.abs(C_r - C).max())
@@ -266,8 +277,9 @@ def test_composite_mass_and_coriolis_against_kinetic_energy(high, styx):
         worst["plant"] = max(worst["plant"], np.abs(th_dot_p - theta_dot).max(), np.abs(v_dot_p - v_dot).max())
         x_r, xd_r = high.hand_read(theta, theta_dot)
         worst["read"] = max(worst["read"], np.abs(x_r - xb).max(), np.abs(xd_r - xd).max())
-    print("\ncomposite hand, 60 poses, max |robotgen - reference|:",
-          ", ".join(f"{k} {v:.1e}" for k, v in worst.items()))
+    print(
+        "\ncomposite hand, 60 poses, max |robotgen - reference|:", ", ".join(f"{k} {v:.1e}" for k, v in worst.items())
+    )
     assert worst["theta"] < 1e-12
     assert worst["M"] < 1e-9 and worst["C"] < 1e-9
     assert worst["skew"] < 1e-9 and worst["skew_fd"] < 1e-7
@@ -275,6 +287,7 @@ def test_composite_mass_and_coriolis_against_kinetic_energy(high, styx):
 
 
 # ---- 3. high-level computed torque: linear, critically damped error (§3.4, §4.1) -----------------
+
 
 def test_high_level_computed_torque_error_decays_at_the_gains_rate(high):
     from robotgen.model.simulation import SimulationSettings
@@ -297,9 +310,14 @@ def test_high_level_computed_torque_error_decays_at_the_gains_rate(high):
         v0 = desired(0.0)[1]  # the box starts moving with the desired velocity: ed0 = 0
         t, x, x_d, _, _ = closed_loop(high, theta0, v0, desired, dt, steps)
         if dt == 1e-4:  # the same loop as `robotgen simulate`
-            s = SimulationSettings(duration=0.6, dt=dt, start=tuple(start), initial_error=tuple(e0),
-                                   amplitude=tuple(const(c) for c in sim["amplitude"]),
-                                   frequency=tuple(const(c) for c in sim["frequency"]))
+            s = SimulationSettings(
+                duration=0.6,
+                dt=dt,
+                start=tuple(start),
+                initial_error=tuple(e0),
+                amplitude=tuple(const(c) for c in sim["amplitude"]),
+                frequency=tuple(const(c) for c in sim["frequency"]),
+            )
             res = run(high, s)
             np.testing.assert_allclose(res.x, x, atol=1e-12)
             np.testing.assert_allclose(res.x_d, x_d, atol=1e-15)
@@ -313,8 +331,10 @@ def test_high_level_computed_torque_error_decays_at_the_gains_rate(high):
         deviation[dt] = max(np.abs(r[3]).max() for r in rows)
         print(f"\nhigh-level CT, wn = {wn:g} rad/s, dt = {dt:g}: e(t) = x - x_d vs e0 (1 + wn t) exp(-wn t)")
         for tt, got, want, rel in rows:
-            print(f"  t = {tt:4.2f}  e = {np.array2string(got, precision=4)}  analytic = "
-                  f"{np.array2string(want, precision=4)}  dev/|e0| = {np.array2string(rel, formatter=SCI)}")
+            print(
+                f"  t = {tt:4.2f}  e = {np.array2string(got, precision=4)}  analytic = "
+                f"{np.array2string(want, precision=4)}  dev/|e0| = {np.array2string(rel, formatter=SCI)}"
+            )
     print(f"  max dev/|e0|: dt 1e-4 {deviation[1e-4]:.2e}, dt 1e-3 {deviation[1e-3]:.2e}")
     # With tau held over dt the loop is exact up to an O(wn dt) zero-order-hold error: 1.8e-4 of
     # |e0| at dt = 1e-4; 1e-3 leaves a 5x margin, while a 5 % error in wn (9.5 rad/s) would
@@ -326,10 +346,11 @@ def test_high_level_computed_torque_error_decays_at_the_gains_rate(high):
 
 # ---- 4. low-level computed torque ignores the box (§4.2) -----------------------------------
 
+
 def _low_with_box(tmp_path_factory, build_module, mass: float, name: str):
     data = spec_data(LOW)
     data["name"] = name
-    inertia = mass * (0.1 ** 2 + 0.06 ** 2) / 12  # the same 10 cm x 6 cm block
+    inertia = mass * (0.1**2 + 0.06**2) / 12  # the same 10 cm x 6 cm block
     data["nodes"]["box"]["define"]["rigid_body"]["planar"] = {"mass": mass, "inertia": inertia}
     path = tmp_path_factory.mktemp(name) / f"{name}.yaml"
     path.write_text(yaml.safe_dump(data, sort_keys=False))
@@ -345,9 +366,11 @@ def test_low_level_computed_torque_degrades_with_box_mass(tmp_path_factory, buil
     theta0 = StyxModel(data)(start + e0)[0]
     dt, duration = const(sim["dt"]), const(sim["duration"])
     rms = {}
-    modules = {0.0: _low_with_box(tmp_path_factory, build_module, 0.0, "styx_low_ct_massless"),
-               0.2: low,
-               5.0: _low_with_box(tmp_path_factory, build_module, 5.0, "styx_low_ct_heavy")}
+    modules = {
+        0.0: _low_with_box(tmp_path_factory, build_module, 0.0, "styx_low_ct_massless"),
+        0.2: low,
+        5.0: _low_with_box(tmp_path_factory, build_module, 5.0, "styx_low_ct_heavy"),
+    }
     np.testing.assert_allclose(modules[5.0].hand_mass(theta0), np.diag([5.0, 5.0, 5.0 * 0.0136 / 12]), atol=1e-15)
     for mass, mod in modules.items():
         t, x, x_d, _, _ = closed_loop(mod, theta0, desired(0.0)[1], desired, dt, int(round(duration / dt)))
@@ -364,10 +387,12 @@ def test_low_level_computed_torque_degrades_with_box_mass(tmp_path_factory, buil
 
 # ---- 5. internal forces (§2.2, §5.1) -------------------------------------------------------
 
+
 def fingertip_forces(styx: StyxModel, theta, tau) -> np.ndarray:
     """F = J^-T tau, finger by finger, from each finger's own two-link Jacobian."""
-    return np.concatenate([np.linalg.solve(styx.finger_jacobian(k, theta[2 * k:2 * k + 2]).T, tau[2 * k:2 * k + 2])
-                           for k in range(2)])
+    return np.concatenate(
+        [np.linalg.solve(styx.finger_jacobian(k, theta[2 * k : 2 * k + 2]).T, tau[2 * k : 2 * k + 2]) for k in range(2)]
+    )
 
 
 def test_internal_force_moves_nothing_and_splits_into_box_force_and_squeeze(high, styx):
@@ -395,11 +420,14 @@ def test_internal_force_moves_nothing_and_splits_into_box_force_and_squeeze(high
         np.testing.assert_allclose(G @ F, F_box, rtol=0, atol=1e-12)
         np.testing.assert_allclose(abs((H @ F)[0]), 2.0, rtol=0, atol=1e-12)
         np.testing.assert_allclose(high.plant_dynamics(theta, z3, tau)[1], np.linalg.solve(M, F_box), atol=1e-10)
-    print(f"\ninternal force 2.0 at x_b = {xb.round(3)}: fingertip forces {F.round(4)}, G F = {(G @ F).round(4)} "
-          f"(box force {F_box.round(4)}), H F = {(H @ F).round(12)} with H oriented to squeeze")
+    print(
+        f"\ninternal force 2.0 at x_b = {xb.round(3)}: fingertip forces {F.round(4)}, G F = {(G @ F).round(4)} "
+        f"(box force {F_box.round(4)}), H F = {(H @ F).round(12)} with H oriented to squeeze"
+    )
 
 
 # ---- 6. redundant fingers: internal motion resolved at the controller (§5.2) -----------------
+
 
 class ThreeLink:
     """Three-link fingers with absolute angles, from the YAML numbers; fingertip by Gauss-Newton."""
@@ -448,8 +476,11 @@ def test_redundant_hand_masks_internal_motion_tracks_and_damps_it(redundant):
     assert const(ct["kv"]) == pytest.approx(2 * wn)
     # the spec's own theta0 puts the tips on the nominal grasp (by our kinematics)
     theta_spec = np.array([const(c) for c in data["simulation"]["theta0"]])
-    np.testing.assert_allclose(np.concatenate([fingers.tip(0, theta_spec[:3]), fingers.tip(1, theta_spec[3:])]),
-                               [-0.05, 0.12, 0.05, 0.12], atol=1e-12)
+    np.testing.assert_allclose(
+        np.concatenate([fingers.tip(0, theta_spec[:3]), fingers.tip(1, theta_spec[3:])]),
+        [-0.05, 0.12, 0.05, 0.12],
+        atol=1e-12,
+    )
 
     e0 = np.array([0.005, -0.005, 0.05])
     theta0 = fingers.solve(NOMINAL + e0)
@@ -463,8 +494,9 @@ def test_redundant_hand_masks_internal_motion_tracks_and_damps_it(redundant):
     dt = 1e-4
     t, x, x_d, V, TH = closed_loop(redundant, theta0, v0, desired, dt, int(round(1.0 / dt)))
     e = x - x_d
-    print(f"\nredundant hand, dt = {dt:g}: box error vs e0 (1 + wn t) exp(-wn t), internal rates vs "
-          f"v_i0 exp(-{kv_i:g} t)")
+    print(
+        f"\nredundant hand, dt = {dt:g}: box error vs e0 (1 + wn t) exp(-wn t), internal rates vs v_i0 exp(-{kv_i:g} t)"
+    )
     worst_e = worst_i = 0.0
     for tt in (0.1, 0.2, 0.5, 1.0):
         k = int(round(tt / dt))
@@ -474,9 +506,11 @@ def test_redundant_hand_masks_internal_motion_tracks_and_damps_it(redundant):
         want_i = v0[3:] * math.exp(-kv_i * tt)
         worst_e = max(worst_e, (np.abs(e[k] - want_e) / np.abs(e0)).max())
         worst_i = max(worst_i, (np.abs(rates - want_i) / np.abs(v0[3:])).max())
-        print(f"  t = {tt:3.1f}  e = {np.array2string(e[k], precision=3)} (analytic "
-              f"{np.array2string(want_e, precision=3)})  rates = {np.array2string(rates, precision=3)} "
-              f"(analytic {np.array2string(want_i, precision=3)})")
+        print(
+            f"  t = {tt:3.1f}  e = {np.array2string(e[k], precision=3)} (analytic "
+            f"{np.array2string(want_e, precision=3)})  rates = {np.array2string(rates, precision=3)} "
+            f"(analytic {np.array2string(want_i, precision=3)})"
+        )
     print(f"  max dev: box {worst_e:.1e} |e0|, internal rates {worst_i:.1e} |v_i0|")
     assert worst_e < 2e-3
     assert worst_i < 3e-3  # zero-order-hold floor ~1e-3 |v_i0| at dt = 1e-4 (10x larger at 1e-3)
@@ -487,12 +521,22 @@ def test_redundant_hand_masks_internal_motion_tracks_and_damps_it(redundant):
     from robotgen.simulation.tree import run
 
     sim = data["simulation"]
-    res = run(redundant, SimulationSettings(
-        duration=2.0, dt=const(sim["dt"]), start=tuple(NOMINAL), theta0=tuple(theta0),
-        amplitude=tuple(const(c) for c in sim["amplitude"]), frequency=tuple(const(c) for c in sim["frequency"])))
+    res = run(
+        redundant,
+        SimulationSettings(
+            duration=2.0,
+            dt=const(sim["dt"]),
+            start=tuple(NOMINAL),
+            theta0=tuple(theta0),
+            amplitude=tuple(const(c) for c in sim["amplitude"]),
+            frequency=tuple(const(c) for c in sim["frequency"]),
+        ),
+    )
     late = np.abs(res.error[res.t >= 1.0]).max(axis=0)
-    print(f"  robotgen.simulation.tree.run, dt = {const(sim['dt']):g}: max |x - x_d| over t in [1, 2] s = "
-          f"{np.array2string(late, formatter=SCI)}")
+    print(
+        f"  robotgen.simulation.tree.run, dt = {const(sim['dt']):g}: max |x - x_d| over t in [1, 2] s = "
+        f"{np.array2string(late, formatter=SCI)}"
+    )
     np.testing.assert_allclose(res.x[0], NOMINAL + e0, atol=1e-13)
     assert np.all(late < [1e-5, 1e-5, 1e-3])
 
@@ -503,8 +547,8 @@ def test_redundant_hand_masks_internal_motion_tracks_and_damps_it(redundant):
     tau, _ = redundant.servo_step(theta, z6, NOMINAL, np.zeros(3), np.zeros(3), np.zeros(3), state, np.array([1e-3]))
     F = []
     for k in range(2):  # fingertip force of a redundant finger: (J J^T)^-1 J tau (J K^T = 0)
-        J = fingers.jacobian(k, theta[3 * k:3 * k + 3])
-        F.append(np.linalg.solve(J @ J.T, J @ tau[3 * k:3 * k + 3]))
+        J = fingers.jacobian(k, theta[3 * k : 3 * k + 3])
+        F.append(np.linalg.solve(J @ J.T, J @ tau[3 * k : 3 * k + 3]))
     F = np.concatenate(F)
     np.testing.assert_allclose(grasp_map(fingers.points, 0.0) @ F, np.zeros(3), atol=1e-12)
     assert abs((squeeze_basis(fingers.points, 0.0) @ F)[0]) == pytest.approx(1.0, abs=1e-12)
@@ -512,6 +556,7 @@ def test_redundant_hand_masks_internal_motion_tracks_and_damps_it(redundant):
 
 
 # ---- 5b. which way a positive internal force acts ------------------------------------------
+
 
 def test_positive_internal_force_squeezes_the_box(high, redundant, styx):
     """The specs call the grasp's internal force 'the squeeze' (styx_redundant.yaml resolves it
@@ -521,16 +566,25 @@ def test_positive_internal_force_squeezes_the_box(high, redundant, styx):
     tau = high.hand_write(theta, z4, NOMINAL, z3, z3, z3, np.array([2.0]))
     F = fingertip_forces(styx, theta, tau)
     H = squeeze_basis(styx.points, 0.0)
-    print(f"\nstyx_high_ct, f_i = +2 at the nominal grasp: left fingertip force {F[:2].round(4)}, "
-          f"right {F[2:].round(4)}; H_squeeze F = {(H @ F)[0]:.6f}")
+    print(
+        f"\nstyx_high_ct, f_i = +2 at the nominal grasp: left fingertip force {F[:2].round(4)}, "
+        f"right {F[2:].round(4)}; H_squeeze F = {(H @ F)[0]:.6f}"
+    )
     # styx_redundant resolves its internal force to +1.0 ("squeeze the box with 1 N")
     fingers = ThreeLink(spec_data(REDUNDANT))
     th = fingers.solve(NOMINAL)
     tau_r, _ = redundant.servo_step(th, z6, NOMINAL, z3, z3, z3, redundant.servo_init(th, z6), np.array([1e-3]))
-    F_r = np.concatenate([np.linalg.lstsq(fingers.jacobian(k, th[3 * k:3 * k + 3]).T, tau_r[3 * k:3 * k + 3],
-                                          rcond=None)[0] for k in range(2)])
-    print(f"styx_redundant, resolved f_i = +1: left fingertip force {F_r[:2].round(4)}, right {F_r[2:].round(4)}; "
-          f"H_squeeze F = {(H @ F_r)[0]:.6f}")
-    assert (H @ F)[0] == pytest.approx(2.0, abs=1e-12), \
+    F_r = np.concatenate(
+        [
+            np.linalg.lstsq(fingers.jacobian(k, th[3 * k : 3 * k + 3]).T, tau_r[3 * k : 3 * k + 3], rcond=None)[0]
+            for k in range(2)
+        ]
+    )
+    print(
+        f"styx_redundant, resolved f_i = +1: left fingertip force {F_r[:2].round(4)}, right {F_r[2:].round(4)}; "
+        f"H_squeeze F = {(H @ F_r)[0]:.6f}"
+    )
+    assert (H @ F)[0] == pytest.approx(2.0, abs=1e-12), (
         f"positive f_i pulls the box apart: H_squeeze F = {(H @ F)[0]:.6f}"
+    )
     assert (H @ F_r)[0] == pytest.approx(1.0, abs=1e-12), f"'squeeze with 1 N' pulls: H_squeeze F = {(H @ F_r)[0]:.6f}"

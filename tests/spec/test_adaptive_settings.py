@@ -1,6 +1,7 @@
 """The settings of law resolved_adaptive in a spec: the weight rule's Q, full Q and R
 matrices, the identification's settings and payload changes; each wrong value is reported
 where it stands (FILE:LINE:COL) with what is wrong."""
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -45,8 +46,14 @@ def test_the_weight_rule_and_given_matrices(tmp_path):
     L = np.tril(np.arange(1.0, 37.0).reshape(6, 6)) / 10 + np.eye(6)
     R = L @ L.T
     rows = "".join(f"          - [{', '.join(repr(float(v)) for v in row)}]\n" for row in R)
-    s = load_system(spec(tmp_path, "        q: [1e5, 1e5, 1, 1]\n        r:\n" + rows +
-                         "        initial_covariance: {B: 1e-6}\n        affine: false\n")).root_node.hand
+    s = load_system(
+        spec(
+            tmp_path,
+            "        q: [1e5, 1e5, 1, 1]\n        r:\n"
+            + rows
+            + "        initial_covariance: {B: 1e-6}\n        affine: false\n",
+        )
+    ).root_node.hand
     np.testing.assert_array_equal(s.q, np.repeat([1e5, 1e5, 1, 1], 3))
     np.testing.assert_array_equal(s.r, R)
     assert s.bandwidth is None and s.initial_covariance == (1.0, 1e-6, 1e-2) and not s.affine
@@ -64,21 +71,36 @@ NOT_PD = np.eye(6)
 NOT_PD[0, 1] = NOT_PD[1, 0] = 2  # eigenvalues -1, 1, 1, 1, 1, 3
 
 
-@pytest.mark.parametrize("settings, fragment, message", [
-    (matrix("q", np.eye(12)[:11]), "        q:", "Q as a matrix must be 12 x 12, got 11 rows"),
-    (matrix("r", np.tril(np.ones((6, 6)))), "          - [1, 0, 0, 0, 0, 0]", "R must be symmetric"),
-    (matrix("r", NOT_PD), "        r:", "R must be positive definite (eq 38): its smallest eigenvalue is -1"),
-    ("        q: [1, 2, 3]\n", "        q:", "expected a number or 4 (position, orientation, velocity, angular "
-                                              "velocity), 12 (the diagonal) or 12 rows of 12 entries, got 3"),
-    ("        r: [1, 1, 1, 1, 1, -1]\n", "        r:", "weight -1 must be positive"),
-    ("        q: 1e5\n        bandwidth: 10\n", "        bandwidth:", "give q or bandwidth, not both"),
-    ("        bandwidth: 3000\n", "        bandwidth:", "bandwidth 3000 rad/s is at or past 2 / period (2000 rad/s)"),
-    ("        forgetting: 1.5\n", "        forgetting:", "forgetting factor 1.5 must be in (0, 1] (eq 37)"),
+@pytest.mark.parametrize(
+    "settings, fragment, message",
+    [
+        (matrix("q", np.eye(12)[:11]), "        q:", "Q as a matrix must be 12 x 12, got 11 rows"),
+        (matrix("r", np.tril(np.ones((6, 6)))), "          - [1, 0, 0, 0, 0, 0]", "R must be symmetric"),
+        (matrix("r", NOT_PD), "        r:", "R must be positive definite (eq 38): its smallest eigenvalue is -1"),
+        (
+            "        q: [1, 2, 3]\n",
+            "        q:",
+            "expected a number or 4 (position, orientation, velocity, angular "
+            "velocity), 12 (the diagonal) or 12 rows of 12 entries, got 3",
+        ),
+        ("        r: [1, 1, 1, 1, 1, -1]\n", "        r:", "weight -1 must be positive"),
+        ("        q: 1e5\n        bandwidth: 10\n", "        bandwidth:", "give q or bandwidth, not both"),
+        (
+            "        bandwidth: 3000\n",
+            "        bandwidth:",
+            "bandwidth 3000 rad/s is at or past 2 / period (2000 rad/s)",
+        ),
+        ("        forgetting: 1.5\n", "        forgetting:", "forgetting factor 1.5 must be in (0, 1] (eq 37)"),
         ("        forgetting: 0\n", "        forgetting:", "forgetting factor 0 must be in (0, 1] (eq 37)"),
         ("        torque_weight: -2\n", "        torque_weight:", "torque weight -2 must be positive"),
-    ("        initial_covariance: {c: -1}\n", "        initial_covariance:", "is less than or equal to the minimum"),
-    ("        affine: maybe\n", "        affine:", "affine"),
-])
+        (
+            "        initial_covariance: {c: -1}\n",
+            "        initial_covariance:",
+            "is less than or equal to the minimum",
+        ),
+        ("        affine: maybe\n", "        affine:", "affine"),
+    ],
+)
 def test_wrong_settings_are_located(tmp_path, settings, fragment, message):
     path = spec(tmp_path, settings)
     with pytest.raises(UserErrors) as caught:
@@ -91,11 +113,18 @@ def test_wrong_settings_are_located(tmp_path, settings, fragment, message):
 
 
 def test_payload_changes(tmp_path):
-    changes = load_system(spec(tmp_path, simulation="  payload_change:\n    - {at: 1.0, mass: 2.0}\n"
-                               "    - {at: 5, mass: 5, com: [0.05, 0.05, 0.03]}\n    - {at: 8, mass: 0}\n")
-                          ).simulation.payload_changes
-    assert [(c.at, c.mass, c.com) for c in changes] == [(1.0, 2.0, (0, 0, 0)), (5.0, 5.0, (0.05, 0.05, 0.03)),
-                                                        (8.0, 0.0, (0, 0, 0))]
+    changes = load_system(
+        spec(
+            tmp_path,
+            simulation="  payload_change:\n    - {at: 1.0, mass: 2.0}\n"
+            "    - {at: 5, mass: 5, com: [0.05, 0.05, 0.03]}\n    - {at: 8, mass: 0}\n",
+        )
+    ).simulation.payload_changes
+    assert [(c.at, c.mass, c.com) for c in changes] == [
+        (1.0, 2.0, (0, 0, 0)),
+        (5.0, 5.0, (0.05, 0.05, 0.03)),
+        (8.0, 0.0, (0, 0, 0)),
+    ]
     path = spec(tmp_path, simulation="  payload_change:\n    - {at: 5.0, mass: 2.0}\n    - {at: 2, mass: 1}\n")
     with pytest.raises(UserErrors) as caught:
         load_system(path)

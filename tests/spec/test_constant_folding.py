@@ -1,6 +1,7 @@
 """Constant parts of formulas are folded into one number at build time: one that cannot be
 evaluated, or is not a finite real number, is the user's input, refused where it stands
 (exit 1), never an internal error and never a NaN or infinite literal in the emitted C."""
+
 from __future__ import annotations
 
 import importlib
@@ -20,13 +21,21 @@ SPEC = 'robotgen: 1\nname: fx\nroot: a\nnodes: {a: {define: {formulas: {coordina
 COLUMN = SPEC.splitlines()[3].index("%s") + 1  # where the constant starts on line 4
 
 
-@pytest.mark.parametrize("text, offset, words", [
-    ("exp(1000)", 0, "(too large)"), ("10^400", 2, "'10^400' cannot be evaluated (too large)"),
-    ("1/0", 1, "(division by zero)"), ("0/0", 1, "(division by zero)"),
-    ("sqrt(-1)", 0, "outside the function's domain"), ("log(0)", 0, "outside the function's domain"),
-    ("acos(2)", 0, "outside the function's domain"), ("1e308*10", 5, "is not a finite real number"),
-    ("(-8)^(1/3)", 4, "is not a finite real number"), ("2*(q + 1/0)", 8, "'1/0'"),
-])
+@pytest.mark.parametrize(
+    "text, offset, words",
+    [
+        ("exp(1000)", 0, "(too large)"),
+        ("10^400", 2, "'10^400' cannot be evaluated (too large)"),
+        ("1/0", 1, "(division by zero)"),
+        ("0/0", 1, "(division by zero)"),
+        ("sqrt(-1)", 0, "outside the function's domain"),
+        ("log(0)", 0, "outside the function's domain"),
+        ("acos(2)", 0, "outside the function's domain"),
+        ("1e308*10", 5, "is not a finite real number"),
+        ("(-8)^(1/3)", 4, "is not a finite real number"),
+        ("2*(q + 1/0)", 8, "'1/0'"),
+    ],
+)
 def test_bad_constants_are_located_errors(tmp_path, capsys, text, offset, words):
     path = tmp_path / "f.yaml"
     path.write_text(SPEC % text)
@@ -67,8 +76,8 @@ def _hard_arguments() -> list[float]:
     """Doubles nearest to multiples of pi/2 (their remainder is a few ulps of x, or for the
     worst double of all, 6381956970095103 * 2^797, 4.7e-19), and powers of two."""
     with mpmath.workprec(2000):
-        near = [float(k * mpmath.pi / 2) for k in (*range(1, 200), *(7 ** j for j in range(20, 360, 17)))]
-    return near + [6381956970095103 * 2.0 ** 797, *(2.0 ** j for j in range(-1074, 1024, 37))]
+        near = [float(k * mpmath.pi / 2) for k in (*range(1, 200), *(7**j for j in range(20, 360, 17)))]
+    return near + [6381956970095103 * 2.0**797, *(2.0**j for j in range(-1074, 1024, 37))]
 
 
 @pytest.mark.parametrize("function", ["sin", "cos", "tan"])
@@ -84,8 +93,9 @@ def test_folded_trigonometric_constants_are_correctly_rounded_at_every_magnitude
     assert math.copysign(1, fold(-0.0)) == math.copysign(1, getattr(math, function)(-0.0))  # the sign of zero
 
 
-@pytest.mark.parametrize("function, x", [("sin", 1e40), ("sin", 1e42), ("cos", 1e300), ("tan", 2e46), ("tanh", 1e300),
-                                         ("sin", -1e-300)])
+@pytest.mark.parametrize(
+    "function, x", [("sin", 1e40), ("sin", 1e42), ("cos", 1e300), ("tan", 2e46), ("tanh", 1e300), ("sin", -1e-300)]
+)
 def test_constant_fields_fold_to_the_correct_value(function, x):
     assert parse_constant(f"{function}({x!r})", Location("x.yaml", 1, 1)) == _reference(function, x)
     if (function, x) == ("sin", 1e40):
@@ -106,8 +116,12 @@ def test_the_mass_check_sees_the_folded_value(tmp_path, capsys):
     same number written out is not (the check once met an overflow there and skipped the
     sample). The emitted M holds the folded value itself."""
     path = tmp_path / "f.yaml"
-    for text, status in (("sin(1e300) - 1", 1), ("-1.8178819121159085", 1), ("(sin(1e300) - 1) * (1 + q^2)", 1),
-                         ("sin(1e40) + cos(q)^2", 0)):
+    for text, status in (
+        ("sin(1e300) - 1", 1),
+        ("-1.8178819121159085", 1),
+        ("(sin(1e300) - 1) * (1 + q^2)", 1),
+        ("sin(1e40) + cos(q)^2", 0),
+    ):
         path.write_text(SPEC % text)
         assert main(["check", str(path)]) == status, text
         assert ("M is not positive definite" in capsys.readouterr().err) == bool(status), text

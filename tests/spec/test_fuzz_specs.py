@@ -5,6 +5,7 @@ written; never a traceback, never an internal error.
 A few hundred mutants run in `make test`; `pytest -m slow` runs 10^4 (derandomised, so a
 failure reproduces; Hypothesis shrinks it to the smallest mutant that fails). The mutants are
 dumped back to YAML text, so the reader sees them as a user's file."""
+
 from __future__ import annotations
 
 import contextlib
@@ -24,12 +25,61 @@ from robotgen.cli import main
 SPECS = sorted((Path(__file__).resolve().parents[2] / "specs").glob("*.yaml"))
 # values that broke robotgen once (overflow, injection, look-alikes, shapes), then anything
 VALUES = st.one_of(
-    st.sampled_from([None, True, False, 0, -1, 1, 2, 7, 1e308, -1e308, 1e-320, "nan", "inf", "-inf", "1/0", "10^400",
-                     "exp(1000)", "x", "", " ", "q1", "__import__('os')", "a.b", "[1]", "pi", "sqrt(-1)", [], {},
-                     [1, 2, 3], [[1, 2], [3]], {"a": 1}, {"runtime": "x"}, "é", "ｍ2", "a" * 300, [None], [[None]],
-                     -0.0, 3.5, "int", "math", "import", "x\n", "(" * 200 + "1" + ")" * 200, "2^2^2^2^2",
-                     "lambda: 1", "[x for x in q]", "q1.real"]),
-    st.floats(), st.integers(), st.text(max_size=12),
+    st.sampled_from(
+        [
+            None,
+            True,
+            False,
+            0,
+            -1,
+            1,
+            2,
+            7,
+            1e308,
+            -1e308,
+            1e-320,
+            "nan",
+            "inf",
+            "-inf",
+            "1/0",
+            "10^400",
+            "exp(1000)",
+            "x",
+            "",
+            " ",
+            "q1",
+            "__import__('os')",
+            "a.b",
+            "[1]",
+            "pi",
+            "sqrt(-1)",
+            [],
+            {},
+            [1, 2, 3],
+            [[1, 2], [3]],
+            {"a": 1},
+            {"runtime": "x"},
+            "é",
+            "ｍ2",
+            "a" * 300,
+            [None],
+            [[None]],
+            -0.0,
+            3.5,
+            "int",
+            "math",
+            "import",
+            "x\n",
+            "(" * 200 + "1" + ")" * 200,
+            "2^2^2^2^2",
+            "lambda: 1",
+            "[x for x in q]",
+            "q1.real",
+        ]
+    ),
+    st.floats(),
+    st.integers(),
+    st.text(max_size=12),
     st.lists(st.floats(-10, 10), max_size=4),
 )
 KEYS = st.sampled_from(["extra", "law", "kp", "kd", "joints", "M", "root", "1", "name", "runtime", "tip"])
@@ -103,8 +153,9 @@ def assert_a_users_answer(text: str, build: bool) -> None:
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / "mutant.yaml"
         path.write_text(text)
-        argv = (["build", str(path), "-o", str(Path(tmp) / "out"), "--no-compile", "-q"] if build
-                else ["check", str(path)])
+        argv = (
+            ["build", str(path), "-o", str(Path(tmp) / "out"), "--no-compile", "-q"] if build else ["check", str(path)]
+        )
         status, err = answer(argv)
         located = re.compile(re.escape(str(path)) + r"(:\d+:\d+)?: \S")  # a file-level error has no line
         assert status in (0, 1) and "Traceback" not in err and "internal error" not in err, (status, err)

@@ -1,6 +1,7 @@
 """Specs built to hurt the reader: nesting deep enough to exhaust a recursive parser, aliases
 that stand for exponentially many values, files too large to be a spec. Each gets a located
 error and exit status 1 in bounded time, and nothing is built."""
+
 from __future__ import annotations
 
 import os
@@ -28,15 +29,34 @@ def laughs(levels: int) -> str:
 
 CASES = {
     # name: (text, line, column, words the message must contain)
-    "flow lists 5000 deep": (HEAD + "nodes: " + "[" * 5000 + "]" * 5000 + "\n", 4, 7 + MAX_DEPTH + 1,
-                             f"nested deeper than the {MAX_DEPTH} levels"),
-    "flow maps 20000 deep": (HEAD + "nodes: " + "{a: " * 20000 + "1" + "}" * 20000 + "\n", 4, 8 + 4 * MAX_DEPTH,
-                             f"nested deeper than the {MAX_DEPTH} levels"),
-    "block maps 300 deep": (HEAD + "nodes:\n" + "".join("  " * (i + 1) + f"k{i}:\n" for i in range(300)),
-                             5 + 4 * MAX_DEPTH // 2, 1, "indented 258 columns"),
+    "flow lists 5000 deep": (
+        HEAD + "nodes: " + "[" * 5000 + "]" * 5000 + "\n",
+        4,
+        7 + MAX_DEPTH + 1,
+        f"nested deeper than the {MAX_DEPTH} levels",
+    ),
+    "flow maps 20000 deep": (
+        HEAD + "nodes: " + "{a: " * 20000 + "1" + "}" * 20000 + "\n",
+        4,
+        8 + 4 * MAX_DEPTH,
+        f"nested deeper than the {MAX_DEPTH} levels",
+    ),
+    "block maps 300 deep": (
+        HEAD + "nodes:\n" + "".join("  " * (i + 1) + f"k{i}:\n" for i in range(300)),
+        5 + 4 * MAX_DEPTH // 2,
+        1,
+        "indented 258 columns",
+    ),
     "billion laughs": (laughs(9), 4, None, f"more than {MAX_VALUES} values"),
-    "a flat list of too many values": (HEAD + "nodes: {a: {define: {formulas: {coordinates: [q], M: [[1]], N: ["
-                                       + ", ".join(["0"] * (MAX_VALUES + 10)) + "]}}}}\n", 4, None, f"more than {MAX_VALUES}"),
+    "a flat list of too many values": (
+        HEAD
+        + "nodes: {a: {define: {formulas: {coordinates: [q], M: [[1]], N: ["
+        + ", ".join(["0"] * (MAX_VALUES + 10))
+        + "]}}}}\n",
+        4,
+        None,
+        f"more than {MAX_VALUES}",
+    ),
 }
 
 
@@ -65,8 +85,12 @@ def test_the_cli_answers_with_exit_1_and_writes_nothing(tmp_path):
     path = tmp_path / "spec.yaml"
     path.write_text(CASES["flow lists 5000 deep"][0])
     out = tmp_path / "out"
-    result = subprocess.run([sys.executable, "-m", "robotgen", "build", str(path), "-o", str(out)],
-                            capture_output=True, text=True, timeout=120)
+    result = subprocess.run(
+        [sys.executable, "-m", "robotgen", "build", str(path), "-o", str(out)],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert result.returncode == 1
     assert result.stderr.startswith(f"{path}:4:") and "Traceback" not in result.stderr
     assert not out.exists()
@@ -80,8 +104,9 @@ def test_specs_of_the_repository_are_far_inside_the_bounds():
 def _check(path: Path, *options: str) -> subprocess.CompletedProcess:
     """`robotgen check` in a process of its own, bounded: a FIFO used to block it forever and
     /dev/zero to fill its memory."""
-    return subprocess.run([sys.executable, "-m", "robotgen", "check", str(path), *options], capture_output=True,
-                          text=True, timeout=60)
+    return subprocess.run(
+        [sys.executable, "-m", "robotgen", "check", str(path), *options], capture_output=True, text=True, timeout=60
+    )
 
 
 @pytest.mark.parametrize("suffix, options, what", [(".yaml", (), "spec"), (".urdf", ("--tip", "l1"), "URDF file")])
@@ -98,8 +123,10 @@ def test_special_files_are_refused_before_they_are_read(tmp_path, suffix, option
     result = _check(path, *options)
     assert time.perf_counter() - start < 30
     named = {"fifo": "a FIFO (named pipe)", "directory": "a directory"}.get(kind, "a character device")
-    assert (result.returncode, result.stderr) == (1, f"{path}:1:1: {what} is {named}; robotgen reads regular "
-                                                     "files only\n")
+    assert (result.returncode, result.stderr) == (
+        1,
+        f"{path}:1:1: {what} is {named}; robotgen reads regular files only\n",
+    )
 
 
 def test_the_bound_is_checked_on_what_is_read(tmp_path):
@@ -119,12 +146,15 @@ def test_the_bound_is_checked_on_what_is_read(tmp_path):
             read_input("/proc/self/maps", 100, "spec")
 
 
-@pytest.mark.parametrize("value, column, words", [
-    ("1" + "0" * 5000, 56, "an integer of 5001 digits; robotgen reads integers of at most 4300 digits"),
-    ("-0x" + "f" * 6000, 56, "the integer (about 10^7224) is out of range"),  # base 16 has no digit limit
-    ("1" + "0" * 400, 56, "the integer (about 10^400) is out of range"),
-    ("2001-13-45", 56, "'2001-13-45' cannot be read: month must be in 1..12"),
-])
+@pytest.mark.parametrize(
+    "value, column, words",
+    [
+        ("1" + "0" * 5000, 56, "an integer of 5001 digits; robotgen reads integers of at most 4300 digits"),
+        ("-0x" + "f" * 6000, 56, "the integer (about 10^7224) is out of range"),  # base 16 has no digit limit
+        ("1" + "0" * 400, 56, "the integer (about 10^400) is out of range"),
+        ("2001-13-45", 56, "'2001-13-45' cannot be read: month must be in 1..12"),
+    ],
+)
 def test_numbers_the_yaml_library_cannot_convert_are_located(tmp_path, value, column, words):
     path = tmp_path / "spec.yaml"
     path.write_text(HEAD + "nodes: {a: {define: {formulas: {coordinates: [q], M: [[" + value + "]]}}}}\n")
@@ -139,11 +169,18 @@ def flat(n: int) -> str:
     return HEAD + "nodes: {a: {define: {formulas: {coordinates: [q], M: [[1]], N: [" + ",".join(["1"] * n) + "]}}}}\n"
 
 
-@pytest.mark.parametrize("name, text, line", [
-    ("a 0.96 MB flow list of 480,000 numbers", flat(480_000), 4),
-    ("a block list of 400,000 empty items", HEAD + "nodes:\n" + "-\n" * 400_000, MAX_VALUES + 1),
-    ("110,000 block mapping keys", HEAD + "nodes:\n" + "".join(f" {i:x}:\n" for i in range(110_000)), MAX_VALUES + 1),
-])
+@pytest.mark.parametrize(
+    "name, text, line",
+    [
+        ("a 0.96 MB flow list of 480,000 numbers", flat(480_000), 4),
+        ("a block list of 400,000 empty items", HEAD + "nodes:\n" + "-\n" * 400_000, MAX_VALUES + 1),
+        (
+            "110,000 block mapping keys",
+            HEAD + "nodes:\n" + "".join(f" {i:x}:\n" for i in range(110_000)),
+            MAX_VALUES + 1,
+        ),
+    ],
+)
 def test_too_many_values_are_refused_while_the_text_is_read(tmp_path, name, text, line):
     """Before the YAML parser runs: it took 49-159 s and 0.7 GB to refuse the flow list."""
     path = tmp_path / "spec.yaml"
@@ -160,12 +197,13 @@ def test_too_many_values_are_refused_while_the_text_is_read(tmp_path, name, text
 TRICKY = [
     HEAD + "doc: |\n" + "  - a: [1, 2]\n" * 50 + "nodes: {a: [1, 2, {b: c}], d: 'x, y: z'}  # e, f: g\n",
     HEAD + "nodes:\n  - - a: 1\n    - [1, 2,]\n  -\n  - 'x: - y'\n  - >-\n    - folded: [1, 2]\n  - {a: 1, b: [3]}\n",
-    HEAD + "nodes: {a: &x [1, 2, 3], b: *x, c: \"q: 1, 2\"}\nk: 12:30\nurl: http://x.org/a,b\n",
+    HEAD + 'nodes: {a: &x [1, 2, 3], b: *x, c: "q: 1, 2"}\nk: 12:30\nurl: http://x.org/a,b\n',
 ]
 
 
-@pytest.mark.parametrize("text", TRICKY + [s.read_text() for s in sorted(
-    (Path(__file__).resolve().parents[2] / "specs").glob("*.yaml"))])
+@pytest.mark.parametrize(
+    "text", TRICKY + [s.read_text() for s in sorted((Path(__file__).resolve().parents[2] / "specs").glob("*.yaml"))]
+)
 def test_the_counted_entries_never_exceed_the_values(text):
     """The count that refuses a spec before parsing is a lower bound of the values the parser
     makes (the nodes of PyYAML's composed document that are not mapping keys, an alias's as often

@@ -1,6 +1,7 @@
 """MJCF files that MuJoCo refuses, or that robotgen cannot represent: exit status 1, MuJoCo's
 message or one naming the element, located in the file, no traceback and no output
 directory."""
+
 from __future__ import annotations
 
 import importlib.util
@@ -19,7 +20,7 @@ def messages(err: str) -> str:
 
 
 def model(*bodies: str, extra: str = "") -> str:
-    return ('<mujoco model="m">\n  <worldbody>\n' + "\n".join(bodies) + "\n  </worldbody>\n" + extra + "</mujoco>\n")
+    return '<mujoco model="m">\n  <worldbody>\n' + "\n".join(bodies) + "\n  </worldbody>\n" + extra + "</mujoco>\n"
 
 
 ARM = """    <body name="upper">
@@ -48,50 +49,118 @@ WELDED = """    <body name="plate">
 
 # name: (file text or a suite file, argv after the path, (line, col) or None for the file's start, message)
 CASES = {
-    "mismatched_tag": (model(ARM.format("", "hinge").replace("</body>\n    </body>", "</bod>\n    </body>")),
-                       ["--tip", "tip"], None, "MuJoCo cannot compile this file: XML parse error"),
-    "unknown_attribute": (model(ARM.format(' spring="1"', "hinge")), ["--tip", "tip"], (4, 7),
-                          "MuJoCo cannot compile this file: XML Error: Schema violation: unrecognized attribute: "
-                          "'spring'; Element 'joint', line 4"),
-    "missing_include": (model(ARM.format("", "hinge"), extra='  <include file="hand.xml"/>\n'), ["--tip", "tip"],
-                        (13, 3), "Error opening file"),
-    "unknown_tip": (model(ARM.format("", "hinge")), ["--tip", "hand"], (1, 1),
-                    "tip body or site 'hand' is not in the model"),
-    "fused_tip": (model(WELDED).replace("<worldbody>", '<compiler fusestatic="true"/>\n  <worldbody>'),
-                  ["--tip", "knob"], (1, 1), "tip body or site 'knob' is not in the model (MuJoCo's compiler fused "
-                                             "it into its parent: <compiler fusestatic=\"true\">; name a site on it "
-                                             "or its parent)"),
-    "unknown_base": (model(ARM.format("", "hinge")), ["--tip", "tip", "--base", "pelvis"], (1, 1),
-                     "base body 'pelvis' is not in the model"),
-    "ball_on_chain": (model(ARM.format("", "ball")), ["--tip", "tip"], (7, 9),
-                      "joint 'elbow' is a ball joint (on the chain from 'world' to 'tip'), which robotgen does not "
-                      "support"),
-    "ball_in_tree": (model(ARM.format("", "ball")), ["--tree"], (7, 9),
-                     "joint 'elbow' is a ball joint (below the base body 'world'), which robotgen does not support"),
-    "free_on_chain": (model(FREE), ["--tip", "leg"], (4, 7),
-                      "joint 'root' is a free joint (on the chain from 'world' to 'leg'), which robotgen does not "
-                      "support; read the tree below it with --base torso"),
-    "free_in_tree": (model(FREE), ["--tree"], (4, 7),
-                     "joint 'root' is a free joint (below the base body 'world'), which robotgen does not support; "
-                     "read the tree below it with --base torso"),
-    "tip_not_below_base": (model(ARM.format("", "hinge")), ["--tip", "upper", "--base", "lower"], (3, 5),
-                           "tip 'upper' is not below base body 'lower'"),
-    "no_joint_between": (model(WELDED), ["--tip", "knob", "--base", "plate"], (5, 7),
-                         "no joint between 'plate' and 'knob'"),
-    "weld_on_the_chain": (model(ARM.format("", "hinge"), extra='  <equality>\n    <weld body1="lower"/>\n'
-                                                              "  </equality>\n"), ["--tip", "tip"], (14, 5),
-                          "equality constraint 'equality 0' acts on the joints robotgen keeps, and robotgen has no "
-                          "constraints inside a chain or tree"),
-    "quadruped_legs": ("quadruped.xml", ["--tree", "--base", "torso"], (272, 5),
-                       "equality constraint 'coupling_front_left' acts on the joints robotgen keeps"),
-    "flex": (model(ARM.format("", "hinge"), '    <flexcomp name="cloth" type="grid" count="3 3 1" spacing=".1 .1 .1" '
-                                              'dim="2" pos="0 0 1"/>'), ["--tip", "tip"], (12, 5),
-             "flex 'cloth': deformable bodies are not part of robotgen's model"),
-    "negative_damping": (model(ARM.format(' damping="-1"', "hinge")), ["--tip", "tip"], (4, 7),
-                         "joint 'shoulder': damping -1 is negative"),
-    "huge_number": (model(ARM.format("", "hinge").replace('pos="0.5 0 0">', 'pos="1e300 0 0">')), ["--tip", "tip"],
-                    (6, 7), "body 'lower': MuJoCo's compiled body_pos holds 1e+300 0 0; robotgen reads finite numbers "
-                            "up to 1e+15 in magnitude"),
+    "mismatched_tag": (
+        model(ARM.format("", "hinge").replace("</body>\n    </body>", "</bod>\n    </body>")),
+        ["--tip", "tip"],
+        None,
+        "MuJoCo cannot compile this file: XML parse error",
+    ),
+    "unknown_attribute": (
+        model(ARM.format(' spring="1"', "hinge")),
+        ["--tip", "tip"],
+        (4, 7),
+        "MuJoCo cannot compile this file: XML Error: Schema violation: unrecognized attribute: "
+        "'spring'; Element 'joint', line 4",
+    ),
+    "missing_include": (
+        model(ARM.format("", "hinge"), extra='  <include file="hand.xml"/>\n'),
+        ["--tip", "tip"],
+        (13, 3),
+        "Error opening file",
+    ),
+    "unknown_tip": (
+        model(ARM.format("", "hinge")),
+        ["--tip", "hand"],
+        (1, 1),
+        "tip body or site 'hand' is not in the model",
+    ),
+    "fused_tip": (
+        model(WELDED).replace("<worldbody>", '<compiler fusestatic="true"/>\n  <worldbody>'),
+        ["--tip", "knob"],
+        (1, 1),
+        "tip body or site 'knob' is not in the model (MuJoCo's compiler fused "
+        'it into its parent: <compiler fusestatic="true">; name a site on it '
+        "or its parent)",
+    ),
+    "unknown_base": (
+        model(ARM.format("", "hinge")),
+        ["--tip", "tip", "--base", "pelvis"],
+        (1, 1),
+        "base body 'pelvis' is not in the model",
+    ),
+    "ball_on_chain": (
+        model(ARM.format("", "ball")),
+        ["--tip", "tip"],
+        (7, 9),
+        "joint 'elbow' is a ball joint (on the chain from 'world' to 'tip'), which robotgen does not support",
+    ),
+    "ball_in_tree": (
+        model(ARM.format("", "ball")),
+        ["--tree"],
+        (7, 9),
+        "joint 'elbow' is a ball joint (below the base body 'world'), which robotgen does not support",
+    ),
+    "free_on_chain": (
+        model(FREE),
+        ["--tip", "leg"],
+        (4, 7),
+        "joint 'root' is a free joint (on the chain from 'world' to 'leg'), which robotgen does not "
+        "support; read the tree below it with --base torso",
+    ),
+    "free_in_tree": (
+        model(FREE),
+        ["--tree"],
+        (4, 7),
+        "joint 'root' is a free joint (below the base body 'world'), which robotgen does not support; "
+        "read the tree below it with --base torso",
+    ),
+    "tip_not_below_base": (
+        model(ARM.format("", "hinge")),
+        ["--tip", "upper", "--base", "lower"],
+        (3, 5),
+        "tip 'upper' is not below base body 'lower'",
+    ),
+    "no_joint_between": (
+        model(WELDED),
+        ["--tip", "knob", "--base", "plate"],
+        (5, 7),
+        "no joint between 'plate' and 'knob'",
+    ),
+    "weld_on_the_chain": (
+        model(ARM.format("", "hinge"), extra='  <equality>\n    <weld body1="lower"/>\n  </equality>\n'),
+        ["--tip", "tip"],
+        (14, 5),
+        "equality constraint 'equality 0' acts on the joints robotgen keeps, and robotgen has no "
+        "constraints inside a chain or tree",
+    ),
+    "quadruped_legs": (
+        "quadruped.xml",
+        ["--tree", "--base", "torso"],
+        (272, 5),
+        "equality constraint 'coupling_front_left' acts on the joints robotgen keeps",
+    ),
+    "flex": (
+        model(
+            ARM.format("", "hinge"),
+            '    <flexcomp name="cloth" type="grid" count="3 3 1" spacing=".1 .1 .1" dim="2" pos="0 0 1"/>',
+        ),
+        ["--tip", "tip"],
+        (12, 5),
+        "flex 'cloth': deformable bodies are not part of robotgen's model",
+    ),
+    "negative_damping": (
+        model(ARM.format(' damping="-1"', "hinge")),
+        ["--tip", "tip"],
+        (4, 7),
+        "joint 'shoulder': damping -1 is negative",
+    ),
+    "huge_number": (
+        model(ARM.format("", "hinge").replace('pos="0.5 0 0">', 'pos="1e300 0 0">')),
+        ["--tip", "tip"],
+        (6, 7),
+        "body 'lower': MuJoCo's compiled body_pos holds 1e+300 0 0; robotgen reads finite numbers "
+        "up to 1e+15 in magnitude",
+    ),
 }
 
 

@@ -2,6 +2,7 @@
 q = qpos with a joint's ref (qpos0) folded into its origin, several joints in one body,
 joints held at qpos = 0 off the chain and above the base, <option> flags, the friction
 mapping, and the notes and warnings for what robotgen leaves out."""
+
 from __future__ import annotations
 
 import math
@@ -64,8 +65,7 @@ def test_the_module_is_named_after_the_model_or_the_file(tmp_path):
     named = load_mjcf_system(str(write(tmp_path, PENDULUM)), "end")
     assert named.name == "ref_pendulum"
     assert any("note: module name 'ref_pendulum' (from <mujoco model=\"Ref Pendulum\">)" in w for w in named.warnings)
-    unnamed = load_mjcf_system(str(write(tmp_path, PENDULUM.replace(' model="Ref Pendulum"', ""), "my_arm.xml")),
-                               "end")
+    unnamed = load_mjcf_system(str(write(tmp_path, PENDULUM.replace(' model="Ref Pendulum"', ""), "my_arm.xml")), "end")
     assert unnamed.name == "my_arm"
     assert load_mjcf_system(str(write(tmp_path, PENDULUM)), "end", name="p").name == "p"
 
@@ -93,8 +93,9 @@ def test_several_joints_in_one_body_in_mujocos_order(tmp_path):
         np.testing.assert_allclose(p, [q1 + 0.5 + 0.5 * math.cos(q2), 0.5 * math.sin(q2), 0.0], atol=1e-15)
     reversed_ = read_mjcf_tree(str(write(tmp_path, text.format(*hinge, *slide))), tip="s").tree
     p = np.array(kernels(reversed_)["fk"]([1.1, 0.3])).reshape(4, 4)[:3, 3]  # h first, then x in the turned frame
-    np.testing.assert_allclose(p, [0.5 + 0.5 * math.cos(1.1) + 0.3 * math.cos(1.1),
-                                   0.5 * math.sin(1.1) + 0.3 * math.sin(1.1), 0.0], atol=1e-15)
+    np.testing.assert_allclose(
+        p, [0.5 + 0.5 * math.cos(1.1) + 0.3 * math.cos(1.1), 0.5 * math.sin(1.1) + 0.3 * math.sin(1.1), 0.0], atol=1e-15
+    )
 
 
 # An arm whose off-chain finger has ref = 45 degrees, on a base body below a hinge with
@@ -150,13 +151,16 @@ def test_joints_held_off_the_chain_and_above_the_base_are_at_qpos_zero(tmp_path)
 
 
 def test_option_flags_switch_off_what_they_disable(tmp_path):
-    text = PENDULUM.replace("<worldbody>", '<option><flag gravity="disable" damper="disable" '
-                                           'frictionloss="disable"/></option>\n  <worldbody>')
+    text = PENDULUM.replace(
+        "<worldbody>",
+        '<option><flag gravity="disable" damper="disable" frictionloss="disable"/></option>\n  <worldbody>',
+    )
     tree = read_mjcf(str(write(tmp_path, text)), "end").tree
     assert list(tree.gravity) == [0.0, 0.0, 0.0]
     assert (tree.joints[0].viscous, tree.joints[0].coulomb, tree.joints[0].armature) == (0.0, 0.0, 0.3)
-    tilted = read_mjcf(str(write(tmp_path, PENDULUM.replace("<worldbody>", '<option gravity="1 2 -3"/>\n  '
-                                                                          "<worldbody>"))), "end").tree
+    tilted = read_mjcf(
+        str(write(tmp_path, PENDULUM.replace("<worldbody>", '<option gravity="1 2 -3"/>\n  <worldbody>'))), "end"
+    ).tree
     assert list(tilted.gravity) == [1.0, 2.0, -3.0]
 
 
@@ -195,7 +199,7 @@ def test_notes_and_warnings_name_what_is_left_out(tmp_path):
         "(inactive, or among parts held fixed): 'off'",
         f"{path}:5:7: warning: ignored the joint stiffness (springs) of 'j1': robotgen's model has no such forces",
         f"{path}:7:7: warning: ignored the gravity compensation (gravcomp) of 'b': robotgen's model has no such forces",
-        f"{path}:1:1: warning: ignored fluid forces (<option density=\"1.2\" viscosity=\"0\">): robotgen's model has "
+        f'{path}:1:1: warning: ignored fluid forces (<option density="1.2" viscosity="0">): robotgen\'s model has '
         "no such forces",
         f"{path}:18:5: warning: ignored the stiffness, damping and friction loss of tendons 'spring': robotgen's model "
         "has no such forces",
@@ -210,8 +214,10 @@ def test_the_digest_covers_included_files(tmp_path):
     """An included file changes the compiled model, so it changes the digest (the build
     cache's key and the manifest's spec_sha256), though the main file is the same."""
     main = write(tmp_path, '<mujoco>\n  <include file="arm.xml"/>\n</mujoco>\n', "main.xml")
-    part = '<mujoco><worldbody><body name="a"><joint name="j" axis="0 1 0"/><geom size="0.1" mass="{}"/>' \
-           '</body></worldbody></mujoco>'
+    part = (
+        '<mujoco><worldbody><body name="a"><joint name="j" axis="0 1 0"/><geom size="0.1" mass="{}"/>'
+        "</body></worldbody></mujoco>"
+    )
     write(tmp_path, part.format(1), "arm.xml")
     first = read_mjcf(str(main), "a")
     write(tmp_path, part.format(2), "arm.xml")

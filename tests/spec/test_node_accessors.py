@@ -2,6 +2,7 @@
 type (robotgen.model.system): each returns the node or settings of the kind it names and
 raises TypeError, naming the node, for any other kind, so that no caller reads a field off
 the union."""
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -59,16 +60,21 @@ def test_under_controls_and_leaf_of_follow_the_tree(styx):
     assert leaf_of(styx.nodes["hand"]) is None and leaf_of(styx.nodes["pd_left"]) is None and leaf_of(None) is None
 
 
-@pytest.mark.parametrize("spec, accessor, kind", [
-    ("puma560_rmac", "adaptive", AdaptiveSettings),
-    ("puma560_rmrc", "chain_rate", RateControlSettings),
-    ("impedance_arm", "impedance", ImpedanceSettings),
-    ("hybrid_arm", "hybrid", HybridSettings),
-])
+@pytest.mark.parametrize(
+    "spec, accessor, kind",
+    [
+        ("puma560_rmac", "adaptive", AdaptiveSettings),
+        ("puma560_rmrc", "chain_rate", RateControlSettings),
+        ("impedance_arm", "impedance", ImpedanceSettings),
+        ("hybrid_arm", "hybrid", HybridSettings),
+    ],
+)
 def test_a_root_law_settings_accessor_narrows_to_its_own(spec, accessor, kind):
     root = load_system(SPECS / f"{spec}.yaml").root_control
     assert isinstance(getattr(root, accessor), kind)
-    for other in sorted({"adaptive", "acceleration", "chain_rate", "composite_rate", "impedance", "hybrid"} - {accessor}):
+    for other in sorted(
+        {"adaptive", "acceleration", "chain_rate", "composite_rate", "impedance", "hybrid"} - {accessor}
+    ):
         with pytest.raises(TypeError, match=repr(root.name)):
             getattr(root, other)
 

@@ -1,4 +1,5 @@
 """The spec layer: located errors for malformed specs, canonical joints for valid ones."""
+
 from __future__ import annotations
 
 import json
@@ -50,42 +51,80 @@ def formula_spec(body: str) -> str:
 
 # (case, spec text, line, column, text the first message must contain)
 MALFORMED = [
-    ("wrong type", chain_spec("""
+    (
+        "wrong type",
+        chain_spec("""
         convention: dh_standard
         gravity: 9.81
         joints:
           - {type: revolute, dh: {a: 1}}
-        """), 9, 18, "nodes.arm.define.chain.gravity: expected a list, got 9.81"),
-    ("unknown key", chain_spec("""
+        """),
+        9,
+        18,
+        "nodes.arm.define.chain.gravity: expected a list, got 9.81",
+    ),
+    (
+        "unknown key",
+        chain_spec("""
         convention: dh_standard
         joints:
           - type: revolute
             dh: {a: 1}
             link: {mass: 1, masss: 2}
-        """), 12, 29, "nodes.arm.define.chain.joints[0].link.masss: unknown key"),
-    ("missing field", chain_spec("""
+        """),
+        12,
+        29,
+        "nodes.arm.define.chain.joints[0].link.masss: unknown key",
+    ),
+    (
+        "missing field",
+        chain_spec("""
         convention: dh_standard
         joints:
           - type: revolute
             dh: {a: 1}
           - dh: {a: 1}
-        """), 12, 13, "nodes.arm.define.chain.joints[1]: missing required key 'type'"),
-    ("missing convention", chain_spec("""
+        """),
+        12,
+        13,
+        "nodes.arm.define.chain.joints[1]: missing required key 'type'",
+    ),
+    (
+        "missing convention",
+        chain_spec("""
         joints:
           - {type: revolute, dh: {a: 1}}
-        """), 7, 7, "nodes.arm.define.chain: missing required key 'convention'"),
-    ("bad convention", chain_spec("""
+        """),
+        7,
+        7,
+        "nodes.arm.define.chain: missing required key 'convention'",
+    ),
+    (
+        "bad convention",
+        chain_spec("""
         convention: dh_std
         joints:
           - {type: revolute, dh: {a: 1}}
-        """), 8, 21, "nodes.arm.define.chain.convention: 'dh_std' is not one of: dh_standard"),
-    ("dh row missing in a dh chain", chain_spec("""
+        """),
+        8,
+        21,
+        "nodes.arm.define.chain.convention: 'dh_std' is not one of: dh_standard",
+    ),
+    (
+        "dh row missing in a dh chain",
+        chain_spec("""
         convention: dh_modified
         joints:
           - type: revolute
             axis: [0, 0, 1]
-        """), 10, 13, "nodes.arm.define.chain.joints[0]: missing required key 'dh' (convention dh_modified)"),
-    ("non-PSD inertia", chain_spec("""
+        """),
+        10,
+        13,
+        "nodes.arm.define.chain.joints[0]: missing required key 'dh' (convention dh_modified)",
+    ),
+    (
+        "non-PSD inertia",
+        chain_spec("""
         convention: dh_standard
         joints:
           - type: revolute
@@ -93,72 +132,151 @@ MALFORMED = [
             link:
               mass: 1
               inertia: {ixx: 1, iyy: 1, izz: 1, ixy: 2}
-        """), 14, 15, "joints[0].link.inertia: inertia is not positive semi-definite"),
-    ("negative mass", chain_spec("""
+        """),
+        14,
+        15,
+        "joints[0].link.inertia: inertia is not positive semi-definite",
+    ),
+    (
+        "negative mass",
+        chain_spec("""
         convention: dh_standard
         joints:
           - {type: revolute, dh: {a: 1}}
           - type: revolute
             dh: {a: 1}
             link: {mass: -1.0}
-        """), 13, 26, "nodes.arm.define.chain.joints[1].link.mass: -1.0 is less than the minimum of 0"),
-    ("negative mass by expression", chain_spec("""
+        """),
+        13,
+        26,
+        "nodes.arm.define.chain.joints[1].link.mass: -1.0 is less than the minimum of 0",
+    ),
+    (
+        "negative mass by expression",
+        chain_spec("""
         convention: dh_standard
         joints:
           - type: revolute
             dh: {a: 1}
             link: {mass: "-pi"}
-        """), 12, 26, "joints[0].link.mass: '-pi' = -3.14159 is less than the minimum of 0"),
-    ("constant with a name", chain_spec("""
+        """),
+        12,
+        26,
+        "joints[0].link.mass: '-pi' = -3.14159 is less than the minimum of 0",
+    ),
+    (
+        "constant with a name",
+        chain_spec("""
         convention: dh_standard
         joints:
           - type: revolute
             dh: {a: 1, alpha: pi/two}
-        """), 11, 34, "joints[0].dh.alpha: unknown name 'two'"),
-    ("zero axis", chain_spec("""
+        """),
+        11,
+        34,
+        "joints[0].dh.alpha: unknown name 'two'",
+    ),
+    (
+        "zero axis",
+        chain_spec("""
         convention: joints
         joints:
           - type: revolute
             axis: [0, 0, 0]
-        """), 11, 19, "joints[0].axis: joint axis must not be the zero vector"),
-    ("duplicate joint name", chain_spec("""
+        """),
+        11,
+        19,
+        "joints[0].axis: joint axis must not be the zero vector",
+    ),
+    (
+        "duplicate joint name",
+        chain_spec("""
         convention: joints
         joints:
           - {name: shoulder, type: revolute, axis: [0, 0, 1]}
           - {name: shoulder, type: revolute, axis: [0, 0, 1]}
-        """), 11, 14, "joints[1].name: joint name 'shoulder' is used twice"),
-    ("formula with unknown name", formula_spec("""
+        """),
+        11,
+        14,
+        "joints[1].name: joint name 'shoulder' is used twice",
+    ),
+    (
+        "formula with unknown name",
+        formula_spec("""
         coordinates: [th1]
         parameters: {m1: 1.0}
         M: [["m1 * l1^2"]]
-        """), 10, 20, "nodes.arm.define.formulas.M[0][0]: unknown name 'l1'"),
-    ("formula calls __import__", formula_spec("""
+        """),
+        10,
+        20,
+        "nodes.arm.define.formulas.M[0][0]: unknown name 'l1'",
+    ),
+    (
+        "formula calls __import__",
+        formula_spec("""
         coordinates: [th1]
         M: [["1 + __import__('os')"]]
-        """), 9, 19, "formulas.M[0][0]: '__import__' is not a known function"),
-    ("formula with attribute access", formula_spec("""
+        """),
+        9,
+        19,
+        "formulas.M[0][0]: '__import__' is not a known function",
+    ),
+    (
+        "formula with attribute access",
+        formula_spec("""
         coordinates: [th1]
         M: [[1.0]]
         N: [th1.real]
-        """), 10, 16, "formulas.N[0]: attribute access is not allowed"),
-    ("velocity in kinematics", formula_spec("""
+        """),
+        10,
+        16,
+        "formulas.N[0]: attribute access is not allowed",
+    ),
+    (
+        "velocity in kinematics",
+        formula_spec("""
         coordinates: [th1]
         M: [[2]]
         kinematics: ['cos(th1) + dth1']
-        """), 10, 34, "formulas.kinematics[0]: unknown name 'dth1'"),
-    ("M not nq x nq", formula_spec("""
+        """),
+        10,
+        34,
+        "formulas.kinematics[0]: unknown name 'dth1'",
+    ),
+    (
+        "M not nq x nq",
+        formula_spec("""
         coordinates: [a, b]
         M: [["1", "0"], ["0"]]
-        """), 9, 25, "formulas.M[1]: expected 2 entries in each row, got 1"),
-    ("coordinate shadows a function", formula_spec("""
+        """),
+        9,
+        25,
+        "formulas.M[1]: expected 2 entries in each row, got 1",
+    ),
+    (
+        "coordinate shadows a function",
+        formula_spec("""
         coordinates: [sin]
         M: [[1]]
-        """), 8, 23, "formulas.coordinates[0]: coordinate 'sin' shadows the function 'sin'"),
-    ("chain and formulas together", HEADER + """\
+        """),
+        8,
+        23,
+        "formulas.coordinates[0]: coordinate 'sin' shadows the function 'sin'",
+    ),
+    (
+        "chain and formulas together",
+        HEADER
+        + """\
       chain: {convention: joints, joints: [{type: revolute, axis: [0, 0, 1]}]}
       formulas: {coordinates: [x], M: [[1]]}
-""", 8, 7, "nodes.arm.define: chain and formulas exclude each other"),
-    ("root is not a node", """
+""",
+        8,
+        7,
+        "nodes.arm.define: chain and formulas exclude each other",
+    ),
+    (
+        "root is not a node",
+        """
 robotgen: 1
 name: arm_test
 root: hand
@@ -166,8 +284,14 @@ nodes:
   arm:
     define:
       formulas: {coordinates: [x], M: [[1]]}
-""", 3, 7, "root: 'hand' is not a node (nodes: arm)"),
-    ("bad node name", """
+""",
+        3,
+        7,
+        "root: 'hand' is not a node (nodes: arm)",
+    ),
+    (
+        "bad node name",
+        """
 robotgen: 1
 name: arm_test
 root: arm
@@ -175,33 +299,56 @@ nodes:
   my-arm:
     define:
       formulas: {coordinates: [x], M: [[1]]}
-""", 5, 3, "nodes: name 'my-arm' is not an identifier"),
-    ("wrong format version", """
+""",
+        5,
+        3,
+        "nodes: name 'my-arm' is not an identifier",
+    ),
+    (
+        "wrong format version",
+        """
 robotgen: 2
 name: arm_test
 root: arm
 nodes: {arm: {define: {formulas: {coordinates: [x], M: [[1]]}}}}
-""", 1, 11, "robotgen: must be 1, got 2"),
-    ("YAML syntax error", """
+""",
+        1,
+        11,
+        "robotgen: must be 1, got 2",
+    ),
+    (
+        "YAML syntax error",
+        """
 robotgen: 1
 name: arm_test
 root: arm
 nodes:
   arm: {define: [1, 2}
-""", 5, 22, "YAML: expected ',' or ']'"),
-    ("duplicate key", """
+""",
+        5,
+        22,
+        "YAML: expected ',' or ']'",
+    ),
+    (
+        "duplicate key",
+        """
 robotgen: 1
 name: arm_test
 root: arm
 name: other
 nodes: {arm: {define: {formulas: {coordinates: [x], M: [[1]]}}}}
-""", 4, 1, 'duplicate key "name"'),
+""",
+        4,
+        1,
+        'duplicate key "name"',
+    ),
     ("not a mapping", "- robotgen: 1\n", 1, 1, "a spec must be a YAML mapping"),
 ]
 
 
-@pytest.mark.parametrize("text, line, col, message", [case[1:] for case in MALFORMED],
-                         ids=[case[0] for case in MALFORMED])
+@pytest.mark.parametrize(
+    "text, line, col, message", [case[1:] for case in MALFORMED], ids=[case[0] for case in MALFORMED]
+)
 def test_malformed_spec_is_reported_where_it_is_wrong(tmp_path, text, line, col, message):
     first = errors_of(tmp_path, text)[0]
     assert (first.location.line, first.location.col) == (line, col), first
@@ -218,14 +365,17 @@ def test_missing_file_is_a_user_error(tmp_path):
 
 
 def test_every_problem_is_reported_in_file_order(tmp_path):
-    errors = errors_of(tmp_path, chain_spec("""
+    errors = errors_of(
+        tmp_path,
+        chain_spec("""
         convention: dh_standard
         joints:
           - type: revolute
             dh: {a: 1, bogus: 0}
             link: {mass: -2}
           - type: spinning
-        """))
+        """),
+    )
     assert [(e.location.line, e.location.col) for e in errors] == [(11, 24), (12, 26), (13, 19)]
     assert "unknown key" in errors[0].message
     assert "-2 is less than the minimum of 0" in errors[1].message
@@ -233,12 +383,15 @@ def test_every_problem_is_reported_in_file_order(tmp_path):
 
 
 def test_semantic_errors_are_all_collected(tmp_path):
-    errors = errors_of(tmp_path, formula_spec("""
+    errors = errors_of(
+        tmp_path,
+        formula_spec("""
         coordinates: [q, p]
         velocities: [v]
         M: [["q^2", "foo"], ["0", "1"]]
         N: ["v", "w"]
-        """))
+        """),
+    )
     assert [(e.location.line, e.location.col) for e in errors] == [(9, 9), (10, 22), (11, 19)]
     assert "expected 2 names" in errors[0].message
     assert "unknown name 'foo'" in errors[1].message
@@ -247,20 +400,15 @@ def test_semantic_errors_are_all_collected(tmp_path):
 
 # ---- valid specs: canonical joints reproduce the convention's forward kinematics ----------
 
+
 def dh_standard_matrix(a, alpha, d, theta):
     ct, st, ca, sa = math.cos(theta), math.sin(theta), math.cos(alpha), math.sin(alpha)
-    return np.array([[ct, -st * ca, st * sa, a * ct],
-                     [st, ct * ca, -ct * sa, a * st],
-                     [0, sa, ca, d],
-                     [0, 0, 0, 1]])
+    return np.array([[ct, -st * ca, st * sa, a * ct], [st, ct * ca, -ct * sa, a * st], [0, sa, ca, d], [0, 0, 0, 1]])
 
 
 def dh_modified_matrix(a, alpha, d, theta):
     ct, st, ca, sa = math.cos(theta), math.sin(theta), math.cos(alpha), math.sin(alpha)
-    return np.array([[ct, -st, 0, a],
-                     [st * ca, ct * ca, -sa, -sa * d],
-                     [st * sa, ct * sa, ca, ca * d],
-                     [0, 0, 0, 1]])
+    return np.array([[ct, -st, 0, a], [st * ca, ct * ca, -sa, -sa * d], [st * sa, ct * sa, ca, ca * d], [0, 0, 0, 1]])
 
 
 def rodrigues(axis, angle):
@@ -300,8 +448,10 @@ DH_ROWS = [  # a, alpha, d, theta, type
     (0.25, -0.7, 0.15, math.pi / 4, "prismatic"),
 ]
 COMS = [(-0.2, 0.01, 0.05), (0.03, -0.1, 0.02)]
-INERTIAS = [dict(ixx=0.3, iyy=0.4, izz=0.5, ixy=0.01, ixz=-0.02, iyz=0.03),
-            dict(ixx=0.1, iyy=0.15, izz=0.2, ixy=0.0, ixz=0.01, iyz=0.0)]
+INERTIAS = [
+    dict(ixx=0.3, iyy=0.4, izz=0.5, ixy=0.01, ixz=-0.02, iyz=0.03),
+    dict(ixx=0.1, iyy=0.15, izz=0.2, ixy=0.0, ixz=0.01, iyz=0.0),
+]
 
 
 def inertia_matrix(i):
@@ -311,23 +461,28 @@ def inertia_matrix(i):
 def dh_chain_text(convention):
     joints = ""
     for (a, alpha, d, theta, kind), com, inertia in zip(DH_ROWS, COMS, INERTIAS):
-        joints += (f"  - type: {kind}\n"
-                   f"    dh: {{a: {a!r}, alpha: {alpha!r}, d: {d!r}, theta: {theta!r}}}\n"
-                   f"    link: {{mass: 1.5, com: {list(com)}, inertia: {json.dumps(inertia)}}}\n"
-                   f"    motor: {{inertia: 2.0e-4, gear_ratio: -50}}\n"
-                   f"    friction: {{viscous: 0.5, coulomb: 0.25}}\n")
-    return chain_spec(f"convention: {convention}\n"
-                      "base: {xyz: [0.1, -0.2, 0.3], rpy: [0.1, 0.2, 0.3]}\n"
-                      "tool: {xyz: [0, 0, 0.12], rpy: [0, pi/2, 0]}\n"
-                      "joints:\n" + joints)
+        joints += (
+            f"  - type: {kind}\n"
+            f"    dh: {{a: {a!r}, alpha: {alpha!r}, d: {d!r}, theta: {theta!r}}}\n"
+            f"    link: {{mass: 1.5, com: {list(com)}, inertia: {json.dumps(inertia)}}}\n"
+            f"    motor: {{inertia: 2.0e-4, gear_ratio: -50}}\n"
+            f"    friction: {{viscous: 0.5, coulomb: 0.25}}\n"
+        )
+    return chain_spec(
+        f"convention: {convention}\n"
+        "base: {xyz: [0.1, -0.2, 0.3], rpy: [0.1, 0.2, 0.3]}\n"
+        "tool: {xyz: [0, 0, 0.12], rpy: [0, pi/2, 0]}\n"
+        "joints:\n" + joints
+    )
 
 
 BASE = urdf_origin([0.1, -0.2, 0.3], [0.1, 0.2, 0.3])
 TOOL = urdf_origin([0, 0, 0.12], [0, math.pi / 2, 0])
 
 
-@pytest.mark.parametrize("convention, dh_matrix", [("dh_standard", dh_standard_matrix),
-                                                   ("dh_modified", dh_modified_matrix)])
+@pytest.mark.parametrize(
+    "convention, dh_matrix", [("dh_standard", dh_standard_matrix), ("dh_modified", dh_modified_matrix)]
+)
 def test_dh_chain_matches_the_dh_product(tmp_path, convention, dh_matrix):
     tree = load_system(write(tmp_path, dh_chain_text(convention))).root_node.leaf
     assert [j.name for j in tree.joints] == ["q1", "q2"]
@@ -344,10 +499,14 @@ def test_dh_chain_matches_the_dh_product(tmp_path, convention, dh_matrix):
         np.testing.assert_allclose(tip, links[-1] @ TOOL, atol=1e-12)
         for frame, link, joint, com, inertia in zip(frames, links, tree.joints, COMS, INERTIAS):
             # the body is the same physical body in the base frame, whichever frame it is written in
-            np.testing.assert_allclose(frame[:3, :3] @ joint.body.com + frame[:3, 3],
-                                       link[:3, :3] @ com + link[:3, 3], atol=1e-12)
-            np.testing.assert_allclose(frame[:3, :3] @ joint.body.inertia @ frame[:3, :3].T,
-                                       link[:3, :3] @ inertia_matrix(inertia) @ link[:3, :3].T, atol=1e-12)
+            np.testing.assert_allclose(
+                frame[:3, :3] @ joint.body.com + frame[:3, 3], link[:3, :3] @ com + link[:3, 3], atol=1e-12
+            )
+            np.testing.assert_allclose(
+                frame[:3, :3] @ joint.body.inertia @ frame[:3, :3].T,
+                link[:3, :3] @ inertia_matrix(inertia) @ link[:3, :3].T,
+                atol=1e-12,
+            )
 
 
 def test_joint_list_chain_matches_the_urdf_product(tmp_path):
@@ -378,9 +537,13 @@ def test_joint_list_chain_matches_the_urdf_product(tmp_path):
     rng = np.random.default_rng(3)
     for _ in range(5):
         q = rng.uniform(-2, 2, size=2)
-        expected = (translation([0, 0, 1]) @ urdf_origin([0.1, 0, 0.2], [0.3, -0.2, 0.1])
-                    @ rodrigues([0, 1, 0], q[0]) @ urdf_origin([0, 0, 0], [0, 0, math.pi / 2])
-                    @ translation(np.array([1, 1, 0]) / math.sqrt(2) * q[1]))
+        expected = (
+            translation([0, 0, 1])
+            @ urdf_origin([0.1, 0, 0.2], [0.3, -0.2, 0.1])
+            @ rodrigues([0, 1, 0], q[0])
+            @ urdf_origin([0, 0, 0], [0, 0, math.pi / 2])
+            @ translation(np.array([1, 1, 0]) / math.sqrt(2) * q[1])
+        )
         np.testing.assert_allclose(canonical_frames(tree, q)[1], expected, atol=1e-12)
 
 
@@ -401,8 +564,9 @@ def test_formula_spec_parses_into_expressions(tmp_path):
     env = {"th1": 0.3, "th2": -0.4, "dth1": 2.0, **robot.parameters}
     l2 = math.pi / 4
     M = [[evaluate(e, env, MATH_LIB) for e in row] for row in robot.mass]
-    np.testing.assert_allclose(M, [[0.25 + 2 * l2 ** 2, 2 * 0.5 * l2 * math.cos(0.7)],
-                                   [2 * 0.5 * l2 * math.cos(0.7), 2 * l2 ** 2]])
+    np.testing.assert_allclose(
+        M, [[0.25 + 2 * l2**2, 2 * 0.5 * l2 * math.cos(0.7)], [2 * 0.5 * l2 * math.cos(0.7), 2 * l2**2]]
+    )
     assert evaluate(robot.nonlinear[0], env, MATH_LIB) == pytest.approx(0.2)
     assert robot.kinematics[1].names == {"l1", "l2", "th1", "th2"}
     assert robot.mass[0][1].location.line == 10
@@ -413,18 +577,21 @@ def test_formula_spec_parses_into_expressions(tmp_path):
 AT = Location("f.yaml", 3, 10)
 
 
-@pytest.mark.parametrize("text, col, message", [
-    ("m1*l1 + foo", 18, "unknown name 'foo'"),
-    ("sin(x).imag", 16, "attribute access"),
-    ("x[0]", 11, "indexing"),
-    ("x % 2", 12, "operator not allowed"),
-    ("atan2(x)", 10, "atan2() takes 2 arguments, got 1"),
-    ("max(x, y=1)", 17, "takes no keyword arguments"),
-    ("x ^ (lambda: 1)", 15, "lambda"),
-    ("x + 'a'", 14, "a string"),
-    ("x +* 2", 13, "syntax error"),
-    ("x^2 + x^2 + y", 22, "unknown name 'y'"),  # ^ -> ** must not shift columns
-])
+@pytest.mark.parametrize(
+    "text, col, message",
+    [
+        ("m1*l1 + foo", 18, "unknown name 'foo'"),
+        ("sin(x).imag", 16, "attribute access"),
+        ("x[0]", 11, "indexing"),
+        ("x % 2", 12, "operator not allowed"),
+        ("atan2(x)", 10, "atan2() takes 2 arguments, got 1"),
+        ("max(x, y=1)", 17, "takes no keyword arguments"),
+        ("x ^ (lambda: 1)", 15, "lambda"),
+        ("x + 'a'", 14, "a string"),
+        ("x +* 2", 13, "syntax error"),
+        ("x^2 + x^2 + y", 22, "unknown name 'y'"),  # ^ -> ** must not shift columns
+    ],
+)
 def test_parse_expression_points_at_the_offending_token(text, col, message):
     with pytest.raises(UserError) as caught:
         parse_expression(text, AT, {"x", "m1", "l1"})
@@ -462,7 +629,8 @@ def test_schema_is_valid_and_deterministic():
 def test_triangle_inequality_is_a_located_warning(tmp_path):
     """Published sets (the PUMA 560's) carry inertias no rigid body has: warned, not refused."""
     path = tmp_path / "spec.yaml"
-    path.write_text(chain_spec("""
+    path.write_text(
+        chain_spec("""
         convention: dh_standard
         joints:
           - type: revolute
@@ -470,7 +638,8 @@ def test_triangle_inequality_is_a_located_warning(tmp_path):
             link:
               mass: 1
               inertia: {ixx: 0.1, iyy: 0.1, izz: 0.5}
-        """))
+        """)
+    )
     system = load_system(str(path))
     line = next(k for k, text in enumerate(path.read_text().splitlines(), 1) if "inertia:" in text)
     col = path.read_text().splitlines()[line - 1].index("inertia") + 1

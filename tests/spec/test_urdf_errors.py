@@ -1,5 +1,6 @@
 """Unsupported URDF constructs give a clear error naming the element, exit status 1, and
 no output directory."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -22,24 +23,38 @@ def urdf(*joints: str, links=("base", "l1", "l2")) -> str:
 
 
 def joint(name, type_, parent, child, extra=""):
-    return (f'<joint name="{name}" type="{type_}"><parent link="{parent}"/><child link="{child}"/>'
-            f'<axis xyz="0 0 1"/>{extra}</joint>')
+    return (
+        f'<joint name="{name}" type="{type_}"><parent link="{parent}"/><child link="{child}"/>'
+        f'<axis xyz="0 0 1"/>{extra}</joint>'
+    )
 
 
 OK1 = joint("j1", "revolute", "base", "l1", '<limit lower="-1" upper="1" effort="1" velocity="1"/>')
 CASES = {
     "floating": ([OK1, joint("j2", "floating", "l1", "l2")], "l2", "j2' is a floating joint"),
     "planar": ([OK1, joint("j2", "planar", "l1", "l2")], "l2", "j2' is a planar joint"),
-    "mimic_of_nothing": ([OK1, joint("j2", "revolute", "l1", "l2", '<mimic joint="j9"/>')], "l2",
-                         "joint 'j2' mimics 'j9', which is not a joint of the URDF"),
-    "closed_loop": ([OK1, joint("j2", "revolute", "l1", "l2"), joint("j3", "revolute", "base", "l2")],
-                    "l2", "closed loops are not supported"),
+    "mimic_of_nothing": (
+        [OK1, joint("j2", "revolute", "l1", "l2", '<mimic joint="j9"/>')],
+        "l2",
+        "joint 'j2' mimics 'j9', which is not a joint of the URDF",
+    ),
+    "closed_loop": (
+        [OK1, joint("j2", "revolute", "l1", "l2"), joint("j3", "revolute", "base", "l2")],
+        "l2",
+        "closed loops are not supported",
+    ),
     "tip_not_below_base": ([OK1, joint("j2", "revolute", "base", "l2")], "l2", "is not below base link"),
     "unknown_type": ([OK1, joint("j2", "spherical", "l1", "l2")], "l2", "unknown type 'spherical'"),
-    "unknown_element": ([OK1, joint("j2", "revolute", "l1", "l2", "<spring k='1'/>")], "l2",
-                        "<spring> is not supported inside <joint>"),
-    "non_finite_origin": ([OK1, joint("j2", "revolute", "l1", "l2", '<origin xyz="nan 0 0"/>')], "l2",
-                          "<origin> attribute 'xyz' must hold finite numbers, got 'nan 0 0'"),
+    "unknown_element": (
+        [OK1, joint("j2", "revolute", "l1", "l2", "<spring k='1'/>")],
+        "l2",
+        "<spring> is not supported inside <joint>",
+    ),
+    "non_finite_origin": (
+        [OK1, joint("j2", "revolute", "l1", "l2", '<origin xyz="nan 0 0"/>')],
+        "l2",
+        "<origin> attribute 'xyz' must hold finite numbers, got 'nan 0 0'",
+    ),
     "unknown_link": ([OK1, joint("j2", "revolute", "l1", "nowhere")], "l1", "unknown link 'nowhere'"),
 }
 
@@ -88,8 +103,10 @@ def test_unknown_element_inside_a_joint_fails_beside_ignored_ones_under_robot(tm
     assert main(["build", str(path), "--tip", "l2", "-o", str(out)]) == 1
     err = messages(capsys.readouterr().err)
     # lines: 3-4 the ignored elements, 5-7 links, 8 j1, 9 j2
-    assert err == (f"{path}:9:90: <spring> is not supported inside <joint>: it would change the joint's dynamics, "
-                   "which URDF gives as <dynamics damping=... friction=...> only\n"), err
+    assert err == (
+        f"{path}:9:90: <spring> is not supported inside <joint>: it would change the joint's dynamics, "
+        "which URDF gives as <dynamics damping=... friction=...> only\n"
+    ), err
     assert not out.exists()
 
 
@@ -107,8 +124,14 @@ def test_mimic_joint_off_the_chain_moves_with_its_leader_or_is_locked_with_it(tm
     assert tree.nq == 2 and tree.locked_joints == ()
     assert (tree.coupling.coordinate, tree.coupling.multiplier) == ((0, 1, 0), (1.0, 1.0, -2.0))
     # following j2, which a chain to l1 locks: locked with it
-    path.write_text(urdf(OK1, joint("j2", "revolute", "l1", "l2"), off.replace('joint="j1"', 'joint="j2"'),
-                         links=("base", "l1", "l2", "l3")))
+    path.write_text(
+        urdf(
+            OK1,
+            joint("j2", "revolute", "l1", "l2"),
+            off.replace('joint="j1"', 'joint="j2"'),
+            links=("base", "l1", "l2", "l3"),
+        )
+    )
     tree = read_urdf(str(path), "l1").tree
     assert [j.name for j in tree.joints] == ["j1"] and tree.coupling is None
     assert tree.locked_joints == ("j2", "j3")

@@ -1,5 +1,6 @@
 """A URDF leaf inside a YAML spec: the file is found relative to the spec, and the leaf is
 the same chain as `robotgen build ROBOT.urdf --tip LINK` gives."""
+
 from __future__ import annotations
 
 import shutil
@@ -34,7 +35,9 @@ def test_urdf_leaf_equals_the_direct_urdf_build(tmp_path):
     spec = tmp_path / "robot" / "ur5.yaml"
     spec.write_text(SPEC.format(file="../ur5.urdf", base="base_link"))
     from_spec = {k.name: k.function for k in kernels_for(load_system(str(spec)))}
-    direct = {k.name: k.function for k in kernels_for(load_urdf_system(str(tmp_path / "ur5.urdf"), "tool0", "base_link"))}
+    direct = {
+        k.name: k.function for k in kernels_for(load_urdf_system(str(tmp_path / "ur5.urdf"), "tool0", "base_link"))
+    }
     q = np.random.default_rng(0).uniform(-3, 3, 6)
     qd = np.random.default_rng(1).normal(size=6)
     for name in ("fk", "mass", "gravity"):
@@ -72,7 +75,9 @@ def test_urdf_leaf_notes_reach_the_spec_warnings(tmp_path, capsys):
     spec = tmp_path / "ur5.yaml"
     spec.write_text(SPEC.format(file="ur5.urdf", base="base_link"))
     system = load_system(str(spec))
-    assert system.warnings == (f"{tmp_path / 'ur5.urdf'}:{line}:1: note: ignored 1 element robotgen does not "
-                               f"use under <robot>: <ros2_control> (line {line})",), system.warnings
+    assert system.warnings == (
+        f"{tmp_path / 'ur5.urdf'}:{line}:1: note: ignored 1 element robotgen does not "
+        f"use under <robot>: <ros2_control> (line {line})",
+    ), system.warnings
     assert main(["check", str(spec)]) == 0
     assert capsys.readouterr().err.count("note: ignored 1 element") == 1

@@ -3,6 +3,7 @@ revolute joints below its root link against Pinocchio's fixed-base model of the 
 (buildModelFromUrdf without a root joint). M, gravity, inverse dynamics and C at 20 random
 states, evaluated through CasADi (leaf_kernels -> Kernel.function), no compile. Plus the
 tree reader's own errors (mimic and floating joints), on small URDFs."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -65,11 +66,12 @@ def test_dynamics_match_pinocchio(icub):
         Cp = pin.computeCoriolisMatrix(model, data, qp, qdp)
         errs = {
             "mass": rel_err(np.array(f["mass"](q)).reshape(n, n), Mp[np.ix_(perm, perm)]),
-            "gravity": rel_err(np.array(f["gravity"](q)).ravel(),
-                               pin.computeGeneralizedGravity(model, data, qp)[perm]),
+            "gravity": rel_err(np.array(f["gravity"](q)).ravel(), pin.computeGeneralizedGravity(model, data, qp)[perm]),
             # URDF <dynamics damping> is viscous friction in robotgen's inverse dynamics
-            "inverse_dynamics": rel_err(np.array(f["inverse_dynamics"](q, qd, qdd)).ravel() - damping * qd,
-                                        pin.rnea(model, data, qp, qdp, qddp)[perm]),
+            "inverse_dynamics": rel_err(
+                np.array(f["inverse_dynamics"](q, qd, qdd)).ravel() - damping * qd,
+                pin.rnea(model, data, qp, qdp, qddp)[perm],
+            ),
             "coriolis": rel_err(np.array(f["coriolis"](q, qd)).reshape(n, n), Cp[np.ix_(perm, perm)]),
         }
         for key, e in errs.items():
@@ -91,13 +93,17 @@ def test_default_tip_is_the_first_leaf_and_a_named_tip_is_used(icub):
 
 # --- the tree reader's errors, on small files ---------------------------------------------
 
-LINK = ('<link name="{0}"><inertial><mass value="1"/>'
-        '<inertia ixx="0.1" iyy="0.1" izz="0.1" ixy="0" ixz="0" iyz="0"/></inertial></link>')
+LINK = (
+    '<link name="{0}"><inertial><mass value="1"/>'
+    '<inertia ixx="0.1" iyy="0.1" izz="0.1" ixy="0" ixz="0" iyz="0"/></inertial></link>'
+)
 
 
 def joint(name, type_, parent, child, extra=""):
-    return (f'<joint name="{name}" type="{type_}"><parent link="{parent}"/><child link="{child}"/>'
-            f'<axis xyz="0 0 1"/>{extra}</joint>')
+    return (
+        f'<joint name="{name}" type="{type_}"><parent link="{parent}"/><child link="{child}"/>'
+        f'<axis xyz="0 0 1"/>{extra}</joint>'
+    )
 
 
 def write(tmp_path, *joints, links=("world", "pelvis", "l1", "l2", "r1")):
@@ -107,8 +113,12 @@ def write(tmp_path, *joints, links=("world", "pelvis", "l1", "l2", "r1")):
     return str(path)
 
 
-TREE = [joint("root", "floating", "world", "pelvis"), joint("jl1", "revolute", "pelvis", "l1"),
-        joint("jl2", "continuous", "l1", "l2"), joint("jr1", "prismatic", "pelvis", "r1")]
+TREE = [
+    joint("root", "floating", "world", "pelvis"),
+    joint("jl1", "revolute", "pelvis", "l1"),
+    joint("jl2", "continuous", "l1", "l2"),
+    joint("jr1", "prismatic", "pelvis", "r1"),
+]
 
 
 def test_floating_root_needs_the_base_below_it(tmp_path):
@@ -132,8 +142,9 @@ def test_mimic_joint_is_coupled_in_a_tree(tmp_path):
     """A mimic joint stays a joint of the tree, its link its own body, coupled to the coordinate
     of the joint it follows (one coordinate fewer); joints below it stay movable; one note names it."""
     links = ("world", "pelvis", "l1", "l2", "r1", "r2")
-    mimic = joint("jm", "revolute", "l1", "r1",
-                  '<origin xyz="0 0.5 0"/><mimic joint="jl1" multiplier="-1" offset="0.25"/>')
+    mimic = joint(
+        "jm", "revolute", "l1", "r1", '<origin xyz="0 0.5 0"/><mimic joint="jl1" multiplier="-1" offset="0.25"/>'
+    )
     below = joint("jr2", "revolute", "r1", "r2", '<origin xyz="0.25 0 0"/>')
     path = write(tmp_path, *TREE[:3], mimic, below, links=links)
     chain = read_urdf_tree(path, base="pelvis")
@@ -146,8 +157,10 @@ def test_mimic_joint_is_coupled_in_a_tree(tmp_path):
     assert tree.joints[0].body.mass == 1.0 and tree.joints[2].body.mass == 1.0
     np.testing.assert_array_equal(tree.joints[2].origin[:3, 3], [0.0, 0.5, 0.0])
     # the <mimic> element is on line 12 of the file (links on 3-8, joints from 9)
-    assert chain.notes == (f"{path}:12:{mimic.index('<mimic') + 1}: note: a mimic joint moves with the coordinate "
-                           "of the joint it follows (no coordinate of its own): 'jm' = -1 * 'jl1' + 0.25",)
+    assert chain.notes == (
+        f"{path}:12:{mimic.index('<mimic') + 1}: note: a mimic joint moves with the coordinate "
+        "of the joint it follows (no coordinate of its own): 'jm' = -1 * 'jl1' + 0.25",
+    )
     # two mimic joints: one note naming both, at the first
     second = joint("jm2", "prismatic", "l2", "r2", '<mimic joint="jl2"/>')
     path = write(tmp_path, *TREE[:3], mimic, second, links=links)
@@ -160,8 +173,9 @@ def test_floating_or_planar_joint_below_the_base_is_an_error(tmp_path):
     path = write(tmp_path, *TREE[:3], joint("jr1", "planar", "pelvis", "r1"))
     with pytest.raises(UserError, match="'jr1' is a planar joint"):
         read_urdf_tree(path, base="pelvis")
-    path = write(tmp_path, joint("root", "revolute", "world", "pelvis"), *TREE[1:3],
-                 joint("jr1", "floating", "pelvis", "r1"))
+    path = write(
+        tmp_path, joint("root", "revolute", "world", "pelvis"), *TREE[1:3], joint("jr1", "floating", "pelvis", "r1")
+    )
     with pytest.raises(UserError, match="'jr1' is a floating joint"):
         read_urdf_tree(path)
 

@@ -3,6 +3,7 @@ ignored with one located note, mimic joints are coupled coordinates, the module 
 from <robot name> is reported when it differs. Real files (example-robot-data's xArm7 and
 Panda) are built with the CLI and checked against Pinocchio; the rules themselves on small
 files. Plus: merged inertias are correctly rounded (robotgen.numeric.exact, not BLAS)."""
+
 from __future__ import annotations
 
 import contextlib
@@ -79,8 +80,9 @@ def compare_with_pinocchio(module, model, seed: int) -> dict[str, float]:
         errs = {
             "mass": rel_err(M[k], Mp[np.ix_(perm, perm)]),
             "gravity": rel_err(g[k], pin.computeGeneralizedGravity(model, data, qp)[perm]),
-            "inverse_dynamics": rel_err(tau[k], pin.rnea(model, data, qp, qdp, qddp)[perm]
-                                        + viscous * qd[k] + coulomb * np.tanh(qd[k] / eps)),
+            "inverse_dynamics": rel_err(
+                tau[k], pin.rnea(model, data, qp, qdp, qddp)[perm] + viscous * qd[k] + coulomb * np.tanh(qd[k] / eps)
+            ),
         }
         for key, e in errs.items():
             worst[key] = max(worst.get(key, 0.0), e)
@@ -88,6 +90,7 @@ def compare_with_pinocchio(module, model, seed: int) -> dict[str, float]:
 
 
 # --- xArm7: <ros2_control> under <robot>, robot name "UF_ROBOT" ----------------------------
+
 
 @pytest.fixture(scope="module")
 def xarm7(tmp_path_factory):
@@ -102,10 +105,13 @@ def test_xarm7_builds_with_one_note_for_ros2_control(xarm7):
     ignored = [l for l in lines if "note: ignored" in l]
     assert len(ignored) == 1, err
     # <ros2_control> is the file's only element outside URDF; it starts on line 26
-    assert ignored[0] == (f"{path}:26:3: note: ignored 1 element robotgen does not use under <robot>: "
-                          "<ros2_control> (line 26)"), err
-    assert f"{path}:6:1: note: module name 'uf_robot' (from <robot name=\"UF_ROBOT\">); " \
-           "pass --name to choose another" in lines, err
+    assert ignored[0] == (
+        f"{path}:26:3: note: ignored 1 element robotgen does not use under <robot>: <ros2_control> (line 26)"
+    ), err
+    assert (
+        f"{path}:6:1: note: module name 'uf_robot' (from <robot name=\"UF_ROBOT\">); "
+        "pass --name to choose another" in lines
+    ), err
     assert len(lines) == 2, err  # nothing else: the transmissions and gazebo tags are URDF's own
     assert module.nq == 7
 
@@ -121,11 +127,13 @@ def test_xarm7_matches_pinocchio(xarm7):
 
 # --- Panda as a tree: the mimic finger joint moves with the other finger's coordinate ---------
 
+
 @pytest.fixture(scope="module")
 def panda_tree(tmp_path_factory):
     path = robots_dir() / PANDA
-    module, err = build([str(path), "--tree", "--name", "panda_tree"], "panda_tree",
-                        tmp_path_factory.mktemp("panda_tree"))
+    module, err = build(
+        [str(path), "--tree", "--name", "panda_tree"], "panda_tree", tmp_path_factory.mktemp("panda_tree")
+    )
     return path, module, err
 
 
@@ -133,14 +141,19 @@ def test_panda_tree_couples_the_mimic_finger(panda_tree):
     path, module, err = panda_tree
     node = module.info()["nodes"]["panda_tree"]
     assert node["locked_joints"] == [] and module.nq == node["nq"] == 8
-    assert [j["name"] for j in node["joints"]] == [f"panda_joint{i}" for i in range(1, 8)] + \
-        ["panda_finger_joint1", "panda_finger_joint2"]
+    assert [j["name"] for j in node["joints"]] == [f"panda_joint{i}" for i in range(1, 8)] + [
+        "panda_finger_joint1",
+        "panda_finger_joint2",
+    ]
     assert node["coordinates"] == [f"panda_joint{i}" for i in range(1, 8)] + ["panda_finger_joint1"]
-    assert node["coupled_joints"] == [{"joint": "panda_finger_joint2", "coordinate": "panda_finger_joint1",
-                                       "multiplier": 1.0, "offset": 0.0}]
+    assert node["coupled_joints"] == [
+        {"joint": "panda_finger_joint2", "coordinate": "panda_finger_joint1", "multiplier": 1.0, "offset": 0.0}
+    ]
     notes = [l for l in err.splitlines() if "mimic" in l]
-    assert notes == [f"{path}:348:9: note: a mimic joint moves with the coordinate of the joint it follows (no "
-                     "coordinate of its own): 'panda_finger_joint2' = 'panda_finger_joint1'"], err
+    assert notes == [
+        f"{path}:348:9: note: a mimic joint moves with the coordinate of the joint it follows (no "
+        "coordinate of its own): 'panda_finger_joint2' = 'panda_finger_joint1'"
+    ], err
     assert "module name" not in err  # --name given
 
 
@@ -172,11 +185,13 @@ def test_panda_tree_matches_pinocchio_projected_on_the_fingers_coordinate(panda_
         Mp = np.triu(Mp) + np.triu(Mp, 1).T
         friction = model.damping * vf + model.friction * np.tanh(vf / KinematicTree.coulomb_smoothing)
         Jp = pin.computeFrameJacobian(model, data, qf, tip, pin.LOCAL_WORLD_ALIGNED)
-        errs = {"mass": rel_err(M[k], S.T @ Mp @ S),
-                "gravity": rel_err(g[k], S.T @ pin.computeGeneralizedGravity(model, data, qf)),
-                "inverse_dynamics": rel_err(tau[k], S.T @ (pin.rnea(model, data, qf, vf, af) + friction)),
-                "coriolis": rel_err(C[k], S.T @ pin.computeCoriolisMatrix(model, data, qf, vf) @ S),
-                "jacobian": rel_err(J[k], Jp @ S)}
+        errs = {
+            "mass": rel_err(M[k], S.T @ Mp @ S),
+            "gravity": rel_err(g[k], S.T @ pin.computeGeneralizedGravity(model, data, qf)),
+            "inverse_dynamics": rel_err(tau[k], S.T @ (pin.rnea(model, data, qf, vf, af) + friction)),
+            "coriolis": rel_err(C[k], S.T @ pin.computeCoriolisMatrix(model, data, qf, vf) @ S),
+            "jacobian": rel_err(J[k], Jp @ S),
+        }
         for key, e in errs.items():
             worst[key] = max(worst.get(key, 0.0), e)
     print({k: f"{v:.1e}" for k, v in worst.items()})
@@ -188,12 +203,16 @@ def test_panda_tree_matches_pinocchio_projected_on_the_fingers_coordinate(panda_
 
 # --- the rules on small files ----------------------------------------------------------------
 
-LINK = ('<link name="{0}"><inertial><mass value="1"/>'
-        '<inertia ixx="0.1" iyy="0.1" izz="0.1" ixy="0" ixz="0" iyz="0"/></inertial></link>')
-JOINTS = ('<joint name="j1" type="revolute"><parent link="base"/><child link="l1"/><axis xyz="0 0 1"/>'
-          '<limit lower="-1" upper="1" effort="1" velocity="1"/></joint>\n'
-          '<joint name="j2" type="revolute"><parent link="l1"/><child link="l2"/>'
-          '<origin xyz="0.5 0 0"/><axis xyz="0 1 0"/></joint>')
+LINK = (
+    '<link name="{0}"><inertial><mass value="1"/>'
+    '<inertia ixx="0.1" iyy="0.1" izz="0.1" ixy="0" ixz="0" iyz="0"/></inertial></link>'
+)
+JOINTS = (
+    '<joint name="j1" type="revolute"><parent link="base"/><child link="l1"/><axis xyz="0 0 1"/>'
+    '<limit lower="-1" upper="1" effort="1" velocity="1"/></joint>\n'
+    '<joint name="j2" type="revolute"><parent link="l1"/><child link="l2"/>'
+    '<origin xyz="0.5 0 0"/><axis xyz="0 1 0"/></joint>'
+)
 
 
 def robot_file(tmp_path, extra: str = "", name: str = "r", file: str = "r.urdf"):
@@ -204,9 +223,11 @@ def robot_file(tmp_path, extra: str = "", name: str = "r", file: str = "r.urdf")
     return path
 
 
-FOREIGN = ('<ros2_control name="hw" type="system"><joint name="j1"><spring k="1"/></joint></ros2_control>\n'
-           '<vendor_tag version="2"><anything/></vendor_tag>\n'
-           '<ros2_control name="hw2" type="system"/>\n')
+FOREIGN = (
+    '<ros2_control name="hw" type="system"><joint name="j1"><spring k="1"/></joint></ros2_control>\n'
+    '<vendor_tag version="2"><anything/></vendor_tag>\n'
+    '<ros2_control name="hw2" type="system"/>\n'
+)
 
 
 def test_foreign_elements_under_robot_are_ignored_with_one_note(tmp_path, capsys):
@@ -217,8 +238,10 @@ def test_foreign_elements_under_robot_are_ignored_with_one_note(tmp_path, capsys
     notes = [l for l in err.splitlines() if "note:" in l]
     # each tag once, at its first line; the count is of elements; the children (a <spring>
     # inside ros2_control's <joint>) are not checked
-    assert notes == [f"{path}:3:1: note: ignored 3 elements robotgen does not use under <robot>: "
-                     "<ros2_control> (line 3), <vendor_tag> (line 4)"], err
+    assert notes == [
+        f"{path}:3:1: note: ignored 3 elements robotgen does not use under <robot>: "
+        "<ros2_control> (line 3), <vendor_tag> (line 4)"
+    ], err
     assert (out / "r.c").is_file() and (out / "r_module.c").is_file()
     # the same model as without them
     plain = load_urdf_system(str(robot_file(tmp_path, file="plain.urdf")), "l2").nodes["r"].leaf
@@ -229,8 +252,11 @@ def test_foreign_elements_under_robot_are_ignored_with_one_note(tmp_path, capsys
 
 
 def test_known_urdf_elements_under_robot_give_no_note(tmp_path):
-    path = robot_file(tmp_path, '<material name="red"/>\n<gazebo><plugin/></gazebo>\n'
-                                '<transmission name="t"><joint name="j1"/></transmission>\n')
+    path = robot_file(
+        tmp_path,
+        '<material name="red"/>\n<gazebo><plugin/></gazebo>\n'
+        '<transmission name="t"><joint name="j1"/></transmission>\n',
+    )
     assert read_urdf(str(path), "l2").notes == ()
 
 
@@ -238,8 +264,9 @@ def test_module_name_note_when_the_robot_name_is_not_an_identifier(tmp_path, cap
     path = robot_file(tmp_path, name="UR5")
     assert main(["check", str(path), "--tip", "l2"]) == 0
     err = messages(capsys.readouterr().err)
-    assert err.splitlines() == [f"{path}:2:1: note: module name 'ur5' (from <robot name=\"UR5\">); "
-                                "pass --name to choose another"], err
+    assert err.splitlines() == [
+        f"{path}:2:1: note: module name 'ur5' (from <robot name=\"UR5\">); pass --name to choose another"
+    ], err
     assert load_urdf_system(str(path), "l2").name == "ur5"
     # an explicit --name, or a robot name that is already the module name: no note
     assert main(["check", str(path), "--tip", "l2", "--name", "arm"]) == 0
@@ -247,16 +274,26 @@ def test_module_name_note_when_the_robot_name_is_not_an_identifier(tmp_path, cap
     same = robot_file(tmp_path, name="ur5", file="same.urdf")
     assert load_urdf_system(str(same), "l2").warnings == ()
     dashed = robot_file(tmp_path, name="my-arm 2", file="dashed.urdf")
-    assert re.search(r"module name 'my_arm_2' \(from <robot name=\"my-arm 2\">\)",
-                     "\n".join(load_urdf_system(str(dashed), "l2").warnings))
+    assert re.search(
+        r"module name 'my_arm_2' \(from <robot name=\"my-arm 2\">\)",
+        "\n".join(load_urdf_system(str(dashed), "l2").warnings),
+    )
 
 
 # --- constants are correctly rounded, not BLAS's -------------------------------------------
 
+
 def _matmul_ref(A, B):
     """Each entry the exact dot product rounded once (Fractions; no numpy products)."""
-    return np.array([[float(sum((Fraction(float(a)) * Fraction(float(b)) for a, b in zip(row, col)),
-                                 Fraction(0))) for col in np.asarray(B).T] for row in np.asarray(A)])
+    return np.array(
+        [
+            [
+                float(sum((Fraction(float(a)) * Fraction(float(b)) for a, b in zip(row, col)), Fraction(0)))
+                for col in np.asarray(B).T
+            ]
+            for row in np.asarray(A)
+        ]
+    )
 
 
 def test_merged_bodies_are_correctly_rounded():
@@ -269,9 +306,17 @@ def test_merged_bodies_are_correctly_rounded():
         A = rng.normal(size=(3, 3))
         b = Body(1.7, rng.normal(size=3), A @ A.T)
         merged = merge_bodies([(T, b)])
-        com = np.array([float(sum((Fraction(float(T[i, k])) * Fraction(float(c))
-                                     for k, c in enumerate(b.com)), Fraction(float(T[i, 3]))))
-                        for i in range(3)])
+        com = np.array(
+            [
+                float(
+                    sum(
+                        (Fraction(float(T[i, k])) * Fraction(float(c)) for k, c in enumerate(b.com)),
+                        Fraction(float(T[i, 3])),
+                    )
+                )
+                for i in range(3)
+            ]
+        )
         inertia = _matmul_ref(_matmul_ref(Q, b.inertia), Q.T)
         np.testing.assert_array_equal(merged.com, com)
         np.testing.assert_array_equal(merged.inertia, inertia)

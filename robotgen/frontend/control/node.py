@@ -1,6 +1,7 @@
 """CONTROL nodes from a spec (Deno et al. 1990, §3.4): the node, its gains (scalar, per axis or
 symmetric positive definite on the robot's external coordinates) and what it resolves; a
 law's own settings are read by its module in this package."""
+
 from __future__ import annotations
 
 import dataclasses
@@ -24,8 +25,17 @@ from robotgen.model.system import (
 )
 
 # the node's own keys, which a root law takes none of (its settings go under its name)
-NODE_KEYS = ("kp", "kv", "kv_internal", "kf_internal", "ki_internal", "internal_forces", "resolve_internal_motion",
-             "gains", "period")
+NODE_KEYS = (
+    "kp",
+    "kv",
+    "kv_internal",
+    "kf_internal",
+    "ki_internal",
+    "internal_forces",
+    "resolve_internal_motion",
+    "gains",
+    "period",
+)
 
 
 class ControlReader(Collector):
@@ -35,11 +45,17 @@ class ControlReader(Collector):
         """The node without its gains (they need the robot's dimension: ``control_gains``)."""
         forces = spec.get("internal_forces")
         return ControlNode(
-            name=name, robot=spec["robot"], law=spec["law"], kp=np.zeros((0, 0)), kv=np.zeros((0, 0)),  # read later
+            name=name,
+            robot=spec["robot"],
+            law=spec["law"],
+            kp=np.zeros((0, 0)),
+            kv=np.zeros((0, 0)),  # read later
             kv_internal=self.bounded(path + ("kv_internal",), spec["kv_internal"], DAMPING)
-            if "kv_internal" in spec else 0.0,
-            internal_forces=None if forces is None else
-            np.array([self.constant(path + ("internal_forces", i), f) for i, f in enumerate(forces)]),
+            if "kv_internal" in spec
+            else 0.0,
+            internal_forces=None
+            if forces is None
+            else np.array([self.constant(path + ("internal_forces", i), f) for i, f in enumerate(forces)]),
             kf_internal=self.optional(spec, path, "kf_internal", None, minimum=0.0),
             ki_internal=self.optional(spec, path, "ki_internal", None, minimum=0.0),
             resolve_internal_motion=bool(spec.get("resolve_internal_motion", False)),
@@ -60,13 +76,14 @@ class ControlReader(Collector):
         if law.is_root:
             for key in NODE_KEYS:
                 if key in spec:
-                    self.at_key(path + (key,), f"law {law.name} takes no {key} here (its settings go under "
-                                               f"{law.name})")
+                    self.at_key(path + (key,), f"law {law.name} takes no {key} here (its settings go under {law.name})")
             return law.part("settings")(self, system, node, spec, robot)
         target = system.nodes[node.robot]
         if isinstance(target, DefineNode) and isinstance(target.leaf, PAYLOAD_BODIES):
-            self.at_value(path + ("robot",), f"'{node.robot}' is a rigid_body, a payload without actuators; "
-                                             "it cannot be controlled")
+            self.at_value(
+                path + ("robot",),
+                f"'{node.robot}' is a rigid_body, a payload without actuators; it cannot be controlled",
+            )
         n = robot.n_external
         gains = {}
         for key in ("kp", "kv"):
@@ -82,33 +99,47 @@ class ControlReader(Collector):
         if node.internal_forces is not None:
             have = robot.n_internal_forces
             if not law.internal_forces:
-                self.at_key(path + ("internal_forces",), f"law {law.name} cannot resolve internal forces (it "
-                                                         "passes the robot's attributes up unchanged)")
+                self.at_key(
+                    path + ("internal_forces",),
+                    f"law {law.name} cannot resolve internal forces (it passes the robot's attributes up unchanged)",
+                )
             elif len(node.internal_forces) != have:
                 listed = f" ({', '.join(robot.internal_forces)})" if have else ""
-                self.at_key(path + ("internal_forces",), f"expected {have} values, one per internal force of "
-                                                         f"'{node.robot}'{listed}, got {len(node.internal_forces)}")
+                self.at_key(
+                    path + ("internal_forces",),
+                    f"expected {have} values, one per internal force of "
+                    f"'{node.robot}'{listed}, got {len(node.internal_forces)}",
+                )
         for key in ("kf_internal", "ki_internal"):
             if getattr(node, key) is None:
                 continue
             if not law.internal_forces:
-                self.at_key(path + (key,), f"law {law.name} passes internal forces up unresolved; close the "
-                                           "internal-force loop at the controller that commands them")
+                self.at_key(
+                    path + (key,),
+                    f"law {law.name} passes internal forces up unresolved; close the "
+                    "internal-force loop at the controller that commands them",
+                )
             elif not robot.n_internal_forces:
                 self.at_key(path + (key,), f"robot '{node.robot}' has no internal forces to close a loop on")
         if node.kf_internal is not None and law.internal_forces and robot.n_internal_forces:
             if node.kf_internal >= 1:
-                self.at_value(path + ("kf_internal",), f"kf_internal {node.kf_internal:g} must be below 1: the force "
-                                                       "is sensed a period late and a grasp carries a commanded "
-                                                       "internal force at once, so f(k) = f_d + kf (f_d - f(k-1)) "
-                                                       "has its pole at -kf")
+                self.at_value(
+                    path + ("kf_internal",),
+                    f"kf_internal {node.kf_internal:g} must be below 1: the force "
+                    "is sensed a period late and a grasp carries a commanded "
+                    "internal force at once, so f(k) = f_d + kf (f_d - f(k-1)) "
+                    "has its pole at -kf",
+                )
         if node.resolve_internal_motion:
             if not law.internal_forces:
-                self.at_key(path + ("resolve_internal_motion",), f"law {law.name} cannot resolve internal motion "
-                                                                 "(it passes the robot's attributes up unchanged)")
+                self.at_key(
+                    path + ("resolve_internal_motion",),
+                    f"law {law.name} cannot resolve internal motion (it passes the robot's attributes up unchanged)",
+                )
             elif not robot.internal_motions:
-                self.at_key(path + ("resolve_internal_motion",), f"robot '{node.robot}' has no internal motions "
-                                                                 "to resolve")
+                self.at_key(
+                    path + ("resolve_internal_motion",), f"robot '{node.robot}' has no internal motions to resolve"
+                )
         forms = (gain_form(spec.get("kp", 0)), gain_form(spec.get("kv", 0)))
         node = dataclasses.replace(node, kp=gains["kp"], kv=gains["kv"], gain_forms=forms)
         if law.settings is not None:
@@ -118,12 +149,20 @@ class ControlReader(Collector):
     def must_be_root(self, system: RobotSystem, node: ControlNode) -> bool:
         """Whether a root law's node is the root of its spec (said where it is not)."""
         if node.name != system.root:
-            self.at_key(("nodes", node.name), f"a {node.law} controller must be the root ({LAWS[node.law].root}); "
-                                              f"the root is '{system.root}'")
+            self.at_key(
+                ("nodes", node.name),
+                f"a {node.law} controller must be the root ({LAWS[node.law].root}); the root is '{system.root}'",
+            )
         return node.name == system.root
 
-    def gain(self, path: Path, value: object, robot: Signature, name: str,
-             bounds: tuple[Bounds, Bounds] = (GAIN, GAIN_MATRIX)) -> np.ndarray:
+    def gain(
+        self,
+        path: Path,
+        value: object,
+        robot: Signature,
+        name: str,
+        bounds: tuple[Bounds, Bounds] = (GAIN, GAIN_MATRIX),
+    ) -> np.ndarray:
         """A scalar (times I), a per-axis list (diagonal) or a symmetric positive definite
         matrix, on the robot's n external coordinates; ``bounds``: those of an entry of a
         number or a diagonal, and those of a matrix."""
@@ -140,14 +179,15 @@ class ControlReader(Collector):
             self.at_value(path, "mixes numbers and rows: give a number, a list of numbers or a matrix")
             return np.zeros((n, n))
         if len(value) != n or any(len(row) != n for row in value):
-            self.at_key(path, f"expected a {n} x {n} matrix ({axes}), got "
-                              f"{len(value)} rows of {', '.join(sorted({str(len(r)) for r in value}))}")
+            self.at_key(
+                path,
+                f"expected a {n} x {n} matrix ({axes}), got "
+                f"{len(value)} rows of {', '.join(sorted({str(len(r)) for r in value}))}",
+            )
             return np.zeros((n, n))
-        matrix = np.array([[self.constant(path + (i, k), v) for k, v in enumerate(row)]
-                           for i, row in enumerate(value)])
+        matrix = np.array([[self.constant(path + (i, k), v) for k, v in enumerate(row)] for i, row in enumerate(value)])
         self.within(path, matrix, bounds[1], lambda index: index or None)
         return matrix
-
 
 
 def gain_form(value: object) -> str:

@@ -9,6 +9,7 @@ force their robot senses: impedance control (Hogan 1985) and hybrid force/positi
 (Raibert and Craig 1981). Root laws are the root of their spec and make the module's own
 functions (resolved rate control, Whitney 1972: joint rates from hand rates; the hand laws of
 robotgen.model.laws.hand, Lee and Lee 1983)."""
+
 from __future__ import annotations
 
 COMPUTED_TORQUE = "computed_torque"

@@ -5,6 +5,7 @@ The model does not import the floors above it, so a part is named, not held: ``"
 (an attribute path after the colon) or ``"module"``, imported when a floor asks for it
 (``Law.part``). robotgen.model.laws.registry lists every law, one line each; a test checks
 that every named part exists and agrees with the flags here."""
+
 from __future__ import annotations
 
 import importlib

@@ -11,6 +11,7 @@ term, Deno et al. 1990 eq 3.7) on its external coordinates x:
 Every matrix is on the robot's n external coordinates, written as a number (times I), a list
 (the diagonal) or n rows (symmetric positive definite), like kp and kv; each is a run-time
 parameter unless the node's gains are folded."""
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -21,12 +22,18 @@ from robotgen.model.parameters import MATRIX_GAIN, Bounds, RuntimeParameter, wri
 
 # The values the settings may take, in the spec and at run time (robotgen.model.parameters):
 # (per entry of a number or a diagonal, of a matrix)
-STIFFNESS = (Bounds("stiffness", minimum=0.0, note="K of the target impedance"),
-             Bounds.definite("stiffness", "K of the target impedance"))
-DAMPING = (Bounds.positive("damping", "D of the target impedance"), Bounds.definite("damping", "D of the target "
-                                                                                              "impedance"))
-INERTIA = (Bounds.positive("inertia", "M_d of the target impedance"), Bounds.definite("inertia", "M_d of the target "
-                                                                                                "impedance"))
+STIFFNESS = (
+    Bounds("stiffness", minimum=0.0, note="K of the target impedance"),
+    Bounds.definite("stiffness", "K of the target impedance"),
+)
+DAMPING = (
+    Bounds.positive("damping", "D of the target impedance"),
+    Bounds.definite("damping", "D of the target impedance"),
+)
+INERTIA = (
+    Bounds.positive("inertia", "M_d of the target impedance"),
+    Bounds.definite("inertia", "M_d of the target impedance"),
+)
 SELECTION = Bounds("selection", minimum=0.0, maximum=1.0, note="1 position-controlled, 0 force-controlled")
 FORCE_GAIN = Bounds("force gain kf", minimum=0.0)
 FORCE_INTEGRAL_GAIN = Bounds("force gain ki", minimum=0.0, note="[1/s]")
@@ -61,13 +68,18 @@ class ImpedanceSettings:
         """The run-time parameters of an impedance node: stiffness K, damping D and, when set, inertia M_d."""
         if not self.runtime:
             return []
-        out = [self.stiffness.parameter(f"{node}_stiffness", f"stiffness K of impedance controller '{node}' "
-                                        f"on {axes}", STIFFNESS),
-               self.damping.parameter(f"{node}_damping", f"damping D of impedance controller '{node}' on {axes}",
-                                      DAMPING)]
+        out = [
+            self.stiffness.parameter(
+                f"{node}_stiffness", f"stiffness K of impedance controller '{node}' on {axes}", STIFFNESS
+            ),
+            self.damping.parameter(f"{node}_damping", f"damping D of impedance controller '{node}' on {axes}", DAMPING),
+        ]
         if self.inertia is not None:
-            out.append(self.inertia.parameter(f"{node}_inertia", f"inertia M_d of impedance controller '{node}' "
-                                              f"on {axes}", INERTIA))
+            out.append(
+                self.inertia.parameter(
+                    f"{node}_inertia", f"inertia M_d of impedance controller '{node}' on {axes}", INERTIA
+                )
+            )
         return out
 
 
@@ -86,11 +98,26 @@ class HybridSettings:
         """The run-time parameters of a hybrid node: selection S and the force loop's gains kf and ki."""
         if not self.runtime:
             return []
-        return [RuntimeParameter(f"{node}_selection", (len(self.selection),), tuple(map(float, self.selection)),
-                                 f"selection S of hybrid controller '{node}' on {axes} (1 position-controlled, "
-                                 "0 force-controlled)", SELECTION),
-                RuntimeParameter(f"{node}_kf", (), (float(self.kf),), f"force gain kf of hybrid controller "
-                                                                      f"'{node}' on the force error", FORCE_GAIN),
-                RuntimeParameter(f"{node}_ki", (), (float(self.ki),), f"force gain ki of hybrid controller "
-                                                                      f"'{node}' on the force error's integral "
-                                                                      "[1/s]", FORCE_INTEGRAL_GAIN)]
+        return [
+            RuntimeParameter(
+                f"{node}_selection",
+                (len(self.selection),),
+                tuple(map(float, self.selection)),
+                f"selection S of hybrid controller '{node}' on {axes} (1 position-controlled, 0 force-controlled)",
+                SELECTION,
+            ),
+            RuntimeParameter(
+                f"{node}_kf",
+                (),
+                (float(self.kf),),
+                f"force gain kf of hybrid controller '{node}' on the force error",
+                FORCE_GAIN,
+            ),
+            RuntimeParameter(
+                f"{node}_ki",
+                (),
+                (float(self.ki),),
+                f"force gain ki of hybrid controller '{node}' on the force error's integral [1/s]",
+                FORCE_INTEGRAL_GAIN,
+            ),
+        ]

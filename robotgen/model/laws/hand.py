@@ -4,6 +4,7 @@ acceleration control (Luh, Walker and Paul 1980) and resolved motion adaptive co
 Both run once per sampling period T on the measured joint state and a desired hand
 trajectory (pose, twist [v; omega] and its derivative, base coordinates), and output joint
 torques. The hand is the chain's tip frame, or a tool frame fixed in it."""
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -42,10 +43,22 @@ class ResolvedAccelerationSettings:
         if not self.runtime:
             return []
         axes = ", ".join(HAND_AXES)
-        return [RuntimeParameter(f"{node}_kp", (HAND_DOF,), tuple(map(float, self.kp)),
-                                 f"hand position gains Kp of '{node}' on {axes}", GAIN),
-                RuntimeParameter(f"{node}_kv", (HAND_DOF,), tuple(map(float, self.kv)),
-                                 f"hand velocity gains Kv of '{node}' on {axes}", GAIN)]
+        return [
+            RuntimeParameter(
+                f"{node}_kp",
+                (HAND_DOF,),
+                tuple(map(float, self.kp)),
+                f"hand position gains Kp of '{node}' on {axes}",
+                GAIN,
+            ),
+            RuntimeParameter(
+                f"{node}_kv",
+                (HAND_DOF,),
+                tuple(map(float, self.kv)),
+                f"hand velocity gains Kv of '{node}' on {axes}",
+                GAIN,
+            ),
+        ]
 
 
 # The first step after a controller's reset refuses a desired hand pose farther than this from
@@ -115,18 +128,44 @@ class AdaptiveSettings:
         """Run-time parameters of a resolved adaptive node: weights Q, R, the torque weight and forgetting."""
         if not self.runtime:
             return []
-        out = [RuntimeParameter(f"{node}_q", self.q.shape, tuple(map(float, self.q.ravel())),
-                                f"state weights Q (eq 38) of '{node}' on {', '.join(STATE_NAMES)}"
-                                + (" (its diagonal)" if self.q.ndim == 1 else " (row-major, symmetric)"),
-                                WEIGHT if self.q.ndim == 1 else Q_MATRIX)]
+        out = [
+            RuntimeParameter(
+                f"{node}_q",
+                self.q.shape,
+                tuple(map(float, self.q.ravel())),
+                f"state weights Q (eq 38) of '{node}' on {', '.join(STATE_NAMES)}"
+                + (" (its diagonal)" if self.q.ndim == 1 else " (row-major, symmetric)"),
+                WEIGHT if self.q.ndim == 1 else Q_MATRIX,
+            )
+        ]
         if self.r is None:
-            out.append(RuntimeParameter(f"{node}_torque_weight", (), (float(self.torque_weight),),
-                                        f"R = torque_weight B0^T Q B0 (eq 38) of '{node}', > 0", TORQUE_WEIGHT))
+            out.append(
+                RuntimeParameter(
+                    f"{node}_torque_weight",
+                    (),
+                    (float(self.torque_weight),),
+                    f"R = torque_weight B0^T Q B0 (eq 38) of '{node}', > 0",
+                    TORQUE_WEIGHT,
+                )
+            )
         else:
-            out.append(RuntimeParameter(f"{node}_r", self.r.shape, tuple(map(float, self.r.ravel())),
-                                        f"torque weights R (eq 38) of '{node}'"
-                                        + (" (its diagonal)" if self.r.ndim == 1 else " (row-major, symmetric)"),
-                                        WEIGHT if self.r.ndim == 1 else R_MATRIX))
-        out.append(RuntimeParameter(f"{node}_forgetting", (), (float(self.forgetting),),
-                                    f"forgetting factor mu (eq 37) of '{node}', 0 < mu <= 1", FORGETTING))
+            out.append(
+                RuntimeParameter(
+                    f"{node}_r",
+                    self.r.shape,
+                    tuple(map(float, self.r.ravel())),
+                    f"torque weights R (eq 38) of '{node}'"
+                    + (" (its diagonal)" if self.r.ndim == 1 else " (row-major, symmetric)"),
+                    WEIGHT if self.r.ndim == 1 else R_MATRIX,
+                )
+            )
+        out.append(
+            RuntimeParameter(
+                f"{node}_forgetting",
+                (),
+                (float(self.forgetting),),
+                f"forgetting factor mu (eq 37) of '{node}', 0 < mu <= 1",
+                FORGETTING,
+            )
+        )
         return out

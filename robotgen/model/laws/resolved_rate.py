@@ -16,6 +16,7 @@ Over a composite robot (an ATTACH tree, Deno et al. 1990) the command coordinate
 robot node's own (its rd) and the joint rates come from the tree's velocity map; only
 damping, rate limits, the horizon and the arrival apply (``CompositeRateSettings``).
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -90,7 +91,6 @@ class CommandFrame:
         if self.point is None:
             raise TypeError(f"a {self.kind} command frame has no point")
         return self.point
-
 
 
 @dataclass(frozen=True)
@@ -186,8 +186,9 @@ class RateControlSettings:
             "free": [n for n, f in zip(names, self.free) if f],
             "weights": [float(w) for w in self.weights],
             "redundancy": self.redundancy.summary(),
-            "damping": None if self.damping is None else
-            {"lambda_max": self.damping.lambda_max, "threshold": self.damping.threshold},
+            "damping": None
+            if self.damping is None
+            else {"lambda_max": self.damping.lambda_max, "threshold": self.damping.threshold},
             "rate_limits": None if self.rate_limits is None else [float(v) for v in self.rate_limits],
             "horizon": self.horizon,
         }
@@ -225,15 +226,16 @@ class CompositeRateSettings:
 
     def summary(self) -> dict:
         """Plain data for info() and the manifest."""
-        external = self.robot_names[:self.n_external]
+        external = self.robot_names[: self.n_external]
         out = {
             "frame": "node",
             "command": list(self.robot_names),
             "target": list(external),
-            "internal_motions": list(self.robot_names[self.n_external:]),
+            "internal_motions": list(self.robot_names[self.n_external :]),
             "wrapped": [n for n, a in zip(external, self.angles) if a],
-            "damping": None if self.damping is None else
-            {"lambda_max": self.damping.lambda_max, "threshold": self.damping.threshold},
+            "damping": None
+            if self.damping is None
+            else {"lambda_max": self.damping.lambda_max, "threshold": self.damping.threshold},
             "rate_limits": None if self.rate_limits is None else [float(v) for v in self.rate_limits],
             "horizon": self.horizon,
         }

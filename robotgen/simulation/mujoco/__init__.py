@@ -9,6 +9,7 @@
 
 The ``mujoco`` package is an optional dependency (``pip install 'robotgen[mujoco]'``); only
 ``run`` imports it, through ``require_mujoco``."""
+
 from __future__ import annotations
 
 INSTALL_HINT = "pip install 'robotgen[mujoco]'"

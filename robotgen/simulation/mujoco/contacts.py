@@ -11,6 +11,7 @@ A contact is *open* when MuJoCo finds no force between the tip and its pad. The 
 pads with no force; the commanded squeeze presses them in) and every tip stays on its pad.
 It is *lost* when a tip is a whole FINGERTIP_RADIUS off its pad's face or past the pad's
 edge: the payload is then no longer between the fingertips."""
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field
@@ -137,27 +138,36 @@ class ContactHistory:
         friction = ", ".join(sorted({f"{c.friction:g}" for c in self.contacts}))
         opened = self.open_fraction()
         if self.holds:
-            verdict = (f"held: after the first {1e3 * SETTLE:g} ms every contact stayed closed and every "
-                       "fingertip on its pad")
+            verdict = (
+                f"held: after the first {1e3 * SETTLE:g} ms every contact stayed closed and every fingertip on its pad"
+            )
         elif loss is None:
-            verdict = (f"kept, but contacts opened ({', '.join(c.name for c, o in zip(self.contacts, opened) if o)}"
-                       "): the box stayed between the fingertips")
+            verdict = (
+                f"kept, but contacts opened ({', '.join(c.name for c, o in zip(self.contacts, opened) if o)}"
+                "): the box stayed between the fingertips"
+            )
         else:
             t, c = loss
-            verdict = (f"LOST at t = {t:.3f} s: the fingertip of '{self.contacts[c].leaf}' left its pad "
-                       f"({self.contacts[c].name})")
-        lines = [f"grasp {', '.join(grasps)} on MuJoCo's contacts (friction coefficient {friction}): {verdict}",
-                 f"  cone usage, f_n and open after the first {1e3 * SETTLE:g} ms; slip (the contact point's largest "
-                 "displacement on the payload) and slid (the distance it slid) over the run:",
-                 f"  {'contact':>10} {'leaf':>10} {'max |f_t|/(mu f_n)':>19} {'f_n min [N]':>12} {'f_n max [N]':>12} "
-                 f"{'slip [mm]':>10} {'slid [mm]':>10} {'open':>6}"]
+            verdict = (
+                f"LOST at t = {t:.3f} s: the fingertip of '{self.contacts[c].leaf}' left its pad "
+                f"({self.contacts[c].name})"
+            )
+        lines = [
+            f"grasp {', '.join(grasps)} on MuJoCo's contacts (friction coefficient {friction}): {verdict}",
+            f"  cone usage, f_n and open after the first {1e3 * SETTLE:g} ms; slip (the contact point's largest "
+            "displacement on the payload) and slid (the distance it slid) over the run:",
+            f"  {'contact':>10} {'leaf':>10} {'max |f_t|/(mu f_n)':>19} {'f_n min [N]':>12} {'f_n max [N]':>12} "
+            f"{'slip [mm]':>10} {'slid [mm]':>10} {'open':>6}",
+        ]
         settled = self.settled() if self.settled().any() else np.ones(len(self.t), bool)
         normal = self.array("normal")[settled]
         usage, slip, slid = self.worst_usage(), self.largest_slip(), self.array("sliding")[-1]
         for i, contact in enumerate(self.contacts):
-            lines.append(f"  {contact.name:>10} {contact.leaf:>10} {usage[i]:19.4f} {normal[:, i].min():12.4f} "
-                         f"{normal[:, i].max():12.4f} {1e3 * slip[i]:10.4f} {1e3 * slid[i]:10.4f} "
-                         f"{100 * opened[i]:5.1f}%")
+            lines.append(
+                f"  {contact.name:>10} {contact.leaf:>10} {usage[i]:19.4f} {normal[:, i].min():12.4f} "
+                f"{normal[:, i].max():12.4f} {1e3 * slip[i]:10.4f} {1e3 * slid[i]:10.4f} "
+                f"{100 * opened[i]:5.1f}%"
+            )
         return lines
 
 
@@ -186,7 +196,7 @@ def internal_forces(contacts: tuple[ContactMap, ...], readings: list[Reading], r
             for i, j in ((0, 1), (0, 2), (1, 2)):
                 s = np.zeros(9)
                 u = R @ _unit(cs[j].point - cs[i].point)
-                s[3 * i:3 * i + 3], s[3 * j:3 * j + 3] = u, -u
+                s[3 * i : 3 * i + 3], s[3 * j : 3 * j + 3] = u, -u
                 for r in rows:
                     s = s - (r @ s) * r
                 rows.append(s / np.linalg.norm(s))

@@ -51,6 +51,7 @@ What cannot be mapped, and what is done instead:
   kg m^2), which changes the Styx fingers' M by about 1e-11 relative.
 
 The writer imports no MuJoCo (robotgen.simulation.mujoco.run does)."""
+
 from __future__ import annotations
 
 import xml.etree.ElementTree as ET
@@ -282,18 +283,34 @@ def _chain_bodies(world: ET.Element, leaf: str, tree: KinematicTree) -> tuple[li
             attributes["damping"] = repr(float(joint.viscous))
         ET.SubElement(body, "joint", attributes)
         if not np.array_equal(inertia, joint.body.inertia):
-            body.append(ET.Comment(" inertia made physical by moving some about the joint axis to or from the "
-                                   "parent: the same dynamics (robotgen.simulation.mujoco.model) "))
+            body.append(
+                ET.Comment(
+                    " inertia made physical by moving some about the joint axis to or from the "
+                    "parent: the same dynamics (robotgen.simulation.mujoco.model) "
+                )
+            )
         _inertial(body, joint.body.mass, joint.body.com, inertia)
         if parent is not world and np.any(joint.origin[:3, 3]):
-            ET.SubElement(parent, "geom", type="capsule", size=repr(LINK_RADIUS),
-                          fromto=_vec(np.r_[np.zeros(3), joint.origin[:3, 3]]), rgba="0.5 0.5 0.6 1")
+            ET.SubElement(
+                parent,
+                "geom",
+                type="capsule",
+                size=repr(LINK_RADIUS),
+                fromto=_vec(np.r_[np.zeros(3), joint.origin[:3, 3]]),
+                rgba="0.5 0.5 0.6 1",
+            )
         bodies.append(body)
         names.append(name)
     tip = bodies[tree.tip]
     if np.any(tree.tool[:3, 3]):
-        ET.SubElement(tip, "geom", type="capsule", size=repr(LINK_RADIUS),
-                      fromto=_vec(np.r_[np.zeros(3), tree.tool[:3, 3]]), rgba="0.5 0.5 0.6 1")
+        ET.SubElement(
+            tip,
+            "geom",
+            type="capsule",
+            size=repr(LINK_RADIUS),
+            fromto=_vec(np.r_[np.zeros(3), tree.tool[:3, 3]]),
+            rgba="0.5 0.5 0.6 1",
+        )
     site = ET.SubElement(tip, "site", name=f"{leaf}/tip", size=repr(FINGERTIP_RADIUS / 2))
     _place(site, tree.tool)
     return names, f"{leaf}/{tree.joints[tree.tip].name}"
@@ -303,17 +320,23 @@ def _leaf_tree(system: RobotSystem, name: str) -> tuple[KinematicTree, np.ndarra
     leaf = system.leaf(name)
     if isinstance(leaf, KinematicTree):
         if leaf.coupling is not None:
-            raise UserError(system.location_of(name), f"the MuJoCo plant couples no joints exactly: chain leaf "
-                                                      f"'{name}' has mimic joints ({mimic_joints(leaf)}), which MuJoCo "
-                                                      "would hold by a soft equality constraint; simulate it on "
-                                                      f"robotgen's plant ({hint('spec-format', 'Mimic joints')})")
+            raise UserError(
+                system.location_of(name),
+                f"the MuJoCo plant couples no joints exactly: chain leaf "
+                f"'{name}' has mimic joints ({mimic_joints(leaf)}), which MuJoCo "
+                "would hold by a soft equality constraint; simulate it on "
+                f"robotgen's plant ({hint('spec-format', 'Mimic joints')})",
+            )
         return leaf, np.eye(leaf.nq), np.zeros(leaf.nq), system.location_of(name)
     if isinstance(leaf, FormulaRobot) and leaf.mechanism is not None:
         m = leaf.mechanism
         return m.tree, m.T, m.offset, m.location
-    raise UserError(system.location_of(name), f"the MuJoCo plant builds every leaf from bodies: formulas leaf "
-                                              f"'{name}' needs a mechanism (a chain whose joints give its "
-                                              f"coordinates: {hint('spec-format', 'mechanism')})")
+    raise UserError(
+        system.location_of(name),
+        f"the MuJoCo plant builds every leaf from bodies: formulas leaf "
+        f"'{name}' needs a mechanism (a chain whose joints give its "
+        f"coordinates: {hint('spec-format', 'mechanism')})",
+    )
 
 
 def fingertips(system: RobotSystem, attach: AttachNode) -> list[str]:
@@ -332,22 +355,32 @@ def fingertips(system: RobotSystem, attach: AttachNode) -> list[str]:
             for r2 in below.robots:
                 sub = below_controls(system, r2)
                 sub_leaf = leaf_of(sub)
-                n = (len(sub_leaf.kinematics or ()) if isinstance(sub_leaf, FormulaRobot)
-                     else 2 if below.constraint.output == PLANAR_OUTPUT else 3)
+                n = (
+                    len(sub_leaf.kinematics or ())
+                    if isinstance(sub_leaf, FormulaRobot)
+                    else 2
+                    if below.constraint.output == PLANAR_OUTPUT
+                    else 3
+                )
                 blocks.append((sub.name, n))
         else:
-            raise UserError(where, f"the MuJoCo plant needs each fingertip of {kind} to be one leaf's tip; robot '{r}' "
-                                   f"is a {below.primitive} node that is not a frame change of leaves")
+            raise UserError(
+                where,
+                f"the MuJoCo plant needs each fingertip of {kind} to be one leaf's tip; robot '{r}' "
+                f"is a {below.primitive} node that is not a frame change of leaves",
+            )
         for leaf, n in blocks:
             if n != dim:
-                raise UserError(where, f"the MuJoCo plant takes leaf '{leaf}''s {n} coordinates as one fingertip; "
-                                       f"a contact of {kind} has {dim}")
+                raise UserError(
+                    where,
+                    f"the MuJoCo plant takes leaf '{leaf}''s {n} coordinates as one fingertip; "
+                    f"a contact of {kind} has {dim}",
+                )
             tips.append(leaf)
     return tips
 
 
-def _gravity(system: RobotSystem, leaves: list[tuple[str, KinematicTree, Location]],
-             payloads: list[str]) -> np.ndarray:
+def _gravity(system: RobotSystem, leaves: list[tuple[str, KinematicTree, Location]], payloads: list[str]) -> np.ndarray:
     """The one gravity vector of the MuJoCo model: every chain's, mechanism's and payload's."""
     given = [(f"leaf '{name}'", np.asarray(tree.gravity, float), where) for name, tree, where in leaves]
     for p in payloads:
@@ -362,9 +395,12 @@ def _gravity(system: RobotSystem, leaves: list[tuple[str, KinematicTree, Locatio
     first = given[0]
     for what, g, where in given[1:]:
         if not np.allclose(g, first[1], rtol=0, atol=1e-12):
-            raise UserError(where, f"MuJoCo has one gravity: {what} has ({_vec(g)}) m/s^2 but {first[0]} "
-                                   f"({_vec(first[1])}); give them the same (a planar payload's (gx, gy) is "
-                                   "(gx, gy, 0))")
+            raise UserError(
+                where,
+                f"MuJoCo has one gravity: {what} has ({_vec(g)}) m/s^2 but {first[0]} "
+                f"({_vec(first[1])}); give them the same (a planar payload's (gx, gy) is "
+                "(gx, gy, 0))",
+            )
     return first[1]
 
 
@@ -377,29 +413,46 @@ def plant_model(system: RobotSystem, period: float, hand_frame: np.ndarray | Non
     attaches = [n for n in system.walk() if isinstance(n, AttachNode)]
     for a in attaches:
         if a.constraint.kind != FRAME_CHANGE and a.constraint.kind not in CONTACT_GRASPS:
-            raise UserError(system.location_of(a.name), f"the MuJoCo plant has no counterpart of attach '{a.name}''s "
-                                                        "formulas constraint (h, J, G): it maps frame changes and "
-                                                        "planar or point contacts")
+            raise UserError(
+                system.location_of(a.name),
+                f"the MuJoCo plant has no counterpart of attach '{a.name}''s "
+                "formulas constraint (h, J, G): it maps frame changes and "
+                "planar or point contacts",
+            )
     grasps = [a for a in attaches if a.constraint.kind in CONTACT_GRASPS]
     for a in grasps:
         if a.payload is None:  # (the front end gives every contact grasp a payload)
             raise UserError(system.location_of(a.name), f"the MuJoCo plant needs a payload on '{a.name}'")
         payload = system.leaf(a.payload)
         if not isinstance(payload, (PlanarBody, SpatialBody)):
-            raise UserError(system.location_of(a.payload), f"the MuJoCo plant needs payload '{a.payload}' to be a "
-                                                           "rigid_body (a formulas payload has no bodies)")
+            raise UserError(
+                system.location_of(a.payload),
+                f"the MuJoCo plant needs payload '{a.payload}' to be a rigid_body (a formulas payload has no bodies)",
+            )
     trees = {name: _leaf_tree(system, name) for name in leaves}
-    gravity = _gravity(system, [(n, t[0], t[3]) for n, t in trees.items()],
-                       [a.payload for a in grasps if a.payload is not None])
+    gravity = _gravity(
+        system, [(n, t[0], t[3]) for n, t in trees.items()], [a.payload for a in grasps if a.payload is not None]
+    )
     wall = system.simulation.wall if system.simulation is not None and hand_frame is None else None
     substeps = CONTACT_SUBSTEPS if grasps or wall is not None else 1
     root = ET.Element("mujoco", model=system.name)
-    root.append(ET.Comment(f" written by robotgen from {system.source}: the plant of `robotgen simulate "
-                           f"--plant mujoco`; {hint('spec-format', 'The MuJoCo plant')} says how each part maps "))
-    ET.SubElement(root, "compiler", angle="radian", inertiafromgeom="false", boundmass=repr(MIN_INERTIA),
-                  boundinertia=repr(MIN_INERTIA))
-    option = ET.SubElement(root, "option", timestep=repr(period / substeps), integrator="RK4", cone="elliptic",
-                           gravity=_vec(gravity))
+    root.append(
+        ET.Comment(
+            f" written by robotgen from {system.source}: the plant of `robotgen simulate "
+            f"--plant mujoco`; {hint('spec-format', 'The MuJoCo plant')} says how each part maps "
+        )
+    )
+    ET.SubElement(
+        root,
+        "compiler",
+        angle="radian",
+        inertiafromgeom="false",
+        boundmass=repr(MIN_INERTIA),
+        boundinertia=repr(MIN_INERTIA),
+    )
+    option = ET.SubElement(
+        root, "option", timestep=repr(period / substeps), integrator="RK4", cone="elliptic", gravity=_vec(gravity)
+    )
     if grasps:
         option.set("noslip_iterations", str(NOSLIP_ITERATIONS))
     default = ET.SubElement(ET.SubElement(root, "default"), "geom")
@@ -415,13 +468,27 @@ def plant_model(system: RobotSystem, period: float, hand_frame: np.ndarray | Non
         coordinates = tuple(j.name for j in leaf.joints) if isinstance(leaf, KinematicTree) else leaf.coordinates
         coulomb = np.array([j.coulomb for j in tree.joints])
         mechanism = leaf.mechanism if isinstance(leaf, FormulaRobot) else None
-        world.append(ET.Comment(f" leaf '{name}'" + ("" if mechanism is None else
-                                                     ": the mechanism of a formulas leaf, " + ", ".join(
-                                                         f"{c} = {e.text}" for c, e in zip(coordinates,
-                                                                                           mechanism.coordinates)))
-                                + (". Coulomb friction c tanh(qd / " + repr(tree.coulomb_smoothing) + "), c = "
-                                   + _vec(coulomb) + ", is applied by robotgen as a passive force"
-                                   if coulomb.any() else "") + " "))
+        world.append(
+            ET.Comment(
+                f" leaf '{name}'"
+                + (
+                    ""
+                    if mechanism is None
+                    else ": the mechanism of a formulas leaf, "
+                    + ", ".join(f"{c} = {e.text}" for c, e in zip(coordinates, mechanism.coordinates))
+                )
+                + (
+                    ". Coulomb friction c tanh(qd / "
+                    + repr(tree.coulomb_smoothing)
+                    + "), c = "
+                    + _vec(coulomb)
+                    + ", is applied by robotgen as a passive force"
+                    if coulomb.any()
+                    else ""
+                )
+                + " "
+            )
+        )
         joints, tip_body = _chain_bodies(world, name, tree)
         actuators = []
         for i, c in enumerate(coordinates):
@@ -436,8 +503,22 @@ def plant_model(system: RobotSystem, period: float, hand_frame: np.ndarray | Non
                 ET.SubElement(actuator, "motor", name=act, tendon=act, gear="1")
             actuators.append(act)
         span = slice(offset, offset + len(coordinates))
-        maps.append(LeafMap(name, tuple(joints), coordinates, tuple(actuators), span, T, theta0, coulomb,
-                            tree.coulomb_smoothing, f"{name}/tip", tip_body, where))
+        maps.append(
+            LeafMap(
+                name,
+                tuple(joints),
+                coordinates,
+                tuple(actuators),
+                span,
+                T,
+                theta0,
+                coulomb,
+                tree.coulomb_smoothing,
+                f"{name}/tip",
+                tip_body,
+                where,
+            )
+        )
         offset += len(coordinates)
     payloads, contacts = [], []
     contact = ET.Element("contact")
@@ -448,15 +529,26 @@ def plant_model(system: RobotSystem, period: float, hand_frame: np.ndarray | Non
         tips = fingertips(system, a)
         planar = a.constraint.kind == PLANAR_CONTACTS
         for k, (point, tip_leaf) in enumerate(zip(np.asarray(a.constraint.contacts, float), tips)):
-            contacts.append(_contact(contact, world, body, a, k, np.r_[point, 0.0] if planar else point, tip_leaf,
-                                     payload_map, planar, system))
+            contacts.append(
+                _contact(
+                    contact,
+                    world,
+                    body,
+                    a,
+                    k,
+                    np.r_[point, 0.0] if planar else point,
+                    tip_leaf,
+                    payload_map,
+                    planar,
+                    system,
+                )
+            )
     wall_map = _wall(contact, world, system, wall) if wall is not None else None
     hand_payload = None
     if hand_frame is not None:
         tip = _element(world, f".//body[@name='{maps[0].tip_body}']")
         hand_payload = "hand_payload"
-        tip.append(ET.Comment(" the hand's payload: robotgen sets its mass and centre of mass at each payload "
-                              "change "))
+        tip.append(ET.Comment(" the hand's payload: robotgen sets its mass and centre of mass at each payload change "))
         held = ET.SubElement(tip, "body", name=hand_payload)
         _place(held, hand_frame)
         ET.SubElement(held, "inertial", mass="0", pos="0 0 0", diaginertia="0 0 0")
@@ -465,8 +557,18 @@ def plant_model(system: RobotSystem, period: float, hand_frame: np.ndarray | Non
             root.append(element)
     ET.indent(root)
     xml = ET.tostring(root, encoding="unicode") + "\n"
-    return PlantModel(system.name, xml, tuple(maps), tuple(payloads), tuple(contacts), period / substeps, substeps,
-                      gravity, hand_payload, wall_map)
+    return PlantModel(
+        system.name,
+        xml,
+        tuple(maps),
+        tuple(payloads),
+        tuple(contacts),
+        period / substeps,
+        substeps,
+        gravity,
+        hand_payload,
+        wall_map,
+    )
 
 
 def wall_leaf(system: RobotSystem, node: str) -> str:
@@ -479,10 +581,16 @@ def wall_leaf(system: RobotSystem, node: str) -> str:
         leaf = below_controls(system, below.robots[0])
         if isinstance(leaf, DefineNode):
             return leaf.name
-    where = (system.simulation.locations.get("wall", system.location_of(node)) if system.simulation is not None
-             else system.location_of(node))
-    raise UserError(where, f"the MuJoCo plant puts the wall against one leaf's tip: node '{node}' must be a leaf or a "
-                           "frame change of one leaf (its tip position)")
+    where = (
+        system.simulation.locations.get("wall", system.location_of(node))
+        if system.simulation is not None
+        else system.location_of(node)
+    )
+    raise UserError(
+        where,
+        f"the MuJoCo plant puts the wall against one leaf's tip: node '{node}' must be a leaf or a "
+        "frame change of one leaf (its tip position)",
+    )
 
 
 def _wall(contact: ET.Element, world: ET.Element, system: RobotSystem, wall) -> WallMap:
@@ -490,14 +598,30 @@ def _wall(contact: ET.Element, world: ET.Element, system: RobotSystem, wall) -> 
     touches it when the tip reaches the wall) and the pair of it with that sphere."""
     leaf = wall_leaf(system, wall.node)
     point, normal = (np.r_[np.asarray(v, float), np.zeros(3 - len(v))] for v in (wall.point, wall.normal))
-    ET.SubElement(world, "geom", name="wall", type="plane", size="0 0 1", pos=_vec(point - FINGERTIP_RADIUS * normal),
-                  zaxis=_vec(normal), rgba="0.6 0.6 0.6 0.5")
+    ET.SubElement(
+        world,
+        "geom",
+        name="wall",
+        type="plane",
+        size="0 0 1",
+        pos=_vec(point - FINGERTIP_RADIUS * normal),
+        zaxis=_vec(normal),
+        rgba="0.6 0.6 0.6 0.5",
+    )
     tip_site = _element(world, f".//site[@name='{leaf}/tip']")
     holder = next(b for b in world.iter("body") if tip_site in list(b))
-    ET.SubElement(holder, "geom", name="wall/tip", type="sphere", size=repr(FINGERTIP_RADIUS),
-                  pos=tip_site.get("pos", "0 0 0"), rgba="0.2 0.4 0.8 1")
-    ET.SubElement(contact, "pair", name="wall", geom1="wall/tip", geom2="wall", condim="1",
-                  solref=f"{CONTACT_TIMECONST!r} 1")
+    ET.SubElement(
+        holder,
+        "geom",
+        name="wall/tip",
+        type="sphere",
+        size=repr(FINGERTIP_RADIUS),
+        pos=tip_site.get("pos", "0 0 0"),
+        rgba="0.2 0.4 0.8 1",
+    )
+    ET.SubElement(
+        contact, "pair", name="wall", geom1="wall/tip", geom2="wall", condim="1", solref=f"{CONTACT_TIMECONST!r} 1"
+    )
     return WallMap(leaf, "wall/tip", "wall")
 
 
@@ -511,8 +635,9 @@ def _payload(world: ET.Element, system: RobotSystem, attach: AttachNode) -> Payl
         joints = tuple(f"{name}/{c}" for c in body.coordinates)
         for joint, (kind, axis) in zip(joints, (("slide", "1 0 0"), ("slide", "0 1 0"), ("hinge", "0 0 1"))):
             ET.SubElement(element, "joint", name=joint, type=kind, axis=axis)
-        ET.SubElement(element, "inertial", mass=repr(float(body.mass)), pos="0 0 0",
-                      diaginertia=_vec([body.inertia] * 3))
+        ET.SubElement(
+            element, "inertial", mass=repr(float(body.mass)), pos="0 0 0", diaginertia=_vec([body.inertia] * 3)
+        )
         return PayloadMap(name, attach.name, True, joints, name)
     if not isinstance(body, SpatialBody):  # (build_plant refuses another payload)
         raise TypeError(f"payload '{name}' is no rigid body")
@@ -521,29 +646,66 @@ def _payload(world: ET.Element, system: RobotSystem, attach: AttachNode) -> Payl
     return PayloadMap(name, attach.name, False, (f"{name}/free",), name)
 
 
-def _contact(contact: ET.Element, world: ET.Element, body: ET.Element, attach: AttachNode, k: int,
-             point: np.ndarray, leaf: str, payload: PayloadMap, planar: bool, system: RobotSystem) -> ContactMap:
+def _contact(
+    contact: ET.Element,
+    world: ET.Element,
+    body: ET.Element,
+    attach: AttachNode,
+    k: int,
+    point: np.ndarray,
+    leaf: str,
+    payload: PayloadMap,
+    planar: bool,
+    system: RobotSystem,
+) -> ContactMap:
     """Contact k: the fingertip sphere on ``leaf``'s tip, the pad on the payload, their pair."""
     distance = float(np.linalg.norm(point))
     if distance <= 2 * FINGERTIP_RADIUS:
-        raise UserError(system.location_of(attach.name), f"the MuJoCo plant faces each pad away from the payload's "
-                                                         f"centre: contact point {k + 1} of '{attach.name}' is "
-                                                         f"{distance:.3g} m from it, closer than "
-                                                         f"{2 * FINGERTIP_RADIUS:g} m")
+        raise UserError(
+            system.location_of(attach.name),
+            f"the MuJoCo plant faces each pad away from the payload's "
+            f"centre: contact point {k + 1} of '{attach.name}' is "
+            f"{distance:.3g} m from it, closer than "
+            f"{2 * FINGERTIP_RADIUS:g} m",
+        )
     normal = point / distance
     half = max(0.5 * distance, 4 * FINGERTIP_RADIUS)  # the pad's half width along the face
     pad = f"{attach.name}/pad{k + 1}"
     centre = point - 2 * FINGERTIP_RADIUS * normal  # face FINGERTIP_RADIUS inside the point, as thick
-    ET.SubElement(body, "geom", name=pad, type="box", size=_vec([half, half, FINGERTIP_RADIUS]), pos=_vec(centre),
-                  zaxis=_vec(normal), rgba="0.8 0.6 0.2 0.6")
+    ET.SubElement(
+        body,
+        "geom",
+        name=pad,
+        type="box",
+        size=_vec([half, half, FINGERTIP_RADIUS]),
+        pos=_vec(centre),
+        zaxis=_vec(normal),
+        rgba="0.8 0.6 0.2 0.6",
+    )
     tip_site = _element(world, f".//site[@name='{leaf}/tip']")
     holder = next(b for b in world.iter("body") if tip_site in list(b))
     tip = f"{attach.name}/tip{k + 1}"
-    ET.SubElement(holder, "geom", name=tip, type="sphere", size=repr(FINGERTIP_RADIUS),
-                  pos=tip_site.get("pos", "0 0 0"), rgba="0.2 0.4 0.8 1")
+    ET.SubElement(
+        holder,
+        "geom",
+        name=tip,
+        type="sphere",
+        size=repr(FINGERTIP_RADIUS),
+        pos=tip_site.get("pos", "0 0 0"),
+        rgba="0.2 0.4 0.8 1",
+    )
     pair = f"{attach.name}/c{k + 1}"
     mu = repr(float(attach.constraint.friction))
-    ET.SubElement(contact, "pair", name=pair, geom1=tip, geom2=pad, condim="3", friction=f"{mu} {mu} 0 0 0",
-                  solref=f"{CONTACT_TIMECONST!r} 1")
-    return ContactMap(attach.name, k, leaf, payload.node, pair, tip, pad, point, normal,
-                      float(attach.constraint.friction), planar)
+    ET.SubElement(
+        contact,
+        "pair",
+        name=pair,
+        geom1=tip,
+        geom2=pad,
+        condim="3",
+        friction=f"{mu} {mu} 0 0 0",
+        solref=f"{CONTACT_TIMECONST!r} 1",
+    )
+    return ContactMap(
+        attach.name, k, leaf, payload.node, pair, tip, pad, point, normal, float(attach.constraint.friction), planar
+    )

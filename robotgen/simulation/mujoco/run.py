@@ -12,6 +12,7 @@ What the controller senses is robotgen's: theta = T q + offset, theta_dot = T qd
 and tau_sensed (rd's force term, eq 3.7): the generalized force each leaf exerts through
 its contacts, -T^-T qfrc_constraint on its joints (a joint-torque sensor's reading of the
 contact load, in robotgen's coordinates)."""
+
 from __future__ import annotations
 
 import contextlib
@@ -39,23 +40,28 @@ class Diverged(ValueError):
 def rpy_rotation(rpy: np.ndarray) -> np.ndarray:
     """R = Rz(yaw) Ry(pitch) Rx(roll), robotgen's fixed-axis roll, pitch, yaw."""
     (cr, cp, cy), (sr, sp, sy) = np.cos(rpy), np.sin(rpy)
-    return np.array([[cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
-                     [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
-                     [-sp, cp * sr, cp * cr]])
+    return np.array(
+        [
+            [cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
+            [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
+            [-sp, cp * sr, cp * cr],
+        ]
+    )
 
 
 def rpy_of(R: np.ndarray) -> np.ndarray:
     """Roll, pitch, yaw [rad] (Lee and Lee eq 2) of a rotation R (3, 3)."""
-    return np.array([np.arctan2(R[2, 1], R[2, 2]), np.arctan2(-R[2, 0], np.hypot(R[2, 1], R[2, 2])),
-                     np.arctan2(R[1, 0], R[0, 0])])
+    return np.array(
+        [np.arctan2(R[2, 1], R[2, 2]), np.arctan2(-R[2, 0], np.hypot(R[2, 1], R[2, 2])), np.arctan2(R[1, 0], R[0, 0])]
+    )
 
 
 def rpy_rate_map(rpy: np.ndarray) -> np.ndarray:
     """E with omega (world axes) = E rpy_dot for R = Rz(yaw) Ry(pitch) Rx(roll)."""
     _, p, y = rpy
-    return np.array([[np.cos(y) * np.cos(p), -np.sin(y), 0.0],
-                     [np.sin(y) * np.cos(p), np.cos(y), 0.0],
-                     [-np.sin(p), 0.0, 1.0]])
+    return np.array(
+        [[np.cos(y) * np.cos(p), -np.sin(y), 0.0], [np.sin(y) * np.cos(p), np.cos(y), 0.0], [-np.sin(p), 0.0, 1.0]]
+    )
 
 
 class MujocoPlant:
@@ -66,8 +72,10 @@ class MujocoPlant:
         """How this plant steps, for reports."""
         p = self.plant
         cones = ", elliptic friction cones" if p.contacts else ""
-        return (f"MuJoCo {self.mj.__version__}, its RK4, {p.substeps} step{'s' if p.substeps > 1 else ''} of "
-                f"{p.timestep:g} s per period{cones}")
+        return (
+            f"MuJoCo {self.mj.__version__}, its RK4, {p.substeps} step{'s' if p.substeps > 1 else ''} of "
+            f"{p.timestep:g} s per period{cones}"
+        )
 
     def __init__(self, plant: PlantModel):
         mj = require_mujoco()
@@ -81,16 +89,19 @@ class MujocoPlant:
 
         self.leaf_qpos = [np.array([m.jnt_qposadr[joint(j)] for j in leaf.joints]) for leaf in plant.leaves]
         self.leaf_dofs = [np.array([m.jnt_dofadr[joint(j)] for j in leaf.joints]) for leaf in plant.leaves]
-        self.actuators = np.concatenate([[mj.mj_name2id(m, mj.mjtObj.mjOBJ_ACTUATOR, a) for a in leaf.actuators]
-                                         for leaf in plant.leaves]).astype(int)
+        self.actuators = np.concatenate(
+            [[mj.mj_name2id(m, mj.mjtObj.mjOBJ_ACTUATOR, a) for a in leaf.actuators] for leaf in plant.leaves]
+        ).astype(int)
         self.sites = [mj.mj_name2id(m, mj.mjtObj.mjOBJ_SITE, leaf.tip) for leaf in plant.leaves]
         self.payload_qpos = {p.node: int(m.jnt_qposadr[joint(p.joints[0])]) for p in plant.payloads}
         self.payload_dofs = {p.node: int(m.jnt_dofadr[joint(p.joints[0])]) for p in plant.payloads}
         self.payload_body = {p.node: mj.mj_name2id(m, mj.mjtObj.mjOBJ_BODY, p.body) for p in plant.payloads}
         self.payload_planar = {p.node: p.planar for p in plant.payloads}
-        self.wall_geoms = ({mj.mj_name2id(m, mj.mjtObj.mjOBJ_GEOM, g) for g in (plant.wall.tip_geom,
-                                                                               plant.wall.plane_geom)}
-                           if plant.wall is not None else set())
+        self.wall_geoms = (
+            {mj.mj_name2id(m, mj.mjtObj.mjOBJ_GEOM, g) for g in (plant.wall.tip_geom, plant.wall.plane_geom)}
+            if plant.wall is not None
+            else set()
+        )
         self.tip_geoms = [mj.mj_name2id(m, mj.mjtObj.mjOBJ_GEOM, c.tip_geom) for c in plant.contacts]
         self.pad_geoms = [mj.mj_name2id(m, mj.mjtObj.mjOBJ_GEOM, c.pad_geom) for c in plant.contacts]
         self.pad_half_width = [float(m.geom_size[g][0]) for g in self.pad_geoms]
@@ -132,13 +143,13 @@ class MujocoPlant:
         angular velocity in the body frame, R^T E rpy_dot)."""
         a, v = self.payload_qpos[node], self.payload_dofs[node]
         if self.payload_planar[node]:
-            self.data.qpos[a:a + 3], self.data.qvel[v:v + 3] = x[:3], xd[:3]
+            self.data.qpos[a : a + 3], self.data.qvel[v : v + 3] = x[:3], xd[:3]
             return
         R = rpy_rotation(x[3:6])
         quat = np.zeros(4)
         self.mj.mju_mat2Quat(quat, R.ravel())
-        self.data.qpos[a:a + 7] = np.r_[x[:3], quat]
-        self.data.qvel[v:v + 6] = np.r_[xd[:3], R.T @ rpy_rate_map(x[3:6]) @ xd[3:6]]
+        self.data.qpos[a : a + 7] = np.r_[x[:3], quat]
+        self.data.qvel[v : v + 6] = np.r_[xd[:3], R.T @ rpy_rate_map(x[3:6]) @ xd[3:6]]
 
     def set_mass(self, node: str, mass: float) -> None:
         """Payload ``node``'s mass from now on (MuJoCo's derived constants recomputed), the
@@ -153,8 +164,8 @@ class MujocoPlant:
         """A payload's pose: (x, y, psi) when planar, else position (3,) [m] and roll, pitch, yaw (3,) [rad]."""
         a = self.payload_qpos[node]
         if self.payload_planar[node]:
-            return self.data.qpos[a:a + 3].copy()
-        return np.r_[self.data.qpos[a:a + 3], rpy_of(self.rotation(node))]
+            return self.data.qpos[a : a + 3].copy()
+        return np.r_[self.data.qpos[a : a + 3], rpy_of(self.rotation(node))]
 
     def rotation(self, node: str) -> np.ndarray:
         """A payload's rotation (3, 3) in world axes."""
@@ -206,7 +217,7 @@ class MujocoPlant:
                     world = c.frame.reshape(3, 3).T @ wrench[:3]  # on geom2 from geom1
                     forces[k] += world if int(c.geom[1]) == pad else -world
                     # an elliptic cone's rows: normal, then the two tangential relative velocities
-                    speeds[k] = float(np.linalg.norm(d.efc_vel[c.efc_address + 1:c.efc_address + c.dim]))
+                    speeds[k] = float(np.linalg.norm(d.efc_vel[c.efc_address + 1 : c.efc_address + c.dim]))
         out = []
         for k, c in enumerate(self.plant.contacts):
             R, p = self.rotation(c.payload), self.data.xpos[self.payload_body[c.payload]]
@@ -215,8 +226,18 @@ class MujocoPlant:
             n_world = R @ c.normal
             f_n = max(float(forces[k] @ n_world) * -1.0, 0.0)  # the tip pushes the pad inwards, along -n
             f_t = float(np.linalg.norm(forces[k] + f_n * n_world)) if f_n > 0 else 0.0
-            out.append(Reading(forces[k], f_n, f_t, offset, c.normal, self.pad_half_width[k], c.friction,
-                               speeds[k] if f_n > 0 else 0.0))
+            out.append(
+                Reading(
+                    forces[k],
+                    f_n,
+                    f_t,
+                    offset,
+                    c.normal,
+                    self.pad_half_width[k],
+                    c.friction,
+                    speeds[k] if f_n > 0 else 0.0,
+                )
+            )
         return out
 
     def wall_force(self) -> float:
@@ -256,8 +277,7 @@ class MujocoPlant:
         return [self.data.site_xpos[s].copy() for s in self.sites]
 
 
-def check_agreement(sim: MujocoPlant, leaf_dynamics, theta0: np.ndarray, rng: np.random.Generator,
-                    tips=None) -> None:
+def check_agreement(sim: MujocoPlant, leaf_dynamics, theta0: np.ndarray, rng: np.random.Generator, tips=None) -> None:
     """The MuJoCo model reproduces robotgen's: at theta0 and 4 random states about it,
     M and C theta_dot + N of every leaf (``leaf_dynamics(theta, theta_dot) -> [(M, b)]``
     per leaf, from the compiled module) to AGREEMENT (relative), and, for contacts, each
@@ -273,20 +293,26 @@ def check_agreement(sim: MujocoPlant, leaf_dynamics, theta0: np.ndarray, rng: np
                 scale = max(float(np.abs(theirs).max()), float(np.abs(M_rg).max()) * 1e-3, 1e-300)
                 error = float(np.abs(mine - theirs).max()) / scale
                 if error > AGREEMENT:
-                    raise UserError(leaf.location, f"the MuJoCo model of leaf '{leaf.name}' does not reproduce "
-                                                   f"robotgen's: {what} differs by {error:.3g} (relative) at "
-                                                   f"theta = [{', '.join(f'{v:.4g}' for v in theta[s])}]")
+                    raise UserError(
+                        leaf.location,
+                        f"the MuJoCo model of leaf '{leaf.name}' does not reproduce "
+                        f"robotgen's: {what} differs by {error:.3g} (relative) at "
+                        f"theta = [{', '.join(f'{v:.4g}' for v in theta[s])}]",
+                    )
         if tips is not None:
             positions = dict(zip((leaf.name for leaf in sim.plant.leaves), sim.tips()))
             for leaf, expected in tips(theta):
                 where = next(lf.location for lf in sim.plant.leaves if lf.name == leaf)
-                found = positions[leaf][:expected.size]
+                found = positions[leaf][: expected.size]
                 if np.abs(found - expected).max() > 1e-9:
-                    raise UserError(where, f"the MuJoCo model puts the fingertip of leaf '{leaf}' at "
-                                           f"[{', '.join(f'{v:.6g}' for v in found)}], robotgen at "
-                                           f"[{', '.join(f'{v:.6g}' for v in expected)}] (theta = "
-                                           f"[{', '.join(f'{v:.4g}' for v in theta)}]): the tip frame is not the "
-                                           "point the kinematics give")
+                    raise UserError(
+                        where,
+                        f"the MuJoCo model puts the fingertip of leaf '{leaf}' at "
+                        f"[{', '.join(f'{v:.6g}' for v in found)}], robotgen at "
+                        f"[{', '.join(f'{v:.6g}' for v in expected)}] (theta = "
+                        f"[{', '.join(f'{v:.4g}' for v in theta)}]): the tip frame is not the "
+                        "point the kinematics give",
+                    )
 
 
 @dataclass
@@ -322,8 +348,9 @@ class TreePlant:
 
     name = "mujoco"
 
-    def __init__(self, sim: MujocoPlant, module, theta: np.ndarray, theta_dot: np.ndarray, n_ext: int,
-                 root_payload: str | None):
+    def __init__(
+        self, sim: MujocoPlant, module, theta: np.ndarray, theta_dot: np.ndarray, n_ext: int, root_payload: str | None
+    ):
         self.sim, self.module, self.n_ext = sim, module, n_ext
         sim.set_leaves(theta, theta_dot)
         for p in sim.plant.payloads:
@@ -346,7 +373,7 @@ class TreePlant:
 
     def position(self, theta: np.ndarray) -> np.ndarray:
         """The root's external positions at leaf positions theta (nq,), by the module's plant_position."""
-        return self.module.plant_position(theta)[:self.n_ext]
+        return self.module.plant_position(theta)[: self.n_ext]
 
     def sensed_forces(self, tau_before: np.ndarray) -> np.ndarray:
         """What the sensors read now: MuJoCo's state already holds the last torques."""
@@ -359,8 +386,9 @@ class TreePlant:
     def set_wall(self, wall) -> None:
         """The wall is in the MJCF already: the spec's (robotgen.simulation.mujoco.model)."""
         if self.sim.plant.wall is None:
-            raise SimulationError("the MuJoCo model was written without a wall: give it in the spec's simulation "
-                                  "section", "wall")
+            raise SimulationError(
+                "the MuJoCo model was written without a wall: give it in the spec's simulation section", "wall"
+            )
 
     def wall_force(self) -> float:
         """The wall's normal force [N] on its point now."""
@@ -383,10 +411,12 @@ class TreePlant:
         try:
             self.sim.step(tau)
         except Diverged:
-            raise SimulationError(f"the closed loop on the MuJoCo plant diverged {when}: the state before the "
-                                  f"blow-up was theta = [{', '.join(f'{v:.4g}' for v in theta)}], torque = "
-                                  f"[{', '.join(f'{v:.4g}' for v in tau)}]; the gains are too high for dt = {dt:g} s "
-                                  "or the loop is unstable: lower kp and kv, or dt") from None
+            raise SimulationError(
+                f"the closed loop on the MuJoCo plant diverged {when}: the state before the "
+                f"blow-up was theta = [{', '.join(f'{v:.4g}' for v in theta)}], torque = "
+                f"[{', '.join(f'{v:.4g}' for v in tau)}]; the gains are too high for dt = {dt:g} s "
+                "or the loop is unstable: lower kp and kv, or dt"
+            ) from None
         self._readings = self.sim.readings() if self.sim.plant.contacts else []
 
 
@@ -405,22 +435,26 @@ def tree_plant(system: RobotSystem, module, dt: float) -> tuple[PlantModel, obje
     payload = root_payload(system)
 
     def leaf_dynamics(theta, theta_dot):
-        return [(getattr(module, f"{leaf.name}_mass")(theta),
-                 getattr(module, f"{leaf.name}_coriolis")(theta, theta_dot) @ theta_dot[leaf.theta]
-                 + getattr(module, f"{leaf.name}_n")(theta, theta_dot)) for leaf in plant.leaves]
+        return [
+            (
+                getattr(module, f"{leaf.name}_mass")(theta),
+                getattr(module, f"{leaf.name}_coriolis")(theta, theta_dot) @ theta_dot[leaf.theta]
+                + getattr(module, f"{leaf.name}_n")(theta, theta_dot),
+            )
+            for leaf in plant.leaves
+        ]
 
     def tips(theta):
         theta_dot = np.zeros_like(theta)
         out = []
         wall = system.simulation.wall if system.simulation is not None else None
         if plant.wall is not None and wall is not None:  # the wall's point: where the node's rd puts it
-            out.append((plant.wall.leaf, np.asarray(getattr(module, f"{wall.node}_read")(
-                theta, theta_dot)[0])))
+            out.append((plant.wall.leaf, np.asarray(getattr(module, f"{wall.node}_read")(theta, theta_dot)[0])))
         for attach in {c.attach for c in plant.contacts}:
             node = system.attach(attach)
             y = np.concatenate([getattr(module, f"{r}_read")(theta, theta_dot)[0] for r in node.robots])
             dim = CONTACT_GRASPS[node.constraint.kind].tip_dim
-            out += [(leaf, y[dim * k:dim * k + dim]) for k, leaf in enumerate(fingertips(system, node))]
+            out += [(leaf, y[dim * k : dim * k + dim]) for k, leaf in enumerate(fingertips(system, node))]
         return out
 
     def make(module, theta, theta_dot, v, n_ext):
@@ -430,9 +464,14 @@ def tree_plant(system: RobotSystem, module, dt: float) -> tuple[PlantModel, obje
     return plant, make
 
 
-def chain_steps(system: RobotSystem, module, period: float, q0: np.ndarray,
-                hand_frame: np.ndarray | None = None,
-                stages: list[tuple[float, np.ndarray]] | None = None) -> tuple[PlantModel, ChainSteps]:
+def chain_steps(
+    system: RobotSystem,
+    module,
+    period: float,
+    q0: np.ndarray,
+    hand_frame: np.ndarray | None = None,
+    stages: list[tuple[float, np.ndarray]] | None = None,
+) -> tuple[PlantModel, ChainSteps]:
     """The MJCF of a chain controlled at its root (a hand law, a resolved-rate regulator) and
     its step function, checked against the module's mass and nonlinear (C qd + N) first.
     ``stages``: the hand's payloads (mass, centre of mass in the hand frame), by stage."""

@@ -1,6 +1,7 @@
 """Computed torque (Deno et al. 1990, §3.4): the controller integrates an expected trajectory
 from xdd_e = xdd_d + Kv (xd_d - xd) + Kp (x_d - x) and writes F = M xdd_e + C xd + N + F_d
 to the robot, whose attributes it absorbs (the node above sees M = C = N = 0)."""
+
 from __future__ import annotations
 
 from robotgen.model.laws import COMPUTED_TORQUE

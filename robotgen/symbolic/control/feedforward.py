@@ -1,6 +1,7 @@
 """Feedforward (Deno et al. 1990, §3.4): computed torque without position feedback, F = M xdd_e
 + C xd + N + F_d with xdd_e = xdd_d + Kv (xd_d - xd) (Kp unused; the spec's gains default to
 zero), integrating the expected trajectory the same way."""
+
 from __future__ import annotations
 
 from robotgen.model.laws import FEEDFORWARD

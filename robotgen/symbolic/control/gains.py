@@ -1,6 +1,7 @@
 """A tree law's gains as CasADi matrices: folded constants, or the module's run-time
 parameters (robotgen.model.parameters) shaped as the spec wrote them: a number times I,
 a diagonal, or a full matrix (row-major)."""
+
 from __future__ import annotations
 
 import casadi as ca
@@ -14,8 +15,9 @@ from robotgen.symbolic.kernel import ParameterSymbols
 def gain(node: ControlNode, key: str, parameters: ParameterSymbols) -> ca.SX | ca.DM:
     """kp or kv (n x n) of ``node``."""
     K = node.kp if key == "kp" else node.kv
-    return written_matrix(parameters.symbols.get(gain_parameter_name(node, key)), K,
-                          node.gain_forms[0 if key == "kp" else 1])
+    return written_matrix(
+        parameters.symbols.get(gain_parameter_name(node, key)), K, node.gain_forms[0 if key == "kp" else 1]
+    )
 
 
 def written_matrix(p: ca.SX | None, K, form: str) -> ca.SX | ca.DM:

@@ -14,6 +14,7 @@ contact along the force coordinates the robot exerts F_s = F_d there: the feedfo
 alone does it on an exact model; kf speeds the loop and ki removes what the model misses
 (a friction, a gravity error). The trajectory (x_d, xd_d, a*) passes down; the controller
 absorbs the robot's attributes."""
+
 from __future__ import annotations
 
 import casadi as ca

@@ -15,6 +15,7 @@ and the trajectory (x_d, xd_d, a*) passes down. Without ``inertia`` the robot ke
 reads no force (the trajectory passed down is then (x_d, xd_d, xdd_d)). In steady contact
 (xd = xdd = 0) the robot exerts F_s = K (x_d - x) + F_d. The controller absorbs the robot's
 attributes (the node above sees M = C = N = 0)."""
+
 from __future__ import annotations
 
 import casadi as ca

@@ -11,6 +11,7 @@ returns the force on the robot's coordinates and the trajectory it passes down, 
 keeps state (an expected trajectory (x_e, xd_e) it integrates, a force integral), that
 state's next value: the controller state the servo step carries in and out (the emitted C
 keeps none of its own)."""
+
 from __future__ import annotations
 
 from collections.abc import Callable
@@ -120,4 +121,4 @@ def integrate(c: Command, a_e: ca.SX) -> ca.SX:
     x_e + dt xd_e + dt^2 / 2 a_e on the positions, xd_e + dt a_e on the velocity."""
     x_s, v_s = c.expected
     nx = x_s.shape[0]
-    return ca.vertcat(x_s + c.dt * rows(v_s, 0, nx) + 0.5 * c.dt ** 2 * rows(a_e, 0, nx), v_s + c.dt * a_e)
+    return ca.vertcat(x_s + c.dt * rows(v_s, 0, nx) + 0.5 * c.dt**2 * rows(a_e, 0, nx), v_s + c.dt * a_e)

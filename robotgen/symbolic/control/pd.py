@@ -1,5 +1,6 @@
 """PD (Deno et al. 1990, §3.4 and §4.3): F = F_d + Kp e + Kv e', the desired trajectory passed
 down; a stiffness, like muscle coactivation, so the node above sees the robot's own M, C, N."""
+
 from __future__ import annotations
 
 from robotgen.model.laws import PD

@@ -1,5 +1,6 @@
 """PD plus feedforward (Deno et al. 1990, eq 2.10): F = M xdd_d + C xd_d + N + Kv e' + Kp e +
 F_d, the desired trajectory passed down unchanged; the robot's attributes are absorbed."""
+
 from __future__ import annotations
 
 from robotgen.model.laws import PD_FEEDFORWARD

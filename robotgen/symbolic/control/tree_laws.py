@@ -1,5 +1,6 @@
 """The tree control laws by name: the symbolic part (a TreeLaw) of each law of
 robotgen.model.laws.registry that is not a root law."""
+
 from __future__ import annotations
 
 from robotgen.model.laws.registry import LAWS

@@ -13,6 +13,7 @@ Omega (eqs 16-18). Done robustly for every angle:
   1 - Omega_k^2 >= 2/3 always. sin alpha = Omega^T u >= 0, alpha = atan2(sin, cos) in
   [0, pi], exact at pi (where either sign of Omega is correct).
 """
+
 from __future__ import annotations
 
 import casadi as ca

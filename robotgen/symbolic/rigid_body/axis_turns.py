@@ -1,6 +1,7 @@
 """Turns about constant unit axes and products with constant vectors, on 3-vectors given as
 lists of CasADi scalars. A constant's zeros are skipped and its +-1 become additions, so a
 robot whose axes are coordinate axes (the usual DH arm) pays only for what is not zero."""
+
 from __future__ import annotations
 
 from collections.abc import Sequence

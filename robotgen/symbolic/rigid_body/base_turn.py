@@ -5,6 +5,7 @@ origin (a vertical first axis, as on most arms), turning that joint by q_0 turns
 beyond it about that line: the tip pose, its Jacobian (Whitney 1972, eqs 7-9) and its bias
 acceleration Jdot qd are those at q_0 = 0, turned by R(q_0). Which form CSE leaves smaller
 depends on the arm, so ChainGraphs counts both."""
+
 from __future__ import annotations
 
 import casadi as ca
@@ -41,4 +42,4 @@ def turned(tree: KinematicTree, q: ca.SX, expr: ca.SX, blocks: int) -> ca.SX | N
     at_zero = ca.substitute(expr, q[root], ca.SX(0))
     if blocks == 0:  # homogeneous pose
         return ca.vertcat(ca.horzcat(R @ at_zero[:3, :3], R @ at_zero[:3, 3]), at_zero[3, :])
-    return ca.vertcat(*(R @ at_zero[3 * k:3 * k + 3, :] for k in range(blocks)))
+    return ca.vertcat(*(R @ at_zero[3 * k : 3 * k + 3, :] for k in range(blocks)))

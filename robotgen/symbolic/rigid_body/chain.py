@@ -2,6 +2,7 @@
 shared symbols q, qd, qdd, tau: the tree's coordinates. The algorithms work in its joints;
 a tree with mimic joints maps its coordinates into them and their results back
 (rigid_body/coupled.py)."""
+
 from __future__ import annotations
 
 from collections.abc import Callable
@@ -75,9 +76,11 @@ class ChainGraphs:
 
     def fk(self) -> ca.SX:
         """The tip pose directly or with the first joint's turn factored out (base_turn)."""
+
         def build():
             direct = forward_kinematics(self.tree, self.q_joints)
             return self._fewest([self.sym.q], [direct, self._turn(direct, 0)])
+
         return self._get("fk", build)
 
     def jacobian(self) -> ca.SX:
@@ -86,12 +89,15 @@ class ChainGraphs:
         return turned_form if turned_form is not None else self._jacobian_direct()
 
     def _jacobian_direct(self) -> ca.SX:
-        return self._get("jacobian_direct",
-                         lambda: self.coordinates.columns(geometric_jacobian(self.tree, self.q_joints)))
+        return self._get(
+            "jacobian_direct", lambda: self.coordinates.columns(geometric_jacobian(self.tree, self.q_joints))
+        )
 
     def _jacobian_dot_qd_direct(self) -> ca.SX:
-        return self._get("jdqd_direct", lambda: tip_bias_acceleration(
-            self.tree, joint_poses(self.tree, self.motions), self.bias_pass()))
+        return self._get(
+            "jdqd_direct",
+            lambda: tip_bias_acceleration(self.tree, joint_poses(self.tree, self.motions), self.bias_pass()),
+        )
 
     def _turned(self, name: str) -> ca.SX | None:
         """The Jacobian or Jdot qd at q_root = 0, turned by R(q_root); None if no such turn."""
@@ -118,6 +124,7 @@ class ChainGraphs:
         pass; which form wins depends on the arm). Past LOOPS_ABOVE_DOF
         joints M and C qd + N are loops, not built straight-line to count, and J and Jdot qd are
         counted alone."""
+
         def build():
             s = self.sym
             if self._turned("jacobian") is None:
@@ -127,9 +134,12 @@ class ChainGraphs:
             turned_forms = (self._turned("jacobian"), self._turned("jacobian_dot_qd"))
             if turned_forms[0] is None or turned_forms[1] is None:  # (_turn's condition is the tree's: both or neither)
                 return False
-            count = [count_operations([s.q, s.qd], [*shared, J, a])["total"]
-                     for J, a in (direct, (turned_forms[0], turned_forms[1]))]
+            count = [
+                count_operations([s.q, s.qd], [*shared, J, a])["total"]
+                for J, a in (direct, (turned_forms[0], turned_forms[1]))
+            ]
             return count[1] < count[0]
+
         return self._get("tip_turned", build)
 
     def jacobian_hand(self) -> ca.SX:
@@ -148,8 +158,9 @@ class ChainGraphs:
 
     def mass(self) -> ca.SX:
         """M(q) (n, n) by the composite rigid-body algorithm, in the tree's coordinates."""
-        return self._get("mass", lambda: self.coordinates.matrix(crba(self.tree, self.motions, self.inertias),
-                                                                 symmetric=True))
+        return self._get(
+            "mass", lambda: self.coordinates.matrix(crba(self.tree, self.motions, self.inertias), symmetric=True)
+        )
 
     def axes_and_inertias(self):
         """Each joint's axis and each body's inertia in base coordinates: what every looped
@@ -158,8 +169,9 @@ class ChainGraphs:
 
     def coriolis(self) -> ca.SX:
         """Whichever of coriolis_candidates CasADi's CSE leaves with fewest operations."""
-        return self._get("coriolis", lambda: self._fewest([self.sym.q, self.sym.qd],
-                                                          list(self.coriolis_candidates().values())))
+        return self._get(
+            "coriolis", lambda: self._fewest([self.sym.q, self.sym.qd], list(self.coriolis_candidates().values()))
+        )
 
     def coriolis_candidates(self) -> dict[str, ca.SX]:
         """The Christoffel-consistent C three ways: Christoffel symbols of M by AD (O(n^3)
@@ -177,8 +189,11 @@ class ChainGraphs:
         unread = [i for i in range(self.tree.nq) if not ca.depends_on(self.mass(), q[i])]
         if unread:
             half_forces = ca.substitute(half_forces, q[unread], ca.SX.zeros(len(unread)))
-        return {"christoffel": coriolis_matrix(self.mass(), q, qd),
-                "forces": coriolis_from_forces(half_forces, qd), "spatial": spatial}
+        return {
+            "christoffel": coriolis_matrix(self.mass(), q, qd),
+            "forces": coriolis_from_forces(half_forces, qd),
+            "spatial": spatial,
+        }
 
     def friction(self) -> ca.SX:
         """Every joint's friction (the mimic joints' too) as coordinate forces."""
@@ -186,33 +201,45 @@ class ChainGraphs:
 
     def gravity(self) -> ca.SX:
         """Gravity torques N(q) (n,) by Newton-Euler at qd = qdd = 0."""
-        return self._get("gravity",
-                         lambda: self.coordinates.forces(rnea(self.tree, self.motions, self.inertias, None, None)))
+        return self._get(
+            "gravity", lambda: self.coordinates.forces(rnea(self.tree, self.motions, self.inertias, None, None))
+        )
 
     def nonlinear(self) -> ca.SX:
         """C(q, qd) qd + N(q, qd): Newton-Euler with qdd = 0, plus friction."""
-        return self._get("nonlinear", lambda: self.coordinates.forces(
-            rnea(self.tree, self.motions, self.inertias, self.qd_joints, None, passes=self.bias_pass()))
-            + self.friction())
+        return self._get(
+            "nonlinear",
+            lambda: (
+                self.coordinates.forces(
+                    rnea(self.tree, self.motions, self.inertias, self.qd_joints, None, passes=self.bias_pass())
+                )
+                + self.friction()
+            ),
+        )
 
     def inverse_dynamics(self) -> ca.SX:
         """S^T tau(q_joints, S qd, S qdd) under a coupling."""
+
         def build():
             c, qdd = self.coordinates, self.qdd_joints
             armature = ca.vertcat(*[j.armature * qdd[i] for i, j in enumerate(self.tree.joints)])
-            return (c.forces(rnea(self.tree, self.motions, self.inertias, self.qd_joints, qdd)) + c.forces(armature)
-                    + self.friction())
+            return (
+                c.forces(rnea(self.tree, self.motions, self.inertias, self.qd_joints, qdd))
+                + c.forces(armature)
+                + self.friction()
+            )
+
         return self._get("inverse_dynamics", build)
 
     def forward_dynamics(self) -> ca.SX:
         """qdd = M^-1 (tau - C qd - N) (n,), by L D L^T."""
-        return self._get("forward_dynamics",
-                         lambda: cholesky_solve(self.mass(), self.sym.tau - self.nonlinear()))
+        return self._get("forward_dynamics", lambda: cholesky_solve(self.mass(), self.sym.tau - self.nonlinear()))
 
     def inverse_dynamics_derivatives(self) -> tuple[ca.SX, ca.SX]:
         """(d tau/dq, d tau/dqd): the recursion of rnea_derivatives or reverse sweeps of
         Newton-Euler (one per joint), whichever CasADi's CSE leaves with fewer operations
         (the sweeps on small arms, the recursion on longer ones)."""
+
         def build():
             s = self.sym
             recursion = self._rnea_derivatives()
@@ -221,6 +248,7 @@ class ChainGraphs:
             count = tuple(count_operations([s.q, s.qd, s.qdd], list(d))["total"] for d in (recursion, sweeps))
             self._cache["id_derivatives_counts"] = count
             return recursion if count[0] <= count[1] else sweeps
+
         return self._get("id_derivatives", build)
 
     def _rnea_derivatives(self) -> tuple[ca.SX, ca.SX]:
@@ -231,10 +259,10 @@ class ChainGraphs:
         if not self.coordinates.coupled:
             return rnea_derivatives(self.tree, self.motions, self.inertias, s.qd, s.qdd)
         joints = Symbols.make(self.tree.n_joints)
-        dq, dqd = rnea_derivatives(self.tree, joint_motions(self.tree, joints.q), self.inertias, joints.qd,
-                                   joints.qdd)
-        dq, dqd = ca.substitute([dq, dqd], [joints.q, joints.qd, joints.qdd],
-                                [self.q_joints, self.qd_joints, self.qdd_joints])
+        dq, dqd = rnea_derivatives(self.tree, joint_motions(self.tree, joints.q), self.inertias, joints.qd, joints.qdd)
+        dq, dqd = ca.substitute(
+            [dq, dqd], [joints.q, joints.qd, joints.qdd], [self.q_joints, self.qd_joints, self.qdd_joints]
+        )
         return self.coordinates.matrix(dq), self.coordinates.matrix(dqd)
 
     def id_derivatives_counts(self) -> tuple[int, int]:

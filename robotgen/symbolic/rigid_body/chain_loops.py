@@ -22,6 +22,7 @@ qd_joints = S qd and qdd_joints = S qdd, into local arrays; one block after them
 results to its coordinates, S^T M S, S^T tau, S^T C S. Its forward dynamics is no
 articulated-body pass (the coupled joints are not a tree's): M and C qd + N so taken to the
 coordinates, then an L D L^T solve in that block."""
+
 from __future__ import annotations
 
 from collections.abc import Callable
@@ -101,20 +102,30 @@ class ChainLoops:
         """The parent's block of a per-joint array of n + 1 blocks (roots: block n)."""
         return Slice(LOCAL, array, 0, i_stride=width, i_table=tuple(p if p >= 0 else self.n for p in self.parents))
 
-    def _subtree_sum(self, b: ScheduleBuilder, name: str, inputs: list[ca.SX], reads: list[Slice], own: ca.SX,
-                     array: int) -> None:
+    def _subtree_sum(
+        self, b: ScheduleBuilder, name: str, inputs: list[ca.SX], reads: list[Slice], own: ca.SX, array: int
+    ) -> None:
         """Block i of ``array`` (n + 1 blocks of own's size, zero before) = own_i + its children's
         blocks, from the tip."""
         width, n = own.numel(), self.n
         if self.serial:
             child = ca.SX.sym("child", width)
-            b.loop(body(name, [*inputs, child], [own + child]), DESCENDING, n,
-                   [*reads, block(array, width, offset=width)], [block(array, width)])
+            b.loop(
+                body(name, [*inputs, child], [own + child]),
+                DESCENDING,
+                n,
+                [*reads, block(array, width, offset=width)],
+                [block(array, width)],
+            )
             return
         children, parent = ca.SX.sym("children", width), ca.SX.sym("parent", width)
-        b.loop(body(name, [*inputs, children, parent], [own + children, parent + own + children]),
-               DESCENDING, n, [*reads, block(array, width), self._parent_block(array, width)],
-               [block(array, width), self._parent_block(array, width)])
+        b.loop(
+            body(name, [*inputs, children, parent], [own + children, parent + own + children]),
+            DESCENDING,
+            n,
+            [*reads, block(array, width), self._parent_block(array, width)],
+            [block(array, width), self._parent_block(array, width)],
+        )
 
     def _zeros(self, b: ScheduleBuilder, width: int) -> int:
         """A local of n + 1 blocks for a subtree sum: the spare block zero (every block for a tree)."""
@@ -126,8 +137,16 @@ class ChainLoops:
             b.prologue(Slice(LOCAL, array), ca.SX.zeros(width * (n + 1), 1))
         return array
 
-    def _pairs(self, b: ScheduleBuilder, name: str, inputs: list[ca.SX], outputs: list[ca.SX], reads: list[Slice],
-               writes: list[Slice], ancestor: bool) -> None:
+    def _pairs(
+        self,
+        b: ScheduleBuilder,
+        name: str,
+        inputs: list[ca.SX],
+        outputs: list[ca.SX],
+        reads: list[Slice],
+        writes: list[Slice],
+        ancestor: bool,
+    ) -> None:
         """A loop over the joint pairs (i, j) with i a strict ancestor of j (``ancestor``) or j one
         of i: on a serial chain i < j (ABOVE) or i > j (BELOW)."""
         f = body(name, inputs, outputs)
@@ -156,12 +175,25 @@ class ChainLoops:
         v_p, s = symbols("v_p s")
         qd_i = ca.SX.sym("qd")
         v = v_p + s * qd_i
-        b.loop(body("velocity_pass", [v_p, s, qd_i], [v, motion_cross6(v, s)]), RANGE, n,
-               [self._parent_state(V, 6), block(S, 6), block(QD, 1)], [block(V, 6, offset=6), block(SDOT, 6)])
+        b.loop(
+            body("velocity_pass", [v_p, s, qd_i], [v, motion_cross6(v, s)]),
+            RANGE,
+            n,
+            [self._parent_state(V, 6), block(S, 6), block(QD, 1)],
+            [block(V, 6, offset=6), block(SDOT, 6)],
+        )
         return QD, V, SDOT
 
-    def _torques(self, b: ScheduleBuilder, S: int, BODY: int, velocities: tuple[int, int, int], qdd: ca.SX | None,
-                 extra: ca.SX, target: Slice) -> None:
+    def _torques(
+        self,
+        b: ScheduleBuilder,
+        S: int,
+        BODY: int,
+        velocities: tuple[int, int, int],
+        qdd: ca.SX | None,
+        extra: ca.SX,
+        target: Slice,
+    ) -> None:
         """tau_i = S_i . F_i + extra_i into ``target`` (Newton-Euler): accelerations from the
         base's (-g), body forces, their subtree sums from the tip. ``velocities``: _velocities'
         arrays; ``qdd`` None: at qdd = 0 (C qd + N)."""
@@ -175,18 +207,32 @@ class ChainLoops:
         qd_i, qdd_i = ca.SX.sym("qd"), ca.SX.sym("qdd")
         inertia = ca.SX.sym("I", INERTIA)
         I = inertia_of(inertia)
-        inputs, reads, a = ([a_p, s, sdot, qd_i], [self._parent_state(A, 6), block(S, 6), block(SDOT, 6), block(QD, 1)],
-                            a_p + sdot * qd_i)
+        inputs, reads, a = (
+            [a_p, s, sdot, qd_i],
+            [self._parent_state(A, 6), block(S, 6), block(SDOT, 6), block(QD, 1)],
+            a_p + sdot * qd_i,
+        )
         if qdd is not None:
             QDD = b.local(qdd)
             inputs, reads, a = inputs + [qdd_i], reads + [block(QDD, 1)], a + s * qdd_i
         b.loop(body("acceleration_pass", inputs, [a]), RANGE, n, reads, [block(A, 6, offset=6)])
         force = I.apply6(a_p) + force_cross6(v, I.apply6(v))
-        self._subtree_sum(b, "body_force", [inertia, a_p, v],
-                          [block(BODY, INERTIA), block(A, 6, offset=6), block(V, 6, offset=6)], force, F)
+        self._subtree_sum(
+            b,
+            "body_force",
+            [inertia, a_p, v],
+            [block(BODY, INERTIA), block(A, 6, offset=6), block(V, 6, offset=6)],
+            force,
+            F,
+        )
         e = ca.SX.sym("e")
-        b.loop(body("joint_torque", [s, f, e], [ca.dot(s, f) + e]), RANGE, n,
-               [block(S, 6), block(F, 6), block(EXTRA, 1)], [target])
+        b.loop(
+            body("joint_torque", [s, f, e], [ca.dot(s, f) + e]),
+            RANGE,
+            n,
+            [block(S, 6), block(F, 6), block(EXTRA, 1)],
+            [target],
+        )
 
     def _mass(self, b: ScheduleBuilder, S: int, IC: int, target: tuple[str, int]) -> None:
         """M (row-major n x n) into ``target``."""
@@ -196,10 +242,22 @@ class ChainLoops:
         U = b.local(size=6 * n)
         ARM = b.local(ca.vertcat(*(joint.armature for joint in self.tree.joints)))
         u_out = inertia_of(inertia).apply6(s)
-        b.loop(body("mass_diagonal", [inertia, s, arm], [u_out, ca.dot(s, u_out) + arm]), RANGE, n,
-               [block(IC, INERTIA), block(S, 6), block(ARM, 1)], [block(U, 6), Slice(*target, i_stride=n + 1)])
-        self._pairs(b, "mass_term", [s, u], [ca.dot(s, u)] * 2, [block(S, 6), block(U, 6, "j")],
-                    [Slice(*target, i_stride=n, j_stride=1), Slice(*target, i_stride=1, j_stride=n)], ancestor=True)
+        b.loop(
+            body("mass_diagonal", [inertia, s, arm], [u_out, ca.dot(s, u_out) + arm]),
+            RANGE,
+            n,
+            [block(IC, INERTIA), block(S, 6), block(ARM, 1)],
+            [block(U, 6), Slice(*target, i_stride=n + 1)],
+        )
+        self._pairs(
+            b,
+            "mass_term",
+            [s, u],
+            [ca.dot(s, u)] * 2,
+            [block(S, 6), block(U, 6, "j")],
+            [Slice(*target, i_stride=n, j_stride=1), Slice(*target, i_stride=1, j_stride=n)],
+            ancestor=True,
+        )
 
     def _extra(self, qd: ca.SX | None, qdd: ca.SX | None) -> ca.SX:
         """Armature qdd + friction(qd): what each joint adds to S . F."""
@@ -218,8 +276,15 @@ class ChainLoops:
         b.prologue(Slice(LOCAL, array), ca.SX.zeros(self.n * self.n, 1))
         return array
 
-    def _to_coordinates(self, b: ScheduleBuilder, name: str, arrays: list[tuple[int, str]], result, target: Slice,
-                        tau: ca.SX | None = None) -> None:
+    def _to_coordinates(
+        self,
+        b: ScheduleBuilder,
+        name: str,
+        arrays: list[tuple[int, str]],
+        result,
+        target: Slice,
+        tau: ca.SX | None = None,
+    ) -> None:
         """One block reading the joint results ``arrays`` ((local, kind) each, taken to the
         coordinates: S^T M S for a "matrix" or "symmetric" one (row-major), S^T tau for a
         "vector") and the coordinate forces ``tau`` if given, writing ``result`` of them all (a
@@ -229,8 +294,9 @@ class ChainLoops:
         for _, kind in arrays:
             x = ca.SX.sym(kind, n if kind == "vector" else n * n)
             inputs.append(x)
-            values.append(c.forces(x) if kind == "vector" else
-                          c.matrix(ca.reshape(x, n, n).T, symmetric=kind == "symmetric"))
+            values.append(
+                c.forces(x) if kind == "vector" else c.matrix(ca.reshape(x, n, n).T, symmetric=kind == "symmetric")
+            )
         if tau is not None:
             inputs.append(ca.SX.sym("tau", tau.numel()))
             values.append(inputs[-1])
@@ -256,8 +322,9 @@ class ChainLoops:
         c = self.coordinates
         qd, qdd = c.rates(qd), (None if qdd is None else c.rates(qdd))
         if not c.coupled:
-            self._torques(b, S, BODY, self._velocities(b, S, qd), qdd, self._extra(qd, qdd),
-                          Slice(OUTPUT, 0, i_stride=1))
+            self._torques(
+                b, S, BODY, self._velocities(b, S, qd), qdd, self._extra(qd, qdd), Slice(OUTPUT, 0, i_stride=1)
+            )
             return
         TAU = b.local(size=self.n)
         self._torques(b, S, BODY, self._velocities(b, S, qd), qdd, self._extra(qd, qdd), Slice(LOCAL, TAU, i_stride=1))
@@ -271,24 +338,56 @@ class ChainLoops:
         REC = self._zeros(b, 25)  # composites: inertia (13), T (9), p (3)
         inertia, (v, s, sdot, u, x) = ca.SX.sym("I", INERTIA), symbols("v s sdot u x")
         _, T_, p = body_terms(inertia_of(inertia), v, ca.SX.zeros(6, 1))
-        self._subtree_sum(b, "composite_terms", [inertia, v], [block(BODY, INERTIA), block(V, 6, offset=6)],
-                          ca.vertcat(inertia, ca.vec(T_), p), REC)
+        self._subtree_sum(
+            b,
+            "composite_terms",
+            [inertia, v],
+            [block(BODY, INERTIA), block(V, 6, offset=6)],
+            ca.vertcat(inertia, ca.vec(T_), p),
+            REC,
+        )
         record = ca.SX.sym("record", 25)
         Ic, T, pc = inertia_of(record[:INERTIA]), ca.reshape(record[INERTIA:22], 3, 3), record[22:25]
         B_S = ca.vertcat(T @ s[:3] / 2, -ca.cross(pc, s[:3]))
         U, W, X = b.local(size=6 * n), b.local(size=3 * n), b.local(size=6 * n)
-        b.loop(body("joint_terms", [record, s, sdot],
-                    [Ic.apply6(s), (T.T @ s[:3] + 2 * ca.cross(pc, s[3:])) / 2, Ic.apply6(sdot) + B_S]),
-               RANGE, n, [block(REC, 25), block(S, 6), block(SDOT, 6)], [block(U, 6), block(W, 3), block(X, 6)])
+        b.loop(
+            body(
+                "joint_terms",
+                [record, s, sdot],
+                [Ic.apply6(s), (T.T @ s[:3] + 2 * ca.cross(pc, s[3:])) / 2, Ic.apply6(sdot) + B_S],
+            ),
+            RANGE,
+            n,
+            [block(REC, 25), block(S, 6), block(SDOT, 6)],
+            [block(U, 6), block(W, 3), block(X, 6)],
+        )
         w = ca.SX.sym("w", 3)
         out = (LOCAL, self._joint_matrix(b)) if self.coordinates.coupled else (OUTPUT, 0)
-        b.loop(body("diagonal_term", [s, x], [ca.dot(s, x)]), RANGE, n, [block(S, 6), block(X, 6)],
-               [Slice(*out, i_stride=n + 1)])
-        self._pairs(b, "subtree_term", [u, w, sdot, s], [ca.dot(u, sdot) + ca.dot(w, s[:3])],
-                    [block(U, 6), block(W, 3), block(SDOT, 6, "j"), block(S, 6, "j")],
-                    [Slice(*out, i_stride=n, j_stride=1)], ancestor=False)
-        self._pairs(b, "ancestor_term", [s, x], [ca.dot(s, x)], [block(S, 6), block(X, 6, "j")],
-                    [Slice(*out, i_stride=n, j_stride=1)], ancestor=True)
+        b.loop(
+            body("diagonal_term", [s, x], [ca.dot(s, x)]),
+            RANGE,
+            n,
+            [block(S, 6), block(X, 6)],
+            [Slice(*out, i_stride=n + 1)],
+        )
+        self._pairs(
+            b,
+            "subtree_term",
+            [u, w, sdot, s],
+            [ca.dot(u, sdot) + ca.dot(w, s[:3])],
+            [block(U, 6), block(W, 3), block(SDOT, 6, "j"), block(S, 6, "j")],
+            [Slice(*out, i_stride=n, j_stride=1)],
+            ancestor=False,
+        )
+        self._pairs(
+            b,
+            "ancestor_term",
+            [s, x],
+            [ca.dot(s, x)],
+            [block(S, 6), block(X, 6, "j")],
+            [Slice(*out, i_stride=n, j_stride=1)],
+            ancestor=True,
+        )
         if self.coordinates.coupled:
             self._to_coordinates(b, "coriolis_coordinates", [(out[1], "matrix")], row_major, Slice(OUTPUT, 0))
 
@@ -312,8 +411,11 @@ class ChainLoops:
         A = b.local(size=6 * (n + 1))
         b.prologue(Slice(LOCAL, A), base_acceleration(self.tree))
         QDD = b.local(size=n)
-        inertia, children, (v, s, sdot, a_p, U) = (ca.SX.sym("I", INERTIA), ca.SX.sym("children", 42),
-                                                   symbols("v s sdot a_p U"))
+        inertia, children, (v, s, sdot, a_p, U) = (
+            ca.SX.sym("I", INERTIA),
+            ca.SX.sym("children", 42),
+            symbols("v s sdot a_p U"),
+        )
         qd_i, rhs, arm, D, u = (ca.SX.sym(name) for name in ("qd", "rhs", "armature", "D", "u"))
         I = inertia_of(inertia)
         H = ca.skew(I.h)
@@ -327,21 +429,51 @@ class ChainLoops:
         pa = pA + Ia @ (sdot * qd_i) + U_out * (u_out / D_out)
         articulated = ca.vertcat(ca.vec(Ia), pa)
         inputs = [inertia, v, s, sdot, qd_i, rhs, arm]
-        reads = [block(BODY, INERTIA), block(V, 6, offset=6), block(S, 6), block(SDOT, 6), block(QD, 1), block(RHS, 1),
-                 block(ARM, 1)]
+        reads = [
+            block(BODY, INERTIA),
+            block(V, 6, offset=6),
+            block(S, 6),
+            block(SDOT, 6),
+            block(QD, 1),
+            block(RHS, 1),
+            block(ARM, 1),
+        ]
         if self.serial:  # block i holds joint i's own I^a, p^a; its child's is block i + 1
-            b.loop(body("articulated", [*inputs, children], [articulated, ca.vertcat(U_out, D_out, u_out)]),
-                   DESCENDING, n, [*reads, block(ART, 42, offset=42)], [block(ART, 42), block(UD, 8)])
+            b.loop(
+                body("articulated", [*inputs, children], [articulated, ca.vertcat(U_out, D_out, u_out)]),
+                DESCENDING,
+                n,
+                [*reads, block(ART, 42, offset=42)],
+                [block(ART, 42), block(UD, 8)],
+            )
         else:  # block i holds the sum of its children's I^a, p^a; joint i adds its own into its parent's
             parent = ca.SX.sym("parent", 42)
-            b.loop(body("articulated", [*inputs, children, parent],
-                        [parent + articulated, ca.vertcat(U_out, D_out, u_out)]), DESCENDING, n,
-                   [*reads, block(ART, 42), self._parent_block(ART, 42)], [self._parent_block(ART, 42), block(UD, 8)])
+            b.loop(
+                body(
+                    "articulated", [*inputs, children, parent], [parent + articulated, ca.vertcat(U_out, D_out, u_out)]
+                ),
+                DESCENDING,
+                n,
+                [*reads, block(ART, 42), self._parent_block(ART, 42)],
+                [self._parent_block(ART, 42), block(UD, 8)],
+            )
         a_prime = a_p + sdot * qd_i
         qdd = (u - ca.dot(U, a_prime)) / D
-        b.loop(body("acceleration", [a_p, U, D, u, s, sdot, qd_i], [qdd, a_prime + s * qdd]), RANGE, n,
-               [self._parent_state(A, 6), block(UD, 8), block(UD, 8, offset=6), block(UD, 8, offset=7), block(S, 6),
-                block(SDOT, 6), block(QD, 1)], [block(QDD, 1), block(A, 6, offset=6)])
+        b.loop(
+            body("acceleration", [a_p, U, D, u, s, sdot, qd_i], [qdd, a_prime + s * qdd]),
+            RANGE,
+            n,
+            [
+                self._parent_state(A, 6),
+                block(UD, 8),
+                block(UD, 8, offset=6),
+                block(UD, 8, offset=7),
+                block(S, 6),
+                block(SDOT, 6),
+                block(QD, 1),
+            ],
+            [block(QDD, 1), block(A, 6, offset=6)],
+        )
         x = ca.SX.sym("qdd", n)
         b.loop(body("copy", [x], [x]), ONCE, 1, [Slice(LOCAL, QDD)], [Slice(OUTPUT, 0)])
 
@@ -349,8 +481,14 @@ class ChainLoops:
         """qdd = (S^T M S)^-1 (tau - S^T (C qd + N)) by L D L^T: M and the bias forces by the
         loops in the joints, the rest in one block."""
         M, H = self._joint_mass_and_bias(b, qd)
-        self._to_coordinates(b, "coupled_forward_dynamics", [(M, "symmetric"), (H, "vector")],
-                             lambda m, h, t: cholesky_solve(m, t - h), Slice(OUTPUT, 0), tau)
+        self._to_coordinates(
+            b,
+            "coupled_forward_dynamics",
+            [(M, "symmetric"), (H, "vector")],
+            lambda m, h, t: cholesky_solve(m, t - h),
+            Slice(OUTPUT, 0),
+            tau,
+        )
 
     def _joint_mass_and_bias(self, b: ScheduleBuilder, qd: ca.SX) -> tuple[int, int]:
         """Locals of a coupled tree's joint M and C qd + N (with friction) at qd_joints = S qd."""

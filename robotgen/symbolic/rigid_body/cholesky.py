@@ -9,6 +9,7 @@ than Cholesky's. A pivot d_j <= 0 (M not positive definite) makes every d and 1 
 which reaches every result, so the checked functions return their status
 (robotgen.symbolic.kernel.Kernel.guarded) as a square root of a negative number would make
 them."""
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -106,8 +107,8 @@ def solve_with_coefficients(coefficients: ca.SX, rhs: ca.SX) -> ca.SX:
     """M^-1 rhs from solve_coefficients (a column of n (2 n + 1) values) by the same
     forward and back passes, for one right-hand side."""
     n = rhs.shape[0]
-    F = ca.reshape(coefficients[:n * n], n, n).T
-    B = ca.reshape(coefficients[n * n:2 * n * n], n, n).T
+    F = ca.reshape(coefficients[: n * n], n, n).T
+    B = ca.reshape(coefficients[n * n : 2 * n * n], n, n).T
     r = [rhs[i] for i in range(n)]
     for j in range(n):
         for i in range(j + 1, n):
@@ -118,8 +119,9 @@ def solve_with_coefficients(coefficients: ca.SX, rhs: ca.SX) -> ca.SX:
     return ca.vertcat(*(coefficients[2 * n * n + i] * r[i] for i in range(n)))
 
 
-def schedule_inverse_product(b: ScheduleBuilder, n: int, inverse: int, rows: int, width: int,
-                             blocks: list[tuple[tuple[str, int], int, float]]) -> None:
+def schedule_inverse_product(
+    b: ScheduleBuilder, n: int, inverse: int, rows: int, width: int, blocks: list[tuple[tuple[str, int], int, float]]
+) -> None:
     """M^-1 R for the local ``rows`` (n x width, row-major) with M^-1 already formed (the local
     ``inverse``, n x n row-major): row i of the result is sum_k (M^-1)_ik R_k, one loop step
     per row. The rows are independent, so the processor overlaps them, where a row-wise solve
@@ -127,7 +129,11 @@ def schedule_inverse_product(b: ScheduleBuilder, n: int, inverse: int, rows: int
     column, scale) writes scale times columns first..first+n-1 of the product to an n x n
     row-major array."""
     m, R = ca.SX.sym("m", n), ca.SX.sym("R", n * width)
-    y = sum((m[k] * R[k * width:(k + 1) * width] for k in range(1, n)), m[0] * R[:width])
-    b.loop(body("inverse_rows", [m, R], [scale * y[first:first + n] for _, first, scale in blocks]), RANGE, n,
-           [Slice(LOCAL, inverse, i_stride=n), Slice(LOCAL, rows)],
-           [Slice(*target, i_stride=n) for target, _, _ in blocks])
+    y = sum((m[k] * R[k * width : (k + 1) * width] for k in range(1, n)), m[0] * R[:width])
+    b.loop(
+        body("inverse_rows", [m, R], [scale * y[first : first + n] for _, first, scale in blocks]),
+        RANGE,
+        n,
+        [Slice(LOCAL, inverse, i_stride=n), Slice(LOCAL, rows)],
+        [Slice(*target, i_stride=n) for target, _, _ in blocks],
+    )

@@ -11,6 +11,7 @@ Mdot - 2C skew and C qd the Coriolis forces. Collecting the bodies of each subtr
     C_ij = S_i^T (B^C_i S_j + I^C_i dS_j)   for j an ancestor of i or i itself,
     C_ij = S_i^T (B^C_j S_j + I^C_j dS_j)   for i an ancestor of j.
 The armature has no velocity dependence and adds nothing."""
+
 from __future__ import annotations
 
 import casadi as ca
@@ -40,8 +41,9 @@ def _world_inertia(inertia: OriginInertia, R: ca.SX, p: ca.SX) -> ca.SX:
     return ca.blockcat([[I.Ibar, hx], [hx.T, I.m * ca.SX.eye(3)]])
 
 
-def coriolis_spatial(tree: KinematicTree, motions: list[JointMotion], inertias: list[OriginInertia],
-                     qd: ca.SX) -> ca.SX:
+def coriolis_spatial(
+    tree: KinematicTree, motions: list[JointMotion], inertias: list[OriginInertia], qd: ca.SX
+) -> ca.SX:
     """C(q, qd) (n, n) by the O(n^2) spatial algorithm, Christoffel-consistent."""
     n = tree.n_joints
     poses = joint_poses(tree, motions)

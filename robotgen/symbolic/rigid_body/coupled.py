@@ -8,6 +8,7 @@ S has one entry per row, so each product is a sum over the joints a coordinate m
 order), each term scaled by its multiplier (a multiplier of 1 or -1 costs nothing). Without a
 coupling every map returns its argument itself: an uncoupled tree's graphs are what they were.
 """
+
 from __future__ import annotations
 
 import casadi as ca

@@ -1,5 +1,6 @@
 """Joint-space inertia matrix by the composite rigid body algorithm (Walker and Orin 1982;
 Featherstone 2008, Table 6.2), plus the motor armature on the diagonal."""
+
 from __future__ import annotations
 
 import casadi as ca

@@ -1,6 +1,7 @@
 """Joint friction, part of N(q, qd) (Deno et al. 1990, eq 2.1): viscous plus a smooth
 Coulomb term, tau_f = b qd + c tanh(qd / eps). tanh replaces sign(qd) so N stays
 differentiable; eps is the spec's coulomb_smoothing."""
+
 from __future__ import annotations
 
 import casadi as ca

@@ -1,6 +1,7 @@
 """Rigid-body inertia about a frame origin, as (m, h = m c, Ibar = Ic + m(|c|^2 I - c c^T)),
 the form in which bodies are combined by the composite rigid body algorithm; its constants come
 from robotgen.model.regrouping (a body's own, or regrouped)."""
+
 from __future__ import annotations
 
 from dataclasses import dataclass

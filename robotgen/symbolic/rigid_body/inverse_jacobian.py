@@ -34,6 +34,7 @@ the product of its columns' norms (Hadamard's bound, so that the test is dimensi
 J11's are |w1 x (c - o1)|, |P|, |U| (shoulder: the wrist centre over axis 1, g = 0; elbow
 stretched or folded, e = 0); J22's are all 1 (wrist: axes 4 and 6 in line, W_ab = 0). Then
 every joint rate and acceleration is NaN (a checked step returns status 2)."""
+
 from __future__ import annotations
 
 from typing import Any
@@ -62,7 +63,7 @@ class WristCentreJacobian:
         # axis 6 at q5 = 0 on (a, b, a x b): c = c_a a + c_ab (a x b) (c is normal to b)
         self.c_a, self.c_ab = exact.dot(arm.a, arm.c), exact.dot(self.ab, arm.c)
         self.r0 = -exact.matmul(arm.R0, arm.wrist_in_hand)  # p - c at q = 0
-        self.hadamard_u = exact.dot(arm.U, arm.U) * SINGULAR_DETERMINANT ** 2  # |U|^2 eps^2
+        self.hadamard_u = exact.dot(arm.U, arm.U) * SINGULAR_DETERMINANT**2  # |U|^2 eps^2
 
     # -- the factor: everything that depends on q alone (stages 2 and 3 share it) --------
     def factor(self, q: ca.SX) -> dict:
@@ -70,8 +71,17 @@ class WristCentreJacobian:
         arm = self.arm
         s3 = arm.sign3
         # (cos, sin) of each turn: q2 + phi3 turns body 3 about w2 (axes 2 and 3 parallel)
-        f: dict[str, Any] = {name: (ca.cos(angle), ca.sin(angle)) for name, angle in (
-            ("q1", q[0]), ("q2", q[1]), ("q23", q[1] + s3 * q[2]), ("q4", q[3]), ("q5", q[4]), ("q6", q[5]))}
+        f: dict[str, Any] = {
+            name: (ca.cos(angle), ca.sin(angle))
+            for name, angle in (
+                ("q1", q[0]),
+                ("q2", q[1]),
+                ("q23", q[1] + s3 * q[2]),
+                ("q4", q[3]),
+                ("q5", q[4]),
+                ("q6", q[5]),
+            )
+        }
         (c2, s2), (c23, s23), (c5, s5) = f["q2"], f["q23"], f["q5"]
         Q = plane_turn(c23, s23, float(arm.U[0]), float(arm.U[1]))
         D2 = plane_turn(c2, s2, float(arm.D[0]), float(arm.D[1]))

@@ -1,4 +1,5 @@
 """Geometric Jacobian of the tip by vector cross products (Whitney 1972, eqs 7-9)."""
+
 from __future__ import annotations
 
 import casadi as ca

@@ -1,4 +1,5 @@
 """Forward kinematics of a KinematicTree: per-joint rigid motions and base-frame poses."""
+
 from __future__ import annotations
 
 from dataclasses import dataclass

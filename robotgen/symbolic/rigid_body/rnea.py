@@ -4,6 +4,7 @@ classical (linear) acceleration, with no linear velocity; each body's force come
 inertia about that origin, and the backward pass sums them to the base as spatial forces
 (Featherstone 2008, Table 5.1). Gravity enters as a base acceleration -g; the armature
 and friction terms of each joint are added to its torque."""
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -41,8 +42,9 @@ class BodyMotion:
         return U
 
 
-def forward_pass(tree: KinematicTree, motions: list[JointMotion], qd: ca.SX | None, qdd: ca.SX | None,
-                 gravity: bool = True) -> list[BodyMotion]:
+def forward_pass(
+    tree: KinematicTree, motions: list[JointMotion], qd: ca.SX | None, qdd: ca.SX | None, gravity: bool = True
+) -> list[BodyMotion]:
     """The first pass of RNEA. A joint's origin is a point of the parent body at r (parent
     coordinates), so it accelerates at a_p + aw_p x r + w_p x (w_p x r); a revolute joint
     adds qd S to w and (w x S qd + qdd S) to aw, a prismatic joint 2 w x S qd + qdd S to a.
@@ -82,8 +84,15 @@ def body_force(I: OriginInertia, b: BodyMotion) -> tuple[ca.SX, ca.SX]:
     return I.Ibar @ b.aw + ca.cross(b.w, I.Ibar @ b.w) + ca.cross(I.h, b.a), f
 
 
-def rnea(tree: KinematicTree, motions: list[JointMotion], inertias: list[OriginInertia], qd: ca.SX | None,
-         qdd: ca.SX | None, gravity: bool = True, passes: list[BodyMotion] | None = None) -> ca.SX:
+def rnea(
+    tree: KinematicTree,
+    motions: list[JointMotion],
+    inertias: list[OriginInertia],
+    qd: ca.SX | None,
+    qdd: ca.SX | None,
+    gravity: bool = True,
+    passes: list[BodyMotion] | None = None,
+) -> ca.SX:
     """Rigid-body joint torques M qdd + C qd + g (no armature, no friction). ``qd`` or
     ``qdd`` None means zero, so that gravity alone and C qd + g stay small graphs.
     ``passes``: the forward pass if already built (shared with the tip acceleration)."""

@@ -26,6 +26,7 @@ T_k = [w x] Ibar - Ibar [w x] - (h nu^T + nu h^T - 2 (nu . h) 1) - [l x], for v_
 the inertia about the base origin (m, h = m c, Ibar) and angular momentum l: B_k reads only
 the angular part of the vector it is applied to. The same quantities are those of the
 analytical derivatives of Carpentier and Mansard (RSS 2018), written here in this form."""
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -57,8 +58,9 @@ class JointTerms:
     ancestors: list[set[int]]
 
 
-def axes_and_inertias(tree: KinematicTree, motions: list[JointMotion], inertias: list[OriginInertia]
-                      ) -> tuple[list[ca.SX], list[OriginInertia]]:
+def axes_and_inertias(
+    tree: KinematicTree, motions: list[JointMotion], inertias: list[OriginInertia]
+) -> tuple[list[ca.SX], list[OriginInertia]]:
     """Each joint's motion axis S and its body's inertia (``inertias``, about the joint's
     origin), about the base origin."""
     zero3 = ca.SX.zeros(3, 1)
@@ -73,8 +75,9 @@ def axes_and_inertias(tree: KinematicTree, motions: list[JointMotion], inertias:
 def kinematics_stage(b: ScheduleBuilder, axes: list[ca.SX], inertias: list[OriginInertia]) -> tuple[int, int]:
     """Locals of a schedule holding axes_and_inertias (6 and 13 per joint), filled by the stage
     "kinematics": every looped kernel of a chain computes the same, so the C holds it once."""
-    S, BODY = b.stage("kinematics", [("axes", ca.horzcat(*axes)),
-                                     ("inertias", ca.horzcat(*(x.vector() for x in inertias)))])
+    S, BODY = b.stage(
+        "kinematics", [("axes", ca.horzcat(*axes)), ("inertias", ca.horzcat(*(x.vector() for x in inertias)))]
+    )
     return S, BODY
 
 
@@ -107,18 +110,25 @@ def body_terms(I: OriginInertia, v: ca.SX, a: ca.SX) -> tuple[ca.SX, ca.SX, ca.S
     return I.apply6(a) + force_cross6(v, momentum), S - skew(momentum[:3]), momentum[3:]
 
 
-def joint_outputs(Ic: OriginInertia, T: ca.SX, p: ca.SX, S: ca.SX, Sdot: ca.SX, F: ca.SX, alpha: ca.SX
-                   ) -> tuple[ca.SX, ...]:
+def joint_outputs(
+    Ic: OriginInertia, T: ca.SX, p: ca.SX, S: ca.SX, Sdot: ca.SX, F: ca.SX, alpha: ca.SX
+) -> tuple[ca.SX, ...]:
     """(u, w, gamma, lam) of a joint from its subtree's composites Ic, T, p, F."""
+
     def B(y: ca.SX) -> ca.SX:  # Bc y
         return ca.vertcat(T @ y[:3], -2 * ca.cross(p, y[:3]))
 
-    return (Ic.apply6(S), T.T @ S[:3] + 2 * ca.cross(p, S[3:]),
-            force_cross6(S, F) + Ic.apply6(alpha) + B(Sdot), 2 * Ic.apply6(Sdot) + B(S))
+    return (
+        Ic.apply6(S),
+        T.T @ S[:3] + 2 * ca.cross(p, S[3:]),
+        force_cross6(S, F) + Ic.apply6(alpha) + B(Sdot),
+        2 * Ic.apply6(Sdot) + B(S),
+    )
 
 
-def joint_terms(tree: KinematicTree, motions: list[JointMotion], inertias: list[OriginInertia], qd: ca.SX,
-                qdd: ca.SX) -> JointTerms:
+def joint_terms(
+    tree: KinematicTree, motions: list[JointMotion], inertias: list[OriginInertia], qd: ca.SX, qdd: ca.SX
+) -> JointTerms:
     """The O(n) part of the recursion: everything the joint-pair terms read."""
     n = tree.n_joints
     S, Ic = axes_and_inertias(tree, motions, inertias)
@@ -143,8 +153,9 @@ def joint_terms(tree: KinematicTree, motions: list[JointMotion], inertias: list[
             Ic[parent] = Ic[parent] + Ic[i]
             T[parent] = T[parent] + T[i]
             p[parent] = p[parent] + p[i]
-    u, w, gamma, lam = (list(x) for x in zip(*(joint_outputs(Ic[i], T[i], p[i], S[i], Sdot[i], F[i], alpha[i])
-                                                for i in range(n))))
+    u, w, gamma, lam = (
+        list(x) for x in zip(*(joint_outputs(Ic[i], T[i], p[i], S[i], Sdot[i], F[i], alpha[i]) for i in range(n)))
+    )
     ancestors: list[set[int]] = []
     for joint in tree.joints:
         ancestors.append(set() if joint.parent < 0 else ancestors[joint.parent] | {joint.parent})
@@ -154,8 +165,7 @@ def joint_terms(tree: KinematicTree, motions: list[JointMotion], inertias: list[
 
 def subtree_term(u_i: ca.SX, w_i: ca.SX, alpha_j: ca.SX, Sdot_j: ca.SX, S_j: ca.SX) -> tuple[ca.SX, ca.SX]:
     """(d tau_i/dq_j, d tau_i/dqd_j) for i in the subtree of j."""
-    return (ca.dot(u_i, alpha_j) + ca.dot(w_i, Sdot_j[:3]),
-            2 * ca.dot(u_i, Sdot_j) + ca.dot(w_i, S_j[:3]))
+    return (ca.dot(u_i, alpha_j) + ca.dot(w_i, Sdot_j[:3]), 2 * ca.dot(u_i, Sdot_j) + ca.dot(w_i, S_j[:3]))
 
 
 def ancestor_term(S_i: ca.SX, gamma_j: ca.SX, lam_j: ca.SX) -> tuple[ca.SX, ca.SX]:
@@ -163,8 +173,9 @@ def ancestor_term(S_i: ca.SX, gamma_j: ca.SX, lam_j: ca.SX) -> tuple[ca.SX, ca.S
     return ca.dot(S_i, gamma_j), ca.dot(S_i, lam_j)
 
 
-def rnea_derivatives(tree: KinematicTree, motions: list[JointMotion], inertias: list[OriginInertia], qd: ca.SX,
-                     qdd: ca.SX) -> tuple[ca.SX, ca.SX]:
+def rnea_derivatives(
+    tree: KinematicTree, motions: list[JointMotion], inertias: list[OriginInertia], qd: ca.SX, qdd: ca.SX
+) -> tuple[ca.SX, ca.SX]:
     """(d tau / dq, d tau / dqd) of inverse dynamics with friction (the armature term
     depends on qdd only)."""
     n = tree.n_joints

@@ -1,6 +1,7 @@
 """Roll, pitch, yaw: R = Rz(yaw) Ry(pitch) Rx(roll), the fixed-axis angles of URDF and of Lee
 and Lee 1983 (eq 2: alpha about x, beta about y, gamma about z of the reference frame), and
 the map between their rates and the angular velocity (eqs 6-7)."""
+
 from __future__ import annotations
 
 import casadi as ca
@@ -12,7 +13,8 @@ def rpy_rotation(rpy: ca.SX) -> ca.SX:
     return ca.vertcat(
         ca.horzcat(cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr),
         ca.horzcat(sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr),
-        ca.horzcat(-sp, cp * sr, cp * cr))
+        ca.horzcat(-sp, cp * sr, cp * cr),
+    )
 
 
 def rpy_rate_map(rpy: ca.SX) -> ca.SX:
@@ -23,8 +25,9 @@ def rpy_rate_map(rpy: ca.SX) -> ca.SX:
 
 def rpy_of(R: ca.SX) -> ca.SX:
     """(roll, pitch, yaw) of R = Rz(yaw) Ry(pitch) Rx(roll), pitch in [-pi/2, pi/2]."""
-    return ca.vertcat(ca.atan2(R[2, 1], R[2, 2]), ca.atan2(-R[2, 0], ca.sqrt(R[0, 0] ** 2 + R[1, 0] ** 2)),
-                      ca.atan2(R[1, 0], R[0, 0]))
+    return ca.vertcat(
+        ca.atan2(R[2, 1], R[2, 2]), ca.atan2(-R[2, 0], ca.sqrt(R[0, 0] ** 2 + R[1, 0] ** 2)), ca.atan2(R[1, 0], R[0, 0])
+    )
 
 
 def rpy_rates(rpy: ca.SX, omega: ca.SX) -> ca.SX:

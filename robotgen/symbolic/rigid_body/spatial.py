@@ -3,6 +3,7 @@
 Spatial vectors follow Featherstone's (angular; linear) ordering, but are kept as pairs of
 3-vectors so that CasADi sees only the products that are not structurally zero.
 """
+
 from __future__ import annotations
 
 import casadi as ca

@@ -42,6 +42,7 @@ branches by the sign of a wrapped difference (the wrist flip: the difference wra
 target out of reach gives NaN in all six angles (a checked step then returns status 2);
 a wrist centre on axis 1, on axis 2, or the wrist at q5's singular value keep q1, q2, q4
 at q_near (q6 then takes the wrist's whole turn about axis 4)."""
+
 from __future__ import annotations
 
 import math
@@ -96,8 +97,12 @@ class SphericalWristArm:
     def solutions(self, R_d: ca.SX, p_d: ca.SX) -> list[ca.SX]:
         """All eight, angles in (-pi, pi], in the order of (shoulder, elbow, wrist) signs
         (+++, ++-, +-+, ..., ---)."""
-        return [self._solve(R_d, p_d, ca.SX.zeros(6), (s1, s3, s5))
-                for s1 in (1.0, -1.0) for s3 in (1.0, -1.0) for s5 in (1.0, -1.0)]
+        return [
+            self._solve(R_d, p_d, ca.SX.zeros(6), (s1, s3, s5))
+            for s1 in (1.0, -1.0)
+            for s3 in (1.0, -1.0)
+            for s5 in (1.0, -1.0)
+        ]
 
     def _solve(self, R_d: ca.SX, p_d: ca.SX, qn: ca.SX, signs: tuple[float, float, float] | None) -> ca.SX:
         tol = FAMILY_TOLERANCE * self.scale
@@ -163,7 +168,7 @@ class SphericalWristArm:
         a, b, c = self.a, self.b, self.c
         u = turn(w2, c23, -s23, turn(w1, c1, -s1, _columns(R_d, exact.matmul(self.R0.T, c))))
         alpha, beta, gamma = (dot(k, u) for k in (a, b, exact.cross(a, b)))
-        wrist = beta * beta + gamma * gamma < WRIST_SINGULAR ** 2  # rho = |sin(q5 - its singular value)|
+        wrist = beta * beta + gamma * gamma < WRIST_SINGULAR**2  # rho = |sin(q5 - its singular value)|
         if signs:
             d4 = ca.remainder(ca.atan2(-signs[2] * beta, signs[2] * gamma), TURN)
         else:
@@ -232,9 +237,22 @@ def spherical_wrist_arm(tree: KinematicTree) -> SphericalWristArm | None:
         return None  # axes 2 and 3 one line, or the wrist centre on axis 3: no elbow
     R0, p0 = G0[:3, :3], G0[:3, 3]
     return SphericalWristArm(
-        wrist_in_hand=exact.matmul(R0.T, exact.add(c0, (-1.0, p0))), w1=w1, o1=o1, w2=w2,
-        sign3=1.0 if exact.dot(w2, w3) > 0 else -1.0, h=exact.dot(w2, exact.add(c0, (-1.0, o2))), plane=plane,
-        o12=exact.matmul(plane, exact.add(o1, (-1.0, o2))), D=D, U=U, a=a, b=b, c=c, R0=R0, scale=scale)
+        wrist_in_hand=exact.matmul(R0.T, exact.add(c0, (-1.0, p0))),
+        w1=w1,
+        o1=o1,
+        w2=w2,
+        sign3=1.0 if exact.dot(w2, w3) > 0 else -1.0,
+        h=exact.dot(w2, exact.add(c0, (-1.0, o2))),
+        plane=plane,
+        o12=exact.matmul(plane, exact.add(o1, (-1.0, o2))),
+        D=D,
+        U=U,
+        a=a,
+        b=b,
+        c=c,
+        R0=R0,
+        scale=scale,
+    )
 
 
 def _feet(p1: np.ndarray, u1: np.ndarray, p2: np.ndarray, u2: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -9,6 +9,7 @@ Walker, Paul 1980).
 Every quantity is a CasADi Function of the chain's joint state, built once from the chain's
 graphs (robotgen.symbolic.rigid_body.chain) and called on whatever joint values a law needs
 (measured or resolved): a call on SX arguments inlines the graph."""
+
 from __future__ import annotations
 
 import dataclasses
@@ -93,8 +94,9 @@ class Hand:
         self._accel = ca.Function("joint_accelerations", [s.q, s.qd, s.tau], [g.forward_dynamics()])
         self._mass = ca.Function("mass", [s.q], [g.mass()])
         # d tau/d(q, qd): the chain's derivative algorithm (robotgen.symbolic.rigid_body.chain)
-        self._torque_derivatives = ca.Function("newton_euler_derivatives", [s.q, s.qd, s.qdd],
-                                               [ca.horzcat(*g.inverse_dynamics_derivatives())])
+        self._torque_derivatives = ca.Function(
+            "newton_euler_derivatives", [s.q, s.qd, s.qdd], [ca.horzcat(*g.inverse_dynamics_derivatives())]
+        )
 
     # -- kinematics (§2) ---------------------------------------------------------------
     def pose(self, q: ca.SX) -> tuple[ca.SX, ca.SX]:
@@ -179,9 +181,20 @@ class Hand:
         phi, omega = ca.SX.sym("phi", 3), ca.SX.sym("omega", 3)
         rates = rpy_rates(phi, omega)
         angular = ca.Function("angular", [phi, omega], [ca.jacobian(rates, phi), ca.jacobian(rates, omega)])
-        parts = ca.Function("parts", [zq, zqd, zqdd], [
-            ca.jacobian(accel, z), J, self._torque_derivatives(zq, zqd, zqdd), ca.jacobian(twist, zq),
-            self._mass(zq), rpy_rate_map(rpy), rpy, twist[3:]])
+        parts = ca.Function(
+            "parts",
+            [zq, zqd, zqdd],
+            [
+                ca.jacobian(accel, z),
+                J,
+                self._torque_derivatives(zq, zqd, zqdd),
+                ca.jacobian(twist, zq),
+                self._mass(zq),
+                rpy_rate_map(rpy),
+                rpy,
+                twist[3:],
+            ],
+        )
         dadz, J, dtaudz, W, M, E, rpy, omega_n = parts(q, qd, qdd)
         D, Einv = angular(rpy, omega_n)
         Minv_dtau = cholesky_solve_matrix(M, dtaudz)
@@ -207,19 +220,33 @@ def hand_kernels(hand: Hand) -> list[Kernel]:
     R_d, p_d = pose_rows(pose_d)
     pose = ca.vertcat(ca.horzcat(R, p), ca.SX(ca.DM([[0, 0, 0, 1]])))
     return [
-        make_kernel(HAND_POSE, "The hand frame the law controls (the chain's tip frame times the law's tool) in "
-                    "the base frame, 4x4: a desired path starts here.", [("q", q)], [("pose", pose, (4, 4))]),
-        make_kernel(HAND_DISTANCE, "How far the desired hand pose (4x4, base frame) is from the hand: the "
-                    "distance between their origins [m] and the angle of the rotation between them [rad].",
-                    [("q", q), ("pose_d", pose_d, (4, 4))],
-                    [("distance", ca.vertcat(ca.norm_2(p_d - p), rotation_angle(R_d, R)), (2, 1))], guarded=True)]
+        make_kernel(
+            HAND_POSE,
+            "The hand frame the law controls (the chain's tip frame times the law's tool) in "
+            "the base frame, 4x4: a desired path starts here.",
+            [("q", q)],
+            [("pose", pose, (4, 4))],
+        ),
+        make_kernel(
+            HAND_DISTANCE,
+            "How far the desired hand pose (4x4, base frame) is from the hand: the "
+            "distance between their origins [m] and the angle of the rotation between them [rad].",
+            [("q", q), ("pose_d", pose_d, (4, 4))],
+            [("distance", ca.vertcat(ca.norm_2(p_d - p), rotation_angle(R_d, R)), (2, 1))],
+            guarded=True,
+        ),
+    ]
 
 
 def start_check() -> StartCheck:
     """The first step after a reset refuses a pose_d more than START_DISTANCE or START_ANGLE
     from the hand (docs/python-api.md, "Controller classes")."""
-    return StartCheck(HAND_DISTANCE, (START_DISTANCE, START_ANGLE), ("m", "rad"),
-                      "start the desired path at hand_pose(q), where the hand is, and move it from there")
+    return StartCheck(
+        HAND_DISTANCE,
+        (START_DISTANCE, START_ANGLE),
+        ("m", "rad"),
+        "start the desired path at hand_pose(q), where the hand is, and move it from there",
+    )
 
 
 def discretise(F: ca.SX, L: ca.SX, T: float, terms: int = 4) -> tuple[ca.SX, ca.SX]:
@@ -232,4 +259,3 @@ def discretise(F: ca.SX, L: ca.SX, T: float, terms: int = 4) -> tuple[ca.SX, ca.
         A = A + term
         S = S + term * (T / (k + 1))
     return A, S @ L
-

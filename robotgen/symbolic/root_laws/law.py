@@ -2,6 +2,7 @@
 is the root of its spec and makes the module's functions itself, its kernels and a report
 (info() keys and module attributes), and, if it has one, the controller class the module
 offers."""
+
 from __future__ import annotations
 
 from collections.abc import Callable

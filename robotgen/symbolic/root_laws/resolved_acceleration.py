@@ -8,6 +8,7 @@ that Lee and Lee 1983 set beside their adaptive law: a root law on a 6-joint cha
 
 With an exact model the hand error obeys e'' + Kv e' + Kp e = 0 (to first order in the
 orientation error). The module is the chain's functions plus resolved_acceleration_step."""
+
 from __future__ import annotations
 
 import casadi as ca
@@ -48,12 +49,16 @@ def kernels(system: RobotSystem) -> list[Kernel]:
     qdd = hand.joint_accelerations(q, qd, command)  # NaN near a singular J: status 2
     tau = hand.torques(q, qd, qdd)
     step = make_kernel(
-        STEP, "Resolved acceleration control (Luh, Walker, Paul 1980), one sampling period: joint torques "
+        STEP,
+        "Resolved acceleration control (Luh, Walker, Paul 1980), one sampling period: joint torques "
         "for the desired hand pose (4x4, base frame), twist [v; omega] and its derivative, from the "
         "measured joint state: Newton-Euler at qdd = J^-1 (accel_d + Kv e' + Kp e - Jdot qd). Also the "
         "hand error e (position, then the orientation error's vector part).",
         [("q", q), ("qd", qd), ("pose_d", pose_d, (4, 4)), ("twist_d", twist_d), ("accel_d", accel_d)],
-        [("tau", tau, (6, 1)), ("error", e, (6, 1))], parameters, guarded=True)
+        [("tau", tau, (6, 1)), ("error", e, (6, 1))],
+        parameters,
+        guarded=True,
+    )
     return leaf_kernels(tree, derivatives=system.derivatives.when_asked()) + hand_kernels(hand) + [step]
 
 
@@ -61,16 +66,23 @@ def report(system: RobotSystem) -> tuple[dict, dict]:
     """(info entries, module attributes) of a resolved acceleration spec: its gains, period and tool."""
     node = system.root_control
     s = node.acceleration
-    info = {"controller": system.root, "robot": node.robot, "law": RESOLVED_ACCELERATION, "period": s.period,
-            "kp": [float(v) for v in s.kp], "kv": [float(v) for v in s.kv],
-            "tool": [[float(v) for v in row] for row in s.tool]}
+    info = {
+        "controller": system.root,
+        "robot": node.robot,
+        "law": RESOLVED_ACCELERATION,
+        "period": s.period,
+        "kp": [float(v) for v in s.kp],
+        "kv": [float(v) for v in s.kv],
+        "tool": [[float(v) for v in row] for row in s.tool],
+    }
     return {"hand_control": info}, {}
 
 
 def controller(system: RobotSystem) -> Controller:
     """The module's ResolvedAccelerationController: its step kernel, period [s] and first step's check."""
-    return Controller("ResolvedAccelerationController", STEP, system.root_control.hand_settings.period,
-                      start=start_check())
+    return Controller(
+        "ResolvedAccelerationController", STEP, system.root_control.hand_settings.period, start=start_check()
+    )
 
 
 LAW = RootLaw(RESOLVED_ACCELERATION, kernels, report, controller)

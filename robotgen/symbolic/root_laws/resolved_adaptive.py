@@ -33,6 +33,7 @@ state equations (eq 19) at the nominal, by AD (eqs 24-28), A = exp(F T),
 B = int exp(F s) ds L (eqs 29-32) and c = 0. That is the ``init`` kernel, run on the first
 period after a reset; the controller's state (A, B, c, P, the last phi, the resolved joint
 trajectory) is the caller's, passed in and out of each step."""
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -71,8 +72,19 @@ class StateLayout:
         """The controller state's blocks for these settings: A, B, (c), P, phi, B0 and the previous desired joint
         state."""
         n = s.n_phi
-        return StateLayout((("A", NX, NX), ("B", NX, NU), *((("c", NX, 1),) if s.affine else ()), ("P", n, n),
-                            ("phi", n, 1), ("B0", NX, NU), ("q_d", NU, 1), ("qd_d", NU, 1), ("qdd_d", NU, 1)))
+        return StateLayout(
+            (
+                ("A", NX, NX),
+                ("B", NX, NU),
+                *((("c", NX, 1),) if s.affine else ()),
+                ("P", n, n),
+                ("phi", n, 1),
+                ("B0", NX, NU),
+                ("q_d", NU, 1),
+                ("qd_d", NU, 1),
+                ("qdd_d", NU, 1),
+            )
+        )
 
     @property
     def offsets(self) -> dict[str, tuple[int, int, int]]:
@@ -92,7 +104,7 @@ class StateLayout:
         """The blocks of a state vector, matrices row-major."""
         out = {}
         for name, (o, r, c) in self.offsets.items():
-            block = state[o:o + r * c]
+            block = state[o : o + r * c]
             out[name] = ca.reshape(block, c, r).T if c > 1 else block
         return out
 
@@ -128,8 +140,13 @@ class Inputs:
 
     def ports(self) -> list[tuple]:
         """The input ports as make_kernel takes them (name, symbol[, shape])."""
-        return [("q", self.q), ("qd", self.qd), ("pose_d", self.pose_d, (4, 4)), ("twist_d", self.twist_d),
-                ("accel_d", self.accel_d)]
+        return [
+            ("q", self.q),
+            ("qd", self.qd),
+            ("pose_d", self.pose_d, (4, 4)),
+            ("twist_d", self.twist_d),
+            ("accel_d", self.accel_d),
+        ]
 
 
 def feedforward(hand: Hand, i: Inputs, q_start: ca.SX, iterations: int) -> dict[str, ca.SX]:
@@ -146,8 +163,16 @@ def perturbation(hand: Hand, i: Inputs) -> ca.SX:
     return _error(hand.state(i.q, i.qd), i)
 
 
-def identify(Theta: ca.SX, P: ca.SX, phi: ca.SX, dx: ca.SX, mu, limit: float | None,
-             adapt: ca.SX | float = 1.0, directional: bool = True) -> tuple[ca.SX, ca.SX]:
+def identify(
+    Theta: ca.SX,
+    P: ca.SX,
+    phi: ca.SX,
+    dx: ca.SX,
+    mu,
+    limit: float | None,
+    adapt: ca.SX | float = 1.0,
+    directional: bool = True,
+) -> tuple[ca.SX, ca.SX]:
     """One step of eq 37 for every row of Theta = [A B (c)] with the shared P; ``adapt`` = 0
     leaves Theta and P as they are (the gain is switched off, not the arithmetic: no
     selection per entry).
@@ -220,17 +245,25 @@ def step_graph(system: RobotSystem) -> tuple[list[tuple], list[tuple], Parameter
     state = ca.SX.sym("state", layout.size)
     adapt = ca.SX.sym("adapt")
     old = layout.unpack(state)
-    q_start = old["q_d"] + T * old["qd_d"] + 0.5 * T ** 2 * old["qdd_d"]
+    q_start = old["q_d"] + T * old["qd_d"] + 0.5 * T**2 * old["qdd_d"]
     ff = feedforward(hand, i, q_start, s.ik_iterations)
     dx = perturbation(hand, i)
     Theta = ca.horzcat(old["A"], old["B"], *((old["c"],) if s.affine else ()))
     Theta, P = identify(Theta, old["P"], old["phi"], dx, w.forgetting, s.trace_limit, adapt, s.directional)
-    A, B = Theta[:, :NX], Theta[:, NX:NX + NU]
+    A, B = Theta[:, :NX], Theta[:, NX : NX + NU]
     c = Theta[:, NX + NU] if s.affine else None
     du = one_step_control(A, B, c, dx, w.Q, torque_weight(w.Q, w.R, w.kappa, old["B0"]))
     tau = ff["u_n"] + du
-    new = {"A": A, "B": B, "P": P, "phi": ca.vertcat(dx, du, *((1,) if s.affine else ())),
-           "B0": old["B0"], "q_d": ff["q_d"], "qd_d": ff["qd_d"], "qdd_d": ff["qdd_d"]}
+    new = {
+        "A": A,
+        "B": B,
+        "P": P,
+        "phi": ca.vertcat(dx, du, *((1,) if s.affine else ())),
+        "B0": old["B0"],
+        "q_d": ff["q_d"],
+        "qd_d": ff["qd_d"],
+        "qdd_d": ff["qdd_d"],
+    }
     if c is not None:  # an affine model's c (the layout has its block then only)
         new["c"] = c
     inputs = [*i.ports(), ("state", state), ("adapt", adapt)]
@@ -246,9 +279,19 @@ def initial_state(hand: Hand, s: AdaptiveSettings, i: Inputs) -> ca.SX:
     A0, B0 = discretise(F, L, s.period)
     p_a, p_b, p_c = s.initial_covariance
     P0 = ca.diag(ca.vertcat(*([p_a] * NX + [p_b] * NU + ([p_c] if s.affine else []))))
-    return StateLayout.of(s).pack({"A": A0, "B": B0, "c": ca.SX.zeros(NX), "P": ca.SX(P0),
-                                   "phi": ca.SX.zeros(s.n_phi), "B0": B0, "q_d": ff["q_d"], "qd_d": ff["qd_d"],
-                                   "qdd_d": ff["qdd_d"]})
+    return StateLayout.of(s).pack(
+        {
+            "A": A0,
+            "B": B0,
+            "c": ca.SX.zeros(NX),
+            "P": ca.SX(P0),
+            "phi": ca.SX.zeros(s.n_phi),
+            "B0": B0,
+            "q_d": ff["q_d"],
+            "qd_d": ff["qd_d"],
+            "qdd_d": ff["qdd_d"],
+        }
+    )
 
 
 def kernels(system: RobotSystem) -> list[Kernel]:
@@ -259,17 +302,28 @@ def kernels(system: RobotSystem) -> list[Kernel]:
     hand = Hand(tree, s.tool)
     inputs, outputs, parameters = step_graph(system)
     step = make_kernel(
-        STEP, "Resolved motion adaptive control (Lee and Lee 1983), one sampling period: Newton-Euler "
+        STEP,
+        "Resolved motion adaptive control (Lee and Lee 1983), one sampling period: Newton-Euler "
         "feedforward along the resolved desired trajectory plus the one-step optimal feedback (eq 39) of "
         "the RLS-identified perturbation model (eq 37); adapt = 0 freezes the identification. The state "
         "(A, B, c, P, the last phi, the resolved joint trajectory) comes from adaptive_init or the previous "
-        "step. Also the hand perturbation dx (eq 20).", inputs, outputs, parameters, guarded=True)
+        "step. Also the hand perturbation dx (eq 20).",
+        inputs,
+        outputs,
+        parameters,
+        guarded=True,
+    )
     j = Inputs()
     init = make_kernel(
-        INIT, "The adaptive controller's state for its first period: the resolved desired joint trajectory "
+        INIT,
+        "The adaptive controller's state for its first period: the resolved desired joint trajectory "
         "(inverse kinematics from the measured q) and the perturbation model linearised there (eqs 24-28) "
         "and discretised at T (eqs 29-32); c = 0 and P = P_0.",
-        j.ports(), [("state", initial_state(hand, s, j), (StateLayout.of(s).size, 1))], parameters, guarded=True)
+        j.ports(),
+        [("state", initial_state(hand, s, j), (StateLayout.of(s).size, 1))],
+        parameters,
+        guarded=True,
+    )
     return leaf_kernels(tree, derivatives=system.derivatives.when_asked()) + hand_kernels(hand) + [step, init]
 
 
@@ -307,8 +361,18 @@ def stage_counts(system: RobotSystem) -> dict:
     parameters = ParameterSymbols.of(runtime_parameters(system))
     w = Weights(node.name, s, parameters)
     i = Inputs()
-    sym = {name: ca.SX.sym(name, n) for name, n in (("q_start", NU), ("q_d", NU), ("qd_d", NU), ("qdd_d", NU),
-                                                    ("x", NX), ("dx", NX), ("phi", s.n_phi))}
+    sym = {
+        name: ca.SX.sym(name, n)
+        for name, n in (
+            ("q_start", NU),
+            ("q_d", NU),
+            ("qd_d", NU),
+            ("qdd_d", NU),
+            ("x", NX),
+            ("dx", NX),
+            ("phi", s.n_phi),
+        )
+    }
     n_theta = NX + NU + (1 if s.affine else 0)
     Theta, P = ca.SX.sym("Theta", NX, n_theta), ca.SX.sym("P", s.n_phi, s.n_phi)
     B0 = ca.SX.sym("B0", NX, NU)
@@ -318,41 +382,63 @@ def stage_counts(system: RobotSystem) -> dict:
     pose_R, pose_p = hand.pose(i.q)
     c = Theta[:, NX + NU] if s.affine else None
     graphs = {
-        "inverse kinematics": ([i.pose_d, sym["q_start"]],
-                               [hand.inverse_kinematics(R_d, p_d, sym["q_start"], s.ik_iterations)]),
+        "inverse kinematics": (
+            [i.pose_d, sym["q_start"]],
+            [hand.inverse_kinematics(R_d, p_d, sym["q_start"], s.ik_iterations)],
+        ),
         "joint rates (eq 11)": ([sym["q_d"], i.twist_d], [qd_d]),
         "joint accelerations (eq 13)": ([sym["q_d"], i.twist_d, i.accel_d], [qd_d, qdd_d]),
-        "Newton-Euler torques": ([sym["q_d"], sym["qd_d"], sym["qdd_d"]],
-                                 [hand.torques(sym["q_d"], sym["qd_d"], sym["qdd_d"])]),
+        "Newton-Euler torques": (
+            [sym["q_d"], sym["qd_d"], sym["qdd_d"]],
+            [hand.torques(sym["q_d"], sym["qd_d"], sym["qdd_d"])],
+        ),
         "hand pose (eqs 1, 2)": ([i.q], [pose_p, rpy_of(pose_R)]),
         "hand velocity (eqs 8, 9)": ([i.q, i.qd], [hand.jacobian(i.q) @ i.qd]),
         "errors and identification (eq 37)": (
             [sym["x"], i.pose_d, i.twist_d, Theta, P, sym["phi"], parameters.vector],
-            [*identify(Theta, P, sym["phi"], _error(sym["x"], i), w.forgetting, s.trace_limit, 1.0,
-                       s.directional)]),
+            [*identify(Theta, P, sym["phi"], _error(sym["x"], i), w.forgetting, s.trace_limit, 1.0, s.directional)],
+        ),
         "one-step optimal control (eq 39)": (
             [Theta, sym["dx"], B0, parameters.vector],
-            [one_step_control(Theta[:, :NX], Theta[:, NX:NX + NU], c, sym["dx"], w.Q,
-                              torque_weight(w.Q, w.R, w.kappa, B0))]),
+            [
+                one_step_control(
+                    Theta[:, :NX], Theta[:, NX : NX + NU], c, sym["dx"], w.Q, torque_weight(w.Q, w.R, w.kappa, B0)
+                )
+            ],
+        ),
     }
     counts = {name: count_operations(*graph) for name, graph in graphs.items()}
-    counts["joint accelerations (eq 13)"] = {k: counts["joint accelerations (eq 13)"][k] - counts[
-        "joint rates (eq 11)"][k] for k in KINDS}
+    counts["joint accelerations (eq 13)"] = {
+        k: counts["joint accelerations (eq 13)"][k] - counts["joint rates (eq 11)"][k] for k in KINDS
+    }
     notes = {  # what robotgen computes in a row beyond the paper's quantity
         "inverse kinematics": "the branch nearest the prediction, each angle unwrapped to it, NaN out of reach, "
-                              "the singular wrist held" if hand.closed_form
+        "the singular wrist held"
+        if hand.closed_form
         else f"{s.ik_iterations} Newton steps (no closed form for this arm)",
         "joint rates (eq 11)": "a singularity check (J^-1 [v; w] by two 3x3 solves at the wrist centre; the paper "
-                               "forms J^-1)" if hand.wrist_centre
+        "forms J^-1)"
+        if hand.wrist_centre
         else "J and a Householder solve with its singularity check (the paper inverts J)",
-        "joint accelerations (eq 13)": ("exact Jdot qd: the wrist centre's and the hand's accelerations at qdd = 0"
-                                        if hand.wrist_centre else "exact Jdot qd by Newton-Euler's forward pass")
+        "joint accelerations (eq 13)": (
+            "exact Jdot qd: the wrist centre's and the hand's accelerations at qdd = 0"
+            if hand.wrist_centre
+            else "exact Jdot qd by Newton-Euler's forward pass"
+        )
         + " (the paper differences J over a period); counted as what it adds to stage 2",
         "errors and identification (eq 37)": f"{s.n_phi} regressors (the paper 18)",
     }
     rows: list[dict[str, Any]] = [
-        {"part": part, "stage": stage, "name": name, "paper": {"mul": m, "add": a}, "robotgen": counts[name],
-             "note": notes.get(name, "")} for part, stage, name, (m, a) in TABLE_1]
+        {
+            "part": part,
+            "stage": stage,
+            "name": name,
+            "paper": {"mul": m, "add": a},
+            "robotgen": counts[name],
+            "note": notes.get(name, ""),
+        }
+        for part, stage, name, (m, a) in TABLE_1
+    ]
     out: dict = {"rows": rows}
 
     def total(part: str, key: str) -> dict:
@@ -362,10 +448,14 @@ def stage_counts(system: RobotSystem) -> dict:
             chosen = [max(first, key=lambda r: r[key]["mul"])] + [r for r in chosen if r not in first]
         kinds = KINDS if key == "robotgen" else ("mul", "add")
         return {k: sum(r[key][k] for r in chosen) for k in kinds}
+
     for key in ("paper", "robotgen"):
         parts = {part: total(part, key) for part in ("feedforward", "feedback")}
-        out[key] = {**parts, "period": max(parts.values(), key=lambda t: t["mul"]),
-                    "sequential": {k: sum(r[key][k] for r in rows) for k in parts["feedback"]}}
+        out[key] = {
+            **parts,
+            "period": max(parts.values(), key=lambda t: t["mul"]),
+            "sequential": {k: sum(r[key][k] for r in rows) for k in parts["feedback"]},
+        }
     inputs, outputs, parameters = step_graph(system)
     out["step"] = count_operations([i[1] for i in inputs] + [parameters.vector], [o[1] for o in outputs])
     return out
@@ -392,8 +482,12 @@ def closed_loop(system: RobotSystem, q: np.ndarray | None = None) -> dict:
     q = nominal_pose(system) if q is None else np.asarray(q, float)
     i = Inputs()
     R, p = hand.pose(i.q)
-    at_rest = [(i.pose_d, ca.reshape(ca.vertcat(ca.horzcat(R, p), ca.DM([[0, 0, 0, 1]])).T, 16, 1)),
-               (i.twist_d, ca.SX.zeros(6)), (i.accel_d, ca.SX.zeros(6)), (i.qd, ca.SX.zeros(6))]
+    at_rest = [
+        (i.pose_d, ca.reshape(ca.vertcat(ca.horzcat(R, p), ca.DM([[0, 0, 0, 1]])).T, 16, 1)),
+        (i.twist_d, ca.SX.zeros(6)),
+        (i.accel_d, ca.SX.zeros(6)),
+        (i.qd, ca.SX.zeros(6)),
+    ]
     state = ca.substitute([initial_state(hand, s, i)], [a for a, _ in at_rest], [b for _, b in at_rest])[0]
     blocks = StateLayout.of(s).unpack(ca.SX(ca.Function("state", [i.q], [state])(q)))
     A, B = (np.array(ca.DM(blocks[k]), float) for k in ("A", "B"))
@@ -403,9 +497,13 @@ def closed_loop(system: RobotSystem, q: np.ndarray | None = None) -> dict:
     K = np.linalg.solve(H + R_, B.T @ Q @ A)
     moduli = np.sort(np.abs(np.linalg.eigvals(A - B @ K)))[::-1]
     radius = float(moduli[0])
-    return {"pose": [float(v) for v in q], "moduli": [float(f"{m:.4g}") for m in moduli],
-            "spectral_radius": float(f"{radius:.6g}"), "margin": float(f"{1 - radius:.4g}"),
-            "time_constant": float(f"{-s.period / np.log(radius):.4g}") if 0 < radius < 1 else float("inf")}
+    return {
+        "pose": [float(v) for v in q],
+        "moduli": [float(f"{m:.4g}") for m in moduli],
+        "spectral_radius": float(f"{radius:.6g}"),
+        "margin": float(f"{1 - radius:.4g}"),
+        "time_constant": float(f"{-s.period / np.log(radius):.4g}") if 0 < radius < 1 else float("inf"),
+    }
 
 
 def report(system: RobotSystem) -> tuple[dict, dict]:
@@ -415,15 +513,26 @@ def report(system: RobotSystem) -> tuple[dict, dict]:
 
     def listed(m: np.ndarray | None):
         return None if m is None else m.tolist()
-    info = {"controller": system.root, "robot": node.robot, "law": RESOLVED_ADAPTIVE, "period": s.period,
-            "q": listed(s.q), "r": listed(s.r), "torque_weight": s.torque_weight, "bandwidth": s.bandwidth,
-            "forgetting": s.forgetting, "initial_covariance": dict(zip(("A", "B", "c"), s.initial_covariance)),
-            "covariance_limit": s.covariance_limit, "affine": s.affine, "directional": s.directional,
-            "ik_iterations": s.ik_iterations,
-            "tool": [[float(v) for v in row] for row in s.tool],
-            "state_layout": {name: {"offset": o, "shape": [r, c]}
-                             for name, (o, r, c) in StateLayout.of(s).offsets.items()},
-            "operation_counts": stage_counts(system)}
+
+    info = {
+        "controller": system.root,
+        "robot": node.robot,
+        "law": RESOLVED_ADAPTIVE,
+        "period": s.period,
+        "q": listed(s.q),
+        "r": listed(s.r),
+        "torque_weight": s.torque_weight,
+        "bandwidth": s.bandwidth,
+        "forgetting": s.forgetting,
+        "initial_covariance": dict(zip(("A", "B", "c"), s.initial_covariance)),
+        "covariance_limit": s.covariance_limit,
+        "affine": s.affine,
+        "directional": s.directional,
+        "ik_iterations": s.ik_iterations,
+        "tool": [[float(v) for v in row] for row in s.tool],
+        "state_layout": {name: {"offset": o, "shape": [r, c]} for name, (o, r, c) in StateLayout.of(s).offsets.items()},
+        "operation_counts": stage_counts(system),
+    }
     return {"hand_control": info}, {}
 
 
@@ -431,8 +540,12 @@ def controller(system: RobotSystem) -> Controller:
     """The module's AdaptiveController: step and init kernels, period [s], state size, and views of A, B, c, P."""
     s = system.root_control.adaptive
     layout = StateLayout.of(s)
-    docs = {"A": "the identified A of dx(k+1) = A dx(k) + B du(k) + c (eq 29)", "B": "the identified B (eq 29)",
-            "c": "the identified constant term c (the offset a payload makes)", "P": "the RLS covariance P (eq 37)"}
+    docs = {
+        "A": "the identified A of dx(k+1) = A dx(k) + B du(k) + c (eq 29)",
+        "B": "the identified B (eq 29)",
+        "c": "the identified constant term c (the offset a payload makes)",
+        "P": "the RLS covariance P (eq 37)",
+    }
     views = tuple(StateView(name, *layout.offsets[name], doc) for name, doc in docs.items() if name in layout.offsets)
     return Controller("AdaptiveController", STEP, s.period, layout.size, INIT, ("adapt",), views, start_check())
 

@@ -1,6 +1,7 @@
 """Resolved motion rate control (Whitney 1972), a root law: of a chain (chain.py: command
 frames, axis masks, damped and redundant resolution, position control by axis/angle, the
 eq-19 regulator) or of a composite robot in its own coordinates (composite.py)."""
+
 from __future__ import annotations
 
 from robotgen.model.laws import RESOLVED_RATE

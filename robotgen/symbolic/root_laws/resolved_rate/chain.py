@@ -23,6 +23,7 @@ chain's usual functions (fk, jacobian, ..., forward_dynamics) and:
 - ``servo_step(q, qd, v) -> tau``: lqr_step's torque plus v, the optimal linear servo's
   feedforward (robotgen.numeric.linear_servo), when ``lqr`` has ``servo: true``.
 """
+
 from __future__ import annotations
 
 import casadi as ca
@@ -94,13 +95,15 @@ class RateLaw:
             w = np.asarray(r.joint_weights, dtype=float)
             self._resolver = DampedResolver(self.J, lam2, column_scale=1 / np.sqrt(w))
             self._extra = None
-            self._null = (self._resolver.project_null(ca.DM(1 / w) * (r.gain * grad))
-                          if grad is not None and self.n > self.m else None)
+            self._null = (
+                self._resolver.project_null(ca.DM(1 / w) * (r.gain * grad))
+                if grad is not None and self.n > self.m
+                else None
+            )
         else:
             self._resolver = DampedResolver(self.J, lam2)
             self._extra = None
-            self._null = (self._resolver.project_null(r.gain * grad)
-                          if grad is not None and self.n > self.m else None)
+            self._null = self._resolver.project_null(r.gain * grad) if grad is not None and self.n > self.m else None
 
     def _objective(self) -> tuple[ca.SX | None, ca.SX | None]:
         """H(q) and its gradient: joint-limit distance (Liegeois 1977) or manipulability."""
@@ -114,7 +117,7 @@ class RateLaw:
                     lower, upper = bounds
                     mid, half = 0.5 * (upper + lower), 0.5 * (upper - lower)
                     terms.append(((q[i] - mid) / half) ** 2)
-                    grad.append(-(q[i] - mid) / (len(limited) * half ** 2))
+                    grad.append(-(q[i] - mid) / (len(limited) * half**2))
                 else:
                     grad.append(ca.SX(0))
             return -sum(terms, ca.SX(0)) / (2 * len(limited)), ca.vertcat(*grad)
@@ -189,43 +192,74 @@ def chain_kernels(system: RobotSystem) -> list[Kernel]:
     qd_rate = law.rate_step(command)
     qd_pos, error = law.position_step(target)
     kernels = leaf_kernels(tree, derivatives=system.derivatives.when_asked()) + [
-        make_kernel("command_jacobian", f"Command rates per unit joint rate (Whitney 1972, eqs 3, 7-10), "
-                f"frame {s.frame.kind}: rows {names}.", [("q", q, (n, 1))],
-                [("command_jacobian", law.J6, (6, n))]),
-        make_kernel("rate_step", f"Resolved motion rate control (eq 4): joint rates for the command rates "
-                f"({names}) in frame {s.frame.kind}; held axes rate zero, free axes out of the task; "
-                "damped near singularities, scaled to the rate limits. Also the manipulability "
-                "sqrt(det(J J^T)) and the condition number of the task Jacobian.",
-                [("q", q, (n, 1)), ("command", command, (6, 1))],
-                [("qd", qd_rate, (n, 1)), ("manipulability", law.manipulability, (1, 1)),
-                 ("condition", law.condition, (1, 1))], guarded=True),
-        make_kernel("position_step", f"Position control through rates (eqs 11-18), re-planned from q at every "
-                f"call: the hand rates that reach the target pose (4x4, base frame) in T = {s.horizon:g} s, "
-                "resolved as rate_step does. error = (target - hand position in base coordinates, "
-                "rotation vector Omega alpha of C_if in hand coordinates).",
-                [("q", q, (n, 1)), ("target", target, (4, 4))],
-                [("qd", qd_pos, (n, 1)), ("error", error, (6, 1)),
-                 ("manipulability", law.manipulability, (1, 1)), ("condition", law.condition, (1, 1))],
-                guarded=True),
+        make_kernel(
+            "command_jacobian",
+            f"Command rates per unit joint rate (Whitney 1972, eqs 3, 7-10), frame {s.frame.kind}: rows {names}.",
+            [("q", q, (n, 1))],
+            [("command_jacobian", law.J6, (6, n))],
+        ),
+        make_kernel(
+            "rate_step",
+            f"Resolved motion rate control (eq 4): joint rates for the command rates "
+            f"({names}) in frame {s.frame.kind}; held axes rate zero, free axes out of the task; "
+            "damped near singularities, scaled to the rate limits. Also the manipulability "
+            "sqrt(det(J J^T)) and the condition number of the task Jacobian.",
+            [("q", q, (n, 1)), ("command", command, (6, 1))],
+            [
+                ("qd", qd_rate, (n, 1)),
+                ("manipulability", law.manipulability, (1, 1)),
+                ("condition", law.condition, (1, 1)),
+            ],
+            guarded=True,
+        ),
+        make_kernel(
+            "position_step",
+            f"Position control through rates (eqs 11-18), re-planned from q at every "
+            f"call: the hand rates that reach the target pose (4x4, base frame) in T = {s.horizon:g} s, "
+            "resolved as rate_step does. error = (target - hand position in base coordinates, "
+            "rotation vector Omega alpha of C_if in hand coordinates).",
+            [("q", q, (n, 1)), ("target", target, (4, 4))],
+            [
+                ("qd", qd_pos, (n, 1)),
+                ("error", error, (6, 1)),
+                ("manipulability", law.manipulability, (1, 1)),
+                ("condition", law.condition, (1, 1)),
+            ],
+            guarded=True,
+        ),
     ]
     if s.arrival is not None:
         remaining = ca.SX.sym("remaining")
         qd_arr, error_arr, scale = law.arrival_step(target, remaining)
-        kernels.append(make_kernel(
-            "arrival_step", "Position control through rates with the remaining time (eq 11 with a new T at "
-            "every call): the hand rates that reach the target pose (4x4, base frame) in the time remaining, "
-            f"max(remaining, {s.arrival.minimum_remaining:g} s), resolved as rate_step does: a straight "
-            "line at constant speed, a fixed rotation axis at a constant rate. error as position_step's; "
-            "rate_scale = 1 / max(1, max_i |qd_i| / limit_i), below 1 when the rate limits slowed the hand "
-            "(it arrives late).",
-            [("q", q, (n, 1)), ("target", target, (4, 4)), ("remaining", remaining)],
-            [("qd", qd_arr, (n, 1)), ("error", error_arr, (6, 1)), ("rate_scale", scale, (1, 1)),
-             ("manipulability", law.manipulability, (1, 1)), ("condition", law.condition, (1, 1))],
-            guarded=True))
+        kernels.append(
+            make_kernel(
+                "arrival_step",
+                "Position control through rates with the remaining time (eq 11 with a new T at "
+                "every call): the hand rates that reach the target pose (4x4, base frame) in the time remaining, "
+                f"max(remaining, {s.arrival.minimum_remaining:g} s), resolved as rate_step does: a straight "
+                "line at constant speed, a fixed rotation axis at a constant rate. error as position_step's; "
+                "rate_scale = 1 / max(1, max_i |qd_i| / limit_i), below 1 when the rate limits slowed the hand "
+                "(it arrives late).",
+                [("q", q, (n, 1)), ("target", target, (4, 4)), ("remaining", remaining)],
+                [
+                    ("qd", qd_arr, (n, 1)),
+                    ("error", error_arr, (6, 1)),
+                    ("rate_scale", scale, (1, 1)),
+                    ("manipulability", law.manipulability, (1, 1)),
+                    ("condition", law.condition, (1, 1)),
+                ],
+                guarded=True,
+            )
+        )
     if law.H is not None:
-        kernels.append(make_kernel("objective", f"The secondary objective H(q) ({s.redundancy.objective}) that "
-                               "the redundancy resolution increases.", [("q", q, (n, 1))],
-                               [("objective", law.H, (1, 1))]))
+        kernels.append(
+            make_kernel(
+                "objective",
+                f"The secondary objective H(q) ({s.redundancy.objective}) that the redundancy resolution increases.",
+                [("q", q, (n, 1))],
+                [("objective", law.H, (1, 1))],
+            )
+        )
     if s.lqr is not None:
         kernels.extend(_lqr_kernels(tree, s.lqr))
     return kernels
@@ -237,20 +271,33 @@ def _lqr_kernels(tree: KinematicTree, lqr: LQRSettings) -> list[Kernel]:
     q, qd = ca.SX.sym("q", n), ca.SX.sym("qd", n)
     state = ca.vertcat(q - ca.DM(design.model.nominal), qd)
     tau = ca.DM(design.model.tau0) - ca.DM(design.K) @ state
-    kernels = [make_kernel("lqr_step", "Optimal regulator about the nominal posture (Whitney 1972, eq 19): "
-                           "tau = tau0 - K (q - q0, qd), K from the continuous Riccati equation of the "
-                           "linearised dynamics (module attribute lqr).",
-                           [("q", q, (n, 1)), ("qd", qd, (n, 1))], [("tau", tau, (n, 1))], guarded=True)]
+    kernels = [
+        make_kernel(
+            "lqr_step",
+            "Optimal regulator about the nominal posture (Whitney 1972, eq 19): "
+            "tau = tau0 - K (q - q0, qd), K from the continuous Riccati equation of the "
+            "linearised dynamics (module attribute lqr).",
+            [("q", q, (n, 1)), ("qd", qd, (n, 1))],
+            [("tau", tau, (n, 1))],
+            guarded=True,
+        )
+    ]
     if lqr.servo:
         # the optimal linear servo u = -K s + v (robotgen.numeric.linear_servo, S1) on eq 19
         # applied to the whole state: the same K, v = R^-1 B^T g(t) computed offline
         v = ca.SX.sym("v", n)
-        kernels.append(make_kernel("servo_step", "Optimal linear servo (Whitney 1972, eq 19 applied to the "
-                                   "whole state): tau = tau0 - K (q - q0, qd) + v, K as lqr_step, v = R^-1 B^T "
-                                   "g(t) the feedforward of the reference, from "
-                                   "robotgen.numeric.linear_servo.", [("q", q, (n, 1)), ("qd", qd, (n, 1)),
-                                                                      ("v", v, (n, 1))],
-                                   [("tau", tau + v, (n, 1))], guarded=True))
+        kernels.append(
+            make_kernel(
+                "servo_step",
+                "Optimal linear servo (Whitney 1972, eq 19 applied to the "
+                "whole state): tau = tau0 - K (q - q0, qd) + v, K as lqr_step, v = R^-1 B^T "
+                "g(t) the feedforward of the reference, from "
+                "robotgen.numeric.linear_servo.",
+                [("q", q, (n, 1)), ("qd", qd, (n, 1)), ("v", v, (n, 1))],
+                [("tau", tau + v, (n, 1))],
+                guarded=True,
+            )
+        )
     return kernels
 
 
@@ -263,8 +310,13 @@ def chain_report(system: RobotSystem) -> tuple[dict, dict]:
         design = regulator(tree, s.lqr)
         info["lqr"] = design.report
         attributes["lqr"] = {
-            "K": design.K.tolist(), "A": design.model.A.tolist(), "B": design.model.B.tolist(),
-            "nominal": design.model.nominal.tolist(), "tau0": design.model.tau0.tolist(),
-            "Q": np.diag(design.Q).tolist(), "R": np.diag(design.R).tolist(), **design.report,
+            "K": design.K.tolist(),
+            "A": design.model.A.tolist(),
+            "B": design.model.B.tolist(),
+            "nominal": design.model.nominal.tolist(),
+            "tau0": design.model.tau0.tolist(),
+            "Q": np.diag(design.Q).tolist(),
+            "R": np.diag(design.R).tolist(),
+            **design.report,
         }
     return {"rate_control": info}, attributes

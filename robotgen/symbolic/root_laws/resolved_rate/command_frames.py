@@ -16,6 +16,7 @@ cross-product Jacobian of eqs 8-9:
 - spherical:     radius, azimuth and elevation rates of the controlled point about a centre,
                  base z the polar axis; rotations in hand axes.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass

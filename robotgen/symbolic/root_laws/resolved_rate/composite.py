@@ -27,6 +27,7 @@ measures are those of the composite Jacobian on the constraint-consistent leaf r
 rd map restricted to range(A), whose singular values are 1 / sigma_i(A). Damping is damped
 least squares of that map: theta_dot = A (I + lambda^2 A^T A)^-1 command.
 """
+
 from __future__ import annotations
 
 import dataclasses
@@ -106,8 +107,7 @@ class CompositeRateLaw:
         """The velocity of R that reaches the external coordinates ``target`` in time T
         (internal-motion rates zero), and the error target - x (angles wrapped)."""
         e = target - self.x
-        error = ca.vertcat(*[ca.atan2(ca.sin(e[i]), ca.cos(e[i])) if a else e[i]
-                             for i, a in enumerate(self.angles)])
+        error = ca.vertcat(*[ca.atan2(ca.sin(e[i]), ca.cos(e[i])) if a else e[i] for i, a in enumerate(self.angles)])
         return ca.vertcat(error / T, ca.SX.zeros(self.k - self.n_external)), error
 
     def position_step(self, target: ca.SX) -> tuple[ca.SX, ca.SX]:
@@ -138,36 +138,54 @@ def composite_kernels(system: RobotSystem) -> list[Kernel]:
     kernels = [kern for kern in system_kernels(robot_subsystem(system)) if kern.name not in _TORQUE_STEPS]
     measures = [("manipulability", law.manipulability, (1, 1)), ("condition", law.condition, (1, 1))]
     kernels += [
-        make_kernel("velocity_map", f"Leaf joint rates per unit velocity of '{robot}' ({names}): every attach's "
-                "A composed down to the leaves.", [("theta", th, (n, 1))], [("velocity_map", law.A, (n, k))]),
-        make_kernel("command_jacobian", f"Velocity of '{robot}' ({names}) per unit leaf joint rate: its rd map, "
-                "a left inverse of velocity_map.", [("theta", th, (n, 1))], [("command_jacobian", law.J, (k, n))]),
-        make_kernel("rate_step", f"Resolved rate control of the composite robot '{robot}': leaf joint rates "
-                f"A(theta) command for a velocity command ({names}) of '{robot}', damped near singularities "
-                "of the tree's velocity map, scaled to the rate limits; every constraint of the tree holds. "
-                "Also the manipulability and condition number of the composite Jacobian on the "
-                "constraint-consistent leaf rates (singular values 1 / sigma_i(A)).",
-                [("theta", th, (n, 1)), ("command", command, (k, 1))],
-                [("theta_dot", qd_rate, (n, 1))] + measures),
-        make_kernel("position_step", f"Position control through rates of '{robot}': the velocity (target - x) / T, "
-                f"T = {law.s.horizon:g} s, on its external coordinates ("
-                f"{', '.join(law.names[:ne])}; wrapped to (-pi, pi]: {', '.join(wrapped) or 'none'}), "
-                "internal-motion rates zero, resolved as rate_step does. error = target - x (wrapped).",
-                [("theta", th, (n, 1)), ("target", target, (ne, 1))],
-                [("theta_dot", qd_pos, (n, 1)), ("error", error, (ne, 1))] + measures),
+        make_kernel(
+            "velocity_map",
+            f"Leaf joint rates per unit velocity of '{robot}' ({names}): every attach's A composed down to the leaves.",
+            [("theta", th, (n, 1))],
+            [("velocity_map", law.A, (n, k))],
+        ),
+        make_kernel(
+            "command_jacobian",
+            f"Velocity of '{robot}' ({names}) per unit leaf joint rate: its rd map, a left inverse of velocity_map.",
+            [("theta", th, (n, 1))],
+            [("command_jacobian", law.J, (k, n))],
+        ),
+        make_kernel(
+            "rate_step",
+            f"Resolved rate control of the composite robot '{robot}': leaf joint rates "
+            f"A(theta) command for a velocity command ({names}) of '{robot}', damped near singularities "
+            "of the tree's velocity map, scaled to the rate limits; every constraint of the tree holds. "
+            "Also the manipulability and condition number of the composite Jacobian on the "
+            "constraint-consistent leaf rates (singular values 1 / sigma_i(A)).",
+            [("theta", th, (n, 1)), ("command", command, (k, 1))],
+            [("theta_dot", qd_rate, (n, 1))] + measures,
+        ),
+        make_kernel(
+            "position_step",
+            f"Position control through rates of '{robot}': the velocity (target - x) / T, "
+            f"T = {law.s.horizon:g} s, on its external coordinates ("
+            f"{', '.join(law.names[:ne])}; wrapped to (-pi, pi]: {', '.join(wrapped) or 'none'}), "
+            "internal-motion rates zero, resolved as rate_step does. error = target - x (wrapped).",
+            [("theta", th, (n, 1)), ("target", target, (ne, 1))],
+            [("theta_dot", qd_pos, (n, 1)), ("error", error, (ne, 1))] + measures,
+        ),
     ]
     if law.s.arrival is not None:
         remaining = ca.SX.sym("remaining")
         qd_arr, error_arr, scale = law.arrival_step(target, remaining)
-        kernels.append(make_kernel(
-            "arrival_step", f"Position control through rates of '{robot}' with the remaining time (eq 11 with a "
-            f"new T at every call): the velocity (target - x) / max(remaining, {law.s.arrival.minimum_remaining:g} "
-            "s) on its external coordinates, internal-motion rates zero, resolved as rate_step does: a straight "
-            "line in those coordinates at constant speed. error as position_step's; rate_scale = "
-            "1 / max(1, max_i |theta_dot_i| / limit_i), below 1 when the rate limits slowed it (it arrives late).",
-            [("theta", th, (n, 1)), ("target", target, (ne, 1)), ("remaining", remaining)],
-            [("theta_dot", qd_arr, (n, 1)), ("error", error_arr, (ne, 1)), ("rate_scale", scale, (1, 1))]
-            + measures))
+        kernels.append(
+            make_kernel(
+                "arrival_step",
+                f"Position control through rates of '{robot}' with the remaining time (eq 11 with a "
+                f"new T at every call): the velocity (target - x) / max(remaining, {law.s.arrival.minimum_remaining:g} "
+                "s) on its external coordinates, internal-motion rates zero, resolved as rate_step does: a straight "
+                "line in those coordinates at constant speed. error as position_step's; rate_scale = "
+                "1 / max(1, max_i |theta_dot_i| / limit_i), below 1 when the rate limits slowed it (it arrives late).",
+                [("theta", th, (n, 1)), ("target", target, (ne, 1)), ("remaining", remaining)],
+                [("theta_dot", qd_arr, (n, 1)), ("error", error_arr, (ne, 1)), ("rate_scale", scale, (1, 1))]
+                + measures,
+            )
+        )
     return kernels
 
 
@@ -175,4 +193,3 @@ def composite_report(system: RobotSystem) -> tuple[dict, dict]:
     """(extra info() keys, module attributes) of a rate-controlled composite robot."""
     node = system.root_control
     return {"rate_control": {"controller": system.root, "robot": node.robot, **node.rate_settings.summary()}}, {}
-

@@ -18,6 +18,7 @@ Popov-Belevitch-Hautus test (rank [A - lambda I, B] at every eigenvalue lambda o
 stays reliable where the Kalman matrix [B AB ... A^(2n-1) B] is badly scaled. The report's
 eigenvalue figures come from LAPACK and are printed to 4 significant digits.
 """
+
 from __future__ import annotations
 
 import functools
@@ -61,8 +62,9 @@ def linearise(tree: KinematicTree, nominal: np.ndarray) -> Linearisation:
     g = ChainGraphs(tree, sym)
     state = ca.vertcat(sym.q, sym.qd)
     sdot = ca.vertcat(sym.qd, g.forward_dynamics())
-    f = ca.Function("linearise", [sym.q, sym.qd, sym.tau],
-                    [ca.jacobian(sdot, state), ca.jacobian(sdot, sym.tau), g.nonlinear()])
+    f = ca.Function(
+        "linearise", [sym.q, sym.qd, sym.tau], [ca.jacobian(sdot, state), ca.jacobian(sdot, sym.tau), g.nonlinear()]
+    )
     zero = np.zeros(n)
     tau0 = np.array(f(nominal, zero, zero)[2]).ravel()
     A, B, _ = (np.array(x) for x in f(nominal, zero, tau0))

@@ -18,6 +18,7 @@ Never an explicit inverse: J is factorised by Householder QR, unrolled.
   lambda^2 = lambda_max^2 (1 - w / w0)^2 below the threshold w0 (Nakamura & Hanafusa 1986).
 - Rate limits scale the whole vector, so the hand moves in the commanded direction, slower.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -135,7 +136,7 @@ def conditioning(J: ca.SX) -> Conditioning:
     w = ca.sqrt(_product(mu))
     big = _reduce(ca.fmax, mu)
     small = _reduce(ca.fmin, mu)
-    cond = ca.sqrt(big / ca.fmax(small, big / CONDITION_CAP ** 2))
+    cond = ca.sqrt(big / ca.fmax(small, big / CONDITION_CAP**2))
     cond = ca.if_else(big > 0, cond, CONDITION_CAP)
     return Conditioning(w, cond)
 
@@ -156,7 +157,7 @@ def _reduce(op, values: list[ca.SX]) -> ca.SX:
 
 def damping_squared(w: ca.SX, lambda_max: float, threshold: float) -> ca.SX:
     """lambda^2 = lambda_max^2 (1 - w / w0)^2 for w < w0, else 0 (Nakamura & Hanafusa 1986)."""
-    return ca.if_else(w < threshold, lambda_max ** 2 * (1 - w / threshold) ** 2, 0)
+    return ca.if_else(w < threshold, lambda_max**2 * (1 - w / threshold) ** 2, 0)
 
 
 class DampedResolver:
