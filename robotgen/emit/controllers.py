@@ -11,15 +11,12 @@ from __future__ import annotations
 import re
 import textwrap
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
 
 from robotgen.emit import c_kernel
 from robotgen.emit.literals import c_string, py_string
 from robotgen.emit.sx_program import KernelError
+from robotgen.emit.views import FunctionView, ParameterView, PortView
 from robotgen.symbolic.root_laws.law import Controller
-
-if TYPE_CHECKING:
-    from robotgen.emit.context import FunctionView, ParameterView, PortView
 
 # The first inputs of every step kernel (and the only inputs of an init kernel, with params).
 TRAJECTORY = ("q", "qd", "pose_d", "twist_d", "accel_d")
