@@ -20,7 +20,8 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
-from robotgen.emit import issue_order, lane_names, sincos
+from robotgen.emit import lane_names, passes, sincos
+from robotgen.emit.passes import Use
 from robotgen.emit.sx_program import Instruction, KernelError, Program, read_program, reads_first
 from robotgen.symbolic.kernel import PARAMS, Kernel, Port
 from robotgen.symbolic.schedule import (
@@ -196,7 +197,11 @@ def kernel_source(
     else:
         program = program or read_program(kernel)
         declarations, body = _straight_line(
-            program, kernel, precision, read, lambda port, element: f"{kernel.outputs[port].name}[{element}]"
+            _block(program, precision),
+            kernel,
+            precision,
+            read,
+            lambda port, element: f"{kernel.outputs[port].name}[{element}]",
         )
         zero = literal(0.0, precision)
         for port_index, elements in program.unwritten_outputs:
@@ -245,7 +250,7 @@ def lane_kernel_source(
     else:
         program = program or read_program(kernel)
         declarations, body = _straight_line(
-            program,
+            _block(program, precision),
             kernel,
             precision,
             read,
@@ -274,17 +279,9 @@ def lane_kernel_source(
 def _straight_line(
     program: Program, kernel: Kernel, precision: Precision, read, write, register: str = "w", lanes: bool = False
 ) -> tuple[list[str], list[str]]:
-    """(declarations of the registers, statements) of one SX program; ``read(port, element)``
-    and ``write(port, element)`` spell its inputs and outputs. In double precision the
-    angles of a straight-line program (not a loop body) go through robotgen.emit.sincos, and
-    one bound by its longest chain is printed in list-schedule order, any other kernel without
-    loops in an order holding few values live (robotgen.emit.issue_order)."""
-    if register == "w" and issue_order.latency_bound(program):
-        program = issue_order.list_scheduled(program)
-    elif register == "w" and kernel.schedule is None:
-        program = issue_order.pressure_scheduled(program)
-    if precision.real == "double" and register == "w":
-        program = sincos.pair_angles(program)
+    """(declarations of the registers, statements) of one SX program, printed as it is (its
+    passes applied before: robotgen.emit.passes); ``read(port, element)`` and
+    ``write(port, element)`` spell its inputs and outputs, ``register`` its registers."""
     body = []
     for step in program.instructions:
         if step.op == sincos.SINCOS:
@@ -303,6 +300,11 @@ def _straight_line(
     if lanes and any(lane_names.LANE_INDEX + "]" in line for line in body):
         declarations.append(f"int {lane_names.LANE_INDEX};")
     return declarations, body
+
+
+def _block(program: Program, precision: Precision) -> Program:
+    """A straight-line block's program (a kernel's, a stage helper's, a prologue's) after the passes chosen for it."""
+    return passes.choose(program, Use.BLOCK, precision.real).apply(program)
 
 
 def _sincos_statements(step: Instruction, register: str, precision: Precision, lanes: bool = False) -> list[str]:
@@ -348,7 +350,7 @@ def stage_source(c_name: str, stage: Stage, kernel: Kernel, precision: Precision
     inner = part_kernel(stage.name, stage.function, ports)
     program = read_program(inner)
     registers, statements = _straight_line(
-        program,
+        _block(program, precision),
         inner,
         precision,
         lambda port, e: f"{ports[port].name}[{e}]",
@@ -416,7 +418,12 @@ def _scheduled_body(
     program = read_program(prologue)
     writes = schedule.prologue_writes
     registers, statements = _straight_line(
-        program, prologue, precision, read, lambda port, element: address(writes[port], element), lanes=lanes
+        _block(program, precision),
+        prologue,
+        precision,
+        read,
+        lambda port, element: address(writes[port], element),
+        lanes=lanes,
     )
     statements += [
         f"{address(writes[port], e)} = {zero};" for port, elements in program.unwritten_outputs for e in elements
@@ -426,7 +433,7 @@ def _scheduled_body(
         inner = part_kernel(kernel.name + "_" + loop.body.name(), loop.body)
         program = reads_first(read_program(inner))
         registers, statements = _straight_line(
-            program,
+            passes.choose(program, Use.LOOP_BODY, precision.real).apply(program),
             inner,
             precision,
             lambda port, element, loop=loop: address(loop.reads[port], element),
