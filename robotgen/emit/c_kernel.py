@@ -193,7 +193,7 @@ def kernel_source(
 
     if kernel.schedule is not None:
         helpers = helpers or {stage: stage_name(stage) for stage in kernel.schedule.stages}
-        declarations, body = _scheduled_body(kernel, precision, read, helpers)
+        declarations, body, named = _scheduled_body(kernel, precision, read, helpers)
     else:
         program = program or read_program(kernel)
         declarations, statements = _straight_line(
@@ -208,9 +208,9 @@ def kernel_source(
             name = kernel.outputs[port_index].name
             statements += [Store(name, e, zero) for e in elements]
         body = [str(statement) for statement in statements]
-    used = {name for line in declarations + body for name in re.findall(r"[A-Za-z_][A-Za-z0-9_]*", line)}
+        named = _named_ports(program)
     lines = [prototype(prefix, kernel, precision) + " {", *("  " + d for d in declarations)]
-    lines += [f"  (void){p.name};" for p in (*kernel.inputs, *kernel.outputs) if p.name not in used]
+    lines += _unused(kernel, named)
     if kernel.guarded:
         lines += _guard_inputs(kernel)
     lines += _guard_step(kernel, precision)
@@ -247,7 +247,7 @@ def lane_kernel_source(
             stage: lane_names.per_width(name)
             for stage, name in (helpers or {stage: stage_name(stage) for stage in kernel.schedule.stages}).items()
         }
-        declarations, body = _scheduled_body(kernel, precision, read, helpers, lanes=True)
+        declarations, body, named = _scheduled_body(kernel, precision, read, helpers, lanes=True)
     else:
         program = program or read_program(kernel)
         declarations, statements = _straight_line(
@@ -263,7 +263,7 @@ def lane_kernel_source(
             name = kernel.outputs[port_index].name
             statements += [Store(name, e, zero) for e in elements]
         body = [str(statement) for statement in statements]
-    used = {name for line in declarations + body for name in re.findall(r"[A-Za-z_][A-Za-z0-9_]*", line)}
+        named = _named_ports(program)
     params = [
         f"const {params_type(prefix)} *{p.name}" if is_parameter_port(p) else f"const {lane_names.VECTOR} *{p.name}"
         for p in kernel.inputs
@@ -273,9 +273,33 @@ def lane_kernel_source(
         f"static {lane_names.TARGET} void {lane_names.per_width(LANE_KERNEL + kernel.name)}({', '.join(params)}) {{",
         *("  " + d for d in declarations),
     ]
-    lines += [f"  (void){p.name};" for p in (*kernel.inputs, *kernel.outputs) if p.name not in used]
+    lines += _unused(kernel, named)
     lines += ["  " + line for line in body]
     return "\n".join([*lines, "}"]) + "\n"
+
+
+@dataclass(frozen=True)
+class NamedPorts:
+    """The ports of a kernel its C names (by index): the inputs it reads, the outputs it writes."""
+
+    inputs: frozenset[int]
+    outputs: frozenset[int]
+
+
+def _named_ports(program: Program) -> NamedPorts:
+    """The ports a straight-line program's C names: those it reads, writes or zeroes."""
+    return NamedPorts(
+        frozenset(s.port for s in program.instructions if s.op == ca.OP_INPUT),
+        frozenset(s.port for s in program.instructions if s.op == ca.OP_OUTPUT)
+        | frozenset(port for port, elements in program.unwritten_outputs if elements),
+    )
+
+
+def _unused(kernel: Kernel, named: NamedPorts) -> list[str]:
+    """A (void) cast of each port the kernel's C does not name, so that compilers do not warn of it."""
+    return [f"  (void){p.name};" for k, p in enumerate(kernel.inputs) if k not in named.inputs] + [
+        f"  (void){p.name};" for k, p in enumerate(kernel.outputs) if k not in named.outputs
+    ]
 
 
 def _straight_line(
@@ -372,10 +396,12 @@ def stage_source(c_name: str, stage: Stage, kernel: Kernel, precision: Precision
 
 def _scheduled_body(
     kernel: Kernel, precision: Precision, read, helpers: dict[Stage, str], lanes: bool = False
-) -> tuple[list[str], list[str]]:
+) -> tuple[list[str], list[str], NamedPorts]:
     """A schedule's C: local arrays t0, t1, ...; a call of each stage's helper; the prologue
     as one straight-line block; each loop as a block whose body reads and writes slices
-    (registers x0, x1, ...). With ``lanes``, every local and register is a vector of states."""
+    (registers x0, x1, ...). With ``lanes``, every local and register is a vector of states.
+    Also the kernel's ports it names: the stages' and the prologue's inputs, the outputs that
+    the prologue and the loops write into and that are zeroed."""
     schedule = kernel.schedule
     assert schedule is not None  # a scheduled kernel's
     zero = _literal(0.0, precision, lanes)
@@ -420,6 +446,9 @@ def _scheduled_body(
     prologue = part_kernel(kernel.name + "_prologue", schedule.prologue, kernel.inputs)
     program = read_program(prologue)
     writes = schedule.prologue_writes
+    named = _named_ports(program)
+    inputs = {k for stage in schedule.stages for k in stage.inputs} | named.inputs
+    outputs = {writes[port].index for port in named.outputs if writes[port].kind != LOCAL}
     registers, statements = _straight_line(
         _block(program, precision),
         prologue,
@@ -435,6 +464,9 @@ def _scheduled_body(
     for loop in schedule.loops:
         inner = part_kernel(kernel.name + "_" + loop.body.name(), loop.body)
         program = reads_first(read_program(inner))
+        named = _named_ports(program)
+        outputs |= {loop.writes[port].index for port in named.outputs if loop.writes[port].kind != LOCAL}
+        outputs |= {loop.reads[port].index for port in named.inputs if loop.reads[port].kind != LOCAL}
         registers, statements = _straight_line(
             passes.choose(program, Use.LOOP_BODY, precision.real).apply(program),
             inner,
@@ -466,10 +498,11 @@ def _scheduled_body(
         body += [*header, *("    " + line for line in registers + lines), "  }" if len(header) > 1 else "}"]
     for port, elements in schedule.unwritten:
         body += fills([Store(kernel.outputs[port].name, e, zero) for e in elements])
+        outputs |= {port} if elements else set()
     declarations += [
         f"const int {name}[{len(values)}] = {{{', '.join(map(str, values))}}};" for values, name in tables.items()
     ]
-    return declarations, body
+    return declarations, body, NamedPorts(frozenset(inputs), frozenset(outputs))
 
 
 # A run of at least FILL_RUN statements storing one value into consecutive elements of an array

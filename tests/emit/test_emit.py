@@ -1080,3 +1080,17 @@ def test_long_runs_of_one_value_are_printed_as_fill_loops():
         f"for (int rg_e = 11; rg_e < {11 + n}; rg_e += 2) {{ t2[rg_e] = 1e-05; t2[rg_e + 1] = 1e-05; }}",
         f"t2[{11 + n}] = 1e-05;",
     ]
+
+
+@pytest.mark.parametrize("real", ["double", "float"])
+def test_the_ports_a_kernel_does_not_name_are_cast_to_void(real):
+    """The unused-port casts come from the program, not from the printed text: a port named
+    like a piece of a literal (e of 1e-05, f of 2.5f) is still cast when unread, and every port
+    read or written is not."""
+    x, e, f = ca.SX.sym("x", 2), ca.SX.sym("e"), ca.SX.sym("f")
+    function = ca.Function("k", [x, e, f], [x[0] * 1e-05 + 2.5, ca.SX(0)])
+    kernel = Kernel("k", "", (Port("x", 2), Port("e", 1), Port("f", 1)), (Port("y", 1), Port("z", 1)), function)
+    source = c_kernel.kernel_source("m", kernel, c_kernel.PRECISIONS[real])
+    casts = [line.strip() for line in source.splitlines() if line.strip().startswith("(void)")]
+    assert casts == ["(void)e;", "(void)f;"]  # y is written, z zeroed, x read
+    assert "e-05" in source and ("2.5f" in source) == (real == "float")
