@@ -10,12 +10,12 @@ offsets ~0.1 m, masses ~1 kg, box inertias turned by a random rotation) and a hu
 iCub's 32 revolute joints below its root link (example-robot-data's icub.urdf read with
 robotgen.frontend.urdf.read_urdf_tree; fk/jacobian at the right hand). --quick: chains n = 2, 6 only.
 
-For each model, what `robotgen build` does, timed in three parts:
+For each model, what `robotgen build` does (robotgen.emit.pipeline.build), timed in three parts:
   graph    robotgen.symbolic.kernels_for(system) (the CasADi SX graphs, CSE included);
-  emit     robotgen.emit.build.emit(..., compile=True) minus its compile step: the C text,
-           header, wrapper and manifest;
-  compile  the compile step inside emit (robotgen.emit.compile.compile_extension, timed by
-           wrapping it; emit compiles in one compiler process, so one core is used).
+  emit     the rest of the build minus its compile step: the C text, header, wrapper and
+           manifest;
+  compile  the compile step inside it (robotgen.emit.compile.compile_extension, timed by
+           wrapping it; it compiles in one compiler process, so one core is used).
 build = graph + emit + compile, against a budget of 60 s; builds run one after another with
 nothing else of the bench running. Each module is imported and its timed functions checked
 once against CasADi's evaluation of the same graphs (1e-9 relative). Then bench/harness.c is
@@ -149,15 +149,9 @@ def single_leaf_system(tree, source: str = "", sha: str = ""):
 
 
 def timed_build(system, out: Path) -> dict:
-    """kernels_for + emit(compile=True), with the compile step timed apart."""
+    """robotgen.emit.pipeline.build (compile included), with the graphs and the compile step timed apart."""
     from robotgen.emit import compile as compiler
-    from robotgen.emit.build import emit
-    from robotgen.model.describe import system_info, system_nq
-    from robotgen.symbolic import kernels_for
-
-    t0 = time.perf_counter()
-    kernels = kernels_for(system)
-    t_graph = time.perf_counter() - t0
+    from robotgen.emit.pipeline import build
 
     compile_s = []
     original = compiler.compile_extension
@@ -172,18 +166,18 @@ def timed_build(system, out: Path) -> dict:
     compiler.compile_extension = timed_compile
     try:
         t0 = time.perf_counter()
-        emit(out, system.name, kernels, nq=system_nq(system), compile=True, extra_info=system_info(system))
-        t_emit_total = time.perf_counter() - t0
+        built = build(system, out)
+        t_build = time.perf_counter() - t0
     finally:
         compiler.compile_extension = original
     t_compile = sum(compile_s)
     return {
-        "kernels": kernels,
-        "graph_s": t_graph,
-        "emit_s": t_emit_total - t_compile,
+        "kernels": built.kernels,
+        "graph_s": built.graph_seconds,
+        "emit_s": t_build - built.graph_seconds - t_compile,
         "compile_s": t_compile,
         "compile_timed_apart": bool(compile_s),
-        "build_s": t_graph + t_emit_total,
+        "build_s": t_build,
     }
 
 
@@ -430,8 +424,8 @@ def main(argv=None) -> int:
         "total_s": total,
         "units": "seconds; ns per call of the generated C (min over 7 repeats), ns_median the median",
         "notes": [
-            "build_s = graph_s + emit_s + compile_s: kernels_for(system), then emit(compile=True) "
-            "with its compile step (one compiler process) timed apart",
+            "build_s = graph_s + emit_s + compile_s: robotgen.emit.pipeline.build, its kernels_for(system) "
+            "and its compile step (one compiler process) timed apart",
             "chains: synthetic revolute chains, fixed seed, chain n = first n links of the longest",
             f"humanoid: {HUMANOID[1]} read with robotgen.frontend.urdf.read_urdf_tree (fixed base)",
         ],

@@ -156,10 +156,11 @@ def _cmd_build(args: argparse.Namespace) -> int:
         "source_sha256": system.source_sha256,  # an MJCF file's: its includes and meshes too
         **({"targets": list(targets)} if targets else {}),
     }
-    inputs = (Path(system.source), *map(Path, system.dependencies))
-    key = cache.build_key(list(inputs), options)
-    from robotgen.emit.build import emit, replace_problem
+    from robotgen.emit.build import replace_problem
+    from robotgen.emit.pipeline import BuildOptions, build, build_inputs
 
+    inputs = build_inputs(system)
+    key = cache.build_key(list(inputs), options)
     with output_errors(out):
         if cache.is_current(out, key, not args.no_compile, system.name):
             print(f"robotgen: {out} is up to date")
@@ -167,31 +168,18 @@ def _cmd_build(args: argparse.Namespace) -> int:
         problem = replace_problem(out, inputs)  # before the graphs are built: say it at once
     if problem:
         raise OutputError(problem)
-    from robotgen.symbolic import controllers_for, kernels_for, module_extras
-
-    progress.stage(f"building the CasADi graphs of {system.name} ({len(system.nodes)} node(s))")
-    kernels = kernels_for(system)
-    interrupts.check()  # a Ctrl-C that CasADi swallowed ends the build here
-    extra_info, attributes = module_extras(system)
-    interrupts.check()
-    progress.stage(f"printing {len(kernels)} C functions")
-    emit(
+    built = build(
+        system,
         out,
-        system.name,
-        kernels,
-        nq=system_nq(system),
-        precision=args.precision,
-        compile=not args.no_compile,
-        extra_info={**system_info(system), **extra_info},
-        spec_sha256=system.source_sha256,
-        attributes=attributes,
-        progress=progress,
-        controllers=controllers_for(system),
-        targets=targets,
-        inputs=inputs,
-        build_key=key,
+        BuildOptions(
+            precision=args.precision,
+            compile=not args.no_compile,
+            targets=targets,
+            progress=progress,
+            build_key=key,
+        ),
     )
-    print(f"robotgen: built {system.name} ({len(kernels)} functions) in {out}")
+    print(f"robotgen: built {system.name} ({len(built.kernels)} functions) in {out}")
     return EXIT_OK
 
 
@@ -200,7 +188,7 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     import tempfile
 
     from robotgen import documentation
-    from robotgen.emit.build import emit
+    from robotgen.emit.pipeline import BuildOptions, build, build_inputs
     from robotgen.model.signature import robot_leaves
     from robotgen.model.simulation import BOTH_PLANTS, MUJOCO_PLANT, ROBOTGEN_PLANT, SimulationSettings, rest_posture
     from robotgen.simulation import multirate as multirate_simulation
@@ -208,7 +196,6 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     from robotgen.simulation.failures import SimulationError
     from robotgen.simulation.mujoco import MujocoMissing, require_mujoco
     from robotgen.simulation.mujoco.run import tree_plant
-    from robotgen.symbolic import controllers_for, kernels_for
 
     progress = _progress(args)
     system = _load(args)
@@ -267,7 +254,7 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
                 return EXIT_USER
             raise UserError(settings.locations["plant"], f"simulation.plant: {e}") from None
     out = Path(args.output) if args.output else Path("generated") / f"{system.name}_simulation"
-    inputs = (Path(system.source), *map(Path, system.dependencies))
+    inputs = build_inputs(system)
     stems = (
         [(system.name, " (multi-rate)"), (f"{system.name}_{multirate_simulation.SINGLE_RATE}", " (single rate)")]
         if groups is not None
@@ -282,31 +269,15 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     rest = rest_posture([system.leaf(leaf) for leaf in robot_leaves(system)])
     results, mjcf = [], None
     with tempfile.TemporaryDirectory(prefix="robotgen-sim-") as tmp:
-        build = Path(tmp) / system.name
+        module_dir = Path(tmp) / system.name
         progress.stage(f"compiling {system.name}'s servo step and plant")
-        emit(
-            build,
-            system.name,
-            kernels_for(system),
-            nq=system_nq(system),
-            extra_info=system_info(system),
-            spec_sha256=system.source_sha256,
-            controllers=controllers_for(system),
-        )
-        module = simulate.load_module(build, system.name)
+        build(system, module_dir, BuildOptions(reports=False))  # the run's module, not the user's: no reports
+        module = simulate.load_module(module_dir, system.name)
         comparison = None
         twin = own.comparison_system(system) if own is not None else None
         if twin is not None:  # another law on the same path
             progress.stage(f"compiling {twin.name}, {twin.root_law.replace('_', ' ')} control for comparison")
-            emit(
-                Path(tmp) / twin.name,
-                twin.name,
-                kernels_for(twin),
-                nq=system_nq(twin),
-                extra_info=system_info(twin),
-                spec_sha256=twin.source_sha256,
-                controllers=controllers_for(twin),
-            )
+            build(twin, Path(tmp) / twin.name, BuildOptions(reports=False))
             comparison = simulate.load_module(Path(tmp) / twin.name, twin.name)
         step = system.root_control.hand_settings.period if hand else settings.dt
         for p in plants:

@@ -116,3 +116,54 @@ def test_the_check_sees_imports_up_and_across(tmp_path):
         "probe.py:1: robotgen.symbolic.control.probe imports robotgen.symbolic.root_laws.law",
         "probe.py:2: robotgen.symbolic.control.probe imports robotgen.frontend.collector",
     ]
+
+
+def import_cycle(files: dict[Path, str]) -> list[str]:
+    """One cycle of imports among the modules ``files`` (path: module name), TYPE_CHECKING and
+    function-level imports included, as the modules around it (the first repeated at the end);
+    [] when there is none. An import of a package names its __init__."""
+    names = set(files.values())
+    graph = {
+        here: sorted({t if t in names else f"{t}.__init__" for _, t in imports(path, here)} & names - {here})
+        for path, here in files.items()
+    }
+    state: dict[str, int] = {}  # 1 on the current path, 2 finished
+    path: list[str] = []
+
+    def visit(module: str) -> list[str]:
+        state[module] = 1
+        path.append(module)
+        for target in graph[module]:
+            if state.get(target) == 1:
+                return path[path.index(target) :] + [target]
+            if target not in state and (cycle := visit(target)):
+                return cycle
+        state[module] = 2
+        path.pop()
+        return []
+
+    for module in sorted(graph):
+        if module not in state and (cycle := visit(module)):
+            return cycle
+    return []
+
+
+def test_emit_has_no_import_cycle():
+    """No module of robotgen/emit imports one that imports it back, even only for types: the
+    views several modules share sit in emit/views.py, below them all."""
+    emit = PACKAGE / "emit"
+    assert import_cycle({path: module_name(path) for path in sorted(emit.rglob("*.py"))}) == []
+
+
+def test_the_cycle_check_sees_a_type_checking_cycle(tmp_path):
+    """Two modules importing each other, one only under TYPE_CHECKING, make a cycle; a third
+    importing one of them from outside does not join it."""
+    (tmp_path / "a.py").write_text("from robotgen.emit.b import B\n")
+    (tmp_path / "b.py").write_text(
+        "from typing import TYPE_CHECKING\n\nif TYPE_CHECKING:\n    from robotgen.emit.a import A\n"
+    )
+    (tmp_path / "c.py").write_text("from robotgen.emit.a import A\n")
+    files = {tmp_path / f"{m}.py": f"robotgen.emit.{m}" for m in "abc"}
+    assert import_cycle(files) == ["robotgen.emit.a", "robotgen.emit.b", "robotgen.emit.a"]
+    (tmp_path / "b.py").write_text("B = 1\n")
+    assert import_cycle(files) == []

@@ -32,13 +32,12 @@ sys.path.insert(0, str(ROOT))
 from ruamel.yaml import YAML  # noqa: E402
 
 from robotgen.cli import main as robotgen  # noqa: E402
-from robotgen.emit.build import emit  # noqa: E402
+from robotgen.emit.pipeline import BuildOptions, build  # noqa: E402
 from robotgen.frontend import load_system  # noqa: E402
-from robotgen.model.describe import system_info, system_nq  # noqa: E402
 from robotgen.model.simulation import PayloadChange  # noqa: E402
 from robotgen.simulation import hand as hand_simulation  # noqa: E402
 from robotgen.simulation import tree as simulate  # noqa: E402
-from robotgen.symbolic import controllers_for, kernels_for, module_extras  # noqa: E402
+from robotgen.symbolic import module_extras  # noqa: E402
 from robotgen.symbolic.root_laws.resolved_adaptive import closed_loop  # noqa: E402
 
 SPEC = ROOT / "specs" / "puma560_rmac.yaml"
@@ -95,15 +94,7 @@ class Builds:
     def comparison(self, system):
         twin = hand_simulation.comparison_system(system)
         twin = dataclasses.replace(twin, name=f"lee_lee_rac_{next(_SERIAL)}")
-        emit(
-            self.root / twin.name,
-            twin.name,
-            kernels_for(twin),
-            nq=system_nq(twin),
-            extra_info=system_info(twin),
-            spec_sha256=twin.source_sha256,
-            controllers=controllers_for(twin),
-        )
+        build(twin, self.root / twin.name, BuildOptions(reports=False))  # as robotgen simulate builds it
         return simulate.load_module(self.root / twin.name, twin.name)
 
 

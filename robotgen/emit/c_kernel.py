@@ -20,7 +20,8 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
-from robotgen.emit import issue_order, lane_names, sincos
+from robotgen.emit import lane_names, passes, sincos
+from robotgen.emit.passes import Use
 from robotgen.emit.sx_program import Instruction, KernelError, Program, read_program, reads_first
 from robotgen.symbolic.kernel import PARAMS, Kernel, Port
 from robotgen.symbolic.schedule import (
@@ -192,19 +193,24 @@ def kernel_source(
 
     if kernel.schedule is not None:
         helpers = helpers or {stage: stage_name(stage) for stage in kernel.schedule.stages}
-        declarations, body = _scheduled_body(kernel, precision, read, helpers)
+        declarations, body, named = _scheduled_body(kernel, precision, read, helpers)
     else:
         program = program or read_program(kernel)
-        declarations, body = _straight_line(
-            program, kernel, precision, read, lambda port, element: f"{kernel.outputs[port].name}[{element}]"
+        declarations, statements = _straight_line(
+            _block(program, precision),
+            kernel,
+            precision,
+            read,
+            lambda port, element: (kernel.outputs[port].name, element),
         )
         zero = literal(0.0, precision)
         for port_index, elements in program.unwritten_outputs:
             name = kernel.outputs[port_index].name
-            body += [f"{name}[{e}] = {zero};" for e in elements]
-    used = {name for line in declarations + body for name in re.findall(r"[A-Za-z_][A-Za-z0-9_]*", line)}
+            statements += [Store(name, e, zero) for e in elements]
+        body = [str(statement) for statement in statements]
+        named = _named_ports(program)
     lines = [prototype(prefix, kernel, precision) + " {", *("  " + d for d in declarations)]
-    lines += [f"  (void){p.name};" for p in (*kernel.inputs, *kernel.outputs) if p.name not in used]
+    lines += _unused(kernel, named)
     if kernel.guarded:
         lines += _guard_inputs(kernel)
     lines += _guard_step(kernel, precision)
@@ -241,22 +247,23 @@ def lane_kernel_source(
             stage: lane_names.per_width(name)
             for stage, name in (helpers or {stage: stage_name(stage) for stage in kernel.schedule.stages}).items()
         }
-        declarations, body = _scheduled_body(kernel, precision, read, helpers, lanes=True)
+        declarations, body, named = _scheduled_body(kernel, precision, read, helpers, lanes=True)
     else:
         program = program or read_program(kernel)
-        declarations, body = _straight_line(
-            program,
+        declarations, statements = _straight_line(
+            _block(program, precision),
             kernel,
             precision,
             read,
-            lambda port, element: f"{kernel.outputs[port].name}[{element}]",
+            lambda port, element: (kernel.outputs[port].name, element),
             lanes=True,
         )
         zero = _literal(0.0, precision, True)
         for port_index, elements in program.unwritten_outputs:
             name = kernel.outputs[port_index].name
-            body += [f"{name}[{e}] = {zero};" for e in elements]
-    used = {name for line in declarations + body for name in re.findall(r"[A-Za-z_][A-Za-z0-9_]*", line)}
+            statements += [Store(name, e, zero) for e in elements]
+        body = [str(statement) for statement in statements]
+        named = _named_ports(program)
     params = [
         f"const {params_type(prefix)} *{p.name}" if is_parameter_port(p) else f"const {lane_names.VECTOR} *{p.name}"
         for p in kernel.inputs
@@ -266,26 +273,44 @@ def lane_kernel_source(
         f"static {lane_names.TARGET} void {lane_names.per_width(LANE_KERNEL + kernel.name)}({', '.join(params)}) {{",
         *("  " + d for d in declarations),
     ]
-    lines += [f"  (void){p.name};" for p in (*kernel.inputs, *kernel.outputs) if p.name not in used]
+    lines += _unused(kernel, named)
     lines += ["  " + line for line in body]
     return "\n".join([*lines, "}"]) + "\n"
 
 
+@dataclass(frozen=True)
+class NamedPorts:
+    """The ports of a kernel its C names (by index): the inputs it reads, the outputs it writes."""
+
+    inputs: frozenset[int]
+    outputs: frozenset[int]
+
+
+def _named_ports(program: Program) -> NamedPorts:
+    """The ports a straight-line program's C names: those it reads, writes or zeroes."""
+    return NamedPorts(
+        frozenset(s.port for s in program.instructions if s.op == ca.OP_INPUT),
+        frozenset(s.port for s in program.instructions if s.op == ca.OP_OUTPUT)
+        | frozenset(port for port, elements in program.unwritten_outputs if elements),
+    )
+
+
+def _unused(kernel: Kernel, named: NamedPorts) -> list[str]:
+    """A (void) cast of each port the kernel's C does not name, so that compilers do not warn of it."""
+    return [f"  (void){p.name};" for k, p in enumerate(kernel.inputs) if k not in named.inputs] + [
+        f"  (void){p.name};" for k, p in enumerate(kernel.outputs) if k not in named.outputs
+    ]
+
+
 def _straight_line(
     program: Program, kernel: Kernel, precision: Precision, read, write, register: str = "w", lanes: bool = False
-) -> tuple[list[str], list[str]]:
-    """(declarations of the registers, statements) of one SX program; ``read(port, element)``
-    and ``write(port, element)`` spell its inputs and outputs. In double precision the
-    angles of a straight-line program (not a loop body) go through robotgen.emit.sincos, and
-    one bound by its longest chain is printed in list-schedule order, any other kernel without
-    loops in an order holding few values live (robotgen.emit.issue_order)."""
-    if register == "w" and issue_order.latency_bound(program):
-        program = issue_order.list_scheduled(program)
-    elif register == "w" and kernel.schedule is None:
-        program = issue_order.pressure_scheduled(program)
-    if precision.real == "double" and register == "w":
-        program = sincos.pair_angles(program)
-    body = []
+) -> tuple[list[str], list[str | Store]]:
+    """(declarations of the registers, statements) of one SX program, printed as it is (its
+    passes applied before: robotgen.emit.passes); ``read(port, element)`` spells an input,
+    ``write(port, element)`` an output's element: (array, index) or, at an index that is not a
+    constant, its text; ``register`` names the registers. A store at a constant index is a
+    Store (for fills)."""
+    body: list[str | Store] = []
     for step in program.instructions:
         if step.op == sincos.SINCOS:
             body += _sincos_statements(step, register, precision, lanes)
@@ -300,9 +325,14 @@ def _straight_line(
     if sincos.uses_helper(program):
         n = sincos.lanes(program)
         declarations.append(f"{real} {sincos.ANGLES}[{n}], {sincos.SINES}[{n}], {sincos.COSINES}[{n}];")
-    if lanes and any(lane_names.LANE_INDEX + "]" in line for line in body):
+    if lanes and any(lane_names.LANE_INDEX + "]" in line for line in body if isinstance(line, str)):
         declarations.append(f"int {lane_names.LANE_INDEX};")
     return declarations, body
+
+
+def _block(program: Program, precision: Precision) -> Program:
+    """A straight-line block's program (a kernel's, a stage helper's, a prologue's) after the passes chosen for it."""
+    return passes.choose(program, Use.BLOCK, precision.real).apply(program)
 
 
 def _sincos_statements(step: Instruction, register: str, precision: Precision, lanes: bool = False) -> list[str]:
@@ -348,33 +378,30 @@ def stage_source(c_name: str, stage: Stage, kernel: Kernel, precision: Precision
     inner = part_kernel(stage.name, stage.function, ports)
     program = read_program(inner)
     registers, statements = _straight_line(
-        program,
+        _block(program, precision),
         inner,
         precision,
         lambda port, e: f"{ports[port].name}[{e}]",
-        lambda port, e: f"{stage.names[port]}[{e}]",
+        lambda port, e: (stage.names[port], e),
         lanes=lanes,
     )
     zero = _literal(0.0, precision, lanes)
-    statements += [
-        f"{stage.names[port]}[{e}] = {zero};" for port, elements in program.unwritten_outputs for e in elements
-    ]
-    statements = fills(statements)
+    statements += [Store(stage.names[port], e, zero) for port, elements in program.unwritten_outputs for e in elements]
+    lines = fills(statements)
     real = lane_names.VECTOR if lanes else precision.real
     parameters = [f"const {real} *{p.name}" for p in ports] + [f"{real} *{n}" for n in stage.names]
     head = f"static {lane_names.TARGET} void {lane_names.per_width(c_name)}" if lanes else f"static void {c_name}"
-    return (
-        "\n".join([f"{head}({', '.join(parameters)}) {{", *("  " + line for line in registers + statements), "}"])
-        + "\n"
-    )
+    return "\n".join([f"{head}({', '.join(parameters)}) {{", *("  " + line for line in registers + lines), "}"]) + "\n"
 
 
 def _scheduled_body(
     kernel: Kernel, precision: Precision, read, helpers: dict[Stage, str], lanes: bool = False
-) -> tuple[list[str], list[str]]:
+) -> tuple[list[str], list[str], NamedPorts]:
     """A schedule's C: local arrays t0, t1, ...; a call of each stage's helper; the prologue
     as one straight-line block; each loop as a block whose body reads and writes slices
-    (registers x0, x1, ...). With ``lanes``, every local and register is a vector of states."""
+    (registers x0, x1, ...). With ``lanes``, every local and register is a vector of states.
+    Also the kernel's ports it names: the stages' and the prologue's inputs, the outputs that
+    the prologue and the loops write into and that are zeroed."""
     schedule = kernel.schedule
     assert schedule is not None  # a scheduled kernel's
     zero = _literal(0.0, precision, lanes)
@@ -397,6 +424,10 @@ def _scheduled_body(
     def array(s: Slice) -> str:
         return f"t{s.index}" if s.kind == LOCAL else kernel.outputs[s.index].name
 
+    def target(s: Slice, element: int) -> tuple[str, int] | str:
+        """Where an element of slice ``s`` is written: (array, index) when the index is a constant."""
+        return address(s, element) if s.i_stride or s.j_stride else (array(s), s.offset + element * s.step)
+
     def address(s: Slice, element: int) -> str:
         start = s.offset + element * s.step
         i = f"{table(s.i_table)}[rg_i]" if s.i_table else "rg_i"
@@ -415,18 +446,29 @@ def _scheduled_body(
     prologue = part_kernel(kernel.name + "_prologue", schedule.prologue, kernel.inputs)
     program = read_program(prologue)
     writes = schedule.prologue_writes
+    named = _named_ports(program)
+    inputs = {k for stage in schedule.stages for k in stage.inputs} | named.inputs
+    outputs = {writes[port].index for port in named.outputs if writes[port].kind != LOCAL}
     registers, statements = _straight_line(
-        program, prologue, precision, read, lambda port, element: address(writes[port], element), lanes=lanes
+        _block(program, precision),
+        prologue,
+        precision,
+        read,
+        lambda port, element: target(writes[port], element),
+        lanes=lanes,
     )
     statements += [
-        f"{address(writes[port], e)} = {zero};" for port, elements in program.unwritten_outputs for e in elements
+        _store(target(writes[port], e), zero) for port, elements in program.unwritten_outputs for e in elements
     ]
     body += ["{", *("  " + line for line in registers + fills(statements)), "}"]
     for loop in schedule.loops:
         inner = part_kernel(kernel.name + "_" + loop.body.name(), loop.body)
         program = reads_first(read_program(inner))
+        named = _named_ports(program)
+        outputs |= {loop.writes[port].index for port in named.outputs if loop.writes[port].kind != LOCAL}
+        outputs |= {loop.reads[port].index for port in named.inputs if loop.reads[port].kind != LOCAL}
         registers, statements = _straight_line(
-            program,
+            passes.choose(program, Use.LOOP_BODY, precision.real).apply(program),
             inner,
             precision,
             lambda port, element, loop=loop: address(loop.reads[port], element),
@@ -439,6 +481,7 @@ def _scheduled_body(
             for port, elements in program.unwritten_outputs
             for e in elements
         ]
+        lines = [str(statement) for statement in statements]
         if loop.space == PAIRS:
             first, second = table(tuple(i for i, _ in loop.pairs)), table(tuple(j for _, j in loop.pairs))
             body += [
@@ -446,19 +489,20 @@ def _scheduled_body(
                 f"  rg_i = {first}[rg_m];",
                 f"  rg_j = {second}[rg_m];",
                 "  {",
-                *("    " + line for line in registers + statements),
+                *("    " + line for line in registers + lines),
                 "  }",
                 "}",
             ]
             continue
         header = [line.format(n=loop.n) for line in _LOOP_HEADERS[loop.space]]
-        body += [*header, *("    " + line for line in registers + statements), "  }" if len(header) > 1 else "}"]
+        body += [*header, *("    " + line for line in registers + lines), "  }" if len(header) > 1 else "}"]
     for port, elements in schedule.unwritten:
-        body += fills([f"{kernel.outputs[port].name}[{e}] = {zero};" for e in elements])
+        body += fills([Store(kernel.outputs[port].name, e, zero) for e in elements])
+        outputs |= {port} if elements else set()
     declarations += [
         f"const int {name}[{len(values)}] = {{{', '.join(map(str, values))}}};" for values, name in tables.items()
     ]
-    return declarations, body
+    return declarations, body, NamedPorts(frozenset(inputs), frozenset(outputs))
 
 
 # A run of at least FILL_RUN statements storing one value into consecutive elements of an array
@@ -470,28 +514,47 @@ def _scheduled_body(
 # per step, where a loop of single stores of zero became `rep stosq` (an inline memset, slow to
 # start) and of another value stayed scalar.
 FILL_RUN = 64
-_STORE = re.compile(r"(\w+)\[(\d+)\] = ([\w.+()-]+);")
 
 
-def fills(statements: list[str]) -> list[str]:
-    """The statements with every run of FILL_RUN or more stores of one value into consecutive elements as a loop."""
-    out, k = [], 0
+@dataclass(frozen=True)
+class Store:
+    """A statement storing ``value`` (a register or a literal) into ``array[index]``, the index a constant."""
+
+    array: str
+    index: int
+    value: str
+
+    def __str__(self) -> str:
+        return f"{self.array}[{self.index}] = {self.value};"
+
+
+def _store(where: tuple[str, int] | str, value: str) -> str | Store:
+    """The store of ``value`` at ``where``: (array, index) or an address's text."""
+    return Store(where[0], where[1], value) if isinstance(where, tuple) else f"{where} = {value};"
+
+
+def fills(statements: list[str | Store]) -> list[str]:
+    """The statements as text, every run of FILL_RUN or more Stores of one value into consecutive elements as a loop."""
+    out: list[str] = []
+    k = 0
     while k < len(statements):
-        first = _STORE.fullmatch(statements[k])
+        first = statements[k]
         end = k + 1
-        if first:
-            array, start, value = first.group(1), int(first.group(2)), first.group(3)
-            while end < len(statements) and statements[end] == f"{array}[{start + end - k}] = {value};":
+        if isinstance(first, Store):
+            following = Store(first.array, first.index + 1, first.value)
+            while end < len(statements) and statements[end] == following:
+                following = Store(first.array, following.index + 1, first.value)
                 end += 1
-        if end - k >= FILL_RUN:
+        if isinstance(first, Store) and end - k >= FILL_RUN:
             even = (end - k) // 2 * 2
+            array, value = first.array, first.value
             out.append(
-                f"for (int rg_e = {start}; rg_e < {start + even}; rg_e += 2) "
+                f"for (int rg_e = {first.index}; rg_e < {first.index + even}; rg_e += 2) "
                 f"{{ {array}[rg_e] = {value}; {array}[rg_e + 1] = {value}; }}"
             )
-            out += statements[k + even : end]
+            out += map(str, statements[k + even : end])
         else:
-            out += statements[k:end]
+            out += map(str, statements[k:end])
         k = end
     return out
 
@@ -584,14 +647,14 @@ _VECTOR_OPERATIONS = frozenset(
 
 def _statement(
     step: Instruction, kernel: Kernel, precision: Precision, read, write, register: str, lanes: bool = False
-) -> str:
+) -> str | Store:
     if step.op in (sincos.SIN_LANE, sincos.COS_LANE):
         lanes_array = sincos.SINES if step.op == sincos.SIN_LANE else sincos.COSINES
         return f"{register}{step.target} = {lanes_array}[{step.element}];"
     if step.op == ca.OP_INPUT:
         return f"{register}{step.target} = {read(step.port, step.element)};"
     if step.op == ca.OP_OUTPUT:
-        return f"{write(step.port, step.element)} = {register}{step.args[0]};"
+        return _store(write(step.port, step.element), f"{register}{step.args[0]}")
     if step.op == ca.OP_CONST:
         return f"{register}{step.target} = {_literal(step.constant, precision, lanes)};"
     if step.op not in OPERATIONS:

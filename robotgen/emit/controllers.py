@@ -11,15 +11,12 @@ from __future__ import annotations
 import re
 import textwrap
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
 
 from robotgen.emit import c_kernel
 from robotgen.emit.literals import c_string, py_string
 from robotgen.emit.sx_program import KernelError
+from robotgen.emit.views import FunctionView, ParameterView, PortView
 from robotgen.symbolic.root_laws.law import Controller
-
-if TYPE_CHECKING:
-    from robotgen.emit.context import FunctionView, ParameterView, PortView
 
 # The first inputs of every step kernel (and the only inputs of an init kernel, with params).
 TRAJECTORY = ("q", "qd", "pose_d", "twist_d", "accel_d")
@@ -134,12 +131,78 @@ def controller_view(
     """The view of ``controller``, checked against its kernels (``functions``: name ->
     FunctionView of the module) and the Controller contract."""
     what = f"controller {controller.class_name!r}"
-    c_kernel.check_identifier(controller.class_name, what)
-    snake = snake_case(controller.class_name)
-    c_kernel.check_identifier(snake, f"{what}: its C name {snake!r}")
+    snake = _checked_snake_case(controller, what)
     c_type = f"{module}_{snake}_controller"
     step = _kernel(functions, controller.step, f"{what}: step kernel")
     init = _kernel(functions, controller.init, f"{what}: init kernel") if controller.init else None
+    _check_state_and_period(controller, what)
+    inputs = _step_inputs(controller, what, step, bool(parameters))
+    others = _step_outputs(controller, what, step)
+    if init is not None:
+        _check_init(controller, what, init, step, inputs)
+    start = _start_check(what, controller, functions, inputs)
+    _check_names(controller, what, step, others)
+    macro = c_type.upper()
+    views = _state_views(controller, what, macro)
+    reads = step.reads_parameters or bool(init is not None and init.reads_parameters)
+    params = f"const {c_kernel.params_type(module)} *params, " if reads else ""
+    real = precision.real
+    arrays = "".join(f"const {real} *{p.name}, " for p in inputs)
+    period_literal = repr(float(controller.period))
+    return ControllerView(
+        class_name=controller.class_name,
+        snake=snake,
+        c_type=c_type,
+        macro=macro,
+        c_reset=f"{c_type}_reset",
+        c_step=f"{c_type}_step",
+        step=step.name,
+        c_step_kernel=step.c_name,
+        init=init.name if init is not None else None,
+        c_init_kernel=init.c_name if init is not None else "",
+        period=float(controller.period),
+        period_literal=period_literal,
+        state_size=controller.state_size,
+        flags=tuple(controller.flags),
+        views=views,
+        inputs=inputs,
+        tau=step.outputs[0],
+        tau_index=0,
+        outputs=others,
+        step_reads_parameters=step.reads_parameters,
+        init_reads_parameters=bool(init is not None and init.reads_parameters),
+        reads_parameters=reads,
+        step_prototype=f"int {c_type}_step({c_type} *controller, {arrays}{params}{real} *{step.outputs[0].name})",
+        reset_prototype=f"void {c_type}_reset({c_type} *controller)",
+        **_start_fields(controller, start, precision),
+        layout_lines=_layout(controller, step, init, views, others, period_literal),
+        step_lines=_step_comment(
+            f"{c_type}_step",
+            controller.class_name,
+            step,
+            init,
+            controller.flags,
+            others,
+            controller.state_size,
+            real,
+            controller.start,
+            start,
+        ),
+        **_docs(controller, step, init, views, inputs, others, parameters if reads else ()),
+        info=_info(controller, c_type, step, init, views, others, reads, start),
+    )
+
+
+def _checked_snake_case(controller: Controller, what: str) -> str:
+    """The controller's class name in snake case (its C prefix's middle), both checked as identifiers."""
+    c_kernel.check_identifier(controller.class_name, what)
+    snake = snake_case(controller.class_name)
+    c_kernel.check_identifier(snake, f"{what}: its C name {snake!r}")
+    return snake
+
+
+def _check_state_and_period(controller: Controller, what: str) -> None:
+    """A state size of at least 0 (positive when the controller has an init kernel or views) and a positive period."""
     n = controller.state_size
     if n < 0 or (n == 0 and (controller.init or controller.views)):
         raise KernelError(
@@ -148,15 +211,18 @@ def controller_view(
     if not controller.period > 0:
         raise KernelError(f"{what}: period {controller.period!r} is not positive")
 
-    # the step's inputs: the trajectory, state, one number per flag (then params, not a port view)
+
+def _step_inputs(controller: Controller, what: str, step: FunctionView, has_parameters: bool) -> tuple[PortView, ...]:
+    """The step's trajectory inputs, after checking that it takes the trajectory, the state (when
+    there is one) and one number per flag, in this order (then params, not a port view)."""
+    n = controller.state_size
     names = [p.name for p in step.inputs]
     expected = [*TRAJECTORY, *([STATE] if n else []), *controller.flags]
     if names != expected:
         raise KernelError(
             f"{what}: step kernel {step.name!r} has inputs {names}, the Controller contract "
-            f"wants {expected}{' and params' if parameters else ''}"
+            f"wants {expected}{' and params' if has_parameters else ''}"
         )
-    inputs = step.inputs[: len(TRAJECTORY)]
     if n and step.inputs[len(TRAJECTORY)].size != n:
         raise KernelError(
             f"{what}: input {STATE!r} of {step.name!r} holds {step.inputs[len(TRAJECTORY)].size}, the state {n}"
@@ -164,6 +230,13 @@ def controller_view(
     for flag in step.inputs[len(TRAJECTORY) + bool(n) :]:
         if flag.size != 1:
             raise KernelError(f"{what}: flag {flag.name!r} is {flag.rows}x{flag.cols}, not a number")
+    return step.inputs[: len(TRAJECTORY)]
+
+
+def _step_outputs(controller: Controller, what: str, step: FunctionView) -> tuple[OutputField, ...]:
+    """The step's outputs between tau (first) and the next state (last, when there is a state),
+    after checking that order."""
+    n = controller.state_size
     outputs = [p.name for p in step.outputs]
     if not outputs or (n and (len(outputs) < 2 or outputs[-1] != STATE_NEXT or step.outputs[-1].size != n)):
         raise KernelError(
@@ -172,25 +245,33 @@ def controller_view(
         )
     if STATE_NEXT in outputs[1 : len(outputs) - bool(n)] or (not n and STATE_NEXT in outputs):
         raise KernelError(f"{what}: {STATE_NEXT!r} is only the step's last output, with a state")
-    others = tuple(
+    return tuple(
         OutputField(p.name, p.size, p.shape, p.shape_text, k + 1)
         for k, p in enumerate(step.outputs[1 : len(step.outputs) - bool(n)])
     )
-    if init is not None:
-        init_names = [p.name for p in init.inputs]
-        init_shapes = [p.shape for p in init.inputs]
-        if init_names != list(TRAJECTORY) or init_shapes != [p.shape for p in inputs]:
-            raise KernelError(
-                f"{what}: init kernel {init.name!r} has inputs {init_names} {init_shapes}; the "
-                f"contract wants those of {step.name!r}: {list(TRAJECTORY)} "
-                f"{[p.shape for p in inputs]}"
-            )
-        if [p.name for p in init.outputs] != [STATE] or init.outputs[0].size != n:
-            raise KernelError(f"{what}: init kernel {init.name!r} must have the one output {STATE!r} of {n}")
 
-    start = _start_check(what, controller, functions, inputs)
 
-    # names: Python attributes, struct fields, C locals
+def _check_init(
+    controller: Controller, what: str, init: FunctionView, step: FunctionView, inputs: tuple[PortView, ...]
+) -> None:
+    """The init kernel takes the step's trajectory inputs, shapes included, and returns the state alone."""
+    init_names = [p.name for p in init.inputs]
+    init_shapes = [p.shape for p in init.inputs]
+    if init_names != list(TRAJECTORY) or init_shapes != [p.shape for p in inputs]:
+        raise KernelError(
+            f"{what}: init kernel {init.name!r} has inputs {init_names} {init_shapes}; the "
+            f"contract wants those of {step.name!r}: {list(TRAJECTORY)} "
+            f"{[p.shape for p in inputs]}"
+        )
+    if [p.name for p in init.outputs] != [STATE] or init.outputs[0].size != controller.state_size:
+        raise KernelError(
+            f"{what}: init kernel {init.name!r} must have the one output {STATE!r} of {controller.state_size}"
+        )
+
+
+def _check_names(controller: Controller, what: str, step: FunctionView, others: tuple[OutputField, ...]) -> None:
+    """Flags and views as identifiers, none taking a Python attribute, struct field or C local
+    every controller has."""
     for flag in controller.flags:
         c_kernel.check_identifier(flag, f"{what}: flag")
     for view in controller.views:
@@ -208,7 +289,10 @@ def controller_view(
     if C_NAMES & set(ports) or any(p.startswith("rg_") for p in ports):
         raise KernelError(f"{what}: ports {ports} take the C step's names {sorted(C_NAMES)} or rg_*")
 
-    macro = c_type.upper()
+
+def _state_views(controller: Controller, what: str, macro: str) -> tuple[ViewView, ...]:
+    """The controller's views of its state, each checked to lie inside it."""
+    n = controller.state_size
     built: list[ViewView] = []
     for view in controller.views:
         end = view.offset + view.rows * view.cols
@@ -234,22 +318,73 @@ def controller_view(
                 c_doc=c_string(_view_doc(doc, shape)),
             )
         )
-    views = tuple(built)
+    return tuple(built)
 
-    reads = step.reads_parameters or bool(init is not None and init.reads_parameters)
-    params = f"const {c_kernel.params_type(module)} *params, " if reads else ""
-    real = precision.real
-    arrays = "".join(f"const {real} *{p.name}, " for p in inputs)
-    step_prototype = f"int {c_type}_step({c_type} *controller, {arrays}{params}{real} *{step.outputs[0].name})"
-    period_literal = repr(float(controller.period))
-    doc = _class_doc(controller, step, init, views, others, parameters if reads else ())
-    info = {
+
+def _docs(
+    controller: Controller,
+    step: FunctionView,
+    init: FunctionView | None,
+    views: tuple[ViewView, ...],
+    inputs: tuple[PortView, ...],
+    others: tuple[OutputField, ...],
+    parameters: tuple[ParameterView, ...],
+) -> dict:
+    """The ControllerView fields of the class's and its step's docstrings (``parameters``: those
+    the controller reads, its constructor's keywords)."""
+    doc = _class_doc(controller, step, init, views, others, parameters)
+    keywords = [f"{p.name}={p.py_default}" for p in parameters]
+    signature = f"{controller.class_name}({', '.join(['*', *keywords]) if keywords else ''})"
+    step_signature = f"step($self, {', '.join(p.name for p in inputs)}, *, out=None)"
+    step_doc = _step_doc(step, inputs, others)
+    return {
+        "doc": doc,
+        "py_doc": c_string(f"{signature}\n--\n\n{doc}"),
+        "step_py_doc": c_string(f"{step_signature}\n--\n\n{step_doc}"),
+        "stub_doc": py_string(doc),
+        "step_stub_doc": py_string(_summary(step_doc)),
+    }
+
+
+def _start_fields(controller: Controller, start: FunctionView | None, precision: c_kernel.Precision) -> dict:
+    """The ControllerView fields of the first step's check (empty when the controller has none)."""
+    if start is None or controller.start is None:
+        return {
+            "start_kernel": start.c_name if start else "",
+            "start_size": 0,
+            "start_limits": (),
+            "start_units": (),
+            "start_bounds": "",
+            "start_hint": "",
+        }
+    return {
+        "start_kernel": start.c_name,
+        "start_size": len(controller.start.limits),
+        "start_limits": tuple(c_kernel.literal(v, precision) for v in controller.start.limits),
+        "start_units": tuple(c_string(u) for u in controller.start.units),
+        "start_bounds": c_string(_start_bounds(controller.start)),
+        "start_hint": c_string(controller.start.hint),
+    }
+
+
+def _info(
+    controller: Controller,
+    c_type: str,
+    step: FunctionView,
+    init: FunctionView | None,
+    views: tuple[ViewView, ...],
+    others: tuple[OutputField, ...],
+    reads: bool,
+    start: FunctionView | None,
+) -> dict:
+    """The controller's entry in the module's info()["controllers"]."""
+    return {
         "class": controller.class_name,
         "c_type": c_type,
         "step": step.name,
         "init": init.name if init is not None else None,
         "period": float(controller.period),
-        "state_size": n,
+        "state_size": controller.state_size,
         "flags": list(controller.flags),
         "views": [{"name": v.name, "offset": v.offset, "shape": list(v.shape), "doc": v.doc} for v in views],
         "outputs": [o.name for o in others],
@@ -258,63 +393,6 @@ def controller_view(
         if start is None or controller.start is None
         else {"function": start.name, "limits": list(controller.start.limits), "units": list(controller.start.units)},
     }
-    keywords = [f"{p.name}={p.py_default}" for p in parameters] if reads else []
-    signature = f"{controller.class_name}({', '.join(['*', *keywords]) if keywords else ''})"
-    step_signature = f"step($self, {', '.join(p.name for p in inputs)}, *, out=None)"
-    step_doc = _step_doc(step, inputs, others)
-    return ControllerView(
-        class_name=controller.class_name,
-        snake=snake,
-        c_type=c_type,
-        macro=macro,
-        c_reset=f"{c_type}_reset",
-        c_step=f"{c_type}_step",
-        step=step.name,
-        c_step_kernel=step.c_name,
-        init=init.name if init is not None else None,
-        c_init_kernel=init.c_name if init is not None else "",
-        period=float(controller.period),
-        period_literal=period_literal,
-        state_size=n,
-        flags=tuple(controller.flags),
-        views=views,
-        inputs=inputs,
-        tau=step.outputs[0],
-        tau_index=0,
-        outputs=others,
-        step_reads_parameters=step.reads_parameters,
-        init_reads_parameters=bool(init is not None and init.reads_parameters),
-        reads_parameters=reads,
-        step_prototype=step_prototype,
-        reset_prototype=f"void {c_type}_reset({c_type} *controller)",
-        start_kernel=start.c_name if start else "",
-        start_size=len(controller.start.limits) if start and controller.start else 0,
-        start_limits=tuple(c_kernel.literal(v, precision) for v in controller.start.limits)
-        if start and controller.start
-        else (),
-        start_units=tuple(c_string(u) for u in controller.start.units) if start and controller.start else (),
-        start_bounds=c_string(_start_bounds(controller.start)) if start and controller.start else "",
-        start_hint=c_string(controller.start.hint) if start and controller.start else "",
-        layout_lines=_layout(controller, step, init, views, others, period_literal),
-        step_lines=_step_comment(
-            f"{c_type}_step",
-            controller.class_name,
-            step,
-            init,
-            controller.flags,
-            others,
-            n,
-            real,
-            controller.start,
-            start,
-        ),
-        doc=doc,
-        py_doc=c_string(f"{signature}\n--\n\n{doc}"),
-        step_py_doc=c_string(f"{step_signature}\n--\n\n{step_doc}"),
-        stub_doc=py_string(doc),
-        step_stub_doc=py_string(_summary(step_doc)),
-        info=info,
-    )
 
 
 def _start_check(what: str, controller: Controller, functions: dict, inputs: tuple) -> FunctionView | None:

@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import hashlib
 
-from robotgen.emit.context import ModuleView, PortView, to_json
+from robotgen.emit.context import ModuleView, to_json
+from robotgen.emit.views import PortView
 
 
 def manifest_json(view: ModuleView, sources: dict[str, str], targets: dict[str, dict] | None = None) -> str:

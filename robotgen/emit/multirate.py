@@ -13,15 +13,12 @@ from __future__ import annotations
 
 import textwrap
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
 
 from robotgen.emit import c_kernel
 from robotgen.emit.literals import c_string, py_string
 from robotgen.emit.sx_program import KernelError
+from robotgen.emit.views import FunctionView, ParameterView, PortView
 from robotgen.symbolic.rate_steps import MultiRate
-
-if TYPE_CHECKING:
-    from robotgen.emit.context import FunctionView, ParameterView, PortView
 
 # the desired root trajectory a group that starts at the root reads, in the order its step takes it
 ROOT_INPUTS = ("x_e", "xd_e", "xdd_e", "f_e", "f_i")

@@ -252,12 +252,10 @@ def test_a_signal_while_the_graphs_are_built_leaves_the_old_output_sweep(tmp_pat
 
 def test_a_signal_of_one_command_does_not_stop_the_next(tmp_path, monkeypatch):
     """A SIGINT noted during one main() (exit 130) is forgotten when it returns: a build in
-    the same process afterwards, through main() or emit(), is not stopped by it."""
+    the same process afterwards, through main() or the pipeline's build(), is not stopped by it."""
     from robotgen import cli
-    from robotgen.emit import build as emit_build
+    from robotgen.emit.pipeline import BuildOptions, build
     from robotgen.frontend import load_system
-    from robotgen.model.describe import system_nq
-    from robotgen.symbolic import kernels_for
 
     def interrupted(args) -> int:
         os.kill(os.getpid(), signal.SIGINT)
@@ -269,4 +267,4 @@ def test_a_signal_of_one_command_does_not_stop_the_next(tmp_path, monkeypatch):
     assert main(["check", SPEC]) == 130
     monkeypatch.undo()
     assert main(["build", SPEC, "-o", str(tmp_path / "a"), "--no-compile", "-q"]) == 0
-    emit_build.emit(tmp_path / "b", system.name, kernels_for(system), nq=system_nq(system), compile=False)
+    build(system, tmp_path / "b", BuildOptions(compile=False))

@@ -8,6 +8,7 @@ import importlib.util
 import re
 import shutil
 import subprocess
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -16,10 +17,8 @@ import yaml
 
 from robotgen.emit import compile as emit_compile
 from robotgen.emit import context
-from robotgen.emit.build import emit
+from robotgen.emit.pipeline import build
 from robotgen.frontend import load_system
-from robotgen.model.describe import system_info, system_nq
-from robotgen.symbolic import kernels_for
 
 SPECS = Path(__file__).resolve().parents[2] / "specs"
 pytestmark = pytest.mark.skipif(shutil.which("cc") is None, reason="a C compiler is required")
@@ -34,7 +33,7 @@ def test_parts_partition_the_functions_and_the_module_works(tmp_path, monkeypatc
     monkeypatch.setattr(context, "COMPILE_PARTS_ABOVE", 0)
     system = load_system(str(SPECS / "two_link.yaml"))
     out = tmp_path / "two_link"
-    emit(out, "two_link_parts", kernels_for(system), nq=system_nq(system), extra_info=system_info(system))
+    build(replace(system, name="two_link_parts"), out)  # a name of its own: the module is imported here
     source = (out / "two_link_parts.c").read_text()
     assert "#if !defined(RG_PART) || RG_PART == 1" in source
     assert not list(out.glob("*.o")), "objects are removed"
@@ -95,9 +94,8 @@ def test_a_stage_helper_is_compiled_in_one_part_and_called_from_the_others(tmp_p
     monkeypatch.setattr(context, "COMPILE_PARTS_ABOVE", 0)
     monkeypatch.setattr(context, "COMPILE_PARTS", 8)  # more parts than looped kernels: some without
     system = load_system(str(_chain_spec(tmp_path / "chain13.yaml", 13)))
-    kernels = kernels_for(system)
     out = tmp_path / "chain13"
-    emit(out, "chain13", kernels, nq=system_nq(system), extra_info=system_info(system))
+    kernels = build(system, out).kernels
     source = (out / "chain13.c").read_text()
     assert source.count("RG_SHARED void rg_kinematics(") == 2  # the definition and one declaration
     # the kernels (a batch entry point's first parameter is an int: robotgen.emit.lanes)

@@ -1059,20 +1059,38 @@ def test_broken_kernels_are_internal_errors(tmp_path, kernel, message):
 
 
 def test_long_runs_of_one_value_are_printed_as_fill_loops():
-    n = c_kernel.FILL_RUN
-    run = [f"t3[{k}] = w0;" for k in range(4, 4 + n)]
-    short = [f"out[{k}] = 0.0;" for k in range(n - 1)]
-    broken = [f"t1[{k}] = w{k % 2};" for k in range(2 * n)]  # the value alternates
-    gap = [f"t2[{k}] = 1e-05;" for k in (*range(10), *range(11, 12 + n))]  # t2[10] is missing
+    """Stores at constant indices (c_kernel.Store, as the printer makes them) of one value into
+    FILL_RUN or more consecutive elements become a loop; anything else is printed as it is."""
+    n, Store = c_kernel.FILL_RUN, c_kernel.Store
+    run = [Store("t3", k, "w0") for k in range(4, 4 + n)]
+    short = [Store("out", k, "0.0") for k in range(n - 1)]
+    broken = [Store("t1", k, f"w{k % 2}") for k in range(2 * n)]  # the value alternates
+    gap = [Store("t2", k, "1e-05") for k in (*range(10), *range(11, 12 + n))]  # t2[10] is missing
+    other = [Store("t4", k, "w0") for k in range(n // 2)] + [Store("t5", k, "w0") for k in range(n // 2, n)]
     assert c_kernel.fills(["w0 = 0.0;", *run, "w1 = w0 + q[0];"]) == [
         "w0 = 0.0;",
         f"for (int rg_e = 4; rg_e < {4 + n}; rg_e += 2) {{ t3[rg_e] = w0; t3[rg_e + 1] = w0; }}",
         "w1 = w0 + q[0];",
     ]
-    assert c_kernel.fills(short) == short
-    assert c_kernel.fills(broken) == broken
+    assert c_kernel.fills(short) == [f"out[{k}] = 0.0;" for k in range(n - 1)]
+    assert c_kernel.fills(broken) == [f"t1[{k}] = w{k % 2};" for k in range(2 * n)]
+    assert c_kernel.fills(other) == list(map(str, other))  # consecutive indices, another array
     # n + 1 stores from t2[11]: a loop over n (two a step), then the last store
-    assert c_kernel.fills(gap) == gap[:10] + [
+    assert c_kernel.fills(gap) == list(map(str, gap[:10])) + [
         f"for (int rg_e = 11; rg_e < {11 + n}; rg_e += 2) {{ t2[rg_e] = 1e-05; t2[rg_e + 1] = 1e-05; }}",
         f"t2[{11 + n}] = 1e-05;",
     ]
+
+
+@pytest.mark.parametrize("real", ["double", "float"])
+def test_the_ports_a_kernel_does_not_name_are_cast_to_void(real):
+    """The unused-port casts come from the program, not from the printed text: a port named
+    like a piece of a literal (e of 1e-05, f of 2.5f) is still cast when unread, and every port
+    read or written is not."""
+    x, e, f = ca.SX.sym("x", 2), ca.SX.sym("e"), ca.SX.sym("f")
+    function = ca.Function("k", [x, e, f], [x[0] * 1e-05 + 2.5, ca.SX(0)])
+    kernel = Kernel("k", "", (Port("x", 2), Port("e", 1), Port("f", 1)), (Port("y", 1), Port("z", 1)), function)
+    source = c_kernel.kernel_source("m", kernel, c_kernel.PRECISIONS[real])
+    casts = [line.strip() for line in source.splitlines() if line.strip().startswith("(void)")]
+    assert casts == ["(void)e;", "(void)f;"]  # y is written, z zeroed, x read
+    assert "e-05" in source and ("2.5f" in source) == (real == "float")
