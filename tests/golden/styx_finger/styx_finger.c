@@ -1026,6 +1026,12 @@ not_finite:
 #pragma STDC FP_CONTRACT OFF
 #endif
 
+#if defined(__GNUC__) && !defined(__clang__)
+/* gcc -O3 takes the vectors whose last lanes a block driver sets one by one for values read
+ * before they are written; they are not (each lane is set before the lane kernel runs) */
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
+#endif
 
 #if defined(RG_LANES_X86)
 typedef double rg_v_avx512 __attribute__((vector_size(64)));
@@ -5045,6 +5051,9 @@ static RG_TARGET int RG_L(rgb_discrete_dynamics_derivatives)(int n, const double
 #undef RG_L
 #endif
 
+#if defined(__GNUC__) && !defined(__clang__)
+#pragma GCC diagnostic pop
+#endif
 
 static int rg_batch_width(int lanes) {
 #if defined(RG_LANES_X86)
