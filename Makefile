@@ -24,7 +24,8 @@ test-quick: lint
 	$(PYTHON) -m pytest -q $(QUICK_TESTS)
 
 # the long runs (pytest -m slow): 10^4 Hypothesis mutants of the example specs (~10 min), every URDF
-# of example-robot-data and pybullet_data against Pinocchio and docs/robots.md (~2 min)
+# of example-robot-data and pybullet_data against Pinocchio and docs/robots.md (~2 min), and the
+# compiles that repeat a faster case's (more Cortex-M, sanitizer and float builds, Pinocchio-cg)
 test-slow:
 	$(PYTHON) -m pytest -q -m slow
 

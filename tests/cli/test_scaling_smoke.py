@@ -8,9 +8,11 @@ import json
 import subprocess
 import sys
 
+import pytest
 from conftest import ROOT
 
 
+@pytest.mark.slow  # bench/scaling.py's quick mode; `make bench` runs the full one
 def test_scaling_quick(tmp_path):
     out, png = tmp_path / "scaling.json", tmp_path / "scaling.png"
     cmd = [sys.executable, str(ROOT / "bench" / "scaling.py"), "--quick", "--json", str(out), "--png", str(png)]

@@ -57,9 +57,18 @@ MATH = {
 }
 
 
+# every spec in both precisions; the resolved-rate PUMA and the adaptive one in float are the
+# suite's slowest cross-compiles (`make test-slow` runs them)
+SLOW_CORTEX_M = {("puma560_rmrc", "double"), ("puma560_rmrc", "float"), ("puma560_rmac", "float")}
+CORTEX_M_CASES = [
+    pytest.param(spec, precision, marks=pytest.mark.slow) if (spec, precision) in SLOW_CORTEX_M else (spec, precision)
+    for spec in ("puma560", "styx_high_ct", "puma560_rmrc", "puma560_rmac", "styx_multirate")
+    for precision in ("double", "float")
+]
+
+
 @pytest.mark.skipif(CC is None, reason="arm-none-eabi-gcc is not installed (Debian: apt-get install gcc-arm-none-eabi)")
-@pytest.mark.parametrize("precision", ["double", "float"])
-@pytest.mark.parametrize("spec", ["puma560", "styx_high_ct", "puma560_rmrc", "puma560_rmac", "styx_multirate"])
+@pytest.mark.parametrize("spec,precision", CORTEX_M_CASES)
 def test_cortex_m7_build(tmp_path, monkeypatch, spec, precision):
     monkeypatch.chdir(tmp_path)
     # the C alone first; it compiles here while robotgen builds it again and compiles it for

@@ -52,7 +52,13 @@ def inputs(module, function: str, rng) -> list[np.ndarray]:
     return values
 
 
-@pytest.mark.parametrize("spec", list(CASES))
+# the Stanford arm and the tripod grasp repeat what the PUMA and the Styx hands check: `make test-slow`
+SLOW_CASES = {"stanford", "tripod_grasp"}
+
+
+@pytest.mark.parametrize(
+    "spec", [pytest.param(spec, marks=pytest.mark.slow) if spec in SLOW_CASES else spec for spec in CASES]
+)
 def test_float_agrees_with_double(tmp_path, spec):
     double, single = build(spec, "double", tmp_path), build(spec, "float", tmp_path)
     rng = np.random.default_rng(8)

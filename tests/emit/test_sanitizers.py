@@ -94,7 +94,7 @@ def _size(port: dict) -> int:
         "styx_finger",
         "styx_high_ct",
         "styx_redundant",
-        "puma560_rmrc",
+        pytest.param("puma560_rmrc", marks=pytest.mark.slow),  # the PUMA's resolved-rate kernels: puma560's again
         "tripod_grasp",
         "styx_multirate",
     ],
