@@ -24,6 +24,7 @@ from robotgen.frontend.schema_types import expression_matrix as _expression_matr
 from robotgen.frontend.schema_types import expressions as _expressions
 from robotgen.frontend.schema_types import names as _names
 from robotgen.frontend.schema_types import number as _number
+from robotgen.frontend.schema_types import numbers as _numbers
 from robotgen.frontend.schema_types import parameter as _parameter
 from robotgen.frontend.schema_types import vector2 as _vector2
 from robotgen.frontend.schema_types import vector3 as _vector3
@@ -443,36 +444,12 @@ _DEFS = {
         {
             "duration": _number("simulated time [s], default 2", exclusiveMinimum=0),
             "dt": _number("servo period and RK4 step [s], default 0.001", exclusiveMinimum=0),
-            "start": {
-                "type": "array",
-                "items": {"$ref": "#/$defs/number"},
-                "description": "root positions at t = 0 (needs inverse kinematics in every attach)",
-            },
-            "theta0": {
-                "type": "array",
-                "items": {"$ref": "#/$defs/number"},
-                "description": "or the leaf joint positions at t = 0",
-            },
-            "initial_error": {
-                "type": "array",
-                "items": {"$ref": "#/$defs/number"},
-                "description": "the plant starts at start + initial_error",
-            },
-            "amplitude": {
-                "type": "array",
-                "items": {"$ref": "#/$defs/number"},
-                "description": "x_d(t) = start + amplitude sin(2 pi frequency t)",
-            },
-            "frequency": {
-                "type": "array",
-                "items": {"$ref": "#/$defs/number"},
-                "description": "[Hz] per root coordinate",
-            },
-            "internal_forces": {
-                "type": "array",
-                "items": {"$ref": "#/$defs/number"},
-                "description": "internal forces commanded at the root",
-            },
+            "start": _numbers("root positions at t = 0 (needs inverse kinematics in every attach)"),
+            "theta0": _numbers("or the leaf joint positions at t = 0"),
+            "initial_error": _numbers("the plant starts at start + initial_error"),
+            "amplitude": _numbers("x_d(t) = start + amplitude sin(2 pi frequency t)"),
+            "frequency": _numbers("[Hz] per root coordinate"),
+            "internal_forces": _numbers("internal forces commanded at the root"),
             "plant": {
                 "enum": list(PLANTS),
                 "description": "what the loop is closed around: robotgen (its own model, default), mujoco "
@@ -523,16 +500,8 @@ _DEFS = {
                 "pattern": IDENTIFIER,
                 "description": "a node whose 2 or 3 coordinates are a point in metres (a frame change's tip)",
             },
-            "point": {
-                "type": "array",
-                "items": {"$ref": "#/$defs/number"},
-                "description": "a point of the wall's face, in the node's coordinates [m]",
-            },
-            "normal": {
-                "type": "array",
-                "items": {"$ref": "#/$defs/number"},
-                "description": "the face's outward normal (any length): the wall fills (x - point) . normal < 0",
-            },
+            "point": _numbers("a point of the wall's face, in the node's coordinates [m]"),
+            "normal": _numbers("the face's outward normal (any length): the wall fills (x - point) . normal < 0"),
             "stiffness": _number("robotgen's plant: the wall's spring [N/m], > 0, default 1e5", exclusiveMinimum=0),
             "damping": _number("robotgen's plant: its damper [N s/m], >= 0, default 300", minimum=0),
         },

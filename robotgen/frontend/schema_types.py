@@ -24,6 +24,11 @@ def parameter(description: str, **bounds: float) -> dict:
     }
 
 
+def numbers(description: str) -> dict:
+    """A list of numbers, each a YAML number or a constant expression."""
+    return {"type": "array", "items": {"$ref": "#/$defs/number"}, "description": description}
+
+
 def weights(description: str) -> dict:
     """Schema of a weight: one number, or a list of numbers (a diagonal)."""
     return {"type": ["number", "string", "array"], "items": {"$ref": "#/$defs/number"}, "description": description}
