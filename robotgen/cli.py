@@ -26,7 +26,7 @@ from robotgen.model.describe import system_info, system_nq
 from robotgen.model.laws.hand import AdaptiveSettings
 from robotgen.model.laws.registry import LAWS
 from robotgen.model.names import MAX_LENGTH, PATTERN, name_problem
-from robotgen.model.rate_groups import multi_rate_groups, servo_period
+from robotgen.model.rate_groups import controller_periods, multi_rate_groups, servo_period
 from robotgen.model.system import ControlNode
 from robotgen.output_files import output_errors, write_files, write_problem
 from robotgen.progress import Progress
@@ -232,8 +232,11 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
         if not value > 0:
             raise _Usage(f"--{k} must be positive, got {value:g}")
     settings = dataclasses.replace(settings, **overrides)
-    for node in system.nodes.values():  # each internal-force PI loop stable at the period run
-        problem = node.internal_force_loop_problem(settings.dt) if isinstance(node, ControlNode) else None
+    # each internal-force PI loop stable at the period it runs at: its rate group's, or the one period
+    periods = controller_periods(system) if groups is not None else {}
+    for node in system.nodes.values():
+        period = periods.get(node.name, settings.dt)
+        problem = node.internal_force_loop_problem(period) if isinstance(node, ControlNode) else None
         if problem and "dt" in overrides:
             raise _Usage(f"--dt {settings.dt:g}: controller '{node.name}': {problem}")
         if problem:

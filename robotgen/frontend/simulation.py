@@ -9,6 +9,7 @@ from robotgen.frontend.collector import Collector
 from robotgen.frontend.document import Path
 from robotgen.model.laws.hand import HAND_AXES, HAND_DOF
 from robotgen.model.laws.registry import LAWS
+from robotgen.model.rate_groups import controller_periods
 from robotgen.model.signature import (
     METRE,
     SignatureError,
@@ -215,10 +216,16 @@ class SimulationReader(Collector):
         return Wall(name, point, tuple(v / length for v in normal), stiffness, damping)
 
     def internal_force_periods(self, system: RobotSystem, dt: float) -> None:
-        """Each internal-force PI loop is stable at the simulation's period: ki_internal dt <
-        2 (1 - kf_internal) (robotgen.symbolic.servo)."""
+        """Each internal-force PI loop is stable at the period its controller runs at (its own,
+        an ancestor's, else the simulation's dt): ki_internal dt < 2 (1 - kf_internal)
+        (robotgen.symbolic.servo)."""
+        try:
+            periods = controller_periods(system, dt)
+        except (KeyError, AttributeError):
+            periods = {}  # the tree has errors of its own, reported elsewhere
         for node in system.nodes.values():
-            problem = node.internal_force_loop_problem(dt) if isinstance(node, ControlNode) else None
+            period = periods.get(node.name, dt)
+            problem = node.internal_force_loop_problem(period) if isinstance(node, ControlNode) else None
             if problem:
                 self.at_value(("nodes", node.name, "control", "ki_internal"), problem)
 

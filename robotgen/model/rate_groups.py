@@ -95,12 +95,13 @@ def tree_controllers(system: RobotSystem) -> list[ControlNode]:
     return [n for n in system.walk() if isinstance(n, ControlNode) and not LAWS[n.law].is_root]
 
 
-def controller_periods(system: RobotSystem) -> dict[str, float]:
+def controller_periods(system: RobotSystem, default: float | None = None) -> dict[str, float]:
     """Each tree-law controller's period: its own, else its nearest controller ancestor's,
-    else simulation.dt (or DEFAULT_PERIOD) for the topmost ones."""
+    else ``default`` (simulation.dt, or DEFAULT_PERIOD, when not given) for the topmost ones."""
     if not tree_controllers(system):
         return {}
-    default = system.simulation.dt if system.simulation is not None else DEFAULT_PERIOD
+    if default is None:
+        default = system.simulation.dt if system.simulation is not None else DEFAULT_PERIOD
     out: dict[str, float] = {}
 
     def visit(name: str, above: float) -> None:

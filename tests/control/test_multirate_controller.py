@@ -365,3 +365,19 @@ def test_a_loop_on_the_sensed_squeeze_takes_tau_sensed(tmp_path, build_module, l
     # the squeeze loop changes the force written to the fingers (F_e), not their trajectory (x_e, xd_e, xdd_e)
     np.testing.assert_array_equal(unloaded[:6], squeezed[:6])
     assert np.abs(unloaded[6:] - squeezed[6:]).max() > 1e-5
+
+
+def test_a_squeeze_integral_is_checked_at_its_own_groups_period(tmp_path):
+    """ki_internal 300 with kf_internal 0.5 is stable at the 0.5 ms of the finger loops (ki dt =
+    0.15 < 1) but not at ct_hand's 5 ms (1.5): the check uses the period the loop runs at."""
+    text = SPEC.read_text().replace("name: styx_multirate", "name: styx_rates_ki")
+    path = tmp_path / "styx_rates_ki.yaml"
+    for ki, refused in ((300, True), (150, False)):
+        loop = f"      kf_internal: 0.5\n      ki_internal: {ki}\n      period: 0.005  "
+        path.write_text(text.replace("      period: 0.005  ", loop))
+        r = subprocess.run(
+            [sys.executable, "-m", "robotgen", "check", str(path)], capture_output=True, text=True, cwd=ROOT
+        )
+        assert (r.returncode == 1) == refused, r.stderr
+        if refused:
+            assert "ki_internal 300 with dt = 0.005 s" in r.stderr and "got 1.5" in r.stderr, r.stderr
