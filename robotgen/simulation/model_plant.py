@@ -24,6 +24,7 @@ class ModulePlant:
         self.module, self.theta, self.v, self.n_ext = module, theta, v, n_ext
         self.wall: WallContact | None = None
         self.masses: dict[str, float] = {}  # run-time payload masses, by parameter name
+        self._rates_now: np.ndarray | None = None  # theta_dot at the current state, once computed
 
     def set_wall(self, wall: Wall) -> None:
         """Put the simulation's wall in the plant."""
@@ -32,9 +33,18 @@ class ModulePlant:
     def set_payload_mass(self, payload: str, mass: float) -> None:
         """Change a run-time payload's mass [kg] from now on."""
         self.masses[f"{payload}_mass"] = mass
+        self._rates_now = None
 
     def _rates(self, theta: np.ndarray, v: np.ndarray) -> np.ndarray:
-        return self.module.plant_dynamics(theta, v, np.zeros(self.module.nq), **self.masses)[0]
+        """theta_dot (nq,) at (theta, v); at the current state computed once per step (the
+        sensing, the wall and the forces all ask for it)."""
+        now = theta is self.theta and v is self.v
+        if now and self._rates_now is not None:
+            return self._rates_now
+        rates = self.module.plant_dynamics(theta, v, np.zeros(self.module.nq), **self.masses)[0]
+        if now:
+            self._rates_now = rates
+        return rates
 
     def _pushed(self, theta: np.ndarray, v: np.ndarray, tau: np.ndarray) -> np.ndarray:
         """The actuators' torques plus the wall's push at (theta, v)."""
@@ -87,6 +97,7 @@ class ModulePlant:
                 "and kv, or dt"
             )
         self.theta, self.v = theta_next, v_next
+        self._rates_now = None
 
 
 def _rk4(f, theta, v, dt):
