@@ -78,7 +78,7 @@ def test_impedance_settles_at_stiffness_times_penetration(build_module, plant):
     (relative; on MuJoCo the contact force read back against the sensed joint load), and is K p
     = 8 N to 0.5 %, p = 2 cm (on robotgen's spring exactly K p k_w / (K + k_w) = 7.968 N)."""
     system, module = load_system(str(IMPEDANCE)), build_module(IMPEDANCE)
-    r = run(system, module, plant, duration=1.0)
+    r = run(system, module, plant, duration=10.0)
     K = module.parameters["press_stiffness"]
     x_wall, p = system.simulation.wall.point[0], system.simulation.start[0] - system.simulation.wall.point[0]
     spring = K * (r.x_d[-1, 0] - r.x[-1, 0])
@@ -92,16 +92,18 @@ def test_impedance_settles_at_stiffness_times_penetration(build_module, plant):
     if plant == "robotgen":
         k_w = system.simulation.wall.stiffness
         assert f == pytest.approx(K * p * k_w / (K + k_w), rel=1e-6)
-    assert np.all(np.abs(r.wall_force[-100:] - f) < 1e-6 * f)  # settled
+    # settled by 1 s and held for 9 more: no drift
+    assert np.all(np.abs(r.wall_force[r.t > 1.0] - f) < 1e-6 * f)
 
 
 @pytest.mark.parametrize("plant", ["robotgen", "mujoco"])
 def test_hybrid_holds_the_normal_force_while_sliding(build_module, plant):
     """10 N into the wall while the tip follows y_d = 0.5 + 0.15 sin(2 pi 0.25 t) along it: after the
     first 0.1 s the normal force stays within 0.05 N of 10 N and the tangential error within 0.05 mm,
-    and the tip stays on the wall (within 0.2 mm of its face)."""
+    and the tip stays on the wall (within 0.2 mm of its face), over 10 s (two and a half periods),
+    the last second no worse than the second after the first touch."""
     system, module = load_system(str(HYBRID)), build_module(HYBRID)
-    r = run(system, module, plant)
+    r = run(system, module, plant, duration=10.0)
     after = r.t > 0.1
     force_error = np.abs(r.wall_force[after] - 10.0).max()
     tangential = np.abs(r.error[after, 1]).max()
@@ -110,8 +112,9 @@ def test_hybrid_holds_the_normal_force_while_sliding(build_module, plant):
         f"\n  {plant}: |f - 10 N| <= {force_error:.2e} N, |y - y_d| <= {tangential:.2e} m, off the wall "
         f"<= {depth:.2e} m, y swept {np.ptp(r.x[:, 1]):.3f} m"
     )
-    assert r.wall_commanded == 10.0
     assert np.ptp(r.x[:, 1]) > 0.29  # it slid up and down
+    early, late = (np.abs(r.wall_force[(r.t > a) & (r.t <= a + 1)] - 10.0).max() for a in (1.0, 9.0))
+    assert late <= max(early, 1e-3)  # no drift
     assert force_error < 0.05 and tangential < 5e-5 and depth < 2e-4
 
 
@@ -165,14 +168,18 @@ def test_squeeze_loop_holds_after_a_payload_step(open_squeeze, build_module, pla
     controller was not told about: on robotgen's plant the static shift computed by hand
     (static_squeeze_shift, -0.185 N) to 1 %; with the PI loop it comes back to the 6 N commanded
     (within 1e-4 N on robotgen's plant; on MuJoCo's contacts, whose reading the loop does not
-    see, within a tenth of the open loop's error, and within 0.02 N of what it held before)."""
+    see, within a tenth of the open loop's error, and within 0.02 N of what it held before),
+    judged over the last second of a 10 s run."""
     errors = {}
     for name, spec in (("open", open_squeeze), ("PI", SQUEEZE)):
         system, module = load_system(str(spec)), build_module(spec)
-        r = run(system, module, plant, duration=2.5)
+        r = run(system, module, plant, duration=10.0)
         e = r.f_actual[:, 0] - r.f_commanded[0]
-        before, after = e[(r.t > 0.5) & (r.t < 1.0)].mean(), e[r.t > 2.0].mean()
+        late = e[r.t > 9.0]  # the last second of 10 s: settled, not passing through
+        before, after = e[(r.t > 0.5) & (r.t < 1.0)].mean(), late.mean()
         errors[name] = (before, after, e[-1])
+        if plant == "robotgen":
+            assert np.ptp(late) < 1e-4, (name, np.ptp(late))
         assert r.contacts is None or r.contacts.holds
     predicted = static_squeeze_shift(SQUEEZE, 0.3)
     print(
