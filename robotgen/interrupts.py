@@ -36,12 +36,6 @@ def answer(signum: int, frame) -> None:
     raise exception_for(signum)
 
 
-def noted() -> int | None:
-    """The first signal answered since the command began, whether or not its exception got
-    through."""
-    return _noted[0] if _noted else None
-
-
 def check() -> None:
     """Raises the exception of a signal answered since the command began (again, if it was
     raised once and swallowed)."""

@@ -30,6 +30,9 @@ class PayloadChange:
 # (2 sqrt(1e5 * 1) = 632); sqrt(1e5 / 1) dt = 0.32 at dt = 1 ms, well inside RK4's reach
 WALL_STIFFNESS = 1e5  # N/m
 WALL_DAMPING = 300.0  # N s/m
+# the largest constraint residual |y - h^-1(h(y))| accepted at a start pose [m or rad]: simulated
+# from, or linearised at (robotgen info)
+RESIDUAL_TOLERANCE = 1e-6
 
 
 @dataclass(frozen=True)

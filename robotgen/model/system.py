@@ -255,13 +255,6 @@ class ControlNode:
         """Law hybrid's settings (a TypeError for another law)."""
         return narrowed(self.force, HybridSettings, f"the force settings of {self.name!r}")
 
-    @property
-    def force_settings(self) -> ImpedanceSettings | HybridSettings:
-        """A force law's settings (a TypeError for another law)."""
-        if self.force is None:
-            raise TypeError(f"{self.name!r} has no force settings (law {self.law})")
-        return self.force
-
     def internal_force_loop_problem(self, dt: float) -> str | None:
         """Why the internal-force PI loop is unstable at servo period ``dt`` (None: it is not, or
         there is no integral): its poles are inside the unit circle when ki_internal dt <

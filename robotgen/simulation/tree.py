@@ -24,14 +24,11 @@ from pathlib import Path
 import numpy as np
 
 from robotgen.model.signature import FORCE_UNITS
-from robotgen.model.simulation import ROBOTGEN_PLANT
+from robotgen.model.simulation import RESIDUAL_TOLERANCE, ROBOTGEN_PLANT
 from robotgen.model.simulation import SimulationSettings as Settings
 from robotgen.simulation.failures import SimulationError, format_values
 from robotgen.simulation.model_plant import ModulePlant
 from robotgen.simulation.mujoco.contacts import ContactHistory
-
-# largest constraint residual |y - h^-1(h(y))| accepted at the start [m or rad]
-RESIDUAL_TOLERANCE = 1e-6
 
 
 @dataclass

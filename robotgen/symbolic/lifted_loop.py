@@ -33,7 +33,7 @@ import numpy as np
 from robotgen.model.parameter_struct import runtime_parameters
 from robotgen.model.rate_groups import RateGroups
 from robotgen.model.signature import robot_leaves
-from robotgen.model.simulation import SimulationSettings, rest_posture
+from robotgen.model.simulation import RESIDUAL_TOLERANCE, SimulationSettings, rest_posture
 from robotgen.model.system import RobotSystem
 from robotgen.symbolic.kernel import PARAMS, ParameterSymbols
 from robotgen.symbolic.plant import Plant, sensed_forces
@@ -42,9 +42,6 @@ from robotgen.symbolic.system import SystemGraphs
 
 # relative size of a singular value below which a direction counts as absent (rank decisions)
 RANK_TOLERANCE = 1e-9
-# the largest constraint residual |y - h^-1(h(y))| of a start pose the loop is linearised at
-# [m or rad], as robotgen simulate accepts a start
-RESIDUAL_TOLERANCE = 1e-6
 
 
 class OperatingPointError(ValueError):

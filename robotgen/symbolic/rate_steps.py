@@ -22,10 +22,9 @@ import casadi as ca
 
 from robotgen.model.rate_groups import RateGroups
 from robotgen.model.system import ControlNode, DefineNode, RobotSystem
-from robotgen.symbolic.control.tree_laws import tree_law
 from robotgen.symbolic.kernel import Kernel, make_kernel
 from robotgen.symbolic.rows import rows
-from robotgen.symbolic.servo import Servo, Trajectory, reads_forces
+from robotgen.symbolic.servo import Servo, Trajectory, keeps_state
 from robotgen.symbolic.system import SystemGraphs
 
 STEP, INIT = "servo_step_g{}", "servo_init_g{}"
@@ -67,9 +66,6 @@ class GroupServo(Servo):
         self.groups, self.k = groups, k
         self.below = False  # a controller of this group is above the node being written
         self.written: dict[str, Trajectory] = {}
-        self.reads_forces = any(
-            reads_forces(n) for n in graphs.system.walk() if isinstance(n, ControlNode) and n.name in own
-        )
 
     def write(self, name: str, t: Trajectory) -> None:
         """Write ``t`` to node ``name``; a faster group's controller gets it held, another group's work is skipped."""
@@ -203,10 +199,7 @@ def multi_rate(system: RobotSystem, groups: RateGroups) -> MultiRate:
     """The MultiRateController of ``system`` with these groups."""
 
     def stateful(k: int) -> bool:
-        nodes = [system.nodes[name] for name in groups.groups[k].controllers]  # a stateful law, or an integral
-        return any(
-            isinstance(n, ControlNode) and (tree_law(n.law).stateful or n.ki_internal is not None) for n in nodes
-        )
+        return any(keeps_state(system.control(name)) for name in groups.groups[k].controllers)
 
     return MultiRate(
         MULTI_RATE_CLASS,

@@ -43,6 +43,11 @@ class Trajectory:
 LAW_STATE, FORCE_INTEGRAL = "law", "internal_force_integral"
 
 
+def keeps_state(node: ControlNode) -> bool:
+    """The controller has a block of state (state_blocks): its law's, or its force integral's."""
+    return tree_law(node.law).state is not None or node.ki_internal is not None
+
+
 def state_blocks(graphs: SystemGraphs, name: str) -> list[tuple[ControlNode, str, ca.SX]]:
     """The controller state below ``name``, block by block in walk order: (controller, kind,
     the block's value after a reset). A stateful law's own state (LAW_STATE), then the
@@ -84,7 +89,10 @@ class Servo:
         self.next_state: dict[tuple[str, str], ca.SX] = {}
         # the leaves' sensed forces (rd of a DEFINE, §3.2), read when a controller below closes
         # a loop on sensed internal forces or has a law that reads forces
-        self.reads_forces = reads_sensed_forces(graphs, top)
+        self.reads_forces = any(
+            isinstance(n, ControlNode) and reads_forces(n) and (controllers is None or n.name in controllers)
+            for n in graphs.system.walk(top)
+        )
         self.tau_sensed = ca.SX.sym("tau_sensed", graphs.n)
         self._sensed: dict[str, tuple[ca.SX, ca.SX]] = {}
 

@@ -22,12 +22,11 @@ import numpy as np
 
 from robotgen.errors import UserError
 from robotgen.model.system import CONTACT_GRASPS, AttachNode, RobotSystem
-from robotgen.simulation.failures import SimulationError
+from robotgen.simulation.failures import DIVERGED, SimulationError, format_values
 from robotgen.simulation.mujoco import require_mujoco
 from robotgen.simulation.mujoco.contacts import ContactHistory, Reading, internal_forces
 from robotgen.simulation.mujoco.model import PlantModel, below_controls, fingertips, plant_model
 
-DIVERGED = 1e8  # as robotgen.simulation.tree
 # the MuJoCo model must reproduce robotgen's M and C qd + N to this (relative), or the
 # mapping is wrong; MIN_INERTIA alone moves the Styx fingers' M by ~1e-11
 AGREEMENT = 1e-8
@@ -297,7 +296,7 @@ def check_agreement(sim: MujocoPlant, leaf_dynamics, theta0: np.ndarray, rng: np
                         leaf.location,
                         f"the MuJoCo model of leaf '{leaf.name}' does not reproduce "
                         f"robotgen's: {what} differs by {error:.3g} (relative) at "
-                        f"theta = [{', '.join(f'{v:.4g}' for v in theta[s])}]",
+                        f"theta = {format_values(theta[s])}",
                     )
         if tips is not None:
             positions = dict(zip((leaf.name for leaf in sim.plant.leaves), sim.tips()))
@@ -310,7 +309,7 @@ def check_agreement(sim: MujocoPlant, leaf_dynamics, theta0: np.ndarray, rng: np
                         f"the MuJoCo model puts the fingertip of leaf '{leaf}' at "
                         f"[{', '.join(f'{v:.6g}' for v in found)}], robotgen at "
                         f"[{', '.join(f'{v:.6g}' for v in expected)}] (theta = "
-                        f"[{', '.join(f'{v:.4g}' for v in theta)}]): the tip frame is not the "
+                        f"{format_values(theta)}): the tip frame is not the "
                         "point the kinematics give",
                     )
 
@@ -413,8 +412,8 @@ class TreePlant:
         except Diverged:
             raise SimulationError(
                 f"the closed loop on the MuJoCo plant diverged {when}: the state before the "
-                f"blow-up was theta = [{', '.join(f'{v:.4g}' for v in theta)}], torque = "
-                f"[{', '.join(f'{v:.4g}' for v in tau)}]; the gains are too high for dt = {dt:g} s "
+                f"blow-up was theta = {format_values(theta)}, torque = "
+                f"{format_values(tau)}; the gains are too high for dt = {dt:g} s "
                 "or the loop is unstable: lower kp and kv, or dt"
             ) from None
         self._readings = self.sim.readings() if self.sim.plant.contacts else []
