@@ -97,6 +97,6 @@ def compare(multi: Result, single: Result, info: dict) -> str:
     )
     lines.append(f"the multi-rate tree costs {c.multi_rate / c.single.per_second:.3f} of the single-rate one")
     for label, result in (("the multi-rate run", multi), ("the single-rate run", single)):
-        contacts = simulate.contact_lines(result)
+        contacts = simulate.force_lines(result) + simulate.contact_lines(result)
         lines += [f"{label}:", *(f"  {line}" for line in contacts)] if contacts else []
     return "\n".join(lines)

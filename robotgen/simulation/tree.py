@@ -420,10 +420,10 @@ def summary(result: Result) -> str:
     for i, name in enumerate(result.joints):
         unit = FORCE_UNITS[result.joint_units[i]] if i < len(result.joint_units) else ""
         lines.append(f"  {'tau ' + name:>12}: max |.| {np.abs(result.tau[:, i]).max():.4g}{_unit(unit)}")
-    return "\n".join(lines + _force_lines(result) + contact_lines(result))
+    return "\n".join(lines + force_lines(result) + contact_lines(result))
 
 
-def _force_lines(result: Result) -> list[str]:
+def force_lines(result: Result) -> list[str]:
     """The plant's payload changes; each commanded internal force's error (largest over the run,
     and at the end); the wall's normal force (largest, final) and what was commanded into it."""
     lines = []
@@ -500,6 +500,6 @@ def compare(a: Result, b: Result) -> str:
         )
     lines.append(f"largest |tau_{a.plant} - tau_{b.plant}|: {np.abs(a.tau - b.tau).max():.3g}")
     for r in (a, b):
-        forces = _force_lines(r)
+        forces = force_lines(r)
         lines += [f"on the {r.plant} plant:"] + ["  " + line for line in forces] if forces else []
     return "\n".join(lines + contact_lines(a) + contact_lines(b))
