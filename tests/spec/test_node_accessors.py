@@ -81,6 +81,6 @@ def test_a_root_law_settings_accessor_narrows_to_its_own(spec, accessor, kind):
 
 def test_a_tree_law_has_no_settings_to_narrow(styx):
     pd = styx.control("pd_left")
-    for accessor in ("hand_settings", "rate_settings", "force_settings", "adaptive", "impedance"):
+    for accessor in ("hand_settings", "rate_settings", "adaptive", "impedance", "hybrid"):
         with pytest.raises(TypeError, match="'pd_left'"):
             getattr(pd, accessor)
