@@ -156,12 +156,12 @@ def _cmd_build(args: argparse.Namespace) -> int:
         "source_sha256": system.source_sha256,  # an MJCF file's: its includes and meshes too
         **({"targets": list(targets)} if targets else {}),
     }
-    from robotgen.emit.build import replace_problem
+    from robotgen.emit.build import parent_locked, replace_problem
     from robotgen.emit.pipeline import BuildOptions, build, build_inputs
 
     inputs = build_inputs(system)
     key = cache.build_key(list(inputs), options)
-    with output_errors(out):
+    with output_errors(out), parent_locked(out, shared=True):  # (not while another build swaps in)
         if cache.is_current(out, key, not args.no_compile, system.name):
             print(f"robotgen: {out} is up to date")
             return EXIT_OK

@@ -7,8 +7,8 @@ import importlib
 import os
 import shutil
 import sys
-from collections.abc import Sequence
-from contextlib import contextmanager
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager, nullcontext
 from pathlib import Path
 from types import ModuleType
 
@@ -38,7 +38,7 @@ def _posix_locks() -> ModuleType | None:
 
 fcntl = _posix_locks()
 
-__all__ = ["MANIFEST", "emit", "replace_problem"]
+__all__ = ["MANIFEST", "emit", "parent_locked", "replace_problem"]
 
 
 def emit(
@@ -115,8 +115,9 @@ def emit(
     return out_dir
 
 
-def _check_replaceable(out_dir: Path, inputs: tuple[Path, ...]) -> None:
-    problem = replace_problem(out_dir, inputs)
+def _check_replaceable(out_dir: Path, inputs: tuple[Path, ...], locked: bool = False) -> None:
+    with nullcontext() if locked else parent_locked(out_dir, shared=True):
+        problem = replace_problem(out_dir, inputs)
     if problem:
         raise OutputError(problem)
 
@@ -125,15 +126,17 @@ _signals_held = interrupts.held  # the swap's signals wait for its end
 
 
 @contextmanager
-def _parent_locked(out_dir: Path):
-    """An exclusive lock on the output's parent directory (POSIX flock), so that builds to one
-    output directory running at once swap in one after the other: the last one wins, whole."""
-    if fcntl is None:  # not POSIX: no lock
+def parent_locked(out_dir: Path, shared: bool = False) -> Iterator[None]:
+    """A lock on the output's parent directory (POSIX flock): exclusive, so that builds to one
+    output directory running at once swap in one after the other (the last one wins, whole);
+    shared, to read the output while no swap is half done (between its two renames the
+    directory is absent, and its files would look foreign). No parent yet: nothing to lock."""
+    if fcntl is None or not out_dir.parent.is_dir():  # not POSIX, or nothing there yet
         yield
         return
     fd = os.open(out_dir.parent, os.O_RDONLY)
     try:
-        fcntl.flock(fd, fcntl.LOCK_EX)
+        fcntl.flock(fd, fcntl.LOCK_SH if shared else fcntl.LOCK_EX)
         yield
     finally:
         os.close(fd)  # releases the lock
@@ -144,8 +147,8 @@ def _swap_in(staging: Path, out_dir: Path, inputs: tuple[Path, ...]) -> None:
     under the lock and with signals held. The earlier output is checked again first (files may
     have come into it during the build), and of it only what robotgen can prove it wrote is
     deleted: anything that came in between that check and the rename is kept aside, and said."""
-    with _parent_locked(out_dir), _signals_held():
-        _check_replaceable(out_dir, inputs)
+    with parent_locked(out_dir), _signals_held():
+        _check_replaceable(out_dir, inputs, locked=True)
         if not out_dir.exists():
             staging.rename(out_dir)
             return

@@ -78,6 +78,23 @@ def test_concurrent_builds_to_one_directory_both_succeed(tmp_path):
         assert not [p for p in tmp_path.iterdir() if p.name.startswith(".gen.")]
 
 
+def test_a_build_reads_the_output_only_between_swaps(tmp_path):
+    """The check before the graphs are built waits for a swap in progress (the parent's lock):
+    mid-swap the output directory is absent for a moment, and a check reading it then found
+    its files foreign (CI once refused one of six concurrent builds so)."""
+    from robotgen.emit.build import parent_locked
+
+    out = tmp_path / "gen"
+    assert start(out).wait(timeout=120) == 0
+    (out / ".robotgen-build").unlink()
+    with parent_locked(out):  # a swap in progress
+        proc = start(out)
+        time.sleep(8)  # a whole two-link build takes about 2 s
+        assert proc.poll() is None
+        assert not [p for p in tmp_path.iterdir() if p.name.startswith(".gen.")]  # no staging yet
+    assert proc.wait(timeout=120) == 0
+
+
 @pytest.mark.parametrize("signum, status", [(signal.SIGINT, 130), (signal.SIGTERM, 143)])
 def test_a_signal_while_python_imports_robotgen_is_one_line(tmp_path, signum, status):
     """Signals 0.1-0.55 s after the start, while numpy and CasADi are imported (a KeyboardInterrupt
