@@ -388,6 +388,13 @@ _DEFS = {
                 "ki_internal z, z the integral of e = f_d - f_sensed (controller state), "
                 ">= 0, with ki_internal dt < 2 (1 - kf_internal); default none"
             ),
+            "anchor": {
+                "type": ["number", "string", "boolean"],
+                "description": "computed_torque and feedforward: the time constant [s] over which the "
+                "expected trajectory (x_e, xd_e) it integrates relaxes to the sensed state, > 0, "
+                "default 1; false: the open-loop integral as printed (Deno et al. 1990, 3.4), "
+                "which drifts in directions no controller above observes, such as a grasp's squeeze",
+            },
             "internal_forces": {
                 "type": "array",
                 "minItems": 1,

@@ -164,6 +164,9 @@ GAIN_MODES = (RUNTIME_GAINS, FOLDED_GAINS)
 # run time to the parameters they become (robotgen.model.parameters)
 GAIN = Bounds.positive("gain", "the gain matrix must be positive definite")  # a number or a diagonal
 GAIN_MATRIX = Bounds.definite("gain matrix")
+# s: the time constant over which a computed-torque or feedforward controller's expected
+# trajectory relaxes to the sensed state (robotgen.symbolic.control.law.integrate)
+ANCHOR = 1.0
 DAMPING = Bounds("damping kv_internal", minimum=0.0)  # of internal motions (eq 5.13)
 PAYLOAD_MASS = Bounds("mass", minimum=0.0)
 
@@ -203,6 +206,7 @@ class ControlNode:
     # run-time parameters; `gains: folded` compiles them in
     gain_forms: tuple[str, str] = (MATRIX_GAIN, MATRIX_GAIN)  # how the spec wrote kp, kv
     period: float | None = None  # seconds; None: the parent's (robotgen.model.rate_groups)
+    anchor: float | None = ANCHOR  # s: the expected trajectory relaxes to the sensed state; None: open loop
 
     primitive = "control"
 

@@ -151,11 +151,15 @@ def static_squeeze_shift(spec: Path, extra_mass: float) -> float:
 
 @pytest.fixture(scope="module")
 def open_squeeze(tmp_path_factory) -> Path:
-    """specs/styx_squeeze.yaml without its loop: kf_internal and ki_internal removed."""
+    """specs/styx_squeeze.yaml without its loop: kf_internal and ki_internal removed, and the
+    expected trajectories integrated open loop as printed (anchor: false), which brings the box
+    back to its desired pose under the weight: the static shift's premise."""
     data = yaml.safe_load(SQUEEZE.read_text())
     data["name"] = "styx_squeeze_open"
     for key in ("kf_internal", "ki_internal"):
         data["nodes"]["ct_hand"]["control"].pop(key)
+    for node in ("ct_hand", "ff"):
+        data["nodes"][node]["control"]["anchor"] = False
     spec = tmp_path_factory.mktemp("open") / "styx_squeeze_open.yaml"
     spec.write_text(yaml.safe_dump(data, sort_keys=False))
     return spec

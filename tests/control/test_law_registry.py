@@ -6,7 +6,7 @@ from __future__ import annotations
 import pytest
 
 from robotgen.model.laws.registry import LAWS, root_laws, tree_laws
-from robotgen.symbolic.control.law import TreeLaw, reads_no_forces
+from robotgen.symbolic.control.law import TreeLaw, expected_start, reads_no_forces
 from robotgen.symbolic.root_laws.law import RootLaw
 
 SIMULATION_ENTRIES = ("refusal", "comparison_system", "simulate", "write_csv", "plot", "summary", "compare")
@@ -35,6 +35,7 @@ def test_every_part_a_law_names_exists(name):
 def test_a_tree_laws_flags_agree_with_its_kernels(name):
     law, kernels = LAWS[name], LAWS[name].part("kernels")
     assert law.stateful == kernels.stateful
+    assert law.expected == (kernels.state is expected_start)  # what `anchor` applies to
     assert law.reads_forces == (kernels.reads_forces is not reads_no_forces)
     assert law.internal_forces == (not kernels.transparent)  # a transparent law passes everything up
     assert law.gains == (law.no_gains == "")

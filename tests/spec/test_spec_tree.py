@@ -522,6 +522,38 @@ TREE_ERRORS = [
         "nodes.top.control.kv: law feedforward takes no kv",
     ),
     (
+        "pd integrates no expected trajectory",
+        control("""\
+      law: pd
+      kp: 1
+      kv: 1
+      anchor: 0.5
+"""),
+        21,
+        7,
+        "nodes.top.control.anchor: law pd integrates no expected trajectory to anchor",
+    ),
+    (
+        "anchor true",
+        control("""\
+      law: feedforward
+      anchor: true
+"""),
+        19,
+        15,
+        "nodes.top.control.anchor: anchor takes a time constant [s] > 0, or false",
+    ),
+    (
+        "anchor not positive",
+        control("""\
+      law: feedforward
+      anchor: 0
+"""),
+        19,
+        15,
+        "nodes.top.control.anchor",
+    ),
+    (
         "computed torque needs kv",
         control("""\
       law: computed_torque

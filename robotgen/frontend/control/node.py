@@ -18,6 +18,7 @@ from robotgen.model.system import (
     GAIN,
     GAIN_MATRIX,
     PAYLOAD_BODIES,
+    ANCHOR,
     RUNTIME_GAINS,
     ControlNode,
     DefineNode,
@@ -35,6 +36,7 @@ NODE_KEYS = (
     "resolve_internal_motion",
     "gains",
     "period",
+    "anchor",
 )
 
 
@@ -61,7 +63,18 @@ class ControlReader(Collector):
             resolve_internal_motion=bool(spec.get("resolve_internal_motion", False)),
             runtime_gains=spec.get("gains", RUNTIME_GAINS) == RUNTIME_GAINS,
             period=self.optional(spec, path, "period", None, minimum=0.0, exclusive=True),
+            anchor=self._anchor(path, spec),
         )
+
+    def _anchor(self, path: Path, spec: dict) -> float | None:
+        """The expected trajectory's time constant: ANCHOR if absent, None for ``false``."""
+        value = spec.get("anchor", ANCHOR)
+        if value is False:
+            return None
+        if value is True:
+            self.at_value(path + ("anchor",), "anchor takes a time constant [s] > 0, or false")
+            return ANCHOR
+        return self.constant(path + ("anchor",), value, minimum=0.0, exclusive=True)
 
     def check_control(self, system: RobotSystem, node: ControlNode, robot: Signature) -> ControlNode:
         """The node checked against its law (robotgen.model.laws.registry): a root law takes
@@ -84,6 +97,10 @@ class ControlReader(Collector):
                 path + ("robot",),
                 f"'{node.robot}' is a rigid_body, a payload without actuators; it cannot be controlled",
             )
+        if not law.expected:
+            if "anchor" in spec:
+                self.at_key(path + ("anchor",), f"law {law.name} integrates no expected trajectory to anchor")
+            node = dataclasses.replace(node, anchor=None)
         n = robot.n_external
         gains = {}
         for key in ("kp", "kv"):

@@ -33,6 +33,8 @@ class Law:
     reads_forces:    may read the force its robot senses (the servo step then takes tau_sensed).
     stateful:        keeps a controller state (an expected trajectory, a force integral, an
                      identification).
+    expected:        integrates an expected trajectory (x_e, xd_e) for the robot below
+                     (§3.4), anchored to the sensed state by the node's ``anchor``.
     settings:        the front end's reader of the block named after the law:
                      (reader, system, node, spec, robot signature) -> the checked ControlNode.
     schema:          that block's JSON-schema ``$defs`` entry.
@@ -50,6 +52,7 @@ class Law:
     internal_forces: bool = True
     reads_forces: bool = False
     stateful: bool = False
+    expected: bool = False
     settings: str | None = None
     schema: str | None = None
     simulation: str | None = None

@@ -28,11 +28,12 @@ _CONTROLLER = "it makes the module's controller"
 LAWS: dict[str, Law] = {
     law.name: law
     for law in (
-        Law(COMPUTED_TORQUE, f"{_TREE}.computed_torque:LAW", stateful=True),
+        Law(COMPUTED_TORQUE, f"{_TREE}.computed_torque:LAW", stateful=True, expected=True),
         Law(
             FEEDFORWARD,
             f"{_TREE}.feedforward:LAW",
             stateful=True,
+            expected=True,
             gains=False,
             no_gains="it is computed torque with Kp = Kv = 0",
         ),

@@ -118,7 +118,17 @@ def expected_start(robot: NodeGraph) -> ca.SX:
 
 def integrate(c: Command, a_e: ca.SX) -> ca.SX:
     """The expected trajectory one servo period on, at constant acceleration a_e:
-    x_e + dt xd_e + dt^2 / 2 a_e on the positions, xd_e + dt a_e on the velocity."""
+    x_e + dt xd_e + dt^2 / 2 a_e on the positions, xd_e + dt a_e on the velocity (§3.4's
+    double integral of xdd_e), moved by a fraction g = min(dt / anchor, 1) of the gap between
+    the sensed state (x, xd) and the expected one at this tick. Open loop (``anchor`` None), the integral drifts from the robot in
+    directions no controller above observes (a grasp's internal motion: the PD loops below
+    then press against the grasp and undo its squeeze); anchored, it stays within about
+    anchor times that drift's rate."""
     x_s, v_s = c.expected
     nx = x_s.shape[0]
-    return ca.vertcat(x_s + c.dt * rows(v_s, 0, nx) + 0.5 * c.dt**2 * rows(a_e, 0, nx), v_s + c.dt * a_e)
+    x_n = x_s + c.dt * rows(v_s, 0, nx) + 0.5 * c.dt**2 * rows(a_e, 0, nx)
+    v_n = v_s + c.dt * a_e
+    if c.node.anchor is not None:
+        g = ca.fmin(c.dt / c.node.anchor, 1.0)
+        x_n, v_n = x_n + g * (c.robot.x - x_s), v_n + g * (c.robot.v - v_s)
+    return ca.vertcat(x_n, v_n)
