@@ -14,11 +14,11 @@ from robotgen.model.laws.registry import LAWS
 from robotgen.model.parameters import DIAGONAL_GAIN, MATRIX_GAIN, SCALAR_GAIN, Bounds
 from robotgen.model.signature import Signature
 from robotgen.model.system import (
+    ANCHOR,
     DAMPING,
     GAIN,
     GAIN_MATRIX,
     PAYLOAD_BODIES,
-    ANCHOR,
     RUNTIME_GAINS,
     ControlNode,
     DefineNode,

@@ -120,10 +120,10 @@ def integrate(c: Command, a_e: ca.SX) -> ca.SX:
     """The expected trajectory one servo period on, at constant acceleration a_e:
     x_e + dt xd_e + dt^2 / 2 a_e on the positions, xd_e + dt a_e on the velocity (§3.4's
     double integral of xdd_e), moved by a fraction g = min(dt / anchor, 1) of the gap between
-    the sensed state (x, xd) and the expected one at this tick. Open loop (``anchor`` None), the integral drifts from the robot in
-    directions no controller above observes (a grasp's internal motion: the PD loops below
-    then press against the grasp and undo its squeeze); anchored, it stays within about
-    anchor times that drift's rate."""
+    the sensed state (x, xd) and the expected one at this tick. Open loop (``anchor`` None),
+    the integral drifts from the robot in directions no controller above observes (a grasp's
+    internal motion: the PD loops below then press against the grasp and undo its squeeze);
+    anchored, it stays within about anchor times that drift's rate."""
     x_s, v_s = c.expected
     nx = x_s.shape[0]
     x_n = x_s + c.dt * rows(v_s, 0, nx) + 0.5 * c.dt**2 * rows(a_e, 0, nx)
