@@ -89,7 +89,7 @@ def test_a_build_reads_the_output_only_between_swaps(tmp_path):
     (out / ".robotgen-build").unlink()
     with parent_locked(out):  # a swap in progress
         proc = start(out)
-        time.sleep(8)  # a whole two-link build takes about 2 s
+        time.sleep(4)  # a whole two-link build takes about 2 s
         assert proc.poll() is None
         assert not [p for p in tmp_path.iterdir() if p.name.startswith(".gen.")]  # no staging yet
     assert proc.wait(timeout=120) == 0
