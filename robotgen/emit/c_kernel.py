@@ -332,7 +332,7 @@ def _straight_line(
 
 def _block(program: Program, precision: Precision) -> Program:
     """A straight-line block's program (a kernel's, a stage helper's, a prologue's) after the passes chosen for it."""
-    return passes.choose(program, Use.BLOCK, precision.real).apply(program)
+    return passes.choose(program, Use.BLOCK).apply(program)
 
 
 def _sincos_statements(step: Instruction, register: str, precision: Precision, lanes: bool = False) -> list[str]:
@@ -468,7 +468,7 @@ def _scheduled_body(
         outputs |= {loop.writes[port].index for port in named.outputs if loop.writes[port].kind != LOCAL}
         outputs |= {loop.reads[port].index for port in named.inputs if loop.reads[port].kind != LOCAL}
         registers, statements = _straight_line(
-            passes.choose(program, Use.LOOP_BODY, precision.real).apply(program),
+            passes.choose(program, Use.LOOP_BODY).apply(program),
             inner,
             precision,
             lambda port, element, loop=loop: address(loop.reads[port], element),

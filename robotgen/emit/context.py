@@ -306,7 +306,7 @@ def module_view(
         parts=max(f.part for f in functions) + 1,
         zero=c_kernel.literal(0.0, PRECISIONS[precision]),
         one=c_kernel.literal(1.0, PRECISIONS[precision]),
-        sincos_helper=sincos.helper_source() if sincos_parts else "",
+        sincos_helper=sincos.helper_source(PRECISIONS[precision].real) if sincos_parts else "",
         sincos_parts=sincos_parts,
         helpers=helpers,
         lanes_guard=lanes.LANES_GUARD if laned else "",
@@ -323,7 +323,7 @@ def _lane_helpers(
     kernels: list[Kernel], functions: tuple[FunctionView, ...], helper_names: dict, precision: c_kernel.Precision
 ) -> tuple[HelperView, ...]:
     """The lane forms of what the batched functions' lane kernels call, each static in every part
-    that calls it: their stages' helpers, and rg_sincos2 (double) first, since those call it too."""
+    that calls it: their stages' helpers, and rg_sincos2 first, since those call it too."""
     by_name = {f.name: f for f in functions}
     stages: dict[str, tuple[str, set[int]]] = {}
     sincos_parts: set[int] = set()
@@ -343,7 +343,9 @@ def _lane_helpers(
         if calls_sincos in text:
             sincos_parts |= parts
     views = (
-        [HelperView(sincos.HELPER, sincos.lane_helper_source(), tuple(sorted(sincos_parts)))] if sincos_parts else []
+        [HelperView(sincos.HELPER, sincos.lane_helper_source(precision.real), tuple(sorted(sincos_parts)))]
+        if sincos_parts
+        else []
     )
     views += [HelperView(c_name, text, tuple(sorted(parts))) for c_name, (text, parts) in stages.items()]
     return tuple(views)

@@ -48,9 +48,9 @@ class Passes:
         return sincos.pair_angles(program) if self.pair_angles else program
 
 
-def choose(program: Program, use: Use, real: str) -> Passes:
-    """The passes for ``program`` printed as ``use`` in C type ``real`` ("double" or "float")."""
+def choose(program: Program, use: Use) -> Passes:
+    """The passes for ``program`` printed as ``use`` (in either precision: each has its rg_sincos2)."""
     if use is Use.LOOP_BODY:
         return Passes(Order.AS_READ, pair_angles=False)
     order = Order.LIST if issue_order.latency_bound(program) else Order.PRESSURE
-    return Passes(order, pair_angles=real == "double")
+    return Passes(order, pair_angles=True)

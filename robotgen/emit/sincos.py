@@ -1,18 +1,21 @@
-"""sin and cos of a kernel's angles, two angles at a time, in double precision.
+"""sin and cos of a kernel's angles, two angles at a time.
 
 A robot kernel's trigonometry is one sin and one cos per revolute joint, of the joint angle
 (plus a constant offset), and those pairs were half the time of a small kernel through libm.
-The emitted double code computes them with ``rg_sincos2``, a routine printed into the
-source once: both angles' Cody-Waite reduction to r in [-pi/4, pi/4] (n = round(2x/pi),
-r = x - n pi/2 with pi/2 in three parts), minimax polynomials of sin r (degree 13) and
-cos r (degree 14) evaluated by Estrin's scheme, and the quadrant n mod 4 choosing and signing
-them without a branch. The two angles' statements are written lane by lane, so that a
-compiler may run both in one vector register (gcc and clang at -O2 on x86-64 do).
+The emitted code computes them with ``rg_sincos2``, a routine printed into the source once,
+in the module's precision: both angles' Cody-Waite reduction to r in [-pi/4, pi/4]
+(n = round(2x/pi), r = x - n pi/2 with pi/2 in three parts), minimax polynomials of sin r and
+cos r evaluated by Estrin's scheme, and the quadrant n mod 4 choosing and signing them without
+a branch. The two angles' statements are written lane by lane, so that a compiler may run both
+in one vector register (gcc and clang at -O2 on x86-64 do).
 
-Bound: absolute error at most 2.3e-16 (about one unit in the last place of a number near 1)
-for |x| <= 1e5; larger, infinite and NaN angles go to libm's sin and cos. The pi/2 split
-comes from exact rational arithmetic and the polynomials' coefficients from decimal strings,
-so the printed literals are the same on every machine. Float kernels keep sinf and cosf.
+Bounds (``ROUTINES``): in double, polynomials of degree 13 and 14, absolute error at most
+2.3e-16 (about one unit in the last place of a number near 1) for |x| <= 1e5; in float,
+degree 9 and 8, at most 1.0e-7 (1.7 units of 1.0's last place; libm's sinf is within one)
+for |x| <= 4096. Larger, infinite and NaN angles go to libm. The pi/2 split comes from exact
+rational arithmetic and the polynomials' coefficients from decimal strings, so the printed
+literals are the same on every machine, and so are the sines and cosines, whatever the libm
+(a Cortex-M's newlib or glibc).
 
 ``pair_angles`` rewrites a straight-line program so that every angle (the value under a sin
 or a cos) is computed first, then one SINCOS step computes all their sines and cosines,
@@ -22,9 +25,11 @@ and each sin or cos becomes a read of its lane.
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from fractions import Fraction
 
 import casadi as ca
+import numpy as np
 
 from robotgen.emit import lane_names
 from robotgen.emit.sx_program import Instruction, Program, defining_steps
@@ -37,10 +42,6 @@ SINCOS = -1001  # args: the angles' registers, in lane order
 SIN_LANE = -1002  # target = sin of lane ``element``
 COS_LANE = -1003
 
-ABOVE = 1.0e5  # |x| past this (or not finite) goes to libm
-
-# pi to 80 digits, split as pi/2 = P1 + P2 + P3: P1 and P2 of 33 significant bits, so that
-# n P1 and n P2 are exact for |n| < 2^20 (|x| <= 1e5 gives |n| <= 63662).
 _PI = Fraction("3.1415926535897932384626433832795028841971693993751058209749445923078164062862")
 
 
@@ -50,93 +51,157 @@ def _leading_bits(value: Fraction, bits: int) -> Fraction:
     return Fraction(math.floor(value * scale)) / scale
 
 
-_P1 = _leading_bits(_PI / 2, 33)
-_P2 = _leading_bits(_PI / 2 - _P1, 33)
-_P3 = _PI / 2 - _P1 - _P2
-_TWO_OVER_PI = 2 / _PI
-# The minimax polynomials of fdlibm's __kernel_sin and __kernel_cos (Sun Microsystems, 1993):
-# sin r = r + r z (S1 + S2 z + ... + S6 z^5) and cos r = 1 + z (-1/2 + C1 z + ... + C6 z^6),
-# z = r^2, |r| <= pi/4, each within 2^-57 of the function; degree 13 and 14 where the Taylor
-# series needs 17 and 16. Printed from these decimal strings, the same literals everywhere.
-SIN_TERMS = (
-    "-1.66666666666666324348e-01",
-    "8.33333333332248946124e-03",
-    "-1.98412698298579493134e-04",
-    "2.75573137070700676789e-06",
-    "-2.50507602534068634195e-08",
-    "1.58969099521155010221e-10",
-)
-COS_TERMS = (
-    "-0.5",
-    "4.16666666666666019037e-02",
-    "-1.38888888888741095749e-03",
-    "2.48015872894767294178e-05",
-    "-2.75573143513906633035e-07",
-    "2.08757232129817482790e-09",
-    "-1.13596475577881948265e-11",
-)
+@dataclass(frozen=True)
+class Routine:
+    """rg_sincos2 in one precision.
+
+    above:  |x| past this (or not finite) goes to libm.
+    offset: n + offset > 0 for every |x| <= above, so that the conversion to int truncates
+            2x/pi + offset to round(2x/pi) + offset - 1/2.
+    bits:   significant bits of the first two parts of pi/2, P1 and P2, so that n P1 and n P2
+            are exact for every n of |x| <= above.
+    sin_terms, cos_terms: sin r = r + r z (s_0 + s_1 z + ...), cos r = 1 + z (c_0 + c_1 z + ...),
+            z = r^2, minimax on |r| <= pi/4."""
+
+    real: str
+    above: float
+    offset: float
+    bits: int
+    sin_terms: tuple[str, ...]
+    cos_terms: tuple[str, ...]
+
+    @property
+    def suffix(self) -> str:
+        """Of C's float literals and math functions: "f" in float."""
+        return "f" if self.real == "float" else ""
+
+    def literal(self, value: Fraction | str | float) -> str:
+        """The nearest value of the type as a C literal that reads back exactly."""
+        if self.real == "double":
+            return repr(float(value))
+        v = float(np.float32(float(value)))
+        text = next(t for t in (f"{v:.{d}g}" for d in range(1, 10)) if float(np.float32(float(t))) == v)
+        return text + ("" if any(c in text for c in ".e") else ".0") + "f"
+
+    @property
+    def parts(self) -> tuple[Fraction, Fraction, Fraction]:
+        """pi/2 = P1 + P2 + P3."""
+        p1 = _leading_bits(_PI / 2, self.bits)
+        p2 = _leading_bits(_PI / 2 - p1, self.bits)
+        return p1, p2, _PI / 2 - p1 - p2
+
+    def polynomial(self, terms: tuple[str, ...], constant=None) -> str:
+        """c0 + c1 z + ... in lane l by Estrin's scheme (z2 = z^2, z4 = z^4); ``constant``
+        spells each coefficient (a broadcast in the lane form)."""
+        c = [(constant or (lambda text: text))(self.literal(t)) for t in terms]
+        low = f"({c[0]} + z[l] * {c[1]}) + z2[l] * ({c[2]} + z[l] * {c[3]})"
+        if len(c) == 4:
+            return low
+        assert len(c) in (6, 7), terms
+        high = f"({c[4]} + z[l] * {c[5]})" + (f" + z2[l] * {c[6]}" if len(c) == 7 else "")
+        return f"({low}) + z4[l] * ({high})"
+
+    @property
+    def needs_z4(self) -> bool:
+        """Whether the polynomials read z^4 (more than four terms)."""
+        return max(len(self.sin_terms), len(self.cos_terms)) > 4
 
 
-def _c(value: Fraction | str) -> str:
-    """The nearest double as a C literal that reads back exactly."""
-    return repr(float(value))
+ROUTINES = {
+    # pi/2 in parts of 33 bits: |x| <= 1e5 gives |n| <= 63662 < 2^20. The polynomials are fdlibm's
+    # __kernel_sin and __kernel_cos (Sun Microsystems, 1993), each within 2^-57 of the function on
+    # |r| <= pi/4: degree 13 and 14, where the Taylor series needs 17 and 16.
+    "double": Routine(
+        "double",
+        above=1.0e5,
+        offset=65536.5,
+        bits=33,
+        sin_terms=(
+            "-1.66666666666666324348e-01",
+            "8.33333333332248946124e-03",
+            "-1.98412698298579493134e-04",
+            "2.75573137070700676789e-06",
+            "-2.50507602534068634195e-08",
+            "1.58969099521155010221e-10",
+        ),
+        cos_terms=(
+            "-0.5",
+            "4.16666666666666019037e-02",
+            "-1.38888888888741095749e-03",
+            "2.48015872894767294178e-05",
+            "-2.75573143513906633035e-07",
+            "2.08757232129817482790e-09",
+            "-1.13596475577881948265e-11",
+        ),
+    ),
+    # pi/2 in parts of 12 bits: |x| <= 4096 gives |n| <= 2608 < 2^12. Polynomials fitted for robotgen
+    # (Lawson's iteration to the minimax on |r| <= 1.003 pi/4, c_0 of cos held at -1/2), then rounded
+    # to float: within 2^-27 of each function, below float's own rounding (2^-24 near 1).
+    "float": Routine(
+        "float",
+        above=4096.0,
+        offset=4096.5,
+        bits=12,
+        sin_terms=("-0.16666667", "0.008333329", "-0.00019839288", "2.7178965e-06"),
+        cos_terms=("-0.5", "0.041666646", "-0.0013887349", "2.4436291e-05"),
+    ),
+}
+ABOVE = ROUTINES["double"].above  # the double routine's bound (what tests and docs quote)
 
 
-def _estrin(terms: tuple[str, ...], constant=lambda text: text) -> str:
-    """c0 + c1 z + ... in lane l, with z2 = z^2 and z4 = z^4 (Estrin's scheme, 6 or 7 terms);
-    ``constant`` spells each coefficient (a broadcast in the lane form)."""
-    assert len(terms) in (6, 7), terms
-    c = [constant(_c(t)) for t in terms]
-    low = f"({c[0]} + z[l] * {c[1]}) + z2[l] * ({c[2]} + z[l] * {c[3]})"
-    high = f"({c[4]} + z[l] * {c[5]})" + (f" + z2[l] * {c[6]}" if len(c) == 7 else "")
-    return f"({low}) + z4[l] * ({high})"
-
-
-def helper_source() -> str:
-    """The C definition of ``rg_sincos2`` (static: each source that uses it has its own)."""
+def helper_source(real: str = "double") -> str:
+    """The C definition of ``rg_sincos2`` in C type ``real`` (static: each source that uses it has its own)."""
+    t = ROUTINES[real]
+    f, k = t.suffix, t.literal
+    p1, p2, p3 = t.parts
+    temporaries = (
+        "y, k, r, z, z2, z4, ps, pc, sr, cr, w, ss, sc, so, co"
+        if t.needs_z4
+        else ("y, k, r, z, z2, ps, pc, sr, cr, w, ss, sc, so, co")
+    )
+    bound = "2.3e-16" if real == "double" else "1.0e-7"
     return (
         "\n".join(
             [
                 "/* sin and cos of x[0] and x[1] into s and c: reduction by pi/2 in three parts, minimax",
-                " * polynomials on [-pi/4, pi/4], quadrant by arithmetic. Absolute error <= 2.3e-16 for",
-                f" * |x| <= {ABOVE:g}; other angles (larger, infinite, NaN) through libm. Written lane by lane",
+                f" * polynomials on [-pi/4, pi/4], quadrant by arithmetic. Absolute error <= {bound} for",
+                f" * |x| <= {t.above:g}; other angles (larger, infinite, NaN) through libm. Written lane by lane",
                 " * so that the compiler may compute both lanes at once. */",
-                f"static void {HELPER}(const double *x, double *s, double *c) {{",
-                "  double y[2], k[2], r[2], z[2], z2[2], z4[2], ps[2], pc[2], sr[2], cr[2], w[2], ss[2], sc[2], "
-                "so[2], co[2];",
+                f"static void {HELPER}(const {real} *x, {real} *s, {real} *c) {{",
+                f"  {real} " + ", ".join(f"{v}[2]" for v in temporaries.split(", ")) + ";",
                 "  int n[2], l;",
-                f"  if (!(fabs(x[0]) <= {ABOVE!r}) || !(fabs(x[1]) <= {ABOVE!r})) {{",
+                f"  if (!(fabs{f}(x[0]) <= {k(t.above)}) || !(fabs{f}(x[1]) <= {k(t.above)})) {{",
                 "    for (l = 0; l < 2; ++l) {",
-                "      s[l] = sin(x[l]);",
-                "      c[l] = cos(x[l]);",
+                f"      s[l] = sin{f}(x[l]);",
+                f"      c[l] = cos{f}(x[l]);",
                 "    }",
                 "    return;",
                 "  }",
-                "  /* n = round(2 x / pi) (x + 65536.5 > 0, so the conversion truncates to the floor) */",
-                f"  for (l = 0; l < 2; ++l) y[l] = x[l] * {_c(_TWO_OVER_PI)} + 65536.5;",
+                f"  /* n = round(2 x / pi) (x + {t.offset:g} > 0, so the conversion truncates to the floor) */",
+                f"  for (l = 0; l < 2; ++l) y[l] = x[l] * {k(2 / _PI)} + {k(t.offset)};",
                 "  for (l = 0; l < 2; ++l) n[l] = (int)y[l];",
-                "  for (l = 0; l < 2; ++l) k[l] = (double)n[l] - 65536.0;",
-                f"  for (l = 0; l < 2; ++l) r[l] = ((x[l] - k[l] * {_c(_P1)}) - k[l] * {_c(_P2)}) - k[l] * {_c(_P3)};",
+                f"  for (l = 0; l < 2; ++l) k[l] = ({real})n[l] - {k(t.offset - 0.5)};",
+                f"  for (l = 0; l < 2; ++l) r[l] = ((x[l] - k[l] * {k(p1)}) - k[l] * {k(p2)}) - k[l] * {k(p3)};",
                 "  for (l = 0; l < 2; ++l) {",
                 "    z[l] = r[l] * r[l];",
                 "    z2[l] = z[l] * z[l];",
-                "    z4[l] = z2[l] * z2[l];",
+                *(["    z4[l] = z2[l] * z2[l];"] if t.needs_z4 else []),
                 "  }",
-                f"  for (l = 0; l < 2; ++l) ps[l] = {_estrin(SIN_TERMS)};",
-                f"  for (l = 0; l < 2; ++l) pc[l] = {_estrin(COS_TERMS)};",
+                f"  for (l = 0; l < 2; ++l) ps[l] = {t.polynomial(t.sin_terms)};",
+                f"  for (l = 0; l < 2; ++l) pc[l] = {t.polynomial(t.cos_terms)};",
                 "  for (l = 0; l < 2; ++l) {",
                 "    sr[l] = r[l] + (r[l] * z[l]) * ps[l];",
-                "    cr[l] = 1.0 + z[l] * pc[l];",
+                f"    cr[l] = {k(1.0)} + z[l] * pc[l];",
                 "  }",
                 "  /* quadrant n mod 4: odd swaps sin and cos (w = 1); the signs of sin and cos */",
                 "  for (l = 0; l < 2; ++l) {",
-                "    w[l] = (double)(n[l] & 1);",
-                "    ss[l] = (double)(1 - (n[l] & 2));",
-                "    sc[l] = (double)(1 - ((n[l] + 1) & 2));",
+                f"    w[l] = ({real})(n[l] & 1);",
+                f"    ss[l] = ({real})(1 - (n[l] & 2));",
+                f"    sc[l] = ({real})(1 - ((n[l] + 1) & 2));",
                 "  }",
                 "  for (l = 0; l < 2; ++l) {",
-                "    so[l] = ss[l] * (sr[l] * (1.0 - w[l]) + cr[l] * w[l]);",
-                "    co[l] = sc[l] * (cr[l] * (1.0 - w[l]) + sr[l] * w[l]);",
+                f"    so[l] = ss[l] * (sr[l] * ({k(1.0)} - w[l]) + cr[l] * w[l]);",
+                f"    co[l] = sc[l] * (cr[l] * ({k(1.0)} - w[l]) + sr[l] * w[l]);",
                 "  }",
                 "  /* stored lane by lane: s and c may overlap, so a loop writing them would stay scalar */",
                 "  s[0] = so[0];",
@@ -150,7 +215,7 @@ def helper_source() -> str:
     )
 
 
-def lane_helper_source() -> str:
+def lane_helper_source(real: str = "double") -> str:
     """``rg_sincos2`` for W states at once (robotgen.emit.lanes), printed once and compiled per
     width as RG_L(rg_sincos2): x, s and c hold two angles, each a vector of W states. Each lane
     takes rg_sincos2's operations in its order, so its bits: the same reduction and polynomials
@@ -159,16 +224,19 @@ def lane_helper_source() -> str:
     rg_sincos2 takes that pair. The polynomials see 0 in such a lane, so that no conversion to
     int overflows. |x| <= bound is written x <= bound and x >= -bound (the same lanes, NaN in
     neither), so that the test stays on vectors."""
+    t = ROUTINES[real]
+    f = t.suffix
+    p1, p2, p3 = t.parts
     v, vi, mask = lane_names.VECTOR, lane_names.INT_VECTOR, lane_names.MASK_VECTOR
 
-    def k(text: str) -> str:
-        return lane_names.splat(text)
+    def k(value) -> str:
+        return lane_names.splat(t.literal(value))
 
     def i(text: str) -> str:
         return f"{lane_names.INT_SPLAT}({text})"
 
     def within(x: str) -> str:
-        return f"({x} <= {k(repr(ABOVE))}) & ({x} >= {k(repr(-ABOVE))})"
+        return f"({x} <= {k(t.above)}) & ({x} >= {k(-t.above)})"
 
     one = lane_names.per_width("rg_sincos1")
     return (
@@ -177,24 +245,24 @@ def lane_helper_source() -> str:
                 "/* rg_sincos2's reduction, polynomials and quadrant on every lane of one angle x, "
                 "|x| <= the bound. */",
                 f"static {lane_names.TARGET} void {one}(const {v} *x, {v} *s, {v} *c) {{",
-                f"  {v} y, k, r, z, z2, z4, ps, pc, sr, cr, w, ss, sc;",
+                f"  {v} y, k, r, z, z2, {'z4, ' if t.needs_z4 else ''}ps, pc, sr, cr, w, ss, sc;",
                 f"  {vi} n;",
-                f"  y = *x * {k(_c(_TWO_OVER_PI))} + {k('65536.5')};",
+                f"  y = *x * {k(2 / _PI)} + {k(t.offset)};",
                 f"  n = __builtin_convertvector(y, {vi});",
-                f"  k = __builtin_convertvector(n, {v}) - {k('65536.0')};",
-                f"  r = ((*x - k * {k(_c(_P1))}) - k * {k(_c(_P2))}) - k * {k(_c(_P3))};",
+                f"  k = __builtin_convertvector(n, {v}) - {k(t.offset - 0.5)};",
+                f"  r = ((*x - k * {k(p1)}) - k * {k(p2)}) - k * {k(p3)};",
                 "  z = r * r;",
                 "  z2 = z * z;",
-                "  z4 = z2 * z2;",
-                f"  ps = {_estrin(SIN_TERMS, k).replace('[l]', '')};",
-                f"  pc = {_estrin(COS_TERMS, k).replace('[l]', '')};",
+                *(["  z4 = z2 * z2;"] if t.needs_z4 else []),
+                f"  ps = {t.polynomial(t.sin_terms, lane_names.splat).replace('[l]', '')};",
+                f"  pc = {t.polynomial(t.cos_terms, lane_names.splat).replace('[l]', '')};",
                 "  sr = r + (r * z) * ps;",
-                f"  cr = {k('1.0')} + z * pc;",
+                f"  cr = {k(1.0)} + z * pc;",
                 f"  w = __builtin_convertvector(n & {i('1')}, {v});",
                 f"  ss = __builtin_convertvector({i('1')} - (n & {i('2')}), {v});",
                 f"  sc = __builtin_convertvector({i('1')} - ((n + {i('1')}) & {i('2')}), {v});",
-                f"  *s = ss * (sr * ({k('1.0')} - w) + cr * w);",
-                f"  *c = sc * (cr * ({k('1.0')} - w) + sr * w);",
+                f"  *s = ss * (sr * ({k(1.0)} - w) + cr * w);",
+                f"  *c = sc * (cr * ({k(1.0)} - w) + sr * w);",
                 "}",
                 "",
                 "/* rg_sincos2 on every lane: two angles of W states, each lane computed as rg_sincos2 computes it. */",
@@ -206,10 +274,10 @@ def lane_helper_source() -> str:
                 f"  {one}(&a1, s + 1, c + 1);",
                 f"  for (m = 0; m < {lane_names.WIDTH}; ++m) {{",
                 "    if (!near[m]) {",
-                "      s[0][m] = sin(x[0][m]);",
-                "      c[0][m] = cos(x[0][m]);",
-                "      s[1][m] = sin(x[1][m]);",
-                "      c[1][m] = cos(x[1][m]);",
+                f"      s[0][m] = sin{f}(x[0][m]);",
+                f"      c[0][m] = cos{f}(x[0][m]);",
+                f"      s[1][m] = sin{f}(x[1][m]);",
+                f"      c[1][m] = cos{f}(x[1][m]);",
                 "    }",
                 "  }",
                 "}",

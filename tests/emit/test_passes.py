@@ -6,7 +6,6 @@ and each choice applies the pass it names."""
 from __future__ import annotations
 
 import casadi as ca
-import pytest
 
 from robotgen.emit import issue_order, sincos
 from robotgen.emit.passes import Order, Passes, Use, choose
@@ -40,15 +39,14 @@ def _wide():
 def test_the_order_follows_the_longest_chain():
     chain, wide = _chain(), _wide()
     assert issue_order.latency_bound(chain) and not issue_order.latency_bound(wide)
-    assert choose(chain, Use.BLOCK, "double") == Passes(Order.LIST, pair_angles=True)
-    assert choose(wide, Use.BLOCK, "double") == Passes(Order.PRESSURE, pair_angles=True)
+    assert choose(chain, Use.BLOCK) == Passes(Order.LIST, pair_angles=True)
+    assert choose(wide, Use.BLOCK) == Passes(Order.PRESSURE, pair_angles=True)
 
 
-@pytest.mark.parametrize("real", ["double", "float"])
-def test_angles_are_paired_in_double_blocks_only_and_loop_bodies_are_left_as_read(real):
+def test_angles_are_paired_in_blocks_and_loop_bodies_are_left_as_read():
     for program in (_chain(), _wide()):
-        assert choose(program, Use.BLOCK, real).pair_angles == (real == "double")
-        assert choose(program, Use.LOOP_BODY, real) == Passes(Order.AS_READ, pair_angles=False)
+        assert choose(program, Use.BLOCK).pair_angles
+        assert choose(program, Use.LOOP_BODY) == Passes(Order.AS_READ, pair_angles=False)
 
 
 def test_each_choice_applies_its_pass():

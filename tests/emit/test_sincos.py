@@ -124,28 +124,62 @@ def test_angles_come_first_and_only_nested_trig_keeps_libm(built):
     assert "cos(w" in source and "sin(w" not in source
 
 
-def test_float_kernels_keep_sinf_and_cosf(tmp_path):
-    build.emit(
-        tmp_path / "f", "trigf", [_angles_kernel()], nq=1, spec_sha256="ab" * 32, precision="float", compile=False
-    )
-    source = (tmp_path / "f" / "trigf.c").read_text()
-    assert sincos.HELPER not in source and "sinf(" in source and "cosf(" in source
+FLOAT_BOUND = 1.0e-7  # the module docstring's for float
 
 
-def test_polynomials_within_2_to_the_minus_57_and_pi_splits_exactly():
+@pytest.fixture(scope="module")
+def built_float(tmp_path_factory):
+    out = tmp_path_factory.mktemp("sincosf") / "trigf"
+    build.emit(out, "trigf", [_angles_kernel()], nq=1, spec_sha256="ab" * 32, precision="float")
+    return out, _load(out, "trigf")
+
+
+def test_float_kernels_have_their_own_routine_within_its_bound(built_float):
+    """The float rg_sincos2 against sin and cos of the float angle in double: within 1.0e-7 up to
+    |x| = 4096 (the reduction's edges included), sinf and cosf past it."""
+    out, module = built_float
+    source = (out / "trigf.c").read_text()
+    assert f"static void {sincos.HELPER}(const float *x" in source and "sinf(x[l])" in source
+    x = np.concatenate([_sample()[:300_000], np.random.default_rng(3).uniform(-4096, 4096, 100_000)])
+    x = np.clip(x, -4096, 4096).astype(np.float32)
+    x = x[: len(x) - len(x) % N].reshape(-1, N)
+    s, c = module.angles(x)
+    assert np.array_equal(s.astype(np.float32), s)  # float results, as float64 arrays
+    wide = x.astype(np.float64)
+    assert float(np.max(np.abs(s - np.sin(wide)))) <= FLOAT_BOUND
+    assert float(np.max(np.abs(c - np.cos(wide)))) <= FLOAT_BOUND
+    far = np.array([4096.0005, -3e7, 1e30, np.inf, -np.inf, np.nan, 2.0], dtype=np.float32)
+    s, c = module.angles(far)
+    finite = np.isfinite(far)
+    np.testing.assert_allclose(s[finite], np.sin(far.astype(np.float64))[finite], rtol=0, atol=6e-8)
+    assert np.all(np.isnan(s[~finite])) and np.all(np.isnan(c[~finite]))
+
+
+@pytest.mark.parametrize("real", ["double", "float"])
+def test_polynomials_within_their_bounds_and_pi_splits_exactly(real):
+    """pi/2's first two parts have the routine's bits (n times them exact for every n of the
+    bound), and the polynomials, in exact arithmetic, against sin and cos of long double on
+    [-pi/4, pi/4]: double's within 2^-57 (fdlibm's), float's within 2^-27 (sin relative to r,
+    cos absolute)."""
     from fractions import Fraction
 
-    assert sincos._P1 + sincos._P2 + sincos._P3 == sincos._PI / 2
-    for part in (sincos._P1, sincos._P2):  # 33 significant bits: n * part is exact for |n| < 2^20
+    t = sincos.ROUTINES[real]
+    p1, p2, p3 = t.parts
+    assert p1 + p2 + p3 == sincos._PI / 2
+    n = int(t.above * 2 / np.pi) + 1
+    for part in (p1, p2):
         assert float(part) == part and (part * 2**80).denominator == 1
         mantissa = int(part * 2**80)
-        assert mantissa.bit_length() - (len(bin(mantissa)) - len(bin(mantissa).rstrip("0"))) <= 33
-    # the polynomials themselves, in exact arithmetic, against sin and cos of long double on
-    # [-pi/4, pi/4]: within 2^-57 (sin relative to r, cos absolute), as stated
+        assert mantissa.bit_length() - (len(bin(mantissa)) - len(bin(mantissa).rstrip("0"))) <= t.bits
+    assert n < 2 ** (53 - t.bits if real == "double" else 24 - t.bits)
+    assert t.offset > t.above * 2 / np.pi + 1
     r = np.linspace(-np.pi / 4, np.pi / 4, 2001, dtype=np.longdouble)
     z = r * r
-    ps = sum(np.longdouble(float(c)) * z**k for k, c in enumerate(sincos.SIN_TERMS))
-    pc = sum(np.longdouble(float(c)) * z**k for k, c in enumerate(sincos.COS_TERMS))
-    assert float(np.max(np.abs((r + r * z * ps - np.sin(r)) / np.where(r == 0, 1, r)))) <= 2.0**-57
-    assert float(np.max(np.abs(1 + z * pc - np.cos(r)))) <= 2.0**-57
-    assert Fraction(sincos.COS_TERMS[0]) == Fraction(-1, 2)
+    value = float if real == "double" else (lambda c: float(np.float32(float(c))))
+    ps = sum(np.longdouble(value(c)) * z**k for k, c in enumerate(t.sin_terms))
+    pc = sum(np.longdouble(value(c)) * z**k for k, c in enumerate(t.cos_terms))
+    bound = 2.0**-57 if real == "double" else 2.0**-27
+    if np.finfo(np.longdouble).nmant >= 60:
+        assert float(np.max(np.abs((r + r * z * ps - np.sin(r)) / np.where(r == 0, 1, r)))) <= bound
+        assert float(np.max(np.abs(1 + z * pc - np.cos(r)))) <= bound
+    assert Fraction(t.cos_terms[0]) == Fraction(-1, 2)
