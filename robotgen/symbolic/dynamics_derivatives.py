@@ -22,7 +22,7 @@ from robotgen.symbolic.op_count import count_operations
 from robotgen.symbolic.rigid_body.chain import ChainGraphs, Symbols
 from robotgen.symbolic.rigid_body.cholesky import (
     cholesky_factor,
-    cholesky_solve_matrix,
+    cholesky_inverse,
     cholesky_substitute_columns,
     schedule_inverse_product,
 )
@@ -180,7 +180,7 @@ class DynamicsDerivatives:
     def mass_inverse(self) -> ca.SX:
         """M^-1 (n, n) by L D L^T solves of the identity."""
         n = self.sym.q.shape[0]
-        return cholesky_solve_matrix(self.graphs.mass(), ca.SX.eye(n))
+        return cholesky_inverse(self.graphs.mass())
 
     def forward_dynamics_derivatives(self) -> tuple[ca.SX, ca.SX, ca.SX, ca.SX]:
         """(qdd, d qdd/dq, d qdd/dqd, d qdd/d tau = M^-1) at (q, qd, tau), built once."""

@@ -86,6 +86,31 @@ def cholesky_solve_matrix(M: ca.SX, B: ca.SX) -> ca.SX:
     return cholesky_substitute_columns(cholesky_factor(M), B)
 
 
+def cholesky_inverse(M: ca.SX) -> ca.SX:
+    """M^-1 for a symmetric positive definite M, as L^-T D^-1 L^-1: W = L^-1 column by column
+    (each column's forward substitution on a unit vector), then (M^-1)_ij = sum_k W_ki W_kj / d_k
+    over k >= max(i, j) for i <= j only, mirrored. Half the back substitutions' work, and each
+    entry a sum of independent products where a back substitution waits row by row."""
+    factor = cholesky_factor(M)
+    L, inverse = factor.L, factor.inverse_diagonal
+    n = len(L)
+    W = [[ca.SX(0)] * n for _ in range(n)]  # W[i][c], unit lower triangular
+    for c in range(n):
+        W[c][c] = ca.SX(1)
+        for i in range(c + 1, n):
+            W[i][c] = _minus_terms(-L[i][c], [L[i][k] * W[k][c] for k in range(c + 1, i)])
+    X = ca.SX.zeros(n, n)
+    for i in range(n):
+        for j in range(i, n):
+            terms = [(W[k][i] * inverse[k]) * W[k][j] for k in range(j, n)]
+            total = terms[0]
+            for term in terms[1:]:
+                total = total + term
+            X[i, j] = total
+            X[j, i] = total
+    return X
+
+
 def solve_coefficients(factor: Cholesky) -> ca.SX:
     """The factorisation as one column, for a loop body to read (solve_with_coefficients): F
     (n x n, row-major) with F_ij = L_ij below the diagonal, B with B_ik = d_i L_ki / d_k above

@@ -647,7 +647,7 @@ int styx_finger_mass_inverse(const double *q, double *mass_inverse) {
   w21 = w20 + w16;
   w22 = w19 * w21;
   mass_inverse[3] = w21;
-  w23 = w19 * w22;
+  w23 = w22 * w19;
   w26 = -w22;
   mass_inverse[1] = w26;
   mass_inverse[2] = w26;
@@ -1860,7 +1860,7 @@ static RG_TARGET void RG_L(rgl_mass_inverse)(const rg_v *q, rg_v *mass_inverse) 
   w21 = w20 + w16;
   w22 = w19 * w21;
   mass_inverse[3] = w21;
-  w23 = w19 * w22;
+  w23 = w22 * w19;
   w26 = -w22;
   mass_inverse[1] = w26;
   mass_inverse[2] = w26;
@@ -3193,7 +3193,7 @@ static RG_TARGET void RG_L(rgl_mass_inverse)(const rg_v *q, rg_v *mass_inverse) 
   w21 = w20 + w16;
   w22 = w19 * w21;
   mass_inverse[3] = w21;
-  w23 = w19 * w22;
+  w23 = w22 * w19;
   w26 = -w22;
   mass_inverse[1] = w26;
   mass_inverse[2] = w26;
@@ -4514,7 +4514,7 @@ static RG_TARGET void RG_L(rgl_mass_inverse)(const rg_v *q, rg_v *mass_inverse) 
   w21 = w20 + w16;
   w22 = w19 * w21;
   mass_inverse[3] = w21;
-  w23 = w19 * w22;
+  w23 = w22 * w19;
   w26 = -w22;
   mass_inverse[1] = w26;
   mass_inverse[2] = w26;

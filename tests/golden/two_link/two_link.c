@@ -965,7 +965,7 @@ int two_link_mass_inverse(const double *q, double *mass_inverse) {
   w26 = w25 + w22;
   w27 = w24 * w26;
   mass_inverse[3] = w26;
-  w28 = w24 * w27;
+  w28 = w27 * w24;
   w31 = -w27;
   mass_inverse[1] = w31;
   mass_inverse[2] = w31;
@@ -2332,7 +2332,7 @@ static RG_TARGET void RG_L(rgl_mass_inverse)(const rg_v *q, rg_v *mass_inverse) 
   w26 = w25 + w22;
   w27 = w24 * w26;
   mass_inverse[3] = w26;
-  w28 = w24 * w27;
+  w28 = w27 * w24;
   w31 = -w27;
   mass_inverse[1] = w31;
   mass_inverse[2] = w31;
@@ -3735,7 +3735,7 @@ static RG_TARGET void RG_L(rgl_mass_inverse)(const rg_v *q, rg_v *mass_inverse) 
   w26 = w25 + w22;
   w27 = w24 * w26;
   mass_inverse[3] = w26;
-  w28 = w24 * w27;
+  w28 = w27 * w24;
   w31 = -w27;
   mass_inverse[1] = w31;
   mass_inverse[2] = w31;
@@ -5126,7 +5126,7 @@ static RG_TARGET void RG_L(rgl_mass_inverse)(const rg_v *q, rg_v *mass_inverse) 
   w26 = w25 + w22;
   w27 = w24 * w26;
   mass_inverse[3] = w26;
-  w28 = w24 * w27;
+  w28 = w27 * w24;
   w31 = -w27;
   mass_inverse[1] = w31;
   mass_inverse[2] = w31;
