@@ -178,8 +178,7 @@ class DynamicsDerivatives:
         return g if recursion <= RECURSION_LOOPS_WITHIN * sweeps else None
 
     def mass_inverse(self) -> ca.SX:
-        """M^-1 (n, n) by L D L^T solves of the identity."""
-        n = self.sym.q.shape[0]
+        """M^-1 (n, n) as L^-T D^-1 L^-1 (robotgen.symbolic.rigid_body.cholesky.cholesky_inverse)."""
         return cholesky_inverse(self.graphs.mass())
 
     def forward_dynamics_derivatives(self) -> tuple[ca.SX, ca.SX, ca.SX, ca.SX]:

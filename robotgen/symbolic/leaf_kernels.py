@@ -245,7 +245,7 @@ def _derivative_kernels(graphs, integrator: str, n: int, prefix: str, parameters
         ),
         make_kernel(
             prefix + "mass_inverse",
-            "M(q)^-1 (L D L^T factorisation, then solves).",
+            "M(q)^-1 (L D L^T factorisation, then L^-T D^-1 L^-1, symmetric).",
             [("q", s.q)],
             [("mass_inverse", d.mass_inverse(), square)],
             parameters,

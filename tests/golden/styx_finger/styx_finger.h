@@ -189,7 +189,7 @@ int styx_finger_forward_dynamics_derivatives_batch(int n, const double *q, const
 int styx_finger_forward_dynamics_derivatives_batch_lanes(int lanes, int n, const double *q, const double *qd, const double *tau, double *dqdd_dq, double *dqdd_dqd, double *dqdd_dtau);
 
 /* styx_finger_mass_inverse:
- * M(q)^-1 (L D L^T factorisation, then solves).
+ * M(q)^-1 (L D L^T factorisation, then L^-T D^-1 L^-1, symmetric).
  *
  *   in  q (2,)
  *   out mass_inverse (2, 2) row-major

@@ -47,7 +47,7 @@ def forward_dynamics_derivatives(q: npt.ArrayLike, qd: npt.ArrayLike, tau: npt.A
     """Partial derivatives of forward dynamics: d qdd/dq, d qdd/dqd and d qdd/d tau = M^-1."""
 
 def mass_inverse(q: npt.ArrayLike, *, out: npt.NDArray[np.float64] | None = None) -> npt.NDArray[np.float64]:
-    """M(q)^-1 (L D L^T factorisation, then solves)."""
+    """M(q)^-1 (L D L^T factorisation, then L^-T D^-1 L^-1, symmetric)."""
 
 def discrete_dynamics(q: npt.ArrayLike, qd: npt.ArrayLike, tau: npt.ArrayLike, dt: npt.ArrayLike, *, out: tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]] | None = None) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
     """One step of length dt, tau held: semi-implicit Euler (qd+ = qd + dt qdd, q+ = q + dt qd+). Returns q+, qd+."""

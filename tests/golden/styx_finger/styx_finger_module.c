@@ -1381,7 +1381,7 @@ PyDoc_STRVAR(k_mass_inverse_doc,
     "mass_inverse($module, q, *, out=None)\n"
     "--\n"
     "\n"
-    "M(q)^-1 (L D L^T factorisation, then solves).\n"
+    "M(q)^-1 (L D L^T factorisation, then L^-T D^-1 L^-1, symmetric).\n"
     "\n"
     "q: float64 array (2,) or (B, 2)\n"
     "out: None, or a float64 array (2, 2) (or (B, 2, 2) for a batch) to write the result into, then returned: no allocation\n"
