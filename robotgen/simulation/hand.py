@@ -29,6 +29,7 @@ from robotgen.model.laws.hand import HAND_AXES, HAND_DOF, AdaptiveSettings, Reso
 from robotgen.model.simulation import MUJOCO_PLANT, ROBOTGEN_PLANT, SimulationSettings
 from robotgen.model.system import RobotSystem
 from robotgen.numeric import exact
+from robotgen.numeric.rk4 import rk4_step
 from robotgen.simulation.failures import DIVERGED, SimulationError
 from robotgen.simulation.mujoco.run import Diverged, chain_steps
 from robotgen.symbolic.rigid_body.chain import ChainGraphs, Symbols
@@ -118,20 +119,12 @@ class Trajectory:
         return pose, np.r_[xd[:3], omega.ravel()], np.r_[xdd[:3], domega.ravel()]
 
 
-def rk4_step(tree, T: float) -> ca.Function:
+def chain_rk4(tree, T: float) -> ca.Function:
     """(q, qd, tau) -> (q, qd) one period T later, tau held: RK4 on the chain's forward dynamics."""
     sym = Symbols.make(tree.nq)
     f = ca.Function("fd", [sym.q, sym.qd, sym.tau], [ChainGraphs(tree, sym).forward_dynamics()])
     q, qd, tau = sym.q, sym.qd, sym.tau
-    k1 = (qd, f(q, qd, tau))
-    k2 = (qd + T / 2 * k1[1], f(q + T / 2 * k1[0], qd + T / 2 * k1[1], tau))
-    k3 = (qd + T / 2 * k2[1], f(q + T / 2 * k2[0], qd + T / 2 * k2[1], tau))
-    k4 = (qd + T * k3[1], f(q + T * k3[0], qd + T * k3[1], tau))
-    return ca.Function(
-        "rk4",
-        [q, qd, tau],
-        [q + T / 6 * (k1[0] + 2 * k2[0] + 2 * k3[0] + k4[0]), qd + T / 6 * (k1[1] + 2 * k2[1] + 2 * k3[1] + k4[1])],
-    )
+    return ca.Function("rk4", [q, qd, tau], list(rk4_step(lambda x, v: (v, f(x, v, tau)), q, qd, T)))
 
 
 def refusal(system: RobotSystem) -> str | None:
@@ -191,10 +184,10 @@ def run(
         model, chain_step = chain_steps(system, module, period, q0, hand_frame, stages)
         mjcf, note, step = model.xml, chain_step.sim.note, chain_step
     else:
-        plants = [rk4_step(tree, period)]
+        plants = [chain_rk4(tree, period)]
         for change in s.payload_changes:
             point = hand_frame[:3, 3] + hand_frame[:3, :3] @ np.asarray(change.com, float)
-            plants.append(rk4_step(with_payload(tree, change.mass, point), period))
+            plants.append(chain_rk4(with_payload(tree, change.mass, point), period))
 
         def rk4_plant(stage: int, q: np.ndarray, qd: np.ndarray, tau: np.ndarray) -> tuple[np.ndarray, ...]:
             with np.errstate(all="ignore"):

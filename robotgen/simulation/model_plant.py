@@ -8,6 +8,7 @@ from __future__ import annotations
 import numpy as np
 
 from robotgen.model.simulation import ROBOTGEN_PLANT, Wall
+from robotgen.numeric.rk4 import rk4_step
 from robotgen.simulation.failures import DIVERGED, SimulationError, format_values
 from robotgen.simulation.wall_contact import WallContact
 
@@ -101,16 +102,9 @@ class ModulePlant:
 
 
 def _rk4(f, theta, v, dt):
-    """One classical RK4 step of (theta_dot, v_dot) = f(theta, v)."""
+    """One classical RK4 step of (theta_dot, v_dot) = f(theta, v); NaN where a stage left the finite numbers."""
     with np.errstate(all="ignore"):  # a diverging loop overflows; run() reports it
         try:
-            k1 = f(theta, v)
-            k2 = f(theta + dt / 2 * k1[0], v + dt / 2 * k1[1])
-            k3 = f(theta + dt / 2 * k2[0], v + dt / 2 * k2[1])
-            k4 = f(theta + dt * k3[0], v + dt * k3[1])
-        except FloatingPointError:  # a stage left the finite numbers: the checked plant refuses it
+            return rk4_step(f, theta, v, dt)
+        except FloatingPointError:  # the checked plant refuses a stage that is not finite
             return np.full_like(theta, np.nan), np.full_like(v, np.nan)
-        return (
-            theta + dt / 6 * (k1[0] + 2 * k2[0] + 2 * k3[0] + k4[0]),
-            v + dt / 6 * (k1[1] + 2 * k2[1] + 2 * k3[1] + k4[1]),
-        )

@@ -4,7 +4,7 @@ the compiled ``lqr_step`` (tau = tau0 - K (q - q0, qd)) closed around the chain'
 A resolved-rate controller outputs joint rates, which a plant cannot take; its regulator
 outputs torques. The chain starts at the simulation's theta0 at rest and the regulator
 brings it back to the nominal posture q0: the "tracking error" is q - q0. The plant is the
-chain's forward dynamics integrated by RK4 (robotgen.simulation.hand.rk4_step) or a MuJoCo model of
+chain's forward dynamics integrated by RK4 (robotgen.simulation.hand.chain_rk4) or a MuJoCo model of
 the same chain (robotgen.simulation.mujoco), the torque held over each period dt."""
 
 from __future__ import annotations
@@ -17,7 +17,7 @@ from robotgen.model.signature import METRE, RADIAN
 from robotgen.model.simulation import MUJOCO_PLANT, ROBOTGEN_PLANT, SimulationSettings
 from robotgen.model.system import RobotSystem
 from robotgen.simulation.failures import DIVERGED, SimulationError, format_values
-from robotgen.simulation.hand import PlantStep, rk4_step
+from robotgen.simulation.hand import PlantStep, chain_rk4
 from robotgen.simulation.mujoco.run import Diverged, chain_steps
 from robotgen.simulation.tree import Result
 from robotgen.simulation.tree import compare as compare  # its records are a tree run's
@@ -67,7 +67,7 @@ def run(module, system: RobotSystem, s: SimulationSettings, plant: str = ROBOTGE
         model, chain_step = chain_steps(system, module, s.dt, q)
         mjcf, note, step = model.xml, chain_step.sim.note, chain_step
     else:
-        rk4 = rk4_step(tree, s.dt)
+        rk4 = chain_rk4(tree, s.dt)
 
         def rk4_plant(stage: int, q: np.ndarray, qd: np.ndarray, tau: np.ndarray) -> tuple[np.ndarray, ...]:
             with np.errstate(all="ignore"):

@@ -35,6 +35,7 @@ from robotgen.model.rate_groups import RateGroups
 from robotgen.model.signature import robot_leaves
 from robotgen.model.simulation import RESIDUAL_TOLERANCE, SimulationSettings, rest_posture
 from robotgen.model.system import RobotSystem
+from robotgen.numeric.rk4 import rk4_step
 from robotgen.symbolic.kernel import PARAMS, ParameterSymbols
 from robotgen.symbolic.plant import Plant, sensed_forces
 from robotgen.symbolic.rate_steps import HELD, INIT, STEP, rate_kernels
@@ -157,7 +158,7 @@ class TickMaps:
                 new[f"state_g{k}"] = out["state_next"]
             new.update({key: value for key, value in out.items() if key.startswith(HELD.format(""))})
         tau = sum((new[f"tau_g{grp.index}"] for grp in self.groups.groups), ca.SX.zeros(self.n))
-        new["theta"], new["v"] = _rk4(self.plant_rates, theta, v, tau, dt)
+        new["theta"], new["v"] = rk4_step(lambda th, vel: self.plant_rates(th, vel, tau), theta, v, dt)
         z_next = ca.vertcat(*[new[key] for key in self.slices])
         maps = (ca.Function("tick", [z], [z_next]), ca.Function("tick_jacobian", [z], [ca.jacobian(z_next, z)]))
         self._maps[due] = maps
@@ -173,18 +174,6 @@ class TickMaps:
                 out = self._call(init, {"theta": ca.DM(theta), "theta_dot": ca.DM.zeros(self.n)})
                 z[self.slices[f"state_g{grp.index}"]] = np.asarray(out["state"]).ravel()
         return z
-
-
-def _rk4(f, theta, v, tau, dt):
-    """One classical RK4 step of the plant, as robotgen.simulation.tree takes it."""
-    k1 = f(theta, v, tau)
-    k2 = f(theta + dt / 2 * k1[0], v + dt / 2 * k1[1], tau)
-    k3 = f(theta + dt / 2 * k2[0], v + dt / 2 * k2[1], tau)
-    k4 = f(theta + dt * k3[0], v + dt * k3[1], tau)
-    return (
-        theta + dt / 6 * (k1[0] + 2 * k2[0] + 2 * k3[0] + k4[0]),
-        v + dt / 6 * (k1[1] + 2 * k2[1] + 2 * k3[1] + k4[1]),
-    )
 
 
 def operating_point(system: RobotSystem, maps: TickMaps) -> tuple[np.ndarray, np.ndarray]:
