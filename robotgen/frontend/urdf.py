@@ -242,27 +242,8 @@ def read_urdf(path: str, tip: str, base: str | None = None, name: str | None = N
     kept = [j for j in movable if end[j.attrib["name"]] in moving]
     canonical, frames, locked, limit_notes = _normalise(f, base, kept)
     tip_owner, tool = frames[tip]
-    robot_name = name or f.root.attrib.get("name", Path(path).stem)
-    names = [j.attrib["name"] for j in kept]
-    tree = KinematicTree(
-        name=robot_name,
-        joints=tuple(canonical),
-        tip=tip_owner,
-        tool=tool,
-        gravity=np.array([0.0, 0.0, -9.81]),
-        base_link=base,
-        tip_link=tip,
-        locked_joints=tuple(locked),
-        coupling=coupling_of(names, mimics),
-    )
-    notes = (
-        f.notes
-        + coupled_note(r, [m for m in mimics.values() if end[m.name] in moving])
-        + limit_notes
-        + _foreign_dynamics_attributes(r, kept)
-        + _massless(r, kept, tree)
-    )
-    return UrdfChain(tree, notes, r.loc(f.root), f.root.attrib.get("name"))
+    coupled = [m for m in mimics.values() if end[m.name] in moving]
+    return _chain(f, path, name, kept, canonical, (tip_owner, tool), (base, tip), mimics, coupled, limit_notes, locked)
 
 
 def read_urdf_tree(path: str, base: str | None = None, tip: str | None = None, name: str | None = None) -> UrdfChain:
@@ -300,25 +281,44 @@ def read_urdf_tree(path: str, base: str | None = None, tip: str | None = None, n
     tip_owner, tool = frames[tip]
     if tip_owner < 0:
         raise UserError(r.loc(f.links[tip]), f"no movable joint between '{base}' and '{tip}'")
-    robot_name = name or f.root.attrib.get("name", Path(path).stem)
+    coupled = list(mimics.values())
+    return _chain(f, path, name, actuated, canonical, (tip_owner, tool), (base, tip), mimics, coupled, limit_notes)
+
+
+def _chain(
+    f: UrdfFile,
+    path: str,
+    name: str | None,
+    joints: list[Element],
+    canonical: list[Joint],
+    tip: tuple[int, np.ndarray],
+    links: tuple[str, str],
+    mimics: dict,
+    coupled: list,
+    limit_notes: tuple[str, ...],
+    locked: list[str] | tuple[str, ...] = (),
+) -> UrdfChain:
+    """The tree read (``joints`` as URDF elements, ``canonical`` as robotgen's joints), its tip
+    (owning joint, tool transform), base and tip links, and every note on reading it."""
     tree = KinematicTree(
-        name=robot_name,
+        name=name or f.root.attrib.get("name", Path(path).stem),
         joints=tuple(canonical),
-        tip=tip_owner,
-        tool=tool,
+        tip=tip[0],
+        tool=tip[1],
         gravity=np.array([0.0, 0.0, -9.81]),
-        base_link=base,
-        tip_link=tip,
-        coupling=coupling_of([j.attrib["name"] for j in actuated], mimics),
+        base_link=links[0],
+        tip_link=links[1],
+        locked_joints=tuple(locked),
+        coupling=coupling_of([j.attrib["name"] for j in joints], mimics),
     )
     notes = (
         f.notes
-        + coupled_note(r, list(mimics.values()))
+        + coupled_note(f.r, coupled)
         + limit_notes
-        + _foreign_dynamics_attributes(r, actuated)
-        + _massless(r, actuated, tree)
+        + _foreign_dynamics_attributes(f.r, joints)
+        + _massless(f.r, joints, tree)
     )
-    return UrdfChain(tree, notes, r.loc(f.root), f.root.attrib.get("name"))
+    return UrdfChain(tree, notes, f.r.loc(f.root), f.root.attrib.get("name"))
 
 
 @dataclass(frozen=True, eq=False)

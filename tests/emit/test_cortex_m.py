@@ -16,22 +16,11 @@ from pathlib import Path
 import pytest
 
 from robotgen.cli import main
+from robotgen.emit.targets import TARGETS
 
 SPECS = Path(__file__).resolve().parents[2] / "specs"
 CC = shutil.which("arm-none-eabi-gcc")
-FLAGS = [
-    "-mcpu=cortex-m7",
-    "-mfpu=fpv5-d16",
-    "-mfloat-abi=hard",
-    "-mthumb",
-    "-O2",
-    "-std=c99",
-    "-Wall",
-    "-Wextra",
-    "-Werror",
-    "-Wdouble-promotion",
-    "-fstack-usage",
-]
+FLAGS = [*TARGETS["cortex-m7"][1], "-fstack-usage"]  # what `--target cortex-m7` compiles with
 MATH = {
     "sin",
     "cos",
