@@ -185,30 +185,7 @@ def kernel_source(
 ) -> str:
     """The C definition of ``kernel``; ``program`` may be passed if already read. ``helpers``:
     the C name of each of its schedule's stages (stage_source), by default rg_<stage>."""
-    _check_ports(kernel)
-    fields = {i: parameter_elements(p) for i, p in enumerate(kernel.inputs) if is_parameter_port(p)}
-
-    def read(port: int, element: int) -> str:
-        return fields[port][element] if port in fields else f"{kernel.inputs[port].name}[{element}]"
-
-    if kernel.schedule is not None:
-        helpers = helpers or {stage: stage_name(stage) for stage in kernel.schedule.stages}
-        declarations, body, named = _scheduled_body(kernel, precision, read, helpers)
-    else:
-        program = program or read_program(kernel)
-        declarations, statements = _straight_line(
-            _block(program, precision),
-            kernel,
-            precision,
-            read,
-            lambda port, element: (kernel.outputs[port].name, element),
-        )
-        zero = literal(0.0, precision)
-        for port_index, elements in program.unwritten_outputs:
-            name = kernel.outputs[port_index].name
-            statements += [Store(name, e, zero) for e in elements]
-        body = [str(statement) for statement in statements]
-        named = _named_ports(program)
+    declarations, body, named = _body(kernel, precision, program, helpers, lanes=False)
     lines = [prototype(prefix, kernel, precision) + " {", *("  " + d for d in declarations)]
     lines += _unused(kernel, named)
     if kernel.guarded:
@@ -234,36 +211,7 @@ def lane_kernel_source(
     order on vectors of W states, its ports arrays of vectors (one state per lane, a port's
     element k in vector k), the parameters read from the struct into every lane. It has no
     guards: the batch driver checks each state as the single-state function does."""
-    _check_ports(kernel)
-    fields = {i: parameter_elements(p) for i, p in enumerate(kernel.inputs) if is_parameter_port(p)}
-
-    def read(port: int, element: int) -> str:
-        if port in fields:
-            return lane_names.splat(fields[port][element])
-        return f"{kernel.inputs[port].name}[{element}]"
-
-    if kernel.schedule is not None:
-        helpers = {
-            stage: lane_names.per_width(name)
-            for stage, name in (helpers or {stage: stage_name(stage) for stage in kernel.schedule.stages}).items()
-        }
-        declarations, body, named = _scheduled_body(kernel, precision, read, helpers, lanes=True)
-    else:
-        program = program or read_program(kernel)
-        declarations, statements = _straight_line(
-            _block(program, precision),
-            kernel,
-            precision,
-            read,
-            lambda port, element: (kernel.outputs[port].name, element),
-            lanes=True,
-        )
-        zero = _literal(0.0, precision, True)
-        for port_index, elements in program.unwritten_outputs:
-            name = kernel.outputs[port_index].name
-            statements += [Store(name, e, zero) for e in elements]
-        body = [str(statement) for statement in statements]
-        named = _named_ports(program)
+    declarations, body, named = _body(kernel, precision, program, helpers, lanes=True)
     params = [
         f"const {params_type(prefix)} *{p.name}" if is_parameter_port(p) else f"const {lane_names.VECTOR} *{p.name}"
         for p in kernel.inputs
@@ -276,6 +224,45 @@ def lane_kernel_source(
     lines += _unused(kernel, named)
     lines += ["  " + line for line in body]
     return "\n".join([*lines, "}"]) + "\n"
+
+
+def _body(
+    kernel: Kernel,
+    precision: Precision,
+    program: Program | None,
+    helpers: dict[Stage, str] | None,
+    lanes: bool,
+) -> tuple[list[str], list[str], NamedPorts]:
+    """(declarations, statements, the ports named) of kernel_source's body, or with ``lanes``
+    of lane_kernel_source's: the same statements, parameters broadcast, stage helpers the
+    width's copies."""
+    _check_ports(kernel)
+    fields = {i: parameter_elements(p) for i, p in enumerate(kernel.inputs) if is_parameter_port(p)}
+
+    def read(port: int, element: int) -> str:
+        if port in fields:
+            return lane_names.splat(fields[port][element]) if lanes else fields[port][element]
+        return f"{kernel.inputs[port].name}[{element}]"
+
+    if kernel.schedule is not None:
+        names = helpers or {stage: stage_name(stage) for stage in kernel.schedule.stages}
+        if lanes:
+            names = {stage: lane_names.per_width(name) for stage, name in names.items()}
+        return _scheduled_body(kernel, precision, read, names, lanes=lanes)
+    program = program or read_program(kernel)
+    declarations, statements = _straight_line(
+        _block(program),
+        kernel,
+        precision,
+        read,
+        lambda port, element: (kernel.outputs[port].name, element),
+        lanes=lanes,
+    )
+    zero = _literal(0.0, precision, lanes)
+    for port_index, elements in program.unwritten_outputs:
+        name = kernel.outputs[port_index].name
+        statements += [Store(name, e, zero) for e in elements]
+    return declarations, [str(statement) for statement in statements], _named_ports(program)
 
 
 @dataclass(frozen=True)
@@ -330,7 +317,7 @@ def _straight_line(
     return declarations, body
 
 
-def _block(program: Program, precision: Precision) -> Program:
+def _block(program: Program) -> Program:
     """A straight-line block's program (a kernel's, a stage helper's, a prologue's) after the passes chosen for it."""
     return passes.choose(program, Use.BLOCK).apply(program)
 
@@ -378,7 +365,7 @@ def stage_source(c_name: str, stage: Stage, kernel: Kernel, precision: Precision
     inner = part_kernel(stage.name, stage.function, ports)
     program = read_program(inner)
     registers, statements = _straight_line(
-        _block(program, precision),
+        _block(program),
         inner,
         precision,
         lambda port, e: f"{ports[port].name}[{e}]",
@@ -450,7 +437,7 @@ def _scheduled_body(
     inputs = {k for stage in schedule.stages for k in stage.inputs} | named.inputs
     outputs = {writes[port].index for port in named.outputs if writes[port].kind != LOCAL}
     registers, statements = _straight_line(
-        _block(program, precision),
+        _block(program),
         prologue,
         precision,
         read,
