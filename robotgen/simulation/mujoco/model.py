@@ -216,6 +216,19 @@ def _place(element: ET.Element, pose: np.ndarray) -> None:
         element.set("quat", _vec(quaternion(pose[:3, :3])))
 
 
+def _link(body: ET.Element, offset: np.ndarray) -> None:
+    """A massless capsule drawing the link from ``body``'s origin to ``offset`` (none if zero)."""
+    if np.any(offset):
+        ET.SubElement(
+            body,
+            "geom",
+            type="capsule",
+            size=repr(LINK_RADIUS),
+            fromto=_vec(np.r_[np.zeros(3), offset]),
+            rgba="0.5 0.5 0.6 1",
+        )
+
+
 def _inertial(parent: ET.Element, mass: float, com: np.ndarray, inertia: np.ndarray) -> None:
     """mass, centre of mass and the principal moments of the inertia tensor (about the
     centre of mass) with their axes; a diagonal tensor is written as it is."""
@@ -290,27 +303,12 @@ def _chain_bodies(world: ET.Element, leaf: str, tree: KinematicTree) -> tuple[li
                 )
             )
         _inertial(body, joint.body.mass, joint.body.com, inertia)
-        if parent is not world and np.any(joint.origin[:3, 3]):
-            ET.SubElement(
-                parent,
-                "geom",
-                type="capsule",
-                size=repr(LINK_RADIUS),
-                fromto=_vec(np.r_[np.zeros(3), joint.origin[:3, 3]]),
-                rgba="0.5 0.5 0.6 1",
-            )
+        if parent is not world:
+            _link(parent, joint.origin[:3, 3])
         bodies.append(body)
         names.append(name)
     tip = bodies[tree.tip]
-    if np.any(tree.tool[:3, 3]):
-        ET.SubElement(
-            tip,
-            "geom",
-            type="capsule",
-            size=repr(LINK_RADIUS),
-            fromto=_vec(np.r_[np.zeros(3), tree.tool[:3, 3]]),
-            rgba="0.5 0.5 0.6 1",
-        )
+    _link(tip, tree.tool[:3, 3])
     site = ET.SubElement(tip, "site", name=f"{leaf}/tip", size=repr(FINGERTIP_RADIUS / 2))
     _place(site, tree.tool)
     return names, f"{leaf}/{tree.joints[tree.tip].name}"
