@@ -84,7 +84,6 @@ class MultiRateView:
     reset_prototype: str
     struct_lines: tuple[str, ...]  # the header's comment on the struct
     step_lines: tuple[str, ...]  # the header's comment on the step
-    doc: str
     py_doc: str  # C string literals
     step_py_doc: str
     stub_doc: str  # Python string literals
@@ -273,7 +272,6 @@ def multirate_view(
         reset_prototype=f"void {c_type}_reset({c_type} *controller)",
         struct_lines=_struct_comment(spec, groups, held),
         step_lines=_step_comment(c_type, groups),
-        doc=doc,
         py_doc=c_string(f"{spec.class_name}({keywords})\n--\n\n{doc}"),
         step_py_doc=c_string(f"step($self, {', '.join(p.name for p in inputs)}, *, out=None)\n--\n\n{step_doc}"),
         stub_doc=py_string(doc),
