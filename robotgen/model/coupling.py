@@ -52,7 +52,6 @@ class Coupling:
     coordinate: tuple[int, ...]  # per joint: the index of its coordinate
     multiplier: tuple[float, ...]  # per joint: the entry of S (1.0 for a coordinate's own joint)
     offset: tuple[float, ...]  # per joint: c (0.0 for a coordinate's own joint)
-    mimics: tuple[Mimic, ...]  # as the source states them, in joint order
 
     @property
     def nq(self) -> int:
@@ -118,5 +117,4 @@ def couple(n_joints: int, mimics: list[Mimic]) -> Coupling | None:
         tuple(index[own] for own, _, _ in rows),
         tuple(float(m) for _, m, _ in rows),
         tuple(float(c) for _, _, c in rows),
-        tuple(follows.values()),
     )
