@@ -39,6 +39,9 @@ class MissingDependency(Exception):
     the user's setup, exit status 1, the message says what to install."""
 
 
+MUJOCO_INSTALL = "pip install 'robotgen[mujoco]'"  # what MuJoCo's messages tell a user to run
+
+
 class OutputError(Exception):
     """An output directory robotgen may not or cannot write: it holds files robotgen cannot
     prove it wrote, or the system refuses it (a path through a regular file, a name too long,

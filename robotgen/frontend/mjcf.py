@@ -65,7 +65,7 @@ from pathlib import Path
 
 import numpy as np
 
-from robotgen.errors import Location, MissingDependency, UserError
+from robotgen.errors import MUJOCO_INSTALL, Location, MissingDependency, UserError
 from robotgen.frontend.input_file import read_input
 from robotgen.frontend.mjcf_equality import (
     JointEquality,
@@ -89,7 +89,7 @@ _CONNECT, _WELD, _JOINT_EQ, _TENDON_EQ = 0, 1, 2, 3
 _OBJ_SITE = 6  # mjOBJ_SITE: a connect or weld between sites
 _WRAP_JOINT, _WRAP_SITE, _WRAP_SPHERE, _WRAP_CYLINDER = 1, 3, 4, 5
 MAX_BYTES = 16_000_000
-INSTALL = "pip install 'robotgen[mujoco]'"
+INSTALL = MUJOCO_INSTALL
 DEFAULT_MODEL_NAME = "MuJoCo Model"  # what MuJoCo calls a model without <mujoco model=...>
 
 

@@ -12,11 +12,13 @@ The ``mujoco`` package is an optional dependency (``pip install 'robotgen[mujoco
 
 from __future__ import annotations
 
-INSTALL_HINT = "pip install 'robotgen[mujoco]'"
+from robotgen.errors import MUJOCO_INSTALL, MissingDependency
+
+INSTALL_HINT = MUJOCO_INSTALL
 
 
-class MujocoMissing(ImportError):
-    """The mujoco package is not installed."""
+class MujocoMissing(MissingDependency):
+    """The mujoco package is not installed (the MuJoCo plant was asked for)."""
 
 
 def require_mujoco():
