@@ -133,8 +133,8 @@ def controller_view(
     what = f"controller {controller.class_name!r}"
     snake = _checked_snake_case(controller, what)
     c_type = f"{module}_{snake}_controller"
-    step = _kernel(functions, controller.step, f"{what}: step kernel")
-    init = _kernel(functions, controller.init, f"{what}: init kernel") if controller.init else None
+    step = module_function(functions, controller.step, f"{what}: step kernel")
+    init = module_function(functions, controller.init, f"{what}: init kernel") if controller.init else None
     _check_state_and_period(controller, what)
     inputs = _step_inputs(controller, what, step, bool(parameters))
     others = _step_outputs(controller, what, step)
@@ -401,7 +401,7 @@ def _start_check(what: str, controller: Controller, functions: dict, inputs: tup
     start = controller.start
     if start is None:
         return None
-    kernel = _kernel(functions, start.kernel, f"{what}: start check kernel")
+    kernel = module_function(functions, start.kernel, f"{what}: start check kernel")
     wanted = [(p.name, p.shape) for p in inputs if p.name in ("q", "pose_d")]
     if [(p.name, p.shape) for p in kernel.inputs] != wanted or kernel.reads_parameters:
         raise KernelError(
@@ -430,7 +430,7 @@ def controllers_note(views: tuple[ControllerView, ...]) -> tuple[str, ...]:
     if not views:
         return ()
     return tuple(
-        _wrap(
+        comment_lines(
             f"The controllers at the end ({', '.join(v.c_type for v in views)}) keep one arm's "
             "controller state in a struct the caller owns: one struct per controlled arm, reset once, "
             "then stepped once per period from one thread (a struct is not for sharing between "
@@ -443,7 +443,8 @@ def _summary(doc: str) -> str:
     return " ".join(doc.strip().split("\n\n")[0].split())
 
 
-def _kernel(functions: dict, name: str, what: str):
+def module_function(functions: dict, name: str, what: str):
+    """The module's function ``name`` (a FunctionView), or a KernelError that ``what`` names."""
     if name not in functions:
         raise KernelError(f"{what} {name!r} is not among the module's functions {sorted(functions)}")
     return functions[name]
@@ -508,14 +509,14 @@ def _step_doc(step, inputs, others) -> str:
     return "\n".join(lines)
 
 
-def _wrap(text: str, indent: str = "") -> list[str]:
+def comment_lines(text: str, indent: str = "") -> list[str]:
     """``text`` on lines of at most WIDTH characters inside a C comment."""
     return textwrap.wrap(text, WIDTH, subsequent_indent=indent, break_long_words=False, break_on_hyphens=False)
 
 
 def _layout(controller: Controller, step, init, views, others, period_literal: str) -> tuple[str, ...]:
     n = controller.state_size
-    lines = _wrap(
+    lines = comment_lines(
         f"{controller.class_name}: {step.c_name} every {period_literal} s"
         + (f", after {init.c_name} on the first step after a reset." if init is not None else ".")
         + " The caller owns the struct: one per controlled arm, stepped from one thread (it is "
@@ -528,7 +529,7 @@ def _layout(controller: Controller, step, init, views, others, period_literal: s
             if view.offset > covered:
                 lines.append(f"  [{covered}, {view.offset}) the law's own")
             row_major = " row-major" if view.cols > 1 else ""
-            lines += _wrap(
+            lines += comment_lines(
                 f"  [{view.offset}, {view.offset + view.size}) {view.name} {view.shape_text}{row_major}: "
                 f"{view.doc_line}",
                 "      ",
@@ -538,7 +539,7 @@ def _layout(controller: Controller, step, init, views, others, period_literal: s
             lines.append(f"  [{covered}, {n}) the law's own")
     for o in others:
         lines.append(f"{o.name} {o.shape_text}: the step's {o.name!r} output of the last step")
-    lines += _wrap(
+    lines += comment_lines(
         "initialised: 0 after reset"
         + (f" (the next step runs {init.c_name} first)" if init is not None else "")
         + ", 1 after a step",
@@ -574,4 +575,4 @@ def _step_comment(
         + "Returns the kernel's status: 0"
         + (" (on another value the state is not advanced)." if state_size else ".")
     )
-    return tuple(_wrap(text))
+    return tuple(comment_lines(text))

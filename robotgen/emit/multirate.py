@@ -11,10 +11,10 @@ returned 0."""
 
 from __future__ import annotations
 
-import textwrap
 from dataclasses import dataclass
 
 from robotgen.emit import c_kernel
+from robotgen.emit.controllers import comment_lines, module_function
 from robotgen.emit.literals import c_string, py_string
 from robotgen.emit.sx_program import KernelError
 from robotgen.emit.views import FunctionView, ParameterView, PortView
@@ -25,7 +25,6 @@ ROOT_INPUTS = ("x_e", "xd_e", "xdd_e", "f_e", "f_i")
 SENSED = ("theta", "theta_dot")
 TAU_SENSED = "tau_sensed"
 HELD_PREFIX = "wr_"
-WIDTH = 92  # of the header's comment lines
 
 
 @dataclass(frozen=True)
@@ -91,10 +90,6 @@ class MultiRateView:
     info: dict
 
 
-def _wrap(text: str, indent: str = "") -> list[str]:
-    return textwrap.wrap(text, WIDTH, subsequent_indent=indent, break_long_words=False, break_on_hyphens=False)
-
-
 def _rate(period: float) -> str:
     return f"{1 / period:.4g} Hz"
 
@@ -118,10 +113,10 @@ def multirate_view(
         or any(a.ticks >= b.ticks for a, b in zip(spec.groups, spec.groups[1:]))
     ):
         raise KernelError(f"{what}: ticks {[g.ticks for g in spec.groups]} must rise from 1 and divide the last")
-    single = _function(functions, spec.single_rate, what)
+    single = module_function(functions, spec.single_rate, f"{what}:")
     tau = single.outputs[0]
-    steps = [_function(functions, g.step, what) for g in spec.groups]
-    inits = [_function(functions, g.init, what) if g.init else None for g in spec.groups]
+    steps = [module_function(functions, g.step, f"{what}:") for g in spec.groups]
+    inits = [module_function(functions, g.init, f"{what}:") if g.init else None for g in spec.groups]
     held_sizes: dict[str, int] = {}
     writer: dict[str, int] = {}
     reader: dict[str, int] = {}
@@ -280,12 +275,6 @@ def multirate_view(
     )
 
 
-def _function(functions: dict, name: str, what: str):
-    if name not in functions:
-        raise KernelError(f"{what}: {name!r} is not among the module's functions {sorted(functions)}")
-    return functions[name]
-
-
 def _doc(spec: MultiRate, groups, held, inputs, reads_parameters: bool) -> str:
     lines = [
         f"Runs the rate groups' steps on one tick count of the fastest period ({groups[0].period!r} s): at each "
@@ -334,13 +323,13 @@ def _step_doc(inputs, tau) -> str:
 
 
 def _struct_comment(spec: MultiRate, groups, held) -> tuple[str, ...]:
-    lines = _wrap(
+    lines = comment_lines(
         f"{spec.class_name}: the rate groups' steps on one tick count of the fastest period. The caller "
         "owns the struct: one per controlled tree, stepped from one thread. Call reset before the first "
         "step."
     ) + [""]
     for g in groups:
-        lines += _wrap(
+        lines += comment_lines(
             f"group {g.index}, {g.c_step} every {g.ticks} tick{'s' if g.ticks > 1 else ''} "
             f"({g.period_literal} s, {g.rate_text}): {', '.join(g.controllers)}",
             "    ",
@@ -350,14 +339,14 @@ def _struct_comment(spec: MultiRate, groups, held) -> tuple[str, ...]:
         if g.state_size:
             lines.append(f"state_g{g.index}[{g.state_size}]: group {g.index}'s controllers' state")
     for h in held:
-        lines += _wrap(
+        lines += comment_lines(
             f"{h.name}[{h.size}]: the trajectory group {h.writer} last wrote to '{h.node}' "
             f"[x_e; xd_e; xdd_e; F_e; F_i], held for group {h.reader}",
             "    ",
         )
     for g in groups:
         lines.append(f"tau_g{g.index}[nq]: group {g.index}'s last torques")
-    lines += _wrap(
+    lines += comment_lines(
         f"tick: the tick the next step runs, 0 to {spec.frame_ticks - 1} (one slowest period); "
         "initialised: 0 after reset, 1 after a step",
         "    ",
@@ -380,4 +369,4 @@ def _step_comment(c_type: str, groups) -> tuple[str, ...]:
         "torques. It works on a copy of the struct: on a nonzero status (a group's step's, returned as is) "
         "the struct and tau are left as they were."
     )
-    return tuple(_wrap(text))
+    return tuple(comment_lines(text))
