@@ -402,13 +402,19 @@ static int rg_results(const char *fn, PyObject *given, const rg_port *ports, int
     return rg_given_results(fn, given, ports, n, batch, in, in_ports, n_in, arrays);
 }
 
-/* Hands the results to Python: one array or a tuple of them. Steals the arrays. */
-static PyObject *rg_finish(const char *fn, int status, PyArrayObject **results, int n)
+/* Hands the results to Python: one array or a tuple of them. Steals the arrays. A nonzero
+ * status is an exception instead; `singular`, if not NULL, says why status 2 (a function whose
+ * M is singular at every state). */
+static PyObject *rg_finish(const char *fn, int status, PyArrayObject **results, int n, const char *singular)
 {
     PyObject *tuple;
     int i;
     if (status != 0) {
         rg_release(results, n);
+        if (status == 2 && singular != NULL) {
+            PyErr_SetString(PyExc_FloatingPointError, singular);
+            return NULL;
+        }
         if (status == 1) {
             return PyErr_Format(PyExc_FloatingPointError,
                                 "%s(): an input is NaN or infinite; nothing was computed (status 1)", fn);
@@ -579,7 +585,7 @@ static PyObject *k_mass(PyObject *self, PyObject *const *args, Py_ssize_t nargs,
     }
     rg_release(in, 1);
     }
-    return rg_finish("mass", status, out, 1);
+    return rg_finish("mass", status, out, 1, NULL);
 }
 
 /* coriolis */
@@ -642,7 +648,7 @@ static PyObject *k_coriolis(PyObject *self, PyObject *const *args, Py_ssize_t na
         PyEval_RestoreThread(unlocked);
     }
     rg_release(in, 2);
-    return rg_finish("coriolis", status, out, 1);
+    return rg_finish("coriolis", status, out, 1, NULL);
 }
 
 /* gravity */
@@ -737,7 +743,7 @@ static PyObject *k_gravity(PyObject *self, PyObject *const *args, Py_ssize_t nar
     }
     rg_release(in, 1);
     }
-    return rg_finish("gravity", status, out, 1);
+    return rg_finish("gravity", status, out, 1, NULL);
 }
 
 /* nonlinear */
@@ -800,7 +806,7 @@ static PyObject *k_nonlinear(PyObject *self, PyObject *const *args, Py_ssize_t n
         PyEval_RestoreThread(unlocked);
     }
     rg_release(in, 2);
-    return rg_finish("nonlinear", status, out, 1);
+    return rg_finish("nonlinear", status, out, 1, NULL);
 }
 
 /* inverse_dynamics */
@@ -909,7 +915,7 @@ static PyObject *k_inverse_dynamics(PyObject *self, PyObject *const *args, Py_ss
     }
     rg_release(in, 3);
     }
-    return rg_finish("inverse_dynamics", status, out, 1);
+    return rg_finish("inverse_dynamics", status, out, 1, NULL);
 }
 
 /* forward_dynamics */
@@ -1018,7 +1024,7 @@ static PyObject *k_forward_dynamics(PyObject *self, PyObject *const *args, Py_ss
     }
     rg_release(in, 3);
     }
-    return rg_finish("forward_dynamics", status, out, 1);
+    return rg_finish("forward_dynamics", status, out, 1, NULL);
 }
 
 /* kinematics */
@@ -1077,7 +1083,7 @@ static PyObject *k_kinematics(PyObject *self, PyObject *const *args, Py_ssize_t 
         PyEval_RestoreThread(unlocked);
     }
     rg_release(in, 1);
-    return rg_finish("kinematics", status, out, 1);
+    return rg_finish("kinematics", status, out, 1, NULL);
 }
 
 /* kinematics_jacobian */
@@ -1136,7 +1142,7 @@ static PyObject *k_kinematics_jacobian(PyObject *self, PyObject *const *args, Py
         PyEval_RestoreThread(unlocked);
     }
     rg_release(in, 1);
-    return rg_finish("kinematics_jacobian", status, out, 1);
+    return rg_finish("kinematics_jacobian", status, out, 1, NULL);
 }
 
 /* inverse_dynamics_derivatives */
@@ -1249,7 +1255,7 @@ static PyObject *k_inverse_dynamics_derivatives(PyObject *self, PyObject *const 
     }
     rg_release(in, 3);
     }
-    return rg_finish("inverse_dynamics_derivatives", status, out, 2);
+    return rg_finish("inverse_dynamics_derivatives", status, out, 2, NULL);
 }
 
 /* forward_dynamics_derivatives */
@@ -1366,7 +1372,7 @@ static PyObject *k_forward_dynamics_derivatives(PyObject *self, PyObject *const 
     }
     rg_release(in, 3);
     }
-    return rg_finish("forward_dynamics_derivatives", status, out, 3);
+    return rg_finish("forward_dynamics_derivatives", status, out, 3, NULL);
 }
 
 /* mass_inverse */
@@ -1461,7 +1467,7 @@ static PyObject *k_mass_inverse(PyObject *self, PyObject *const *args, Py_ssize_
     }
     rg_release(in, 1);
     }
-    return rg_finish("mass_inverse", status, out, 1);
+    return rg_finish("mass_inverse", status, out, 1, NULL);
 }
 
 /* discrete_dynamics */
@@ -1581,7 +1587,7 @@ static PyObject *k_discrete_dynamics(PyObject *self, PyObject *const *args, Py_s
     }
     rg_release(in, 4);
     }
-    return rg_finish("discrete_dynamics", status, out, 2);
+    return rg_finish("discrete_dynamics", status, out, 2, NULL);
 }
 
 /* discrete_dynamics_derivatives */
@@ -1709,7 +1715,7 @@ static PyObject *k_discrete_dynamics_derivatives(PyObject *self, PyObject *const
     }
     rg_release(in, 4);
     }
-    return rg_finish("discrete_dynamics_derivatives", status, out, 4);
+    return rg_finish("discrete_dynamics_derivatives", status, out, 4, NULL);
 }
 
 static PyObject *rg_info(PyObject *self, PyObject *unused)

@@ -402,13 +402,19 @@ static int rg_results(const char *fn, PyObject *given, const rg_port *ports, int
     return rg_given_results(fn, given, ports, n, batch, in, in_ports, n_in, arrays);
 }
 
-/* Hands the results to Python: one array or a tuple of them. Steals the arrays. */
-static PyObject *rg_finish(const char *fn, int status, PyArrayObject **results, int n)
+/* Hands the results to Python: one array or a tuple of them. Steals the arrays. A nonzero
+ * status is an exception instead; `singular`, if not NULL, says why status 2 (a function whose
+ * M is singular at every state). */
+static PyObject *rg_finish(const char *fn, int status, PyArrayObject **results, int n, const char *singular)
 {
     PyObject *tuple;
     int i;
     if (status != 0) {
         rg_release(results, n);
+        if (status == 2 && singular != NULL) {
+            PyErr_SetString(PyExc_FloatingPointError, singular);
+            return NULL;
+        }
         if (status == 1) {
             return PyErr_Format(PyExc_FloatingPointError,
                                 "%s(): an input is NaN or infinite; nothing was computed (status 1)", fn);
@@ -543,7 +549,7 @@ static PyObject *k_fk(PyObject *self, PyObject *const *args, Py_ssize_t nargs,
         PyEval_RestoreThread(unlocked);
     }
     rg_release(in, 1);
-    return rg_finish("fk", status, out, 1);
+    return rg_finish("fk", status, out, 1, NULL);
 }
 
 /* jacobian */
@@ -602,7 +608,7 @@ static PyObject *k_jacobian(PyObject *self, PyObject *const *args, Py_ssize_t na
         PyEval_RestoreThread(unlocked);
     }
     rg_release(in, 1);
-    return rg_finish("jacobian", status, out, 1);
+    return rg_finish("jacobian", status, out, 1, NULL);
 }
 
 /* jacobian_hand */
@@ -661,7 +667,7 @@ static PyObject *k_jacobian_hand(PyObject *self, PyObject *const *args, Py_ssize
         PyEval_RestoreThread(unlocked);
     }
     rg_release(in, 1);
-    return rg_finish("jacobian_hand", status, out, 1);
+    return rg_finish("jacobian_hand", status, out, 1, NULL);
 }
 
 /* jacobian_dot_qd */
@@ -724,7 +730,7 @@ static PyObject *k_jacobian_dot_qd(PyObject *self, PyObject *const *args, Py_ssi
         PyEval_RestoreThread(unlocked);
     }
     rg_release(in, 2);
-    return rg_finish("jacobian_dot_qd", status, out, 1);
+    return rg_finish("jacobian_dot_qd", status, out, 1, NULL);
 }
 
 /* mass */
@@ -819,7 +825,7 @@ static PyObject *k_mass(PyObject *self, PyObject *const *args, Py_ssize_t nargs,
     }
     rg_release(in, 1);
     }
-    return rg_finish("mass", status, out, 1);
+    return rg_finish("mass", status, out, 1, NULL);
 }
 
 /* coriolis */
@@ -882,7 +888,7 @@ static PyObject *k_coriolis(PyObject *self, PyObject *const *args, Py_ssize_t na
         PyEval_RestoreThread(unlocked);
     }
     rg_release(in, 2);
-    return rg_finish("coriolis", status, out, 1);
+    return rg_finish("coriolis", status, out, 1, NULL);
 }
 
 /* gravity */
@@ -977,7 +983,7 @@ static PyObject *k_gravity(PyObject *self, PyObject *const *args, Py_ssize_t nar
     }
     rg_release(in, 1);
     }
-    return rg_finish("gravity", status, out, 1);
+    return rg_finish("gravity", status, out, 1, NULL);
 }
 
 /* nonlinear */
@@ -1040,7 +1046,7 @@ static PyObject *k_nonlinear(PyObject *self, PyObject *const *args, Py_ssize_t n
         PyEval_RestoreThread(unlocked);
     }
     rg_release(in, 2);
-    return rg_finish("nonlinear", status, out, 1);
+    return rg_finish("nonlinear", status, out, 1, NULL);
 }
 
 /* inverse_dynamics */
@@ -1149,7 +1155,7 @@ static PyObject *k_inverse_dynamics(PyObject *self, PyObject *const *args, Py_ss
     }
     rg_release(in, 3);
     }
-    return rg_finish("inverse_dynamics", status, out, 1);
+    return rg_finish("inverse_dynamics", status, out, 1, NULL);
 }
 
 /* forward_dynamics */
@@ -1258,7 +1264,7 @@ static PyObject *k_forward_dynamics(PyObject *self, PyObject *const *args, Py_ss
     }
     rg_release(in, 3);
     }
-    return rg_finish("forward_dynamics", status, out, 1);
+    return rg_finish("forward_dynamics", status, out, 1, NULL);
 }
 
 /* servo_terms */
@@ -1327,7 +1333,7 @@ static PyObject *k_servo_terms(PyObject *self, PyObject *const *args, Py_ssize_t
         PyEval_RestoreThread(unlocked);
     }
     rg_release(in, 2);
-    return rg_finish("servo_terms", status, out, 4);
+    return rg_finish("servo_terms", status, out, 4, NULL);
 }
 
 /* inverse_dynamics_derivatives */
@@ -1440,7 +1446,7 @@ static PyObject *k_inverse_dynamics_derivatives(PyObject *self, PyObject *const 
     }
     rg_release(in, 3);
     }
-    return rg_finish("inverse_dynamics_derivatives", status, out, 2);
+    return rg_finish("inverse_dynamics_derivatives", status, out, 2, NULL);
 }
 
 /* forward_dynamics_derivatives */
@@ -1557,7 +1563,7 @@ static PyObject *k_forward_dynamics_derivatives(PyObject *self, PyObject *const 
     }
     rg_release(in, 3);
     }
-    return rg_finish("forward_dynamics_derivatives", status, out, 3);
+    return rg_finish("forward_dynamics_derivatives", status, out, 3, NULL);
 }
 
 /* mass_inverse */
@@ -1652,7 +1658,7 @@ static PyObject *k_mass_inverse(PyObject *self, PyObject *const *args, Py_ssize_
     }
     rg_release(in, 1);
     }
-    return rg_finish("mass_inverse", status, out, 1);
+    return rg_finish("mass_inverse", status, out, 1, NULL);
 }
 
 /* discrete_dynamics */
@@ -1772,7 +1778,7 @@ static PyObject *k_discrete_dynamics(PyObject *self, PyObject *const *args, Py_s
     }
     rg_release(in, 4);
     }
-    return rg_finish("discrete_dynamics", status, out, 2);
+    return rg_finish("discrete_dynamics", status, out, 2, NULL);
 }
 
 /* discrete_dynamics_derivatives */
@@ -1900,7 +1906,7 @@ static PyObject *k_discrete_dynamics_derivatives(PyObject *self, PyObject *const
     }
     rg_release(in, 4);
     }
-    return rg_finish("discrete_dynamics_derivatives", status, out, 4);
+    return rg_finish("discrete_dynamics_derivatives", status, out, 4, NULL);
 }
 
 /* jacobian_derivative */
@@ -1963,7 +1969,7 @@ static PyObject *k_jacobian_derivative(PyObject *self, PyObject *const *args, Py
         PyEval_RestoreThread(unlocked);
     }
     rg_release(in, 2);
-    return rg_finish("jacobian_derivative", status, out, 1);
+    return rg_finish("jacobian_derivative", status, out, 1, NULL);
 }
 
 static PyObject *rg_info(PyObject *self, PyObject *unused)
