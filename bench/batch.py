@@ -36,6 +36,9 @@ from pathlib import Path
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
 sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(HERE))
+
+from run import robots_dir  # noqa: E402  (bench/run.py: example-robot-data's models)
 
 ROBOTS = {
     "ur5": ("ur_description/urdf/ur5_robot.urdf", "tool0"),
@@ -52,16 +55,6 @@ FUNCTIONS = [
 STATES = 1024
 HORIZON = 100
 CFLAGS = ["-O2", "-std=c99", "-ffp-contract=off"]
-
-
-def robots_dir() -> Path:
-    import site
-
-    for sp in site.getsitepackages() + [site.getusersitepackages()]:
-        d = Path(sp) / "cmeel.prefix/share/example-robot-data/robots"
-        if d.is_dir():
-            return d
-    sys.exit("bench: example-robot-data is not installed (pip install example-robot-data)")
 
 
 def build(robot: str, precision: str, tmp: Path) -> Path:

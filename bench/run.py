@@ -102,16 +102,14 @@ def kernel_sources(out: Path) -> list[Path]:
     return srcs
 
 
-def c_harness(out: Path, name: str, nq: int, work: Path, flags: list[str] = CFLAGS) -> tuple[Path, list[str]]:
-    """bench/harness.c compiled against the generated kernels in OUT (once per work directory)."""
-    cc = os.environ.get("CC", "cc")
-    exe = work / "harness"
+def harness_command(out: Path, name: str, nq: int, exe: Path, flags: list[str] = CFLAGS) -> list[str]:
+    """The command that compiles bench/harness.c against the generated kernels in OUT into EXE."""
     derivatives = any(
         f["name"] == "inverse_dynamics_derivatives"
         for f in json.loads((out / "manifest.json").read_text())["functions"]
     )
-    cmd = [
-        cc,
+    return [
+        os.environ.get("CC", "cc"),
         *flags,
         f'-DRG_HEADER="{name}.h"',
         f"-DRG_PREFIX={name}",
@@ -124,6 +122,12 @@ def c_harness(out: Path, name: str, nq: int, work: Path, flags: list[str] = CFLA
         "-o",
         str(exe),
     ]
+
+
+def c_harness(out: Path, name: str, nq: int, work: Path, flags: list[str] = CFLAGS) -> tuple[Path, list[str]]:
+    """bench/harness.c compiled against the generated kernels in OUT (once per work directory)."""
+    exe = work / "harness"
+    cmd = harness_command(out, name, nq, exe, flags)
     if not exe.exists():  # a work directory holds one build (run again in later rounds)
         work.mkdir(parents=True, exist_ok=True)
         subprocess.run(cmd, check=True)

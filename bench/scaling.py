@@ -240,24 +240,6 @@ def build_model(tree, kind: str, tmp: Path, source: Path | None = None) -> dict:
     }
 
 
-def harness_command(out: Path, name: str, nq: int, exe: Path) -> list[str]:
-    """The command bench/run.py's run_c compiles bench/harness.c with (cc -O2, kernel sources)."""
-    cc = os.environ.get("CC", "cc")
-    return [
-        cc,
-        *bench_run.CFLAGS,
-        f'-DRG_HEADER="{name}.h"',
-        f"-DRG_PREFIX={name}",
-        f"-DRG_NQ={nq}",
-        f"-I{out}",
-        str(HERE / "harness.c"),
-        *map(str, bench_run.kernel_sources(out)),
-        "-lm",
-        "-o",
-        str(exe),
-    ]
-
-
 def compile_harnesses(rows: list[dict], tmp: Path) -> None:
     """Compiles every model's C harness, os.cpu_count() at a time: after all builds are timed
     and before any harness runs, so neither timing shares the machine with these compiles.
@@ -268,7 +250,9 @@ def compile_harnesses(rows: list[dict], tmp: Path) -> None:
         work = tmp / f"c-{r['model']}"
         work.mkdir(parents=True, exist_ok=True)
         res = subprocess.run(
-            harness_command(r["_out"], r["model"], r["dof"], work / "harness"), capture_output=True, text=True
+            bench_run.harness_command(r["_out"], r["model"], r["dof"], work / "harness"),
+            capture_output=True,
+            text=True,
         )
         if res.returncode != 0:
             raise RuntimeError(f"compiling the C harness for {r['model']} failed:\n{res.stderr[-2000:]}")
