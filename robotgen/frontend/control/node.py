@@ -86,6 +86,10 @@ class ControlReader(Collector):
         for other in LAWS.values():
             if other.settings is not None and other.name != law.name and other.name in spec:
                 self.at_key(path + (other.name,), f"settings of law {other.name}; this node's law is {law.name}")
+        if not law.expected:  # (a root law's `anchor` is refused below, as its other node keys)
+            if "anchor" in spec and not law.is_root:
+                self.at_key(path + ("anchor",), f"law {law.name} integrates no expected trajectory to anchor")
+            node = dataclasses.replace(node, anchor=None)
         if law.is_root:
             for key in NODE_KEYS:
                 if key in spec:
@@ -97,10 +101,6 @@ class ControlReader(Collector):
                 path + ("robot",),
                 f"'{node.robot}' is a rigid_body, a payload without actuators; it cannot be controlled",
             )
-        if not law.expected:
-            if "anchor" in spec:
-                self.at_key(path + ("anchor",), f"law {law.name} integrates no expected trajectory to anchor")
-            node = dataclasses.replace(node, anchor=None)
         n = robot.n_external
         gains = {}
         for key in ("kp", "kv"):
