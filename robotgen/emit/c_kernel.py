@@ -324,15 +324,19 @@ def _block(program: Program) -> Program:
 
 def _sincos_statements(step: Instruction, register: str, precision: Precision, lanes: bool = False) -> list[str]:
     """The angles into their lanes (an odd one paired with 0), then sin and cos two at a time
-    (with ``lanes``, two angles of every state at a time: the same pairs)."""
+    (with ``lanes``, every angle of W states in one call, each lane as the pairs give it)."""
     angles = [f"{register}{r}" for r in step.args]
+    arrays = f"{sincos.ANGLES}, {sincos.SINES}, {sincos.COSINES}"
+    if lanes:
+        return [f"{sincos.ANGLES}[{lane}] = {angle};" for lane, angle in enumerate(angles)] + [
+            f"{lane_names.per_width(sincos.LANE_HELPER)}({len(angles)}, {arrays});"
+        ]
     if len(angles) % 2:
         angles.append(_literal(0.0, precision, lanes))
-    helper = lane_names.per_width(sincos.HELPER) if lanes else sincos.HELPER
     lines = [f"{sincos.ANGLES}[{lane}] = {angle};" for lane, angle in enumerate(angles)]
     for lane in range(0, len(angles), 2):
         offset = f" + {lane}" if lane else ""
-        lines.append(f"{helper}({sincos.ANGLES}{offset}, {sincos.SINES}{offset}, {sincos.COSINES}{offset});")
+        lines.append(f"{sincos.HELPER}({sincos.ANGLES}{offset}, {sincos.SINES}{offset}, {sincos.COSINES}{offset});")
     return lines
 
 

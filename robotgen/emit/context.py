@@ -327,7 +327,7 @@ def _lane_helpers(
     by_name = {f.name: f for f in functions}
     stages: dict[str, tuple[str, set[int]]] = {}
     sincos_parts: set[int] = set()
-    calls_sincos = lane_names.per_width(sincos.HELPER) + "("
+    calls_sincos = lane_names.per_width(sincos.LANE_HELPER) + "("
     for kernel in kernels:
         f = by_name[kernel.name]
         if not f.lane_definition:

@@ -6,7 +6,7 @@ states laid out as callers hold them, one state after the other (array of struct
 of port q at ``q + k * <size of q>``). The batch driver takes them W at a time, transposes each
 block into structure-of-arrays form (a vector per port element, state b + l in lane l), runs the
 function's lane kernel (c_kernel.lane_kernel_source: the single-state function's statements, in
-its order, on vectors; sin/cos through the lane form of rg_sincos2) and transposes the results
+its order, on vectors; sin/cos of all its angles in one call, rg_sincosn) and transposes the results
 back. The states left over (n mod W) go through the single-state function.
 
 Each lane computes the IEEE operations the single-state function computes on that state, in the

@@ -35,6 +35,7 @@ from robotgen.emit import lane_names
 from robotgen.emit.sx_program import Instruction, Program, defining_steps
 
 HELPER = "rg_sincos2"
+LANE_HELPER = "rg_sincosn"  # a lane kernel's one call for all its angles (lane_helper_source)
 ANGLES, SINES, COSINES = "rg_x", "rg_s", "rg_c"  # a kernel's local arrays
 
 # pseudo-operations of a paired program (CasADi's op codes are non-negative)
@@ -217,7 +218,10 @@ def helper_source(real: str = "double") -> str:
 
 def lane_helper_source(real: str = "double") -> str:
     """``rg_sincos2`` for W states at once (robotgen.emit.lanes), printed once and compiled per
-    width as RG_L(rg_sincos2): x, s and c hold two angles, each a vector of W states. Each lane
+    width as RG_L(rg_sincos2): x, s and c hold two angles, each a vector of W states; and
+    RG_L(rg_sincosn), a lane kernel's one call for its n angles: when every lane is within the
+    bound, rg_sincos1 on each angle with no test per pair (a lane kernel's angles are all
+    within on nearly every call), else RG_L(rg_sincos2) pair by pair. Each lane
     takes rg_sincos2's operations in its order, so its bits: the same reduction and polynomials
     on vectors (RG_L(rg_sincos1), one angle), the quadrant from a vector of ints, and a lane
     whose pair has an angle past the bound (or not finite) through libm, both angles, as
@@ -239,6 +243,7 @@ def lane_helper_source(real: str = "double") -> str:
         return f"({x} <= {k(t.above)}) & ({x} >= {k(-t.above)})"
 
     one = lane_names.per_width("rg_sincos1")
+    pair, many = lane_names.per_width(HELPER), lane_names.per_width(LANE_HELPER)
     return (
         "\n".join(
             [
@@ -266,7 +271,7 @@ def lane_helper_source(real: str = "double") -> str:
                 "}",
                 "",
                 "/* rg_sincos2 on every lane: two angles of W states, each lane computed as rg_sincos2 computes it. */",
-                f"static {lane_names.TARGET} void {lane_names.per_width(HELPER)}(const {v} *x, {v} *s, {v} *c) {{",
+                f"static {lane_names.TARGET} void {pair}(const {v} *x, {v} *s, {v} *c) {{",
                 f"  {mask} near = {within('x[0]')} & {within('x[1]')};",
                 f"  {v} a0 = ({v})(({mask})x[0] & near), a1 = ({v})(({mask})x[1] & near);",
                 "  int m;",
@@ -279,6 +284,30 @@ def lane_helper_source(real: str = "double") -> str:
                 f"      s[1][m] = sin{f}(x[1][m]);",
                 f"      c[1][m] = cos{f}(x[1][m]);",
                 "    }",
+                "  }",
+                "}",
+                "",
+                "/* sin and cos of a lane kernel's n angles, each lane as rg_sincos2 computes the kernel's pairs",
+                " * (angles 2i and 2i + 1; the last, when n is odd, with 0). When every lane of every angle is",
+                " * within the bound, the angles go through rg_sincos1 one after the other, with no pair's",
+                " * test between them, else pair by pair through RG_L(rg_sincos2). */",
+                f"static {lane_names.TARGET} void {many}(int n, const {v} *x, {v} *s, {v} *c) {{",
+                f"  {mask} near = {within('x[0]')};",
+                "  int j, m, far = 0;",
+                f"  for (j = 1; j < n; ++j) near &= {within('x[j]')};",
+                f"  for (m = 0; m < {lane_names.WIDTH}; ++m) far |= !near[m];",
+                "  if (!far) {",
+                f"    for (j = 0; j < n; ++j) {one}(x + j, s + j, c + j);",
+                "    return;",
+                "  }",
+                f"  for (j = 0; j + 1 < n; j += 2) {pair}(x + j, s + j, c + j);",
+                "  if (j < n) {",
+                f"    {v} a[2], b[2], d[2];",
+                "    a[0] = x[j];",
+                f"    a[1] = {k(0.0)};",
+                f"    {pair}(a, b, d);",
+                "    s[j] = b[0];",
+                "    c[j] = d[0];",
                 "  }",
                 "}",
             ]

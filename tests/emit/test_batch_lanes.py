@@ -106,7 +106,9 @@ def widths(module) -> list[int]:
 
 
 def states(kernel, n: int, rng) -> list[np.ndarray]:
-    """n random states; every 7th state's angles past 1e5 (rg_sincos2 leaves them to libm)."""
+    """n random states; every 7th state's angles past 1e5 (rg_sincos2 leaves them to libm), and
+    every 5th (from the 3rd) one angle past it, each coordinate in turn: its pair goes to libm,
+    the kernel's other angles do not."""
     arrays = []
     for port in kernel.inputs:
         if port.name == "dt":
@@ -115,6 +117,8 @@ def states(kernel, n: int, rng) -> list[np.ndarray]:
         a = rng.uniform(-3.0, 3.0, (n, port.size))
         if port.name == "q":
             a[::7] += 3e5
+            for k in range(3, n, 5):
+                a[k, (k // 5) % port.size] += 3e5
         arrays.append(a)
     return arrays
 

@@ -1162,6 +1162,30 @@ static RG_TARGET void RG_L(rg_sincos2)(const rg_v *x, rg_v *s, rg_v *c) {
   }
 }
 
+/* sin and cos of a lane kernel's n angles, each lane as rg_sincos2 computes the kernel's pairs
+ * (angles 2i and 2i + 1; the last, when n is odd, with 0). When every lane of every angle is
+ * within the bound, the angles go through rg_sincos1 one after the other, with no pair's
+ * test between them, else pair by pair through RG_L(rg_sincos2). */
+static RG_TARGET void RG_L(rg_sincosn)(int n, const rg_v *x, rg_v *s, rg_v *c) {
+  rg_vm near = (x[0] <= RG_SPLAT(100000.0)) & (x[0] >= RG_SPLAT(-100000.0));
+  int j, m, far = 0;
+  for (j = 1; j < n; ++j) near &= (x[j] <= RG_SPLAT(100000.0)) & (x[j] >= RG_SPLAT(-100000.0));
+  for (m = 0; m < RG_W; ++m) far |= !near[m];
+  if (!far) {
+    for (j = 0; j < n; ++j) RG_L(rg_sincos1)(x + j, s + j, c + j);
+    return;
+  }
+  for (j = 0; j + 1 < n; j += 2) RG_L(rg_sincos2)(x + j, s + j, c + j);
+  if (j < n) {
+    rg_v a[2], b[2], d[2];
+    a[0] = x[j];
+    a[1] = RG_SPLAT(0.0);
+    RG_L(rg_sincos2)(a, b, d);
+    s[j] = b[0];
+    c[j] = d[0];
+  }
+}
+
 static RG_TARGET void RG_L(rgl_mass)(const rg_v *q, rg_v *mass) {
   rg_v w0, w2, w6, w7, w8, w9, w10;
   rg_v rg_x[2], rg_s[2], rg_c[2];
@@ -1169,8 +1193,7 @@ static RG_TARGET void RG_L(rgl_mass)(const rg_v *q, rg_v *mass) {
   w9 = q[1];
   w10 = w8 - w9;
   rg_x[0] = w10;
-  rg_x[1] = RG_SPLAT(0.0);
-  RG_L(rg_sincos2)(rg_x, rg_s, rg_c);
+  RG_L(rg_sincosn)(1, rg_x, rg_s, rg_c);
   w2 = RG_SPLAT(0.0020000000000000005);
   w0 = RG_SPLAT(0.005000000000000001);
   mass[0] = w0;
@@ -1234,8 +1257,7 @@ static RG_TARGET void RG_L(rgl_inverse_dynamics)(const rg_v *q, const rg_v *qd, 
   w37 = q[1];
   w38 = w36 - w37;
   rg_x[0] = w38;
-  rg_x[1] = RG_SPLAT(0.0);
-  RG_L(rg_sincos2)(rg_x, rg_s, rg_c);
+  RG_L(rg_sincosn)(1, rg_x, rg_s, rg_c);
   w13 = qd[1];
   w17 = qd[0];
   w18 = w17 - w13;
@@ -1310,8 +1332,7 @@ static RG_TARGET void RG_L(rgl_forward_dynamics)(const rg_v *q, const rg_v *qd, 
   w51 = q[1];
   w52 = w50 - w51;
   rg_x[0] = w52;
-  rg_x[1] = RG_SPLAT(0.0);
-  RG_L(rg_sincos2)(rg_x, rg_s, rg_c);
+  RG_L(rg_sincosn)(1, rg_x, rg_s, rg_c);
   w2 = qd[1];
   w10 = qd[0];
   w11 = w10 - w2;
@@ -1438,8 +1459,7 @@ static RG_TARGET void RG_L(rgl_inverse_dynamics_derivatives)(const rg_v *q, cons
   w75 = q[1];
   w76 = w74 - w75;
   rg_x[0] = w76;
-  rg_x[1] = RG_SPLAT(0.0);
-  RG_L(rg_sincos2)(rg_x, rg_s, rg_c);
+  RG_L(rg_sincosn)(1, rg_x, rg_s, rg_c);
   w5 = qd[0];
   w7 = qd[1];
   w15 = w5 - w7;
@@ -1605,8 +1625,7 @@ static RG_TARGET void RG_L(rgl_forward_dynamics_derivatives)(const rg_v *q, cons
   w136 = q[1];
   w137 = w135 - w136;
   rg_x[0] = w137;
-  rg_x[1] = RG_SPLAT(0.0);
-  RG_L(rg_sincos2)(rg_x, rg_s, rg_c);
+  RG_L(rg_sincosn)(1, rg_x, rg_s, rg_c);
   w5 = qd[0];
   w7 = qd[1];
   w15 = w5 - w7;
@@ -1837,8 +1856,7 @@ static RG_TARGET void RG_L(rgl_mass_inverse)(const rg_v *q, rg_v *mass_inverse) 
   w28 = q[1];
   w29 = w27 - w28;
   rg_x[0] = w29;
-  rg_x[1] = RG_SPLAT(0.0);
-  RG_L(rg_sincos2)(rg_x, rg_s, rg_c);
+  RG_L(rg_sincosn)(1, rg_x, rg_s, rg_c);
   w3 = RG_SPLAT(0.0020000000000000005);
   w0 = RG_SPLAT(199.99999999999997);
   w2 = RG_SPLAT(0.0);
@@ -1927,8 +1945,7 @@ static RG_TARGET void RG_L(rgl_discrete_dynamics)(const rg_v *q, const rg_v *qd,
   w61 = q[1];
   w62 = w60 - w61;
   rg_x[0] = w62;
-  rg_x[1] = RG_SPLAT(0.0);
-  RG_L(rg_sincos2)(rg_x, rg_s, rg_c);
+  RG_L(rg_sincosn)(1, rg_x, rg_s, rg_c);
   w2 = qd[0];
   w5 = qd[1];
   w12 = w2 - w5;
@@ -2094,8 +2111,7 @@ static RG_TARGET void RG_L(rgl_discrete_dynamics_derivatives)(const rg_v *q, con
   w191 = q[1];
   w192 = w190 - w191;
   rg_x[0] = w192;
-  rg_x[1] = RG_SPLAT(0.0);
-  RG_L(rg_sincos2)(rg_x, rg_s, rg_c);
+  RG_L(rg_sincosn)(1, rg_x, rg_s, rg_c);
   w2 = qd[0];
   w5 = qd[1];
   w12 = w2 - w5;
@@ -2495,6 +2511,30 @@ static RG_TARGET void RG_L(rg_sincos2)(const rg_v *x, rg_v *s, rg_v *c) {
   }
 }
 
+/* sin and cos of a lane kernel's n angles, each lane as rg_sincos2 computes the kernel's pairs
+ * (angles 2i and 2i + 1; the last, when n is odd, with 0). When every lane of every angle is
+ * within the bound, the angles go through rg_sincos1 one after the other, with no pair's
+ * test between them, else pair by pair through RG_L(rg_sincos2). */
+static RG_TARGET void RG_L(rg_sincosn)(int n, const rg_v *x, rg_v *s, rg_v *c) {
+  rg_vm near = (x[0] <= RG_SPLAT(100000.0)) & (x[0] >= RG_SPLAT(-100000.0));
+  int j, m, far = 0;
+  for (j = 1; j < n; ++j) near &= (x[j] <= RG_SPLAT(100000.0)) & (x[j] >= RG_SPLAT(-100000.0));
+  for (m = 0; m < RG_W; ++m) far |= !near[m];
+  if (!far) {
+    for (j = 0; j < n; ++j) RG_L(rg_sincos1)(x + j, s + j, c + j);
+    return;
+  }
+  for (j = 0; j + 1 < n; j += 2) RG_L(rg_sincos2)(x + j, s + j, c + j);
+  if (j < n) {
+    rg_v a[2], b[2], d[2];
+    a[0] = x[j];
+    a[1] = RG_SPLAT(0.0);
+    RG_L(rg_sincos2)(a, b, d);
+    s[j] = b[0];
+    c[j] = d[0];
+  }
+}
+
 static RG_TARGET void RG_L(rgl_mass)(const rg_v *q, rg_v *mass) {
   rg_v w0, w2, w6, w7, w8, w9, w10;
   rg_v rg_x[2], rg_s[2], rg_c[2];
@@ -2502,8 +2542,7 @@ static RG_TARGET void RG_L(rgl_mass)(const rg_v *q, rg_v *mass) {
   w9 = q[1];
   w10 = w8 - w9;
   rg_x[0] = w10;
-  rg_x[1] = RG_SPLAT(0.0);
-  RG_L(rg_sincos2)(rg_x, rg_s, rg_c);
+  RG_L(rg_sincosn)(1, rg_x, rg_s, rg_c);
   w2 = RG_SPLAT(0.0020000000000000005);
   w0 = RG_SPLAT(0.005000000000000001);
   mass[0] = w0;
@@ -2567,8 +2606,7 @@ static RG_TARGET void RG_L(rgl_inverse_dynamics)(const rg_v *q, const rg_v *qd, 
   w37 = q[1];
   w38 = w36 - w37;
   rg_x[0] = w38;
-  rg_x[1] = RG_SPLAT(0.0);
-  RG_L(rg_sincos2)(rg_x, rg_s, rg_c);
+  RG_L(rg_sincosn)(1, rg_x, rg_s, rg_c);
   w13 = qd[1];
   w17 = qd[0];
   w18 = w17 - w13;
@@ -2643,8 +2681,7 @@ static RG_TARGET void RG_L(rgl_forward_dynamics)(const rg_v *q, const rg_v *qd, 
   w51 = q[1];
   w52 = w50 - w51;
   rg_x[0] = w52;
-  rg_x[1] = RG_SPLAT(0.0);
-  RG_L(rg_sincos2)(rg_x, rg_s, rg_c);
+  RG_L(rg_sincosn)(1, rg_x, rg_s, rg_c);
   w2 = qd[1];
   w10 = qd[0];
   w11 = w10 - w2;
@@ -2771,8 +2808,7 @@ static RG_TARGET void RG_L(rgl_inverse_dynamics_derivatives)(const rg_v *q, cons
   w75 = q[1];
   w76 = w74 - w75;
   rg_x[0] = w76;
-  rg_x[1] = RG_SPLAT(0.0);
-  RG_L(rg_sincos2)(rg_x, rg_s, rg_c);
+  RG_L(rg_sincosn)(1, rg_x, rg_s, rg_c);
   w5 = qd[0];
   w7 = qd[1];
   w15 = w5 - w7;
@@ -2938,8 +2974,7 @@ static RG_TARGET void RG_L(rgl_forward_dynamics_derivatives)(const rg_v *q, cons
   w136 = q[1];
   w137 = w135 - w136;
   rg_x[0] = w137;
-  rg_x[1] = RG_SPLAT(0.0);
-  RG_L(rg_sincos2)(rg_x, rg_s, rg_c);
+  RG_L(rg_sincosn)(1, rg_x, rg_s, rg_c);
   w5 = qd[0];
   w7 = qd[1];
   w15 = w5 - w7;
@@ -3170,8 +3205,7 @@ static RG_TARGET void RG_L(rgl_mass_inverse)(const rg_v *q, rg_v *mass_inverse) 
   w28 = q[1];
   w29 = w27 - w28;
   rg_x[0] = w29;
-  rg_x[1] = RG_SPLAT(0.0);
-  RG_L(rg_sincos2)(rg_x, rg_s, rg_c);
+  RG_L(rg_sincosn)(1, rg_x, rg_s, rg_c);
   w3 = RG_SPLAT(0.0020000000000000005);
   w0 = RG_SPLAT(199.99999999999997);
   w2 = RG_SPLAT(0.0);
@@ -3260,8 +3294,7 @@ static RG_TARGET void RG_L(rgl_discrete_dynamics)(const rg_v *q, const rg_v *qd,
   w61 = q[1];
   w62 = w60 - w61;
   rg_x[0] = w62;
-  rg_x[1] = RG_SPLAT(0.0);
-  RG_L(rg_sincos2)(rg_x, rg_s, rg_c);
+  RG_L(rg_sincosn)(1, rg_x, rg_s, rg_c);
   w2 = qd[0];
   w5 = qd[1];
   w12 = w2 - w5;
@@ -3427,8 +3460,7 @@ static RG_TARGET void RG_L(rgl_discrete_dynamics_derivatives)(const rg_v *q, con
   w191 = q[1];
   w192 = w190 - w191;
   rg_x[0] = w192;
-  rg_x[1] = RG_SPLAT(0.0);
-  RG_L(rg_sincos2)(rg_x, rg_s, rg_c);
+  RG_L(rg_sincosn)(1, rg_x, rg_s, rg_c);
   w2 = qd[0];
   w5 = qd[1];
   w12 = w2 - w5;
@@ -3816,6 +3848,30 @@ static RG_TARGET void RG_L(rg_sincos2)(const rg_v *x, rg_v *s, rg_v *c) {
   }
 }
 
+/* sin and cos of a lane kernel's n angles, each lane as rg_sincos2 computes the kernel's pairs
+ * (angles 2i and 2i + 1; the last, when n is odd, with 0). When every lane of every angle is
+ * within the bound, the angles go through rg_sincos1 one after the other, with no pair's
+ * test between them, else pair by pair through RG_L(rg_sincos2). */
+static RG_TARGET void RG_L(rg_sincosn)(int n, const rg_v *x, rg_v *s, rg_v *c) {
+  rg_vm near = (x[0] <= RG_SPLAT(100000.0)) & (x[0] >= RG_SPLAT(-100000.0));
+  int j, m, far = 0;
+  for (j = 1; j < n; ++j) near &= (x[j] <= RG_SPLAT(100000.0)) & (x[j] >= RG_SPLAT(-100000.0));
+  for (m = 0; m < RG_W; ++m) far |= !near[m];
+  if (!far) {
+    for (j = 0; j < n; ++j) RG_L(rg_sincos1)(x + j, s + j, c + j);
+    return;
+  }
+  for (j = 0; j + 1 < n; j += 2) RG_L(rg_sincos2)(x + j, s + j, c + j);
+  if (j < n) {
+    rg_v a[2], b[2], d[2];
+    a[0] = x[j];
+    a[1] = RG_SPLAT(0.0);
+    RG_L(rg_sincos2)(a, b, d);
+    s[j] = b[0];
+    c[j] = d[0];
+  }
+}
+
 static RG_TARGET void RG_L(rgl_mass)(const rg_v *q, rg_v *mass) {
   rg_v w0, w2, w6, w7, w8, w9, w10;
   rg_v rg_x[2], rg_s[2], rg_c[2];
@@ -3823,8 +3879,7 @@ static RG_TARGET void RG_L(rgl_mass)(const rg_v *q, rg_v *mass) {
   w9 = q[1];
   w10 = w8 - w9;
   rg_x[0] = w10;
-  rg_x[1] = RG_SPLAT(0.0);
-  RG_L(rg_sincos2)(rg_x, rg_s, rg_c);
+  RG_L(rg_sincosn)(1, rg_x, rg_s, rg_c);
   w2 = RG_SPLAT(0.0020000000000000005);
   w0 = RG_SPLAT(0.005000000000000001);
   mass[0] = w0;
@@ -3888,8 +3943,7 @@ static RG_TARGET void RG_L(rgl_inverse_dynamics)(const rg_v *q, const rg_v *qd, 
   w37 = q[1];
   w38 = w36 - w37;
   rg_x[0] = w38;
-  rg_x[1] = RG_SPLAT(0.0);
-  RG_L(rg_sincos2)(rg_x, rg_s, rg_c);
+  RG_L(rg_sincosn)(1, rg_x, rg_s, rg_c);
   w13 = qd[1];
   w17 = qd[0];
   w18 = w17 - w13;
@@ -3964,8 +4018,7 @@ static RG_TARGET void RG_L(rgl_forward_dynamics)(const rg_v *q, const rg_v *qd, 
   w51 = q[1];
   w52 = w50 - w51;
   rg_x[0] = w52;
-  rg_x[1] = RG_SPLAT(0.0);
-  RG_L(rg_sincos2)(rg_x, rg_s, rg_c);
+  RG_L(rg_sincosn)(1, rg_x, rg_s, rg_c);
   w2 = qd[1];
   w10 = qd[0];
   w11 = w10 - w2;
@@ -4092,8 +4145,7 @@ static RG_TARGET void RG_L(rgl_inverse_dynamics_derivatives)(const rg_v *q, cons
   w75 = q[1];
   w76 = w74 - w75;
   rg_x[0] = w76;
-  rg_x[1] = RG_SPLAT(0.0);
-  RG_L(rg_sincos2)(rg_x, rg_s, rg_c);
+  RG_L(rg_sincosn)(1, rg_x, rg_s, rg_c);
   w5 = qd[0];
   w7 = qd[1];
   w15 = w5 - w7;
@@ -4259,8 +4311,7 @@ static RG_TARGET void RG_L(rgl_forward_dynamics_derivatives)(const rg_v *q, cons
   w136 = q[1];
   w137 = w135 - w136;
   rg_x[0] = w137;
-  rg_x[1] = RG_SPLAT(0.0);
-  RG_L(rg_sincos2)(rg_x, rg_s, rg_c);
+  RG_L(rg_sincosn)(1, rg_x, rg_s, rg_c);
   w5 = qd[0];
   w7 = qd[1];
   w15 = w5 - w7;
@@ -4491,8 +4542,7 @@ static RG_TARGET void RG_L(rgl_mass_inverse)(const rg_v *q, rg_v *mass_inverse) 
   w28 = q[1];
   w29 = w27 - w28;
   rg_x[0] = w29;
-  rg_x[1] = RG_SPLAT(0.0);
-  RG_L(rg_sincos2)(rg_x, rg_s, rg_c);
+  RG_L(rg_sincosn)(1, rg_x, rg_s, rg_c);
   w3 = RG_SPLAT(0.0020000000000000005);
   w0 = RG_SPLAT(199.99999999999997);
   w2 = RG_SPLAT(0.0);
@@ -4581,8 +4631,7 @@ static RG_TARGET void RG_L(rgl_discrete_dynamics)(const rg_v *q, const rg_v *qd,
   w61 = q[1];
   w62 = w60 - w61;
   rg_x[0] = w62;
-  rg_x[1] = RG_SPLAT(0.0);
-  RG_L(rg_sincos2)(rg_x, rg_s, rg_c);
+  RG_L(rg_sincosn)(1, rg_x, rg_s, rg_c);
   w2 = qd[0];
   w5 = qd[1];
   w12 = w2 - w5;
@@ -4748,8 +4797,7 @@ static RG_TARGET void RG_L(rgl_discrete_dynamics_derivatives)(const rg_v *q, con
   w191 = q[1];
   w192 = w190 - w191;
   rg_x[0] = w192;
-  rg_x[1] = RG_SPLAT(0.0);
-  RG_L(rg_sincos2)(rg_x, rg_s, rg_c);
+  RG_L(rg_sincosn)(1, rg_x, rg_s, rg_c);
   w2 = qd[0];
   w5 = qd[1];
   w12 = w2 - w5;

@@ -1588,13 +1588,36 @@ static RG_TARGET void RG_L(rg_sincos2)(const rg_v *x, rg_v *s, rg_v *c) {
   }
 }
 
+/* sin and cos of a lane kernel's n angles, each lane as rg_sincos2 computes the kernel's pairs
+ * (angles 2i and 2i + 1; the last, when n is odd, with 0). When every lane of every angle is
+ * within the bound, the angles go through rg_sincos1 one after the other, with no pair's
+ * test between them, else pair by pair through RG_L(rg_sincos2). */
+static RG_TARGET void RG_L(rg_sincosn)(int n, const rg_v *x, rg_v *s, rg_v *c) {
+  rg_vm near = (x[0] <= RG_SPLAT(100000.0)) & (x[0] >= RG_SPLAT(-100000.0));
+  int j, m, far = 0;
+  for (j = 1; j < n; ++j) near &= (x[j] <= RG_SPLAT(100000.0)) & (x[j] >= RG_SPLAT(-100000.0));
+  for (m = 0; m < RG_W; ++m) far |= !near[m];
+  if (!far) {
+    for (j = 0; j < n; ++j) RG_L(rg_sincos1)(x + j, s + j, c + j);
+    return;
+  }
+  for (j = 0; j + 1 < n; j += 2) RG_L(rg_sincos2)(x + j, s + j, c + j);
+  if (j < n) {
+    rg_v a[2], b[2], d[2];
+    a[0] = x[j];
+    a[1] = RG_SPLAT(0.0);
+    RG_L(rg_sincos2)(a, b, d);
+    s[j] = b[0];
+    c[j] = d[0];
+  }
+}
+
 static RG_TARGET void RG_L(rgl_mass)(const rg_v *q, rg_v *mass) {
   rg_v w0, w1, w2, w4, w5, w6, w7, w9, w10, w11, w12;
   rg_v rg_x[2], rg_s[2], rg_c[2];
   w12 = q[1];
   rg_x[0] = w12;
-  rg_x[1] = RG_SPLAT(0.0);
-  RG_L(rg_sincos2)(rg_x, rg_s, rg_c);
+  RG_L(rg_sincosn)(1, rg_x, rg_s, rg_c);
   w2 = RG_SPLAT(0.4032);
   w1 = RG_SPLAT(0.10055999999999998);
   w9 = RG_SPLAT(0.2016);
@@ -1637,7 +1660,7 @@ static RG_TARGET void RG_L(rgl_gravity)(const rg_v *q, rg_v *gravity) {
   w18 = q[1];
   rg_x[0] = w17;
   rg_x[1] = w18;
-  RG_L(rg_sincos2)(rg_x, rg_s, rg_c);
+  RG_L(rg_sincosn)(2, rg_x, rg_s, rg_c);
   w7 = RG_SPLAT(9.81);
   w0 = RG_SPLAT(11.183400000000002);
   w2 = rg_c[0];
@@ -1685,7 +1708,7 @@ static RG_TARGET void RG_L(rgl_inverse_dynamics)(const rg_v *q, const rg_v *qd, 
   w44 = q[1];
   rg_x[0] = w43;
   rg_x[1] = w44;
-  RG_L(rg_sincos2)(rg_x, rg_s, rg_c);
+  RG_L(rg_sincosn)(2, rg_x, rg_s, rg_c);
   w24 = qd[0];
   w1 = qdd[0];
   w5 = rg_c[0];
@@ -1770,7 +1793,7 @@ static RG_TARGET void RG_L(rgl_forward_dynamics)(const rg_v *q, const rg_v *qd, 
   w65 = q[0];
   rg_x[0] = w64;
   rg_x[1] = w65;
-  RG_L(rg_sincos2)(rg_x, rg_s, rg_c);
+  RG_L(rg_sincosn)(2, rg_x, rg_s, rg_c);
   w33 = RG_SPLAT(0.4032);
   w32 = RG_SPLAT(0.10055999999999998);
   w7 = rg_c[0];
@@ -1911,7 +1934,7 @@ static RG_TARGET void RG_L(rgl_inverse_dynamics_derivatives)(const rg_v *q, cons
   w65 = q[1];
   rg_x[0] = w64;
   rg_x[1] = w65;
-  RG_L(rg_sincos2)(rg_x, rg_s, rg_c);
+  RG_L(rg_sincosn)(2, rg_x, rg_s, rg_c);
   w17 = qd[0];
   w18 = qd[1];
   w1 = rg_c[0];
@@ -2068,7 +2091,7 @@ static RG_TARGET void RG_L(rgl_forward_dynamics_derivatives)(const rg_v *q, cons
   w140 = q[0];
   rg_x[0] = w139;
   rg_x[1] = w140;
-  RG_L(rg_sincos2)(rg_x, rg_s, rg_c);
+  RG_L(rg_sincosn)(2, rg_x, rg_s, rg_c);
   w17 = RG_SPLAT(0.4032);
   w16 = RG_SPLAT(0.10055999999999998);
   w9 = rg_c[0];
@@ -2302,8 +2325,7 @@ static RG_TARGET void RG_L(rgl_mass_inverse)(const rg_v *q, rg_v *mass_inverse) 
   int rg_l;
   w32 = q[1];
   rg_x[0] = w32;
-  rg_x[1] = RG_SPLAT(0.0);
-  RG_L(rg_sincos2)(rg_x, rg_s, rg_c);
+  RG_L(rg_sincosn)(1, rg_x, rg_s, rg_c);
   w2 = RG_SPLAT(0.4032);
   w1 = RG_SPLAT(0.10055999999999998);
   w0 = RG_SPLAT(0.7930000000000001);
@@ -2401,7 +2423,7 @@ static RG_TARGET void RG_L(rgl_discrete_dynamics)(const rg_v *q, const rg_v *qd,
   w75 = q[0];
   rg_x[0] = w74;
   rg_x[1] = w75;
-  RG_L(rg_sincos2)(rg_x, rg_s, rg_c);
+  RG_L(rg_sincosn)(2, rg_x, rg_s, rg_c);
   w34 = RG_SPLAT(0.4032);
   w33 = RG_SPLAT(0.10055999999999998);
   w9 = rg_c[0];
@@ -2583,7 +2605,7 @@ static RG_TARGET void RG_L(rgl_discrete_dynamics_derivatives)(const rg_v *q, con
   w198 = q[0];
   rg_x[0] = w197;
   rg_x[1] = w198;
-  RG_L(rg_sincos2)(rg_x, rg_s, rg_c);
+  RG_L(rg_sincosn)(2, rg_x, rg_s, rg_c);
   w34 = RG_SPLAT(0.4032);
   w33 = RG_SPLAT(0.10055999999999998);
   w9 = rg_c[0];
@@ -2991,13 +3013,36 @@ static RG_TARGET void RG_L(rg_sincos2)(const rg_v *x, rg_v *s, rg_v *c) {
   }
 }
 
+/* sin and cos of a lane kernel's n angles, each lane as rg_sincos2 computes the kernel's pairs
+ * (angles 2i and 2i + 1; the last, when n is odd, with 0). When every lane of every angle is
+ * within the bound, the angles go through rg_sincos1 one after the other, with no pair's
+ * test between them, else pair by pair through RG_L(rg_sincos2). */
+static RG_TARGET void RG_L(rg_sincosn)(int n, const rg_v *x, rg_v *s, rg_v *c) {
+  rg_vm near = (x[0] <= RG_SPLAT(100000.0)) & (x[0] >= RG_SPLAT(-100000.0));
+  int j, m, far = 0;
+  for (j = 1; j < n; ++j) near &= (x[j] <= RG_SPLAT(100000.0)) & (x[j] >= RG_SPLAT(-100000.0));
+  for (m = 0; m < RG_W; ++m) far |= !near[m];
+  if (!far) {
+    for (j = 0; j < n; ++j) RG_L(rg_sincos1)(x + j, s + j, c + j);
+    return;
+  }
+  for (j = 0; j + 1 < n; j += 2) RG_L(rg_sincos2)(x + j, s + j, c + j);
+  if (j < n) {
+    rg_v a[2], b[2], d[2];
+    a[0] = x[j];
+    a[1] = RG_SPLAT(0.0);
+    RG_L(rg_sincos2)(a, b, d);
+    s[j] = b[0];
+    c[j] = d[0];
+  }
+}
+
 static RG_TARGET void RG_L(rgl_mass)(const rg_v *q, rg_v *mass) {
   rg_v w0, w1, w2, w4, w5, w6, w7, w9, w10, w11, w12;
   rg_v rg_x[2], rg_s[2], rg_c[2];
   w12 = q[1];
   rg_x[0] = w12;
-  rg_x[1] = RG_SPLAT(0.0);
-  RG_L(rg_sincos2)(rg_x, rg_s, rg_c);
+  RG_L(rg_sincosn)(1, rg_x, rg_s, rg_c);
   w2 = RG_SPLAT(0.4032);
   w1 = RG_SPLAT(0.10055999999999998);
   w9 = RG_SPLAT(0.2016);
@@ -3040,7 +3085,7 @@ static RG_TARGET void RG_L(rgl_gravity)(const rg_v *q, rg_v *gravity) {
   w18 = q[1];
   rg_x[0] = w17;
   rg_x[1] = w18;
-  RG_L(rg_sincos2)(rg_x, rg_s, rg_c);
+  RG_L(rg_sincosn)(2, rg_x, rg_s, rg_c);
   w7 = RG_SPLAT(9.81);
   w0 = RG_SPLAT(11.183400000000002);
   w2 = rg_c[0];
@@ -3088,7 +3133,7 @@ static RG_TARGET void RG_L(rgl_inverse_dynamics)(const rg_v *q, const rg_v *qd, 
   w44 = q[1];
   rg_x[0] = w43;
   rg_x[1] = w44;
-  RG_L(rg_sincos2)(rg_x, rg_s, rg_c);
+  RG_L(rg_sincosn)(2, rg_x, rg_s, rg_c);
   w24 = qd[0];
   w1 = qdd[0];
   w5 = rg_c[0];
@@ -3173,7 +3218,7 @@ static RG_TARGET void RG_L(rgl_forward_dynamics)(const rg_v *q, const rg_v *qd, 
   w65 = q[0];
   rg_x[0] = w64;
   rg_x[1] = w65;
-  RG_L(rg_sincos2)(rg_x, rg_s, rg_c);
+  RG_L(rg_sincosn)(2, rg_x, rg_s, rg_c);
   w33 = RG_SPLAT(0.4032);
   w32 = RG_SPLAT(0.10055999999999998);
   w7 = rg_c[0];
@@ -3314,7 +3359,7 @@ static RG_TARGET void RG_L(rgl_inverse_dynamics_derivatives)(const rg_v *q, cons
   w65 = q[1];
   rg_x[0] = w64;
   rg_x[1] = w65;
-  RG_L(rg_sincos2)(rg_x, rg_s, rg_c);
+  RG_L(rg_sincosn)(2, rg_x, rg_s, rg_c);
   w17 = qd[0];
   w18 = qd[1];
   w1 = rg_c[0];
@@ -3471,7 +3516,7 @@ static RG_TARGET void RG_L(rgl_forward_dynamics_derivatives)(const rg_v *q, cons
   w140 = q[0];
   rg_x[0] = w139;
   rg_x[1] = w140;
-  RG_L(rg_sincos2)(rg_x, rg_s, rg_c);
+  RG_L(rg_sincosn)(2, rg_x, rg_s, rg_c);
   w17 = RG_SPLAT(0.4032);
   w16 = RG_SPLAT(0.10055999999999998);
   w9 = rg_c[0];
@@ -3705,8 +3750,7 @@ static RG_TARGET void RG_L(rgl_mass_inverse)(const rg_v *q, rg_v *mass_inverse) 
   int rg_l;
   w32 = q[1];
   rg_x[0] = w32;
-  rg_x[1] = RG_SPLAT(0.0);
-  RG_L(rg_sincos2)(rg_x, rg_s, rg_c);
+  RG_L(rg_sincosn)(1, rg_x, rg_s, rg_c);
   w2 = RG_SPLAT(0.4032);
   w1 = RG_SPLAT(0.10055999999999998);
   w0 = RG_SPLAT(0.7930000000000001);
@@ -3804,7 +3848,7 @@ static RG_TARGET void RG_L(rgl_discrete_dynamics)(const rg_v *q, const rg_v *qd,
   w75 = q[0];
   rg_x[0] = w74;
   rg_x[1] = w75;
-  RG_L(rg_sincos2)(rg_x, rg_s, rg_c);
+  RG_L(rg_sincosn)(2, rg_x, rg_s, rg_c);
   w34 = RG_SPLAT(0.4032);
   w33 = RG_SPLAT(0.10055999999999998);
   w9 = rg_c[0];
@@ -3986,7 +4030,7 @@ static RG_TARGET void RG_L(rgl_discrete_dynamics_derivatives)(const rg_v *q, con
   w198 = q[0];
   rg_x[0] = w197;
   rg_x[1] = w198;
-  RG_L(rg_sincos2)(rg_x, rg_s, rg_c);
+  RG_L(rg_sincosn)(2, rg_x, rg_s, rg_c);
   w34 = RG_SPLAT(0.4032);
   w33 = RG_SPLAT(0.10055999999999998);
   w9 = rg_c[0];
@@ -4382,13 +4426,36 @@ static RG_TARGET void RG_L(rg_sincos2)(const rg_v *x, rg_v *s, rg_v *c) {
   }
 }
 
+/* sin and cos of a lane kernel's n angles, each lane as rg_sincos2 computes the kernel's pairs
+ * (angles 2i and 2i + 1; the last, when n is odd, with 0). When every lane of every angle is
+ * within the bound, the angles go through rg_sincos1 one after the other, with no pair's
+ * test between them, else pair by pair through RG_L(rg_sincos2). */
+static RG_TARGET void RG_L(rg_sincosn)(int n, const rg_v *x, rg_v *s, rg_v *c) {
+  rg_vm near = (x[0] <= RG_SPLAT(100000.0)) & (x[0] >= RG_SPLAT(-100000.0));
+  int j, m, far = 0;
+  for (j = 1; j < n; ++j) near &= (x[j] <= RG_SPLAT(100000.0)) & (x[j] >= RG_SPLAT(-100000.0));
+  for (m = 0; m < RG_W; ++m) far |= !near[m];
+  if (!far) {
+    for (j = 0; j < n; ++j) RG_L(rg_sincos1)(x + j, s + j, c + j);
+    return;
+  }
+  for (j = 0; j + 1 < n; j += 2) RG_L(rg_sincos2)(x + j, s + j, c + j);
+  if (j < n) {
+    rg_v a[2], b[2], d[2];
+    a[0] = x[j];
+    a[1] = RG_SPLAT(0.0);
+    RG_L(rg_sincos2)(a, b, d);
+    s[j] = b[0];
+    c[j] = d[0];
+  }
+}
+
 static RG_TARGET void RG_L(rgl_mass)(const rg_v *q, rg_v *mass) {
   rg_v w0, w1, w2, w4, w5, w6, w7, w9, w10, w11, w12;
   rg_v rg_x[2], rg_s[2], rg_c[2];
   w12 = q[1];
   rg_x[0] = w12;
-  rg_x[1] = RG_SPLAT(0.0);
-  RG_L(rg_sincos2)(rg_x, rg_s, rg_c);
+  RG_L(rg_sincosn)(1, rg_x, rg_s, rg_c);
   w2 = RG_SPLAT(0.4032);
   w1 = RG_SPLAT(0.10055999999999998);
   w9 = RG_SPLAT(0.2016);
@@ -4431,7 +4498,7 @@ static RG_TARGET void RG_L(rgl_gravity)(const rg_v *q, rg_v *gravity) {
   w18 = q[1];
   rg_x[0] = w17;
   rg_x[1] = w18;
-  RG_L(rg_sincos2)(rg_x, rg_s, rg_c);
+  RG_L(rg_sincosn)(2, rg_x, rg_s, rg_c);
   w7 = RG_SPLAT(9.81);
   w0 = RG_SPLAT(11.183400000000002);
   w2 = rg_c[0];
@@ -4479,7 +4546,7 @@ static RG_TARGET void RG_L(rgl_inverse_dynamics)(const rg_v *q, const rg_v *qd, 
   w44 = q[1];
   rg_x[0] = w43;
   rg_x[1] = w44;
-  RG_L(rg_sincos2)(rg_x, rg_s, rg_c);
+  RG_L(rg_sincosn)(2, rg_x, rg_s, rg_c);
   w24 = qd[0];
   w1 = qdd[0];
   w5 = rg_c[0];
@@ -4564,7 +4631,7 @@ static RG_TARGET void RG_L(rgl_forward_dynamics)(const rg_v *q, const rg_v *qd, 
   w65 = q[0];
   rg_x[0] = w64;
   rg_x[1] = w65;
-  RG_L(rg_sincos2)(rg_x, rg_s, rg_c);
+  RG_L(rg_sincosn)(2, rg_x, rg_s, rg_c);
   w33 = RG_SPLAT(0.4032);
   w32 = RG_SPLAT(0.10055999999999998);
   w7 = rg_c[0];
@@ -4705,7 +4772,7 @@ static RG_TARGET void RG_L(rgl_inverse_dynamics_derivatives)(const rg_v *q, cons
   w65 = q[1];
   rg_x[0] = w64;
   rg_x[1] = w65;
-  RG_L(rg_sincos2)(rg_x, rg_s, rg_c);
+  RG_L(rg_sincosn)(2, rg_x, rg_s, rg_c);
   w17 = qd[0];
   w18 = qd[1];
   w1 = rg_c[0];
@@ -4862,7 +4929,7 @@ static RG_TARGET void RG_L(rgl_forward_dynamics_derivatives)(const rg_v *q, cons
   w140 = q[0];
   rg_x[0] = w139;
   rg_x[1] = w140;
-  RG_L(rg_sincos2)(rg_x, rg_s, rg_c);
+  RG_L(rg_sincosn)(2, rg_x, rg_s, rg_c);
   w17 = RG_SPLAT(0.4032);
   w16 = RG_SPLAT(0.10055999999999998);
   w9 = rg_c[0];
@@ -5096,8 +5163,7 @@ static RG_TARGET void RG_L(rgl_mass_inverse)(const rg_v *q, rg_v *mass_inverse) 
   int rg_l;
   w32 = q[1];
   rg_x[0] = w32;
-  rg_x[1] = RG_SPLAT(0.0);
-  RG_L(rg_sincos2)(rg_x, rg_s, rg_c);
+  RG_L(rg_sincosn)(1, rg_x, rg_s, rg_c);
   w2 = RG_SPLAT(0.4032);
   w1 = RG_SPLAT(0.10055999999999998);
   w0 = RG_SPLAT(0.7930000000000001);
@@ -5195,7 +5261,7 @@ static RG_TARGET void RG_L(rgl_discrete_dynamics)(const rg_v *q, const rg_v *qd,
   w75 = q[0];
   rg_x[0] = w74;
   rg_x[1] = w75;
-  RG_L(rg_sincos2)(rg_x, rg_s, rg_c);
+  RG_L(rg_sincosn)(2, rg_x, rg_s, rg_c);
   w34 = RG_SPLAT(0.4032);
   w33 = RG_SPLAT(0.10055999999999998);
   w9 = rg_c[0];
@@ -5377,7 +5443,7 @@ static RG_TARGET void RG_L(rgl_discrete_dynamics_derivatives)(const rg_v *q, con
   w198 = q[0];
   rg_x[0] = w197;
   rg_x[1] = w198;
-  RG_L(rg_sincos2)(rg_x, rg_s, rg_c);
+  RG_L(rg_sincosn)(2, rg_x, rg_s, rg_c);
   w34 = RG_SPLAT(0.4032);
   w33 = RG_SPLAT(0.10055999999999998);
   w9 = rg_c[0];
