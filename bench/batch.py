@@ -13,7 +13,14 @@ rounds, each >= 20 ms):
 for mass, inverse_dynamics, forward_dynamics and their derivatives, after checking that every
 width's results equal the loop's bit for bit. Then discrete_dynamics_derivatives over a
 100-knot horizon (n = 100, one call of the widest width) as one number: microseconds per
-horizon, against the loop's. --quick: the UR5 in double, 5 rounds.
+horizon, against the loop's. --quick: the UR5 in double, 5 rounds, no peer.
+
+Then Pinocchio-cg in a loop, in the same run: bench/code_generators.py's harness (its
+agreement check first) times the best variant of each kernel that Pinocchio's code generation
+has, single calls cycled over its 256 states, and robotgen's single calls beside them; the
+table gives the batch's states per second against it (double only: Pinocchio-cg generates
+double). If Pinocchio-cg cannot be built here, the bench says why and goes on. --no-peer skips
+it.
 
 Prints a table (states per second in millions, the ratio to the loop) and writes
 bench/batch.json. The machine may be shared: the rounds are interleaved so that load moves
@@ -200,8 +207,57 @@ def run(out: Path, rounds: int, functions: list[str]) -> dict:
     return data
 
 
-def table(results: dict) -> str:
-    rows = [["robot", "precision", "function", "loop Mstates/s", "widest", "Mstates/s", "x loop", "others"]]
+def pinocchio_cg_loops(robots: list[str], rounds: int, work: Path) -> dict:
+    """robot -> kernel -> Pinocchio-cg's best variant in a loop of single calls, with robotgen's
+    single calls timed beside it (bench/code_generators.py's harness, after its agreement check);
+    {"error": why} when Pinocchio-cg cannot be built here."""
+    import code_generators as peers
+
+    gen, status = peers.start_pinocchio_cg()
+    if gen is None:
+        print(f"bench: Pinocchio-cg not measured: {status['error']}", flush=True)
+        return {"error": status["error"]}
+    out: dict = {}
+    for robot in robots:
+        print(f"bench: {robot}: Pinocchio-cg in a loop ...", flush=True)
+        chosen = {"pinocchio_cg": dict(status), "casadi_kin_dyn": {"error": "not asked"}}
+        try:
+            arm = peers.arms.build(robot, work / "robotgen")
+            measured = peers.measure(arm, peers.peer_functions(arm, gen, chosen), work / robot, rounds)
+        except (peers.arms.ArmError, peers.HarnessError) as e:
+            print(f"bench: {robot}: Pinocchio-cg not measured: {e}", flush=True)
+            out[robot] = {"error": str(e)}
+            continue
+        if "error" in chosen["pinocchio_cg"]:
+            out[robot] = {"error": chosen["pinocchio_cg"]["error"]}
+            continue
+        out[robot] = {
+            k["kernel"]: {
+                "variant": k["best"]["pinocchio_cg"]["variant"],
+                "ns": k["best"]["pinocchio_cg"]["ns"],
+                "robotgen_ns": k["robotgen_ns"],
+            }
+            for k in measured["kernels"]
+            if "pinocchio_cg" in k["best"] and k["kernel"] in FUNCTIONS
+        }
+    return out
+
+
+def table(results: dict, peer: dict | None = None) -> str:
+    rows = [
+        [
+            "robot",
+            "precision",
+            "function",
+            "loop Mstates/s",
+            "widest",
+            "Mstates/s",
+            "x loop",
+            "others",
+            "Pinocchio-cg loop Mstates/s",
+            "x Pinocchio-cg",
+        ]
+    ]
     for key, data in results.items():
         robot, precision = key.split("/")
         for fn, r in data["functions"].items():
@@ -210,6 +266,8 @@ def table(results: dict) -> str:
                 continue
             widest = widths[-1]
             others = ", ".join(f"{w}: {r['loop_s'] / r['lanes_s'][w]:.2f}x" for w in widths[:-1])
+            theirs = (peer or {}).get(robot, {}).get(fn) if precision == "double" else None
+            rate = STATES / r["lanes_s"][widest]
             rows.append(
                 [
                     robot,
@@ -217,9 +275,11 @@ def table(results: dict) -> str:
                     fn,
                     f"{STATES / r['loop_s'] / 1e6:.2f}",
                     widest,
-                    f"{STATES / r['lanes_s'][widest] / 1e6:.2f}",
+                    f"{rate / 1e6:.2f}",
                     f"{r['loop_s'] / r['lanes_s'][widest]:.2f}",
                     others,
+                    f"{1e3 / theirs['ns']:.2f} ({theirs['variant']})" if theirs else "",
+                    f"{rate * theirs['ns'] * 1e-9:.2f}" if theirs else "",
                 ]
             )
             if "horizon_100" in r:
@@ -234,6 +294,8 @@ def table(results: dict) -> str:
                         f"{h['batch_s'] * 1e6:.1f} us",
                         f"{h['loop_s'] / h['batch_s']:.2f}",
                         "",
+                        "",
+                        "",
                     ]
                 )
     widths = [max(len(row[i]) for row in rows) for i in range(len(rows[0]))]
@@ -247,17 +309,23 @@ def main() -> None:
     parser.add_argument("--precision", nargs="+", choices=["double", "float"], default=["double", "float"])
     parser.add_argument("--functions", nargs="+", choices=FUNCTIONS, default=FUNCTIONS)
     parser.add_argument("--json", type=Path, default=HERE / "batch.json")
+    parser.add_argument("--no-peer", action="store_true", help="no Pinocchio-cg loop")
     args = parser.parse_args()
-    robots, precisions, rounds = args.robots, args.precision, 15
+    robots, precisions, rounds, peer_runs = args.robots, args.precision, 15, 3
     if args.quick:
-        robots, precisions, rounds = ["ur5"], ["double"], 5
-    results = {}
+        robots, precisions, rounds, peer_runs = ["ur5"], ["double"], 5, 0
+    if args.no_peer or "double" not in precisions:
+        peer_runs = 0
+    results: dict = {}
+    peer: dict = {}
     with tempfile.TemporaryDirectory(prefix="robotgen-batch-") as tmp:
         for robot in robots:
             for precision in precisions:
                 print(f"bench: {robot} ({precision}): building and timing ...", flush=True)
                 results[f"{robot}/{precision}"] = run(build(robot, precision, Path(tmp)), rounds, args.functions)
-    print(table(results))
+        if peer_runs:
+            peer = pinocchio_cg_loops(robots, peer_runs, Path(tmp) / "peers")
+    print(table(results, peer))
     args.json.write_text(
         json.dumps(
             {
@@ -267,6 +335,7 @@ def main() -> None:
                 "states": STATES,
                 "horizon": HORIZON,
                 "results": results,
+                "pinocchio_cg_loop": peer,
             },
             indent=2,
             sort_keys=True,
