@@ -477,7 +477,7 @@ def operation_table(hand: dict) -> str:
         )
     step = counts["step"]
     lines.append(
-        f"    {'emitted step (every stage fused, terms shared)':46} {'':9} {'':5}   {step['mul']:12d} "
+        f"    {'emitted step (its prologue and loops)':46} {'':9} {'':5}   {step['mul']:12d} "
         f"{step['add']:5d} {step['trig']:5d} {step['other']:5d}"
     )
     return "\n".join(lines)

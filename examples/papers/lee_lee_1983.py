@@ -233,7 +233,8 @@ def write_report(path: Path, counts: dict, numbers: dict, variant_rows: list, qu
         lines.append(f"| {label} | {p['mul']} | {p['add']} | {g['mul']} | {g['add']} | {g['trig']} | {g['other']} | |")
     step = counts["step"]
     lines += [
-        f"| emitted step (stages fused) | | | {step['mul']} | {step['add']} | {step['trig']} | {step['other']} | |",
+        f"| emitted step (its prologue and loops) | | | {step['mul']} | {step['add']} | {step['trig']} "
+        f"| {step['other']} | |",
         "",
         "![Table 1](table1.png)",
         "",

@@ -29,8 +29,10 @@ from robotgen.symbolic.schedule import (
     ABOVE_DESCENDING,
     BELOW,
     DESCENDING,
+    INPUT,
     LOCAL,
     ONCE,
+    OUTPUT,
     PAIRS,
     RANGE,
     Slice,
@@ -413,6 +415,8 @@ def _scheduled_body(
         declarations.append("int " + ", ".join(used) + ";")
 
     def array(s: Slice) -> str:
+        if s.kind == INPUT:
+            return kernel.inputs[s.index].name
         return f"t{s.index}" if s.kind == LOCAL else kernel.outputs[s.index].name
 
     def target(s: Slice, element: int) -> tuple[str, int] | str:
@@ -457,7 +461,8 @@ def _scheduled_body(
         program = reads_first(read_program(inner))
         named = _named_ports(program)
         outputs |= {loop.writes[port].index for port in named.outputs if loop.writes[port].kind != LOCAL}
-        outputs |= {loop.reads[port].index for port in named.inputs if loop.reads[port].kind != LOCAL}
+        outputs |= {loop.reads[port].index for port in named.inputs if loop.reads[port].kind == OUTPUT}
+        inputs |= {loop.reads[port].index for port in named.inputs if loop.reads[port].kind == INPUT}
         registers, statements = _straight_line(
             passes.choose(program, Use.LOOP_BODY).apply(program),
             inner,

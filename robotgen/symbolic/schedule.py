@@ -18,7 +18,7 @@ from dataclasses import dataclass, field
 
 import casadi as ca
 
-LOCAL, OUTPUT = "local", "output"
+LOCAL, OUTPUT, INPUT = "local", "output", "input"
 ONCE, RANGE, DESCENDING = "once", "range", "descending"
 BELOW, ABOVE, ABOVE_DESCENDING = "below", "above", "above descending"
 PAIRS = "pairs"
@@ -31,7 +31,8 @@ of a listed table, in its order (a tree's ancestor pairs)."""
 @dataclass(frozen=True)
 class Slice:
     """Elements ``offset + i * i_stride + j * j_stride + e * step`` (e = 0, 1, ...) of a local
-    array or an output port (``index`` numbers it among the locals or the outputs)."""
+    array, an output port or (read by a loop) an input port (``index`` numbers it among the
+    locals, the outputs or the inputs)."""
 
     kind: str
     index: int
@@ -54,7 +55,7 @@ class Loop:
     body: ca.Function  # SX; dense column inputs and outputs
     space: str
     n: int
-    reads: tuple[Slice, ...]  # one per body input (locals only)
+    reads: tuple[Slice, ...]  # one per body input (locals, outputs written before, array inputs)
     writes: tuple[Slice, ...]  # one per body output
     pairs: tuple[tuple[int, int], ...] = ()  # the space PAIRS
 
@@ -183,12 +184,12 @@ class ScheduleBuilder:
         writes: list[Slice],
         pairs: Sequence[tuple[int, int]] = (),
     ) -> None:
-        """Add a loop, checking that every element it reads was written before."""
+        """Add a loop, checking that every element it reads was written before (an input's are)."""
         loop = Loop(body, space, n, tuple(reads), tuple(writes), tuple(pairs))
         if (space == PAIRS) != bool(pairs):
             raise ValueError("the space PAIRS, and it alone, lists its pairs")
-        if any(s.kind != LOCAL for s in reads):
-            raise ValueError("loops read local arrays")
+        if any(s.kind == INPUT for s in writes):
+            raise ValueError("loops do not write inputs")
         for i, j in loop.iterations():
             for k, s in enumerate(reads):
                 self._load(s, body.size1_in(k), i, j)
@@ -198,6 +199,9 @@ class ScheduleBuilder:
         self._flat = None
 
     def _array(self, s: Slice, arrays: tuple[list, list] | None = None) -> list:
+        if s.kind == INPUT:
+            symbol = self.inputs[s.index]
+            return [symbol[e] for e in range(symbol.numel())]
         local, output = arrays or (self._locals, self._outputs)
         return local[s.index] if s.kind == LOCAL else output[s.index]
 

@@ -271,6 +271,45 @@ def step_graph(system: RobotSystem) -> tuple[list[tuple], list[tuple], Parameter
     return inputs, outputs, parameters
 
 
+def _looped_step(system: RobotSystem, inputs: list[tuple], outputs: list[tuple], parameters: ParameterSymbols):
+    """The step's identification and one-step control as loops (adaptive_loops), its
+    feedforward and dx the prologue: a step whose weights are constants."""
+    from robotgen.symbolic.root_laws.adaptive_loops import step_schedule  # (it reads this module's constants)
+
+    node = system.root_control
+    s = node.adaptive
+    layout = StateLayout.of(s)
+    hand = Hand(system.tree(node.robot), s.tool)
+    w = Weights(node.name, s, parameters)
+    named = parameters.symbols
+    symbols = [port[1] for port in inputs]
+    i = Inputs()
+    i.q, i.qd, i.pose_d, i.twist_d, i.accel_d = symbols[:5]
+    old = layout.unpack(symbols[5])
+    q_start = old["q_d"] + s.period * old["qd_d"] + 0.5 * s.period**2 * old["qdd_d"]
+    ff = feedforward(hand, i, q_start, s.ik_iterations)
+
+    q = ca.SX(named.get(f"{node.name}_q", ca.DM(s.q.ravel())))
+    weights = {
+        "q": q if q.numel() == NX else ca.vec(w.Q.T),
+        "r": None if w.R is None else ca.vec(w.R.T),
+        "kappa": ca.SX(w.kappa),
+        "mu": ca.SX(w.forgetting),
+        "limit": s.trace_limit,
+        "directional": s.directional,
+        "affine": s.affine,
+    }
+    prologue = {
+        "u_n": ff["u_n"],
+        "dx": perturbation(hand, i),
+        "q_d": ff["q_d"],
+        "qd_d": ff["qd_d"],
+        "qdd_d": ff["qdd_d"],
+    }
+    sizes = [shape[0] * shape[1] for _, _, shape in outputs]
+    return step_schedule(symbols, sizes, layout.offsets, prologue, weights)
+
+
 def initial_state(hand: Hand, s: AdaptiveSettings, i: Inputs) -> ca.SX:
     """The state after a reset: the resolved desired joint trajectory (inverse kinematics from
     the measured q), the model linearised there and discretised (eqs 24-32), c = 0, P_0."""
@@ -301,17 +340,21 @@ def kernels(system: RobotSystem) -> list[Kernel]:
     tree = system.tree(node.robot)
     hand = Hand(tree, s.tool)
     inputs, outputs, parameters = step_graph(system)
-    step = make_kernel(
-        STEP,
+    doc = (
         "Resolved motion adaptive control (Lee and Lee 1983), one sampling period: Newton-Euler "
         "feedforward along the resolved desired trajectory plus the one-step optimal feedback (eq 39) of "
         "the RLS-identified perturbation model (eq 37); adapt = 0 freezes the identification. The state "
         "(A, B, c, P, the last phi, the resolved joint trajectory) comes from adaptive_init or the previous "
-        "step. Also the hand perturbation dx (eq 20).",
+        "step. Also the hand perturbation dx (eq 20)."
+    )
+    step = make_kernel(
+        STEP,
+        doc,
         inputs,
-        outputs,
+        [(name, None, shape) for name, _, shape in outputs],
         parameters,
         guarded=True,
+        schedule=_looped_step(system, inputs, outputs, parameters),
     )
     j = Inputs()
     init = make_kernel(
@@ -354,7 +397,7 @@ def stage_counts(system: RobotSystem) -> dict:
     """Operations of each of Table 1's stages, given what the stages before it computed (stage
     3 of the feedforward is counted as what it adds to stage 2, whose J^-1 the paper's stage 3
     reuses), the totals in the paper's accounting (parallel parts counted by the larger), and
-    the emitted step (every stage fused, common subexpressions shared)."""
+    the emitted step (its prologue and loops, robotgen.symbolic.root_laws.adaptive_loops)."""
     node = system.root_control
     s = node.adaptive
     hand = Hand(system.tree(node.robot), s.tool)
@@ -457,8 +500,19 @@ def stage_counts(system: RobotSystem) -> dict:
             "sequential": {k: sum(r[key][k] for r in rows) for k in parts["feedback"]},
         }
     inputs, outputs, parameters = step_graph(system)
-    out["step"] = count_operations([i[1] for i in inputs] + [parameters.vector], [o[1] for o in outputs])
+    symbols = [i[1] for i in inputs] + ([parameters.vector] if parameters.parameters else [])
+    out["step"] = _executed(_looped_step(system, inputs, outputs, parameters).finish(symbols))
     return out
+
+
+def _executed(schedule) -> dict:
+    """Operations the emitted step executes: its prologue once and each loop body per iteration."""
+    total = dict.fromkeys(KINDS, 0)
+    for function, times in [(schedule.prologue, 1)] + [(loop.body, len(loop.iterations())) for loop in schedule.loops]:
+        counts = count_operations(function.sx_in(), function.call(function.sx_in()))
+        for kind in KINDS:
+            total[kind] += times * counts[kind]
+    return total
 
 
 def nominal_pose(system: RobotSystem) -> np.ndarray:
