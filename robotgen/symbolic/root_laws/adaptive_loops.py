@@ -82,17 +82,19 @@ def step_schedule(
     pp, adapt, mu = ca.SX.sym("pp", n), ca.SX.sym("adapt"), ca.SX.sym("mu")
     s = _dot(phi, pp)
     g = pp * (adapt / (s + mu))
+    scale: ca.SX | None = None  # eq 37 as printed divides P by mu; directional forgetting does not
     if weights["directional"]:
-        eg, scale = g * (1 - (1 - mu) / ca.fmax(s, TINY)), ca.SX(1)
+        eg = g * (1 - (1 - mu) / ca.fmax(s, TINY))
     else:
         eg, scale = g, ca.if_else(adapt, 1 / mu, 1)
-    gain, e_gain, scaling = b.local(size=n), b.local(size=n), b.local(size=1)
+    gain, e_gain = b.local(size=n), b.local(size=n)
+    scaling = b.local(size=1) if scale is not None else -1
     b.loop(
-        body("gain", [pp, phi, adapt, mu], [g, eg, scale]),
+        body("gain", [pp, phi, adapt, mu], [g, eg, *((scale,) if scale is not None else ())]),
         ONCE,
         1,
         [local(p_phi), state("phi"), local(scalars), local(scalars, offset=1)],
-        [local(gain), local(e_gain), local(scaling)],
+        [local(gain), local(e_gain), *((local(scaling),) if scale is not None else ())],
     )
     a_row, b_row, c_i, dx_i, gg = (ca.SX.sym(k, m) for k, m in (("a", NX), ("b", NU), ("c", 1), ("dx", 1), ("g", n)))
     theta = ca.vertcat(a_row, b_row, *((c_i,) if affine else ()))
@@ -110,8 +112,7 @@ def step_schedule(
         [new("A", NX), new("B", NU), *((new("c", 1),) if affine else ())],
     )
     p_ij, pp_i, eg_j, sc = (ca.SX.sym(k) for k in ("p_ij", "pp_i", "eg_j", "scale"))
-    # eq 37 as printed divides by mu (scale); directional forgetting has no scale
-    scaled = not weights["directional"]
+    scaled = scale is not None
     value = (p_ij - pp_i * eg_j) * sc if scaled else p_ij - pp_i * eg_j
     ins = [p_ij, pp_i, eg_j, *((sc,) if scaled else ())]
     entry = body("covariance", ins, [value])
