@@ -2,7 +2,8 @@
 straight-line graph (resolved_adaptive.step_graph) computes, bit for bit, over successive
 periods that move A, B, c and P, for every form of the weights and the identification: the
 weight rule with run-time or folded gains, a given Q (diagonal by blocks, or full) and R, no
-affine term, and eq 37's forgetting with its trace limit. The emitted C of each (compiled
+affine term, and eq 37's forgetting with its trace limit; so does the reset's state, its
+discretisation (eqs 29-32) as loops, against resolved_adaptive.initial_state. The emitted C of each (compiled
 warning-free by the build) gives the same numbers."""
 
 from __future__ import annotations
@@ -16,6 +17,7 @@ import pytest
 from robotgen.frontend import load_system
 from robotgen.model.parameter_struct import runtime_parameters
 from robotgen.symbolic.root_laws import resolved_adaptive as ra
+from robotgen.symbolic.root_laws.hand import Hand
 
 RMAC = Path(__file__).resolve().parents[2] / "specs" / "puma560_rmac.yaml"
 ANCHOR = "        tool: {xyz: [0, 0, 0.1], rpy: [0, pi/2, 0]}   # hand x along the tool: pitch 0 at the start\n"
@@ -59,7 +61,20 @@ def test_the_looped_step_is_the_straight_line_step(tmp_path, build_module, case)
     q = np.array([0.1, 0.5, -0.3, 0.2, 0.4, -0.1])
     pose_d = np.ravel(np.array(pose(q)))
     zero = np.zeros(6)
-    state = np.array(init.function(q, zero, pose_d, zero, zero, *extra[: init.function.n_in() - 5])).ravel()
+    # the reset's state, its discretisation as loops, against initial_state's graph
+    assert init.schedule is not None
+    hand = Hand(system.tree(system.root_control.robot), system.root_control.adaptive.tool)
+    i = ra.Inputs()
+    reset = ca.Function("reset", [p[1] for p in i.ports()], [ra.initial_state(hand, system.root_control.adaptive, i)])
+    for q_k in (q, q[::-1]):
+        looped_state = np.array(init.function(q_k, 0.1 * q_k, pose_d, zero, zero)).ravel()
+        expected_state = np.array(reset(q_k, 0.1 * q_k, pose_d, zero, zero)).ravel()
+        assert np.all(np.isfinite(expected_state))
+        assert np.array_equal(looped_state.view(np.uint64), expected_state.view(np.uint64))
+    state = np.array(init.function(q, zero, pose_d, zero, zero)).ravel()
+    if case in COMPILED:
+        emitted_state = np.ravel(build_module(str(path)).adaptive_init(q, zero, pose_d.reshape(4, 4), zero, zero))
+        np.testing.assert_allclose(emitted_state, state, rtol=1e-12, atol=1e-12 * max(1.0, np.max(np.abs(state))))
     for k in range(6):  # the state moves: A, B, c and P identified, phi the last period's
         q_k = q + 1e-3 * np.sin(np.arange(6) + k)
         qd_k = 1e-2 * np.cos(np.arange(6) * (k + 1))

@@ -1,4 +1,5 @@
-"""The adaptive step's identification (eq 37) and one-step control (eq 39) as loops.
+"""The adaptive step's identification (eq 37) and one-step control (eq 39) as loops, and the
+reset's discretisation (eqs 29-32) (init_schedule).
 
 Straight-line, the step's RLS update and one-step control are four of its five thousand
 operations (19 x 19 covariance, 12 rows of 19 parameters, 12 x 6 products and two 6 x 6 grams),
@@ -227,3 +228,63 @@ def _column(matrix: Slice, i_stride: int, j_stride: int) -> Slice:
 def _whole(row: Slice) -> Slice:
     """The whole matrix whose rows ``row`` walks (the same elements at every iteration)."""
     return Slice(row.kind, row.index, row.offset)
+
+
+def init_schedule(
+    inputs: list[ca.SX],
+    size: int,
+    offsets: dict[str, tuple[int, int, int]],
+    values: dict,
+    T: float,
+    terms: int,
+) -> ScheduleBuilder:
+    """The reset's state with A = exp(F T) and B = int_0^T exp(F s) ds L (hand.discretise's
+    series to ``terms`` terms) as loops: each row of each term of the series as the row of the
+    term before times F times T/k (one loop over the rows of the terms laid end to end), then each entry of A and of
+    S = sum_k term_k T/(k+1), then each row of B = S L. The prologue linearises (F, L) and
+    writes the trajectory and P_0's diagonal; c and phi stay 0. ``values``: F (12 x 12), L
+    (12 x 6), q_d, qd_d, qdd_d and P0 (its diagonal)."""
+    b = ScheduleBuilder(inputs, [size])
+    n = offsets["P"][1]
+
+    def new(name: str, i_stride: int = 0, offset: int = 0) -> Slice:
+        return Slice(OUTPUT, 0, offsets[name][0] + offset, i_stride)
+
+    for name in ("q_d", "qd_d", "qdd_d"):
+        b.prologue(new(name), values[name])
+    b.prologue(Slice(OUTPUT, 0, offsets["P"][0], 0, 0, n + 1), values["P0"])
+    f = b.local(ca.densify(values["F"]).T)  # row-major
+    l_matrix = b.local(ca.densify(values["L"]).T)
+    series = b.local(ca.vertcat(ca.vec(ca.DM.eye(NX)), ca.SX.zeros((terms - 1) * NX * NX)))  # term_0 = I, then 0
+    # row r of term k + 1 is row 12 k + r of the terms laid end to end: one RANGE over i = 12 k + r
+    factors = b.local(ca.DM([T / k for k in range(1, terms) for _ in range(NX)]))
+    row, whole, factor = ca.SX.sym("row", NX), ca.SX.sym("f", NX * NX), ca.SX.sym("factor")
+    b.loop(
+        body("series_term", [row, whole, factor], [(row.T @ ca.reshape(whole, NX, NX).T).T * factor]),
+        RANGE,
+        (terms - 1) * NX,
+        [Slice(LOCAL, series, 0, NX), Slice(LOCAL, f), Slice(LOCAL, factors, 0, 1)],
+        [Slice(LOCAL, series, NX * NX, NX)],
+    )
+    t = ca.SX.sym("t", terms)
+    a_entry, s_entry = t[0], t[0] * T
+    for k in range(1, terms):
+        a_entry, s_entry = a_entry + t[k], s_entry + t[k] * (T / (k + 1))
+    s_matrix = series  # S takes term_0's place, entry by entry as the sums read it
+    b.loop(
+        body("series_sums", [t], [a_entry, s_entry]),
+        RANGE,
+        NX * NX,
+        [Slice(LOCAL, series, 0, 1, 0, NX * NX)],
+        [new("A", 1), Slice(LOCAL, s_matrix, 0, 1)],
+    )
+    s_row, l_whole = ca.SX.sym("s_row", NX), ca.SX.sym("l", NX * NU)
+    b_row = (s_row.T @ ca.reshape(l_whole, NU, NX).T).T
+    b.loop(
+        body("input_matrix", [s_row, l_whole], [b_row, b_row]),
+        RANGE,
+        NX,
+        [Slice(LOCAL, s_matrix, 0, NX), Slice(LOCAL, l_matrix)],
+        [new("B", NU), new("B0", NU)],
+    )
+    return b

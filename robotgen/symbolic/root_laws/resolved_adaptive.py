@@ -59,6 +59,7 @@ NX, NU = 12, 6  # hand state and torques
 STEP, INIT = "adaptive_step", "adaptive_init"
 TINY = 1e-30  # phi^T P phi is 0 only when phi is (the first period): no update then
 HOLD_REGULARISATION = 1e-3  # delta of the holding torque u_c (one_step_control)
+DISCRETISE_TERMS = 4  # of exp(F T)'s series (hand.discretise)
 
 
 @dataclass(frozen=True)
@@ -315,7 +316,7 @@ def initial_state(hand: Hand, s: AdaptiveSettings, i: Inputs) -> ca.SX:
     the measured q), the model linearised there and discretised (eqs 24-32), c = 0, P_0."""
     ff = feedforward(hand, i, i.q, max(2 * s.ik_iterations, 4))
     F, L = hand.linearisation(ff["q_d"], ff["qd_d"], ff["qdd_d"])
-    A0, B0 = discretise(F, L, s.period)
+    A0, B0 = discretise(F, L, s.period, DISCRETISE_TERMS)
     p_a, p_b, p_c = s.initial_covariance
     P0 = ca.diag(ca.vertcat(*([p_a] * NX + [p_b] * NU + ([p_c] if s.affine else []))))
     return StateLayout.of(s).pack(
@@ -331,6 +332,18 @@ def initial_state(hand: Hand, s: AdaptiveSettings, i: Inputs) -> ca.SX:
             "qdd_d": ff["qdd_d"],
         }
     )
+
+
+def _looped_init(hand: Hand, s: AdaptiveSettings, i: Inputs):
+    """initial_state with its discretisation as loops (adaptive_loops.init_schedule)."""
+    from robotgen.symbolic.root_laws.adaptive_loops import init_schedule
+
+    ff = feedforward(hand, i, i.q, max(2 * s.ik_iterations, 4))
+    F, L = hand.linearisation(ff["q_d"], ff["qd_d"], ff["qdd_d"])
+    p_a, p_b, p_c = s.initial_covariance
+    values = {**ff, "F": F, "L": L, "P0": ca.DM([p_a] * NX + [p_b] * NU + ([p_c] if s.affine else []))}
+    layout = StateLayout.of(s)
+    return init_schedule([p[1] for p in i.ports()], layout.size, layout.offsets, values, s.period, DISCRETISE_TERMS)
 
 
 def kernels(system: RobotSystem) -> list[Kernel]:
@@ -363,9 +376,10 @@ def kernels(system: RobotSystem) -> list[Kernel]:
         "(inverse kinematics from the measured q) and the perturbation model linearised there (eqs 24-28) "
         "and discretised at T (eqs 29-32); c = 0 and P = P_0.",
         j.ports(),
-        [("state", initial_state(hand, s, j), (StateLayout.of(s).size, 1))],
+        [("state", None, (StateLayout.of(s).size, 1))],
         parameters,
         guarded=True,
+        schedule=_looped_init(hand, s, j),
     )
     return leaf_kernels(tree, derivatives=system.derivatives.when_asked()) + hand_kernels(hand) + [step, init]
 
