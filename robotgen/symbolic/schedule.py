@@ -132,6 +132,7 @@ class ScheduleBuilder:
     _loops: list[Loop] = field(default_factory=list)
     _stages: list[_StageValues] = field(default_factory=list)
     _flat: list[ca.SX] | None = None
+    _input_elements: dict[int, list[ca.SX]] = field(default_factory=dict)  # an input port's, as loops read them
 
     def __post_init__(self):
         self._outputs = [[None] * size for size in self.output_sizes]
@@ -200,8 +201,10 @@ class ScheduleBuilder:
 
     def _array(self, s: Slice, arrays: tuple[list, list] | None = None) -> list:
         if s.kind == INPUT:
-            symbol = self.inputs[s.index]
-            return [symbol[e] for e in range(symbol.numel())]
+            if s.index not in self._input_elements:
+                symbol = self.inputs[s.index]
+                self._input_elements[s.index] = [symbol[e] for e in range(symbol.numel())]
+            return self._input_elements[s.index]
         local, output = arrays or (self._locals, self._outputs)
         return local[s.index] if s.kind == LOCAL else output[s.index]
 

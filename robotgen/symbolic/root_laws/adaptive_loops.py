@@ -26,16 +26,11 @@ from __future__ import annotations
 
 import casadi as ca
 
-from robotgen.symbolic.rigid_body.cholesky import cholesky_solve
-from robotgen.symbolic.root_laws.resolved_adaptive import HOLD_REGULARISATION, NU, NX, TINY
+from robotgen.symbolic.root_laws.resolved_adaptive import NU, NX, covariance_entry, one_step_torque, rls_gain
 from robotgen.symbolic.schedule import ABOVE, INPUT, LOCAL, ONCE, OUTPUT, RANGE, ScheduleBuilder, Slice, body
 
 TAU, DX, STATE_NEXT = 0, 1, 2  # the step's outputs
 STATE, ADAPT = 5, 6  # the step's inputs: q, qd, pose_d, twist_d, accel_d, state, adapt
-
-
-def _dot(a: ca.SX, b: ca.SX) -> ca.SX:
-    return ca.dot(a, b)
 
 
 def step_schedule(
@@ -79,15 +74,11 @@ def step_schedule(
     # eq 37: P phi, the gain, the rows of Theta, P's update
     p_row, phi = ca.SX.sym("p_row", n), ca.SX.sym("phi", n)
     p_phi = b.local(size=n)
-    b.loop(body("p_phi", [p_row, phi], [_dot(p_row, phi)]), RANGE, n, [state("P", n), state("phi")], [local(p_phi, 1)])
+    b.loop(
+        body("p_phi", [p_row, phi], [ca.dot(p_row, phi)]), RANGE, n, [state("P", n), state("phi")], [local(p_phi, 1)]
+    )
     pp, adapt, mu = ca.SX.sym("pp", n), ca.SX.sym("adapt"), ca.SX.sym("mu")
-    s = _dot(phi, pp)
-    g = pp * (adapt / (s + mu))
-    scale: ca.SX | None = None  # eq 37 as printed divides P by mu; directional forgetting does not
-    if weights["directional"]:
-        eg = g * (1 - (1 - mu) / ca.fmax(s, TINY))
-    else:
-        eg, scale = g, ca.if_else(adapt, 1 / mu, 1)
+    g, eg, scale = rls_gain(pp, phi, adapt, mu, weights["directional"])
     gain, e_gain = b.local(size=n), b.local(size=n)
     scaling = b.local(size=1) if scale is not None else -1
     b.loop(
@@ -99,7 +90,7 @@ def step_schedule(
     )
     a_row, b_row, c_i, dx_i, gg = (ca.SX.sym(k, m) for k, m in (("a", NX), ("b", NU), ("c", 1), ("dx", 1), ("g", n)))
     theta = ca.vertcat(a_row, b_row, *((c_i,) if affine else ()))
-    theta = theta + (dx_i - _dot(theta, phi)) * gg
+    theta = theta + (dx_i - ca.dot(theta, phi)) * gg
     rows = [state("A", NX), state("B", NU), *((state("c", 1),) if affine else ())]
     b.loop(
         body(
@@ -114,7 +105,7 @@ def step_schedule(
     )
     p_ij, pp_i, eg_j, sc = (ca.SX.sym(k) for k in ("p_ij", "pp_i", "eg_j", "scale"))
     scaled = scale is not None
-    value = (p_ij - pp_i * eg_j) * sc if scaled else p_ij - pp_i * eg_j
+    value = covariance_entry(p_ij, pp_i, eg_j, sc if scaled else None)
     ins = [p_ij, pp_i, eg_j, *((sc,) if scaled else ())]
     entry = body("covariance", ins, [value])
     both = body("covariance_pair", ins, [value] * 2)
@@ -142,7 +133,7 @@ def step_schedule(
 
     # eq 39: A dx, Q B (and Q B0), the grams, QB^T A dx and QB^T c, then the solves
     a_dx = b.local(size=NX)
-    b.loop(body("a_dx", [a_row, x], [_dot(a_row, x)]), RANGE, NX, [new("A", NX), local(dx)], [local(a_dx, 1)])
+    b.loop(body("a_dx", [a_row, x], [ca.dot(a_row, x)]), RANGE, NX, [new("A", NX), local(dx)], [local(a_dx, 1)])
     q = b.local(weights["q"])  # Q's diagonal, or Q row-major
 
     def times_q(source: Slice, name: str) -> int:
@@ -168,7 +159,7 @@ def step_schedule(
     def gram(matrix: Slice, product: int, name: str, scaled: bool = False) -> int:
         """B^T (Q B) as resolved_adaptive._gram forms it, each entry once, mirrored; times kappa."""
         out = b.local(size=NU * NU)
-        value = _dot(column_a, column_b) * kappa if scaled else _dot(column_a, column_b)
+        value = ca.dot(column_a, column_b) * kappa if scaled else ca.dot(column_a, column_b)
         ins = [column_a, column_b, *((kappa,) if scaled else ())]
         extra = [local(scalars, offset=2)] if scaled else []
         b.loop(
@@ -196,7 +187,7 @@ def step_schedule(
     column = ca.SX.sym("column", NX)
     qb_a_dx = b.local(size=NU)
     b.loop(
-        body("qb_a_dx", [column, x], [_dot(column, x)]),
+        body("qb_a_dx", [column, x], [ca.dot(column, x)]),
         RANGE,
         NU,
         [local(qb, 1, step=NU), local(a_dx)],
@@ -205,17 +196,21 @@ def step_schedule(
     solves = [local(h), local(weight), local(qb_a_dx), local(u_n)]
     hh, rr, v, un = ca.SX.sym("h", NU * NU), ca.SX.sym("r", NU * NU), ca.SX.sym("v", NU), ca.SX.sym("u_n", NU)
     H, R = ca.reshape(hh, NU, NU).T, ca.reshape(rr, NU, NU).T
-    du = -cholesky_solve(H + R, v)
     arguments = [hh, rr, v, un]
+    w = None
     if affine:
         qb_c = b.local(size=NU)
         b.loop(
-            body("qb_c", [column, x], [_dot(column, x)]), RANGE, NU, [local(qb, 1, step=NU), new("c")], [local(qb_c, 1)]
+            body("qb_c", [column, x], [ca.dot(column, x)]),
+            RANGE,
+            NU,
+            [local(qb, 1, step=NU), new("c")],
+            [local(qb_c, 1)],
         )
         w = ca.SX.sym("w", NU)
-        du = du - cholesky_solve(H + HOLD_REGULARISATION * R, w)
         solves.append(local(qb_c))
         arguments.append(w)
+    du = one_step_torque(H, R, v, w)
     b.loop(body("control", arguments, [un + du, du]), ONCE, 1, solves, [Slice(OUTPUT, TAU), new("phi", offset=NX)])
     return b
 

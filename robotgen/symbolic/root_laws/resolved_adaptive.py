@@ -186,23 +186,39 @@ def identify(
     (P - P phi g^T) / mu."""
     n = phi.shape[0]
     Pphi = P @ phi
-    s = ca.dot(phi, Pphi)
-    g = Pphi * (adapt / (s + mu))
+    g, eg, scale = rls_gain(Pphi, phi, adapt, mu, directional)
     Theta = Theta + (dx - Theta @ phi) @ g.T
-    scale: ca.SX | float
-    if directional:
-        eg, scale = g * (1 - (1 - mu) / ca.fmax(s, TINY)), 1
-    else:
-        eg, scale = g, ca.if_else(adapt, 1 / mu, 1)
     P_next = ca.SX(n, n)  # the upper triangle, mirrored
     for a in range(n):
         for b in range(a, n):
-            P_next[a, b] = (P[a, b] - Pphi[a] * eg[b]) * scale
+            P_next[a, b] = covariance_entry(P[a, b], Pphi[a], eg[b], scale)
             P_next[b, a] = P_next[a, b]
     if limit is None:
         return Theta, P_next
     trace = sum((P_next[k, k] for k in range(n)), ca.SX(0))
     return Theta, P_next * ca.fmin(1, limit / trace)
+
+
+def rls_gain(p_phi: ca.SX, phi: ca.SX, adapt, mu, directional: bool) -> tuple[ca.SX, ca.SX, ca.SX | None]:
+    """Eq 37's gain g = P phi adapt / (phi^T P phi + mu) from P phi; the gain P's update takes
+    (eps g under directional forgetting, else g); and the factor on the updated P (1 / mu while
+    adapting, as eq 37 prints it; None under directional forgetting)."""
+    s = ca.dot(phi, p_phi)
+    g = p_phi * (adapt / (s + mu))
+    if directional:
+        return g, g * (1 - (1 - mu) / ca.fmax(s, TINY)), None
+    return g, g, ca.if_else(adapt, 1 / mu, 1)
+
+
+def covariance_entry(p: ca.SX, p_phi_a: ca.SX, eg_b: ca.SX, scale: ca.SX | None) -> ca.SX:
+    """Entry (a, b) of the updated P: P_ab - (P phi)_a (eps g)_b, times the factor if any."""
+    return p - p_phi_a * eg_b if scale is None else (p - p_phi_a * eg_b) * scale
+
+
+def one_step_torque(H: ca.SX, R: ca.SX, feedback_term: ca.SX, hold_term: ca.SX | None) -> ca.SX:
+    """du of eq 39 from H = B^T Q B, R, B^T Q A dx and B^T Q c (None: no affine term)."""
+    du = -cholesky_solve(H + R, feedback_term)
+    return du if hold_term is None else du - cholesky_solve(H + HOLD_REGULARISATION * R, hold_term)
 
 
 def _gram(B: ca.SX, QB: ca.SX) -> ca.SX:
@@ -228,9 +244,7 @@ def one_step_control(A: ca.SX, B: ca.SX, c: ca.SX | None, dx: ca.SX, Q: ca.SX, R
     fast): du minimises x'^T Q x' + (du - u_c)^T R (du - u_c), x' = A dx + B du + c (eq 38
     about the model's equilibrium)."""
     QB = Q @ B
-    H = _gram(B, QB)
-    feedback = -cholesky_solve(H + R, QB.T @ (A @ dx))
-    return feedback if c is None else feedback - cholesky_solve(H + HOLD_REGULARISATION * R, QB.T @ c)
+    return one_step_torque(_gram(B, QB), R, QB.T @ (A @ dx), None if c is None else QB.T @ c)
 
 
 def step_graph(system: RobotSystem) -> tuple[list[tuple], list[tuple], ParameterSymbols]:
