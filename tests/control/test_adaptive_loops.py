@@ -3,8 +3,9 @@ straight-line graph (resolved_adaptive.step_graph) computes, bit for bit, over s
 periods that move A, B, c and P, for every form of the weights and the identification: the
 weight rule with run-time or folded gains, a given Q (diagonal by blocks, or full) and R, no
 affine term, and eq 37's forgetting with its trace limit; so does the reset's state, its
-discretisation (eqs 29-32) as loops, against resolved_adaptive.initial_state. The emitted C of each (compiled
-warning-free by the build) gives the same numbers."""
+discretisation (eqs 29-32) as loops, against resolved_adaptive.initial_state. The emitted C
+of four of them (compiled warning-free by the build; two in `make test`, two more under
+`pytest -m slow`) gives the same numbers."""
 
 from __future__ import annotations
 
@@ -29,7 +30,7 @@ def _rows(matrix: np.ndarray) -> str:
     return "".join(f"          - [{', '.join(repr(float(v)) for v in row)}]\n" for row in matrix)
 
 
-COMPILED = ("defaults", "given q and r, no affine term", "full q", "eq 37's forgetting")
+COMPILED = ("defaults", "eq 37's forgetting", "given q and r, no affine term", "full q")  # the last two: slow
 SETTINGS = {
     "defaults": "",
     "folded gains": "        gains: folded\n",
@@ -41,8 +42,13 @@ SETTINGS = {
 }
 
 
-@pytest.mark.parametrize("case", SETTINGS)
-def test_the_looped_step_is_the_straight_line_step(tmp_path, build_module, case):
+CASES = [(case, case in COMPILED[:2]) for case in SETTINGS] + [
+    pytest.param(case, True, marks=pytest.mark.slow, id=f"{case}-compiled") for case in COMPILED[2:]
+]
+
+
+@pytest.mark.parametrize("case,compiled", CASES)
+def test_the_looped_step_is_the_straight_line_step(tmp_path, build_module, case, compiled):
     text = RMAC.read_text()
     assert ANCHOR in text and "name: puma560_rmac\n" in text
     name = "rmac_loops_" + str(list(SETTINGS).index(case))
@@ -72,7 +78,7 @@ def test_the_looped_step_is_the_straight_line_step(tmp_path, build_module, case)
         assert np.all(np.isfinite(expected_state))
         assert np.array_equal(looped_state.view(np.uint64), expected_state.view(np.uint64))
     state = np.array(init.function(q, zero, pose_d, zero, zero)).ravel()
-    if case in COMPILED:
+    if compiled:
         emitted_state = np.ravel(build_module(str(path)).adaptive_init(q, zero, pose_d.reshape(4, 4), zero, zero))
         np.testing.assert_allclose(emitted_state, state, rtol=1e-12, atol=1e-12 * max(1.0, np.max(np.abs(state))))
     for k in range(6):  # the state moves: A, B, c and P identified, phi the last period's
@@ -84,7 +90,7 @@ def test_the_looped_step_is_the_straight_line_step(tmp_path, build_module, case)
             assert np.all(np.isfinite(b)), name
             assert np.array_equal(a.view(np.uint64), b.view(np.uint64)), (k, name, np.max(np.abs(a - b)))
         assert not np.array_equal(looped[2], state)  # the identification moved
-        if case in COMPILED:
+        if compiled:
             module = build_module(str(path))
             emitted = module.adaptive_step(q_k, qd_k, pose_d.reshape(4, 4), zero, zero, state=state, adapt=1.0)
             for name, a, b in zip(("tau", "dx", "state_next"), emitted, expected):
