@@ -111,24 +111,31 @@ def test_weight_rule_gives_the_bandwidth(loops):
     assert sorted(first_defaults["moduli"])[-6] >= 0.9999
 
 
-def test_simulate_writes_the_comparison(tmp_path):
-    out = tmp_path / "sim"
-    r = subprocess.run(
-        [sys.executable, "-m", "robotgen", "simulate", str(RMAC), "-o", str(out), "--duration", "1.5"],
+@pytest.fixture(scope="module")
+def simulated(tmp_path_factory):
+    """`robotgen simulate` of the adaptive PUMA, the spec's full 10 s: (its output directory, what it printed)."""
+    out = tmp_path_factory.mktemp("rmac_simulation")
+    sim = subprocess.run(
+        [sys.executable, "-m", "robotgen", "simulate", str(RMAC), "-q", "-o", str(out)],
         capture_output=True,
         text=True,
         cwd=ROOT,
     )
-    assert r.returncode == 0, r.stderr
+    assert sim.returncode == 0, sim.stderr
+    return out, sim.stdout
+
+
+def test_simulate_writes_the_comparison(simulated):
+    out, printed = simulated
     for label in ("adaptive", "identification frozen (adapt = False)", "resolved acceleration (Kp = 400, Kv = 40)"):
-        assert f"  {label} " in r.stdout
+        assert f"  {label} " in printed
     with open(out / "puma560_rmac.csv", newline="") as f:
         table = list(csv.reader(f))
     header = table[0]
     assert header[:4] == ["t", "xd_x", "xd_y", "xd_z"]
     assert "adaptive_e_x" in header and "frozen_e_x" in header and "rac_e_x" in header and "adaptive_tau_q1" in header
     rows = np.array(table[1:], dtype=float)
-    assert rows.shape[0] == 1501  # 1.5 s at the controller's 1 ms period, both ends
+    assert rows.shape[0] == 10001  # 10 s at the controller's 1 ms period, both ends
     png = (out / "puma560_rmac.png").read_bytes()
     assert png[:8] == b"\x89PNG\r\n\x1a\n"
     bad = subprocess.run(
@@ -140,19 +147,13 @@ def test_simulate_writes_the_comparison(tmp_path):
     assert bad.returncode == 2 and "runs at its own period" in bad.stderr
 
 
-def test_readme_quotes_what_simulate_and_info_print(tmp_path):
+def test_readme_quotes_what_simulate_and_info_print(simulated):
     """The README's figures for the adaptive PUMA are the ones `robotgen simulate` (the full
     10 s of the spec) and `robotgen info` print now."""
     readme = " ".join((ROOT / "README.md").read_text().split())
-    sim = subprocess.run(
-        [sys.executable, "-m", "robotgen", "simulate", str(RMAC), "-q", "-o", str(tmp_path)],
-        capture_output=True,
-        text=True,
-        cwd=ROOT,
-    )
-    assert sim.returncode == 0, sim.stderr
+    _, printed = simulated
     last = {}
-    for line in sim.stdout.splitlines():
+    for line in printed.splitlines():
         for key, label in (
             ("adaptive", "adaptive"),
             ("frozen", "identification frozen"),
@@ -160,7 +161,7 @@ def test_readme_quotes_what_simulate_and_info_print(tmp_path):
         ):
             if line.strip().startswith(label):
                 last[key] = line.split()[-2]  # the last second's RMS [mm], then max |dtau|
-    assert set(last) == {"adaptive", "frozen", "rac"}, sim.stdout
+    assert set(last) == {"adaptive", "frozen", "rac"}, printed
     assert (
         f"{last['adaptive']} mm adapting, {last['frozen']} mm frozen, {last['rac']} mm under resolved "
         f"acceleration control"

@@ -3,7 +3,9 @@ linear servo, against the full nonlinear dynamics."""
 
 from __future__ import annotations
 
+import contextlib
 import importlib.util
+import io
 import sys
 from pathlib import Path
 
@@ -29,12 +31,27 @@ def script():
 
 @pytest.fixture(scope="module")
 def reproduced(script, tmp_path_factory):
+    """One run of the script's main in quick mode: (its output directory, the numbers its
+    reproduce returned, what it printed)."""
     out = tmp_path_factory.mktemp("whitney_1972")
-    return out, script.reproduce(out, quick=True)
+    kept, reproduce = {}, script.reproduce
+
+    def keeping(*args, **kwargs):
+        kept["numbers"] = reproduce(*args, **kwargs)
+        return kept["numbers"]
+
+    printed = io.StringIO()
+    script.reproduce = keeping
+    try:
+        with contextlib.redirect_stdout(printed):
+            script.main(["--quick", "-o", str(out)])
+    finally:
+        script.reproduce = reproduce
+    return out, kept["numbers"], printed.getvalue()
 
 
 def test_figure_and_report_are_written(reproduced):
-    out, x = reproduced
+    out, x, _ = reproduced
     png = (out / "fig5.png").read_bytes()
     assert png.startswith(b"\x89PNG\r\n\x1a\n") and len(png) > 20_000
     report = (out / "report.md").read_text()
@@ -46,7 +63,7 @@ def test_figure_and_report_are_written(reproduced):
 def test_errors_stay_within_the_bound_from_the_design(reproduced):
     """|theta_i - theta_d,i| <= max |prediction on eq 19 - theta_d,i| + sum_j gamma_ij max |d_j|:
     e = x - x_linear obeys edot = A_c e + (0, d), d the linearisation residual along the run."""
-    _, x = reproduced
+    _, x, _ = reproduced
     for name in JOINTS:
         measured, linear, bound = (
             x[f"{k}_{name}_rad"] for k in ("servo_max_error", "servo_linear_max_error", "error_bound")
@@ -57,7 +74,7 @@ def test_errors_stay_within_the_bound_from_the_design(reproduced):
 
 
 def test_the_feedforward_beats_the_same_gains_on_the_error(reproduced):
-    _, x = reproduced
+    _, x, _ = reproduced
     for model in ("", "_linear"):
         s, r = f"servo{model}", f"regulator{model}"
         print(
@@ -72,7 +89,7 @@ def test_the_feedforward_beats_the_same_gains_on_the_error(reproduced):
 
 def test_the_torques_are_those_the_path_needs(reproduced):
     """The servo's torque against inverse dynamics along the reference (generated RNEA)."""
-    _, x = reproduced
+    _, x, _ = reproduced
     needed = x["needed_peak_torque_nm"]
     print(
         f"\npeak torque {x['servo_peak_torque_nm']:.3f} N m, the path needs {needed:.3f}; largest "
@@ -87,7 +104,7 @@ def test_the_torques_are_those_the_path_needs(reproduced):
 def test_the_servo_is_the_direct_minimum_of_its_cost(reproduced):
     """The steady servo with g_f solves the finite problem with the terminal cost s^T P s - 2 g_f^T s;
     the same problem minimised directly over the whole horizon (sparse, extrapolated) agrees."""
-    _, x = reproduced
+    _, x, _ = reproduced
     print(
         f"\ndirect {x['direct_cost']:.10g}, servo {x['servo_linear_cost_with_terminal']:.10g}; inputs "
         f"{x['direct_input_gap_nm']:.2e} N m apart ({x['direct_input_coarse_gap_nm']:.2e} before extrapolation)"
@@ -98,18 +115,18 @@ def test_the_servo_is_the_direct_minimum_of_its_cost(reproduced):
     assert x["closed_loop_slowest_real_part"] < 0
 
 
-def test_main_prints_the_numbers_and_the_files(script, tmp_path, capsys):
-    script.main(["--quick", "-o", str(tmp_path)])
-    printed = capsys.readouterr().out
-    assert "servo_max_error_rad" in printed and f"wrote {tmp_path / 'fig5.png'}" in printed
-    assert (tmp_path / "report.md").exists()
+def test_main_prints_the_numbers_and_the_files(reproduced):
+    out, x, printed = reproduced
+    assert "servo_max_error_rad" in printed and f"wrote {out / 'fig5.png'}" in printed
+    assert f"{'servo_max_error_sweep_rad':45s} {x['servo_max_error_sweep_rad']:.6g}" in printed
+    assert (out / "report.md").exists()
 
 
 def test_eq_11_arrives_at_T_where_the_fixed_horizon_approaches(reproduced):
     """Eq 11 with the remaining time: the hand at the target at T, half way at T/2, on the
     straight line; the fixed horizon h leaves exp(-T/h) of the distance (to first order in the
     period)."""
-    out, x = reproduced
+    out, x, _ = reproduced
     assert x["eq11_arrival_distance_at_T_m"] < 1e-6
     assert abs(x["eq11_arrival_distance_at_half_T_m"] - 0.1) < 1e-4
     assert x["eq11_arrival_largest_distance_off_line_m"] < 1e-4
