@@ -334,7 +334,7 @@ def _sincos_statements(step: Instruction, register: str, precision: Precision, l
             f"{lane_names.per_width(sincos.LANE_HELPER)}({len(angles)}, {arrays});"
         ]
     if len(angles) % 2:
-        angles.append(_literal(0.0, precision, lanes))
+        angles.append(literal(0.0, precision))
     lines = [f"{sincos.ANGLES}[{lane}] = {angle};" for lane, angle in enumerate(angles)]
     for lane in range(0, len(angles), 2):
         offset = f" + {lane}" if lane else ""

@@ -701,8 +701,7 @@ def _count_scheduled(kernel: Kernel, stages: dict[str, tuple[int, int]] | None =
         if key not in stages:
             stages[key] = _count_operations(read_program(c_kernel.part_kernel(stage.name, stage.function)))
         arithmetic, sin_cos = arithmetic + stages[key][0], sin_cos + stages[key][1]
-    parts = [(schedule.prologue, 1)] + [(loop.body, len(loop.iterations())) for loop in schedule.loops]
-    for function, times in parts:
+    for function, times in schedule.executed():
         a, s = _count_operations(read_program(c_kernel.part_kernel(function.name(), function)))
         arithmetic, sin_cos = arithmetic + times * a, sin_cos + times * s
     return arithmetic, sin_cos

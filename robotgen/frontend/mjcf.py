@@ -89,7 +89,6 @@ _CONNECT, _WELD, _JOINT_EQ, _TENDON_EQ = 0, 1, 2, 3
 _OBJ_SITE = 6  # mjOBJ_SITE: a connect or weld between sites
 _WRAP_JOINT, _WRAP_SITE, _WRAP_SPHERE, _WRAP_CYLINDER = 1, 3, 4, 5
 MAX_BYTES = 16_000_000
-INSTALL = MUJOCO_INSTALL
 DEFAULT_MODEL_NAME = "MuJoCo Model"  # what MuJoCo calls a model without <mujoco model=...>
 
 
@@ -195,7 +194,7 @@ def _compile(path: str) -> _Mjcf:
     try:
         import mujoco
     except ImportError:
-        raise MissingDependency(f"reading an MJCF file needs MuJoCo: {INSTALL}") from None
+        raise MissingDependency(f"reading an MJCF file needs MuJoCo: {MUJOCO_INSTALL}") from None
     text = read_input(path, MAX_BYTES, "MJCF file").decode("utf-8", errors="replace")
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")

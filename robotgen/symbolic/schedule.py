@@ -102,6 +102,10 @@ class Schedule:
     unwritten: tuple[tuple[int, tuple[int, ...]], ...]  # (output, elements nothing writes: 0)
     stages: tuple[Stage, ...] = ()  # run before the prologue, in order
 
+    def executed(self) -> list[tuple[ca.Function, int]]:
+        """(function, times it runs per call): the prologue once, each loop body per iteration (stages not included)."""
+        return [(self.prologue, 1)] + [(loop.body, len(loop.iterations())) for loop in self.loops]
+
 
 @dataclass(frozen=True)
 class _StageValues:

@@ -25,11 +25,10 @@ import yaml
 from reference import const
 
 from robotgen.cli import main
-from robotgen.errors import UserError
+from robotgen.errors import MUJOCO_INSTALL, UserError
 from robotgen.frontend import load_system
 from robotgen.simulation import hand as hand_simulation
 from robotgen.simulation import tree as simulate
-from robotgen.simulation.mujoco import INSTALL_HINT
 from robotgen.simulation.mujoco.model import plant_model
 from robotgen.simulation.mujoco.run import MujocoPlant, TreePlant, check_agreement, root_payload, tree_plant
 
@@ -331,12 +330,12 @@ def test_missing_mujoco_gives_the_install_hint(monkeypatch, capsys, tmp_path):
     monkeypatch.setitem(sys.modules, "mujoco", None)  # import mujoco raises ImportError
     assert main(["simulate", str(HIGH), "--plant", "mujoco", "-o", str(tmp_path / "a"), "-q"]) == 1
     err = capsys.readouterr().err
-    assert INSTALL_HINT in err and "Traceback" not in err
+    assert MUJOCO_INSTALL in err and "Traceback" not in err
     spec = variant(tmp_path, HIGH, "styx_mj_spec", lambda d: d["simulation"].update(plant="mujoco"))
     assert main(["simulate", str(spec), "-o", str(tmp_path / "b"), "-q"]) == 1
     err = capsys.readouterr().err
     line = spec.read_text().splitlines().index("  plant: mujoco") + 1
-    assert err.startswith(f"{spec}:{line}:") and "simulation.plant" in err and INSTALL_HINT in err
+    assert err.startswith(f"{spec}:{line}:") and "simulation.plant" in err and MUJOCO_INSTALL in err
     assert not (tmp_path / "a").exists() and not (tmp_path / "b").exists()
 
 

@@ -14,8 +14,6 @@ from __future__ import annotations
 
 from robotgen.errors import MUJOCO_INSTALL, MissingDependency
 
-INSTALL_HINT = MUJOCO_INSTALL
-
 
 class MujocoMissing(MissingDependency):
     """The mujoco package is not installed (the MuJoCo plant was asked for)."""
@@ -26,5 +24,5 @@ def require_mujoco():
     try:
         import mujoco
     except ImportError as e:
-        raise MujocoMissing(f"the MuJoCo plant needs the mujoco package: {INSTALL_HINT}") from e
+        raise MujocoMissing(f"the MuJoCo plant needs the mujoco package: {MUJOCO_INSTALL}") from e
     return mujoco

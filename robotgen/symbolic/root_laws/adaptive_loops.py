@@ -26,7 +26,15 @@ from __future__ import annotations
 
 import casadi as ca
 
-from robotgen.symbolic.root_laws.resolved_adaptive import NU, NX, covariance_entry, one_step_torque, rls_gain
+from robotgen.symbolic.root_laws.resolved_adaptive import (
+    NU,
+    NX,
+    covariance_entry,
+    one_step_torque,
+    parameter_row,
+    rls_gain,
+    trace_factor,
+)
 from robotgen.symbolic.schedule import ABOVE, INPUT, LOCAL, ONCE, OUTPUT, RANGE, ScheduleBuilder, Slice, body
 
 TAU, DX, STATE_NEXT = 0, 1, 2  # the step's outputs
@@ -89,8 +97,7 @@ def step_schedule(
         [local(gain), local(e_gain), *((local(scaling),) if scale is not None else ())],
     )
     a_row, b_row, c_i, dx_i, gg = (ca.SX.sym(k, m) for k, m in (("a", NX), ("b", NU), ("c", 1), ("dx", 1), ("g", n)))
-    theta = ca.vertcat(a_row, b_row, *((c_i,) if affine else ()))
-    theta = theta + (dx_i - ca.dot(theta, phi)) * gg
+    theta = parameter_row(ca.vertcat(a_row, b_row, *((c_i,) if affine else ())), phi, dx_i, gg)
     rows = [state("A", NX), state("B", NU), *((state("c", 1),) if affine else ())]
     b.loop(
         body(
@@ -122,7 +129,7 @@ def step_schedule(
         d = ca.SX.sym("d", n)
         factor = b.local(size=1)
         b.loop(
-            body("trace", [d], [ca.fmin(1, limit / ca.sum1(d))]),
+            body("trace", [d], [trace_factor(d, limit)]),
             ONCE,
             1,
             [local(unlimited, step=n + 1)],

@@ -125,7 +125,8 @@ class Weights:
 
     def __init__(self, name: str, s: AdaptiveSettings, parameters: ParameterSymbols):
         p = parameters.symbols
-        self.Q = _matrix(p.get(f"{name}_q", ca.DM(s.q.ravel())), NX)
+        self.q_values = ca.SX(p.get(f"{name}_q", ca.DM(s.q.ravel())))  # Q's diagonal, or Q row-major
+        self.Q = _matrix(self.q_values, NX)
         self.R = None if s.r is None else _matrix(p.get(f"{name}_r", ca.DM(s.r.ravel())), NU)
         self.kappa = p.get(f"{name}_torque_weight", ca.SX(s.torque_weight))
         self.forgetting = p.get(f"{name}_forgetting", ca.SX(s.forgetting))
@@ -187,7 +188,7 @@ def identify(
     n = phi.shape[0]
     Pphi = P @ phi
     g, eg, scale = rls_gain(Pphi, phi, adapt, mu, directional)
-    Theta = Theta + (dx - Theta @ phi) @ g.T
+    Theta = ca.horzcat(*[parameter_row(Theta[k, :].T, phi, dx[k], g) for k in range(Theta.shape[0])]).T
     P_next = ca.SX(n, n)  # the upper triangle, mirrored
     for a in range(n):
         for b in range(a, n):
@@ -195,8 +196,7 @@ def identify(
             P_next[b, a] = P_next[a, b]
     if limit is None:
         return Theta, P_next
-    trace = sum((P_next[k, k] for k in range(n)), ca.SX(0))
-    return Theta, P_next * ca.fmin(1, limit / trace)
+    return Theta, P_next * trace_factor(ca.diag(P_next), limit)
 
 
 def rls_gain(p_phi: ca.SX, phi: ca.SX, adapt, mu, directional: bool) -> tuple[ca.SX, ca.SX, ca.SX | None]:
@@ -208,6 +208,16 @@ def rls_gain(p_phi: ca.SX, phi: ca.SX, adapt, mu, directional: bool) -> tuple[ca
     if directional:
         return g, g * (1 - (1 - mu) / ca.fmax(s, TINY)), None
     return g, g, ca.if_else(adapt, 1 / mu, 1)
+
+
+def parameter_row(theta: ca.SX, phi: ca.SX, dx_k: ca.SX, g: ca.SX) -> ca.SX:
+    """Row k of Theta after eq 37: theta_k + (dx_k - theta_k . phi) g (a column)."""
+    return theta + (dx_k - ca.dot(theta, phi)) * g
+
+
+def trace_factor(diagonal: ca.SX, limit: float) -> ca.SX:
+    """What the updated P is multiplied by so that its trace stays at most ``limit``."""
+    return ca.fmin(1, limit / ca.sum1(diagonal))
 
 
 def covariance_entry(p: ca.SX, p_phi_a: ca.SX, eg_b: ca.SX, scale: ca.SX | None) -> ca.SX:
@@ -247,66 +257,85 @@ def one_step_control(A: ca.SX, B: ca.SX, c: ca.SX | None, dx: ca.SX, Q: ca.SX, R
     return one_step_torque(_gram(B, QB), R, QB.T @ (A @ dx), None if c is None else QB.T @ c)
 
 
+@dataclass
+class _Step:
+    """What both forms of the step start from: the settings, its input symbols (the measured
+    and desired hand, the controller's state, adapt), the parameters and weights, and the
+    values every period computes first: the feedforward along the resolved trajectory
+    predicted from the state, and the perturbation dx."""
+
+    s: AdaptiveSettings
+    layout: StateLayout
+    parameters: ParameterSymbols
+    weights: Weights
+    i: Inputs
+    state: ca.SX
+    adapt: ca.SX
+    old: dict[str, ca.SX]
+    ff: dict[str, ca.SX]
+    dx: ca.SX
+
+    @staticmethod
+    def of(system: RobotSystem) -> _Step:
+        node = system.root_control
+        s = node.adaptive
+        layout = StateLayout.of(s)
+        parameters = ParameterSymbols.of(runtime_parameters(system))
+        hand = Hand(system.tree(node.robot), s.tool)
+        i, state = Inputs(), ca.SX.sym("state", layout.size)
+        old = layout.unpack(state)
+        q_start = old["q_d"] + s.period * old["qd_d"] + 0.5 * s.period**2 * old["qdd_d"]
+        ff = feedforward(hand, i, q_start, s.ik_iterations)
+        weights = Weights(node.name, s, parameters)
+        return _Step(s, layout, parameters, weights, i, state, ca.SX.sym("adapt"), old, ff, perturbation(hand, i))
+
+    @property
+    def inputs(self) -> list[tuple]:
+        """The step kernel's input ports (make_kernel's form)."""
+        return [*self.i.ports(), ("state", self.state), ("adapt", self.adapt)]
+
+    @property
+    def shapes(self) -> list[tuple[str, tuple[int, int]]]:
+        """Its outputs' names and shapes."""
+        return [("tau", (NU, 1)), ("dx", (NX, 1)), ("state_next", (self.layout.size, 1))]
+
+
 def step_graph(system: RobotSystem) -> tuple[list[tuple], list[tuple], ParameterSymbols]:
-    """The step kernel's inputs and outputs (make_kernel's form) and the parameters."""
-    node = system.root_control
-    s = node.adaptive
-    layout = StateLayout.of(s)
-    parameters = ParameterSymbols.of(runtime_parameters(system))
-    hand = Hand(system.tree(node.robot), s.tool)
-    w = Weights(node.name, s, parameters)
-    T = s.period
-    i = Inputs()
-    state = ca.SX.sym("state", layout.size)
-    adapt = ca.SX.sym("adapt")
-    old = layout.unpack(state)
-    q_start = old["q_d"] + T * old["qd_d"] + 0.5 * T**2 * old["qdd_d"]
-    ff = feedforward(hand, i, q_start, s.ik_iterations)
-    dx = perturbation(hand, i)
+    """The step as one straight-line graph (the emitted step's loops compute the same:
+    tests/control/test_adaptive_loops.py): its inputs and outputs (make_kernel's form) and the
+    parameters."""
+    st = _Step.of(system)
+    s, w, old, dx = st.s, st.weights, st.old, st.dx
     Theta = ca.horzcat(old["A"], old["B"], *((old["c"],) if s.affine else ()))
-    Theta, P = identify(Theta, old["P"], old["phi"], dx, w.forgetting, s.trace_limit, adapt, s.directional)
+    Theta, P = identify(Theta, old["P"], old["phi"], dx, w.forgetting, s.trace_limit, st.adapt, s.directional)
     A, B = Theta[:, :NX], Theta[:, NX : NX + NU]
     c = Theta[:, NX + NU] if s.affine else None
     du = one_step_control(A, B, c, dx, w.Q, torque_weight(w.Q, w.R, w.kappa, old["B0"]))
-    tau = ff["u_n"] + du
     new = {
         "A": A,
         "B": B,
         "P": P,
         "phi": ca.vertcat(dx, du, *((1,) if s.affine else ())),
         "B0": old["B0"],
-        "q_d": ff["q_d"],
-        "qd_d": ff["qd_d"],
-        "qdd_d": ff["qdd_d"],
+        "q_d": st.ff["q_d"],
+        "qd_d": st.ff["qd_d"],
+        "qdd_d": st.ff["qdd_d"],
     }
     if c is not None:  # an affine model's c (the layout has its block then only)
         new["c"] = c
-    inputs = [*i.ports(), ("state", state), ("adapt", adapt)]
-    outputs = [("tau", tau, (NU, 1)), ("dx", dx, (NX, 1)), ("state_next", layout.pack(new), (layout.size, 1))]
-    return inputs, outputs, parameters
+    values = [st.ff["u_n"] + du, dx, st.layout.pack(new)]
+    return st.inputs, [(name, v, shape) for (name, shape), v in zip(st.shapes, values)], st.parameters
 
 
-def _looped_step(system: RobotSystem, inputs: list[tuple], outputs: list[tuple], parameters: ParameterSymbols):
+def _looped_step(st: _Step):
     """The step's identification and one-step control as loops (adaptive_loops), its
-    feedforward and dx the prologue: a step whose weights are constants."""
+    feedforward and dx the prologue; the weights, run-time parameters or constants, read
+    from local arrays."""
     from robotgen.symbolic.root_laws.adaptive_loops import step_schedule  # (it reads this module's constants)
 
-    node = system.root_control
-    s = node.adaptive
-    layout = StateLayout.of(s)
-    hand = Hand(system.tree(node.robot), s.tool)
-    w = Weights(node.name, s, parameters)
-    named = parameters.symbols
-    symbols = [port[1] for port in inputs]
-    i = Inputs()
-    i.q, i.qd, i.pose_d, i.twist_d, i.accel_d = symbols[:5]
-    old = layout.unpack(symbols[5])
-    q_start = old["q_d"] + s.period * old["qd_d"] + 0.5 * s.period**2 * old["qdd_d"]
-    ff = feedforward(hand, i, q_start, s.ik_iterations)
-
-    q = ca.SX(named.get(f"{node.name}_q", ca.DM(s.q.ravel())))
+    s, w = st.s, st.weights
     weights = {
-        "q": q if q.numel() == NX else ca.vec(w.Q.T),
+        "q": w.q_values,
         "r": None if w.R is None else ca.vec(w.R.T),
         "kappa": ca.SX(w.kappa),
         "mu": ca.SX(w.forgetting),
@@ -314,31 +343,31 @@ def _looped_step(system: RobotSystem, inputs: list[tuple], outputs: list[tuple],
         "directional": s.directional,
         "affine": s.affine,
     }
-    prologue = {
-        "u_n": ff["u_n"],
-        "dx": perturbation(hand, i),
-        "q_d": ff["q_d"],
-        "qd_d": ff["qd_d"],
-        "qdd_d": ff["qdd_d"],
-    }
-    sizes = [shape[0] * shape[1] for _, _, shape in outputs]
-    return step_schedule(symbols, sizes, layout.offsets, prologue, weights)
+    prologue = {"u_n": st.ff["u_n"], "dx": st.dx, **{k: st.ff[k] for k in ("q_d", "qd_d", "qdd_d")}}
+    sizes = [rows * cols for _, (rows, cols) in st.shapes]
+    return step_schedule([port[1] for port in st.inputs], sizes, st.layout.offsets, prologue, weights)
+
+
+def _reset_parts(hand: Hand, s: AdaptiveSettings, i: Inputs) -> tuple[dict[str, ca.SX], ca.SX, ca.SX, ca.DM]:
+    """What the reset's state is made of: the feedforward from the measured q, the model
+    linearised there (F, L: eqs 24-28) and P_0's diagonal."""
+    ff = feedforward(hand, i, i.q, max(2 * s.ik_iterations, 4))
+    F, L = hand.linearisation(ff["q_d"], ff["qd_d"], ff["qdd_d"])
+    p_a, p_b, p_c = s.initial_covariance
+    return ff, F, L, ca.DM([p_a] * NX + [p_b] * NU + ([p_c] if s.affine else []))
 
 
 def initial_state(hand: Hand, s: AdaptiveSettings, i: Inputs) -> ca.SX:
     """The state after a reset: the resolved desired joint trajectory (inverse kinematics from
     the measured q), the model linearised there and discretised (eqs 24-32), c = 0, P_0."""
-    ff = feedforward(hand, i, i.q, max(2 * s.ik_iterations, 4))
-    F, L = hand.linearisation(ff["q_d"], ff["qd_d"], ff["qdd_d"])
+    ff, F, L, p0 = _reset_parts(hand, s, i)
     A0, B0 = discretise(F, L, s.period, DISCRETISE_TERMS)
-    p_a, p_b, p_c = s.initial_covariance
-    P0 = ca.diag(ca.vertcat(*([p_a] * NX + [p_b] * NU + ([p_c] if s.affine else []))))
     return StateLayout.of(s).pack(
         {
             "A": A0,
             "B": B0,
             "c": ca.SX.zeros(NX),
-            "P": ca.SX(P0),
+            "P": ca.SX(ca.diag(p0)),
             "phi": ca.SX.zeros(s.n_phi),
             "B0": B0,
             "q_d": ff["q_d"],
@@ -352,10 +381,8 @@ def _looped_init(hand: Hand, s: AdaptiveSettings, i: Inputs):
     """initial_state with its discretisation as loops (adaptive_loops.init_schedule)."""
     from robotgen.symbolic.root_laws.adaptive_loops import init_schedule
 
-    ff = feedforward(hand, i, i.q, max(2 * s.ik_iterations, 4))
-    F, L = hand.linearisation(ff["q_d"], ff["qd_d"], ff["qdd_d"])
-    p_a, p_b, p_c = s.initial_covariance
-    values = {**ff, "F": F, "L": L, "P0": ca.DM([p_a] * NX + [p_b] * NU + ([p_c] if s.affine else []))}
+    ff, F, L, p0 = _reset_parts(hand, s, i)
+    values = {**ff, "F": F, "L": L, "P0": p0}
     layout = StateLayout.of(s)
     return init_schedule([p[1] for p in i.ports()], layout.size, layout.offsets, values, s.period, DISCRETISE_TERMS)
 
@@ -366,7 +393,7 @@ def kernels(system: RobotSystem) -> list[Kernel]:
     s = node.adaptive
     tree = system.tree(node.robot)
     hand = Hand(tree, s.tool)
-    inputs, outputs, parameters = step_graph(system)
+    st = _Step.of(system)
     doc = (
         "Resolved motion adaptive control (Lee and Lee 1983), one sampling period: Newton-Euler "
         "feedforward along the resolved desired trajectory plus the one-step optimal feedback (eq 39) of "
@@ -377,11 +404,11 @@ def kernels(system: RobotSystem) -> list[Kernel]:
     step = make_kernel(
         STEP,
         doc,
-        inputs,
-        [(name, None, shape) for name, _, shape in outputs],
-        parameters,
+        st.inputs,
+        [(name, None, shape) for name, shape in st.shapes],
+        st.parameters,
         guarded=True,
-        schedule=_looped_step(system, inputs, outputs, parameters),
+        schedule=_looped_step(st),
     )
     j = Inputs()
     init = make_kernel(
@@ -391,7 +418,7 @@ def kernels(system: RobotSystem) -> list[Kernel]:
         "and discretised at T (eqs 29-32); c = 0 and P = P_0.",
         j.ports(),
         [("state", None, (StateLayout.of(s).size, 1))],
-        parameters,
+        st.parameters,
         guarded=True,
         schedule=_looped_init(hand, s, j),
     )
@@ -527,20 +554,15 @@ def stage_counts(system: RobotSystem) -> dict:
             "period": max(parts.values(), key=lambda t: t["mul"]),
             "sequential": {k: sum(r[key][k] for r in rows) for k in parts["feedback"]},
         }
-    inputs, outputs, parameters = step_graph(system)
-    symbols = [i[1] for i in inputs] + ([parameters.vector] if parameters.parameters else [])
-    out["step"] = _executed(_looped_step(system, inputs, outputs, parameters).finish(symbols))
-    return out
-
-
-def _executed(schedule) -> dict:
-    """Operations the emitted step executes: its prologue once and each loop body per iteration."""
-    total = dict.fromkeys(KINDS, 0)
-    for function, times in [(schedule.prologue, 1)] + [(loop.body, len(loop.iterations())) for loop in schedule.loops]:
-        counts = count_operations(function.sx_in(), function.call(function.sx_in()))
+    st = _Step.of(system)
+    symbols = [port[1] for port in st.inputs] + ([st.parameters.vector] if st.parameters.parameters else [])
+    executed = dict.fromkeys(KINDS, 0)  # what the emitted step executes
+    for function, times in _looped_step(st).finish(symbols).executed():
+        once = count_operations(function.sx_in(), function.call(function.sx_in()))
         for kind in KINDS:
-            total[kind] += times * counts[kind]
-    return total
+            executed[kind] += times * once[kind]
+    out["step"] = executed
+    return out
 
 
 def nominal_pose(system: RobotSystem) -> np.ndarray:
