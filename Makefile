@@ -13,21 +13,24 @@ QUICK_TESTS ?= tests/spec tests/dynamics/test_closed_form.py tests/dynamics/test
 	tests/emit/test_emit.py tests/emit/test_parameter_bounds.py tests/control/test_hand_start.py tests/cli/test_cli.py \
 	tests/cli/test_hints.py
 
+# pytest-xdist: a worker per core, each test file whole to one worker (its module's builds made once)
+PYTEST_JOBS ?= -n auto --dist loadfile
+
 install:
 	$(PYTHON) -m pip install --quiet --upgrade pip
 	$(PYTHON) -m pip install --quiet -e '.[test]'
 
 test: lint
-	$(PYTHON) -m pytest -q
+	$(PYTHON) -m pytest -q $(PYTEST_JOBS)
 
 test-quick: lint
-	$(PYTHON) -m pytest -q $(QUICK_TESTS)
+	$(PYTHON) -m pytest -q $(PYTEST_JOBS) $(QUICK_TESTS)
 
 # the long runs (pytest -m slow): 10^4 Hypothesis mutants of the example specs (~10 min), every URDF
 # of example-robot-data and pybullet_data against Pinocchio and docs/robots.md (~2 min), and the
 # compiles that repeat a faster case's (more Cortex-M, sanitizer and float builds, Pinocchio-cg)
 test-slow:
-	$(PYTHON) -m pytest -q -m slow
+	$(PYTHON) -m pytest -q $(PYTEST_JOBS) -m slow
 
 # ruff with pyproject.toml's rules: pyflakes, pycodestyle, import order, bugbear, pyupgrade, and D1 on
 # robotgen/ (every public module, class, function and method has a docstring; tests/, bench/ and

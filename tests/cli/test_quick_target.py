@@ -52,6 +52,9 @@ LINT = [
     "python -m ruff format --check .",
     "python -m mypy",
 ]  # mypy's files and settings: pyproject.toml [tool.mypy]
+# pytest-xdist, a worker per core; a test file goes whole to one worker, so its module's builds
+# are made once
+JOBS = ["-n", "auto", "--dist", "loadfile"]
 
 
 def plan_of(target: str) -> list[str]:
@@ -72,10 +75,10 @@ def test_make_lint_runs_ruff_its_formatter_check_then_mypy():
 def test_make_test_quick_runs_lint_then_the_sample():
     lines = plan_of("test-quick")
     assert lines[: len(LINT)] == LINT
-    assert lines[len(LINT)].split() == ["python", "-m", "pytest", "-q", *quick_tests()]
+    assert lines[len(LINT)].split() == ["python", "-m", "pytest", "-q", *JOBS, *quick_tests()]
     assert len(lines) == len(LINT) + 1, lines
 
 
 @pytest.mark.skipif(shutil.which("make") is None, reason="needs make")
 def test_make_test_runs_lint_then_the_suite():
-    assert plan_of("test") == [*LINT, "python -m pytest -q"]
+    assert plan_of("test") == [*LINT, " ".join(["python -m pytest -q", *JOBS])]
