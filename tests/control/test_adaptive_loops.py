@@ -4,8 +4,7 @@ periods that move A, B, c and P, for every form of the weights and the identific
 weight rule with run-time or folded gains, a given Q (diagonal by blocks, or full) and R, no
 affine term, and eq 37's forgetting with its trace limit; so does the reset's state, its
 discretisation (eqs 29-32) as loops, against resolved_adaptive.initial_state. The emitted C
-of four of them (compiled warning-free by the build; two in `make test`, two more under
-`pytest -m slow`) gives the same numbers."""
+of four of them (compiled warning-free by the build) gives the same numbers."""
 
 from __future__ import annotations
 
@@ -30,7 +29,7 @@ def _rows(matrix: np.ndarray) -> str:
     return "".join(f"          - [{', '.join(repr(float(v)) for v in row)}]\n" for row in matrix)
 
 
-COMPILED = ("defaults", "eq 37's forgetting", "given q and r, no affine term", "full q")  # the last two: slow
+COMPILED = ("defaults", "eq 37's forgetting", "given q and r, no affine term", "full q")
 SETTINGS = {
     "defaults": "",
     "folded gains": "        gains: folded\n",
@@ -42,9 +41,7 @@ SETTINGS = {
 }
 
 
-CASES = [(case, case in COMPILED[:2]) for case in SETTINGS] + [
-    pytest.param(case, True, marks=pytest.mark.slow, id=f"{case}-compiled") for case in COMPILED[2:]
-]
+CASES = [(case, case in COMPILED) for case in SETTINGS]
 
 
 @pytest.mark.parametrize("case,compiled", CASES)

@@ -41,7 +41,7 @@ def build_panda(out: Path, monkeypatch, cflags: str | None) -> None:
     )
 
 
-@pytest.mark.parametrize("cc", ["gcc", pytest.param("clang", marks=pytest.mark.slow)])  # clang: pytest -m slow
+@pytest.mark.parametrize("cc", ["gcc", "clang"])
 def test_a_native_build_computes_the_portable_builds_bits(tmp_path, monkeypatch, cc):
     """Every function of the Panda (trig, straight-line and looped kernels, a Cholesky solve),
     random states, compared bit for bit. (clang fuses within an expression unless told not to.)"""

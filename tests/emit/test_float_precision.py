@@ -53,7 +53,7 @@ def inputs(module, function: str, rng) -> list[np.ndarray]:
 
 
 # the Stanford arm and the tripod grasp repeat what the PUMA and the Styx hands check: `make test-slow`
-SLOW_CASES = {"stanford", "tripod_grasp", "puma560"}
+SLOW_CASES = {"stanford", "tripod_grasp"}
 
 
 @pytest.mark.parametrize(

@@ -90,7 +90,7 @@ def _size(port: dict) -> int:
     "spec",
     [
         "two_link",
-        pytest.param("puma560", marks=pytest.mark.slow),  # 20 s; the chains of the styx specs stay in make test
+        "puma560",
         "styx_finger",
         "styx_high_ct",
         "styx_redundant",

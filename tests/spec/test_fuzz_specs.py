@@ -2,7 +2,7 @@
 build` is handed, it answers exit 0, or exit 1 with located errors (FILE:LINE:COL) and nothing
 written; never a traceback, never an internal error.
 
-200 mutants run in `make test`; `pytest -m slow` runs 10^4 (derandomised, so a
+A few hundred mutants run in `make test`; `pytest -m slow` runs 10^4 (derandomised, so a
 failure reproduces; Hypothesis shrinks it to the smallest mutant that fails). The mutants are
 dumped back to YAML text, so the reader sees them as a user's file."""
 
@@ -168,7 +168,7 @@ def assert_a_users_answer(text: str, build: bool) -> None:
 FUZZ = dict(deadline=None, database=None, derandomize=True, suppress_health_check=[HealthCheck.too_slow])
 
 
-@settings(max_examples=150, **FUZZ)
+@settings(max_examples=300, **FUZZ)
 @given(mutants())
 def test_mutants_get_located_errors_or_pass(text):
     assert_a_users_answer(text, build=False)
@@ -181,7 +181,7 @@ def test_ten_thousand_mutants(text):
     assert_a_users_answer(text, build=False)
 
 
-@settings(max_examples=50, **FUZZ)
+@settings(max_examples=100, **FUZZ)
 @given(mutants(CHAINS))
 def test_mutants_that_check_accepts_also_build(text):
     """`check` and `build` read a spec the same way: a mutant check accepts builds, one it
