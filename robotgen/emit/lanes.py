@@ -185,47 +185,141 @@ def _transpose_steps(w: int) -> list[tuple[int, int, list[int], list[int]]]:
 
 def _transposes(w: int, precision: Precision) -> list[str]:
     """RG_L(rg_gather) and RG_L(rg_scatter): W consecutive elements of W states (stride apart)
-    to and from W vectors (element e of every state in t[e]; scatter transposes t in place),
-    through a transpose in registers:
-    W loads or stores of W elements instead of W * W single ones. Shuffles of GCC
-    (__builtin_shuffle) or Clang (__builtin_shufflevector)."""
+    to and from W vectors (element e of every state in t[e]), through a transpose in registers
+    (log2 W steps of shuffles; they commute). A scatter's last step (rows i and i + W/2 swapping
+    their W/2 x W/2 blocks) is done by its stores: each half vector stored where it belongs, so
+    that it costs no shuffle. Shuffles of GCC (__builtin_shuffle) or Clang
+    (__builtin_shufflevector)."""
     v, real = lane_names.VECTOR, precision.real
+    size = 8 if real == "double" else 4
+    half = w // 2
+    steps = [step for step in _transpose_steps(w) if step[1] - step[0] < half]
+    transpose = lane_names.per_width("rg_transpose")
+    top = [step for step in _transpose_steps(w) if step[1] - step[0] == half]
     lines = [
         "#if defined(__clang__)",
         "#define RG_SHUFFLE(a, b, ...) __builtin_shufflevector(a, b, __VA_ARGS__)",
         "#else",
         f"#define RG_SHUFFLE(a, b, ...) __builtin_shuffle(a, b, ({lane_names.MASK_VECTOR}){{__VA_ARGS__}})",
         "#endif",
-        f"static {lane_names.TARGET} void {lane_names.per_width('rg_transpose')}({v} *t) {{",
-        f"  {v} a, b;",
     ]
-    for i, j, low, high in _transpose_steps(w):
-        lines += [
-            f"  a = RG_SHUFFLE(t[{i}], t[{j}], {', '.join(map(str, low))});",
-            f"  b = RG_SHUFFLE(t[{i}], t[{j}], {', '.join(map(str, high))});",
-            f"  t[{i}] = a;",
-            f"  t[{j}] = b;",
-        ]
-    # W elements at any address of the real type: an under-aligned vector that may alias it
-    unaligned = lane_names.per_width("rg_vu")
+    if steps:
+        lines += [f"static inline {lane_names.TARGET} void {transpose}({v} *t) {{", f"  {v} a, b;"]
+        for i, j, low, high in steps:
+            lines += [
+                f"  a = RG_SHUFFLE(t[{i}], t[{j}], {', '.join(map(str, low))});",
+                f"  b = RG_SHUFFLE(t[{i}], t[{j}], {', '.join(map(str, high))});",
+                f"  t[{i}] = a;",
+                f"  t[{j}] = b;",
+            ]
+        lines.append("}")
+    call = [f"  {transpose}(r);"] if steps else []
+    # W and W/2 elements at any address of the real type: under-aligned vectors that may alias it
+    whole, unaligned = lane_names.per_width("rg_vu"), lane_names.per_width("rg_vh")
+
+    def part(row: int, first: int) -> str:  # W/2 lanes of r[row] from lane ``first``
+        return f"((const {unaligned} *)&r[{row}])[{first // half}]"
+
     lines += [
-        "}",
-        "#undef RG_SHUFFLE",
-        f"typedef {real} {unaligned} __attribute__((vector_size({w * (8 if real == 'double' else 4)}), "
-        f"aligned({8 if real == 'double' else 4}), may_alias));",
+        f"typedef {real} {whole} __attribute__((vector_size({w * size}), aligned({size}), may_alias));",
+        f"typedef {real} {unaligned} __attribute__((vector_size({half * size}), aligned({size}), may_alias));",
         f"static {lane_names.TARGET} __attribute__((unused)) void {lane_names.per_width('rg_gather')}"
         f"({v} *t, const {real} *p, size_t stride) {{",
-        "  int l;",
-        f"  for (l = 0; l < {w}; ++l) t[l] = *(const {unaligned} *)(p + l * stride);",
-        f"  {lane_names.per_width('rg_transpose')}(t);",
-        "}",
-        f"static {lane_names.TARGET} __attribute__((unused)) void {lane_names.per_width('rg_scatter')}"
-        f"({real} *p, size_t stride, {v} *t) {{",
-        "  int l;",
-        f"  {lane_names.per_width('rg_transpose')}(t);",
-        f"  for (l = 0; l < {w}; ++l) *({unaligned} *)(p + l * stride) = t[l];",
-        "}",
+        f"  {v} r[{w}];",
+        *(f"  r[{l}] = *(const {whole} *)(p + {l} * stride);" for l in range(w)),
+        *call,
     ]
+    for i, j, low, high in top:
+        lines += [
+            f"  t[{i}] = RG_SHUFFLE(r[{i}], r[{j}], {', '.join(map(str, low))});",
+            f"  t[{j}] = RG_SHUFFLE(r[{i}], r[{j}], {', '.join(map(str, high))});",
+        ]
+    lines += ["}", "#undef RG_SHUFFLE"]
+    lines += [
+        f"static {lane_names.TARGET} __attribute__((unused)) void {lane_names.per_width('rg_scatter')}"
+        f"({real} *p, size_t stride, const {v} *t) {{",
+        f"  {v} r[{w}];",
+        *(f"  r[{l}] = t[{l}];" for l in range(w)),
+        *call,
+    ]
+    for l in range(half):
+        for first in (0, half):
+            lines += [
+                f"  *({unaligned} *)(p + {l} * stride + {first}) = {part(l + first, 0)};",
+                f"  *({unaligned} *)(p + {l + half} * stride + {first}) = {part(l + first, half)};",
+            ]
+    lines.append("}")
+    return lines + _scatter_part(w, precision, steps)
+
+
+def _scatter_part(w: int, precision: Precision, steps) -> list[str]:
+    """RG_L(rg_scatter_part)(p, stride, t, n): rg_scatter of the first n < W of W elements (a
+    port's last size mod W), the absent rows standing in as copies of t[0]. A step of the
+    transpose is skipped where both its rows hold only absent elements (after the steps below
+    bit b, row i holds those of rows i & ~(b - 1) and up); the rows' first n lanes are stored as
+    pieces of W/2, W/4, ..., 1 elements. Inlined where n is a constant, the tests fold away."""
+    v, real = lane_names.VECTOR, precision.real
+    size = 8 if real == "double" else 4
+    half = w // 2
+    pieces = [k for k in (half >> s for s in range(half.bit_length())) if k]  # half, ..., 1
+    lines = [
+        *(
+            f"typedef {real} {lane_names.per_width(f'rg_vp{k}')} __attribute__((vector_size({k * size}), "
+            f"aligned({size}), may_alias));"
+            for k in pieces
+            if k > 1
+        ),
+        f"static inline {lane_names.TARGET} __attribute__((unused, always_inline)) void "
+        f"{lane_names.per_width('rg_scatter_part')}"
+        f"({real} *p, size_t stride, const {v} *t, int n) {{",
+        f"  {v} r[{w}]{', a, b' if steps else ''};",
+        "  int o;",
+        "  r[0] = t[0];",
+        *(f"  r[{l}] = t[{l} < n ? {l} : 0];" for l in range(1, w)),
+    ]
+    if steps:
+        lines.append("#if defined(__clang__)")
+        lines.append("#define RG_SHUFFLE(a, b, ...) __builtin_shufflevector(a, b, __VA_ARGS__)")
+        lines.append("#else")
+        lines.append(
+            f"#define RG_SHUFFLE(a, b, ...) __builtin_shuffle(a, b, ({lane_names.MASK_VECTOR}){{__VA_ARGS__}})"
+        )
+        lines.append("#endif")
+    for i, j, low, high in steps:
+        lines.append(f"  if ({i & ~(j - i - 1)} < n) {{")
+        lines += [
+            f"    a = RG_SHUFFLE(r[{i}], r[{j}], {', '.join(map(str, low))});",
+            f"    b = RG_SHUFFLE(r[{i}], r[{j}], {', '.join(map(str, high))});",
+            f"    r[{i}] = a;",
+            f"    r[{j}] = b;",
+            "  }",
+        ]
+    if steps:
+        lines.append("#undef RG_SHUFFLE")
+
+    def piece(k: int) -> str:
+        return real if k == 1 else lane_names.per_width(f"rg_vp{k}")
+
+    def store(state: int, row: int, lane: int, element: int, k: int) -> str:
+        # k lanes of r[row] from ``lane`` + o to state's elements from ``element`` + o
+        return (
+            f"*({piece(k)} *)(p + {state} * stride + {element} + o) = "
+            f"((const {piece(k)} *)&r[{row}])[({lane} + o) / {k}];"
+        )
+
+    for first, count in ((0, "n"), (half, f"n - {half}")):
+        lines.append(f"  if ({count} > 0) {{" if first else "  {")
+        lines.append(f"    int m = {count} < {half} ? {count} : {half};")
+        lines.append("    o = 0;")
+        for k in pieces:
+            lines.append(f"    if (m & {k}) {{")
+            for l in range(half):
+                lines.append("      " + store(l, l + first, 0, first, k))
+                lines.append("      " + store(l + half, l + first, half, first, k))
+            lines.append(f"      o += {k};")
+            lines.append("    }")
+        lines.append("  }")
+    lines.append("}")
     return lines
 
 
@@ -249,8 +343,9 @@ def driver_source(prefix: str, kernel: Kernel, precision: Precision) -> str:
     checked as the single-state function checks it (status 1 and 3: its outputs untouched; 2:
     set to 0). Returns the status of the first state whose single call returns nonzero, or 0.
     Ports go in and out W elements of W states at a time through rg_gather and rg_scatter (a
-    transpose in registers); the elements past the last multiple of W, and the outputs of a
-    block where a state fails its checks, one at a time."""
+    transpose in registers); an output's elements past the last multiple of W through
+    rg_scatter_part; an input's, and the outputs of a block where a state fails its checks, one
+    at a time."""
     real, v, w = precision.real, lane_names.VECTOR, lane_names.WIDTH
     zero = "0.0f" if real == "float" else "0.0"
     inputs, outputs = _array_ports(kernel), kernel.outputs
@@ -272,6 +367,7 @@ def driver_source(prefix: str, kernel: Kernel, precision: Precision) -> str:
     step = any(p.name == STEP_PORT and p.size == 1 for p in kernel.inputs)
     checked = kernel.guarded or step
     gather, scatter = lane_names.per_width("rg_gather"), lane_names.per_width("rg_scatter")
+    scatter_part = lane_names.per_width("rg_scatter_part")
     lines = [
         f"/* {function_name(prefix, kernel)} on {w} states at a time, the whole blocks of n. */",
         f"static {lane_names.TARGET} int {lane_names.per_width(DRIVER + kernel.name)}(int n, {', '.join(params)}) {{",
@@ -295,9 +391,9 @@ def driver_source(prefix: str, kernel: Kernel, precision: Precision) -> str:
         fast += [
             f"for (rg_e = 0; rg_e + {w} <= {p.size}; rg_e += {w})",
             f"  {scatter}({p.name} + (size_t)rg_b * {p.size} + rg_e, {p.size}, rgb_out{k} + rg_e);",
-            f"for (rg_e = {p.size} - {p.size} % {w}; rg_e < {p.size}; ++rg_e)",
-            f"  for (rg_l = 0; rg_l < {w}; ++rg_l) "
-            f"{p.name}[(size_t)(rg_b + rg_l) * {p.size} + rg_e] = rgb_out{k}[rg_e][rg_l];",
+            f"if ({p.size} % {w})",
+            f"  {scatter_part}({p.name} + (size_t)rg_b * {p.size} + {p.size} - {p.size} % {w}, {p.size}, "
+            f"rgb_out{k} + {p.size} - {p.size} % {w}, {p.size} % {w});",
         ]
     if not checked:
         lines += ["    " + line for line in fast]

@@ -1484,7 +1484,7 @@ typedef long long rg_vm_avx512 __attribute__((vector_size(64)));
 #else
 #define RG_SHUFFLE(a, b, ...) __builtin_shuffle(a, b, (rg_vm){__VA_ARGS__})
 #endif
-static RG_TARGET void RG_L(rg_transpose)(rg_v *t) {
+static inline RG_TARGET void RG_L(rg_transpose)(rg_v *t) {
   rg_v a, b;
   a = RG_SHUFFLE(t[0], t[1], 0, 8, 2, 10, 4, 12, 6, 14);
   b = RG_SHUFFLE(t[0], t[1], 1, 9, 3, 11, 5, 13, 7, 15);
@@ -1518,34 +1518,199 @@ static RG_TARGET void RG_L(rg_transpose)(rg_v *t) {
   b = RG_SHUFFLE(t[5], t[7], 2, 3, 10, 11, 6, 7, 14, 15);
   t[5] = a;
   t[7] = b;
-  a = RG_SHUFFLE(t[0], t[4], 0, 1, 2, 3, 8, 9, 10, 11);
-  b = RG_SHUFFLE(t[0], t[4], 4, 5, 6, 7, 12, 13, 14, 15);
-  t[0] = a;
-  t[4] = b;
-  a = RG_SHUFFLE(t[1], t[5], 0, 1, 2, 3, 8, 9, 10, 11);
-  b = RG_SHUFFLE(t[1], t[5], 4, 5, 6, 7, 12, 13, 14, 15);
-  t[1] = a;
-  t[5] = b;
-  a = RG_SHUFFLE(t[2], t[6], 0, 1, 2, 3, 8, 9, 10, 11);
-  b = RG_SHUFFLE(t[2], t[6], 4, 5, 6, 7, 12, 13, 14, 15);
-  t[2] = a;
-  t[6] = b;
-  a = RG_SHUFFLE(t[3], t[7], 0, 1, 2, 3, 8, 9, 10, 11);
-  b = RG_SHUFFLE(t[3], t[7], 4, 5, 6, 7, 12, 13, 14, 15);
-  t[3] = a;
-  t[7] = b;
+}
+typedef double RG_L(rg_vu) __attribute__((vector_size(64), aligned(8), may_alias));
+typedef double RG_L(rg_vh) __attribute__((vector_size(32), aligned(8), may_alias));
+static RG_TARGET __attribute__((unused)) void RG_L(rg_gather)(rg_v *t, const double *p, size_t stride) {
+  rg_v r[8];
+  r[0] = *(const RG_L(rg_vu) *)(p + 0 * stride);
+  r[1] = *(const RG_L(rg_vu) *)(p + 1 * stride);
+  r[2] = *(const RG_L(rg_vu) *)(p + 2 * stride);
+  r[3] = *(const RG_L(rg_vu) *)(p + 3 * stride);
+  r[4] = *(const RG_L(rg_vu) *)(p + 4 * stride);
+  r[5] = *(const RG_L(rg_vu) *)(p + 5 * stride);
+  r[6] = *(const RG_L(rg_vu) *)(p + 6 * stride);
+  r[7] = *(const RG_L(rg_vu) *)(p + 7 * stride);
+  RG_L(rg_transpose)(r);
+  t[0] = RG_SHUFFLE(r[0], r[4], 0, 1, 2, 3, 8, 9, 10, 11);
+  t[4] = RG_SHUFFLE(r[0], r[4], 4, 5, 6, 7, 12, 13, 14, 15);
+  t[1] = RG_SHUFFLE(r[1], r[5], 0, 1, 2, 3, 8, 9, 10, 11);
+  t[5] = RG_SHUFFLE(r[1], r[5], 4, 5, 6, 7, 12, 13, 14, 15);
+  t[2] = RG_SHUFFLE(r[2], r[6], 0, 1, 2, 3, 8, 9, 10, 11);
+  t[6] = RG_SHUFFLE(r[2], r[6], 4, 5, 6, 7, 12, 13, 14, 15);
+  t[3] = RG_SHUFFLE(r[3], r[7], 0, 1, 2, 3, 8, 9, 10, 11);
+  t[7] = RG_SHUFFLE(r[3], r[7], 4, 5, 6, 7, 12, 13, 14, 15);
 }
 #undef RG_SHUFFLE
-typedef double RG_L(rg_vu) __attribute__((vector_size(64), aligned(8), may_alias));
-static RG_TARGET __attribute__((unused)) void RG_L(rg_gather)(rg_v *t, const double *p, size_t stride) {
-  int l;
-  for (l = 0; l < 8; ++l) t[l] = *(const RG_L(rg_vu) *)(p + l * stride);
-  RG_L(rg_transpose)(t);
+static RG_TARGET __attribute__((unused)) void RG_L(rg_scatter)(double *p, size_t stride, const rg_v *t) {
+  rg_v r[8];
+  r[0] = t[0];
+  r[1] = t[1];
+  r[2] = t[2];
+  r[3] = t[3];
+  r[4] = t[4];
+  r[5] = t[5];
+  r[6] = t[6];
+  r[7] = t[7];
+  RG_L(rg_transpose)(r);
+  *(RG_L(rg_vh) *)(p + 0 * stride + 0) = ((const RG_L(rg_vh) *)&r[0])[0];
+  *(RG_L(rg_vh) *)(p + 4 * stride + 0) = ((const RG_L(rg_vh) *)&r[0])[1];
+  *(RG_L(rg_vh) *)(p + 0 * stride + 4) = ((const RG_L(rg_vh) *)&r[4])[0];
+  *(RG_L(rg_vh) *)(p + 4 * stride + 4) = ((const RG_L(rg_vh) *)&r[4])[1];
+  *(RG_L(rg_vh) *)(p + 1 * stride + 0) = ((const RG_L(rg_vh) *)&r[1])[0];
+  *(RG_L(rg_vh) *)(p + 5 * stride + 0) = ((const RG_L(rg_vh) *)&r[1])[1];
+  *(RG_L(rg_vh) *)(p + 1 * stride + 4) = ((const RG_L(rg_vh) *)&r[5])[0];
+  *(RG_L(rg_vh) *)(p + 5 * stride + 4) = ((const RG_L(rg_vh) *)&r[5])[1];
+  *(RG_L(rg_vh) *)(p + 2 * stride + 0) = ((const RG_L(rg_vh) *)&r[2])[0];
+  *(RG_L(rg_vh) *)(p + 6 * stride + 0) = ((const RG_L(rg_vh) *)&r[2])[1];
+  *(RG_L(rg_vh) *)(p + 2 * stride + 4) = ((const RG_L(rg_vh) *)&r[6])[0];
+  *(RG_L(rg_vh) *)(p + 6 * stride + 4) = ((const RG_L(rg_vh) *)&r[6])[1];
+  *(RG_L(rg_vh) *)(p + 3 * stride + 0) = ((const RG_L(rg_vh) *)&r[3])[0];
+  *(RG_L(rg_vh) *)(p + 7 * stride + 0) = ((const RG_L(rg_vh) *)&r[3])[1];
+  *(RG_L(rg_vh) *)(p + 3 * stride + 4) = ((const RG_L(rg_vh) *)&r[7])[0];
+  *(RG_L(rg_vh) *)(p + 7 * stride + 4) = ((const RG_L(rg_vh) *)&r[7])[1];
 }
-static RG_TARGET __attribute__((unused)) void RG_L(rg_scatter)(double *p, size_t stride, rg_v *t) {
-  int l;
-  RG_L(rg_transpose)(t);
-  for (l = 0; l < 8; ++l) *(RG_L(rg_vu) *)(p + l * stride) = t[l];
+typedef double RG_L(rg_vp4) __attribute__((vector_size(32), aligned(8), may_alias));
+typedef double RG_L(rg_vp2) __attribute__((vector_size(16), aligned(8), may_alias));
+static inline RG_TARGET __attribute__((unused, always_inline)) void RG_L(rg_scatter_part)(double *p, size_t stride, const rg_v *t, int n) {
+  rg_v r[8], a, b;
+  int o;
+  r[0] = t[0];
+  r[1] = t[1 < n ? 1 : 0];
+  r[2] = t[2 < n ? 2 : 0];
+  r[3] = t[3 < n ? 3 : 0];
+  r[4] = t[4 < n ? 4 : 0];
+  r[5] = t[5 < n ? 5 : 0];
+  r[6] = t[6 < n ? 6 : 0];
+  r[7] = t[7 < n ? 7 : 0];
+#if defined(__clang__)
+#define RG_SHUFFLE(a, b, ...) __builtin_shufflevector(a, b, __VA_ARGS__)
+#else
+#define RG_SHUFFLE(a, b, ...) __builtin_shuffle(a, b, (rg_vm){__VA_ARGS__})
+#endif
+  if (0 < n) {
+    a = RG_SHUFFLE(r[0], r[1], 0, 8, 2, 10, 4, 12, 6, 14);
+    b = RG_SHUFFLE(r[0], r[1], 1, 9, 3, 11, 5, 13, 7, 15);
+    r[0] = a;
+    r[1] = b;
+  }
+  if (2 < n) {
+    a = RG_SHUFFLE(r[2], r[3], 0, 8, 2, 10, 4, 12, 6, 14);
+    b = RG_SHUFFLE(r[2], r[3], 1, 9, 3, 11, 5, 13, 7, 15);
+    r[2] = a;
+    r[3] = b;
+  }
+  if (4 < n) {
+    a = RG_SHUFFLE(r[4], r[5], 0, 8, 2, 10, 4, 12, 6, 14);
+    b = RG_SHUFFLE(r[4], r[5], 1, 9, 3, 11, 5, 13, 7, 15);
+    r[4] = a;
+    r[5] = b;
+  }
+  if (6 < n) {
+    a = RG_SHUFFLE(r[6], r[7], 0, 8, 2, 10, 4, 12, 6, 14);
+    b = RG_SHUFFLE(r[6], r[7], 1, 9, 3, 11, 5, 13, 7, 15);
+    r[6] = a;
+    r[7] = b;
+  }
+  if (0 < n) {
+    a = RG_SHUFFLE(r[0], r[2], 0, 1, 8, 9, 4, 5, 12, 13);
+    b = RG_SHUFFLE(r[0], r[2], 2, 3, 10, 11, 6, 7, 14, 15);
+    r[0] = a;
+    r[2] = b;
+  }
+  if (0 < n) {
+    a = RG_SHUFFLE(r[1], r[3], 0, 1, 8, 9, 4, 5, 12, 13);
+    b = RG_SHUFFLE(r[1], r[3], 2, 3, 10, 11, 6, 7, 14, 15);
+    r[1] = a;
+    r[3] = b;
+  }
+  if (4 < n) {
+    a = RG_SHUFFLE(r[4], r[6], 0, 1, 8, 9, 4, 5, 12, 13);
+    b = RG_SHUFFLE(r[4], r[6], 2, 3, 10, 11, 6, 7, 14, 15);
+    r[4] = a;
+    r[6] = b;
+  }
+  if (4 < n) {
+    a = RG_SHUFFLE(r[5], r[7], 0, 1, 8, 9, 4, 5, 12, 13);
+    b = RG_SHUFFLE(r[5], r[7], 2, 3, 10, 11, 6, 7, 14, 15);
+    r[5] = a;
+    r[7] = b;
+  }
+#undef RG_SHUFFLE
+  {
+    int m = n < 4 ? n : 4;
+    o = 0;
+    if (m & 4) {
+      *(RG_L(rg_vp4) *)(p + 0 * stride + 0 + o) = ((const RG_L(rg_vp4) *)&r[0])[(0 + o) / 4];
+      *(RG_L(rg_vp4) *)(p + 4 * stride + 0 + o) = ((const RG_L(rg_vp4) *)&r[0])[(4 + o) / 4];
+      *(RG_L(rg_vp4) *)(p + 1 * stride + 0 + o) = ((const RG_L(rg_vp4) *)&r[1])[(0 + o) / 4];
+      *(RG_L(rg_vp4) *)(p + 5 * stride + 0 + o) = ((const RG_L(rg_vp4) *)&r[1])[(4 + o) / 4];
+      *(RG_L(rg_vp4) *)(p + 2 * stride + 0 + o) = ((const RG_L(rg_vp4) *)&r[2])[(0 + o) / 4];
+      *(RG_L(rg_vp4) *)(p + 6 * stride + 0 + o) = ((const RG_L(rg_vp4) *)&r[2])[(4 + o) / 4];
+      *(RG_L(rg_vp4) *)(p + 3 * stride + 0 + o) = ((const RG_L(rg_vp4) *)&r[3])[(0 + o) / 4];
+      *(RG_L(rg_vp4) *)(p + 7 * stride + 0 + o) = ((const RG_L(rg_vp4) *)&r[3])[(4 + o) / 4];
+      o += 4;
+    }
+    if (m & 2) {
+      *(RG_L(rg_vp2) *)(p + 0 * stride + 0 + o) = ((const RG_L(rg_vp2) *)&r[0])[(0 + o) / 2];
+      *(RG_L(rg_vp2) *)(p + 4 * stride + 0 + o) = ((const RG_L(rg_vp2) *)&r[0])[(4 + o) / 2];
+      *(RG_L(rg_vp2) *)(p + 1 * stride + 0 + o) = ((const RG_L(rg_vp2) *)&r[1])[(0 + o) / 2];
+      *(RG_L(rg_vp2) *)(p + 5 * stride + 0 + o) = ((const RG_L(rg_vp2) *)&r[1])[(4 + o) / 2];
+      *(RG_L(rg_vp2) *)(p + 2 * stride + 0 + o) = ((const RG_L(rg_vp2) *)&r[2])[(0 + o) / 2];
+      *(RG_L(rg_vp2) *)(p + 6 * stride + 0 + o) = ((const RG_L(rg_vp2) *)&r[2])[(4 + o) / 2];
+      *(RG_L(rg_vp2) *)(p + 3 * stride + 0 + o) = ((const RG_L(rg_vp2) *)&r[3])[(0 + o) / 2];
+      *(RG_L(rg_vp2) *)(p + 7 * stride + 0 + o) = ((const RG_L(rg_vp2) *)&r[3])[(4 + o) / 2];
+      o += 2;
+    }
+    if (m & 1) {
+      *(double *)(p + 0 * stride + 0 + o) = ((const double *)&r[0])[(0 + o) / 1];
+      *(double *)(p + 4 * stride + 0 + o) = ((const double *)&r[0])[(4 + o) / 1];
+      *(double *)(p + 1 * stride + 0 + o) = ((const double *)&r[1])[(0 + o) / 1];
+      *(double *)(p + 5 * stride + 0 + o) = ((const double *)&r[1])[(4 + o) / 1];
+      *(double *)(p + 2 * stride + 0 + o) = ((const double *)&r[2])[(0 + o) / 1];
+      *(double *)(p + 6 * stride + 0 + o) = ((const double *)&r[2])[(4 + o) / 1];
+      *(double *)(p + 3 * stride + 0 + o) = ((const double *)&r[3])[(0 + o) / 1];
+      *(double *)(p + 7 * stride + 0 + o) = ((const double *)&r[3])[(4 + o) / 1];
+      o += 1;
+    }
+  }
+  if (n - 4 > 0) {
+    int m = n - 4 < 4 ? n - 4 : 4;
+    o = 0;
+    if (m & 4) {
+      *(RG_L(rg_vp4) *)(p + 0 * stride + 4 + o) = ((const RG_L(rg_vp4) *)&r[4])[(0 + o) / 4];
+      *(RG_L(rg_vp4) *)(p + 4 * stride + 4 + o) = ((const RG_L(rg_vp4) *)&r[4])[(4 + o) / 4];
+      *(RG_L(rg_vp4) *)(p + 1 * stride + 4 + o) = ((const RG_L(rg_vp4) *)&r[5])[(0 + o) / 4];
+      *(RG_L(rg_vp4) *)(p + 5 * stride + 4 + o) = ((const RG_L(rg_vp4) *)&r[5])[(4 + o) / 4];
+      *(RG_L(rg_vp4) *)(p + 2 * stride + 4 + o) = ((const RG_L(rg_vp4) *)&r[6])[(0 + o) / 4];
+      *(RG_L(rg_vp4) *)(p + 6 * stride + 4 + o) = ((const RG_L(rg_vp4) *)&r[6])[(4 + o) / 4];
+      *(RG_L(rg_vp4) *)(p + 3 * stride + 4 + o) = ((const RG_L(rg_vp4) *)&r[7])[(0 + o) / 4];
+      *(RG_L(rg_vp4) *)(p + 7 * stride + 4 + o) = ((const RG_L(rg_vp4) *)&r[7])[(4 + o) / 4];
+      o += 4;
+    }
+    if (m & 2) {
+      *(RG_L(rg_vp2) *)(p + 0 * stride + 4 + o) = ((const RG_L(rg_vp2) *)&r[4])[(0 + o) / 2];
+      *(RG_L(rg_vp2) *)(p + 4 * stride + 4 + o) = ((const RG_L(rg_vp2) *)&r[4])[(4 + o) / 2];
+      *(RG_L(rg_vp2) *)(p + 1 * stride + 4 + o) = ((const RG_L(rg_vp2) *)&r[5])[(0 + o) / 2];
+      *(RG_L(rg_vp2) *)(p + 5 * stride + 4 + o) = ((const RG_L(rg_vp2) *)&r[5])[(4 + o) / 2];
+      *(RG_L(rg_vp2) *)(p + 2 * stride + 4 + o) = ((const RG_L(rg_vp2) *)&r[6])[(0 + o) / 2];
+      *(RG_L(rg_vp2) *)(p + 6 * stride + 4 + o) = ((const RG_L(rg_vp2) *)&r[6])[(4 + o) / 2];
+      *(RG_L(rg_vp2) *)(p + 3 * stride + 4 + o) = ((const RG_L(rg_vp2) *)&r[7])[(0 + o) / 2];
+      *(RG_L(rg_vp2) *)(p + 7 * stride + 4 + o) = ((const RG_L(rg_vp2) *)&r[7])[(4 + o) / 2];
+      o += 2;
+    }
+    if (m & 1) {
+      *(double *)(p + 0 * stride + 4 + o) = ((const double *)&r[4])[(0 + o) / 1];
+      *(double *)(p + 4 * stride + 4 + o) = ((const double *)&r[4])[(4 + o) / 1];
+      *(double *)(p + 1 * stride + 4 + o) = ((const double *)&r[5])[(0 + o) / 1];
+      *(double *)(p + 5 * stride + 4 + o) = ((const double *)&r[5])[(4 + o) / 1];
+      *(double *)(p + 2 * stride + 4 + o) = ((const double *)&r[6])[(0 + o) / 1];
+      *(double *)(p + 6 * stride + 4 + o) = ((const double *)&r[6])[(4 + o) / 1];
+      *(double *)(p + 3 * stride + 4 + o) = ((const double *)&r[7])[(0 + o) / 1];
+      *(double *)(p + 7 * stride + 4 + o) = ((const double *)&r[7])[(4 + o) / 1];
+      o += 1;
+    }
+  }
 }
 
 
@@ -1646,8 +1811,8 @@ static RG_TARGET int RG_L(rgb_mass)(int n, const double *q, double *mass) {
     RG_L(rgl_mass)(rgb_in0, rgb_out0);
     for (rg_e = 0; rg_e + RG_W <= 4; rg_e += RG_W)
       RG_L(rg_scatter)(mass + (size_t)rg_b * 4 + rg_e, 4, rgb_out0 + rg_e);
-    for (rg_e = 4 - 4 % RG_W; rg_e < 4; ++rg_e)
-      for (rg_l = 0; rg_l < RG_W; ++rg_l) mass[(size_t)(rg_b + rg_l) * 4 + rg_e] = rgb_out0[rg_e][rg_l];
+    if (4 % RG_W)
+      RG_L(rg_scatter_part)(mass + (size_t)rg_b * 4 + 4 - 4 % RG_W, 4, rgb_out0 + 4 - 4 % RG_W, 4 % RG_W);
   }
   return 0;
 }
@@ -1692,8 +1857,8 @@ static RG_TARGET int RG_L(rgb_gravity)(int n, const double *q, double *gravity) 
     RG_L(rgl_gravity)(rgb_in0, rgb_out0);
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_scatter)(gravity + (size_t)rg_b * 2 + rg_e, 2, rgb_out0 + rg_e);
-    for (rg_e = 2 - 2 % RG_W; rg_e < 2; ++rg_e)
-      for (rg_l = 0; rg_l < RG_W; ++rg_l) gravity[(size_t)(rg_b + rg_l) * 2 + rg_e] = rgb_out0[rg_e][rg_l];
+    if (2 % RG_W)
+      RG_L(rg_scatter_part)(gravity + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, rgb_out0 + 2 - 2 % RG_W, 2 % RG_W);
   }
   return 0;
 }
@@ -1774,8 +1939,8 @@ static RG_TARGET int RG_L(rgb_inverse_dynamics)(int n, const double *q, const do
     RG_L(rgl_inverse_dynamics)(rgb_in0, rgb_in1, rgb_in2, rgb_out0);
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_scatter)(inverse_dynamics + (size_t)rg_b * 2 + rg_e, 2, rgb_out0 + rg_e);
-    for (rg_e = 2 - 2 % RG_W; rg_e < 2; ++rg_e)
-      for (rg_l = 0; rg_l < RG_W; ++rg_l) inverse_dynamics[(size_t)(rg_b + rg_l) * 2 + rg_e] = rgb_out0[rg_e][rg_l];
+    if (2 % RG_W)
+      RG_L(rg_scatter_part)(inverse_dynamics + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, rgb_out0 + 2 - 2 % RG_W, 2 % RG_W);
   }
   return 0;
 }
@@ -1907,8 +2072,8 @@ static RG_TARGET int RG_L(rgb_forward_dynamics)(int n, const double *q, const do
     if (!rg_failed) {
       for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
         RG_L(rg_scatter)(forward_dynamics + (size_t)rg_b * 2 + rg_e, 2, rgb_out0 + rg_e);
-      for (rg_e = 2 - 2 % RG_W; rg_e < 2; ++rg_e)
-        for (rg_l = 0; rg_l < RG_W; ++rg_l) forward_dynamics[(size_t)(rg_b + rg_l) * 2 + rg_e] = rgb_out0[rg_e][rg_l];
+      if (2 % RG_W)
+        RG_L(rg_scatter_part)(forward_dynamics + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, rgb_out0 + 2 - 2 % RG_W, 2 % RG_W);
       continue;
     }
     for (rg_l = 0; rg_l < RG_W; ++rg_l) {
@@ -2051,12 +2216,12 @@ static RG_TARGET int RG_L(rgb_inverse_dynamics_derivatives)(int n, const double 
     if (!rg_failed) {
       for (rg_e = 0; rg_e + RG_W <= 4; rg_e += RG_W)
         RG_L(rg_scatter)(dtau_dq + (size_t)rg_b * 4 + rg_e, 4, rgb_out0 + rg_e);
-      for (rg_e = 4 - 4 % RG_W; rg_e < 4; ++rg_e)
-        for (rg_l = 0; rg_l < RG_W; ++rg_l) dtau_dq[(size_t)(rg_b + rg_l) * 4 + rg_e] = rgb_out0[rg_e][rg_l];
+      if (4 % RG_W)
+        RG_L(rg_scatter_part)(dtau_dq + (size_t)rg_b * 4 + 4 - 4 % RG_W, 4, rgb_out0 + 4 - 4 % RG_W, 4 % RG_W);
       for (rg_e = 0; rg_e + RG_W <= 4; rg_e += RG_W)
         RG_L(rg_scatter)(dtau_dqd + (size_t)rg_b * 4 + rg_e, 4, rgb_out1 + rg_e);
-      for (rg_e = 4 - 4 % RG_W; rg_e < 4; ++rg_e)
-        for (rg_l = 0; rg_l < RG_W; ++rg_l) dtau_dqd[(size_t)(rg_b + rg_l) * 4 + rg_e] = rgb_out1[rg_e][rg_l];
+      if (4 % RG_W)
+        RG_L(rg_scatter_part)(dtau_dqd + (size_t)rg_b * 4 + 4 - 4 % RG_W, 4, rgb_out1 + 4 - 4 % RG_W, 4 % RG_W);
       continue;
     }
     for (rg_l = 0; rg_l < RG_W; ++rg_l) {
@@ -2289,16 +2454,16 @@ static RG_TARGET int RG_L(rgb_forward_dynamics_derivatives)(int n, const double 
     if (!rg_failed) {
       for (rg_e = 0; rg_e + RG_W <= 4; rg_e += RG_W)
         RG_L(rg_scatter)(dqdd_dq + (size_t)rg_b * 4 + rg_e, 4, rgb_out0 + rg_e);
-      for (rg_e = 4 - 4 % RG_W; rg_e < 4; ++rg_e)
-        for (rg_l = 0; rg_l < RG_W; ++rg_l) dqdd_dq[(size_t)(rg_b + rg_l) * 4 + rg_e] = rgb_out0[rg_e][rg_l];
+      if (4 % RG_W)
+        RG_L(rg_scatter_part)(dqdd_dq + (size_t)rg_b * 4 + 4 - 4 % RG_W, 4, rgb_out0 + 4 - 4 % RG_W, 4 % RG_W);
       for (rg_e = 0; rg_e + RG_W <= 4; rg_e += RG_W)
         RG_L(rg_scatter)(dqdd_dqd + (size_t)rg_b * 4 + rg_e, 4, rgb_out1 + rg_e);
-      for (rg_e = 4 - 4 % RG_W; rg_e < 4; ++rg_e)
-        for (rg_l = 0; rg_l < RG_W; ++rg_l) dqdd_dqd[(size_t)(rg_b + rg_l) * 4 + rg_e] = rgb_out1[rg_e][rg_l];
+      if (4 % RG_W)
+        RG_L(rg_scatter_part)(dqdd_dqd + (size_t)rg_b * 4 + 4 - 4 % RG_W, 4, rgb_out1 + 4 - 4 % RG_W, 4 % RG_W);
       for (rg_e = 0; rg_e + RG_W <= 4; rg_e += RG_W)
         RG_L(rg_scatter)(dqdd_dtau + (size_t)rg_b * 4 + rg_e, 4, rgb_out2 + rg_e);
-      for (rg_e = 4 - 4 % RG_W; rg_e < 4; ++rg_e)
-        for (rg_l = 0; rg_l < RG_W; ++rg_l) dqdd_dtau[(size_t)(rg_b + rg_l) * 4 + rg_e] = rgb_out2[rg_e][rg_l];
+      if (4 % RG_W)
+        RG_L(rg_scatter_part)(dqdd_dtau + (size_t)rg_b * 4 + 4 - 4 % RG_W, 4, rgb_out2 + 4 - 4 % RG_W, 4 % RG_W);
       continue;
     }
     for (rg_l = 0; rg_l < RG_W; ++rg_l) {
@@ -2393,8 +2558,8 @@ static RG_TARGET int RG_L(rgb_mass_inverse)(int n, const double *q, double *mass
     if (!rg_failed) {
       for (rg_e = 0; rg_e + RG_W <= 4; rg_e += RG_W)
         RG_L(rg_scatter)(mass_inverse + (size_t)rg_b * 4 + rg_e, 4, rgb_out0 + rg_e);
-      for (rg_e = 4 - 4 % RG_W; rg_e < 4; ++rg_e)
-        for (rg_l = 0; rg_l < RG_W; ++rg_l) mass_inverse[(size_t)(rg_b + rg_l) * 4 + rg_e] = rgb_out0[rg_e][rg_l];
+      if (4 % RG_W)
+        RG_L(rg_scatter_part)(mass_inverse + (size_t)rg_b * 4 + 4 - 4 % RG_W, 4, rgb_out0 + 4 - 4 % RG_W, 4 % RG_W);
       continue;
     }
     for (rg_l = 0; rg_l < RG_W; ++rg_l) {
@@ -2561,12 +2726,12 @@ static RG_TARGET int RG_L(rgb_discrete_dynamics)(int n, const double *q, const d
     if (!rg_failed) {
       for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
         RG_L(rg_scatter)(q_next + (size_t)rg_b * 2 + rg_e, 2, rgb_out0 + rg_e);
-      for (rg_e = 2 - 2 % RG_W; rg_e < 2; ++rg_e)
-        for (rg_l = 0; rg_l < RG_W; ++rg_l) q_next[(size_t)(rg_b + rg_l) * 2 + rg_e] = rgb_out0[rg_e][rg_l];
+      if (2 % RG_W)
+        RG_L(rg_scatter_part)(q_next + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, rgb_out0 + 2 - 2 % RG_W, 2 % RG_W);
       for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
         RG_L(rg_scatter)(qd_next + (size_t)rg_b * 2 + rg_e, 2, rgb_out1 + rg_e);
-      for (rg_e = 2 - 2 % RG_W; rg_e < 2; ++rg_e)
-        for (rg_l = 0; rg_l < RG_W; ++rg_l) qd_next[(size_t)(rg_b + rg_l) * 2 + rg_e] = rgb_out1[rg_e][rg_l];
+      if (2 % RG_W)
+        RG_L(rg_scatter_part)(qd_next + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, rgb_out1 + 2 - 2 % RG_W, 2 % RG_W);
       continue;
     }
     for (rg_l = 0; rg_l < RG_W; ++rg_l) {
@@ -2872,20 +3037,20 @@ static RG_TARGET int RG_L(rgb_discrete_dynamics_derivatives)(int n, const double
     if (!rg_failed) {
       for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
         RG_L(rg_scatter)(q_next + (size_t)rg_b * 2 + rg_e, 2, rgb_out0 + rg_e);
-      for (rg_e = 2 - 2 % RG_W; rg_e < 2; ++rg_e)
-        for (rg_l = 0; rg_l < RG_W; ++rg_l) q_next[(size_t)(rg_b + rg_l) * 2 + rg_e] = rgb_out0[rg_e][rg_l];
+      if (2 % RG_W)
+        RG_L(rg_scatter_part)(q_next + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, rgb_out0 + 2 - 2 % RG_W, 2 % RG_W);
       for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
         RG_L(rg_scatter)(qd_next + (size_t)rg_b * 2 + rg_e, 2, rgb_out1 + rg_e);
-      for (rg_e = 2 - 2 % RG_W; rg_e < 2; ++rg_e)
-        for (rg_l = 0; rg_l < RG_W; ++rg_l) qd_next[(size_t)(rg_b + rg_l) * 2 + rg_e] = rgb_out1[rg_e][rg_l];
+      if (2 % RG_W)
+        RG_L(rg_scatter_part)(qd_next + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, rgb_out1 + 2 - 2 % RG_W, 2 % RG_W);
       for (rg_e = 0; rg_e + RG_W <= 16; rg_e += RG_W)
         RG_L(rg_scatter)(A + (size_t)rg_b * 16 + rg_e, 16, rgb_out2 + rg_e);
-      for (rg_e = 16 - 16 % RG_W; rg_e < 16; ++rg_e)
-        for (rg_l = 0; rg_l < RG_W; ++rg_l) A[(size_t)(rg_b + rg_l) * 16 + rg_e] = rgb_out2[rg_e][rg_l];
+      if (16 % RG_W)
+        RG_L(rg_scatter_part)(A + (size_t)rg_b * 16 + 16 - 16 % RG_W, 16, rgb_out2 + 16 - 16 % RG_W, 16 % RG_W);
       for (rg_e = 0; rg_e + RG_W <= 8; rg_e += RG_W)
         RG_L(rg_scatter)(B + (size_t)rg_b * 8 + rg_e, 8, rgb_out3 + rg_e);
-      for (rg_e = 8 - 8 % RG_W; rg_e < 8; ++rg_e)
-        for (rg_l = 0; rg_l < RG_W; ++rg_l) B[(size_t)(rg_b + rg_l) * 8 + rg_e] = rgb_out3[rg_e][rg_l];
+      if (8 % RG_W)
+        RG_L(rg_scatter_part)(B + (size_t)rg_b * 8 + 8 - 8 % RG_W, 8, rgb_out3 + 8 - 8 % RG_W, 8 % RG_W);
       continue;
     }
     for (rg_l = 0; rg_l < RG_W; ++rg_l) {
@@ -2941,7 +3106,7 @@ typedef long long rg_vm_avx2 __attribute__((vector_size(32)));
 #else
 #define RG_SHUFFLE(a, b, ...) __builtin_shuffle(a, b, (rg_vm){__VA_ARGS__})
 #endif
-static RG_TARGET void RG_L(rg_transpose)(rg_v *t) {
+static inline RG_TARGET void RG_L(rg_transpose)(rg_v *t) {
   rg_v a, b;
   a = RG_SHUFFLE(t[0], t[1], 0, 4, 2, 6);
   b = RG_SHUFFLE(t[0], t[1], 1, 5, 3, 7);
@@ -2951,26 +3116,100 @@ static RG_TARGET void RG_L(rg_transpose)(rg_v *t) {
   b = RG_SHUFFLE(t[2], t[3], 1, 5, 3, 7);
   t[2] = a;
   t[3] = b;
-  a = RG_SHUFFLE(t[0], t[2], 0, 1, 4, 5);
-  b = RG_SHUFFLE(t[0], t[2], 2, 3, 6, 7);
-  t[0] = a;
-  t[2] = b;
-  a = RG_SHUFFLE(t[1], t[3], 0, 1, 4, 5);
-  b = RG_SHUFFLE(t[1], t[3], 2, 3, 6, 7);
-  t[1] = a;
-  t[3] = b;
+}
+typedef double RG_L(rg_vu) __attribute__((vector_size(32), aligned(8), may_alias));
+typedef double RG_L(rg_vh) __attribute__((vector_size(16), aligned(8), may_alias));
+static RG_TARGET __attribute__((unused)) void RG_L(rg_gather)(rg_v *t, const double *p, size_t stride) {
+  rg_v r[4];
+  r[0] = *(const RG_L(rg_vu) *)(p + 0 * stride);
+  r[1] = *(const RG_L(rg_vu) *)(p + 1 * stride);
+  r[2] = *(const RG_L(rg_vu) *)(p + 2 * stride);
+  r[3] = *(const RG_L(rg_vu) *)(p + 3 * stride);
+  RG_L(rg_transpose)(r);
+  t[0] = RG_SHUFFLE(r[0], r[2], 0, 1, 4, 5);
+  t[2] = RG_SHUFFLE(r[0], r[2], 2, 3, 6, 7);
+  t[1] = RG_SHUFFLE(r[1], r[3], 0, 1, 4, 5);
+  t[3] = RG_SHUFFLE(r[1], r[3], 2, 3, 6, 7);
 }
 #undef RG_SHUFFLE
-typedef double RG_L(rg_vu) __attribute__((vector_size(32), aligned(8), may_alias));
-static RG_TARGET __attribute__((unused)) void RG_L(rg_gather)(rg_v *t, const double *p, size_t stride) {
-  int l;
-  for (l = 0; l < 4; ++l) t[l] = *(const RG_L(rg_vu) *)(p + l * stride);
-  RG_L(rg_transpose)(t);
+static RG_TARGET __attribute__((unused)) void RG_L(rg_scatter)(double *p, size_t stride, const rg_v *t) {
+  rg_v r[4];
+  r[0] = t[0];
+  r[1] = t[1];
+  r[2] = t[2];
+  r[3] = t[3];
+  RG_L(rg_transpose)(r);
+  *(RG_L(rg_vh) *)(p + 0 * stride + 0) = ((const RG_L(rg_vh) *)&r[0])[0];
+  *(RG_L(rg_vh) *)(p + 2 * stride + 0) = ((const RG_L(rg_vh) *)&r[0])[1];
+  *(RG_L(rg_vh) *)(p + 0 * stride + 2) = ((const RG_L(rg_vh) *)&r[2])[0];
+  *(RG_L(rg_vh) *)(p + 2 * stride + 2) = ((const RG_L(rg_vh) *)&r[2])[1];
+  *(RG_L(rg_vh) *)(p + 1 * stride + 0) = ((const RG_L(rg_vh) *)&r[1])[0];
+  *(RG_L(rg_vh) *)(p + 3 * stride + 0) = ((const RG_L(rg_vh) *)&r[1])[1];
+  *(RG_L(rg_vh) *)(p + 1 * stride + 2) = ((const RG_L(rg_vh) *)&r[3])[0];
+  *(RG_L(rg_vh) *)(p + 3 * stride + 2) = ((const RG_L(rg_vh) *)&r[3])[1];
 }
-static RG_TARGET __attribute__((unused)) void RG_L(rg_scatter)(double *p, size_t stride, rg_v *t) {
-  int l;
-  RG_L(rg_transpose)(t);
-  for (l = 0; l < 4; ++l) *(RG_L(rg_vu) *)(p + l * stride) = t[l];
+typedef double RG_L(rg_vp2) __attribute__((vector_size(16), aligned(8), may_alias));
+static inline RG_TARGET __attribute__((unused, always_inline)) void RG_L(rg_scatter_part)(double *p, size_t stride, const rg_v *t, int n) {
+  rg_v r[4], a, b;
+  int o;
+  r[0] = t[0];
+  r[1] = t[1 < n ? 1 : 0];
+  r[2] = t[2 < n ? 2 : 0];
+  r[3] = t[3 < n ? 3 : 0];
+#if defined(__clang__)
+#define RG_SHUFFLE(a, b, ...) __builtin_shufflevector(a, b, __VA_ARGS__)
+#else
+#define RG_SHUFFLE(a, b, ...) __builtin_shuffle(a, b, (rg_vm){__VA_ARGS__})
+#endif
+  if (0 < n) {
+    a = RG_SHUFFLE(r[0], r[1], 0, 4, 2, 6);
+    b = RG_SHUFFLE(r[0], r[1], 1, 5, 3, 7);
+    r[0] = a;
+    r[1] = b;
+  }
+  if (2 < n) {
+    a = RG_SHUFFLE(r[2], r[3], 0, 4, 2, 6);
+    b = RG_SHUFFLE(r[2], r[3], 1, 5, 3, 7);
+    r[2] = a;
+    r[3] = b;
+  }
+#undef RG_SHUFFLE
+  {
+    int m = n < 2 ? n : 2;
+    o = 0;
+    if (m & 2) {
+      *(RG_L(rg_vp2) *)(p + 0 * stride + 0 + o) = ((const RG_L(rg_vp2) *)&r[0])[(0 + o) / 2];
+      *(RG_L(rg_vp2) *)(p + 2 * stride + 0 + o) = ((const RG_L(rg_vp2) *)&r[0])[(2 + o) / 2];
+      *(RG_L(rg_vp2) *)(p + 1 * stride + 0 + o) = ((const RG_L(rg_vp2) *)&r[1])[(0 + o) / 2];
+      *(RG_L(rg_vp2) *)(p + 3 * stride + 0 + o) = ((const RG_L(rg_vp2) *)&r[1])[(2 + o) / 2];
+      o += 2;
+    }
+    if (m & 1) {
+      *(double *)(p + 0 * stride + 0 + o) = ((const double *)&r[0])[(0 + o) / 1];
+      *(double *)(p + 2 * stride + 0 + o) = ((const double *)&r[0])[(2 + o) / 1];
+      *(double *)(p + 1 * stride + 0 + o) = ((const double *)&r[1])[(0 + o) / 1];
+      *(double *)(p + 3 * stride + 0 + o) = ((const double *)&r[1])[(2 + o) / 1];
+      o += 1;
+    }
+  }
+  if (n - 2 > 0) {
+    int m = n - 2 < 2 ? n - 2 : 2;
+    o = 0;
+    if (m & 2) {
+      *(RG_L(rg_vp2) *)(p + 0 * stride + 2 + o) = ((const RG_L(rg_vp2) *)&r[2])[(0 + o) / 2];
+      *(RG_L(rg_vp2) *)(p + 2 * stride + 2 + o) = ((const RG_L(rg_vp2) *)&r[2])[(2 + o) / 2];
+      *(RG_L(rg_vp2) *)(p + 1 * stride + 2 + o) = ((const RG_L(rg_vp2) *)&r[3])[(0 + o) / 2];
+      *(RG_L(rg_vp2) *)(p + 3 * stride + 2 + o) = ((const RG_L(rg_vp2) *)&r[3])[(2 + o) / 2];
+      o += 2;
+    }
+    if (m & 1) {
+      *(double *)(p + 0 * stride + 2 + o) = ((const double *)&r[2])[(0 + o) / 1];
+      *(double *)(p + 2 * stride + 2 + o) = ((const double *)&r[2])[(2 + o) / 1];
+      *(double *)(p + 1 * stride + 2 + o) = ((const double *)&r[3])[(0 + o) / 1];
+      *(double *)(p + 3 * stride + 2 + o) = ((const double *)&r[3])[(2 + o) / 1];
+      o += 1;
+    }
+  }
 }
 
 
@@ -3071,8 +3310,8 @@ static RG_TARGET int RG_L(rgb_mass)(int n, const double *q, double *mass) {
     RG_L(rgl_mass)(rgb_in0, rgb_out0);
     for (rg_e = 0; rg_e + RG_W <= 4; rg_e += RG_W)
       RG_L(rg_scatter)(mass + (size_t)rg_b * 4 + rg_e, 4, rgb_out0 + rg_e);
-    for (rg_e = 4 - 4 % RG_W; rg_e < 4; ++rg_e)
-      for (rg_l = 0; rg_l < RG_W; ++rg_l) mass[(size_t)(rg_b + rg_l) * 4 + rg_e] = rgb_out0[rg_e][rg_l];
+    if (4 % RG_W)
+      RG_L(rg_scatter_part)(mass + (size_t)rg_b * 4 + 4 - 4 % RG_W, 4, rgb_out0 + 4 - 4 % RG_W, 4 % RG_W);
   }
   return 0;
 }
@@ -3117,8 +3356,8 @@ static RG_TARGET int RG_L(rgb_gravity)(int n, const double *q, double *gravity) 
     RG_L(rgl_gravity)(rgb_in0, rgb_out0);
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_scatter)(gravity + (size_t)rg_b * 2 + rg_e, 2, rgb_out0 + rg_e);
-    for (rg_e = 2 - 2 % RG_W; rg_e < 2; ++rg_e)
-      for (rg_l = 0; rg_l < RG_W; ++rg_l) gravity[(size_t)(rg_b + rg_l) * 2 + rg_e] = rgb_out0[rg_e][rg_l];
+    if (2 % RG_W)
+      RG_L(rg_scatter_part)(gravity + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, rgb_out0 + 2 - 2 % RG_W, 2 % RG_W);
   }
   return 0;
 }
@@ -3199,8 +3438,8 @@ static RG_TARGET int RG_L(rgb_inverse_dynamics)(int n, const double *q, const do
     RG_L(rgl_inverse_dynamics)(rgb_in0, rgb_in1, rgb_in2, rgb_out0);
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_scatter)(inverse_dynamics + (size_t)rg_b * 2 + rg_e, 2, rgb_out0 + rg_e);
-    for (rg_e = 2 - 2 % RG_W; rg_e < 2; ++rg_e)
-      for (rg_l = 0; rg_l < RG_W; ++rg_l) inverse_dynamics[(size_t)(rg_b + rg_l) * 2 + rg_e] = rgb_out0[rg_e][rg_l];
+    if (2 % RG_W)
+      RG_L(rg_scatter_part)(inverse_dynamics + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, rgb_out0 + 2 - 2 % RG_W, 2 % RG_W);
   }
   return 0;
 }
@@ -3332,8 +3571,8 @@ static RG_TARGET int RG_L(rgb_forward_dynamics)(int n, const double *q, const do
     if (!rg_failed) {
       for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
         RG_L(rg_scatter)(forward_dynamics + (size_t)rg_b * 2 + rg_e, 2, rgb_out0 + rg_e);
-      for (rg_e = 2 - 2 % RG_W; rg_e < 2; ++rg_e)
-        for (rg_l = 0; rg_l < RG_W; ++rg_l) forward_dynamics[(size_t)(rg_b + rg_l) * 2 + rg_e] = rgb_out0[rg_e][rg_l];
+      if (2 % RG_W)
+        RG_L(rg_scatter_part)(forward_dynamics + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, rgb_out0 + 2 - 2 % RG_W, 2 % RG_W);
       continue;
     }
     for (rg_l = 0; rg_l < RG_W; ++rg_l) {
@@ -3476,12 +3715,12 @@ static RG_TARGET int RG_L(rgb_inverse_dynamics_derivatives)(int n, const double 
     if (!rg_failed) {
       for (rg_e = 0; rg_e + RG_W <= 4; rg_e += RG_W)
         RG_L(rg_scatter)(dtau_dq + (size_t)rg_b * 4 + rg_e, 4, rgb_out0 + rg_e);
-      for (rg_e = 4 - 4 % RG_W; rg_e < 4; ++rg_e)
-        for (rg_l = 0; rg_l < RG_W; ++rg_l) dtau_dq[(size_t)(rg_b + rg_l) * 4 + rg_e] = rgb_out0[rg_e][rg_l];
+      if (4 % RG_W)
+        RG_L(rg_scatter_part)(dtau_dq + (size_t)rg_b * 4 + 4 - 4 % RG_W, 4, rgb_out0 + 4 - 4 % RG_W, 4 % RG_W);
       for (rg_e = 0; rg_e + RG_W <= 4; rg_e += RG_W)
         RG_L(rg_scatter)(dtau_dqd + (size_t)rg_b * 4 + rg_e, 4, rgb_out1 + rg_e);
-      for (rg_e = 4 - 4 % RG_W; rg_e < 4; ++rg_e)
-        for (rg_l = 0; rg_l < RG_W; ++rg_l) dtau_dqd[(size_t)(rg_b + rg_l) * 4 + rg_e] = rgb_out1[rg_e][rg_l];
+      if (4 % RG_W)
+        RG_L(rg_scatter_part)(dtau_dqd + (size_t)rg_b * 4 + 4 - 4 % RG_W, 4, rgb_out1 + 4 - 4 % RG_W, 4 % RG_W);
       continue;
     }
     for (rg_l = 0; rg_l < RG_W; ++rg_l) {
@@ -3714,16 +3953,16 @@ static RG_TARGET int RG_L(rgb_forward_dynamics_derivatives)(int n, const double 
     if (!rg_failed) {
       for (rg_e = 0; rg_e + RG_W <= 4; rg_e += RG_W)
         RG_L(rg_scatter)(dqdd_dq + (size_t)rg_b * 4 + rg_e, 4, rgb_out0 + rg_e);
-      for (rg_e = 4 - 4 % RG_W; rg_e < 4; ++rg_e)
-        for (rg_l = 0; rg_l < RG_W; ++rg_l) dqdd_dq[(size_t)(rg_b + rg_l) * 4 + rg_e] = rgb_out0[rg_e][rg_l];
+      if (4 % RG_W)
+        RG_L(rg_scatter_part)(dqdd_dq + (size_t)rg_b * 4 + 4 - 4 % RG_W, 4, rgb_out0 + 4 - 4 % RG_W, 4 % RG_W);
       for (rg_e = 0; rg_e + RG_W <= 4; rg_e += RG_W)
         RG_L(rg_scatter)(dqdd_dqd + (size_t)rg_b * 4 + rg_e, 4, rgb_out1 + rg_e);
-      for (rg_e = 4 - 4 % RG_W; rg_e < 4; ++rg_e)
-        for (rg_l = 0; rg_l < RG_W; ++rg_l) dqdd_dqd[(size_t)(rg_b + rg_l) * 4 + rg_e] = rgb_out1[rg_e][rg_l];
+      if (4 % RG_W)
+        RG_L(rg_scatter_part)(dqdd_dqd + (size_t)rg_b * 4 + 4 - 4 % RG_W, 4, rgb_out1 + 4 - 4 % RG_W, 4 % RG_W);
       for (rg_e = 0; rg_e + RG_W <= 4; rg_e += RG_W)
         RG_L(rg_scatter)(dqdd_dtau + (size_t)rg_b * 4 + rg_e, 4, rgb_out2 + rg_e);
-      for (rg_e = 4 - 4 % RG_W; rg_e < 4; ++rg_e)
-        for (rg_l = 0; rg_l < RG_W; ++rg_l) dqdd_dtau[(size_t)(rg_b + rg_l) * 4 + rg_e] = rgb_out2[rg_e][rg_l];
+      if (4 % RG_W)
+        RG_L(rg_scatter_part)(dqdd_dtau + (size_t)rg_b * 4 + 4 - 4 % RG_W, 4, rgb_out2 + 4 - 4 % RG_W, 4 % RG_W);
       continue;
     }
     for (rg_l = 0; rg_l < RG_W; ++rg_l) {
@@ -3818,8 +4057,8 @@ static RG_TARGET int RG_L(rgb_mass_inverse)(int n, const double *q, double *mass
     if (!rg_failed) {
       for (rg_e = 0; rg_e + RG_W <= 4; rg_e += RG_W)
         RG_L(rg_scatter)(mass_inverse + (size_t)rg_b * 4 + rg_e, 4, rgb_out0 + rg_e);
-      for (rg_e = 4 - 4 % RG_W; rg_e < 4; ++rg_e)
-        for (rg_l = 0; rg_l < RG_W; ++rg_l) mass_inverse[(size_t)(rg_b + rg_l) * 4 + rg_e] = rgb_out0[rg_e][rg_l];
+      if (4 % RG_W)
+        RG_L(rg_scatter_part)(mass_inverse + (size_t)rg_b * 4 + 4 - 4 % RG_W, 4, rgb_out0 + 4 - 4 % RG_W, 4 % RG_W);
       continue;
     }
     for (rg_l = 0; rg_l < RG_W; ++rg_l) {
@@ -3986,12 +4225,12 @@ static RG_TARGET int RG_L(rgb_discrete_dynamics)(int n, const double *q, const d
     if (!rg_failed) {
       for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
         RG_L(rg_scatter)(q_next + (size_t)rg_b * 2 + rg_e, 2, rgb_out0 + rg_e);
-      for (rg_e = 2 - 2 % RG_W; rg_e < 2; ++rg_e)
-        for (rg_l = 0; rg_l < RG_W; ++rg_l) q_next[(size_t)(rg_b + rg_l) * 2 + rg_e] = rgb_out0[rg_e][rg_l];
+      if (2 % RG_W)
+        RG_L(rg_scatter_part)(q_next + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, rgb_out0 + 2 - 2 % RG_W, 2 % RG_W);
       for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
         RG_L(rg_scatter)(qd_next + (size_t)rg_b * 2 + rg_e, 2, rgb_out1 + rg_e);
-      for (rg_e = 2 - 2 % RG_W; rg_e < 2; ++rg_e)
-        for (rg_l = 0; rg_l < RG_W; ++rg_l) qd_next[(size_t)(rg_b + rg_l) * 2 + rg_e] = rgb_out1[rg_e][rg_l];
+      if (2 % RG_W)
+        RG_L(rg_scatter_part)(qd_next + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, rgb_out1 + 2 - 2 % RG_W, 2 % RG_W);
       continue;
     }
     for (rg_l = 0; rg_l < RG_W; ++rg_l) {
@@ -4297,20 +4536,20 @@ static RG_TARGET int RG_L(rgb_discrete_dynamics_derivatives)(int n, const double
     if (!rg_failed) {
       for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
         RG_L(rg_scatter)(q_next + (size_t)rg_b * 2 + rg_e, 2, rgb_out0 + rg_e);
-      for (rg_e = 2 - 2 % RG_W; rg_e < 2; ++rg_e)
-        for (rg_l = 0; rg_l < RG_W; ++rg_l) q_next[(size_t)(rg_b + rg_l) * 2 + rg_e] = rgb_out0[rg_e][rg_l];
+      if (2 % RG_W)
+        RG_L(rg_scatter_part)(q_next + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, rgb_out0 + 2 - 2 % RG_W, 2 % RG_W);
       for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
         RG_L(rg_scatter)(qd_next + (size_t)rg_b * 2 + rg_e, 2, rgb_out1 + rg_e);
-      for (rg_e = 2 - 2 % RG_W; rg_e < 2; ++rg_e)
-        for (rg_l = 0; rg_l < RG_W; ++rg_l) qd_next[(size_t)(rg_b + rg_l) * 2 + rg_e] = rgb_out1[rg_e][rg_l];
+      if (2 % RG_W)
+        RG_L(rg_scatter_part)(qd_next + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, rgb_out1 + 2 - 2 % RG_W, 2 % RG_W);
       for (rg_e = 0; rg_e + RG_W <= 16; rg_e += RG_W)
         RG_L(rg_scatter)(A + (size_t)rg_b * 16 + rg_e, 16, rgb_out2 + rg_e);
-      for (rg_e = 16 - 16 % RG_W; rg_e < 16; ++rg_e)
-        for (rg_l = 0; rg_l < RG_W; ++rg_l) A[(size_t)(rg_b + rg_l) * 16 + rg_e] = rgb_out2[rg_e][rg_l];
+      if (16 % RG_W)
+        RG_L(rg_scatter_part)(A + (size_t)rg_b * 16 + 16 - 16 % RG_W, 16, rgb_out2 + 16 - 16 % RG_W, 16 % RG_W);
       for (rg_e = 0; rg_e + RG_W <= 8; rg_e += RG_W)
         RG_L(rg_scatter)(B + (size_t)rg_b * 8 + rg_e, 8, rgb_out3 + rg_e);
-      for (rg_e = 8 - 8 % RG_W; rg_e < 8; ++rg_e)
-        for (rg_l = 0; rg_l < RG_W; ++rg_l) B[(size_t)(rg_b + rg_l) * 8 + rg_e] = rgb_out3[rg_e][rg_l];
+      if (8 % RG_W)
+        RG_L(rg_scatter_part)(B + (size_t)rg_b * 8 + 8 - 8 % RG_W, 8, rgb_out3 + 8 - 8 % RG_W, 8 % RG_W);
       continue;
     }
     for (rg_l = 0; rg_l < RG_W; ++rg_l) {
@@ -4366,24 +4605,48 @@ typedef long long rg_vm_neon __attribute__((vector_size(16)));
 #else
 #define RG_SHUFFLE(a, b, ...) __builtin_shuffle(a, b, (rg_vm){__VA_ARGS__})
 #endif
-static RG_TARGET void RG_L(rg_transpose)(rg_v *t) {
-  rg_v a, b;
-  a = RG_SHUFFLE(t[0], t[1], 0, 2);
-  b = RG_SHUFFLE(t[0], t[1], 1, 3);
-  t[0] = a;
-  t[1] = b;
+typedef double RG_L(rg_vu) __attribute__((vector_size(16), aligned(8), may_alias));
+typedef double RG_L(rg_vh) __attribute__((vector_size(8), aligned(8), may_alias));
+static RG_TARGET __attribute__((unused)) void RG_L(rg_gather)(rg_v *t, const double *p, size_t stride) {
+  rg_v r[2];
+  r[0] = *(const RG_L(rg_vu) *)(p + 0 * stride);
+  r[1] = *(const RG_L(rg_vu) *)(p + 1 * stride);
+  t[0] = RG_SHUFFLE(r[0], r[1], 0, 2);
+  t[1] = RG_SHUFFLE(r[0], r[1], 1, 3);
 }
 #undef RG_SHUFFLE
-typedef double RG_L(rg_vu) __attribute__((vector_size(16), aligned(8), may_alias));
-static RG_TARGET __attribute__((unused)) void RG_L(rg_gather)(rg_v *t, const double *p, size_t stride) {
-  int l;
-  for (l = 0; l < 2; ++l) t[l] = *(const RG_L(rg_vu) *)(p + l * stride);
-  RG_L(rg_transpose)(t);
+static RG_TARGET __attribute__((unused)) void RG_L(rg_scatter)(double *p, size_t stride, const rg_v *t) {
+  rg_v r[2];
+  r[0] = t[0];
+  r[1] = t[1];
+  *(RG_L(rg_vh) *)(p + 0 * stride + 0) = ((const RG_L(rg_vh) *)&r[0])[0];
+  *(RG_L(rg_vh) *)(p + 1 * stride + 0) = ((const RG_L(rg_vh) *)&r[0])[1];
+  *(RG_L(rg_vh) *)(p + 0 * stride + 1) = ((const RG_L(rg_vh) *)&r[1])[0];
+  *(RG_L(rg_vh) *)(p + 1 * stride + 1) = ((const RG_L(rg_vh) *)&r[1])[1];
 }
-static RG_TARGET __attribute__((unused)) void RG_L(rg_scatter)(double *p, size_t stride, rg_v *t) {
-  int l;
-  RG_L(rg_transpose)(t);
-  for (l = 0; l < 2; ++l) *(RG_L(rg_vu) *)(p + l * stride) = t[l];
+static inline RG_TARGET __attribute__((unused, always_inline)) void RG_L(rg_scatter_part)(double *p, size_t stride, const rg_v *t, int n) {
+  rg_v r[2];
+  int o;
+  r[0] = t[0];
+  r[1] = t[1 < n ? 1 : 0];
+  {
+    int m = n < 1 ? n : 1;
+    o = 0;
+    if (m & 1) {
+      *(double *)(p + 0 * stride + 0 + o) = ((const double *)&r[0])[(0 + o) / 1];
+      *(double *)(p + 1 * stride + 0 + o) = ((const double *)&r[0])[(1 + o) / 1];
+      o += 1;
+    }
+  }
+  if (n - 1 > 0) {
+    int m = n - 1 < 1 ? n - 1 : 1;
+    o = 0;
+    if (m & 1) {
+      *(double *)(p + 0 * stride + 1 + o) = ((const double *)&r[1])[(0 + o) / 1];
+      *(double *)(p + 1 * stride + 1 + o) = ((const double *)&r[1])[(1 + o) / 1];
+      o += 1;
+    }
+  }
 }
 
 
@@ -4484,8 +4747,8 @@ static RG_TARGET int RG_L(rgb_mass)(int n, const double *q, double *mass) {
     RG_L(rgl_mass)(rgb_in0, rgb_out0);
     for (rg_e = 0; rg_e + RG_W <= 4; rg_e += RG_W)
       RG_L(rg_scatter)(mass + (size_t)rg_b * 4 + rg_e, 4, rgb_out0 + rg_e);
-    for (rg_e = 4 - 4 % RG_W; rg_e < 4; ++rg_e)
-      for (rg_l = 0; rg_l < RG_W; ++rg_l) mass[(size_t)(rg_b + rg_l) * 4 + rg_e] = rgb_out0[rg_e][rg_l];
+    if (4 % RG_W)
+      RG_L(rg_scatter_part)(mass + (size_t)rg_b * 4 + 4 - 4 % RG_W, 4, rgb_out0 + 4 - 4 % RG_W, 4 % RG_W);
   }
   return 0;
 }
@@ -4530,8 +4793,8 @@ static RG_TARGET int RG_L(rgb_gravity)(int n, const double *q, double *gravity) 
     RG_L(rgl_gravity)(rgb_in0, rgb_out0);
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_scatter)(gravity + (size_t)rg_b * 2 + rg_e, 2, rgb_out0 + rg_e);
-    for (rg_e = 2 - 2 % RG_W; rg_e < 2; ++rg_e)
-      for (rg_l = 0; rg_l < RG_W; ++rg_l) gravity[(size_t)(rg_b + rg_l) * 2 + rg_e] = rgb_out0[rg_e][rg_l];
+    if (2 % RG_W)
+      RG_L(rg_scatter_part)(gravity + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, rgb_out0 + 2 - 2 % RG_W, 2 % RG_W);
   }
   return 0;
 }
@@ -4612,8 +4875,8 @@ static RG_TARGET int RG_L(rgb_inverse_dynamics)(int n, const double *q, const do
     RG_L(rgl_inverse_dynamics)(rgb_in0, rgb_in1, rgb_in2, rgb_out0);
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_scatter)(inverse_dynamics + (size_t)rg_b * 2 + rg_e, 2, rgb_out0 + rg_e);
-    for (rg_e = 2 - 2 % RG_W; rg_e < 2; ++rg_e)
-      for (rg_l = 0; rg_l < RG_W; ++rg_l) inverse_dynamics[(size_t)(rg_b + rg_l) * 2 + rg_e] = rgb_out0[rg_e][rg_l];
+    if (2 % RG_W)
+      RG_L(rg_scatter_part)(inverse_dynamics + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, rgb_out0 + 2 - 2 % RG_W, 2 % RG_W);
   }
   return 0;
 }
@@ -4745,8 +5008,8 @@ static RG_TARGET int RG_L(rgb_forward_dynamics)(int n, const double *q, const do
     if (!rg_failed) {
       for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
         RG_L(rg_scatter)(forward_dynamics + (size_t)rg_b * 2 + rg_e, 2, rgb_out0 + rg_e);
-      for (rg_e = 2 - 2 % RG_W; rg_e < 2; ++rg_e)
-        for (rg_l = 0; rg_l < RG_W; ++rg_l) forward_dynamics[(size_t)(rg_b + rg_l) * 2 + rg_e] = rgb_out0[rg_e][rg_l];
+      if (2 % RG_W)
+        RG_L(rg_scatter_part)(forward_dynamics + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, rgb_out0 + 2 - 2 % RG_W, 2 % RG_W);
       continue;
     }
     for (rg_l = 0; rg_l < RG_W; ++rg_l) {
@@ -4889,12 +5152,12 @@ static RG_TARGET int RG_L(rgb_inverse_dynamics_derivatives)(int n, const double 
     if (!rg_failed) {
       for (rg_e = 0; rg_e + RG_W <= 4; rg_e += RG_W)
         RG_L(rg_scatter)(dtau_dq + (size_t)rg_b * 4 + rg_e, 4, rgb_out0 + rg_e);
-      for (rg_e = 4 - 4 % RG_W; rg_e < 4; ++rg_e)
-        for (rg_l = 0; rg_l < RG_W; ++rg_l) dtau_dq[(size_t)(rg_b + rg_l) * 4 + rg_e] = rgb_out0[rg_e][rg_l];
+      if (4 % RG_W)
+        RG_L(rg_scatter_part)(dtau_dq + (size_t)rg_b * 4 + 4 - 4 % RG_W, 4, rgb_out0 + 4 - 4 % RG_W, 4 % RG_W);
       for (rg_e = 0; rg_e + RG_W <= 4; rg_e += RG_W)
         RG_L(rg_scatter)(dtau_dqd + (size_t)rg_b * 4 + rg_e, 4, rgb_out1 + rg_e);
-      for (rg_e = 4 - 4 % RG_W; rg_e < 4; ++rg_e)
-        for (rg_l = 0; rg_l < RG_W; ++rg_l) dtau_dqd[(size_t)(rg_b + rg_l) * 4 + rg_e] = rgb_out1[rg_e][rg_l];
+      if (4 % RG_W)
+        RG_L(rg_scatter_part)(dtau_dqd + (size_t)rg_b * 4 + 4 - 4 % RG_W, 4, rgb_out1 + 4 - 4 % RG_W, 4 % RG_W);
       continue;
     }
     for (rg_l = 0; rg_l < RG_W; ++rg_l) {
@@ -5127,16 +5390,16 @@ static RG_TARGET int RG_L(rgb_forward_dynamics_derivatives)(int n, const double 
     if (!rg_failed) {
       for (rg_e = 0; rg_e + RG_W <= 4; rg_e += RG_W)
         RG_L(rg_scatter)(dqdd_dq + (size_t)rg_b * 4 + rg_e, 4, rgb_out0 + rg_e);
-      for (rg_e = 4 - 4 % RG_W; rg_e < 4; ++rg_e)
-        for (rg_l = 0; rg_l < RG_W; ++rg_l) dqdd_dq[(size_t)(rg_b + rg_l) * 4 + rg_e] = rgb_out0[rg_e][rg_l];
+      if (4 % RG_W)
+        RG_L(rg_scatter_part)(dqdd_dq + (size_t)rg_b * 4 + 4 - 4 % RG_W, 4, rgb_out0 + 4 - 4 % RG_W, 4 % RG_W);
       for (rg_e = 0; rg_e + RG_W <= 4; rg_e += RG_W)
         RG_L(rg_scatter)(dqdd_dqd + (size_t)rg_b * 4 + rg_e, 4, rgb_out1 + rg_e);
-      for (rg_e = 4 - 4 % RG_W; rg_e < 4; ++rg_e)
-        for (rg_l = 0; rg_l < RG_W; ++rg_l) dqdd_dqd[(size_t)(rg_b + rg_l) * 4 + rg_e] = rgb_out1[rg_e][rg_l];
+      if (4 % RG_W)
+        RG_L(rg_scatter_part)(dqdd_dqd + (size_t)rg_b * 4 + 4 - 4 % RG_W, 4, rgb_out1 + 4 - 4 % RG_W, 4 % RG_W);
       for (rg_e = 0; rg_e + RG_W <= 4; rg_e += RG_W)
         RG_L(rg_scatter)(dqdd_dtau + (size_t)rg_b * 4 + rg_e, 4, rgb_out2 + rg_e);
-      for (rg_e = 4 - 4 % RG_W; rg_e < 4; ++rg_e)
-        for (rg_l = 0; rg_l < RG_W; ++rg_l) dqdd_dtau[(size_t)(rg_b + rg_l) * 4 + rg_e] = rgb_out2[rg_e][rg_l];
+      if (4 % RG_W)
+        RG_L(rg_scatter_part)(dqdd_dtau + (size_t)rg_b * 4 + 4 - 4 % RG_W, 4, rgb_out2 + 4 - 4 % RG_W, 4 % RG_W);
       continue;
     }
     for (rg_l = 0; rg_l < RG_W; ++rg_l) {
@@ -5231,8 +5494,8 @@ static RG_TARGET int RG_L(rgb_mass_inverse)(int n, const double *q, double *mass
     if (!rg_failed) {
       for (rg_e = 0; rg_e + RG_W <= 4; rg_e += RG_W)
         RG_L(rg_scatter)(mass_inverse + (size_t)rg_b * 4 + rg_e, 4, rgb_out0 + rg_e);
-      for (rg_e = 4 - 4 % RG_W; rg_e < 4; ++rg_e)
-        for (rg_l = 0; rg_l < RG_W; ++rg_l) mass_inverse[(size_t)(rg_b + rg_l) * 4 + rg_e] = rgb_out0[rg_e][rg_l];
+      if (4 % RG_W)
+        RG_L(rg_scatter_part)(mass_inverse + (size_t)rg_b * 4 + 4 - 4 % RG_W, 4, rgb_out0 + 4 - 4 % RG_W, 4 % RG_W);
       continue;
     }
     for (rg_l = 0; rg_l < RG_W; ++rg_l) {
@@ -5399,12 +5662,12 @@ static RG_TARGET int RG_L(rgb_discrete_dynamics)(int n, const double *q, const d
     if (!rg_failed) {
       for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
         RG_L(rg_scatter)(q_next + (size_t)rg_b * 2 + rg_e, 2, rgb_out0 + rg_e);
-      for (rg_e = 2 - 2 % RG_W; rg_e < 2; ++rg_e)
-        for (rg_l = 0; rg_l < RG_W; ++rg_l) q_next[(size_t)(rg_b + rg_l) * 2 + rg_e] = rgb_out0[rg_e][rg_l];
+      if (2 % RG_W)
+        RG_L(rg_scatter_part)(q_next + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, rgb_out0 + 2 - 2 % RG_W, 2 % RG_W);
       for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
         RG_L(rg_scatter)(qd_next + (size_t)rg_b * 2 + rg_e, 2, rgb_out1 + rg_e);
-      for (rg_e = 2 - 2 % RG_W; rg_e < 2; ++rg_e)
-        for (rg_l = 0; rg_l < RG_W; ++rg_l) qd_next[(size_t)(rg_b + rg_l) * 2 + rg_e] = rgb_out1[rg_e][rg_l];
+      if (2 % RG_W)
+        RG_L(rg_scatter_part)(qd_next + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, rgb_out1 + 2 - 2 % RG_W, 2 % RG_W);
       continue;
     }
     for (rg_l = 0; rg_l < RG_W; ++rg_l) {
@@ -5710,20 +5973,20 @@ static RG_TARGET int RG_L(rgb_discrete_dynamics_derivatives)(int n, const double
     if (!rg_failed) {
       for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
         RG_L(rg_scatter)(q_next + (size_t)rg_b * 2 + rg_e, 2, rgb_out0 + rg_e);
-      for (rg_e = 2 - 2 % RG_W; rg_e < 2; ++rg_e)
-        for (rg_l = 0; rg_l < RG_W; ++rg_l) q_next[(size_t)(rg_b + rg_l) * 2 + rg_e] = rgb_out0[rg_e][rg_l];
+      if (2 % RG_W)
+        RG_L(rg_scatter_part)(q_next + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, rgb_out0 + 2 - 2 % RG_W, 2 % RG_W);
       for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
         RG_L(rg_scatter)(qd_next + (size_t)rg_b * 2 + rg_e, 2, rgb_out1 + rg_e);
-      for (rg_e = 2 - 2 % RG_W; rg_e < 2; ++rg_e)
-        for (rg_l = 0; rg_l < RG_W; ++rg_l) qd_next[(size_t)(rg_b + rg_l) * 2 + rg_e] = rgb_out1[rg_e][rg_l];
+      if (2 % RG_W)
+        RG_L(rg_scatter_part)(qd_next + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, rgb_out1 + 2 - 2 % RG_W, 2 % RG_W);
       for (rg_e = 0; rg_e + RG_W <= 16; rg_e += RG_W)
         RG_L(rg_scatter)(A + (size_t)rg_b * 16 + rg_e, 16, rgb_out2 + rg_e);
-      for (rg_e = 16 - 16 % RG_W; rg_e < 16; ++rg_e)
-        for (rg_l = 0; rg_l < RG_W; ++rg_l) A[(size_t)(rg_b + rg_l) * 16 + rg_e] = rgb_out2[rg_e][rg_l];
+      if (16 % RG_W)
+        RG_L(rg_scatter_part)(A + (size_t)rg_b * 16 + 16 - 16 % RG_W, 16, rgb_out2 + 16 - 16 % RG_W, 16 % RG_W);
       for (rg_e = 0; rg_e + RG_W <= 8; rg_e += RG_W)
         RG_L(rg_scatter)(B + (size_t)rg_b * 8 + rg_e, 8, rgb_out3 + rg_e);
-      for (rg_e = 8 - 8 % RG_W; rg_e < 8; ++rg_e)
-        for (rg_l = 0; rg_l < RG_W; ++rg_l) B[(size_t)(rg_b + rg_l) * 8 + rg_e] = rgb_out3[rg_e][rg_l];
+      if (8 % RG_W)
+        RG_L(rg_scatter_part)(B + (size_t)rg_b * 8 + 8 - 8 % RG_W, 8, rgb_out3 + 8 - 8 % RG_W, 8 % RG_W);
       continue;
     }
     for (rg_l = 0; rg_l < RG_W; ++rg_l) {
