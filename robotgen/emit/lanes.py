@@ -249,7 +249,48 @@ def _transposes(w: int, precision: Precision) -> list[str]:
                 f"  *({unaligned} *)(p + {l + half} * stride + {first}) = {part(l + first, half)};",
             ]
     lines.append("}")
-    return lines + _scatter_part(w, precision, steps)
+    return lines + _scatter_part(w, precision, steps) + _gather_part(w, precision, steps, top)
+
+
+def _gather_part(w: int, precision: Precision, steps, top) -> list[str]:
+    """RG_L(rg_gather_part)(t, p, stride, n): rg_gather of the first n < W of W elements (a
+    port's last size mod W) into t[0..n-1]: each vector built from W/2 elements of state i and
+    W/2 of state i + W/2 (the transpose's last step, done by the loads), the absent elements 0;
+    then the other steps. Inlined where n is a constant, the tests fold away."""
+    v, real = lane_names.VECTOR, precision.real
+    half = w // 2
+    zero = "0.0f" if real == "float" else "0.0"
+    lines = [
+        f"static inline {lane_names.TARGET} __attribute__((unused, always_inline)) void "
+        f"{lane_names.per_width('rg_gather_part')}({v} *t, const {real} *p, size_t stride, int n) {{",
+        f"  {v} r[{w}]{', a, b' if steps else ''};",
+    ]
+    for i, j, _, _ in top:
+        for row, first in ((i, 0), (j, half)):
+            lanes = [
+                f"{first + k} < n ? p[{state} * stride + {first + k}] : {zero}" for state in (i, j) for k in range(half)
+            ]
+            lines.append(f"  r[{row}] = ({v}){{{', '.join(lanes)}}};")
+    if steps:
+        lines += [
+            "#if defined(__clang__)",
+            "#define RG_SHUFFLE(a, b, ...) __builtin_shufflevector(a, b, __VA_ARGS__)",
+            "#else",
+            f"#define RG_SHUFFLE(a, b, ...) __builtin_shuffle(a, b, ({lane_names.MASK_VECTOR}){{__VA_ARGS__}})",
+            "#endif",
+        ]
+    for i, j, low, high in steps:
+        lines += [
+            f"  a = RG_SHUFFLE(r[{i}], r[{j}], {', '.join(map(str, low))});",
+            f"  b = RG_SHUFFLE(r[{i}], r[{j}], {', '.join(map(str, high))});",
+            f"  r[{i}] = a;",
+            f"  r[{j}] = b;",
+        ]
+    if steps:
+        lines.append("#undef RG_SHUFFLE")
+    lines += [f"  if ({e} < n) t[{e}] = r[{e}];" for e in range(w - 1)]
+    lines.append("}")
+    return lines
 
 
 def _scatter_part(w: int, precision: Precision, steps) -> list[str]:
@@ -353,7 +394,9 @@ def driver_source(prefix: str, kernel: Kernel, precision: Precision) -> str:
         f"const {params_type(prefix)} *{p.name}" if is_parameter_port(p) else f"const {real} *{p.name}"
         for p in kernel.inputs
     ] + [f"{real} *{p.name}" for p in outputs]
-    arrays = [f"rgb_in{k}[{p.size}]" for k, p in enumerate(inputs)] + [
+    # an input's last size mod W elements are gathered whole, W of them, where the states after the
+    # block hold what the loads read past them
+    arrays = [f"rgb_in{k}[({p.size} + {w} - 1) / {w} * {w}]" for k, p in enumerate(inputs)] + [
         f"rgb_out{k}[{p.size}]" for k, p in enumerate(outputs)
     ]
     arguments, k = [], 0
@@ -367,12 +410,12 @@ def driver_source(prefix: str, kernel: Kernel, precision: Precision) -> str:
     step = any(p.name == STEP_PORT and p.size == 1 for p in kernel.inputs)
     checked = kernel.guarded or step
     gather, scatter = lane_names.per_width("rg_gather"), lane_names.per_width("rg_scatter")
-    scatter_part = lane_names.per_width("rg_scatter_part")
+    scatter_part, gather_part = lane_names.per_width("rg_scatter_part"), lane_names.per_width("rg_gather_part")
     lines = [
         f"/* {function_name(prefix, kernel)} on {w} states at a time, the whole blocks of n. */",
         f"static {lane_names.TARGET} int {lane_names.per_width(DRIVER + kernel.name)}(int n, {', '.join(params)}) {{",
         f"  {v} {', '.join(arrays)};",
-        "  int rg_b, rg_l, rg_e" + (f", rg_s[{w}], rg_failed, rg_status = 0;" if checked else ";"),
+        "  int rg_b, rg_e" + (f", rg_l, rg_s[{w}], rg_failed, rg_status = 0;" if checked else ";"),
         *([f"  {lane_names.MASK_VECTOR} rg_in, rg_out, rg_dt;", "  size_t rg_k;"] if checked else []),
         *([f"  {v} rg_x;"] if kernel.guarded else []),
         f"  for (rg_b = 0; rg_b <= n - {w}; rg_b += {w}) {{",
@@ -381,9 +424,12 @@ def driver_source(prefix: str, kernel: Kernel, precision: Precision) -> str:
         lines += [
             f"    for (rg_e = 0; rg_e + {w} <= {p.size}; rg_e += {w})",
             f"      {gather}(rgb_in{k} + rg_e, {p.name} + (size_t)rg_b * {p.size} + rg_e, {p.size});",
-            f"    for (rg_e = {p.size} - {p.size} % {w}; rg_e < {p.size}; ++rg_e)",
-            f"      for (rg_l = 0; rg_l < {w}; ++rg_l) "
-            f"rgb_in{k}[rg_e][rg_l] = {p.name}[(size_t)(rg_b + rg_l) * {p.size} + rg_e];",
+            f"    if ({p.size} % {w} && rg_b + {w} + ({w} - {p.size} % {w} + {p.size} - 1) / {p.size} <= n)",
+            f"      {gather}(rgb_in{k} + {p.size} - {p.size} % {w}, "
+            f"{p.name} + (size_t)rg_b * {p.size} + {p.size} - {p.size} % {w}, {p.size});",
+            f"    else if ({p.size} % {w})",
+            f"      {gather_part}(rgb_in{k} + {p.size} - {p.size} % {w}, "
+            f"{p.name} + (size_t)rg_b * {p.size} + {p.size} - {p.size} % {w}, {p.size}, {p.size} % {w});",
         ]
     lines.append(f"    {lane_names.per_width('rgl_' + kernel.name)}({', '.join(arguments)});")
     fast = []

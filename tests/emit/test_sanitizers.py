@@ -1,7 +1,8 @@
 """The emitted C of every example under AddressSanitizer and UndefinedBehaviorSanitizer: every
 function called on random inputs with huge values, zeros, NaN and Inf among them, and on the
 spec's parameter defaults; every batch entry point (robotgen.emit.lanes) on BATCH states, one
-round in ten. No finding is allowed (the sanitizers abort the program on the first
+round in ten, each port in a heap block of exactly its states (a block's loads may read past a
+state's elements into the next states', never past the last). No finding is allowed (the sanitizers abort the program on the first
 one); a NaN or Inf result is not a finding (the inputs ask for it)."""
 
 from __future__ import annotations
@@ -37,8 +38,8 @@ def harness(manifest: dict) -> str:
         f'#include "{name}.h"',
         "#include <math.h>",
         "#include <stdio.h>",
+        "#include <stdlib.h>",
         f"static double in[16][{size}], out[16][{size}];",
-        *([f"static double bin[16][{BATCH * size}], bout[16][{BATCH * size}];"] if batched else []),
         "static unsigned long long s = 88172645463325252ULL;",
         "static double next(void) {",
         "    static const double special[8] = {0.0, -0.0, 1e300, -1e300, 1e-310, 0.0, 0.0, 0.0};",
@@ -48,6 +49,14 @@ def harness(manifest: dict) -> str:
         "    if ((r & 7) == 0) { int k = (int)((r >> 3) & 7); return k == 5 ? NAN : k == 6 ? INFINITY : "
         "k == 7 ? -INFINITY : special[k]; }",
         "    return ((double)(s >> 11) / 9007199254740992.0 - 0.5) * 8.0;",
+        "}",
+        # a batch port's own heap block, exactly its n states: a read or write past them is a finding
+        "static double *fresh(size_t count) {",
+        "    double *a = malloc(count * sizeof *a);",
+        "    size_t i;",
+        "    if (!a) abort();",
+        "    for (i = 0; i < count; ++i) a[i] = next();",
+        "    return a;",
         "}",
         "int main(void) {",
     ]
@@ -64,15 +73,17 @@ def harness(manifest: dict) -> str:
         args += [f"out[{k}]" for k in range(len(f["outputs"]))]
         lines.append(f"        status |= {f['c_name']}({', '.join(args)});")
     if batched:
-        lines += [
-            "        if (round % 10 == 0) {",
-            f"            for (i = 0; i < 16 * {BATCH * size}; ++i) bin[i / {BATCH * size}][i % {BATCH * size}] = next();",
-        ]
+        lines.append("        if (round % 10 == 0) {")
     for f in batched:
-        args = [f"bin[{k}]" for k in range(len(f["inputs"]))]
+        ports = f["inputs"] + f["outputs"]
+        lines.append("            {")
+        lines += [f"                double *b{k} = fresh({BATCH * max(1, _size(p))});" for k, p in enumerate(ports)]
+        args = [f"b{k}" for k in range(len(f["inputs"]))]
         args += ["&params"] if f.get("reads_parameters") else []
-        args += [f"bout[{k}]" for k in range(len(f["outputs"]))]
-        lines.append(f"            status |= {f['c_name']}_batch({BATCH}, {', '.join(args)});")
+        args += [f"b{len(f['inputs']) + k}" for k in range(len(f["outputs"]))]
+        lines.append(f"                status |= {f['c_name']}_batch({BATCH}, {', '.join(args)});")
+        lines += [f"                free(b{k});" for k in range(len(ports))]
+        lines.append("            }")
     lines += ["        }"] if batched else []
     lines += ["    }", '    printf("done %d\\n", status);', "    return 0;", "}"]
     return "\n".join(lines) + "\n"

@@ -1712,6 +1712,62 @@ static inline RG_TARGET __attribute__((unused, always_inline)) void RG_L(rg_scat
     }
   }
 }
+static inline RG_TARGET __attribute__((unused, always_inline)) void RG_L(rg_gather_part)(rg_v *t, const double *p, size_t stride, int n) {
+  rg_v r[8], a, b;
+  r[0] = (rg_v){0 < n ? p[0 * stride + 0] : 0.0, 1 < n ? p[0 * stride + 1] : 0.0, 2 < n ? p[0 * stride + 2] : 0.0, 3 < n ? p[0 * stride + 3] : 0.0, 0 < n ? p[4 * stride + 0] : 0.0, 1 < n ? p[4 * stride + 1] : 0.0, 2 < n ? p[4 * stride + 2] : 0.0, 3 < n ? p[4 * stride + 3] : 0.0};
+  r[4] = (rg_v){4 < n ? p[0 * stride + 4] : 0.0, 5 < n ? p[0 * stride + 5] : 0.0, 6 < n ? p[0 * stride + 6] : 0.0, 7 < n ? p[0 * stride + 7] : 0.0, 4 < n ? p[4 * stride + 4] : 0.0, 5 < n ? p[4 * stride + 5] : 0.0, 6 < n ? p[4 * stride + 6] : 0.0, 7 < n ? p[4 * stride + 7] : 0.0};
+  r[1] = (rg_v){0 < n ? p[1 * stride + 0] : 0.0, 1 < n ? p[1 * stride + 1] : 0.0, 2 < n ? p[1 * stride + 2] : 0.0, 3 < n ? p[1 * stride + 3] : 0.0, 0 < n ? p[5 * stride + 0] : 0.0, 1 < n ? p[5 * stride + 1] : 0.0, 2 < n ? p[5 * stride + 2] : 0.0, 3 < n ? p[5 * stride + 3] : 0.0};
+  r[5] = (rg_v){4 < n ? p[1 * stride + 4] : 0.0, 5 < n ? p[1 * stride + 5] : 0.0, 6 < n ? p[1 * stride + 6] : 0.0, 7 < n ? p[1 * stride + 7] : 0.0, 4 < n ? p[5 * stride + 4] : 0.0, 5 < n ? p[5 * stride + 5] : 0.0, 6 < n ? p[5 * stride + 6] : 0.0, 7 < n ? p[5 * stride + 7] : 0.0};
+  r[2] = (rg_v){0 < n ? p[2 * stride + 0] : 0.0, 1 < n ? p[2 * stride + 1] : 0.0, 2 < n ? p[2 * stride + 2] : 0.0, 3 < n ? p[2 * stride + 3] : 0.0, 0 < n ? p[6 * stride + 0] : 0.0, 1 < n ? p[6 * stride + 1] : 0.0, 2 < n ? p[6 * stride + 2] : 0.0, 3 < n ? p[6 * stride + 3] : 0.0};
+  r[6] = (rg_v){4 < n ? p[2 * stride + 4] : 0.0, 5 < n ? p[2 * stride + 5] : 0.0, 6 < n ? p[2 * stride + 6] : 0.0, 7 < n ? p[2 * stride + 7] : 0.0, 4 < n ? p[6 * stride + 4] : 0.0, 5 < n ? p[6 * stride + 5] : 0.0, 6 < n ? p[6 * stride + 6] : 0.0, 7 < n ? p[6 * stride + 7] : 0.0};
+  r[3] = (rg_v){0 < n ? p[3 * stride + 0] : 0.0, 1 < n ? p[3 * stride + 1] : 0.0, 2 < n ? p[3 * stride + 2] : 0.0, 3 < n ? p[3 * stride + 3] : 0.0, 0 < n ? p[7 * stride + 0] : 0.0, 1 < n ? p[7 * stride + 1] : 0.0, 2 < n ? p[7 * stride + 2] : 0.0, 3 < n ? p[7 * stride + 3] : 0.0};
+  r[7] = (rg_v){4 < n ? p[3 * stride + 4] : 0.0, 5 < n ? p[3 * stride + 5] : 0.0, 6 < n ? p[3 * stride + 6] : 0.0, 7 < n ? p[3 * stride + 7] : 0.0, 4 < n ? p[7 * stride + 4] : 0.0, 5 < n ? p[7 * stride + 5] : 0.0, 6 < n ? p[7 * stride + 6] : 0.0, 7 < n ? p[7 * stride + 7] : 0.0};
+#if defined(__clang__)
+#define RG_SHUFFLE(a, b, ...) __builtin_shufflevector(a, b, __VA_ARGS__)
+#else
+#define RG_SHUFFLE(a, b, ...) __builtin_shuffle(a, b, (rg_vm){__VA_ARGS__})
+#endif
+  a = RG_SHUFFLE(r[0], r[1], 0, 8, 2, 10, 4, 12, 6, 14);
+  b = RG_SHUFFLE(r[0], r[1], 1, 9, 3, 11, 5, 13, 7, 15);
+  r[0] = a;
+  r[1] = b;
+  a = RG_SHUFFLE(r[2], r[3], 0, 8, 2, 10, 4, 12, 6, 14);
+  b = RG_SHUFFLE(r[2], r[3], 1, 9, 3, 11, 5, 13, 7, 15);
+  r[2] = a;
+  r[3] = b;
+  a = RG_SHUFFLE(r[4], r[5], 0, 8, 2, 10, 4, 12, 6, 14);
+  b = RG_SHUFFLE(r[4], r[5], 1, 9, 3, 11, 5, 13, 7, 15);
+  r[4] = a;
+  r[5] = b;
+  a = RG_SHUFFLE(r[6], r[7], 0, 8, 2, 10, 4, 12, 6, 14);
+  b = RG_SHUFFLE(r[6], r[7], 1, 9, 3, 11, 5, 13, 7, 15);
+  r[6] = a;
+  r[7] = b;
+  a = RG_SHUFFLE(r[0], r[2], 0, 1, 8, 9, 4, 5, 12, 13);
+  b = RG_SHUFFLE(r[0], r[2], 2, 3, 10, 11, 6, 7, 14, 15);
+  r[0] = a;
+  r[2] = b;
+  a = RG_SHUFFLE(r[1], r[3], 0, 1, 8, 9, 4, 5, 12, 13);
+  b = RG_SHUFFLE(r[1], r[3], 2, 3, 10, 11, 6, 7, 14, 15);
+  r[1] = a;
+  r[3] = b;
+  a = RG_SHUFFLE(r[4], r[6], 0, 1, 8, 9, 4, 5, 12, 13);
+  b = RG_SHUFFLE(r[4], r[6], 2, 3, 10, 11, 6, 7, 14, 15);
+  r[4] = a;
+  r[6] = b;
+  a = RG_SHUFFLE(r[5], r[7], 0, 1, 8, 9, 4, 5, 12, 13);
+  b = RG_SHUFFLE(r[5], r[7], 2, 3, 10, 11, 6, 7, 14, 15);
+  r[5] = a;
+  r[7] = b;
+#undef RG_SHUFFLE
+  if (0 < n) t[0] = r[0];
+  if (1 < n) t[1] = r[1];
+  if (2 < n) t[2] = r[2];
+  if (3 < n) t[3] = r[3];
+  if (4 < n) t[4] = r[4];
+  if (5 < n) t[5] = r[5];
+  if (6 < n) t[6] = r[6];
+}
 
 
 /* rg_sincos2's reduction, polynomials and quadrant on every lane of one angle x, |x| <= the bound. */
@@ -1801,13 +1857,15 @@ static RG_TARGET void RG_L(rgl_mass)(const rg_v *q, rg_v *mass) {
 
 /* two_link_mass on RG_W states at a time, the whole blocks of n. */
 static RG_TARGET int RG_L(rgb_mass)(int n, const double *q, double *mass) {
-  rg_v rgb_in0[2], rgb_out0[4];
-  int rg_b, rg_l, rg_e;
+  rg_v rgb_in0[(2 + RG_W - 1) / RG_W * RG_W], rgb_out0[4];
+  int rg_b, rg_e;
   for (rg_b = 0; rg_b <= n - RG_W; rg_b += RG_W) {
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in0 + rg_e, q + (size_t)rg_b * 2 + rg_e, 2);
-    for (rg_e = 2 - 2 % RG_W; rg_e < 2; ++rg_e)
-      for (rg_l = 0; rg_l < RG_W; ++rg_l) rgb_in0[rg_e][rg_l] = q[(size_t)(rg_b + rg_l) * 2 + rg_e];
+    if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
+      RG_L(rg_gather)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
+    else if (2 % RG_W)
+      RG_L(rg_gather_part)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
     RG_L(rgl_mass)(rgb_in0, rgb_out0);
     for (rg_e = 0; rg_e + RG_W <= 4; rg_e += RG_W)
       RG_L(rg_scatter)(mass + (size_t)rg_b * 4 + rg_e, 4, rgb_out0 + rg_e);
@@ -1847,13 +1905,15 @@ static RG_TARGET void RG_L(rgl_gravity)(const rg_v *q, rg_v *gravity) {
 
 /* two_link_gravity on RG_W states at a time, the whole blocks of n. */
 static RG_TARGET int RG_L(rgb_gravity)(int n, const double *q, double *gravity) {
-  rg_v rgb_in0[2], rgb_out0[2];
-  int rg_b, rg_l, rg_e;
+  rg_v rgb_in0[(2 + RG_W - 1) / RG_W * RG_W], rgb_out0[2];
+  int rg_b, rg_e;
   for (rg_b = 0; rg_b <= n - RG_W; rg_b += RG_W) {
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in0 + rg_e, q + (size_t)rg_b * 2 + rg_e, 2);
-    for (rg_e = 2 - 2 % RG_W; rg_e < 2; ++rg_e)
-      for (rg_l = 0; rg_l < RG_W; ++rg_l) rgb_in0[rg_e][rg_l] = q[(size_t)(rg_b + rg_l) * 2 + rg_e];
+    if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
+      RG_L(rg_gather)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
+    else if (2 % RG_W)
+      RG_L(rg_gather_part)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
     RG_L(rgl_gravity)(rgb_in0, rgb_out0);
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_scatter)(gravity + (size_t)rg_b * 2 + rg_e, 2, rgb_out0 + rg_e);
@@ -1921,21 +1981,27 @@ static RG_TARGET void RG_L(rgl_inverse_dynamics)(const rg_v *q, const rg_v *qd, 
 
 /* two_link_inverse_dynamics on RG_W states at a time, the whole blocks of n. */
 static RG_TARGET int RG_L(rgb_inverse_dynamics)(int n, const double *q, const double *qd, const double *qdd, double *inverse_dynamics) {
-  rg_v rgb_in0[2], rgb_in1[2], rgb_in2[2], rgb_out0[2];
-  int rg_b, rg_l, rg_e;
+  rg_v rgb_in0[(2 + RG_W - 1) / RG_W * RG_W], rgb_in1[(2 + RG_W - 1) / RG_W * RG_W], rgb_in2[(2 + RG_W - 1) / RG_W * RG_W], rgb_out0[2];
+  int rg_b, rg_e;
   for (rg_b = 0; rg_b <= n - RG_W; rg_b += RG_W) {
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in0 + rg_e, q + (size_t)rg_b * 2 + rg_e, 2);
-    for (rg_e = 2 - 2 % RG_W; rg_e < 2; ++rg_e)
-      for (rg_l = 0; rg_l < RG_W; ++rg_l) rgb_in0[rg_e][rg_l] = q[(size_t)(rg_b + rg_l) * 2 + rg_e];
+    if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
+      RG_L(rg_gather)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
+    else if (2 % RG_W)
+      RG_L(rg_gather_part)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in1 + rg_e, qd + (size_t)rg_b * 2 + rg_e, 2);
-    for (rg_e = 2 - 2 % RG_W; rg_e < 2; ++rg_e)
-      for (rg_l = 0; rg_l < RG_W; ++rg_l) rgb_in1[rg_e][rg_l] = qd[(size_t)(rg_b + rg_l) * 2 + rg_e];
+    if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
+      RG_L(rg_gather)(rgb_in1 + 2 - 2 % RG_W, qd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
+    else if (2 % RG_W)
+      RG_L(rg_gather_part)(rgb_in1 + 2 - 2 % RG_W, qd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in2 + rg_e, qdd + (size_t)rg_b * 2 + rg_e, 2);
-    for (rg_e = 2 - 2 % RG_W; rg_e < 2; ++rg_e)
-      for (rg_l = 0; rg_l < RG_W; ++rg_l) rgb_in2[rg_e][rg_l] = qdd[(size_t)(rg_b + rg_l) * 2 + rg_e];
+    if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
+      RG_L(rg_gather)(rgb_in2 + 2 - 2 % RG_W, qdd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
+    else if (2 % RG_W)
+      RG_L(rg_gather_part)(rgb_in2 + 2 - 2 % RG_W, qdd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
     RG_L(rgl_inverse_dynamics)(rgb_in0, rgb_in1, rgb_in2, rgb_out0);
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_scatter)(inverse_dynamics + (size_t)rg_b * 2 + rg_e, 2, rgb_out0 + rg_e);
@@ -2027,24 +2093,30 @@ static RG_TARGET void RG_L(rgl_forward_dynamics)(const rg_v *q, const rg_v *qd, 
 
 /* two_link_forward_dynamics on RG_W states at a time, the whole blocks of n. */
 static RG_TARGET int RG_L(rgb_forward_dynamics)(int n, const double *q, const double *qd, const double *tau, double *forward_dynamics) {
-  rg_v rgb_in0[2], rgb_in1[2], rgb_in2[2], rgb_out0[2];
-  int rg_b, rg_l, rg_e, rg_s[RG_W], rg_failed, rg_status = 0;
+  rg_v rgb_in0[(2 + RG_W - 1) / RG_W * RG_W], rgb_in1[(2 + RG_W - 1) / RG_W * RG_W], rgb_in2[(2 + RG_W - 1) / RG_W * RG_W], rgb_out0[2];
+  int rg_b, rg_e, rg_l, rg_s[RG_W], rg_failed, rg_status = 0;
   rg_vm rg_in, rg_out, rg_dt;
   size_t rg_k;
   rg_v rg_x;
   for (rg_b = 0; rg_b <= n - RG_W; rg_b += RG_W) {
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in0 + rg_e, q + (size_t)rg_b * 2 + rg_e, 2);
-    for (rg_e = 2 - 2 % RG_W; rg_e < 2; ++rg_e)
-      for (rg_l = 0; rg_l < RG_W; ++rg_l) rgb_in0[rg_e][rg_l] = q[(size_t)(rg_b + rg_l) * 2 + rg_e];
+    if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
+      RG_L(rg_gather)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
+    else if (2 % RG_W)
+      RG_L(rg_gather_part)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in1 + rg_e, qd + (size_t)rg_b * 2 + rg_e, 2);
-    for (rg_e = 2 - 2 % RG_W; rg_e < 2; ++rg_e)
-      for (rg_l = 0; rg_l < RG_W; ++rg_l) rgb_in1[rg_e][rg_l] = qd[(size_t)(rg_b + rg_l) * 2 + rg_e];
+    if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
+      RG_L(rg_gather)(rgb_in1 + 2 - 2 % RG_W, qd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
+    else if (2 % RG_W)
+      RG_L(rg_gather_part)(rgb_in1 + 2 - 2 % RG_W, qd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in2 + rg_e, tau + (size_t)rg_b * 2 + rg_e, 2);
-    for (rg_e = 2 - 2 % RG_W; rg_e < 2; ++rg_e)
-      for (rg_l = 0; rg_l < RG_W; ++rg_l) rgb_in2[rg_e][rg_l] = tau[(size_t)(rg_b + rg_l) * 2 + rg_e];
+    if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
+      RG_L(rg_gather)(rgb_in2 + 2 - 2 % RG_W, tau + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
+    else if (2 % RG_W)
+      RG_L(rg_gather_part)(rgb_in2 + 2 - 2 % RG_W, tau + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
     RG_L(rgl_forward_dynamics)(rgb_in0, rgb_in1, rgb_in2, rgb_out0);
     rg_in = rg_out = rg_dt = (rg_vm){0};
     for (rg_e = 0; rg_e < 2; ++rg_e) {
@@ -2167,24 +2239,30 @@ static RG_TARGET void RG_L(rgl_inverse_dynamics_derivatives)(const rg_v *q, cons
 
 /* two_link_inverse_dynamics_derivatives on RG_W states at a time, the whole blocks of n. */
 static RG_TARGET int RG_L(rgb_inverse_dynamics_derivatives)(int n, const double *q, const double *qd, const double *qdd, double *dtau_dq, double *dtau_dqd) {
-  rg_v rgb_in0[2], rgb_in1[2], rgb_in2[2], rgb_out0[4], rgb_out1[4];
-  int rg_b, rg_l, rg_e, rg_s[RG_W], rg_failed, rg_status = 0;
+  rg_v rgb_in0[(2 + RG_W - 1) / RG_W * RG_W], rgb_in1[(2 + RG_W - 1) / RG_W * RG_W], rgb_in2[(2 + RG_W - 1) / RG_W * RG_W], rgb_out0[4], rgb_out1[4];
+  int rg_b, rg_e, rg_l, rg_s[RG_W], rg_failed, rg_status = 0;
   rg_vm rg_in, rg_out, rg_dt;
   size_t rg_k;
   rg_v rg_x;
   for (rg_b = 0; rg_b <= n - RG_W; rg_b += RG_W) {
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in0 + rg_e, q + (size_t)rg_b * 2 + rg_e, 2);
-    for (rg_e = 2 - 2 % RG_W; rg_e < 2; ++rg_e)
-      for (rg_l = 0; rg_l < RG_W; ++rg_l) rgb_in0[rg_e][rg_l] = q[(size_t)(rg_b + rg_l) * 2 + rg_e];
+    if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
+      RG_L(rg_gather)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
+    else if (2 % RG_W)
+      RG_L(rg_gather_part)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in1 + rg_e, qd + (size_t)rg_b * 2 + rg_e, 2);
-    for (rg_e = 2 - 2 % RG_W; rg_e < 2; ++rg_e)
-      for (rg_l = 0; rg_l < RG_W; ++rg_l) rgb_in1[rg_e][rg_l] = qd[(size_t)(rg_b + rg_l) * 2 + rg_e];
+    if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
+      RG_L(rg_gather)(rgb_in1 + 2 - 2 % RG_W, qd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
+    else if (2 % RG_W)
+      RG_L(rg_gather_part)(rgb_in1 + 2 - 2 % RG_W, qd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in2 + rg_e, qdd + (size_t)rg_b * 2 + rg_e, 2);
-    for (rg_e = 2 - 2 % RG_W; rg_e < 2; ++rg_e)
-      for (rg_l = 0; rg_l < RG_W; ++rg_l) rgb_in2[rg_e][rg_l] = qdd[(size_t)(rg_b + rg_l) * 2 + rg_e];
+    if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
+      RG_L(rg_gather)(rgb_in2 + 2 - 2 % RG_W, qdd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
+    else if (2 % RG_W)
+      RG_L(rg_gather_part)(rgb_in2 + 2 - 2 % RG_W, qdd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
     RG_L(rgl_inverse_dynamics_derivatives)(rgb_in0, rgb_in1, rgb_in2, rgb_out0, rgb_out1);
     rg_in = rg_out = rg_dt = (rg_vm){0};
     for (rg_e = 0; rg_e < 2; ++rg_e) {
@@ -2401,24 +2479,30 @@ static RG_TARGET void RG_L(rgl_forward_dynamics_derivatives)(const rg_v *q, cons
 
 /* two_link_forward_dynamics_derivatives on RG_W states at a time, the whole blocks of n. */
 static RG_TARGET int RG_L(rgb_forward_dynamics_derivatives)(int n, const double *q, const double *qd, const double *tau, double *dqdd_dq, double *dqdd_dqd, double *dqdd_dtau) {
-  rg_v rgb_in0[2], rgb_in1[2], rgb_in2[2], rgb_out0[4], rgb_out1[4], rgb_out2[4];
-  int rg_b, rg_l, rg_e, rg_s[RG_W], rg_failed, rg_status = 0;
+  rg_v rgb_in0[(2 + RG_W - 1) / RG_W * RG_W], rgb_in1[(2 + RG_W - 1) / RG_W * RG_W], rgb_in2[(2 + RG_W - 1) / RG_W * RG_W], rgb_out0[4], rgb_out1[4], rgb_out2[4];
+  int rg_b, rg_e, rg_l, rg_s[RG_W], rg_failed, rg_status = 0;
   rg_vm rg_in, rg_out, rg_dt;
   size_t rg_k;
   rg_v rg_x;
   for (rg_b = 0; rg_b <= n - RG_W; rg_b += RG_W) {
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in0 + rg_e, q + (size_t)rg_b * 2 + rg_e, 2);
-    for (rg_e = 2 - 2 % RG_W; rg_e < 2; ++rg_e)
-      for (rg_l = 0; rg_l < RG_W; ++rg_l) rgb_in0[rg_e][rg_l] = q[(size_t)(rg_b + rg_l) * 2 + rg_e];
+    if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
+      RG_L(rg_gather)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
+    else if (2 % RG_W)
+      RG_L(rg_gather_part)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in1 + rg_e, qd + (size_t)rg_b * 2 + rg_e, 2);
-    for (rg_e = 2 - 2 % RG_W; rg_e < 2; ++rg_e)
-      for (rg_l = 0; rg_l < RG_W; ++rg_l) rgb_in1[rg_e][rg_l] = qd[(size_t)(rg_b + rg_l) * 2 + rg_e];
+    if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
+      RG_L(rg_gather)(rgb_in1 + 2 - 2 % RG_W, qd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
+    else if (2 % RG_W)
+      RG_L(rg_gather_part)(rgb_in1 + 2 - 2 % RG_W, qd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in2 + rg_e, tau + (size_t)rg_b * 2 + rg_e, 2);
-    for (rg_e = 2 - 2 % RG_W; rg_e < 2; ++rg_e)
-      for (rg_l = 0; rg_l < RG_W; ++rg_l) rgb_in2[rg_e][rg_l] = tau[(size_t)(rg_b + rg_l) * 2 + rg_e];
+    if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
+      RG_L(rg_gather)(rgb_in2 + 2 - 2 % RG_W, tau + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
+    else if (2 % RG_W)
+      RG_L(rg_gather_part)(rgb_in2 + 2 - 2 % RG_W, tau + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
     RG_L(rgl_forward_dynamics_derivatives)(rgb_in0, rgb_in1, rgb_in2, rgb_out0, rgb_out1, rgb_out2);
     rg_in = rg_out = rg_dt = (rg_vm){0};
     for (rg_e = 0; rg_e < 2; ++rg_e) {
@@ -2529,16 +2613,18 @@ static RG_TARGET void RG_L(rgl_mass_inverse)(const rg_v *q, rg_v *mass_inverse) 
 
 /* two_link_mass_inverse on RG_W states at a time, the whole blocks of n. */
 static RG_TARGET int RG_L(rgb_mass_inverse)(int n, const double *q, double *mass_inverse) {
-  rg_v rgb_in0[2], rgb_out0[4];
-  int rg_b, rg_l, rg_e, rg_s[RG_W], rg_failed, rg_status = 0;
+  rg_v rgb_in0[(2 + RG_W - 1) / RG_W * RG_W], rgb_out0[4];
+  int rg_b, rg_e, rg_l, rg_s[RG_W], rg_failed, rg_status = 0;
   rg_vm rg_in, rg_out, rg_dt;
   size_t rg_k;
   rg_v rg_x;
   for (rg_b = 0; rg_b <= n - RG_W; rg_b += RG_W) {
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in0 + rg_e, q + (size_t)rg_b * 2 + rg_e, 2);
-    for (rg_e = 2 - 2 % RG_W; rg_e < 2; ++rg_e)
-      for (rg_l = 0; rg_l < RG_W; ++rg_l) rgb_in0[rg_e][rg_l] = q[(size_t)(rg_b + rg_l) * 2 + rg_e];
+    if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
+      RG_L(rg_gather)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
+    else if (2 % RG_W)
+      RG_L(rg_gather_part)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
     RG_L(rgl_mass_inverse)(rgb_in0, rgb_out0);
     rg_in = rg_out = rg_dt = (rg_vm){0};
     for (rg_e = 0; rg_e < 2; ++rg_e) {
@@ -2668,28 +2754,36 @@ static RG_TARGET void RG_L(rgl_discrete_dynamics)(const rg_v *q, const rg_v *qd,
 
 /* two_link_discrete_dynamics on RG_W states at a time, the whole blocks of n. */
 static RG_TARGET int RG_L(rgb_discrete_dynamics)(int n, const double *q, const double *qd, const double *tau, const double *dt, double *q_next, double *qd_next) {
-  rg_v rgb_in0[2], rgb_in1[2], rgb_in2[2], rgb_in3[1], rgb_out0[2], rgb_out1[2];
-  int rg_b, rg_l, rg_e, rg_s[RG_W], rg_failed, rg_status = 0;
+  rg_v rgb_in0[(2 + RG_W - 1) / RG_W * RG_W], rgb_in1[(2 + RG_W - 1) / RG_W * RG_W], rgb_in2[(2 + RG_W - 1) / RG_W * RG_W], rgb_in3[(1 + RG_W - 1) / RG_W * RG_W], rgb_out0[2], rgb_out1[2];
+  int rg_b, rg_e, rg_l, rg_s[RG_W], rg_failed, rg_status = 0;
   rg_vm rg_in, rg_out, rg_dt;
   size_t rg_k;
   rg_v rg_x;
   for (rg_b = 0; rg_b <= n - RG_W; rg_b += RG_W) {
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in0 + rg_e, q + (size_t)rg_b * 2 + rg_e, 2);
-    for (rg_e = 2 - 2 % RG_W; rg_e < 2; ++rg_e)
-      for (rg_l = 0; rg_l < RG_W; ++rg_l) rgb_in0[rg_e][rg_l] = q[(size_t)(rg_b + rg_l) * 2 + rg_e];
+    if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
+      RG_L(rg_gather)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
+    else if (2 % RG_W)
+      RG_L(rg_gather_part)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in1 + rg_e, qd + (size_t)rg_b * 2 + rg_e, 2);
-    for (rg_e = 2 - 2 % RG_W; rg_e < 2; ++rg_e)
-      for (rg_l = 0; rg_l < RG_W; ++rg_l) rgb_in1[rg_e][rg_l] = qd[(size_t)(rg_b + rg_l) * 2 + rg_e];
+    if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
+      RG_L(rg_gather)(rgb_in1 + 2 - 2 % RG_W, qd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
+    else if (2 % RG_W)
+      RG_L(rg_gather_part)(rgb_in1 + 2 - 2 % RG_W, qd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in2 + rg_e, tau + (size_t)rg_b * 2 + rg_e, 2);
-    for (rg_e = 2 - 2 % RG_W; rg_e < 2; ++rg_e)
-      for (rg_l = 0; rg_l < RG_W; ++rg_l) rgb_in2[rg_e][rg_l] = tau[(size_t)(rg_b + rg_l) * 2 + rg_e];
+    if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
+      RG_L(rg_gather)(rgb_in2 + 2 - 2 % RG_W, tau + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
+    else if (2 % RG_W)
+      RG_L(rg_gather_part)(rgb_in2 + 2 - 2 % RG_W, tau + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
     for (rg_e = 0; rg_e + RG_W <= 1; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in3 + rg_e, dt + (size_t)rg_b * 1 + rg_e, 1);
-    for (rg_e = 1 - 1 % RG_W; rg_e < 1; ++rg_e)
-      for (rg_l = 0; rg_l < RG_W; ++rg_l) rgb_in3[rg_e][rg_l] = dt[(size_t)(rg_b + rg_l) * 1 + rg_e];
+    if (1 % RG_W && rg_b + RG_W + (RG_W - 1 % RG_W + 1 - 1) / 1 <= n)
+      RG_L(rg_gather)(rgb_in3 + 1 - 1 % RG_W, dt + (size_t)rg_b * 1 + 1 - 1 % RG_W, 1);
+    else if (1 % RG_W)
+      RG_L(rg_gather_part)(rgb_in3 + 1 - 1 % RG_W, dt + (size_t)rg_b * 1 + 1 - 1 % RG_W, 1, 1 % RG_W);
     RG_L(rgl_discrete_dynamics)(rgb_in0, rgb_in1, rgb_in2, rgb_in3, rgb_out0, rgb_out1);
     rg_in = rg_out = rg_dt = (rg_vm){0};
     for (rg_e = 0; rg_e < 2; ++rg_e) {
@@ -2971,28 +3065,36 @@ static RG_TARGET void RG_L(rgl_discrete_dynamics_derivatives)(const rg_v *q, con
 
 /* two_link_discrete_dynamics_derivatives on RG_W states at a time, the whole blocks of n. */
 static RG_TARGET int RG_L(rgb_discrete_dynamics_derivatives)(int n, const double *q, const double *qd, const double *tau, const double *dt, double *q_next, double *qd_next, double *A, double *B) {
-  rg_v rgb_in0[2], rgb_in1[2], rgb_in2[2], rgb_in3[1], rgb_out0[2], rgb_out1[2], rgb_out2[16], rgb_out3[8];
-  int rg_b, rg_l, rg_e, rg_s[RG_W], rg_failed, rg_status = 0;
+  rg_v rgb_in0[(2 + RG_W - 1) / RG_W * RG_W], rgb_in1[(2 + RG_W - 1) / RG_W * RG_W], rgb_in2[(2 + RG_W - 1) / RG_W * RG_W], rgb_in3[(1 + RG_W - 1) / RG_W * RG_W], rgb_out0[2], rgb_out1[2], rgb_out2[16], rgb_out3[8];
+  int rg_b, rg_e, rg_l, rg_s[RG_W], rg_failed, rg_status = 0;
   rg_vm rg_in, rg_out, rg_dt;
   size_t rg_k;
   rg_v rg_x;
   for (rg_b = 0; rg_b <= n - RG_W; rg_b += RG_W) {
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in0 + rg_e, q + (size_t)rg_b * 2 + rg_e, 2);
-    for (rg_e = 2 - 2 % RG_W; rg_e < 2; ++rg_e)
-      for (rg_l = 0; rg_l < RG_W; ++rg_l) rgb_in0[rg_e][rg_l] = q[(size_t)(rg_b + rg_l) * 2 + rg_e];
+    if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
+      RG_L(rg_gather)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
+    else if (2 % RG_W)
+      RG_L(rg_gather_part)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in1 + rg_e, qd + (size_t)rg_b * 2 + rg_e, 2);
-    for (rg_e = 2 - 2 % RG_W; rg_e < 2; ++rg_e)
-      for (rg_l = 0; rg_l < RG_W; ++rg_l) rgb_in1[rg_e][rg_l] = qd[(size_t)(rg_b + rg_l) * 2 + rg_e];
+    if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
+      RG_L(rg_gather)(rgb_in1 + 2 - 2 % RG_W, qd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
+    else if (2 % RG_W)
+      RG_L(rg_gather_part)(rgb_in1 + 2 - 2 % RG_W, qd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in2 + rg_e, tau + (size_t)rg_b * 2 + rg_e, 2);
-    for (rg_e = 2 - 2 % RG_W; rg_e < 2; ++rg_e)
-      for (rg_l = 0; rg_l < RG_W; ++rg_l) rgb_in2[rg_e][rg_l] = tau[(size_t)(rg_b + rg_l) * 2 + rg_e];
+    if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
+      RG_L(rg_gather)(rgb_in2 + 2 - 2 % RG_W, tau + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
+    else if (2 % RG_W)
+      RG_L(rg_gather_part)(rgb_in2 + 2 - 2 % RG_W, tau + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
     for (rg_e = 0; rg_e + RG_W <= 1; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in3 + rg_e, dt + (size_t)rg_b * 1 + rg_e, 1);
-    for (rg_e = 1 - 1 % RG_W; rg_e < 1; ++rg_e)
-      for (rg_l = 0; rg_l < RG_W; ++rg_l) rgb_in3[rg_e][rg_l] = dt[(size_t)(rg_b + rg_l) * 1 + rg_e];
+    if (1 % RG_W && rg_b + RG_W + (RG_W - 1 % RG_W + 1 - 1) / 1 <= n)
+      RG_L(rg_gather)(rgb_in3 + 1 - 1 % RG_W, dt + (size_t)rg_b * 1 + 1 - 1 % RG_W, 1);
+    else if (1 % RG_W)
+      RG_L(rg_gather_part)(rgb_in3 + 1 - 1 % RG_W, dt + (size_t)rg_b * 1 + 1 - 1 % RG_W, 1, 1 % RG_W);
     RG_L(rgl_discrete_dynamics_derivatives)(rgb_in0, rgb_in1, rgb_in2, rgb_in3, rgb_out0, rgb_out1, rgb_out2, rgb_out3);
     rg_in = rg_out = rg_dt = (rg_vm){0};
     for (rg_e = 0; rg_e < 2; ++rg_e) {
@@ -3211,6 +3313,30 @@ static inline RG_TARGET __attribute__((unused, always_inline)) void RG_L(rg_scat
     }
   }
 }
+static inline RG_TARGET __attribute__((unused, always_inline)) void RG_L(rg_gather_part)(rg_v *t, const double *p, size_t stride, int n) {
+  rg_v r[4], a, b;
+  r[0] = (rg_v){0 < n ? p[0 * stride + 0] : 0.0, 1 < n ? p[0 * stride + 1] : 0.0, 0 < n ? p[2 * stride + 0] : 0.0, 1 < n ? p[2 * stride + 1] : 0.0};
+  r[2] = (rg_v){2 < n ? p[0 * stride + 2] : 0.0, 3 < n ? p[0 * stride + 3] : 0.0, 2 < n ? p[2 * stride + 2] : 0.0, 3 < n ? p[2 * stride + 3] : 0.0};
+  r[1] = (rg_v){0 < n ? p[1 * stride + 0] : 0.0, 1 < n ? p[1 * stride + 1] : 0.0, 0 < n ? p[3 * stride + 0] : 0.0, 1 < n ? p[3 * stride + 1] : 0.0};
+  r[3] = (rg_v){2 < n ? p[1 * stride + 2] : 0.0, 3 < n ? p[1 * stride + 3] : 0.0, 2 < n ? p[3 * stride + 2] : 0.0, 3 < n ? p[3 * stride + 3] : 0.0};
+#if defined(__clang__)
+#define RG_SHUFFLE(a, b, ...) __builtin_shufflevector(a, b, __VA_ARGS__)
+#else
+#define RG_SHUFFLE(a, b, ...) __builtin_shuffle(a, b, (rg_vm){__VA_ARGS__})
+#endif
+  a = RG_SHUFFLE(r[0], r[1], 0, 4, 2, 6);
+  b = RG_SHUFFLE(r[0], r[1], 1, 5, 3, 7);
+  r[0] = a;
+  r[1] = b;
+  a = RG_SHUFFLE(r[2], r[3], 0, 4, 2, 6);
+  b = RG_SHUFFLE(r[2], r[3], 1, 5, 3, 7);
+  r[2] = a;
+  r[3] = b;
+#undef RG_SHUFFLE
+  if (0 < n) t[0] = r[0];
+  if (1 < n) t[1] = r[1];
+  if (2 < n) t[2] = r[2];
+}
 
 
 /* rg_sincos2's reduction, polynomials and quadrant on every lane of one angle x, |x| <= the bound. */
@@ -3300,13 +3426,15 @@ static RG_TARGET void RG_L(rgl_mass)(const rg_v *q, rg_v *mass) {
 
 /* two_link_mass on RG_W states at a time, the whole blocks of n. */
 static RG_TARGET int RG_L(rgb_mass)(int n, const double *q, double *mass) {
-  rg_v rgb_in0[2], rgb_out0[4];
-  int rg_b, rg_l, rg_e;
+  rg_v rgb_in0[(2 + RG_W - 1) / RG_W * RG_W], rgb_out0[4];
+  int rg_b, rg_e;
   for (rg_b = 0; rg_b <= n - RG_W; rg_b += RG_W) {
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in0 + rg_e, q + (size_t)rg_b * 2 + rg_e, 2);
-    for (rg_e = 2 - 2 % RG_W; rg_e < 2; ++rg_e)
-      for (rg_l = 0; rg_l < RG_W; ++rg_l) rgb_in0[rg_e][rg_l] = q[(size_t)(rg_b + rg_l) * 2 + rg_e];
+    if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
+      RG_L(rg_gather)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
+    else if (2 % RG_W)
+      RG_L(rg_gather_part)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
     RG_L(rgl_mass)(rgb_in0, rgb_out0);
     for (rg_e = 0; rg_e + RG_W <= 4; rg_e += RG_W)
       RG_L(rg_scatter)(mass + (size_t)rg_b * 4 + rg_e, 4, rgb_out0 + rg_e);
@@ -3346,13 +3474,15 @@ static RG_TARGET void RG_L(rgl_gravity)(const rg_v *q, rg_v *gravity) {
 
 /* two_link_gravity on RG_W states at a time, the whole blocks of n. */
 static RG_TARGET int RG_L(rgb_gravity)(int n, const double *q, double *gravity) {
-  rg_v rgb_in0[2], rgb_out0[2];
-  int rg_b, rg_l, rg_e;
+  rg_v rgb_in0[(2 + RG_W - 1) / RG_W * RG_W], rgb_out0[2];
+  int rg_b, rg_e;
   for (rg_b = 0; rg_b <= n - RG_W; rg_b += RG_W) {
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in0 + rg_e, q + (size_t)rg_b * 2 + rg_e, 2);
-    for (rg_e = 2 - 2 % RG_W; rg_e < 2; ++rg_e)
-      for (rg_l = 0; rg_l < RG_W; ++rg_l) rgb_in0[rg_e][rg_l] = q[(size_t)(rg_b + rg_l) * 2 + rg_e];
+    if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
+      RG_L(rg_gather)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
+    else if (2 % RG_W)
+      RG_L(rg_gather_part)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
     RG_L(rgl_gravity)(rgb_in0, rgb_out0);
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_scatter)(gravity + (size_t)rg_b * 2 + rg_e, 2, rgb_out0 + rg_e);
@@ -3420,21 +3550,27 @@ static RG_TARGET void RG_L(rgl_inverse_dynamics)(const rg_v *q, const rg_v *qd, 
 
 /* two_link_inverse_dynamics on RG_W states at a time, the whole blocks of n. */
 static RG_TARGET int RG_L(rgb_inverse_dynamics)(int n, const double *q, const double *qd, const double *qdd, double *inverse_dynamics) {
-  rg_v rgb_in0[2], rgb_in1[2], rgb_in2[2], rgb_out0[2];
-  int rg_b, rg_l, rg_e;
+  rg_v rgb_in0[(2 + RG_W - 1) / RG_W * RG_W], rgb_in1[(2 + RG_W - 1) / RG_W * RG_W], rgb_in2[(2 + RG_W - 1) / RG_W * RG_W], rgb_out0[2];
+  int rg_b, rg_e;
   for (rg_b = 0; rg_b <= n - RG_W; rg_b += RG_W) {
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in0 + rg_e, q + (size_t)rg_b * 2 + rg_e, 2);
-    for (rg_e = 2 - 2 % RG_W; rg_e < 2; ++rg_e)
-      for (rg_l = 0; rg_l < RG_W; ++rg_l) rgb_in0[rg_e][rg_l] = q[(size_t)(rg_b + rg_l) * 2 + rg_e];
+    if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
+      RG_L(rg_gather)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
+    else if (2 % RG_W)
+      RG_L(rg_gather_part)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in1 + rg_e, qd + (size_t)rg_b * 2 + rg_e, 2);
-    for (rg_e = 2 - 2 % RG_W; rg_e < 2; ++rg_e)
-      for (rg_l = 0; rg_l < RG_W; ++rg_l) rgb_in1[rg_e][rg_l] = qd[(size_t)(rg_b + rg_l) * 2 + rg_e];
+    if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
+      RG_L(rg_gather)(rgb_in1 + 2 - 2 % RG_W, qd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
+    else if (2 % RG_W)
+      RG_L(rg_gather_part)(rgb_in1 + 2 - 2 % RG_W, qd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in2 + rg_e, qdd + (size_t)rg_b * 2 + rg_e, 2);
-    for (rg_e = 2 - 2 % RG_W; rg_e < 2; ++rg_e)
-      for (rg_l = 0; rg_l < RG_W; ++rg_l) rgb_in2[rg_e][rg_l] = qdd[(size_t)(rg_b + rg_l) * 2 + rg_e];
+    if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
+      RG_L(rg_gather)(rgb_in2 + 2 - 2 % RG_W, qdd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
+    else if (2 % RG_W)
+      RG_L(rg_gather_part)(rgb_in2 + 2 - 2 % RG_W, qdd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
     RG_L(rgl_inverse_dynamics)(rgb_in0, rgb_in1, rgb_in2, rgb_out0);
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_scatter)(inverse_dynamics + (size_t)rg_b * 2 + rg_e, 2, rgb_out0 + rg_e);
@@ -3526,24 +3662,30 @@ static RG_TARGET void RG_L(rgl_forward_dynamics)(const rg_v *q, const rg_v *qd, 
 
 /* two_link_forward_dynamics on RG_W states at a time, the whole blocks of n. */
 static RG_TARGET int RG_L(rgb_forward_dynamics)(int n, const double *q, const double *qd, const double *tau, double *forward_dynamics) {
-  rg_v rgb_in0[2], rgb_in1[2], rgb_in2[2], rgb_out0[2];
-  int rg_b, rg_l, rg_e, rg_s[RG_W], rg_failed, rg_status = 0;
+  rg_v rgb_in0[(2 + RG_W - 1) / RG_W * RG_W], rgb_in1[(2 + RG_W - 1) / RG_W * RG_W], rgb_in2[(2 + RG_W - 1) / RG_W * RG_W], rgb_out0[2];
+  int rg_b, rg_e, rg_l, rg_s[RG_W], rg_failed, rg_status = 0;
   rg_vm rg_in, rg_out, rg_dt;
   size_t rg_k;
   rg_v rg_x;
   for (rg_b = 0; rg_b <= n - RG_W; rg_b += RG_W) {
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in0 + rg_e, q + (size_t)rg_b * 2 + rg_e, 2);
-    for (rg_e = 2 - 2 % RG_W; rg_e < 2; ++rg_e)
-      for (rg_l = 0; rg_l < RG_W; ++rg_l) rgb_in0[rg_e][rg_l] = q[(size_t)(rg_b + rg_l) * 2 + rg_e];
+    if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
+      RG_L(rg_gather)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
+    else if (2 % RG_W)
+      RG_L(rg_gather_part)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in1 + rg_e, qd + (size_t)rg_b * 2 + rg_e, 2);
-    for (rg_e = 2 - 2 % RG_W; rg_e < 2; ++rg_e)
-      for (rg_l = 0; rg_l < RG_W; ++rg_l) rgb_in1[rg_e][rg_l] = qd[(size_t)(rg_b + rg_l) * 2 + rg_e];
+    if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
+      RG_L(rg_gather)(rgb_in1 + 2 - 2 % RG_W, qd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
+    else if (2 % RG_W)
+      RG_L(rg_gather_part)(rgb_in1 + 2 - 2 % RG_W, qd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in2 + rg_e, tau + (size_t)rg_b * 2 + rg_e, 2);
-    for (rg_e = 2 - 2 % RG_W; rg_e < 2; ++rg_e)
-      for (rg_l = 0; rg_l < RG_W; ++rg_l) rgb_in2[rg_e][rg_l] = tau[(size_t)(rg_b + rg_l) * 2 + rg_e];
+    if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
+      RG_L(rg_gather)(rgb_in2 + 2 - 2 % RG_W, tau + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
+    else if (2 % RG_W)
+      RG_L(rg_gather_part)(rgb_in2 + 2 - 2 % RG_W, tau + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
     RG_L(rgl_forward_dynamics)(rgb_in0, rgb_in1, rgb_in2, rgb_out0);
     rg_in = rg_out = rg_dt = (rg_vm){0};
     for (rg_e = 0; rg_e < 2; ++rg_e) {
@@ -3666,24 +3808,30 @@ static RG_TARGET void RG_L(rgl_inverse_dynamics_derivatives)(const rg_v *q, cons
 
 /* two_link_inverse_dynamics_derivatives on RG_W states at a time, the whole blocks of n. */
 static RG_TARGET int RG_L(rgb_inverse_dynamics_derivatives)(int n, const double *q, const double *qd, const double *qdd, double *dtau_dq, double *dtau_dqd) {
-  rg_v rgb_in0[2], rgb_in1[2], rgb_in2[2], rgb_out0[4], rgb_out1[4];
-  int rg_b, rg_l, rg_e, rg_s[RG_W], rg_failed, rg_status = 0;
+  rg_v rgb_in0[(2 + RG_W - 1) / RG_W * RG_W], rgb_in1[(2 + RG_W - 1) / RG_W * RG_W], rgb_in2[(2 + RG_W - 1) / RG_W * RG_W], rgb_out0[4], rgb_out1[4];
+  int rg_b, rg_e, rg_l, rg_s[RG_W], rg_failed, rg_status = 0;
   rg_vm rg_in, rg_out, rg_dt;
   size_t rg_k;
   rg_v rg_x;
   for (rg_b = 0; rg_b <= n - RG_W; rg_b += RG_W) {
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in0 + rg_e, q + (size_t)rg_b * 2 + rg_e, 2);
-    for (rg_e = 2 - 2 % RG_W; rg_e < 2; ++rg_e)
-      for (rg_l = 0; rg_l < RG_W; ++rg_l) rgb_in0[rg_e][rg_l] = q[(size_t)(rg_b + rg_l) * 2 + rg_e];
+    if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
+      RG_L(rg_gather)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
+    else if (2 % RG_W)
+      RG_L(rg_gather_part)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in1 + rg_e, qd + (size_t)rg_b * 2 + rg_e, 2);
-    for (rg_e = 2 - 2 % RG_W; rg_e < 2; ++rg_e)
-      for (rg_l = 0; rg_l < RG_W; ++rg_l) rgb_in1[rg_e][rg_l] = qd[(size_t)(rg_b + rg_l) * 2 + rg_e];
+    if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
+      RG_L(rg_gather)(rgb_in1 + 2 - 2 % RG_W, qd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
+    else if (2 % RG_W)
+      RG_L(rg_gather_part)(rgb_in1 + 2 - 2 % RG_W, qd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in2 + rg_e, qdd + (size_t)rg_b * 2 + rg_e, 2);
-    for (rg_e = 2 - 2 % RG_W; rg_e < 2; ++rg_e)
-      for (rg_l = 0; rg_l < RG_W; ++rg_l) rgb_in2[rg_e][rg_l] = qdd[(size_t)(rg_b + rg_l) * 2 + rg_e];
+    if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
+      RG_L(rg_gather)(rgb_in2 + 2 - 2 % RG_W, qdd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
+    else if (2 % RG_W)
+      RG_L(rg_gather_part)(rgb_in2 + 2 - 2 % RG_W, qdd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
     RG_L(rgl_inverse_dynamics_derivatives)(rgb_in0, rgb_in1, rgb_in2, rgb_out0, rgb_out1);
     rg_in = rg_out = rg_dt = (rg_vm){0};
     for (rg_e = 0; rg_e < 2; ++rg_e) {
@@ -3900,24 +4048,30 @@ static RG_TARGET void RG_L(rgl_forward_dynamics_derivatives)(const rg_v *q, cons
 
 /* two_link_forward_dynamics_derivatives on RG_W states at a time, the whole blocks of n. */
 static RG_TARGET int RG_L(rgb_forward_dynamics_derivatives)(int n, const double *q, const double *qd, const double *tau, double *dqdd_dq, double *dqdd_dqd, double *dqdd_dtau) {
-  rg_v rgb_in0[2], rgb_in1[2], rgb_in2[2], rgb_out0[4], rgb_out1[4], rgb_out2[4];
-  int rg_b, rg_l, rg_e, rg_s[RG_W], rg_failed, rg_status = 0;
+  rg_v rgb_in0[(2 + RG_W - 1) / RG_W * RG_W], rgb_in1[(2 + RG_W - 1) / RG_W * RG_W], rgb_in2[(2 + RG_W - 1) / RG_W * RG_W], rgb_out0[4], rgb_out1[4], rgb_out2[4];
+  int rg_b, rg_e, rg_l, rg_s[RG_W], rg_failed, rg_status = 0;
   rg_vm rg_in, rg_out, rg_dt;
   size_t rg_k;
   rg_v rg_x;
   for (rg_b = 0; rg_b <= n - RG_W; rg_b += RG_W) {
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in0 + rg_e, q + (size_t)rg_b * 2 + rg_e, 2);
-    for (rg_e = 2 - 2 % RG_W; rg_e < 2; ++rg_e)
-      for (rg_l = 0; rg_l < RG_W; ++rg_l) rgb_in0[rg_e][rg_l] = q[(size_t)(rg_b + rg_l) * 2 + rg_e];
+    if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
+      RG_L(rg_gather)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
+    else if (2 % RG_W)
+      RG_L(rg_gather_part)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in1 + rg_e, qd + (size_t)rg_b * 2 + rg_e, 2);
-    for (rg_e = 2 - 2 % RG_W; rg_e < 2; ++rg_e)
-      for (rg_l = 0; rg_l < RG_W; ++rg_l) rgb_in1[rg_e][rg_l] = qd[(size_t)(rg_b + rg_l) * 2 + rg_e];
+    if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
+      RG_L(rg_gather)(rgb_in1 + 2 - 2 % RG_W, qd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
+    else if (2 % RG_W)
+      RG_L(rg_gather_part)(rgb_in1 + 2 - 2 % RG_W, qd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in2 + rg_e, tau + (size_t)rg_b * 2 + rg_e, 2);
-    for (rg_e = 2 - 2 % RG_W; rg_e < 2; ++rg_e)
-      for (rg_l = 0; rg_l < RG_W; ++rg_l) rgb_in2[rg_e][rg_l] = tau[(size_t)(rg_b + rg_l) * 2 + rg_e];
+    if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
+      RG_L(rg_gather)(rgb_in2 + 2 - 2 % RG_W, tau + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
+    else if (2 % RG_W)
+      RG_L(rg_gather_part)(rgb_in2 + 2 - 2 % RG_W, tau + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
     RG_L(rgl_forward_dynamics_derivatives)(rgb_in0, rgb_in1, rgb_in2, rgb_out0, rgb_out1, rgb_out2);
     rg_in = rg_out = rg_dt = (rg_vm){0};
     for (rg_e = 0; rg_e < 2; ++rg_e) {
@@ -4028,16 +4182,18 @@ static RG_TARGET void RG_L(rgl_mass_inverse)(const rg_v *q, rg_v *mass_inverse) 
 
 /* two_link_mass_inverse on RG_W states at a time, the whole blocks of n. */
 static RG_TARGET int RG_L(rgb_mass_inverse)(int n, const double *q, double *mass_inverse) {
-  rg_v rgb_in0[2], rgb_out0[4];
-  int rg_b, rg_l, rg_e, rg_s[RG_W], rg_failed, rg_status = 0;
+  rg_v rgb_in0[(2 + RG_W - 1) / RG_W * RG_W], rgb_out0[4];
+  int rg_b, rg_e, rg_l, rg_s[RG_W], rg_failed, rg_status = 0;
   rg_vm rg_in, rg_out, rg_dt;
   size_t rg_k;
   rg_v rg_x;
   for (rg_b = 0; rg_b <= n - RG_W; rg_b += RG_W) {
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in0 + rg_e, q + (size_t)rg_b * 2 + rg_e, 2);
-    for (rg_e = 2 - 2 % RG_W; rg_e < 2; ++rg_e)
-      for (rg_l = 0; rg_l < RG_W; ++rg_l) rgb_in0[rg_e][rg_l] = q[(size_t)(rg_b + rg_l) * 2 + rg_e];
+    if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
+      RG_L(rg_gather)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
+    else if (2 % RG_W)
+      RG_L(rg_gather_part)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
     RG_L(rgl_mass_inverse)(rgb_in0, rgb_out0);
     rg_in = rg_out = rg_dt = (rg_vm){0};
     for (rg_e = 0; rg_e < 2; ++rg_e) {
@@ -4167,28 +4323,36 @@ static RG_TARGET void RG_L(rgl_discrete_dynamics)(const rg_v *q, const rg_v *qd,
 
 /* two_link_discrete_dynamics on RG_W states at a time, the whole blocks of n. */
 static RG_TARGET int RG_L(rgb_discrete_dynamics)(int n, const double *q, const double *qd, const double *tau, const double *dt, double *q_next, double *qd_next) {
-  rg_v rgb_in0[2], rgb_in1[2], rgb_in2[2], rgb_in3[1], rgb_out0[2], rgb_out1[2];
-  int rg_b, rg_l, rg_e, rg_s[RG_W], rg_failed, rg_status = 0;
+  rg_v rgb_in0[(2 + RG_W - 1) / RG_W * RG_W], rgb_in1[(2 + RG_W - 1) / RG_W * RG_W], rgb_in2[(2 + RG_W - 1) / RG_W * RG_W], rgb_in3[(1 + RG_W - 1) / RG_W * RG_W], rgb_out0[2], rgb_out1[2];
+  int rg_b, rg_e, rg_l, rg_s[RG_W], rg_failed, rg_status = 0;
   rg_vm rg_in, rg_out, rg_dt;
   size_t rg_k;
   rg_v rg_x;
   for (rg_b = 0; rg_b <= n - RG_W; rg_b += RG_W) {
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in0 + rg_e, q + (size_t)rg_b * 2 + rg_e, 2);
-    for (rg_e = 2 - 2 % RG_W; rg_e < 2; ++rg_e)
-      for (rg_l = 0; rg_l < RG_W; ++rg_l) rgb_in0[rg_e][rg_l] = q[(size_t)(rg_b + rg_l) * 2 + rg_e];
+    if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
+      RG_L(rg_gather)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
+    else if (2 % RG_W)
+      RG_L(rg_gather_part)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in1 + rg_e, qd + (size_t)rg_b * 2 + rg_e, 2);
-    for (rg_e = 2 - 2 % RG_W; rg_e < 2; ++rg_e)
-      for (rg_l = 0; rg_l < RG_W; ++rg_l) rgb_in1[rg_e][rg_l] = qd[(size_t)(rg_b + rg_l) * 2 + rg_e];
+    if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
+      RG_L(rg_gather)(rgb_in1 + 2 - 2 % RG_W, qd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
+    else if (2 % RG_W)
+      RG_L(rg_gather_part)(rgb_in1 + 2 - 2 % RG_W, qd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in2 + rg_e, tau + (size_t)rg_b * 2 + rg_e, 2);
-    for (rg_e = 2 - 2 % RG_W; rg_e < 2; ++rg_e)
-      for (rg_l = 0; rg_l < RG_W; ++rg_l) rgb_in2[rg_e][rg_l] = tau[(size_t)(rg_b + rg_l) * 2 + rg_e];
+    if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
+      RG_L(rg_gather)(rgb_in2 + 2 - 2 % RG_W, tau + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
+    else if (2 % RG_W)
+      RG_L(rg_gather_part)(rgb_in2 + 2 - 2 % RG_W, tau + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
     for (rg_e = 0; rg_e + RG_W <= 1; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in3 + rg_e, dt + (size_t)rg_b * 1 + rg_e, 1);
-    for (rg_e = 1 - 1 % RG_W; rg_e < 1; ++rg_e)
-      for (rg_l = 0; rg_l < RG_W; ++rg_l) rgb_in3[rg_e][rg_l] = dt[(size_t)(rg_b + rg_l) * 1 + rg_e];
+    if (1 % RG_W && rg_b + RG_W + (RG_W - 1 % RG_W + 1 - 1) / 1 <= n)
+      RG_L(rg_gather)(rgb_in3 + 1 - 1 % RG_W, dt + (size_t)rg_b * 1 + 1 - 1 % RG_W, 1);
+    else if (1 % RG_W)
+      RG_L(rg_gather_part)(rgb_in3 + 1 - 1 % RG_W, dt + (size_t)rg_b * 1 + 1 - 1 % RG_W, 1, 1 % RG_W);
     RG_L(rgl_discrete_dynamics)(rgb_in0, rgb_in1, rgb_in2, rgb_in3, rgb_out0, rgb_out1);
     rg_in = rg_out = rg_dt = (rg_vm){0};
     for (rg_e = 0; rg_e < 2; ++rg_e) {
@@ -4470,28 +4634,36 @@ static RG_TARGET void RG_L(rgl_discrete_dynamics_derivatives)(const rg_v *q, con
 
 /* two_link_discrete_dynamics_derivatives on RG_W states at a time, the whole blocks of n. */
 static RG_TARGET int RG_L(rgb_discrete_dynamics_derivatives)(int n, const double *q, const double *qd, const double *tau, const double *dt, double *q_next, double *qd_next, double *A, double *B) {
-  rg_v rgb_in0[2], rgb_in1[2], rgb_in2[2], rgb_in3[1], rgb_out0[2], rgb_out1[2], rgb_out2[16], rgb_out3[8];
-  int rg_b, rg_l, rg_e, rg_s[RG_W], rg_failed, rg_status = 0;
+  rg_v rgb_in0[(2 + RG_W - 1) / RG_W * RG_W], rgb_in1[(2 + RG_W - 1) / RG_W * RG_W], rgb_in2[(2 + RG_W - 1) / RG_W * RG_W], rgb_in3[(1 + RG_W - 1) / RG_W * RG_W], rgb_out0[2], rgb_out1[2], rgb_out2[16], rgb_out3[8];
+  int rg_b, rg_e, rg_l, rg_s[RG_W], rg_failed, rg_status = 0;
   rg_vm rg_in, rg_out, rg_dt;
   size_t rg_k;
   rg_v rg_x;
   for (rg_b = 0; rg_b <= n - RG_W; rg_b += RG_W) {
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in0 + rg_e, q + (size_t)rg_b * 2 + rg_e, 2);
-    for (rg_e = 2 - 2 % RG_W; rg_e < 2; ++rg_e)
-      for (rg_l = 0; rg_l < RG_W; ++rg_l) rgb_in0[rg_e][rg_l] = q[(size_t)(rg_b + rg_l) * 2 + rg_e];
+    if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
+      RG_L(rg_gather)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
+    else if (2 % RG_W)
+      RG_L(rg_gather_part)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in1 + rg_e, qd + (size_t)rg_b * 2 + rg_e, 2);
-    for (rg_e = 2 - 2 % RG_W; rg_e < 2; ++rg_e)
-      for (rg_l = 0; rg_l < RG_W; ++rg_l) rgb_in1[rg_e][rg_l] = qd[(size_t)(rg_b + rg_l) * 2 + rg_e];
+    if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
+      RG_L(rg_gather)(rgb_in1 + 2 - 2 % RG_W, qd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
+    else if (2 % RG_W)
+      RG_L(rg_gather_part)(rgb_in1 + 2 - 2 % RG_W, qd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in2 + rg_e, tau + (size_t)rg_b * 2 + rg_e, 2);
-    for (rg_e = 2 - 2 % RG_W; rg_e < 2; ++rg_e)
-      for (rg_l = 0; rg_l < RG_W; ++rg_l) rgb_in2[rg_e][rg_l] = tau[(size_t)(rg_b + rg_l) * 2 + rg_e];
+    if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
+      RG_L(rg_gather)(rgb_in2 + 2 - 2 % RG_W, tau + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
+    else if (2 % RG_W)
+      RG_L(rg_gather_part)(rgb_in2 + 2 - 2 % RG_W, tau + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
     for (rg_e = 0; rg_e + RG_W <= 1; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in3 + rg_e, dt + (size_t)rg_b * 1 + rg_e, 1);
-    for (rg_e = 1 - 1 % RG_W; rg_e < 1; ++rg_e)
-      for (rg_l = 0; rg_l < RG_W; ++rg_l) rgb_in3[rg_e][rg_l] = dt[(size_t)(rg_b + rg_l) * 1 + rg_e];
+    if (1 % RG_W && rg_b + RG_W + (RG_W - 1 % RG_W + 1 - 1) / 1 <= n)
+      RG_L(rg_gather)(rgb_in3 + 1 - 1 % RG_W, dt + (size_t)rg_b * 1 + 1 - 1 % RG_W, 1);
+    else if (1 % RG_W)
+      RG_L(rg_gather_part)(rgb_in3 + 1 - 1 % RG_W, dt + (size_t)rg_b * 1 + 1 - 1 % RG_W, 1, 1 % RG_W);
     RG_L(rgl_discrete_dynamics_derivatives)(rgb_in0, rgb_in1, rgb_in2, rgb_in3, rgb_out0, rgb_out1, rgb_out2, rgb_out3);
     rg_in = rg_out = rg_dt = (rg_vm){0};
     for (rg_e = 0; rg_e < 2; ++rg_e) {
@@ -4648,6 +4820,12 @@ static inline RG_TARGET __attribute__((unused, always_inline)) void RG_L(rg_scat
     }
   }
 }
+static inline RG_TARGET __attribute__((unused, always_inline)) void RG_L(rg_gather_part)(rg_v *t, const double *p, size_t stride, int n) {
+  rg_v r[2];
+  r[0] = (rg_v){0 < n ? p[0 * stride + 0] : 0.0, 0 < n ? p[1 * stride + 0] : 0.0};
+  r[1] = (rg_v){1 < n ? p[0 * stride + 1] : 0.0, 1 < n ? p[1 * stride + 1] : 0.0};
+  if (0 < n) t[0] = r[0];
+}
 
 
 /* rg_sincos2's reduction, polynomials and quadrant on every lane of one angle x, |x| <= the bound. */
@@ -4737,13 +4915,15 @@ static RG_TARGET void RG_L(rgl_mass)(const rg_v *q, rg_v *mass) {
 
 /* two_link_mass on RG_W states at a time, the whole blocks of n. */
 static RG_TARGET int RG_L(rgb_mass)(int n, const double *q, double *mass) {
-  rg_v rgb_in0[2], rgb_out0[4];
-  int rg_b, rg_l, rg_e;
+  rg_v rgb_in0[(2 + RG_W - 1) / RG_W * RG_W], rgb_out0[4];
+  int rg_b, rg_e;
   for (rg_b = 0; rg_b <= n - RG_W; rg_b += RG_W) {
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in0 + rg_e, q + (size_t)rg_b * 2 + rg_e, 2);
-    for (rg_e = 2 - 2 % RG_W; rg_e < 2; ++rg_e)
-      for (rg_l = 0; rg_l < RG_W; ++rg_l) rgb_in0[rg_e][rg_l] = q[(size_t)(rg_b + rg_l) * 2 + rg_e];
+    if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
+      RG_L(rg_gather)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
+    else if (2 % RG_W)
+      RG_L(rg_gather_part)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
     RG_L(rgl_mass)(rgb_in0, rgb_out0);
     for (rg_e = 0; rg_e + RG_W <= 4; rg_e += RG_W)
       RG_L(rg_scatter)(mass + (size_t)rg_b * 4 + rg_e, 4, rgb_out0 + rg_e);
@@ -4783,13 +4963,15 @@ static RG_TARGET void RG_L(rgl_gravity)(const rg_v *q, rg_v *gravity) {
 
 /* two_link_gravity on RG_W states at a time, the whole blocks of n. */
 static RG_TARGET int RG_L(rgb_gravity)(int n, const double *q, double *gravity) {
-  rg_v rgb_in0[2], rgb_out0[2];
-  int rg_b, rg_l, rg_e;
+  rg_v rgb_in0[(2 + RG_W - 1) / RG_W * RG_W], rgb_out0[2];
+  int rg_b, rg_e;
   for (rg_b = 0; rg_b <= n - RG_W; rg_b += RG_W) {
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in0 + rg_e, q + (size_t)rg_b * 2 + rg_e, 2);
-    for (rg_e = 2 - 2 % RG_W; rg_e < 2; ++rg_e)
-      for (rg_l = 0; rg_l < RG_W; ++rg_l) rgb_in0[rg_e][rg_l] = q[(size_t)(rg_b + rg_l) * 2 + rg_e];
+    if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
+      RG_L(rg_gather)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
+    else if (2 % RG_W)
+      RG_L(rg_gather_part)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
     RG_L(rgl_gravity)(rgb_in0, rgb_out0);
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_scatter)(gravity + (size_t)rg_b * 2 + rg_e, 2, rgb_out0 + rg_e);
@@ -4857,21 +5039,27 @@ static RG_TARGET void RG_L(rgl_inverse_dynamics)(const rg_v *q, const rg_v *qd, 
 
 /* two_link_inverse_dynamics on RG_W states at a time, the whole blocks of n. */
 static RG_TARGET int RG_L(rgb_inverse_dynamics)(int n, const double *q, const double *qd, const double *qdd, double *inverse_dynamics) {
-  rg_v rgb_in0[2], rgb_in1[2], rgb_in2[2], rgb_out0[2];
-  int rg_b, rg_l, rg_e;
+  rg_v rgb_in0[(2 + RG_W - 1) / RG_W * RG_W], rgb_in1[(2 + RG_W - 1) / RG_W * RG_W], rgb_in2[(2 + RG_W - 1) / RG_W * RG_W], rgb_out0[2];
+  int rg_b, rg_e;
   for (rg_b = 0; rg_b <= n - RG_W; rg_b += RG_W) {
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in0 + rg_e, q + (size_t)rg_b * 2 + rg_e, 2);
-    for (rg_e = 2 - 2 % RG_W; rg_e < 2; ++rg_e)
-      for (rg_l = 0; rg_l < RG_W; ++rg_l) rgb_in0[rg_e][rg_l] = q[(size_t)(rg_b + rg_l) * 2 + rg_e];
+    if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
+      RG_L(rg_gather)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
+    else if (2 % RG_W)
+      RG_L(rg_gather_part)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in1 + rg_e, qd + (size_t)rg_b * 2 + rg_e, 2);
-    for (rg_e = 2 - 2 % RG_W; rg_e < 2; ++rg_e)
-      for (rg_l = 0; rg_l < RG_W; ++rg_l) rgb_in1[rg_e][rg_l] = qd[(size_t)(rg_b + rg_l) * 2 + rg_e];
+    if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
+      RG_L(rg_gather)(rgb_in1 + 2 - 2 % RG_W, qd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
+    else if (2 % RG_W)
+      RG_L(rg_gather_part)(rgb_in1 + 2 - 2 % RG_W, qd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in2 + rg_e, qdd + (size_t)rg_b * 2 + rg_e, 2);
-    for (rg_e = 2 - 2 % RG_W; rg_e < 2; ++rg_e)
-      for (rg_l = 0; rg_l < RG_W; ++rg_l) rgb_in2[rg_e][rg_l] = qdd[(size_t)(rg_b + rg_l) * 2 + rg_e];
+    if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
+      RG_L(rg_gather)(rgb_in2 + 2 - 2 % RG_W, qdd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
+    else if (2 % RG_W)
+      RG_L(rg_gather_part)(rgb_in2 + 2 - 2 % RG_W, qdd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
     RG_L(rgl_inverse_dynamics)(rgb_in0, rgb_in1, rgb_in2, rgb_out0);
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_scatter)(inverse_dynamics + (size_t)rg_b * 2 + rg_e, 2, rgb_out0 + rg_e);
@@ -4963,24 +5151,30 @@ static RG_TARGET void RG_L(rgl_forward_dynamics)(const rg_v *q, const rg_v *qd, 
 
 /* two_link_forward_dynamics on RG_W states at a time, the whole blocks of n. */
 static RG_TARGET int RG_L(rgb_forward_dynamics)(int n, const double *q, const double *qd, const double *tau, double *forward_dynamics) {
-  rg_v rgb_in0[2], rgb_in1[2], rgb_in2[2], rgb_out0[2];
-  int rg_b, rg_l, rg_e, rg_s[RG_W], rg_failed, rg_status = 0;
+  rg_v rgb_in0[(2 + RG_W - 1) / RG_W * RG_W], rgb_in1[(2 + RG_W - 1) / RG_W * RG_W], rgb_in2[(2 + RG_W - 1) / RG_W * RG_W], rgb_out0[2];
+  int rg_b, rg_e, rg_l, rg_s[RG_W], rg_failed, rg_status = 0;
   rg_vm rg_in, rg_out, rg_dt;
   size_t rg_k;
   rg_v rg_x;
   for (rg_b = 0; rg_b <= n - RG_W; rg_b += RG_W) {
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in0 + rg_e, q + (size_t)rg_b * 2 + rg_e, 2);
-    for (rg_e = 2 - 2 % RG_W; rg_e < 2; ++rg_e)
-      for (rg_l = 0; rg_l < RG_W; ++rg_l) rgb_in0[rg_e][rg_l] = q[(size_t)(rg_b + rg_l) * 2 + rg_e];
+    if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
+      RG_L(rg_gather)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
+    else if (2 % RG_W)
+      RG_L(rg_gather_part)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in1 + rg_e, qd + (size_t)rg_b * 2 + rg_e, 2);
-    for (rg_e = 2 - 2 % RG_W; rg_e < 2; ++rg_e)
-      for (rg_l = 0; rg_l < RG_W; ++rg_l) rgb_in1[rg_e][rg_l] = qd[(size_t)(rg_b + rg_l) * 2 + rg_e];
+    if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
+      RG_L(rg_gather)(rgb_in1 + 2 - 2 % RG_W, qd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
+    else if (2 % RG_W)
+      RG_L(rg_gather_part)(rgb_in1 + 2 - 2 % RG_W, qd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in2 + rg_e, tau + (size_t)rg_b * 2 + rg_e, 2);
-    for (rg_e = 2 - 2 % RG_W; rg_e < 2; ++rg_e)
-      for (rg_l = 0; rg_l < RG_W; ++rg_l) rgb_in2[rg_e][rg_l] = tau[(size_t)(rg_b + rg_l) * 2 + rg_e];
+    if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
+      RG_L(rg_gather)(rgb_in2 + 2 - 2 % RG_W, tau + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
+    else if (2 % RG_W)
+      RG_L(rg_gather_part)(rgb_in2 + 2 - 2 % RG_W, tau + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
     RG_L(rgl_forward_dynamics)(rgb_in0, rgb_in1, rgb_in2, rgb_out0);
     rg_in = rg_out = rg_dt = (rg_vm){0};
     for (rg_e = 0; rg_e < 2; ++rg_e) {
@@ -5103,24 +5297,30 @@ static RG_TARGET void RG_L(rgl_inverse_dynamics_derivatives)(const rg_v *q, cons
 
 /* two_link_inverse_dynamics_derivatives on RG_W states at a time, the whole blocks of n. */
 static RG_TARGET int RG_L(rgb_inverse_dynamics_derivatives)(int n, const double *q, const double *qd, const double *qdd, double *dtau_dq, double *dtau_dqd) {
-  rg_v rgb_in0[2], rgb_in1[2], rgb_in2[2], rgb_out0[4], rgb_out1[4];
-  int rg_b, rg_l, rg_e, rg_s[RG_W], rg_failed, rg_status = 0;
+  rg_v rgb_in0[(2 + RG_W - 1) / RG_W * RG_W], rgb_in1[(2 + RG_W - 1) / RG_W * RG_W], rgb_in2[(2 + RG_W - 1) / RG_W * RG_W], rgb_out0[4], rgb_out1[4];
+  int rg_b, rg_e, rg_l, rg_s[RG_W], rg_failed, rg_status = 0;
   rg_vm rg_in, rg_out, rg_dt;
   size_t rg_k;
   rg_v rg_x;
   for (rg_b = 0; rg_b <= n - RG_W; rg_b += RG_W) {
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in0 + rg_e, q + (size_t)rg_b * 2 + rg_e, 2);
-    for (rg_e = 2 - 2 % RG_W; rg_e < 2; ++rg_e)
-      for (rg_l = 0; rg_l < RG_W; ++rg_l) rgb_in0[rg_e][rg_l] = q[(size_t)(rg_b + rg_l) * 2 + rg_e];
+    if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
+      RG_L(rg_gather)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
+    else if (2 % RG_W)
+      RG_L(rg_gather_part)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in1 + rg_e, qd + (size_t)rg_b * 2 + rg_e, 2);
-    for (rg_e = 2 - 2 % RG_W; rg_e < 2; ++rg_e)
-      for (rg_l = 0; rg_l < RG_W; ++rg_l) rgb_in1[rg_e][rg_l] = qd[(size_t)(rg_b + rg_l) * 2 + rg_e];
+    if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
+      RG_L(rg_gather)(rgb_in1 + 2 - 2 % RG_W, qd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
+    else if (2 % RG_W)
+      RG_L(rg_gather_part)(rgb_in1 + 2 - 2 % RG_W, qd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in2 + rg_e, qdd + (size_t)rg_b * 2 + rg_e, 2);
-    for (rg_e = 2 - 2 % RG_W; rg_e < 2; ++rg_e)
-      for (rg_l = 0; rg_l < RG_W; ++rg_l) rgb_in2[rg_e][rg_l] = qdd[(size_t)(rg_b + rg_l) * 2 + rg_e];
+    if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
+      RG_L(rg_gather)(rgb_in2 + 2 - 2 % RG_W, qdd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
+    else if (2 % RG_W)
+      RG_L(rg_gather_part)(rgb_in2 + 2 - 2 % RG_W, qdd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
     RG_L(rgl_inverse_dynamics_derivatives)(rgb_in0, rgb_in1, rgb_in2, rgb_out0, rgb_out1);
     rg_in = rg_out = rg_dt = (rg_vm){0};
     for (rg_e = 0; rg_e < 2; ++rg_e) {
@@ -5337,24 +5537,30 @@ static RG_TARGET void RG_L(rgl_forward_dynamics_derivatives)(const rg_v *q, cons
 
 /* two_link_forward_dynamics_derivatives on RG_W states at a time, the whole blocks of n. */
 static RG_TARGET int RG_L(rgb_forward_dynamics_derivatives)(int n, const double *q, const double *qd, const double *tau, double *dqdd_dq, double *dqdd_dqd, double *dqdd_dtau) {
-  rg_v rgb_in0[2], rgb_in1[2], rgb_in2[2], rgb_out0[4], rgb_out1[4], rgb_out2[4];
-  int rg_b, rg_l, rg_e, rg_s[RG_W], rg_failed, rg_status = 0;
+  rg_v rgb_in0[(2 + RG_W - 1) / RG_W * RG_W], rgb_in1[(2 + RG_W - 1) / RG_W * RG_W], rgb_in2[(2 + RG_W - 1) / RG_W * RG_W], rgb_out0[4], rgb_out1[4], rgb_out2[4];
+  int rg_b, rg_e, rg_l, rg_s[RG_W], rg_failed, rg_status = 0;
   rg_vm rg_in, rg_out, rg_dt;
   size_t rg_k;
   rg_v rg_x;
   for (rg_b = 0; rg_b <= n - RG_W; rg_b += RG_W) {
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in0 + rg_e, q + (size_t)rg_b * 2 + rg_e, 2);
-    for (rg_e = 2 - 2 % RG_W; rg_e < 2; ++rg_e)
-      for (rg_l = 0; rg_l < RG_W; ++rg_l) rgb_in0[rg_e][rg_l] = q[(size_t)(rg_b + rg_l) * 2 + rg_e];
+    if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
+      RG_L(rg_gather)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
+    else if (2 % RG_W)
+      RG_L(rg_gather_part)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in1 + rg_e, qd + (size_t)rg_b * 2 + rg_e, 2);
-    for (rg_e = 2 - 2 % RG_W; rg_e < 2; ++rg_e)
-      for (rg_l = 0; rg_l < RG_W; ++rg_l) rgb_in1[rg_e][rg_l] = qd[(size_t)(rg_b + rg_l) * 2 + rg_e];
+    if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
+      RG_L(rg_gather)(rgb_in1 + 2 - 2 % RG_W, qd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
+    else if (2 % RG_W)
+      RG_L(rg_gather_part)(rgb_in1 + 2 - 2 % RG_W, qd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in2 + rg_e, tau + (size_t)rg_b * 2 + rg_e, 2);
-    for (rg_e = 2 - 2 % RG_W; rg_e < 2; ++rg_e)
-      for (rg_l = 0; rg_l < RG_W; ++rg_l) rgb_in2[rg_e][rg_l] = tau[(size_t)(rg_b + rg_l) * 2 + rg_e];
+    if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
+      RG_L(rg_gather)(rgb_in2 + 2 - 2 % RG_W, tau + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
+    else if (2 % RG_W)
+      RG_L(rg_gather_part)(rgb_in2 + 2 - 2 % RG_W, tau + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
     RG_L(rgl_forward_dynamics_derivatives)(rgb_in0, rgb_in1, rgb_in2, rgb_out0, rgb_out1, rgb_out2);
     rg_in = rg_out = rg_dt = (rg_vm){0};
     for (rg_e = 0; rg_e < 2; ++rg_e) {
@@ -5465,16 +5671,18 @@ static RG_TARGET void RG_L(rgl_mass_inverse)(const rg_v *q, rg_v *mass_inverse) 
 
 /* two_link_mass_inverse on RG_W states at a time, the whole blocks of n. */
 static RG_TARGET int RG_L(rgb_mass_inverse)(int n, const double *q, double *mass_inverse) {
-  rg_v rgb_in0[2], rgb_out0[4];
-  int rg_b, rg_l, rg_e, rg_s[RG_W], rg_failed, rg_status = 0;
+  rg_v rgb_in0[(2 + RG_W - 1) / RG_W * RG_W], rgb_out0[4];
+  int rg_b, rg_e, rg_l, rg_s[RG_W], rg_failed, rg_status = 0;
   rg_vm rg_in, rg_out, rg_dt;
   size_t rg_k;
   rg_v rg_x;
   for (rg_b = 0; rg_b <= n - RG_W; rg_b += RG_W) {
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in0 + rg_e, q + (size_t)rg_b * 2 + rg_e, 2);
-    for (rg_e = 2 - 2 % RG_W; rg_e < 2; ++rg_e)
-      for (rg_l = 0; rg_l < RG_W; ++rg_l) rgb_in0[rg_e][rg_l] = q[(size_t)(rg_b + rg_l) * 2 + rg_e];
+    if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
+      RG_L(rg_gather)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
+    else if (2 % RG_W)
+      RG_L(rg_gather_part)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
     RG_L(rgl_mass_inverse)(rgb_in0, rgb_out0);
     rg_in = rg_out = rg_dt = (rg_vm){0};
     for (rg_e = 0; rg_e < 2; ++rg_e) {
@@ -5604,28 +5812,36 @@ static RG_TARGET void RG_L(rgl_discrete_dynamics)(const rg_v *q, const rg_v *qd,
 
 /* two_link_discrete_dynamics on RG_W states at a time, the whole blocks of n. */
 static RG_TARGET int RG_L(rgb_discrete_dynamics)(int n, const double *q, const double *qd, const double *tau, const double *dt, double *q_next, double *qd_next) {
-  rg_v rgb_in0[2], rgb_in1[2], rgb_in2[2], rgb_in3[1], rgb_out0[2], rgb_out1[2];
-  int rg_b, rg_l, rg_e, rg_s[RG_W], rg_failed, rg_status = 0;
+  rg_v rgb_in0[(2 + RG_W - 1) / RG_W * RG_W], rgb_in1[(2 + RG_W - 1) / RG_W * RG_W], rgb_in2[(2 + RG_W - 1) / RG_W * RG_W], rgb_in3[(1 + RG_W - 1) / RG_W * RG_W], rgb_out0[2], rgb_out1[2];
+  int rg_b, rg_e, rg_l, rg_s[RG_W], rg_failed, rg_status = 0;
   rg_vm rg_in, rg_out, rg_dt;
   size_t rg_k;
   rg_v rg_x;
   for (rg_b = 0; rg_b <= n - RG_W; rg_b += RG_W) {
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in0 + rg_e, q + (size_t)rg_b * 2 + rg_e, 2);
-    for (rg_e = 2 - 2 % RG_W; rg_e < 2; ++rg_e)
-      for (rg_l = 0; rg_l < RG_W; ++rg_l) rgb_in0[rg_e][rg_l] = q[(size_t)(rg_b + rg_l) * 2 + rg_e];
+    if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
+      RG_L(rg_gather)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
+    else if (2 % RG_W)
+      RG_L(rg_gather_part)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in1 + rg_e, qd + (size_t)rg_b * 2 + rg_e, 2);
-    for (rg_e = 2 - 2 % RG_W; rg_e < 2; ++rg_e)
-      for (rg_l = 0; rg_l < RG_W; ++rg_l) rgb_in1[rg_e][rg_l] = qd[(size_t)(rg_b + rg_l) * 2 + rg_e];
+    if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
+      RG_L(rg_gather)(rgb_in1 + 2 - 2 % RG_W, qd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
+    else if (2 % RG_W)
+      RG_L(rg_gather_part)(rgb_in1 + 2 - 2 % RG_W, qd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in2 + rg_e, tau + (size_t)rg_b * 2 + rg_e, 2);
-    for (rg_e = 2 - 2 % RG_W; rg_e < 2; ++rg_e)
-      for (rg_l = 0; rg_l < RG_W; ++rg_l) rgb_in2[rg_e][rg_l] = tau[(size_t)(rg_b + rg_l) * 2 + rg_e];
+    if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
+      RG_L(rg_gather)(rgb_in2 + 2 - 2 % RG_W, tau + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
+    else if (2 % RG_W)
+      RG_L(rg_gather_part)(rgb_in2 + 2 - 2 % RG_W, tau + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
     for (rg_e = 0; rg_e + RG_W <= 1; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in3 + rg_e, dt + (size_t)rg_b * 1 + rg_e, 1);
-    for (rg_e = 1 - 1 % RG_W; rg_e < 1; ++rg_e)
-      for (rg_l = 0; rg_l < RG_W; ++rg_l) rgb_in3[rg_e][rg_l] = dt[(size_t)(rg_b + rg_l) * 1 + rg_e];
+    if (1 % RG_W && rg_b + RG_W + (RG_W - 1 % RG_W + 1 - 1) / 1 <= n)
+      RG_L(rg_gather)(rgb_in3 + 1 - 1 % RG_W, dt + (size_t)rg_b * 1 + 1 - 1 % RG_W, 1);
+    else if (1 % RG_W)
+      RG_L(rg_gather_part)(rgb_in3 + 1 - 1 % RG_W, dt + (size_t)rg_b * 1 + 1 - 1 % RG_W, 1, 1 % RG_W);
     RG_L(rgl_discrete_dynamics)(rgb_in0, rgb_in1, rgb_in2, rgb_in3, rgb_out0, rgb_out1);
     rg_in = rg_out = rg_dt = (rg_vm){0};
     for (rg_e = 0; rg_e < 2; ++rg_e) {
@@ -5907,28 +6123,36 @@ static RG_TARGET void RG_L(rgl_discrete_dynamics_derivatives)(const rg_v *q, con
 
 /* two_link_discrete_dynamics_derivatives on RG_W states at a time, the whole blocks of n. */
 static RG_TARGET int RG_L(rgb_discrete_dynamics_derivatives)(int n, const double *q, const double *qd, const double *tau, const double *dt, double *q_next, double *qd_next, double *A, double *B) {
-  rg_v rgb_in0[2], rgb_in1[2], rgb_in2[2], rgb_in3[1], rgb_out0[2], rgb_out1[2], rgb_out2[16], rgb_out3[8];
-  int rg_b, rg_l, rg_e, rg_s[RG_W], rg_failed, rg_status = 0;
+  rg_v rgb_in0[(2 + RG_W - 1) / RG_W * RG_W], rgb_in1[(2 + RG_W - 1) / RG_W * RG_W], rgb_in2[(2 + RG_W - 1) / RG_W * RG_W], rgb_in3[(1 + RG_W - 1) / RG_W * RG_W], rgb_out0[2], rgb_out1[2], rgb_out2[16], rgb_out3[8];
+  int rg_b, rg_e, rg_l, rg_s[RG_W], rg_failed, rg_status = 0;
   rg_vm rg_in, rg_out, rg_dt;
   size_t rg_k;
   rg_v rg_x;
   for (rg_b = 0; rg_b <= n - RG_W; rg_b += RG_W) {
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in0 + rg_e, q + (size_t)rg_b * 2 + rg_e, 2);
-    for (rg_e = 2 - 2 % RG_W; rg_e < 2; ++rg_e)
-      for (rg_l = 0; rg_l < RG_W; ++rg_l) rgb_in0[rg_e][rg_l] = q[(size_t)(rg_b + rg_l) * 2 + rg_e];
+    if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
+      RG_L(rg_gather)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
+    else if (2 % RG_W)
+      RG_L(rg_gather_part)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in1 + rg_e, qd + (size_t)rg_b * 2 + rg_e, 2);
-    for (rg_e = 2 - 2 % RG_W; rg_e < 2; ++rg_e)
-      for (rg_l = 0; rg_l < RG_W; ++rg_l) rgb_in1[rg_e][rg_l] = qd[(size_t)(rg_b + rg_l) * 2 + rg_e];
+    if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
+      RG_L(rg_gather)(rgb_in1 + 2 - 2 % RG_W, qd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
+    else if (2 % RG_W)
+      RG_L(rg_gather_part)(rgb_in1 + 2 - 2 % RG_W, qd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in2 + rg_e, tau + (size_t)rg_b * 2 + rg_e, 2);
-    for (rg_e = 2 - 2 % RG_W; rg_e < 2; ++rg_e)
-      for (rg_l = 0; rg_l < RG_W; ++rg_l) rgb_in2[rg_e][rg_l] = tau[(size_t)(rg_b + rg_l) * 2 + rg_e];
+    if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
+      RG_L(rg_gather)(rgb_in2 + 2 - 2 % RG_W, tau + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
+    else if (2 % RG_W)
+      RG_L(rg_gather_part)(rgb_in2 + 2 - 2 % RG_W, tau + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
     for (rg_e = 0; rg_e + RG_W <= 1; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in3 + rg_e, dt + (size_t)rg_b * 1 + rg_e, 1);
-    for (rg_e = 1 - 1 % RG_W; rg_e < 1; ++rg_e)
-      for (rg_l = 0; rg_l < RG_W; ++rg_l) rgb_in3[rg_e][rg_l] = dt[(size_t)(rg_b + rg_l) * 1 + rg_e];
+    if (1 % RG_W && rg_b + RG_W + (RG_W - 1 % RG_W + 1 - 1) / 1 <= n)
+      RG_L(rg_gather)(rgb_in3 + 1 - 1 % RG_W, dt + (size_t)rg_b * 1 + 1 - 1 % RG_W, 1);
+    else if (1 % RG_W)
+      RG_L(rg_gather_part)(rgb_in3 + 1 - 1 % RG_W, dt + (size_t)rg_b * 1 + 1 - 1 % RG_W, 1, 1 % RG_W);
     RG_L(rgl_discrete_dynamics_derivatives)(rgb_in0, rgb_in1, rgb_in2, rgb_in3, rgb_out0, rgb_out1, rgb_out2, rgb_out3);
     rg_in = rg_out = rg_dt = (rg_vm){0};
     for (rg_e = 0; rg_e < 2; ++rg_e) {
