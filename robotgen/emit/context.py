@@ -310,7 +310,10 @@ def module_view(
         sincos_parts=sincos_parts,
         helpers=helpers,
         lanes_guard=lanes.LANES_GUARD if laned else "",
-        lane_widths=tuple((lanes.width_open(w, PRECISIONS[precision]), lanes.width_close()) for w in lanes.WIDTHS)
+        lane_widths=tuple(
+            (lanes.width_open(w, PRECISIONS[precision], lanes.input_sizes(kernels)), lanes.width_close())
+            for w in lanes.WIDTHS
+        )
         if laned
         else (),
         lane_helpers=lane_helpers,

@@ -106,6 +106,11 @@ def batch_name(prefix: str, kernel: Kernel) -> str:
     return function_name(prefix, kernel) + "_batch"
 
 
+def input_sizes(kernels) -> tuple[int, ...]:
+    """The sizes of the batch functions' input ports (their gathers)."""
+    return tuple(sorted({p.size for k in kernels if has_batch(k) for p in _array_ports(k)}))
+
+
 def _array_ports(kernel: Kernel):
     return [p for p in kernel.inputs if not is_parameter_port(p)]
 
@@ -121,8 +126,9 @@ def batch_prototypes(prefix: str, kernel: Kernel, precision: Precision) -> tuple
     return (f"int {name}(int n, {', '.join(params)})", f"int {name}_lanes(int lanes, int n, {', '.join(params)})")
 
 
-def width_open(width: Width, precision: Precision) -> str:
-    """The definitions of lane_names for ``width`` (before its copy of the lane kernels)."""
+def width_open(width: Width, precision: Precision, sizes: tuple[int, ...] = ()) -> str:
+    """The definitions of lane_names for ``width`` (before its copy of the lane kernels), and its
+    gathers of the input ports' ``sizes`` that are deinterleaved (``deinterleaved``)."""
     w = width.lanes(precision)
     splat = ", ".join(["(x)"] * w)
     # never a multiply-add: GCC fuses across statements in GNU mode (AVX-512F has FMA), Clang within
@@ -158,6 +164,7 @@ def width_open(width: Width, precision: Precision) -> str:
                 "#endif",
                 f"#define {lane_names.PER_WIDTH}(name) name##_{width.name}",
                 *_transposes(w, precision),
+                *(line for size in sizes if deinterleaved(size, w) for line in _deinterleave(w, precision, size)),
             ]
         )
         + "\n"
@@ -364,6 +371,47 @@ def _scatter_part(w: int, precision: Precision, steps) -> list[str]:
     return lines
 
 
+def deinterleaved(size: int, w: int) -> bool:
+    """Whether a port of ``size`` < W elements comes into W lanes by deinterleaving (W states'
+    elements are ``size`` whole vectors; each element's vector takes lanes from up to ``size`` of
+    them, size - 1 two-vector shuffles) rather than by a W x W transpose (W log2 W shuffles)."""
+    return size < w and size * (size - 1) < w * (w.bit_length() - 1)
+
+
+def _deinterleave(w: int, precision: Precision, size: int) -> list[str]:
+    """RG_L(rg_deinterleave<size>)(t, p): W states of ``size`` elements from p (W * size reals
+    one after the other) into t[0..size-1], element e of state l in lane l of t[e]."""
+    v, real = lane_names.VECTOR, precision.real
+    whole = lane_names.per_width("rg_vu")
+    lines = [
+        "#if defined(__clang__)",
+        "#define RG_SHUFFLE(a, b, ...) __builtin_shufflevector(a, b, __VA_ARGS__)",
+        "#else",
+        f"#define RG_SHUFFLE(a, b, ...) __builtin_shuffle(a, b, ({lane_names.MASK_VECTOR}){{__VA_ARGS__}})",
+        "#endif",
+        f"static inline {lane_names.TARGET} __attribute__((unused)) void "
+        f"{lane_names.per_width(f'rg_deinterleave{size}')}({v} *t, const {real} *p) {{",
+        f"  {v} {', '.join(f'x{k}' for k in range(size))};",
+        *(f"  x{k} = *(const {whole} *)(p + {k * w});" for k in range(size)),
+    ]
+    for e in range(size):
+        source = [(l * size + e) // w for l in range(w)]
+        lane = [(l * size + e) % w for l in range(w)]
+        used = sorted(set(source))
+        if len(used) == 1:
+            mask = [lane[l] for l in range(w)]
+            lines.append(f"  t[{e}] = RG_SHUFFLE(x{used[0]}, x{used[0]}, {', '.join(map(str, mask))});")
+            continue
+        # the first two sources, then each further one over what is gathered so far
+        mask = [lane[l] if source[l] == used[0] else w + lane[l] if source[l] == used[1] else l for l in range(w)]
+        lines.append(f"  t[{e}] = RG_SHUFFLE(x{used[0]}, x{used[1]}, {', '.join(map(str, mask))});")
+        for k in used[2:]:
+            mask = [w + lane[l] if source[l] == k else l for l in range(w)]
+            lines.append(f"  t[{e}] = RG_SHUFFLE(t[{e}], x{k}, {', '.join(map(str, mask))});")
+    lines += ["}", "#undef RG_SHUFFLE"]
+    return lines
+
+
 def width_close() -> str:
     """The end of one width's copy of the lane code: its names undefined, its guard closed."""
     names = (
@@ -421,6 +469,14 @@ def driver_source(prefix: str, kernel: Kernel, precision: Precision) -> str:
         f"  for (rg_b = 0; rg_b <= n - {w}; rg_b += {w}) {{",
     ]
     for k, p in enumerate(inputs):
+        widths = [width.lanes(precision) for width in WIDTHS if deinterleaved(p.size, width.lanes(precision))]
+        if widths:
+            lines += [
+                f"#if {' || '.join(f'{w} == {n}' for n in widths)}",
+                f"    {lane_names.per_width(f'rg_deinterleave{p.size}')}"
+                f"(rgb_in{k}, {p.name} + (size_t)rg_b * {p.size});",
+                "#else",
+            ]
         lines += [
             f"    for (rg_e = 0; rg_e + {w} <= {p.size}; rg_e += {w})",
             f"      {gather}(rgb_in{k} + rg_e, {p.name} + (size_t)rg_b * {p.size} + rg_e, {p.size});",
@@ -431,6 +487,8 @@ def driver_source(prefix: str, kernel: Kernel, precision: Precision) -> str:
             f"      {gather_part}(rgb_in{k} + {p.size} - {p.size} % {w}, "
             f"{p.name} + (size_t)rg_b * {p.size} + {p.size} - {p.size} % {w}, {p.size}, {p.size} % {w});",
         ]
+        if widths:
+            lines.append("#endif")
     lines.append(f"    {lane_names.per_width('rgl_' + kernel.name)}({', '.join(arguments)});")
     fast = []
     for k, p in enumerate(outputs):

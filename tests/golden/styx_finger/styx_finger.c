@@ -1342,6 +1342,30 @@ static inline RG_TARGET __attribute__((unused, always_inline)) void RG_L(rg_gath
   if (5 < n) t[5] = r[5];
   if (6 < n) t[6] = r[6];
 }
+#if defined(__clang__)
+#define RG_SHUFFLE(a, b, ...) __builtin_shufflevector(a, b, __VA_ARGS__)
+#else
+#define RG_SHUFFLE(a, b, ...) __builtin_shuffle(a, b, (rg_vm){__VA_ARGS__})
+#endif
+static inline RG_TARGET __attribute__((unused)) void RG_L(rg_deinterleave1)(rg_v *t, const double *p) {
+  rg_v x0;
+  x0 = *(const RG_L(rg_vu) *)(p + 0);
+  t[0] = RG_SHUFFLE(x0, x0, 0, 1, 2, 3, 4, 5, 6, 7);
+}
+#undef RG_SHUFFLE
+#if defined(__clang__)
+#define RG_SHUFFLE(a, b, ...) __builtin_shufflevector(a, b, __VA_ARGS__)
+#else
+#define RG_SHUFFLE(a, b, ...) __builtin_shuffle(a, b, (rg_vm){__VA_ARGS__})
+#endif
+static inline RG_TARGET __attribute__((unused)) void RG_L(rg_deinterleave2)(rg_v *t, const double *p) {
+  rg_v x0, x1;
+  x0 = *(const RG_L(rg_vu) *)(p + 0);
+  x1 = *(const RG_L(rg_vu) *)(p + 8);
+  t[0] = RG_SHUFFLE(x0, x1, 0, 2, 4, 6, 8, 10, 12, 14);
+  t[1] = RG_SHUFFLE(x0, x1, 1, 3, 5, 7, 9, 11, 13, 15);
+}
+#undef RG_SHUFFLE
 
 
 /* rg_sincos2's reduction, polynomials and quadrant on every lane of one angle x, |x| <= the bound. */
@@ -1430,12 +1454,16 @@ static RG_TARGET int RG_L(rgb_mass)(int n, const double *q, double *mass) {
   rg_v rgb_in0[(2 + RG_W - 1) / RG_W * RG_W], rgb_out0[4];
   int rg_b, rg_e;
   for (rg_b = 0; rg_b <= n - RG_W; rg_b += RG_W) {
+#if RG_W == 8 || RG_W == 4
+    RG_L(rg_deinterleave2)(rgb_in0, q + (size_t)rg_b * 2);
+#else
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in0 + rg_e, q + (size_t)rg_b * 2 + rg_e, 2);
     if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
       RG_L(rg_gather)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
     else if (2 % RG_W)
       RG_L(rg_gather_part)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
+#endif
     RG_L(rgl_mass)(rgb_in0, rgb_out0);
     for (rg_e = 0; rg_e + RG_W <= 4; rg_e += RG_W)
       RG_L(rg_scatter)(mass + (size_t)rg_b * 4 + rg_e, 4, rgb_out0 + rg_e);
@@ -1458,12 +1486,16 @@ static RG_TARGET int RG_L(rgb_gravity)(int n, const double *q, double *gravity) 
   rg_v rgb_in0[(2 + RG_W - 1) / RG_W * RG_W], rgb_out0[2];
   int rg_b, rg_e;
   for (rg_b = 0; rg_b <= n - RG_W; rg_b += RG_W) {
+#if RG_W == 8 || RG_W == 4
+    RG_L(rg_deinterleave2)(rgb_in0, q + (size_t)rg_b * 2);
+#else
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in0 + rg_e, q + (size_t)rg_b * 2 + rg_e, 2);
     if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
       RG_L(rg_gather)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
     else if (2 % RG_W)
       RG_L(rg_gather_part)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
+#endif
     RG_L(rgl_gravity)(rgb_in0, rgb_out0);
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_scatter)(gravity + (size_t)rg_b * 2 + rg_e, 2, rgb_out0 + rg_e);
@@ -1524,24 +1556,36 @@ static RG_TARGET int RG_L(rgb_inverse_dynamics)(int n, const double *q, const do
   rg_v rgb_in0[(2 + RG_W - 1) / RG_W * RG_W], rgb_in1[(2 + RG_W - 1) / RG_W * RG_W], rgb_in2[(2 + RG_W - 1) / RG_W * RG_W], rgb_out0[2];
   int rg_b, rg_e;
   for (rg_b = 0; rg_b <= n - RG_W; rg_b += RG_W) {
+#if RG_W == 8 || RG_W == 4
+    RG_L(rg_deinterleave2)(rgb_in0, q + (size_t)rg_b * 2);
+#else
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in0 + rg_e, q + (size_t)rg_b * 2 + rg_e, 2);
     if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
       RG_L(rg_gather)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
     else if (2 % RG_W)
       RG_L(rg_gather_part)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
+#endif
+#if RG_W == 8 || RG_W == 4
+    RG_L(rg_deinterleave2)(rgb_in1, qd + (size_t)rg_b * 2);
+#else
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in1 + rg_e, qd + (size_t)rg_b * 2 + rg_e, 2);
     if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
       RG_L(rg_gather)(rgb_in1 + 2 - 2 % RG_W, qd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
     else if (2 % RG_W)
       RG_L(rg_gather_part)(rgb_in1 + 2 - 2 % RG_W, qd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
+#endif
+#if RG_W == 8 || RG_W == 4
+    RG_L(rg_deinterleave2)(rgb_in2, qdd + (size_t)rg_b * 2);
+#else
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in2 + rg_e, qdd + (size_t)rg_b * 2 + rg_e, 2);
     if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
       RG_L(rg_gather)(rgb_in2 + 2 - 2 % RG_W, qdd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
     else if (2 % RG_W)
       RG_L(rg_gather_part)(rgb_in2 + 2 - 2 % RG_W, qdd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
+#endif
     RG_L(rgl_inverse_dynamics)(rgb_in0, rgb_in1, rgb_in2, rgb_out0);
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_scatter)(inverse_dynamics + (size_t)rg_b * 2 + rg_e, 2, rgb_out0 + rg_e);
@@ -1623,24 +1667,36 @@ static RG_TARGET int RG_L(rgb_forward_dynamics)(int n, const double *q, const do
   size_t rg_k;
   rg_v rg_x;
   for (rg_b = 0; rg_b <= n - RG_W; rg_b += RG_W) {
+#if RG_W == 8 || RG_W == 4
+    RG_L(rg_deinterleave2)(rgb_in0, q + (size_t)rg_b * 2);
+#else
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in0 + rg_e, q + (size_t)rg_b * 2 + rg_e, 2);
     if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
       RG_L(rg_gather)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
     else if (2 % RG_W)
       RG_L(rg_gather_part)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
+#endif
+#if RG_W == 8 || RG_W == 4
+    RG_L(rg_deinterleave2)(rgb_in1, qd + (size_t)rg_b * 2);
+#else
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in1 + rg_e, qd + (size_t)rg_b * 2 + rg_e, 2);
     if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
       RG_L(rg_gather)(rgb_in1 + 2 - 2 % RG_W, qd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
     else if (2 % RG_W)
       RG_L(rg_gather_part)(rgb_in1 + 2 - 2 % RG_W, qd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
+#endif
+#if RG_W == 8 || RG_W == 4
+    RG_L(rg_deinterleave2)(rgb_in2, tau + (size_t)rg_b * 2);
+#else
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in2 + rg_e, tau + (size_t)rg_b * 2 + rg_e, 2);
     if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
       RG_L(rg_gather)(rgb_in2 + 2 - 2 % RG_W, tau + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
     else if (2 % RG_W)
       RG_L(rg_gather_part)(rgb_in2 + 2 - 2 % RG_W, tau + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
+#endif
     RG_L(rgl_forward_dynamics)(rgb_in0, rgb_in1, rgb_in2, rgb_out0);
     rg_in = rg_out = rg_dt = (rg_vm){0};
     for (rg_e = 0; rg_e < 2; ++rg_e) {
@@ -1779,24 +1835,36 @@ static RG_TARGET int RG_L(rgb_inverse_dynamics_derivatives)(int n, const double 
   size_t rg_k;
   rg_v rg_x;
   for (rg_b = 0; rg_b <= n - RG_W; rg_b += RG_W) {
+#if RG_W == 8 || RG_W == 4
+    RG_L(rg_deinterleave2)(rgb_in0, q + (size_t)rg_b * 2);
+#else
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in0 + rg_e, q + (size_t)rg_b * 2 + rg_e, 2);
     if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
       RG_L(rg_gather)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
     else if (2 % RG_W)
       RG_L(rg_gather_part)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
+#endif
+#if RG_W == 8 || RG_W == 4
+    RG_L(rg_deinterleave2)(rgb_in1, qd + (size_t)rg_b * 2);
+#else
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in1 + rg_e, qd + (size_t)rg_b * 2 + rg_e, 2);
     if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
       RG_L(rg_gather)(rgb_in1 + 2 - 2 % RG_W, qd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
     else if (2 % RG_W)
       RG_L(rg_gather_part)(rgb_in1 + 2 - 2 % RG_W, qd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
+#endif
+#if RG_W == 8 || RG_W == 4
+    RG_L(rg_deinterleave2)(rgb_in2, qdd + (size_t)rg_b * 2);
+#else
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in2 + rg_e, qdd + (size_t)rg_b * 2 + rg_e, 2);
     if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
       RG_L(rg_gather)(rgb_in2 + 2 - 2 % RG_W, qdd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
     else if (2 % RG_W)
       RG_L(rg_gather_part)(rgb_in2 + 2 - 2 % RG_W, qdd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
+#endif
     RG_L(rgl_inverse_dynamics_derivatives)(rgb_in0, rgb_in1, rgb_in2, rgb_out0, rgb_out1);
     rg_in = rg_out = rg_dt = (rg_vm){0};
     for (rg_e = 0; rg_e < 2; ++rg_e) {
@@ -2014,24 +2082,36 @@ static RG_TARGET int RG_L(rgb_forward_dynamics_derivatives)(int n, const double 
   size_t rg_k;
   rg_v rg_x;
   for (rg_b = 0; rg_b <= n - RG_W; rg_b += RG_W) {
+#if RG_W == 8 || RG_W == 4
+    RG_L(rg_deinterleave2)(rgb_in0, q + (size_t)rg_b * 2);
+#else
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in0 + rg_e, q + (size_t)rg_b * 2 + rg_e, 2);
     if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
       RG_L(rg_gather)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
     else if (2 % RG_W)
       RG_L(rg_gather_part)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
+#endif
+#if RG_W == 8 || RG_W == 4
+    RG_L(rg_deinterleave2)(rgb_in1, qd + (size_t)rg_b * 2);
+#else
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in1 + rg_e, qd + (size_t)rg_b * 2 + rg_e, 2);
     if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
       RG_L(rg_gather)(rgb_in1 + 2 - 2 % RG_W, qd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
     else if (2 % RG_W)
       RG_L(rg_gather_part)(rgb_in1 + 2 - 2 % RG_W, qd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
+#endif
+#if RG_W == 8 || RG_W == 4
+    RG_L(rg_deinterleave2)(rgb_in2, tau + (size_t)rg_b * 2);
+#else
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in2 + rg_e, tau + (size_t)rg_b * 2 + rg_e, 2);
     if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
       RG_L(rg_gather)(rgb_in2 + 2 - 2 % RG_W, tau + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
     else if (2 % RG_W)
       RG_L(rg_gather_part)(rgb_in2 + 2 - 2 % RG_W, tau + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
+#endif
     RG_L(rgl_forward_dynamics_derivatives)(rgb_in0, rgb_in1, rgb_in2, rgb_out0, rgb_out1, rgb_out2);
     rg_in = rg_out = rg_dt = (rg_vm){0};
     for (rg_e = 0; rg_e < 2; ++rg_e) {
@@ -2143,12 +2223,16 @@ static RG_TARGET int RG_L(rgb_mass_inverse)(int n, const double *q, double *mass
   size_t rg_k;
   rg_v rg_x;
   for (rg_b = 0; rg_b <= n - RG_W; rg_b += RG_W) {
+#if RG_W == 8 || RG_W == 4
+    RG_L(rg_deinterleave2)(rgb_in0, q + (size_t)rg_b * 2);
+#else
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in0 + rg_e, q + (size_t)rg_b * 2 + rg_e, 2);
     if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
       RG_L(rg_gather)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
     else if (2 % RG_W)
       RG_L(rg_gather_part)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
+#endif
     RG_L(rgl_mass_inverse)(rgb_in0, rgb_out0);
     rg_in = rg_out = rg_dt = (rg_vm){0};
     for (rg_e = 0; rg_e < 2; ++rg_e) {
@@ -2267,30 +2351,46 @@ static RG_TARGET int RG_L(rgb_discrete_dynamics)(int n, const double *q, const d
   size_t rg_k;
   rg_v rg_x;
   for (rg_b = 0; rg_b <= n - RG_W; rg_b += RG_W) {
+#if RG_W == 8 || RG_W == 4
+    RG_L(rg_deinterleave2)(rgb_in0, q + (size_t)rg_b * 2);
+#else
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in0 + rg_e, q + (size_t)rg_b * 2 + rg_e, 2);
     if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
       RG_L(rg_gather)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
     else if (2 % RG_W)
       RG_L(rg_gather_part)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
+#endif
+#if RG_W == 8 || RG_W == 4
+    RG_L(rg_deinterleave2)(rgb_in1, qd + (size_t)rg_b * 2);
+#else
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in1 + rg_e, qd + (size_t)rg_b * 2 + rg_e, 2);
     if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
       RG_L(rg_gather)(rgb_in1 + 2 - 2 % RG_W, qd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
     else if (2 % RG_W)
       RG_L(rg_gather_part)(rgb_in1 + 2 - 2 % RG_W, qd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
+#endif
+#if RG_W == 8 || RG_W == 4
+    RG_L(rg_deinterleave2)(rgb_in2, tau + (size_t)rg_b * 2);
+#else
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in2 + rg_e, tau + (size_t)rg_b * 2 + rg_e, 2);
     if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
       RG_L(rg_gather)(rgb_in2 + 2 - 2 % RG_W, tau + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
     else if (2 % RG_W)
       RG_L(rg_gather_part)(rgb_in2 + 2 - 2 % RG_W, tau + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
+#endif
+#if RG_W == 8 || RG_W == 4 || RG_W == 2
+    RG_L(rg_deinterleave1)(rgb_in3, dt + (size_t)rg_b * 1);
+#else
     for (rg_e = 0; rg_e + RG_W <= 1; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in3 + rg_e, dt + (size_t)rg_b * 1 + rg_e, 1);
     if (1 % RG_W && rg_b + RG_W + (RG_W - 1 % RG_W + 1 - 1) / 1 <= n)
       RG_L(rg_gather)(rgb_in3 + 1 - 1 % RG_W, dt + (size_t)rg_b * 1 + 1 - 1 % RG_W, 1);
     else if (1 % RG_W)
       RG_L(rg_gather_part)(rgb_in3 + 1 - 1 % RG_W, dt + (size_t)rg_b * 1 + 1 - 1 % RG_W, 1, 1 % RG_W);
+#endif
     RG_L(rgl_discrete_dynamics)(rgb_in0, rgb_in1, rgb_in2, rgb_in3, rgb_out0, rgb_out1);
     rg_in = rg_out = rg_dt = (rg_vm){0};
     for (rg_e = 0; rg_e < 2; ++rg_e) {
@@ -2569,30 +2669,46 @@ static RG_TARGET int RG_L(rgb_discrete_dynamics_derivatives)(int n, const double
   size_t rg_k;
   rg_v rg_x;
   for (rg_b = 0; rg_b <= n - RG_W; rg_b += RG_W) {
+#if RG_W == 8 || RG_W == 4
+    RG_L(rg_deinterleave2)(rgb_in0, q + (size_t)rg_b * 2);
+#else
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in0 + rg_e, q + (size_t)rg_b * 2 + rg_e, 2);
     if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
       RG_L(rg_gather)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
     else if (2 % RG_W)
       RG_L(rg_gather_part)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
+#endif
+#if RG_W == 8 || RG_W == 4
+    RG_L(rg_deinterleave2)(rgb_in1, qd + (size_t)rg_b * 2);
+#else
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in1 + rg_e, qd + (size_t)rg_b * 2 + rg_e, 2);
     if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
       RG_L(rg_gather)(rgb_in1 + 2 - 2 % RG_W, qd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
     else if (2 % RG_W)
       RG_L(rg_gather_part)(rgb_in1 + 2 - 2 % RG_W, qd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
+#endif
+#if RG_W == 8 || RG_W == 4
+    RG_L(rg_deinterleave2)(rgb_in2, tau + (size_t)rg_b * 2);
+#else
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in2 + rg_e, tau + (size_t)rg_b * 2 + rg_e, 2);
     if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
       RG_L(rg_gather)(rgb_in2 + 2 - 2 % RG_W, tau + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
     else if (2 % RG_W)
       RG_L(rg_gather_part)(rgb_in2 + 2 - 2 % RG_W, tau + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
+#endif
+#if RG_W == 8 || RG_W == 4 || RG_W == 2
+    RG_L(rg_deinterleave1)(rgb_in3, dt + (size_t)rg_b * 1);
+#else
     for (rg_e = 0; rg_e + RG_W <= 1; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in3 + rg_e, dt + (size_t)rg_b * 1 + rg_e, 1);
     if (1 % RG_W && rg_b + RG_W + (RG_W - 1 % RG_W + 1 - 1) / 1 <= n)
       RG_L(rg_gather)(rgb_in3 + 1 - 1 % RG_W, dt + (size_t)rg_b * 1 + 1 - 1 % RG_W, 1);
     else if (1 % RG_W)
       RG_L(rg_gather_part)(rgb_in3 + 1 - 1 % RG_W, dt + (size_t)rg_b * 1 + 1 - 1 % RG_W, 1, 1 % RG_W);
+#endif
     RG_L(rgl_discrete_dynamics_derivatives)(rgb_in0, rgb_in1, rgb_in2, rgb_in3, rgb_out0, rgb_out1, rgb_out2, rgb_out3);
     rg_in = rg_out = rg_dt = (rg_vm){0};
     for (rg_e = 0; rg_e < 2; ++rg_e) {
@@ -2835,6 +2951,30 @@ static inline RG_TARGET __attribute__((unused, always_inline)) void RG_L(rg_gath
   if (1 < n) t[1] = r[1];
   if (2 < n) t[2] = r[2];
 }
+#if defined(__clang__)
+#define RG_SHUFFLE(a, b, ...) __builtin_shufflevector(a, b, __VA_ARGS__)
+#else
+#define RG_SHUFFLE(a, b, ...) __builtin_shuffle(a, b, (rg_vm){__VA_ARGS__})
+#endif
+static inline RG_TARGET __attribute__((unused)) void RG_L(rg_deinterleave1)(rg_v *t, const double *p) {
+  rg_v x0;
+  x0 = *(const RG_L(rg_vu) *)(p + 0);
+  t[0] = RG_SHUFFLE(x0, x0, 0, 1, 2, 3);
+}
+#undef RG_SHUFFLE
+#if defined(__clang__)
+#define RG_SHUFFLE(a, b, ...) __builtin_shufflevector(a, b, __VA_ARGS__)
+#else
+#define RG_SHUFFLE(a, b, ...) __builtin_shuffle(a, b, (rg_vm){__VA_ARGS__})
+#endif
+static inline RG_TARGET __attribute__((unused)) void RG_L(rg_deinterleave2)(rg_v *t, const double *p) {
+  rg_v x0, x1;
+  x0 = *(const RG_L(rg_vu) *)(p + 0);
+  x1 = *(const RG_L(rg_vu) *)(p + 4);
+  t[0] = RG_SHUFFLE(x0, x1, 0, 2, 4, 6);
+  t[1] = RG_SHUFFLE(x0, x1, 1, 3, 5, 7);
+}
+#undef RG_SHUFFLE
 
 
 /* rg_sincos2's reduction, polynomials and quadrant on every lane of one angle x, |x| <= the bound. */
@@ -2923,12 +3063,16 @@ static RG_TARGET int RG_L(rgb_mass)(int n, const double *q, double *mass) {
   rg_v rgb_in0[(2 + RG_W - 1) / RG_W * RG_W], rgb_out0[4];
   int rg_b, rg_e;
   for (rg_b = 0; rg_b <= n - RG_W; rg_b += RG_W) {
+#if RG_W == 8 || RG_W == 4
+    RG_L(rg_deinterleave2)(rgb_in0, q + (size_t)rg_b * 2);
+#else
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in0 + rg_e, q + (size_t)rg_b * 2 + rg_e, 2);
     if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
       RG_L(rg_gather)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
     else if (2 % RG_W)
       RG_L(rg_gather_part)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
+#endif
     RG_L(rgl_mass)(rgb_in0, rgb_out0);
     for (rg_e = 0; rg_e + RG_W <= 4; rg_e += RG_W)
       RG_L(rg_scatter)(mass + (size_t)rg_b * 4 + rg_e, 4, rgb_out0 + rg_e);
@@ -2951,12 +3095,16 @@ static RG_TARGET int RG_L(rgb_gravity)(int n, const double *q, double *gravity) 
   rg_v rgb_in0[(2 + RG_W - 1) / RG_W * RG_W], rgb_out0[2];
   int rg_b, rg_e;
   for (rg_b = 0; rg_b <= n - RG_W; rg_b += RG_W) {
+#if RG_W == 8 || RG_W == 4
+    RG_L(rg_deinterleave2)(rgb_in0, q + (size_t)rg_b * 2);
+#else
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in0 + rg_e, q + (size_t)rg_b * 2 + rg_e, 2);
     if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
       RG_L(rg_gather)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
     else if (2 % RG_W)
       RG_L(rg_gather_part)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
+#endif
     RG_L(rgl_gravity)(rgb_in0, rgb_out0);
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_scatter)(gravity + (size_t)rg_b * 2 + rg_e, 2, rgb_out0 + rg_e);
@@ -3017,24 +3165,36 @@ static RG_TARGET int RG_L(rgb_inverse_dynamics)(int n, const double *q, const do
   rg_v rgb_in0[(2 + RG_W - 1) / RG_W * RG_W], rgb_in1[(2 + RG_W - 1) / RG_W * RG_W], rgb_in2[(2 + RG_W - 1) / RG_W * RG_W], rgb_out0[2];
   int rg_b, rg_e;
   for (rg_b = 0; rg_b <= n - RG_W; rg_b += RG_W) {
+#if RG_W == 8 || RG_W == 4
+    RG_L(rg_deinterleave2)(rgb_in0, q + (size_t)rg_b * 2);
+#else
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in0 + rg_e, q + (size_t)rg_b * 2 + rg_e, 2);
     if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
       RG_L(rg_gather)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
     else if (2 % RG_W)
       RG_L(rg_gather_part)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
+#endif
+#if RG_W == 8 || RG_W == 4
+    RG_L(rg_deinterleave2)(rgb_in1, qd + (size_t)rg_b * 2);
+#else
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in1 + rg_e, qd + (size_t)rg_b * 2 + rg_e, 2);
     if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
       RG_L(rg_gather)(rgb_in1 + 2 - 2 % RG_W, qd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
     else if (2 % RG_W)
       RG_L(rg_gather_part)(rgb_in1 + 2 - 2 % RG_W, qd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
+#endif
+#if RG_W == 8 || RG_W == 4
+    RG_L(rg_deinterleave2)(rgb_in2, qdd + (size_t)rg_b * 2);
+#else
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in2 + rg_e, qdd + (size_t)rg_b * 2 + rg_e, 2);
     if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
       RG_L(rg_gather)(rgb_in2 + 2 - 2 % RG_W, qdd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
     else if (2 % RG_W)
       RG_L(rg_gather_part)(rgb_in2 + 2 - 2 % RG_W, qdd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
+#endif
     RG_L(rgl_inverse_dynamics)(rgb_in0, rgb_in1, rgb_in2, rgb_out0);
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_scatter)(inverse_dynamics + (size_t)rg_b * 2 + rg_e, 2, rgb_out0 + rg_e);
@@ -3116,24 +3276,36 @@ static RG_TARGET int RG_L(rgb_forward_dynamics)(int n, const double *q, const do
   size_t rg_k;
   rg_v rg_x;
   for (rg_b = 0; rg_b <= n - RG_W; rg_b += RG_W) {
+#if RG_W == 8 || RG_W == 4
+    RG_L(rg_deinterleave2)(rgb_in0, q + (size_t)rg_b * 2);
+#else
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in0 + rg_e, q + (size_t)rg_b * 2 + rg_e, 2);
     if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
       RG_L(rg_gather)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
     else if (2 % RG_W)
       RG_L(rg_gather_part)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
+#endif
+#if RG_W == 8 || RG_W == 4
+    RG_L(rg_deinterleave2)(rgb_in1, qd + (size_t)rg_b * 2);
+#else
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in1 + rg_e, qd + (size_t)rg_b * 2 + rg_e, 2);
     if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
       RG_L(rg_gather)(rgb_in1 + 2 - 2 % RG_W, qd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
     else if (2 % RG_W)
       RG_L(rg_gather_part)(rgb_in1 + 2 - 2 % RG_W, qd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
+#endif
+#if RG_W == 8 || RG_W == 4
+    RG_L(rg_deinterleave2)(rgb_in2, tau + (size_t)rg_b * 2);
+#else
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in2 + rg_e, tau + (size_t)rg_b * 2 + rg_e, 2);
     if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
       RG_L(rg_gather)(rgb_in2 + 2 - 2 % RG_W, tau + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
     else if (2 % RG_W)
       RG_L(rg_gather_part)(rgb_in2 + 2 - 2 % RG_W, tau + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
+#endif
     RG_L(rgl_forward_dynamics)(rgb_in0, rgb_in1, rgb_in2, rgb_out0);
     rg_in = rg_out = rg_dt = (rg_vm){0};
     for (rg_e = 0; rg_e < 2; ++rg_e) {
@@ -3272,24 +3444,36 @@ static RG_TARGET int RG_L(rgb_inverse_dynamics_derivatives)(int n, const double 
   size_t rg_k;
   rg_v rg_x;
   for (rg_b = 0; rg_b <= n - RG_W; rg_b += RG_W) {
+#if RG_W == 8 || RG_W == 4
+    RG_L(rg_deinterleave2)(rgb_in0, q + (size_t)rg_b * 2);
+#else
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in0 + rg_e, q + (size_t)rg_b * 2 + rg_e, 2);
     if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
       RG_L(rg_gather)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
     else if (2 % RG_W)
       RG_L(rg_gather_part)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
+#endif
+#if RG_W == 8 || RG_W == 4
+    RG_L(rg_deinterleave2)(rgb_in1, qd + (size_t)rg_b * 2);
+#else
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in1 + rg_e, qd + (size_t)rg_b * 2 + rg_e, 2);
     if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
       RG_L(rg_gather)(rgb_in1 + 2 - 2 % RG_W, qd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
     else if (2 % RG_W)
       RG_L(rg_gather_part)(rgb_in1 + 2 - 2 % RG_W, qd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
+#endif
+#if RG_W == 8 || RG_W == 4
+    RG_L(rg_deinterleave2)(rgb_in2, qdd + (size_t)rg_b * 2);
+#else
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in2 + rg_e, qdd + (size_t)rg_b * 2 + rg_e, 2);
     if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
       RG_L(rg_gather)(rgb_in2 + 2 - 2 % RG_W, qdd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
     else if (2 % RG_W)
       RG_L(rg_gather_part)(rgb_in2 + 2 - 2 % RG_W, qdd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
+#endif
     RG_L(rgl_inverse_dynamics_derivatives)(rgb_in0, rgb_in1, rgb_in2, rgb_out0, rgb_out1);
     rg_in = rg_out = rg_dt = (rg_vm){0};
     for (rg_e = 0; rg_e < 2; ++rg_e) {
@@ -3507,24 +3691,36 @@ static RG_TARGET int RG_L(rgb_forward_dynamics_derivatives)(int n, const double 
   size_t rg_k;
   rg_v rg_x;
   for (rg_b = 0; rg_b <= n - RG_W; rg_b += RG_W) {
+#if RG_W == 8 || RG_W == 4
+    RG_L(rg_deinterleave2)(rgb_in0, q + (size_t)rg_b * 2);
+#else
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in0 + rg_e, q + (size_t)rg_b * 2 + rg_e, 2);
     if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
       RG_L(rg_gather)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
     else if (2 % RG_W)
       RG_L(rg_gather_part)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
+#endif
+#if RG_W == 8 || RG_W == 4
+    RG_L(rg_deinterleave2)(rgb_in1, qd + (size_t)rg_b * 2);
+#else
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in1 + rg_e, qd + (size_t)rg_b * 2 + rg_e, 2);
     if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
       RG_L(rg_gather)(rgb_in1 + 2 - 2 % RG_W, qd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
     else if (2 % RG_W)
       RG_L(rg_gather_part)(rgb_in1 + 2 - 2 % RG_W, qd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
+#endif
+#if RG_W == 8 || RG_W == 4
+    RG_L(rg_deinterleave2)(rgb_in2, tau + (size_t)rg_b * 2);
+#else
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in2 + rg_e, tau + (size_t)rg_b * 2 + rg_e, 2);
     if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
       RG_L(rg_gather)(rgb_in2 + 2 - 2 % RG_W, tau + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
     else if (2 % RG_W)
       RG_L(rg_gather_part)(rgb_in2 + 2 - 2 % RG_W, tau + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
+#endif
     RG_L(rgl_forward_dynamics_derivatives)(rgb_in0, rgb_in1, rgb_in2, rgb_out0, rgb_out1, rgb_out2);
     rg_in = rg_out = rg_dt = (rg_vm){0};
     for (rg_e = 0; rg_e < 2; ++rg_e) {
@@ -3636,12 +3832,16 @@ static RG_TARGET int RG_L(rgb_mass_inverse)(int n, const double *q, double *mass
   size_t rg_k;
   rg_v rg_x;
   for (rg_b = 0; rg_b <= n - RG_W; rg_b += RG_W) {
+#if RG_W == 8 || RG_W == 4
+    RG_L(rg_deinterleave2)(rgb_in0, q + (size_t)rg_b * 2);
+#else
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in0 + rg_e, q + (size_t)rg_b * 2 + rg_e, 2);
     if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
       RG_L(rg_gather)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
     else if (2 % RG_W)
       RG_L(rg_gather_part)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
+#endif
     RG_L(rgl_mass_inverse)(rgb_in0, rgb_out0);
     rg_in = rg_out = rg_dt = (rg_vm){0};
     for (rg_e = 0; rg_e < 2; ++rg_e) {
@@ -3760,30 +3960,46 @@ static RG_TARGET int RG_L(rgb_discrete_dynamics)(int n, const double *q, const d
   size_t rg_k;
   rg_v rg_x;
   for (rg_b = 0; rg_b <= n - RG_W; rg_b += RG_W) {
+#if RG_W == 8 || RG_W == 4
+    RG_L(rg_deinterleave2)(rgb_in0, q + (size_t)rg_b * 2);
+#else
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in0 + rg_e, q + (size_t)rg_b * 2 + rg_e, 2);
     if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
       RG_L(rg_gather)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
     else if (2 % RG_W)
       RG_L(rg_gather_part)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
+#endif
+#if RG_W == 8 || RG_W == 4
+    RG_L(rg_deinterleave2)(rgb_in1, qd + (size_t)rg_b * 2);
+#else
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in1 + rg_e, qd + (size_t)rg_b * 2 + rg_e, 2);
     if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
       RG_L(rg_gather)(rgb_in1 + 2 - 2 % RG_W, qd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
     else if (2 % RG_W)
       RG_L(rg_gather_part)(rgb_in1 + 2 - 2 % RG_W, qd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
+#endif
+#if RG_W == 8 || RG_W == 4
+    RG_L(rg_deinterleave2)(rgb_in2, tau + (size_t)rg_b * 2);
+#else
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in2 + rg_e, tau + (size_t)rg_b * 2 + rg_e, 2);
     if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
       RG_L(rg_gather)(rgb_in2 + 2 - 2 % RG_W, tau + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
     else if (2 % RG_W)
       RG_L(rg_gather_part)(rgb_in2 + 2 - 2 % RG_W, tau + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
+#endif
+#if RG_W == 8 || RG_W == 4 || RG_W == 2
+    RG_L(rg_deinterleave1)(rgb_in3, dt + (size_t)rg_b * 1);
+#else
     for (rg_e = 0; rg_e + RG_W <= 1; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in3 + rg_e, dt + (size_t)rg_b * 1 + rg_e, 1);
     if (1 % RG_W && rg_b + RG_W + (RG_W - 1 % RG_W + 1 - 1) / 1 <= n)
       RG_L(rg_gather)(rgb_in3 + 1 - 1 % RG_W, dt + (size_t)rg_b * 1 + 1 - 1 % RG_W, 1);
     else if (1 % RG_W)
       RG_L(rg_gather_part)(rgb_in3 + 1 - 1 % RG_W, dt + (size_t)rg_b * 1 + 1 - 1 % RG_W, 1, 1 % RG_W);
+#endif
     RG_L(rgl_discrete_dynamics)(rgb_in0, rgb_in1, rgb_in2, rgb_in3, rgb_out0, rgb_out1);
     rg_in = rg_out = rg_dt = (rg_vm){0};
     for (rg_e = 0; rg_e < 2; ++rg_e) {
@@ -4062,30 +4278,46 @@ static RG_TARGET int RG_L(rgb_discrete_dynamics_derivatives)(int n, const double
   size_t rg_k;
   rg_v rg_x;
   for (rg_b = 0; rg_b <= n - RG_W; rg_b += RG_W) {
+#if RG_W == 8 || RG_W == 4
+    RG_L(rg_deinterleave2)(rgb_in0, q + (size_t)rg_b * 2);
+#else
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in0 + rg_e, q + (size_t)rg_b * 2 + rg_e, 2);
     if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
       RG_L(rg_gather)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
     else if (2 % RG_W)
       RG_L(rg_gather_part)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
+#endif
+#if RG_W == 8 || RG_W == 4
+    RG_L(rg_deinterleave2)(rgb_in1, qd + (size_t)rg_b * 2);
+#else
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in1 + rg_e, qd + (size_t)rg_b * 2 + rg_e, 2);
     if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
       RG_L(rg_gather)(rgb_in1 + 2 - 2 % RG_W, qd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
     else if (2 % RG_W)
       RG_L(rg_gather_part)(rgb_in1 + 2 - 2 % RG_W, qd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
+#endif
+#if RG_W == 8 || RG_W == 4
+    RG_L(rg_deinterleave2)(rgb_in2, tau + (size_t)rg_b * 2);
+#else
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in2 + rg_e, tau + (size_t)rg_b * 2 + rg_e, 2);
     if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
       RG_L(rg_gather)(rgb_in2 + 2 - 2 % RG_W, tau + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
     else if (2 % RG_W)
       RG_L(rg_gather_part)(rgb_in2 + 2 - 2 % RG_W, tau + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
+#endif
+#if RG_W == 8 || RG_W == 4 || RG_W == 2
+    RG_L(rg_deinterleave1)(rgb_in3, dt + (size_t)rg_b * 1);
+#else
     for (rg_e = 0; rg_e + RG_W <= 1; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in3 + rg_e, dt + (size_t)rg_b * 1 + rg_e, 1);
     if (1 % RG_W && rg_b + RG_W + (RG_W - 1 % RG_W + 1 - 1) / 1 <= n)
       RG_L(rg_gather)(rgb_in3 + 1 - 1 % RG_W, dt + (size_t)rg_b * 1 + 1 - 1 % RG_W, 1);
     else if (1 % RG_W)
       RG_L(rg_gather_part)(rgb_in3 + 1 - 1 % RG_W, dt + (size_t)rg_b * 1 + 1 - 1 % RG_W, 1, 1 % RG_W);
+#endif
     RG_L(rgl_discrete_dynamics_derivatives)(rgb_in0, rgb_in1, rgb_in2, rgb_in3, rgb_out0, rgb_out1, rgb_out2, rgb_out3);
     rg_in = rg_out = rg_dt = (rg_vm){0};
     for (rg_e = 0; rg_e < 2; ++rg_e) {
@@ -4248,6 +4480,17 @@ static inline RG_TARGET __attribute__((unused, always_inline)) void RG_L(rg_gath
   r[1] = (rg_v){1 < n ? p[0 * stride + 1] : 0.0, 1 < n ? p[1 * stride + 1] : 0.0};
   if (0 < n) t[0] = r[0];
 }
+#if defined(__clang__)
+#define RG_SHUFFLE(a, b, ...) __builtin_shufflevector(a, b, __VA_ARGS__)
+#else
+#define RG_SHUFFLE(a, b, ...) __builtin_shuffle(a, b, (rg_vm){__VA_ARGS__})
+#endif
+static inline RG_TARGET __attribute__((unused)) void RG_L(rg_deinterleave1)(rg_v *t, const double *p) {
+  rg_v x0;
+  x0 = *(const RG_L(rg_vu) *)(p + 0);
+  t[0] = RG_SHUFFLE(x0, x0, 0, 1);
+}
+#undef RG_SHUFFLE
 
 
 /* rg_sincos2's reduction, polynomials and quadrant on every lane of one angle x, |x| <= the bound. */
@@ -4336,12 +4579,16 @@ static RG_TARGET int RG_L(rgb_mass)(int n, const double *q, double *mass) {
   rg_v rgb_in0[(2 + RG_W - 1) / RG_W * RG_W], rgb_out0[4];
   int rg_b, rg_e;
   for (rg_b = 0; rg_b <= n - RG_W; rg_b += RG_W) {
+#if RG_W == 8 || RG_W == 4
+    RG_L(rg_deinterleave2)(rgb_in0, q + (size_t)rg_b * 2);
+#else
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in0 + rg_e, q + (size_t)rg_b * 2 + rg_e, 2);
     if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
       RG_L(rg_gather)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
     else if (2 % RG_W)
       RG_L(rg_gather_part)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
+#endif
     RG_L(rgl_mass)(rgb_in0, rgb_out0);
     for (rg_e = 0; rg_e + RG_W <= 4; rg_e += RG_W)
       RG_L(rg_scatter)(mass + (size_t)rg_b * 4 + rg_e, 4, rgb_out0 + rg_e);
@@ -4364,12 +4611,16 @@ static RG_TARGET int RG_L(rgb_gravity)(int n, const double *q, double *gravity) 
   rg_v rgb_in0[(2 + RG_W - 1) / RG_W * RG_W], rgb_out0[2];
   int rg_b, rg_e;
   for (rg_b = 0; rg_b <= n - RG_W; rg_b += RG_W) {
+#if RG_W == 8 || RG_W == 4
+    RG_L(rg_deinterleave2)(rgb_in0, q + (size_t)rg_b * 2);
+#else
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in0 + rg_e, q + (size_t)rg_b * 2 + rg_e, 2);
     if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
       RG_L(rg_gather)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
     else if (2 % RG_W)
       RG_L(rg_gather_part)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
+#endif
     RG_L(rgl_gravity)(rgb_in0, rgb_out0);
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_scatter)(gravity + (size_t)rg_b * 2 + rg_e, 2, rgb_out0 + rg_e);
@@ -4430,24 +4681,36 @@ static RG_TARGET int RG_L(rgb_inverse_dynamics)(int n, const double *q, const do
   rg_v rgb_in0[(2 + RG_W - 1) / RG_W * RG_W], rgb_in1[(2 + RG_W - 1) / RG_W * RG_W], rgb_in2[(2 + RG_W - 1) / RG_W * RG_W], rgb_out0[2];
   int rg_b, rg_e;
   for (rg_b = 0; rg_b <= n - RG_W; rg_b += RG_W) {
+#if RG_W == 8 || RG_W == 4
+    RG_L(rg_deinterleave2)(rgb_in0, q + (size_t)rg_b * 2);
+#else
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in0 + rg_e, q + (size_t)rg_b * 2 + rg_e, 2);
     if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
       RG_L(rg_gather)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
     else if (2 % RG_W)
       RG_L(rg_gather_part)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
+#endif
+#if RG_W == 8 || RG_W == 4
+    RG_L(rg_deinterleave2)(rgb_in1, qd + (size_t)rg_b * 2);
+#else
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in1 + rg_e, qd + (size_t)rg_b * 2 + rg_e, 2);
     if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
       RG_L(rg_gather)(rgb_in1 + 2 - 2 % RG_W, qd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
     else if (2 % RG_W)
       RG_L(rg_gather_part)(rgb_in1 + 2 - 2 % RG_W, qd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
+#endif
+#if RG_W == 8 || RG_W == 4
+    RG_L(rg_deinterleave2)(rgb_in2, qdd + (size_t)rg_b * 2);
+#else
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in2 + rg_e, qdd + (size_t)rg_b * 2 + rg_e, 2);
     if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
       RG_L(rg_gather)(rgb_in2 + 2 - 2 % RG_W, qdd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
     else if (2 % RG_W)
       RG_L(rg_gather_part)(rgb_in2 + 2 - 2 % RG_W, qdd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
+#endif
     RG_L(rgl_inverse_dynamics)(rgb_in0, rgb_in1, rgb_in2, rgb_out0);
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_scatter)(inverse_dynamics + (size_t)rg_b * 2 + rg_e, 2, rgb_out0 + rg_e);
@@ -4529,24 +4792,36 @@ static RG_TARGET int RG_L(rgb_forward_dynamics)(int n, const double *q, const do
   size_t rg_k;
   rg_v rg_x;
   for (rg_b = 0; rg_b <= n - RG_W; rg_b += RG_W) {
+#if RG_W == 8 || RG_W == 4
+    RG_L(rg_deinterleave2)(rgb_in0, q + (size_t)rg_b * 2);
+#else
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in0 + rg_e, q + (size_t)rg_b * 2 + rg_e, 2);
     if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
       RG_L(rg_gather)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
     else if (2 % RG_W)
       RG_L(rg_gather_part)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
+#endif
+#if RG_W == 8 || RG_W == 4
+    RG_L(rg_deinterleave2)(rgb_in1, qd + (size_t)rg_b * 2);
+#else
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in1 + rg_e, qd + (size_t)rg_b * 2 + rg_e, 2);
     if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
       RG_L(rg_gather)(rgb_in1 + 2 - 2 % RG_W, qd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
     else if (2 % RG_W)
       RG_L(rg_gather_part)(rgb_in1 + 2 - 2 % RG_W, qd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
+#endif
+#if RG_W == 8 || RG_W == 4
+    RG_L(rg_deinterleave2)(rgb_in2, tau + (size_t)rg_b * 2);
+#else
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in2 + rg_e, tau + (size_t)rg_b * 2 + rg_e, 2);
     if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
       RG_L(rg_gather)(rgb_in2 + 2 - 2 % RG_W, tau + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
     else if (2 % RG_W)
       RG_L(rg_gather_part)(rgb_in2 + 2 - 2 % RG_W, tau + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
+#endif
     RG_L(rgl_forward_dynamics)(rgb_in0, rgb_in1, rgb_in2, rgb_out0);
     rg_in = rg_out = rg_dt = (rg_vm){0};
     for (rg_e = 0; rg_e < 2; ++rg_e) {
@@ -4685,24 +4960,36 @@ static RG_TARGET int RG_L(rgb_inverse_dynamics_derivatives)(int n, const double 
   size_t rg_k;
   rg_v rg_x;
   for (rg_b = 0; rg_b <= n - RG_W; rg_b += RG_W) {
+#if RG_W == 8 || RG_W == 4
+    RG_L(rg_deinterleave2)(rgb_in0, q + (size_t)rg_b * 2);
+#else
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in0 + rg_e, q + (size_t)rg_b * 2 + rg_e, 2);
     if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
       RG_L(rg_gather)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
     else if (2 % RG_W)
       RG_L(rg_gather_part)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
+#endif
+#if RG_W == 8 || RG_W == 4
+    RG_L(rg_deinterleave2)(rgb_in1, qd + (size_t)rg_b * 2);
+#else
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in1 + rg_e, qd + (size_t)rg_b * 2 + rg_e, 2);
     if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
       RG_L(rg_gather)(rgb_in1 + 2 - 2 % RG_W, qd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
     else if (2 % RG_W)
       RG_L(rg_gather_part)(rgb_in1 + 2 - 2 % RG_W, qd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
+#endif
+#if RG_W == 8 || RG_W == 4
+    RG_L(rg_deinterleave2)(rgb_in2, qdd + (size_t)rg_b * 2);
+#else
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in2 + rg_e, qdd + (size_t)rg_b * 2 + rg_e, 2);
     if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
       RG_L(rg_gather)(rgb_in2 + 2 - 2 % RG_W, qdd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
     else if (2 % RG_W)
       RG_L(rg_gather_part)(rgb_in2 + 2 - 2 % RG_W, qdd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
+#endif
     RG_L(rgl_inverse_dynamics_derivatives)(rgb_in0, rgb_in1, rgb_in2, rgb_out0, rgb_out1);
     rg_in = rg_out = rg_dt = (rg_vm){0};
     for (rg_e = 0; rg_e < 2; ++rg_e) {
@@ -4920,24 +5207,36 @@ static RG_TARGET int RG_L(rgb_forward_dynamics_derivatives)(int n, const double 
   size_t rg_k;
   rg_v rg_x;
   for (rg_b = 0; rg_b <= n - RG_W; rg_b += RG_W) {
+#if RG_W == 8 || RG_W == 4
+    RG_L(rg_deinterleave2)(rgb_in0, q + (size_t)rg_b * 2);
+#else
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in0 + rg_e, q + (size_t)rg_b * 2 + rg_e, 2);
     if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
       RG_L(rg_gather)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
     else if (2 % RG_W)
       RG_L(rg_gather_part)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
+#endif
+#if RG_W == 8 || RG_W == 4
+    RG_L(rg_deinterleave2)(rgb_in1, qd + (size_t)rg_b * 2);
+#else
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in1 + rg_e, qd + (size_t)rg_b * 2 + rg_e, 2);
     if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
       RG_L(rg_gather)(rgb_in1 + 2 - 2 % RG_W, qd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
     else if (2 % RG_W)
       RG_L(rg_gather_part)(rgb_in1 + 2 - 2 % RG_W, qd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
+#endif
+#if RG_W == 8 || RG_W == 4
+    RG_L(rg_deinterleave2)(rgb_in2, tau + (size_t)rg_b * 2);
+#else
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in2 + rg_e, tau + (size_t)rg_b * 2 + rg_e, 2);
     if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
       RG_L(rg_gather)(rgb_in2 + 2 - 2 % RG_W, tau + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
     else if (2 % RG_W)
       RG_L(rg_gather_part)(rgb_in2 + 2 - 2 % RG_W, tau + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
+#endif
     RG_L(rgl_forward_dynamics_derivatives)(rgb_in0, rgb_in1, rgb_in2, rgb_out0, rgb_out1, rgb_out2);
     rg_in = rg_out = rg_dt = (rg_vm){0};
     for (rg_e = 0; rg_e < 2; ++rg_e) {
@@ -5049,12 +5348,16 @@ static RG_TARGET int RG_L(rgb_mass_inverse)(int n, const double *q, double *mass
   size_t rg_k;
   rg_v rg_x;
   for (rg_b = 0; rg_b <= n - RG_W; rg_b += RG_W) {
+#if RG_W == 8 || RG_W == 4
+    RG_L(rg_deinterleave2)(rgb_in0, q + (size_t)rg_b * 2);
+#else
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in0 + rg_e, q + (size_t)rg_b * 2 + rg_e, 2);
     if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
       RG_L(rg_gather)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
     else if (2 % RG_W)
       RG_L(rg_gather_part)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
+#endif
     RG_L(rgl_mass_inverse)(rgb_in0, rgb_out0);
     rg_in = rg_out = rg_dt = (rg_vm){0};
     for (rg_e = 0; rg_e < 2; ++rg_e) {
@@ -5173,30 +5476,46 @@ static RG_TARGET int RG_L(rgb_discrete_dynamics)(int n, const double *q, const d
   size_t rg_k;
   rg_v rg_x;
   for (rg_b = 0; rg_b <= n - RG_W; rg_b += RG_W) {
+#if RG_W == 8 || RG_W == 4
+    RG_L(rg_deinterleave2)(rgb_in0, q + (size_t)rg_b * 2);
+#else
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in0 + rg_e, q + (size_t)rg_b * 2 + rg_e, 2);
     if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
       RG_L(rg_gather)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
     else if (2 % RG_W)
       RG_L(rg_gather_part)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
+#endif
+#if RG_W == 8 || RG_W == 4
+    RG_L(rg_deinterleave2)(rgb_in1, qd + (size_t)rg_b * 2);
+#else
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in1 + rg_e, qd + (size_t)rg_b * 2 + rg_e, 2);
     if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
       RG_L(rg_gather)(rgb_in1 + 2 - 2 % RG_W, qd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
     else if (2 % RG_W)
       RG_L(rg_gather_part)(rgb_in1 + 2 - 2 % RG_W, qd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
+#endif
+#if RG_W == 8 || RG_W == 4
+    RG_L(rg_deinterleave2)(rgb_in2, tau + (size_t)rg_b * 2);
+#else
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in2 + rg_e, tau + (size_t)rg_b * 2 + rg_e, 2);
     if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
       RG_L(rg_gather)(rgb_in2 + 2 - 2 % RG_W, tau + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
     else if (2 % RG_W)
       RG_L(rg_gather_part)(rgb_in2 + 2 - 2 % RG_W, tau + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
+#endif
+#if RG_W == 8 || RG_W == 4 || RG_W == 2
+    RG_L(rg_deinterleave1)(rgb_in3, dt + (size_t)rg_b * 1);
+#else
     for (rg_e = 0; rg_e + RG_W <= 1; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in3 + rg_e, dt + (size_t)rg_b * 1 + rg_e, 1);
     if (1 % RG_W && rg_b + RG_W + (RG_W - 1 % RG_W + 1 - 1) / 1 <= n)
       RG_L(rg_gather)(rgb_in3 + 1 - 1 % RG_W, dt + (size_t)rg_b * 1 + 1 - 1 % RG_W, 1);
     else if (1 % RG_W)
       RG_L(rg_gather_part)(rgb_in3 + 1 - 1 % RG_W, dt + (size_t)rg_b * 1 + 1 - 1 % RG_W, 1, 1 % RG_W);
+#endif
     RG_L(rgl_discrete_dynamics)(rgb_in0, rgb_in1, rgb_in2, rgb_in3, rgb_out0, rgb_out1);
     rg_in = rg_out = rg_dt = (rg_vm){0};
     for (rg_e = 0; rg_e < 2; ++rg_e) {
@@ -5475,30 +5794,46 @@ static RG_TARGET int RG_L(rgb_discrete_dynamics_derivatives)(int n, const double
   size_t rg_k;
   rg_v rg_x;
   for (rg_b = 0; rg_b <= n - RG_W; rg_b += RG_W) {
+#if RG_W == 8 || RG_W == 4
+    RG_L(rg_deinterleave2)(rgb_in0, q + (size_t)rg_b * 2);
+#else
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in0 + rg_e, q + (size_t)rg_b * 2 + rg_e, 2);
     if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
       RG_L(rg_gather)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
     else if (2 % RG_W)
       RG_L(rg_gather_part)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
+#endif
+#if RG_W == 8 || RG_W == 4
+    RG_L(rg_deinterleave2)(rgb_in1, qd + (size_t)rg_b * 2);
+#else
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in1 + rg_e, qd + (size_t)rg_b * 2 + rg_e, 2);
     if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
       RG_L(rg_gather)(rgb_in1 + 2 - 2 % RG_W, qd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
     else if (2 % RG_W)
       RG_L(rg_gather_part)(rgb_in1 + 2 - 2 % RG_W, qd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
+#endif
+#if RG_W == 8 || RG_W == 4
+    RG_L(rg_deinterleave2)(rgb_in2, tau + (size_t)rg_b * 2);
+#else
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in2 + rg_e, tau + (size_t)rg_b * 2 + rg_e, 2);
     if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
       RG_L(rg_gather)(rgb_in2 + 2 - 2 % RG_W, tau + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
     else if (2 % RG_W)
       RG_L(rg_gather_part)(rgb_in2 + 2 - 2 % RG_W, tau + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
+#endif
+#if RG_W == 8 || RG_W == 4 || RG_W == 2
+    RG_L(rg_deinterleave1)(rgb_in3, dt + (size_t)rg_b * 1);
+#else
     for (rg_e = 0; rg_e + RG_W <= 1; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in3 + rg_e, dt + (size_t)rg_b * 1 + rg_e, 1);
     if (1 % RG_W && rg_b + RG_W + (RG_W - 1 % RG_W + 1 - 1) / 1 <= n)
       RG_L(rg_gather)(rgb_in3 + 1 - 1 % RG_W, dt + (size_t)rg_b * 1 + 1 - 1 % RG_W, 1);
     else if (1 % RG_W)
       RG_L(rg_gather_part)(rgb_in3 + 1 - 1 % RG_W, dt + (size_t)rg_b * 1 + 1 - 1 % RG_W, 1, 1 % RG_W);
+#endif
     RG_L(rgl_discrete_dynamics_derivatives)(rgb_in0, rgb_in1, rgb_in2, rgb_in3, rgb_out0, rgb_out1, rgb_out2, rgb_out3);
     rg_in = rg_out = rg_dt = (rg_vm){0};
     for (rg_e = 0; rg_e < 2; ++rg_e) {

@@ -1768,6 +1768,30 @@ static inline RG_TARGET __attribute__((unused, always_inline)) void RG_L(rg_gath
   if (5 < n) t[5] = r[5];
   if (6 < n) t[6] = r[6];
 }
+#if defined(__clang__)
+#define RG_SHUFFLE(a, b, ...) __builtin_shufflevector(a, b, __VA_ARGS__)
+#else
+#define RG_SHUFFLE(a, b, ...) __builtin_shuffle(a, b, (rg_vm){__VA_ARGS__})
+#endif
+static inline RG_TARGET __attribute__((unused)) void RG_L(rg_deinterleave1)(rg_v *t, const double *p) {
+  rg_v x0;
+  x0 = *(const RG_L(rg_vu) *)(p + 0);
+  t[0] = RG_SHUFFLE(x0, x0, 0, 1, 2, 3, 4, 5, 6, 7);
+}
+#undef RG_SHUFFLE
+#if defined(__clang__)
+#define RG_SHUFFLE(a, b, ...) __builtin_shufflevector(a, b, __VA_ARGS__)
+#else
+#define RG_SHUFFLE(a, b, ...) __builtin_shuffle(a, b, (rg_vm){__VA_ARGS__})
+#endif
+static inline RG_TARGET __attribute__((unused)) void RG_L(rg_deinterleave2)(rg_v *t, const double *p) {
+  rg_v x0, x1;
+  x0 = *(const RG_L(rg_vu) *)(p + 0);
+  x1 = *(const RG_L(rg_vu) *)(p + 8);
+  t[0] = RG_SHUFFLE(x0, x1, 0, 2, 4, 6, 8, 10, 12, 14);
+  t[1] = RG_SHUFFLE(x0, x1, 1, 3, 5, 7, 9, 11, 13, 15);
+}
+#undef RG_SHUFFLE
 
 
 /* rg_sincos2's reduction, polynomials and quadrant on every lane of one angle x, |x| <= the bound. */
@@ -1860,12 +1884,16 @@ static RG_TARGET int RG_L(rgb_mass)(int n, const double *q, double *mass) {
   rg_v rgb_in0[(2 + RG_W - 1) / RG_W * RG_W], rgb_out0[4];
   int rg_b, rg_e;
   for (rg_b = 0; rg_b <= n - RG_W; rg_b += RG_W) {
+#if RG_W == 8 || RG_W == 4
+    RG_L(rg_deinterleave2)(rgb_in0, q + (size_t)rg_b * 2);
+#else
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in0 + rg_e, q + (size_t)rg_b * 2 + rg_e, 2);
     if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
       RG_L(rg_gather)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
     else if (2 % RG_W)
       RG_L(rg_gather_part)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
+#endif
     RG_L(rgl_mass)(rgb_in0, rgb_out0);
     for (rg_e = 0; rg_e + RG_W <= 4; rg_e += RG_W)
       RG_L(rg_scatter)(mass + (size_t)rg_b * 4 + rg_e, 4, rgb_out0 + rg_e);
@@ -1908,12 +1936,16 @@ static RG_TARGET int RG_L(rgb_gravity)(int n, const double *q, double *gravity) 
   rg_v rgb_in0[(2 + RG_W - 1) / RG_W * RG_W], rgb_out0[2];
   int rg_b, rg_e;
   for (rg_b = 0; rg_b <= n - RG_W; rg_b += RG_W) {
+#if RG_W == 8 || RG_W == 4
+    RG_L(rg_deinterleave2)(rgb_in0, q + (size_t)rg_b * 2);
+#else
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in0 + rg_e, q + (size_t)rg_b * 2 + rg_e, 2);
     if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
       RG_L(rg_gather)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
     else if (2 % RG_W)
       RG_L(rg_gather_part)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
+#endif
     RG_L(rgl_gravity)(rgb_in0, rgb_out0);
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_scatter)(gravity + (size_t)rg_b * 2 + rg_e, 2, rgb_out0 + rg_e);
@@ -1984,24 +2016,36 @@ static RG_TARGET int RG_L(rgb_inverse_dynamics)(int n, const double *q, const do
   rg_v rgb_in0[(2 + RG_W - 1) / RG_W * RG_W], rgb_in1[(2 + RG_W - 1) / RG_W * RG_W], rgb_in2[(2 + RG_W - 1) / RG_W * RG_W], rgb_out0[2];
   int rg_b, rg_e;
   for (rg_b = 0; rg_b <= n - RG_W; rg_b += RG_W) {
+#if RG_W == 8 || RG_W == 4
+    RG_L(rg_deinterleave2)(rgb_in0, q + (size_t)rg_b * 2);
+#else
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in0 + rg_e, q + (size_t)rg_b * 2 + rg_e, 2);
     if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
       RG_L(rg_gather)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
     else if (2 % RG_W)
       RG_L(rg_gather_part)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
+#endif
+#if RG_W == 8 || RG_W == 4
+    RG_L(rg_deinterleave2)(rgb_in1, qd + (size_t)rg_b * 2);
+#else
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in1 + rg_e, qd + (size_t)rg_b * 2 + rg_e, 2);
     if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
       RG_L(rg_gather)(rgb_in1 + 2 - 2 % RG_W, qd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
     else if (2 % RG_W)
       RG_L(rg_gather_part)(rgb_in1 + 2 - 2 % RG_W, qd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
+#endif
+#if RG_W == 8 || RG_W == 4
+    RG_L(rg_deinterleave2)(rgb_in2, qdd + (size_t)rg_b * 2);
+#else
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in2 + rg_e, qdd + (size_t)rg_b * 2 + rg_e, 2);
     if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
       RG_L(rg_gather)(rgb_in2 + 2 - 2 % RG_W, qdd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
     else if (2 % RG_W)
       RG_L(rg_gather_part)(rgb_in2 + 2 - 2 % RG_W, qdd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
+#endif
     RG_L(rgl_inverse_dynamics)(rgb_in0, rgb_in1, rgb_in2, rgb_out0);
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_scatter)(inverse_dynamics + (size_t)rg_b * 2 + rg_e, 2, rgb_out0 + rg_e);
@@ -2099,24 +2143,36 @@ static RG_TARGET int RG_L(rgb_forward_dynamics)(int n, const double *q, const do
   size_t rg_k;
   rg_v rg_x;
   for (rg_b = 0; rg_b <= n - RG_W; rg_b += RG_W) {
+#if RG_W == 8 || RG_W == 4
+    RG_L(rg_deinterleave2)(rgb_in0, q + (size_t)rg_b * 2);
+#else
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in0 + rg_e, q + (size_t)rg_b * 2 + rg_e, 2);
     if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
       RG_L(rg_gather)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
     else if (2 % RG_W)
       RG_L(rg_gather_part)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
+#endif
+#if RG_W == 8 || RG_W == 4
+    RG_L(rg_deinterleave2)(rgb_in1, qd + (size_t)rg_b * 2);
+#else
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in1 + rg_e, qd + (size_t)rg_b * 2 + rg_e, 2);
     if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
       RG_L(rg_gather)(rgb_in1 + 2 - 2 % RG_W, qd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
     else if (2 % RG_W)
       RG_L(rg_gather_part)(rgb_in1 + 2 - 2 % RG_W, qd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
+#endif
+#if RG_W == 8 || RG_W == 4
+    RG_L(rg_deinterleave2)(rgb_in2, tau + (size_t)rg_b * 2);
+#else
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in2 + rg_e, tau + (size_t)rg_b * 2 + rg_e, 2);
     if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
       RG_L(rg_gather)(rgb_in2 + 2 - 2 % RG_W, tau + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
     else if (2 % RG_W)
       RG_L(rg_gather_part)(rgb_in2 + 2 - 2 % RG_W, tau + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
+#endif
     RG_L(rgl_forward_dynamics)(rgb_in0, rgb_in1, rgb_in2, rgb_out0);
     rg_in = rg_out = rg_dt = (rg_vm){0};
     for (rg_e = 0; rg_e < 2; ++rg_e) {
@@ -2245,24 +2301,36 @@ static RG_TARGET int RG_L(rgb_inverse_dynamics_derivatives)(int n, const double 
   size_t rg_k;
   rg_v rg_x;
   for (rg_b = 0; rg_b <= n - RG_W; rg_b += RG_W) {
+#if RG_W == 8 || RG_W == 4
+    RG_L(rg_deinterleave2)(rgb_in0, q + (size_t)rg_b * 2);
+#else
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in0 + rg_e, q + (size_t)rg_b * 2 + rg_e, 2);
     if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
       RG_L(rg_gather)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
     else if (2 % RG_W)
       RG_L(rg_gather_part)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
+#endif
+#if RG_W == 8 || RG_W == 4
+    RG_L(rg_deinterleave2)(rgb_in1, qd + (size_t)rg_b * 2);
+#else
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in1 + rg_e, qd + (size_t)rg_b * 2 + rg_e, 2);
     if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
       RG_L(rg_gather)(rgb_in1 + 2 - 2 % RG_W, qd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
     else if (2 % RG_W)
       RG_L(rg_gather_part)(rgb_in1 + 2 - 2 % RG_W, qd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
+#endif
+#if RG_W == 8 || RG_W == 4
+    RG_L(rg_deinterleave2)(rgb_in2, qdd + (size_t)rg_b * 2);
+#else
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in2 + rg_e, qdd + (size_t)rg_b * 2 + rg_e, 2);
     if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
       RG_L(rg_gather)(rgb_in2 + 2 - 2 % RG_W, qdd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
     else if (2 % RG_W)
       RG_L(rg_gather_part)(rgb_in2 + 2 - 2 % RG_W, qdd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
+#endif
     RG_L(rgl_inverse_dynamics_derivatives)(rgb_in0, rgb_in1, rgb_in2, rgb_out0, rgb_out1);
     rg_in = rg_out = rg_dt = (rg_vm){0};
     for (rg_e = 0; rg_e < 2; ++rg_e) {
@@ -2485,24 +2553,36 @@ static RG_TARGET int RG_L(rgb_forward_dynamics_derivatives)(int n, const double 
   size_t rg_k;
   rg_v rg_x;
   for (rg_b = 0; rg_b <= n - RG_W; rg_b += RG_W) {
+#if RG_W == 8 || RG_W == 4
+    RG_L(rg_deinterleave2)(rgb_in0, q + (size_t)rg_b * 2);
+#else
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in0 + rg_e, q + (size_t)rg_b * 2 + rg_e, 2);
     if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
       RG_L(rg_gather)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
     else if (2 % RG_W)
       RG_L(rg_gather_part)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
+#endif
+#if RG_W == 8 || RG_W == 4
+    RG_L(rg_deinterleave2)(rgb_in1, qd + (size_t)rg_b * 2);
+#else
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in1 + rg_e, qd + (size_t)rg_b * 2 + rg_e, 2);
     if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
       RG_L(rg_gather)(rgb_in1 + 2 - 2 % RG_W, qd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
     else if (2 % RG_W)
       RG_L(rg_gather_part)(rgb_in1 + 2 - 2 % RG_W, qd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
+#endif
+#if RG_W == 8 || RG_W == 4
+    RG_L(rg_deinterleave2)(rgb_in2, tau + (size_t)rg_b * 2);
+#else
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in2 + rg_e, tau + (size_t)rg_b * 2 + rg_e, 2);
     if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
       RG_L(rg_gather)(rgb_in2 + 2 - 2 % RG_W, tau + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
     else if (2 % RG_W)
       RG_L(rg_gather_part)(rgb_in2 + 2 - 2 % RG_W, tau + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
+#endif
     RG_L(rgl_forward_dynamics_derivatives)(rgb_in0, rgb_in1, rgb_in2, rgb_out0, rgb_out1, rgb_out2);
     rg_in = rg_out = rg_dt = (rg_vm){0};
     for (rg_e = 0; rg_e < 2; ++rg_e) {
@@ -2619,12 +2699,16 @@ static RG_TARGET int RG_L(rgb_mass_inverse)(int n, const double *q, double *mass
   size_t rg_k;
   rg_v rg_x;
   for (rg_b = 0; rg_b <= n - RG_W; rg_b += RG_W) {
+#if RG_W == 8 || RG_W == 4
+    RG_L(rg_deinterleave2)(rgb_in0, q + (size_t)rg_b * 2);
+#else
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in0 + rg_e, q + (size_t)rg_b * 2 + rg_e, 2);
     if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
       RG_L(rg_gather)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
     else if (2 % RG_W)
       RG_L(rg_gather_part)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
+#endif
     RG_L(rgl_mass_inverse)(rgb_in0, rgb_out0);
     rg_in = rg_out = rg_dt = (rg_vm){0};
     for (rg_e = 0; rg_e < 2; ++rg_e) {
@@ -2760,30 +2844,46 @@ static RG_TARGET int RG_L(rgb_discrete_dynamics)(int n, const double *q, const d
   size_t rg_k;
   rg_v rg_x;
   for (rg_b = 0; rg_b <= n - RG_W; rg_b += RG_W) {
+#if RG_W == 8 || RG_W == 4
+    RG_L(rg_deinterleave2)(rgb_in0, q + (size_t)rg_b * 2);
+#else
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in0 + rg_e, q + (size_t)rg_b * 2 + rg_e, 2);
     if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
       RG_L(rg_gather)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
     else if (2 % RG_W)
       RG_L(rg_gather_part)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
+#endif
+#if RG_W == 8 || RG_W == 4
+    RG_L(rg_deinterleave2)(rgb_in1, qd + (size_t)rg_b * 2);
+#else
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in1 + rg_e, qd + (size_t)rg_b * 2 + rg_e, 2);
     if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
       RG_L(rg_gather)(rgb_in1 + 2 - 2 % RG_W, qd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
     else if (2 % RG_W)
       RG_L(rg_gather_part)(rgb_in1 + 2 - 2 % RG_W, qd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
+#endif
+#if RG_W == 8 || RG_W == 4
+    RG_L(rg_deinterleave2)(rgb_in2, tau + (size_t)rg_b * 2);
+#else
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in2 + rg_e, tau + (size_t)rg_b * 2 + rg_e, 2);
     if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
       RG_L(rg_gather)(rgb_in2 + 2 - 2 % RG_W, tau + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
     else if (2 % RG_W)
       RG_L(rg_gather_part)(rgb_in2 + 2 - 2 % RG_W, tau + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
+#endif
+#if RG_W == 8 || RG_W == 4 || RG_W == 2
+    RG_L(rg_deinterleave1)(rgb_in3, dt + (size_t)rg_b * 1);
+#else
     for (rg_e = 0; rg_e + RG_W <= 1; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in3 + rg_e, dt + (size_t)rg_b * 1 + rg_e, 1);
     if (1 % RG_W && rg_b + RG_W + (RG_W - 1 % RG_W + 1 - 1) / 1 <= n)
       RG_L(rg_gather)(rgb_in3 + 1 - 1 % RG_W, dt + (size_t)rg_b * 1 + 1 - 1 % RG_W, 1);
     else if (1 % RG_W)
       RG_L(rg_gather_part)(rgb_in3 + 1 - 1 % RG_W, dt + (size_t)rg_b * 1 + 1 - 1 % RG_W, 1, 1 % RG_W);
+#endif
     RG_L(rgl_discrete_dynamics)(rgb_in0, rgb_in1, rgb_in2, rgb_in3, rgb_out0, rgb_out1);
     rg_in = rg_out = rg_dt = (rg_vm){0};
     for (rg_e = 0; rg_e < 2; ++rg_e) {
@@ -3071,30 +3171,46 @@ static RG_TARGET int RG_L(rgb_discrete_dynamics_derivatives)(int n, const double
   size_t rg_k;
   rg_v rg_x;
   for (rg_b = 0; rg_b <= n - RG_W; rg_b += RG_W) {
+#if RG_W == 8 || RG_W == 4
+    RG_L(rg_deinterleave2)(rgb_in0, q + (size_t)rg_b * 2);
+#else
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in0 + rg_e, q + (size_t)rg_b * 2 + rg_e, 2);
     if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
       RG_L(rg_gather)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
     else if (2 % RG_W)
       RG_L(rg_gather_part)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
+#endif
+#if RG_W == 8 || RG_W == 4
+    RG_L(rg_deinterleave2)(rgb_in1, qd + (size_t)rg_b * 2);
+#else
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in1 + rg_e, qd + (size_t)rg_b * 2 + rg_e, 2);
     if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
       RG_L(rg_gather)(rgb_in1 + 2 - 2 % RG_W, qd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
     else if (2 % RG_W)
       RG_L(rg_gather_part)(rgb_in1 + 2 - 2 % RG_W, qd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
+#endif
+#if RG_W == 8 || RG_W == 4
+    RG_L(rg_deinterleave2)(rgb_in2, tau + (size_t)rg_b * 2);
+#else
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in2 + rg_e, tau + (size_t)rg_b * 2 + rg_e, 2);
     if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
       RG_L(rg_gather)(rgb_in2 + 2 - 2 % RG_W, tau + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
     else if (2 % RG_W)
       RG_L(rg_gather_part)(rgb_in2 + 2 - 2 % RG_W, tau + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
+#endif
+#if RG_W == 8 || RG_W == 4 || RG_W == 2
+    RG_L(rg_deinterleave1)(rgb_in3, dt + (size_t)rg_b * 1);
+#else
     for (rg_e = 0; rg_e + RG_W <= 1; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in3 + rg_e, dt + (size_t)rg_b * 1 + rg_e, 1);
     if (1 % RG_W && rg_b + RG_W + (RG_W - 1 % RG_W + 1 - 1) / 1 <= n)
       RG_L(rg_gather)(rgb_in3 + 1 - 1 % RG_W, dt + (size_t)rg_b * 1 + 1 - 1 % RG_W, 1);
     else if (1 % RG_W)
       RG_L(rg_gather_part)(rgb_in3 + 1 - 1 % RG_W, dt + (size_t)rg_b * 1 + 1 - 1 % RG_W, 1, 1 % RG_W);
+#endif
     RG_L(rgl_discrete_dynamics_derivatives)(rgb_in0, rgb_in1, rgb_in2, rgb_in3, rgb_out0, rgb_out1, rgb_out2, rgb_out3);
     rg_in = rg_out = rg_dt = (rg_vm){0};
     for (rg_e = 0; rg_e < 2; ++rg_e) {
@@ -3337,6 +3453,30 @@ static inline RG_TARGET __attribute__((unused, always_inline)) void RG_L(rg_gath
   if (1 < n) t[1] = r[1];
   if (2 < n) t[2] = r[2];
 }
+#if defined(__clang__)
+#define RG_SHUFFLE(a, b, ...) __builtin_shufflevector(a, b, __VA_ARGS__)
+#else
+#define RG_SHUFFLE(a, b, ...) __builtin_shuffle(a, b, (rg_vm){__VA_ARGS__})
+#endif
+static inline RG_TARGET __attribute__((unused)) void RG_L(rg_deinterleave1)(rg_v *t, const double *p) {
+  rg_v x0;
+  x0 = *(const RG_L(rg_vu) *)(p + 0);
+  t[0] = RG_SHUFFLE(x0, x0, 0, 1, 2, 3);
+}
+#undef RG_SHUFFLE
+#if defined(__clang__)
+#define RG_SHUFFLE(a, b, ...) __builtin_shufflevector(a, b, __VA_ARGS__)
+#else
+#define RG_SHUFFLE(a, b, ...) __builtin_shuffle(a, b, (rg_vm){__VA_ARGS__})
+#endif
+static inline RG_TARGET __attribute__((unused)) void RG_L(rg_deinterleave2)(rg_v *t, const double *p) {
+  rg_v x0, x1;
+  x0 = *(const RG_L(rg_vu) *)(p + 0);
+  x1 = *(const RG_L(rg_vu) *)(p + 4);
+  t[0] = RG_SHUFFLE(x0, x1, 0, 2, 4, 6);
+  t[1] = RG_SHUFFLE(x0, x1, 1, 3, 5, 7);
+}
+#undef RG_SHUFFLE
 
 
 /* rg_sincos2's reduction, polynomials and quadrant on every lane of one angle x, |x| <= the bound. */
@@ -3429,12 +3569,16 @@ static RG_TARGET int RG_L(rgb_mass)(int n, const double *q, double *mass) {
   rg_v rgb_in0[(2 + RG_W - 1) / RG_W * RG_W], rgb_out0[4];
   int rg_b, rg_e;
   for (rg_b = 0; rg_b <= n - RG_W; rg_b += RG_W) {
+#if RG_W == 8 || RG_W == 4
+    RG_L(rg_deinterleave2)(rgb_in0, q + (size_t)rg_b * 2);
+#else
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in0 + rg_e, q + (size_t)rg_b * 2 + rg_e, 2);
     if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
       RG_L(rg_gather)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
     else if (2 % RG_W)
       RG_L(rg_gather_part)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
+#endif
     RG_L(rgl_mass)(rgb_in0, rgb_out0);
     for (rg_e = 0; rg_e + RG_W <= 4; rg_e += RG_W)
       RG_L(rg_scatter)(mass + (size_t)rg_b * 4 + rg_e, 4, rgb_out0 + rg_e);
@@ -3477,12 +3621,16 @@ static RG_TARGET int RG_L(rgb_gravity)(int n, const double *q, double *gravity) 
   rg_v rgb_in0[(2 + RG_W - 1) / RG_W * RG_W], rgb_out0[2];
   int rg_b, rg_e;
   for (rg_b = 0; rg_b <= n - RG_W; rg_b += RG_W) {
+#if RG_W == 8 || RG_W == 4
+    RG_L(rg_deinterleave2)(rgb_in0, q + (size_t)rg_b * 2);
+#else
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in0 + rg_e, q + (size_t)rg_b * 2 + rg_e, 2);
     if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
       RG_L(rg_gather)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
     else if (2 % RG_W)
       RG_L(rg_gather_part)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
+#endif
     RG_L(rgl_gravity)(rgb_in0, rgb_out0);
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_scatter)(gravity + (size_t)rg_b * 2 + rg_e, 2, rgb_out0 + rg_e);
@@ -3553,24 +3701,36 @@ static RG_TARGET int RG_L(rgb_inverse_dynamics)(int n, const double *q, const do
   rg_v rgb_in0[(2 + RG_W - 1) / RG_W * RG_W], rgb_in1[(2 + RG_W - 1) / RG_W * RG_W], rgb_in2[(2 + RG_W - 1) / RG_W * RG_W], rgb_out0[2];
   int rg_b, rg_e;
   for (rg_b = 0; rg_b <= n - RG_W; rg_b += RG_W) {
+#if RG_W == 8 || RG_W == 4
+    RG_L(rg_deinterleave2)(rgb_in0, q + (size_t)rg_b * 2);
+#else
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in0 + rg_e, q + (size_t)rg_b * 2 + rg_e, 2);
     if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
       RG_L(rg_gather)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
     else if (2 % RG_W)
       RG_L(rg_gather_part)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
+#endif
+#if RG_W == 8 || RG_W == 4
+    RG_L(rg_deinterleave2)(rgb_in1, qd + (size_t)rg_b * 2);
+#else
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in1 + rg_e, qd + (size_t)rg_b * 2 + rg_e, 2);
     if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
       RG_L(rg_gather)(rgb_in1 + 2 - 2 % RG_W, qd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
     else if (2 % RG_W)
       RG_L(rg_gather_part)(rgb_in1 + 2 - 2 % RG_W, qd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
+#endif
+#if RG_W == 8 || RG_W == 4
+    RG_L(rg_deinterleave2)(rgb_in2, qdd + (size_t)rg_b * 2);
+#else
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in2 + rg_e, qdd + (size_t)rg_b * 2 + rg_e, 2);
     if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
       RG_L(rg_gather)(rgb_in2 + 2 - 2 % RG_W, qdd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
     else if (2 % RG_W)
       RG_L(rg_gather_part)(rgb_in2 + 2 - 2 % RG_W, qdd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
+#endif
     RG_L(rgl_inverse_dynamics)(rgb_in0, rgb_in1, rgb_in2, rgb_out0);
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_scatter)(inverse_dynamics + (size_t)rg_b * 2 + rg_e, 2, rgb_out0 + rg_e);
@@ -3668,24 +3828,36 @@ static RG_TARGET int RG_L(rgb_forward_dynamics)(int n, const double *q, const do
   size_t rg_k;
   rg_v rg_x;
   for (rg_b = 0; rg_b <= n - RG_W; rg_b += RG_W) {
+#if RG_W == 8 || RG_W == 4
+    RG_L(rg_deinterleave2)(rgb_in0, q + (size_t)rg_b * 2);
+#else
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in0 + rg_e, q + (size_t)rg_b * 2 + rg_e, 2);
     if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
       RG_L(rg_gather)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
     else if (2 % RG_W)
       RG_L(rg_gather_part)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
+#endif
+#if RG_W == 8 || RG_W == 4
+    RG_L(rg_deinterleave2)(rgb_in1, qd + (size_t)rg_b * 2);
+#else
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in1 + rg_e, qd + (size_t)rg_b * 2 + rg_e, 2);
     if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
       RG_L(rg_gather)(rgb_in1 + 2 - 2 % RG_W, qd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
     else if (2 % RG_W)
       RG_L(rg_gather_part)(rgb_in1 + 2 - 2 % RG_W, qd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
+#endif
+#if RG_W == 8 || RG_W == 4
+    RG_L(rg_deinterleave2)(rgb_in2, tau + (size_t)rg_b * 2);
+#else
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in2 + rg_e, tau + (size_t)rg_b * 2 + rg_e, 2);
     if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
       RG_L(rg_gather)(rgb_in2 + 2 - 2 % RG_W, tau + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
     else if (2 % RG_W)
       RG_L(rg_gather_part)(rgb_in2 + 2 - 2 % RG_W, tau + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
+#endif
     RG_L(rgl_forward_dynamics)(rgb_in0, rgb_in1, rgb_in2, rgb_out0);
     rg_in = rg_out = rg_dt = (rg_vm){0};
     for (rg_e = 0; rg_e < 2; ++rg_e) {
@@ -3814,24 +3986,36 @@ static RG_TARGET int RG_L(rgb_inverse_dynamics_derivatives)(int n, const double 
   size_t rg_k;
   rg_v rg_x;
   for (rg_b = 0; rg_b <= n - RG_W; rg_b += RG_W) {
+#if RG_W == 8 || RG_W == 4
+    RG_L(rg_deinterleave2)(rgb_in0, q + (size_t)rg_b * 2);
+#else
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in0 + rg_e, q + (size_t)rg_b * 2 + rg_e, 2);
     if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
       RG_L(rg_gather)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
     else if (2 % RG_W)
       RG_L(rg_gather_part)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
+#endif
+#if RG_W == 8 || RG_W == 4
+    RG_L(rg_deinterleave2)(rgb_in1, qd + (size_t)rg_b * 2);
+#else
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in1 + rg_e, qd + (size_t)rg_b * 2 + rg_e, 2);
     if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
       RG_L(rg_gather)(rgb_in1 + 2 - 2 % RG_W, qd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
     else if (2 % RG_W)
       RG_L(rg_gather_part)(rgb_in1 + 2 - 2 % RG_W, qd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
+#endif
+#if RG_W == 8 || RG_W == 4
+    RG_L(rg_deinterleave2)(rgb_in2, qdd + (size_t)rg_b * 2);
+#else
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in2 + rg_e, qdd + (size_t)rg_b * 2 + rg_e, 2);
     if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
       RG_L(rg_gather)(rgb_in2 + 2 - 2 % RG_W, qdd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
     else if (2 % RG_W)
       RG_L(rg_gather_part)(rgb_in2 + 2 - 2 % RG_W, qdd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
+#endif
     RG_L(rgl_inverse_dynamics_derivatives)(rgb_in0, rgb_in1, rgb_in2, rgb_out0, rgb_out1);
     rg_in = rg_out = rg_dt = (rg_vm){0};
     for (rg_e = 0; rg_e < 2; ++rg_e) {
@@ -4054,24 +4238,36 @@ static RG_TARGET int RG_L(rgb_forward_dynamics_derivatives)(int n, const double 
   size_t rg_k;
   rg_v rg_x;
   for (rg_b = 0; rg_b <= n - RG_W; rg_b += RG_W) {
+#if RG_W == 8 || RG_W == 4
+    RG_L(rg_deinterleave2)(rgb_in0, q + (size_t)rg_b * 2);
+#else
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in0 + rg_e, q + (size_t)rg_b * 2 + rg_e, 2);
     if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
       RG_L(rg_gather)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
     else if (2 % RG_W)
       RG_L(rg_gather_part)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
+#endif
+#if RG_W == 8 || RG_W == 4
+    RG_L(rg_deinterleave2)(rgb_in1, qd + (size_t)rg_b * 2);
+#else
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in1 + rg_e, qd + (size_t)rg_b * 2 + rg_e, 2);
     if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
       RG_L(rg_gather)(rgb_in1 + 2 - 2 % RG_W, qd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
     else if (2 % RG_W)
       RG_L(rg_gather_part)(rgb_in1 + 2 - 2 % RG_W, qd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
+#endif
+#if RG_W == 8 || RG_W == 4
+    RG_L(rg_deinterleave2)(rgb_in2, tau + (size_t)rg_b * 2);
+#else
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in2 + rg_e, tau + (size_t)rg_b * 2 + rg_e, 2);
     if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
       RG_L(rg_gather)(rgb_in2 + 2 - 2 % RG_W, tau + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
     else if (2 % RG_W)
       RG_L(rg_gather_part)(rgb_in2 + 2 - 2 % RG_W, tau + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
+#endif
     RG_L(rgl_forward_dynamics_derivatives)(rgb_in0, rgb_in1, rgb_in2, rgb_out0, rgb_out1, rgb_out2);
     rg_in = rg_out = rg_dt = (rg_vm){0};
     for (rg_e = 0; rg_e < 2; ++rg_e) {
@@ -4188,12 +4384,16 @@ static RG_TARGET int RG_L(rgb_mass_inverse)(int n, const double *q, double *mass
   size_t rg_k;
   rg_v rg_x;
   for (rg_b = 0; rg_b <= n - RG_W; rg_b += RG_W) {
+#if RG_W == 8 || RG_W == 4
+    RG_L(rg_deinterleave2)(rgb_in0, q + (size_t)rg_b * 2);
+#else
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in0 + rg_e, q + (size_t)rg_b * 2 + rg_e, 2);
     if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
       RG_L(rg_gather)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
     else if (2 % RG_W)
       RG_L(rg_gather_part)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
+#endif
     RG_L(rgl_mass_inverse)(rgb_in0, rgb_out0);
     rg_in = rg_out = rg_dt = (rg_vm){0};
     for (rg_e = 0; rg_e < 2; ++rg_e) {
@@ -4329,30 +4529,46 @@ static RG_TARGET int RG_L(rgb_discrete_dynamics)(int n, const double *q, const d
   size_t rg_k;
   rg_v rg_x;
   for (rg_b = 0; rg_b <= n - RG_W; rg_b += RG_W) {
+#if RG_W == 8 || RG_W == 4
+    RG_L(rg_deinterleave2)(rgb_in0, q + (size_t)rg_b * 2);
+#else
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in0 + rg_e, q + (size_t)rg_b * 2 + rg_e, 2);
     if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
       RG_L(rg_gather)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
     else if (2 % RG_W)
       RG_L(rg_gather_part)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
+#endif
+#if RG_W == 8 || RG_W == 4
+    RG_L(rg_deinterleave2)(rgb_in1, qd + (size_t)rg_b * 2);
+#else
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in1 + rg_e, qd + (size_t)rg_b * 2 + rg_e, 2);
     if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
       RG_L(rg_gather)(rgb_in1 + 2 - 2 % RG_W, qd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
     else if (2 % RG_W)
       RG_L(rg_gather_part)(rgb_in1 + 2 - 2 % RG_W, qd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
+#endif
+#if RG_W == 8 || RG_W == 4
+    RG_L(rg_deinterleave2)(rgb_in2, tau + (size_t)rg_b * 2);
+#else
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in2 + rg_e, tau + (size_t)rg_b * 2 + rg_e, 2);
     if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
       RG_L(rg_gather)(rgb_in2 + 2 - 2 % RG_W, tau + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
     else if (2 % RG_W)
       RG_L(rg_gather_part)(rgb_in2 + 2 - 2 % RG_W, tau + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
+#endif
+#if RG_W == 8 || RG_W == 4 || RG_W == 2
+    RG_L(rg_deinterleave1)(rgb_in3, dt + (size_t)rg_b * 1);
+#else
     for (rg_e = 0; rg_e + RG_W <= 1; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in3 + rg_e, dt + (size_t)rg_b * 1 + rg_e, 1);
     if (1 % RG_W && rg_b + RG_W + (RG_W - 1 % RG_W + 1 - 1) / 1 <= n)
       RG_L(rg_gather)(rgb_in3 + 1 - 1 % RG_W, dt + (size_t)rg_b * 1 + 1 - 1 % RG_W, 1);
     else if (1 % RG_W)
       RG_L(rg_gather_part)(rgb_in3 + 1 - 1 % RG_W, dt + (size_t)rg_b * 1 + 1 - 1 % RG_W, 1, 1 % RG_W);
+#endif
     RG_L(rgl_discrete_dynamics)(rgb_in0, rgb_in1, rgb_in2, rgb_in3, rgb_out0, rgb_out1);
     rg_in = rg_out = rg_dt = (rg_vm){0};
     for (rg_e = 0; rg_e < 2; ++rg_e) {
@@ -4640,30 +4856,46 @@ static RG_TARGET int RG_L(rgb_discrete_dynamics_derivatives)(int n, const double
   size_t rg_k;
   rg_v rg_x;
   for (rg_b = 0; rg_b <= n - RG_W; rg_b += RG_W) {
+#if RG_W == 8 || RG_W == 4
+    RG_L(rg_deinterleave2)(rgb_in0, q + (size_t)rg_b * 2);
+#else
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in0 + rg_e, q + (size_t)rg_b * 2 + rg_e, 2);
     if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
       RG_L(rg_gather)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
     else if (2 % RG_W)
       RG_L(rg_gather_part)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
+#endif
+#if RG_W == 8 || RG_W == 4
+    RG_L(rg_deinterleave2)(rgb_in1, qd + (size_t)rg_b * 2);
+#else
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in1 + rg_e, qd + (size_t)rg_b * 2 + rg_e, 2);
     if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
       RG_L(rg_gather)(rgb_in1 + 2 - 2 % RG_W, qd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
     else if (2 % RG_W)
       RG_L(rg_gather_part)(rgb_in1 + 2 - 2 % RG_W, qd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
+#endif
+#if RG_W == 8 || RG_W == 4
+    RG_L(rg_deinterleave2)(rgb_in2, tau + (size_t)rg_b * 2);
+#else
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in2 + rg_e, tau + (size_t)rg_b * 2 + rg_e, 2);
     if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
       RG_L(rg_gather)(rgb_in2 + 2 - 2 % RG_W, tau + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
     else if (2 % RG_W)
       RG_L(rg_gather_part)(rgb_in2 + 2 - 2 % RG_W, tau + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
+#endif
+#if RG_W == 8 || RG_W == 4 || RG_W == 2
+    RG_L(rg_deinterleave1)(rgb_in3, dt + (size_t)rg_b * 1);
+#else
     for (rg_e = 0; rg_e + RG_W <= 1; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in3 + rg_e, dt + (size_t)rg_b * 1 + rg_e, 1);
     if (1 % RG_W && rg_b + RG_W + (RG_W - 1 % RG_W + 1 - 1) / 1 <= n)
       RG_L(rg_gather)(rgb_in3 + 1 - 1 % RG_W, dt + (size_t)rg_b * 1 + 1 - 1 % RG_W, 1);
     else if (1 % RG_W)
       RG_L(rg_gather_part)(rgb_in3 + 1 - 1 % RG_W, dt + (size_t)rg_b * 1 + 1 - 1 % RG_W, 1, 1 % RG_W);
+#endif
     RG_L(rgl_discrete_dynamics_derivatives)(rgb_in0, rgb_in1, rgb_in2, rgb_in3, rgb_out0, rgb_out1, rgb_out2, rgb_out3);
     rg_in = rg_out = rg_dt = (rg_vm){0};
     for (rg_e = 0; rg_e < 2; ++rg_e) {
@@ -4826,6 +5058,17 @@ static inline RG_TARGET __attribute__((unused, always_inline)) void RG_L(rg_gath
   r[1] = (rg_v){1 < n ? p[0 * stride + 1] : 0.0, 1 < n ? p[1 * stride + 1] : 0.0};
   if (0 < n) t[0] = r[0];
 }
+#if defined(__clang__)
+#define RG_SHUFFLE(a, b, ...) __builtin_shufflevector(a, b, __VA_ARGS__)
+#else
+#define RG_SHUFFLE(a, b, ...) __builtin_shuffle(a, b, (rg_vm){__VA_ARGS__})
+#endif
+static inline RG_TARGET __attribute__((unused)) void RG_L(rg_deinterleave1)(rg_v *t, const double *p) {
+  rg_v x0;
+  x0 = *(const RG_L(rg_vu) *)(p + 0);
+  t[0] = RG_SHUFFLE(x0, x0, 0, 1);
+}
+#undef RG_SHUFFLE
 
 
 /* rg_sincos2's reduction, polynomials and quadrant on every lane of one angle x, |x| <= the bound. */
@@ -4918,12 +5161,16 @@ static RG_TARGET int RG_L(rgb_mass)(int n, const double *q, double *mass) {
   rg_v rgb_in0[(2 + RG_W - 1) / RG_W * RG_W], rgb_out0[4];
   int rg_b, rg_e;
   for (rg_b = 0; rg_b <= n - RG_W; rg_b += RG_W) {
+#if RG_W == 8 || RG_W == 4
+    RG_L(rg_deinterleave2)(rgb_in0, q + (size_t)rg_b * 2);
+#else
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in0 + rg_e, q + (size_t)rg_b * 2 + rg_e, 2);
     if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
       RG_L(rg_gather)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
     else if (2 % RG_W)
       RG_L(rg_gather_part)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
+#endif
     RG_L(rgl_mass)(rgb_in0, rgb_out0);
     for (rg_e = 0; rg_e + RG_W <= 4; rg_e += RG_W)
       RG_L(rg_scatter)(mass + (size_t)rg_b * 4 + rg_e, 4, rgb_out0 + rg_e);
@@ -4966,12 +5213,16 @@ static RG_TARGET int RG_L(rgb_gravity)(int n, const double *q, double *gravity) 
   rg_v rgb_in0[(2 + RG_W - 1) / RG_W * RG_W], rgb_out0[2];
   int rg_b, rg_e;
   for (rg_b = 0; rg_b <= n - RG_W; rg_b += RG_W) {
+#if RG_W == 8 || RG_W == 4
+    RG_L(rg_deinterleave2)(rgb_in0, q + (size_t)rg_b * 2);
+#else
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in0 + rg_e, q + (size_t)rg_b * 2 + rg_e, 2);
     if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
       RG_L(rg_gather)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
     else if (2 % RG_W)
       RG_L(rg_gather_part)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
+#endif
     RG_L(rgl_gravity)(rgb_in0, rgb_out0);
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_scatter)(gravity + (size_t)rg_b * 2 + rg_e, 2, rgb_out0 + rg_e);
@@ -5042,24 +5293,36 @@ static RG_TARGET int RG_L(rgb_inverse_dynamics)(int n, const double *q, const do
   rg_v rgb_in0[(2 + RG_W - 1) / RG_W * RG_W], rgb_in1[(2 + RG_W - 1) / RG_W * RG_W], rgb_in2[(2 + RG_W - 1) / RG_W * RG_W], rgb_out0[2];
   int rg_b, rg_e;
   for (rg_b = 0; rg_b <= n - RG_W; rg_b += RG_W) {
+#if RG_W == 8 || RG_W == 4
+    RG_L(rg_deinterleave2)(rgb_in0, q + (size_t)rg_b * 2);
+#else
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in0 + rg_e, q + (size_t)rg_b * 2 + rg_e, 2);
     if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
       RG_L(rg_gather)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
     else if (2 % RG_W)
       RG_L(rg_gather_part)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
+#endif
+#if RG_W == 8 || RG_W == 4
+    RG_L(rg_deinterleave2)(rgb_in1, qd + (size_t)rg_b * 2);
+#else
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in1 + rg_e, qd + (size_t)rg_b * 2 + rg_e, 2);
     if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
       RG_L(rg_gather)(rgb_in1 + 2 - 2 % RG_W, qd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
     else if (2 % RG_W)
       RG_L(rg_gather_part)(rgb_in1 + 2 - 2 % RG_W, qd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
+#endif
+#if RG_W == 8 || RG_W == 4
+    RG_L(rg_deinterleave2)(rgb_in2, qdd + (size_t)rg_b * 2);
+#else
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in2 + rg_e, qdd + (size_t)rg_b * 2 + rg_e, 2);
     if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
       RG_L(rg_gather)(rgb_in2 + 2 - 2 % RG_W, qdd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
     else if (2 % RG_W)
       RG_L(rg_gather_part)(rgb_in2 + 2 - 2 % RG_W, qdd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
+#endif
     RG_L(rgl_inverse_dynamics)(rgb_in0, rgb_in1, rgb_in2, rgb_out0);
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_scatter)(inverse_dynamics + (size_t)rg_b * 2 + rg_e, 2, rgb_out0 + rg_e);
@@ -5157,24 +5420,36 @@ static RG_TARGET int RG_L(rgb_forward_dynamics)(int n, const double *q, const do
   size_t rg_k;
   rg_v rg_x;
   for (rg_b = 0; rg_b <= n - RG_W; rg_b += RG_W) {
+#if RG_W == 8 || RG_W == 4
+    RG_L(rg_deinterleave2)(rgb_in0, q + (size_t)rg_b * 2);
+#else
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in0 + rg_e, q + (size_t)rg_b * 2 + rg_e, 2);
     if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
       RG_L(rg_gather)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
     else if (2 % RG_W)
       RG_L(rg_gather_part)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
+#endif
+#if RG_W == 8 || RG_W == 4
+    RG_L(rg_deinterleave2)(rgb_in1, qd + (size_t)rg_b * 2);
+#else
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in1 + rg_e, qd + (size_t)rg_b * 2 + rg_e, 2);
     if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
       RG_L(rg_gather)(rgb_in1 + 2 - 2 % RG_W, qd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
     else if (2 % RG_W)
       RG_L(rg_gather_part)(rgb_in1 + 2 - 2 % RG_W, qd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
+#endif
+#if RG_W == 8 || RG_W == 4
+    RG_L(rg_deinterleave2)(rgb_in2, tau + (size_t)rg_b * 2);
+#else
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in2 + rg_e, tau + (size_t)rg_b * 2 + rg_e, 2);
     if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
       RG_L(rg_gather)(rgb_in2 + 2 - 2 % RG_W, tau + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
     else if (2 % RG_W)
       RG_L(rg_gather_part)(rgb_in2 + 2 - 2 % RG_W, tau + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
+#endif
     RG_L(rgl_forward_dynamics)(rgb_in0, rgb_in1, rgb_in2, rgb_out0);
     rg_in = rg_out = rg_dt = (rg_vm){0};
     for (rg_e = 0; rg_e < 2; ++rg_e) {
@@ -5303,24 +5578,36 @@ static RG_TARGET int RG_L(rgb_inverse_dynamics_derivatives)(int n, const double 
   size_t rg_k;
   rg_v rg_x;
   for (rg_b = 0; rg_b <= n - RG_W; rg_b += RG_W) {
+#if RG_W == 8 || RG_W == 4
+    RG_L(rg_deinterleave2)(rgb_in0, q + (size_t)rg_b * 2);
+#else
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in0 + rg_e, q + (size_t)rg_b * 2 + rg_e, 2);
     if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
       RG_L(rg_gather)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
     else if (2 % RG_W)
       RG_L(rg_gather_part)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
+#endif
+#if RG_W == 8 || RG_W == 4
+    RG_L(rg_deinterleave2)(rgb_in1, qd + (size_t)rg_b * 2);
+#else
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in1 + rg_e, qd + (size_t)rg_b * 2 + rg_e, 2);
     if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
       RG_L(rg_gather)(rgb_in1 + 2 - 2 % RG_W, qd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
     else if (2 % RG_W)
       RG_L(rg_gather_part)(rgb_in1 + 2 - 2 % RG_W, qd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
+#endif
+#if RG_W == 8 || RG_W == 4
+    RG_L(rg_deinterleave2)(rgb_in2, qdd + (size_t)rg_b * 2);
+#else
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in2 + rg_e, qdd + (size_t)rg_b * 2 + rg_e, 2);
     if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
       RG_L(rg_gather)(rgb_in2 + 2 - 2 % RG_W, qdd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
     else if (2 % RG_W)
       RG_L(rg_gather_part)(rgb_in2 + 2 - 2 % RG_W, qdd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
+#endif
     RG_L(rgl_inverse_dynamics_derivatives)(rgb_in0, rgb_in1, rgb_in2, rgb_out0, rgb_out1);
     rg_in = rg_out = rg_dt = (rg_vm){0};
     for (rg_e = 0; rg_e < 2; ++rg_e) {
@@ -5543,24 +5830,36 @@ static RG_TARGET int RG_L(rgb_forward_dynamics_derivatives)(int n, const double 
   size_t rg_k;
   rg_v rg_x;
   for (rg_b = 0; rg_b <= n - RG_W; rg_b += RG_W) {
+#if RG_W == 8 || RG_W == 4
+    RG_L(rg_deinterleave2)(rgb_in0, q + (size_t)rg_b * 2);
+#else
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in0 + rg_e, q + (size_t)rg_b * 2 + rg_e, 2);
     if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
       RG_L(rg_gather)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
     else if (2 % RG_W)
       RG_L(rg_gather_part)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
+#endif
+#if RG_W == 8 || RG_W == 4
+    RG_L(rg_deinterleave2)(rgb_in1, qd + (size_t)rg_b * 2);
+#else
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in1 + rg_e, qd + (size_t)rg_b * 2 + rg_e, 2);
     if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
       RG_L(rg_gather)(rgb_in1 + 2 - 2 % RG_W, qd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
     else if (2 % RG_W)
       RG_L(rg_gather_part)(rgb_in1 + 2 - 2 % RG_W, qd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
+#endif
+#if RG_W == 8 || RG_W == 4
+    RG_L(rg_deinterleave2)(rgb_in2, tau + (size_t)rg_b * 2);
+#else
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in2 + rg_e, tau + (size_t)rg_b * 2 + rg_e, 2);
     if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
       RG_L(rg_gather)(rgb_in2 + 2 - 2 % RG_W, tau + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
     else if (2 % RG_W)
       RG_L(rg_gather_part)(rgb_in2 + 2 - 2 % RG_W, tau + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
+#endif
     RG_L(rgl_forward_dynamics_derivatives)(rgb_in0, rgb_in1, rgb_in2, rgb_out0, rgb_out1, rgb_out2);
     rg_in = rg_out = rg_dt = (rg_vm){0};
     for (rg_e = 0; rg_e < 2; ++rg_e) {
@@ -5677,12 +5976,16 @@ static RG_TARGET int RG_L(rgb_mass_inverse)(int n, const double *q, double *mass
   size_t rg_k;
   rg_v rg_x;
   for (rg_b = 0; rg_b <= n - RG_W; rg_b += RG_W) {
+#if RG_W == 8 || RG_W == 4
+    RG_L(rg_deinterleave2)(rgb_in0, q + (size_t)rg_b * 2);
+#else
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in0 + rg_e, q + (size_t)rg_b * 2 + rg_e, 2);
     if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
       RG_L(rg_gather)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
     else if (2 % RG_W)
       RG_L(rg_gather_part)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
+#endif
     RG_L(rgl_mass_inverse)(rgb_in0, rgb_out0);
     rg_in = rg_out = rg_dt = (rg_vm){0};
     for (rg_e = 0; rg_e < 2; ++rg_e) {
@@ -5818,30 +6121,46 @@ static RG_TARGET int RG_L(rgb_discrete_dynamics)(int n, const double *q, const d
   size_t rg_k;
   rg_v rg_x;
   for (rg_b = 0; rg_b <= n - RG_W; rg_b += RG_W) {
+#if RG_W == 8 || RG_W == 4
+    RG_L(rg_deinterleave2)(rgb_in0, q + (size_t)rg_b * 2);
+#else
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in0 + rg_e, q + (size_t)rg_b * 2 + rg_e, 2);
     if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
       RG_L(rg_gather)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
     else if (2 % RG_W)
       RG_L(rg_gather_part)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
+#endif
+#if RG_W == 8 || RG_W == 4
+    RG_L(rg_deinterleave2)(rgb_in1, qd + (size_t)rg_b * 2);
+#else
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in1 + rg_e, qd + (size_t)rg_b * 2 + rg_e, 2);
     if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
       RG_L(rg_gather)(rgb_in1 + 2 - 2 % RG_W, qd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
     else if (2 % RG_W)
       RG_L(rg_gather_part)(rgb_in1 + 2 - 2 % RG_W, qd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
+#endif
+#if RG_W == 8 || RG_W == 4
+    RG_L(rg_deinterleave2)(rgb_in2, tau + (size_t)rg_b * 2);
+#else
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in2 + rg_e, tau + (size_t)rg_b * 2 + rg_e, 2);
     if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
       RG_L(rg_gather)(rgb_in2 + 2 - 2 % RG_W, tau + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
     else if (2 % RG_W)
       RG_L(rg_gather_part)(rgb_in2 + 2 - 2 % RG_W, tau + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
+#endif
+#if RG_W == 8 || RG_W == 4 || RG_W == 2
+    RG_L(rg_deinterleave1)(rgb_in3, dt + (size_t)rg_b * 1);
+#else
     for (rg_e = 0; rg_e + RG_W <= 1; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in3 + rg_e, dt + (size_t)rg_b * 1 + rg_e, 1);
     if (1 % RG_W && rg_b + RG_W + (RG_W - 1 % RG_W + 1 - 1) / 1 <= n)
       RG_L(rg_gather)(rgb_in3 + 1 - 1 % RG_W, dt + (size_t)rg_b * 1 + 1 - 1 % RG_W, 1);
     else if (1 % RG_W)
       RG_L(rg_gather_part)(rgb_in3 + 1 - 1 % RG_W, dt + (size_t)rg_b * 1 + 1 - 1 % RG_W, 1, 1 % RG_W);
+#endif
     RG_L(rgl_discrete_dynamics)(rgb_in0, rgb_in1, rgb_in2, rgb_in3, rgb_out0, rgb_out1);
     rg_in = rg_out = rg_dt = (rg_vm){0};
     for (rg_e = 0; rg_e < 2; ++rg_e) {
@@ -6129,30 +6448,46 @@ static RG_TARGET int RG_L(rgb_discrete_dynamics_derivatives)(int n, const double
   size_t rg_k;
   rg_v rg_x;
   for (rg_b = 0; rg_b <= n - RG_W; rg_b += RG_W) {
+#if RG_W == 8 || RG_W == 4
+    RG_L(rg_deinterleave2)(rgb_in0, q + (size_t)rg_b * 2);
+#else
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in0 + rg_e, q + (size_t)rg_b * 2 + rg_e, 2);
     if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
       RG_L(rg_gather)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
     else if (2 % RG_W)
       RG_L(rg_gather_part)(rgb_in0 + 2 - 2 % RG_W, q + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
+#endif
+#if RG_W == 8 || RG_W == 4
+    RG_L(rg_deinterleave2)(rgb_in1, qd + (size_t)rg_b * 2);
+#else
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in1 + rg_e, qd + (size_t)rg_b * 2 + rg_e, 2);
     if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
       RG_L(rg_gather)(rgb_in1 + 2 - 2 % RG_W, qd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
     else if (2 % RG_W)
       RG_L(rg_gather_part)(rgb_in1 + 2 - 2 % RG_W, qd + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
+#endif
+#if RG_W == 8 || RG_W == 4
+    RG_L(rg_deinterleave2)(rgb_in2, tau + (size_t)rg_b * 2);
+#else
     for (rg_e = 0; rg_e + RG_W <= 2; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in2 + rg_e, tau + (size_t)rg_b * 2 + rg_e, 2);
     if (2 % RG_W && rg_b + RG_W + (RG_W - 2 % RG_W + 2 - 1) / 2 <= n)
       RG_L(rg_gather)(rgb_in2 + 2 - 2 % RG_W, tau + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2);
     else if (2 % RG_W)
       RG_L(rg_gather_part)(rgb_in2 + 2 - 2 % RG_W, tau + (size_t)rg_b * 2 + 2 - 2 % RG_W, 2, 2 % RG_W);
+#endif
+#if RG_W == 8 || RG_W == 4 || RG_W == 2
+    RG_L(rg_deinterleave1)(rgb_in3, dt + (size_t)rg_b * 1);
+#else
     for (rg_e = 0; rg_e + RG_W <= 1; rg_e += RG_W)
       RG_L(rg_gather)(rgb_in3 + rg_e, dt + (size_t)rg_b * 1 + rg_e, 1);
     if (1 % RG_W && rg_b + RG_W + (RG_W - 1 % RG_W + 1 - 1) / 1 <= n)
       RG_L(rg_gather)(rgb_in3 + 1 - 1 % RG_W, dt + (size_t)rg_b * 1 + 1 - 1 % RG_W, 1);
     else if (1 % RG_W)
       RG_L(rg_gather_part)(rgb_in3 + 1 - 1 % RG_W, dt + (size_t)rg_b * 1 + 1 - 1 % RG_W, 1, 1 % RG_W);
+#endif
     RG_L(rgl_discrete_dynamics_derivatives)(rgb_in0, rgb_in1, rgb_in2, rgb_in3, rgb_out0, rgb_out1, rgb_out2, rgb_out3);
     rg_in = rg_out = rg_dt = (rg_vm){0};
     for (rg_e = 0; rg_e < 2; ++rg_e) {
