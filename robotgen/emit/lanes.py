@@ -432,9 +432,10 @@ def driver_source(prefix: str, kernel: Kernel, precision: Precision) -> str:
     checked as the single-state function checks it (status 1 and 3: its outputs untouched; 2:
     set to 0). Returns the status of the first state whose single call returns nonzero, or 0.
     Ports go in and out W elements of W states at a time through rg_gather and rg_scatter (a
-    transpose in registers); an output's elements past the last multiple of W through
-    rg_scatter_part; an input's, and the outputs of a block where a state fails its checks, one
-    at a time."""
+    transpose in registers); a small input port by rg_deinterleave<size>. An output's elements
+    past the last multiple of W go through rg_scatter_part; an input's through rg_gather, W
+    whole elements read into the next states' where states follow the block (else
+    rg_gather_part). The outputs of a block where a state fails its checks go one at a time."""
     real, v, w = precision.real, lane_names.VECTOR, lane_names.WIDTH
     zero = "0.0f" if real == "float" else "0.0"
     inputs, outputs = _array_ports(kernel), kernel.outputs
