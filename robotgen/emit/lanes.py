@@ -190,6 +190,29 @@ def _transpose_steps(w: int) -> list[tuple[int, int, list[int], list[int]]]:
     return steps
 
 
+def _shuffle_macro() -> list[str]:
+    """RG_SHUFFLE(a, b, lanes...): a shuffle of two vectors by constant lanes (a's 0..W-1, b's
+    W..2W-1), GCC's __builtin_shuffle or Clang's __builtin_shufflevector; #undef after use."""
+    return [
+        "#if defined(__clang__)",
+        "#define RG_SHUFFLE(a, b, ...) __builtin_shufflevector(a, b, __VA_ARGS__)",
+        "#else",
+        f"#define RG_SHUFFLE(a, b, ...) __builtin_shuffle(a, b, ({lane_names.MASK_VECTOR}){{__VA_ARGS__}})",
+        "#endif",
+    ]
+
+
+def _step(step: tuple[int, int, list[int], list[int]], rows: str, indent: str = "  ") -> list[str]:
+    """One step of _transpose_steps on the vectors ``rows``[i] and ``rows``[j], through a and b."""
+    i, j, low, high = step
+    return [
+        f"{indent}a = RG_SHUFFLE({rows}[{i}], {rows}[{j}], {', '.join(map(str, low))});",
+        f"{indent}b = RG_SHUFFLE({rows}[{i}], {rows}[{j}], {', '.join(map(str, high))});",
+        f"{indent}{rows}[{i}] = a;",
+        f"{indent}{rows}[{j}] = b;",
+    ]
+
+
 def _transposes(w: int, precision: Precision) -> list[str]:
     """RG_L(rg_gather) and RG_L(rg_scatter): W consecutive elements of W states (stride apart)
     to and from W vectors (element e of every state in t[e]), through a transpose in registers
@@ -203,22 +226,11 @@ def _transposes(w: int, precision: Precision) -> list[str]:
     steps = [step for step in _transpose_steps(w) if step[1] - step[0] < half]
     transpose = lane_names.per_width("rg_transpose")
     top = [step for step in _transpose_steps(w) if step[1] - step[0] == half]
-    lines = [
-        "#if defined(__clang__)",
-        "#define RG_SHUFFLE(a, b, ...) __builtin_shufflevector(a, b, __VA_ARGS__)",
-        "#else",
-        f"#define RG_SHUFFLE(a, b, ...) __builtin_shuffle(a, b, ({lane_names.MASK_VECTOR}){{__VA_ARGS__}})",
-        "#endif",
-    ]
+    lines = _shuffle_macro()
     if steps:
         lines += [f"static inline {lane_names.TARGET} void {transpose}({v} *t) {{", f"  {v} a, b;"]
-        for i, j, low, high in steps:
-            lines += [
-                f"  a = RG_SHUFFLE(t[{i}], t[{j}], {', '.join(map(str, low))});",
-                f"  b = RG_SHUFFLE(t[{i}], t[{j}], {', '.join(map(str, high))});",
-                f"  t[{i}] = a;",
-                f"  t[{j}] = b;",
-            ]
+        for step in steps:
+            lines += _step(step, "t")
         lines.append("}")
     call = [f"  {transpose}(r);"] if steps else []
     # W and W/2 elements at any address of the real type: under-aligned vectors that may alias it
@@ -279,21 +291,9 @@ def _gather_part(w: int, precision: Precision, steps, top) -> list[str]:
             ]
             lines.append(f"  r[{row}] = ({v}){{{', '.join(lanes)}}};")
     if steps:
-        lines += [
-            "#if defined(__clang__)",
-            "#define RG_SHUFFLE(a, b, ...) __builtin_shufflevector(a, b, __VA_ARGS__)",
-            "#else",
-            f"#define RG_SHUFFLE(a, b, ...) __builtin_shuffle(a, b, ({lane_names.MASK_VECTOR}){{__VA_ARGS__}})",
-            "#endif",
-        ]
-    for i, j, low, high in steps:
-        lines += [
-            f"  a = RG_SHUFFLE(r[{i}], r[{j}], {', '.join(map(str, low))});",
-            f"  b = RG_SHUFFLE(r[{i}], r[{j}], {', '.join(map(str, high))});",
-            f"  r[{i}] = a;",
-            f"  r[{j}] = b;",
-        ]
-    if steps:
+        lines += _shuffle_macro()
+        for step in steps:
+            lines += _step(step, "r")
         lines.append("#undef RG_SHUFFLE")
     lines += [f"  if ({e} < n) t[{e}] = r[{e}];" for e in range(w - 1)]
     lines.append("}")
@@ -326,22 +326,10 @@ def _scatter_part(w: int, precision: Precision, steps) -> list[str]:
         *(f"  r[{l}] = t[{l} < n ? {l} : 0];" for l in range(1, w)),
     ]
     if steps:
-        lines.append("#if defined(__clang__)")
-        lines.append("#define RG_SHUFFLE(a, b, ...) __builtin_shufflevector(a, b, __VA_ARGS__)")
-        lines.append("#else")
-        lines.append(
-            f"#define RG_SHUFFLE(a, b, ...) __builtin_shuffle(a, b, ({lane_names.MASK_VECTOR}){{__VA_ARGS__}})"
-        )
-        lines.append("#endif")
-    for i, j, low, high in steps:
-        lines.append(f"  if ({i & ~(j - i - 1)} < n) {{")
-        lines += [
-            f"    a = RG_SHUFFLE(r[{i}], r[{j}], {', '.join(map(str, low))});",
-            f"    b = RG_SHUFFLE(r[{i}], r[{j}], {', '.join(map(str, high))});",
-            f"    r[{i}] = a;",
-            f"    r[{j}] = b;",
-            "  }",
-        ]
+        lines += _shuffle_macro()
+    for step in steps:
+        i, j = step[0], step[1]
+        lines += [f"  if ({i & ~(j - i - 1)} < n) {{", *_step(step, "r", "    "), "  }"]
     if steps:
         lines.append("#undef RG_SHUFFLE")
 
@@ -384,11 +372,7 @@ def _deinterleave(w: int, precision: Precision, size: int) -> list[str]:
     v, real = lane_names.VECTOR, precision.real
     whole = lane_names.per_width("rg_vu")
     lines = [
-        "#if defined(__clang__)",
-        "#define RG_SHUFFLE(a, b, ...) __builtin_shufflevector(a, b, __VA_ARGS__)",
-        "#else",
-        f"#define RG_SHUFFLE(a, b, ...) __builtin_shuffle(a, b, ({lane_names.MASK_VECTOR}){{__VA_ARGS__}})",
-        "#endif",
+        *_shuffle_macro(),
         f"static inline {lane_names.TARGET} __attribute__((unused)) void "
         f"{lane_names.per_width(f'rg_deinterleave{size}')}({v} *t, const {real} *p) {{",
         f"  {v} {', '.join(f'x{k}' for k in range(size))};",
