@@ -315,7 +315,7 @@ def _scatter_part(w: int, precision: Precision, steps) -> list[str]:
             f"typedef {real} {lane_names.per_width(f'rg_vp{k}')} __attribute__((vector_size({k * size}), "
             f"aligned({size}), may_alias));"
             for k in pieces
-            if k > 1
+            if 1 < k < half  # W/2: rg_scatter's rg_vh
         ),
         f"static inline {lane_names.TARGET} __attribute__((unused, always_inline)) void "
         f"{lane_names.per_width('rg_scatter_part')}"
@@ -334,7 +334,7 @@ def _scatter_part(w: int, precision: Precision, steps) -> list[str]:
         lines.append("#undef RG_SHUFFLE")
 
     def piece(k: int) -> str:
-        return real if k == 1 else lane_names.per_width(f"rg_vp{k}")
+        return real if k == 1 else lane_names.per_width("rg_vh" if k == half else f"rg_vp{k}")
 
     def store(state: int, row: int, lane: int, element: int, k: int) -> str:
         # k lanes of r[row] from ``lane`` + o to state's elements from ``element`` + o

@@ -1570,7 +1570,6 @@ static RG_TARGET __attribute__((unused)) void RG_L(rg_scatter)(double *p, size_t
   *(RG_L(rg_vh) *)(p + 3 * stride + 4) = ((const RG_L(rg_vh) *)&r[7])[0];
   *(RG_L(rg_vh) *)(p + 7 * stride + 4) = ((const RG_L(rg_vh) *)&r[7])[1];
 }
-typedef double RG_L(rg_vp4) __attribute__((vector_size(32), aligned(8), may_alias));
 typedef double RG_L(rg_vp2) __attribute__((vector_size(16), aligned(8), may_alias));
 static inline RG_TARGET __attribute__((unused, always_inline)) void RG_L(rg_scatter_part)(double *p, size_t stride, const rg_v *t, int n) {
   rg_v r[8], a, b;
@@ -1641,14 +1640,14 @@ static inline RG_TARGET __attribute__((unused, always_inline)) void RG_L(rg_scat
     int m = n < 4 ? n : 4;
     o = 0;
     if (m & 4) {
-      *(RG_L(rg_vp4) *)(p + 0 * stride + 0 + o) = ((const RG_L(rg_vp4) *)&r[0])[(0 + o) / 4];
-      *(RG_L(rg_vp4) *)(p + 4 * stride + 0 + o) = ((const RG_L(rg_vp4) *)&r[0])[(4 + o) / 4];
-      *(RG_L(rg_vp4) *)(p + 1 * stride + 0 + o) = ((const RG_L(rg_vp4) *)&r[1])[(0 + o) / 4];
-      *(RG_L(rg_vp4) *)(p + 5 * stride + 0 + o) = ((const RG_L(rg_vp4) *)&r[1])[(4 + o) / 4];
-      *(RG_L(rg_vp4) *)(p + 2 * stride + 0 + o) = ((const RG_L(rg_vp4) *)&r[2])[(0 + o) / 4];
-      *(RG_L(rg_vp4) *)(p + 6 * stride + 0 + o) = ((const RG_L(rg_vp4) *)&r[2])[(4 + o) / 4];
-      *(RG_L(rg_vp4) *)(p + 3 * stride + 0 + o) = ((const RG_L(rg_vp4) *)&r[3])[(0 + o) / 4];
-      *(RG_L(rg_vp4) *)(p + 7 * stride + 0 + o) = ((const RG_L(rg_vp4) *)&r[3])[(4 + o) / 4];
+      *(RG_L(rg_vh) *)(p + 0 * stride + 0 + o) = ((const RG_L(rg_vh) *)&r[0])[(0 + o) / 4];
+      *(RG_L(rg_vh) *)(p + 4 * stride + 0 + o) = ((const RG_L(rg_vh) *)&r[0])[(4 + o) / 4];
+      *(RG_L(rg_vh) *)(p + 1 * stride + 0 + o) = ((const RG_L(rg_vh) *)&r[1])[(0 + o) / 4];
+      *(RG_L(rg_vh) *)(p + 5 * stride + 0 + o) = ((const RG_L(rg_vh) *)&r[1])[(4 + o) / 4];
+      *(RG_L(rg_vh) *)(p + 2 * stride + 0 + o) = ((const RG_L(rg_vh) *)&r[2])[(0 + o) / 4];
+      *(RG_L(rg_vh) *)(p + 6 * stride + 0 + o) = ((const RG_L(rg_vh) *)&r[2])[(4 + o) / 4];
+      *(RG_L(rg_vh) *)(p + 3 * stride + 0 + o) = ((const RG_L(rg_vh) *)&r[3])[(0 + o) / 4];
+      *(RG_L(rg_vh) *)(p + 7 * stride + 0 + o) = ((const RG_L(rg_vh) *)&r[3])[(4 + o) / 4];
       o += 4;
     }
     if (m & 2) {
@@ -1678,14 +1677,14 @@ static inline RG_TARGET __attribute__((unused, always_inline)) void RG_L(rg_scat
     int m = n - 4 < 4 ? n - 4 : 4;
     o = 0;
     if (m & 4) {
-      *(RG_L(rg_vp4) *)(p + 0 * stride + 4 + o) = ((const RG_L(rg_vp4) *)&r[4])[(0 + o) / 4];
-      *(RG_L(rg_vp4) *)(p + 4 * stride + 4 + o) = ((const RG_L(rg_vp4) *)&r[4])[(4 + o) / 4];
-      *(RG_L(rg_vp4) *)(p + 1 * stride + 4 + o) = ((const RG_L(rg_vp4) *)&r[5])[(0 + o) / 4];
-      *(RG_L(rg_vp4) *)(p + 5 * stride + 4 + o) = ((const RG_L(rg_vp4) *)&r[5])[(4 + o) / 4];
-      *(RG_L(rg_vp4) *)(p + 2 * stride + 4 + o) = ((const RG_L(rg_vp4) *)&r[6])[(0 + o) / 4];
-      *(RG_L(rg_vp4) *)(p + 6 * stride + 4 + o) = ((const RG_L(rg_vp4) *)&r[6])[(4 + o) / 4];
-      *(RG_L(rg_vp4) *)(p + 3 * stride + 4 + o) = ((const RG_L(rg_vp4) *)&r[7])[(0 + o) / 4];
-      *(RG_L(rg_vp4) *)(p + 7 * stride + 4 + o) = ((const RG_L(rg_vp4) *)&r[7])[(4 + o) / 4];
+      *(RG_L(rg_vh) *)(p + 0 * stride + 4 + o) = ((const RG_L(rg_vh) *)&r[4])[(0 + o) / 4];
+      *(RG_L(rg_vh) *)(p + 4 * stride + 4 + o) = ((const RG_L(rg_vh) *)&r[4])[(4 + o) / 4];
+      *(RG_L(rg_vh) *)(p + 1 * stride + 4 + o) = ((const RG_L(rg_vh) *)&r[5])[(0 + o) / 4];
+      *(RG_L(rg_vh) *)(p + 5 * stride + 4 + o) = ((const RG_L(rg_vh) *)&r[5])[(4 + o) / 4];
+      *(RG_L(rg_vh) *)(p + 2 * stride + 4 + o) = ((const RG_L(rg_vh) *)&r[6])[(0 + o) / 4];
+      *(RG_L(rg_vh) *)(p + 6 * stride + 4 + o) = ((const RG_L(rg_vh) *)&r[6])[(4 + o) / 4];
+      *(RG_L(rg_vh) *)(p + 3 * stride + 4 + o) = ((const RG_L(rg_vh) *)&r[7])[(0 + o) / 4];
+      *(RG_L(rg_vh) *)(p + 7 * stride + 4 + o) = ((const RG_L(rg_vh) *)&r[7])[(4 + o) / 4];
       o += 4;
     }
     if (m & 2) {
@@ -3366,7 +3365,6 @@ static RG_TARGET __attribute__((unused)) void RG_L(rg_scatter)(double *p, size_t
   *(RG_L(rg_vh) *)(p + 1 * stride + 2) = ((const RG_L(rg_vh) *)&r[3])[0];
   *(RG_L(rg_vh) *)(p + 3 * stride + 2) = ((const RG_L(rg_vh) *)&r[3])[1];
 }
-typedef double RG_L(rg_vp2) __attribute__((vector_size(16), aligned(8), may_alias));
 static inline RG_TARGET __attribute__((unused, always_inline)) void RG_L(rg_scatter_part)(double *p, size_t stride, const rg_v *t, int n) {
   rg_v r[4], a, b;
   int o;
@@ -3396,10 +3394,10 @@ static inline RG_TARGET __attribute__((unused, always_inline)) void RG_L(rg_scat
     int m = n < 2 ? n : 2;
     o = 0;
     if (m & 2) {
-      *(RG_L(rg_vp2) *)(p + 0 * stride + 0 + o) = ((const RG_L(rg_vp2) *)&r[0])[(0 + o) / 2];
-      *(RG_L(rg_vp2) *)(p + 2 * stride + 0 + o) = ((const RG_L(rg_vp2) *)&r[0])[(2 + o) / 2];
-      *(RG_L(rg_vp2) *)(p + 1 * stride + 0 + o) = ((const RG_L(rg_vp2) *)&r[1])[(0 + o) / 2];
-      *(RG_L(rg_vp2) *)(p + 3 * stride + 0 + o) = ((const RG_L(rg_vp2) *)&r[1])[(2 + o) / 2];
+      *(RG_L(rg_vh) *)(p + 0 * stride + 0 + o) = ((const RG_L(rg_vh) *)&r[0])[(0 + o) / 2];
+      *(RG_L(rg_vh) *)(p + 2 * stride + 0 + o) = ((const RG_L(rg_vh) *)&r[0])[(2 + o) / 2];
+      *(RG_L(rg_vh) *)(p + 1 * stride + 0 + o) = ((const RG_L(rg_vh) *)&r[1])[(0 + o) / 2];
+      *(RG_L(rg_vh) *)(p + 3 * stride + 0 + o) = ((const RG_L(rg_vh) *)&r[1])[(2 + o) / 2];
       o += 2;
     }
     if (m & 1) {
@@ -3414,10 +3412,10 @@ static inline RG_TARGET __attribute__((unused, always_inline)) void RG_L(rg_scat
     int m = n - 2 < 2 ? n - 2 : 2;
     o = 0;
     if (m & 2) {
-      *(RG_L(rg_vp2) *)(p + 0 * stride + 2 + o) = ((const RG_L(rg_vp2) *)&r[2])[(0 + o) / 2];
-      *(RG_L(rg_vp2) *)(p + 2 * stride + 2 + o) = ((const RG_L(rg_vp2) *)&r[2])[(2 + o) / 2];
-      *(RG_L(rg_vp2) *)(p + 1 * stride + 2 + o) = ((const RG_L(rg_vp2) *)&r[3])[(0 + o) / 2];
-      *(RG_L(rg_vp2) *)(p + 3 * stride + 2 + o) = ((const RG_L(rg_vp2) *)&r[3])[(2 + o) / 2];
+      *(RG_L(rg_vh) *)(p + 0 * stride + 2 + o) = ((const RG_L(rg_vh) *)&r[2])[(0 + o) / 2];
+      *(RG_L(rg_vh) *)(p + 2 * stride + 2 + o) = ((const RG_L(rg_vh) *)&r[2])[(2 + o) / 2];
+      *(RG_L(rg_vh) *)(p + 1 * stride + 2 + o) = ((const RG_L(rg_vh) *)&r[3])[(0 + o) / 2];
+      *(RG_L(rg_vh) *)(p + 3 * stride + 2 + o) = ((const RG_L(rg_vh) *)&r[3])[(2 + o) / 2];
       o += 2;
     }
     if (m & 1) {
