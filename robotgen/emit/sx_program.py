@@ -132,10 +132,19 @@ def _shared_reciprocals(steps: tuple[Instruction, ...]) -> tuple[Instruction, ..
     """Divisions by one value (a register between two writes) that occurs more than once
     become multiplications by its reciprocal, formed once right after the value: a triangular
     solve with many right-hand sides (M^-1 B) would otherwise divide by L's diagonal in every
-    column, and a division costs several multiplications. New registers are numbered above
-    CasADi's, each written once."""
+    column, and a division costs several multiplications. A reciprocal the program already
+    forms (OP_INV) counts as one such division and becomes a copy of the shared one, so that
+    no value is divided into 1 twice. New registers are numbered above CasADi's, each written
+    once."""
     defs = defining_steps(steps)
-    divisors = [(step.args[1], defs[k][1]) if step.op == ca.OP_DIV else None for k, step in enumerate(steps)]
+    divisors = [
+        (step.args[1], defs[k][1])
+        if step.op == ca.OP_DIV
+        else (step.args[0], defs[k][0])
+        if step.op == ca.OP_INV
+        else None
+        for k, step in enumerate(steps)
+    ]
     uses: dict[tuple[int, int], int] = {}
     for key in filter(None, divisors):
         uses[key] = uses.get(key, 0) + 1
@@ -157,7 +166,10 @@ def _shared_reciprocals(steps: tuple[Instruction, ...]) -> tuple[Instruction, ..
     for k, step in enumerate(steps):
         divisor = divisors[k]
         if divisor is not None and divisor in reciprocal:
-            step = Instruction(ca.OP_MUL, step.target, (step.args[0], reciprocal[divisor]))
+            if step.op == ca.OP_INV:
+                step = Instruction(ca.OP_ASSIGN, step.target, (reciprocal[divisor],))
+            else:
+                step = Instruction(ca.OP_MUL, step.target, (step.args[0], reciprocal[divisor]))
         out.append(step)
         if (step.target, k) in shared:
             add_reciprocal(step.target, k)

@@ -507,7 +507,6 @@ int two_link_forward_dynamics(const double *q, const double *qd, const double *t
   w37 = 1.0 / w36;
   w20 = w10 - w19;
   w40 = w39 < w36;
-  w38 = 1.0 / w36;
   w21 = w5 * w20;
   w28 = w21 - w27;
   w56 = w55 - w21;
@@ -515,6 +514,7 @@ int two_link_forward_dynamics(const double *q, const double *qd, const double *t
   w30 = w0 - w29;
   w45 = w44 * w37;
   w54 = w43 * w37;
+  w38 = w37;
   w46 = w32 - w45;
   w57 = w54 * w30;
   w59 = 1.0 / w46;
@@ -824,7 +824,6 @@ int two_link_forward_dynamics_derivatives(const double *q, const double *qd, con
   w21 = 1.0 / w20;
   w72 = w70 - w71;
   w24 = w23 < w20;
-  w22 = 1.0 / w20;
   w64 = w55 + w63;
   w14 = w6 - w13;
   w97 = w9 * w63;
@@ -836,6 +835,7 @@ int two_link_forward_dynamics_derivatives(const double *q, const double *qd, con
   w79 = w66 - w78;
   w29 = w28 * w21;
   w38 = w27 * w21;
+  w22 = w21;
   w30 = w16 - w29;
   w83 = w38 * w79;
   w41 = w38 * w14;
@@ -952,9 +952,9 @@ int two_link_mass_inverse(const double *q, double *mass_inverse) {
   w15 = w14 * w14;
   w8 = 1.0 / w7;
   w11 = w10 < w7;
-  w9 = 1.0 / w7;
   w16 = w15 * w8;
   w24 = w14 * w8;
+  w9 = w8;
   w17 = w1 - w16;
   w25 = 1.0 / w17;
   w18 = w10 < w17;
@@ -1044,7 +1044,6 @@ int two_link_discrete_dynamics(const double *q, const double *qd, const double *
   w38 = 1.0 / w37;
   w21 = w12 - w20;
   w41 = w40 < w37;
-  w39 = 1.0 / w37;
   w22 = w7 * w21;
   w29 = w22 - w28;
   w57 = w56 - w22;
@@ -1052,6 +1051,7 @@ int two_link_discrete_dynamics(const double *q, const double *qd, const double *
   w31 = w3 - w30;
   w46 = w45 * w38;
   w55 = w44 * w38;
+  w39 = w38;
   w47 = w33 - w46;
   w58 = w55 * w31;
   w60 = 1.0 / w47;
@@ -1180,7 +1180,6 @@ int two_link_discrete_dynamics_derivatives(const double *q, const double *qd, co
   w38 = 1.0 / w37;
   w21 = w12 - w20;
   w41 = w40 < w37;
-  w39 = 1.0 / w37;
   w102 = w99 + w101;
   w85 = w80 - w84;
   w113 = w9 * w101;
@@ -1192,6 +1191,7 @@ int two_link_discrete_dynamics_derivatives(const double *q, const double *qd, co
   w31 = w3 - w30;
   w46 = w45 * w38;
   w55 = w44 * w38;
+  w39 = w38;
   w47 = w33 - w46;
   w58 = w55 * w31;
   w89 = w55 * w85;
@@ -2108,7 +2108,6 @@ static RG_TARGET void RG_L(rgl_forward_dynamics)(const rg_v *q, const rg_v *qd, 
   w37 = RG_SPLAT(1.0) / w36;
   w20 = w10 - w19;
   for (rg_l = 0; rg_l < RG_W; ++rg_l) w40[rg_l] = w39[rg_l] < w36[rg_l];
-  w38 = RG_SPLAT(1.0) / w36;
   w21 = w5 * w20;
   w28 = w21 - w27;
   w56 = w55 - w21;
@@ -2116,6 +2115,7 @@ static RG_TARGET void RG_L(rgl_forward_dynamics)(const rg_v *q, const rg_v *qd, 
   w30 = w0 - w29;
   w45 = w44 * w37;
   w54 = w43 * w37;
+  w38 = w37;
   w46 = w32 - w45;
   w57 = w54 * w30;
   w59 = RG_SPLAT(1.0) / w46;
@@ -2461,7 +2461,6 @@ static RG_TARGET void RG_L(rgl_forward_dynamics_derivatives)(const rg_v *q, cons
   w21 = RG_SPLAT(1.0) / w20;
   w72 = w70 - w71;
   for (rg_l = 0; rg_l < RG_W; ++rg_l) w24[rg_l] = w23[rg_l] < w20[rg_l];
-  w22 = RG_SPLAT(1.0) / w20;
   w64 = w55 + w63;
   w14 = w6 - w13;
   w97 = w9 * w63;
@@ -2473,6 +2472,7 @@ static RG_TARGET void RG_L(rgl_forward_dynamics_derivatives)(const rg_v *q, cons
   w79 = w66 - w78;
   w29 = w28 * w21;
   w38 = w27 * w21;
+  w22 = w21;
   w30 = w16 - w29;
   w83 = w38 * w79;
   w41 = w38 * w14;
@@ -2669,9 +2669,9 @@ static RG_TARGET void RG_L(rgl_mass_inverse)(const rg_v *q, rg_v *mass_inverse) 
   w15 = w14 * w14;
   w8 = RG_SPLAT(1.0) / w7;
   for (rg_l = 0; rg_l < RG_W; ++rg_l) w11[rg_l] = w10[rg_l] < w7[rg_l];
-  w9 = RG_SPLAT(1.0) / w7;
   w16 = w15 * w8;
   w24 = w14 * w8;
+  w9 = w8;
   w17 = w1 - w16;
   w25 = RG_SPLAT(1.0) / w17;
   for (rg_l = 0; rg_l < RG_W; ++rg_l) w18[rg_l] = w10[rg_l] < w17[rg_l];
@@ -2799,7 +2799,6 @@ static RG_TARGET void RG_L(rgl_discrete_dynamics)(const rg_v *q, const rg_v *qd,
   w38 = RG_SPLAT(1.0) / w37;
   w21 = w12 - w20;
   for (rg_l = 0; rg_l < RG_W; ++rg_l) w41[rg_l] = w40[rg_l] < w37[rg_l];
-  w39 = RG_SPLAT(1.0) / w37;
   w22 = w7 * w21;
   w29 = w22 - w28;
   w57 = w56 - w22;
@@ -2807,6 +2806,7 @@ static RG_TARGET void RG_L(rgl_discrete_dynamics)(const rg_v *q, const rg_v *qd,
   w31 = w3 - w30;
   w46 = w45 * w38;
   w55 = w44 * w38;
+  w39 = w38;
   w47 = w33 - w46;
   w58 = w55 * w31;
   w60 = RG_SPLAT(1.0) / w47;
@@ -3026,7 +3026,6 @@ static RG_TARGET void RG_L(rgl_discrete_dynamics_derivatives)(const rg_v *q, con
   w38 = RG_SPLAT(1.0) / w37;
   w21 = w12 - w20;
   for (rg_l = 0; rg_l < RG_W; ++rg_l) w41[rg_l] = w40[rg_l] < w37[rg_l];
-  w39 = RG_SPLAT(1.0) / w37;
   w102 = w99 + w101;
   w85 = w80 - w84;
   w113 = w9 * w101;
@@ -3038,6 +3037,7 @@ static RG_TARGET void RG_L(rgl_discrete_dynamics_derivatives)(const rg_v *q, con
   w31 = w3 - w30;
   w46 = w45 * w38;
   w55 = w44 * w38;
+  w39 = w38;
   w47 = w33 - w46;
   w58 = w55 * w31;
   w89 = w55 * w85;
@@ -3792,7 +3792,6 @@ static RG_TARGET void RG_L(rgl_forward_dynamics)(const rg_v *q, const rg_v *qd, 
   w37 = RG_SPLAT(1.0) / w36;
   w20 = w10 - w19;
   for (rg_l = 0; rg_l < RG_W; ++rg_l) w40[rg_l] = w39[rg_l] < w36[rg_l];
-  w38 = RG_SPLAT(1.0) / w36;
   w21 = w5 * w20;
   w28 = w21 - w27;
   w56 = w55 - w21;
@@ -3800,6 +3799,7 @@ static RG_TARGET void RG_L(rgl_forward_dynamics)(const rg_v *q, const rg_v *qd, 
   w30 = w0 - w29;
   w45 = w44 * w37;
   w54 = w43 * w37;
+  w38 = w37;
   w46 = w32 - w45;
   w57 = w54 * w30;
   w59 = RG_SPLAT(1.0) / w46;
@@ -4145,7 +4145,6 @@ static RG_TARGET void RG_L(rgl_forward_dynamics_derivatives)(const rg_v *q, cons
   w21 = RG_SPLAT(1.0) / w20;
   w72 = w70 - w71;
   for (rg_l = 0; rg_l < RG_W; ++rg_l) w24[rg_l] = w23[rg_l] < w20[rg_l];
-  w22 = RG_SPLAT(1.0) / w20;
   w64 = w55 + w63;
   w14 = w6 - w13;
   w97 = w9 * w63;
@@ -4157,6 +4156,7 @@ static RG_TARGET void RG_L(rgl_forward_dynamics_derivatives)(const rg_v *q, cons
   w79 = w66 - w78;
   w29 = w28 * w21;
   w38 = w27 * w21;
+  w22 = w21;
   w30 = w16 - w29;
   w83 = w38 * w79;
   w41 = w38 * w14;
@@ -4353,9 +4353,9 @@ static RG_TARGET void RG_L(rgl_mass_inverse)(const rg_v *q, rg_v *mass_inverse) 
   w15 = w14 * w14;
   w8 = RG_SPLAT(1.0) / w7;
   for (rg_l = 0; rg_l < RG_W; ++rg_l) w11[rg_l] = w10[rg_l] < w7[rg_l];
-  w9 = RG_SPLAT(1.0) / w7;
   w16 = w15 * w8;
   w24 = w14 * w8;
+  w9 = w8;
   w17 = w1 - w16;
   w25 = RG_SPLAT(1.0) / w17;
   for (rg_l = 0; rg_l < RG_W; ++rg_l) w18[rg_l] = w10[rg_l] < w17[rg_l];
@@ -4483,7 +4483,6 @@ static RG_TARGET void RG_L(rgl_discrete_dynamics)(const rg_v *q, const rg_v *qd,
   w38 = RG_SPLAT(1.0) / w37;
   w21 = w12 - w20;
   for (rg_l = 0; rg_l < RG_W; ++rg_l) w41[rg_l] = w40[rg_l] < w37[rg_l];
-  w39 = RG_SPLAT(1.0) / w37;
   w22 = w7 * w21;
   w29 = w22 - w28;
   w57 = w56 - w22;
@@ -4491,6 +4490,7 @@ static RG_TARGET void RG_L(rgl_discrete_dynamics)(const rg_v *q, const rg_v *qd,
   w31 = w3 - w30;
   w46 = w45 * w38;
   w55 = w44 * w38;
+  w39 = w38;
   w47 = w33 - w46;
   w58 = w55 * w31;
   w60 = RG_SPLAT(1.0) / w47;
@@ -4710,7 +4710,6 @@ static RG_TARGET void RG_L(rgl_discrete_dynamics_derivatives)(const rg_v *q, con
   w38 = RG_SPLAT(1.0) / w37;
   w21 = w12 - w20;
   for (rg_l = 0; rg_l < RG_W; ++rg_l) w41[rg_l] = w40[rg_l] < w37[rg_l];
-  w39 = RG_SPLAT(1.0) / w37;
   w102 = w99 + w101;
   w85 = w80 - w84;
   w113 = w9 * w101;
@@ -4722,6 +4721,7 @@ static RG_TARGET void RG_L(rgl_discrete_dynamics_derivatives)(const rg_v *q, con
   w31 = w3 - w30;
   w46 = w45 * w38;
   w55 = w44 * w38;
+  w39 = w38;
   w47 = w33 - w46;
   w58 = w55 * w31;
   w89 = w55 * w85;
@@ -5384,7 +5384,6 @@ static RG_TARGET void RG_L(rgl_forward_dynamics)(const rg_v *q, const rg_v *qd, 
   w37 = RG_SPLAT(1.0) / w36;
   w20 = w10 - w19;
   for (rg_l = 0; rg_l < RG_W; ++rg_l) w40[rg_l] = w39[rg_l] < w36[rg_l];
-  w38 = RG_SPLAT(1.0) / w36;
   w21 = w5 * w20;
   w28 = w21 - w27;
   w56 = w55 - w21;
@@ -5392,6 +5391,7 @@ static RG_TARGET void RG_L(rgl_forward_dynamics)(const rg_v *q, const rg_v *qd, 
   w30 = w0 - w29;
   w45 = w44 * w37;
   w54 = w43 * w37;
+  w38 = w37;
   w46 = w32 - w45;
   w57 = w54 * w30;
   w59 = RG_SPLAT(1.0) / w46;
@@ -5737,7 +5737,6 @@ static RG_TARGET void RG_L(rgl_forward_dynamics_derivatives)(const rg_v *q, cons
   w21 = RG_SPLAT(1.0) / w20;
   w72 = w70 - w71;
   for (rg_l = 0; rg_l < RG_W; ++rg_l) w24[rg_l] = w23[rg_l] < w20[rg_l];
-  w22 = RG_SPLAT(1.0) / w20;
   w64 = w55 + w63;
   w14 = w6 - w13;
   w97 = w9 * w63;
@@ -5749,6 +5748,7 @@ static RG_TARGET void RG_L(rgl_forward_dynamics_derivatives)(const rg_v *q, cons
   w79 = w66 - w78;
   w29 = w28 * w21;
   w38 = w27 * w21;
+  w22 = w21;
   w30 = w16 - w29;
   w83 = w38 * w79;
   w41 = w38 * w14;
@@ -5945,9 +5945,9 @@ static RG_TARGET void RG_L(rgl_mass_inverse)(const rg_v *q, rg_v *mass_inverse) 
   w15 = w14 * w14;
   w8 = RG_SPLAT(1.0) / w7;
   for (rg_l = 0; rg_l < RG_W; ++rg_l) w11[rg_l] = w10[rg_l] < w7[rg_l];
-  w9 = RG_SPLAT(1.0) / w7;
   w16 = w15 * w8;
   w24 = w14 * w8;
+  w9 = w8;
   w17 = w1 - w16;
   w25 = RG_SPLAT(1.0) / w17;
   for (rg_l = 0; rg_l < RG_W; ++rg_l) w18[rg_l] = w10[rg_l] < w17[rg_l];
@@ -6075,7 +6075,6 @@ static RG_TARGET void RG_L(rgl_discrete_dynamics)(const rg_v *q, const rg_v *qd,
   w38 = RG_SPLAT(1.0) / w37;
   w21 = w12 - w20;
   for (rg_l = 0; rg_l < RG_W; ++rg_l) w41[rg_l] = w40[rg_l] < w37[rg_l];
-  w39 = RG_SPLAT(1.0) / w37;
   w22 = w7 * w21;
   w29 = w22 - w28;
   w57 = w56 - w22;
@@ -6083,6 +6082,7 @@ static RG_TARGET void RG_L(rgl_discrete_dynamics)(const rg_v *q, const rg_v *qd,
   w31 = w3 - w30;
   w46 = w45 * w38;
   w55 = w44 * w38;
+  w39 = w38;
   w47 = w33 - w46;
   w58 = w55 * w31;
   w60 = RG_SPLAT(1.0) / w47;
@@ -6302,7 +6302,6 @@ static RG_TARGET void RG_L(rgl_discrete_dynamics_derivatives)(const rg_v *q, con
   w38 = RG_SPLAT(1.0) / w37;
   w21 = w12 - w20;
   for (rg_l = 0; rg_l < RG_W; ++rg_l) w41[rg_l] = w40[rg_l] < w37[rg_l];
-  w39 = RG_SPLAT(1.0) / w37;
   w102 = w99 + w101;
   w85 = w80 - w84;
   w113 = w9 * w101;
@@ -6314,6 +6313,7 @@ static RG_TARGET void RG_L(rgl_discrete_dynamics_derivatives)(const rg_v *q, con
   w31 = w3 - w30;
   w46 = w45 * w38;
   w55 = w44 * w38;
+  w39 = w38;
   w47 = w33 - w46;
   w58 = w55 * w31;
   w89 = w55 * w85;
