@@ -8,11 +8,9 @@ keeps each copy's functions apart)."""
 from __future__ import annotations
 
 VECTOR = "rg_v"  # W values of the module's type (GCC/Clang vector extension)
-INT_VECTOR = "rg_vi"  # W ints (the sin/cos quadrants)
 MASK_VECTOR = "rg_vm"  # what comparing two rg_v gives: W integers of the type's size, all ones or zero
 WIDTH = "RG_W"  # W, the number of lanes
 SPLAT = "RG_SPLAT"  # RG_SPLAT(x): x in every lane
-INT_SPLAT = "RG_ISPLAT"
 TARGET = "RG_TARGET"  # __attribute__((target("avx2"))), or nothing
 PER_WIDTH = "RG_L"  # RG_L(name): the name of this width's copy
 LANE_INDEX = "rg_l"  # the loop over lanes of an operation printed lane by lane

@@ -136,15 +136,13 @@ def width_open(width: Width, precision: Precision, sizes: tuple[int, ...] = ()) 
     isa = f'target("{width.target}")' if width.target else ""
     target = f"__attribute__(({isa}))" if isa else ""
     gcc_target = f'__attribute__(({isa + ", " if isa else ""}optimize("fp-contract=off")))'
-    vector, integers = f"rg_v_{width.name}", f"rg_vi_{width.name}"
+    vector = f"rg_v_{width.name}"
     return (
         "\n".join(
             [
                 f"#if defined({width.guard})",
                 f"typedef {precision.real} {vector} __attribute__((vector_size({width.vector_bytes})));",
-                f"typedef int {integers} __attribute__((vector_size({4 * w})));",
                 f"#define {lane_names.VECTOR} {vector}",
-                f"#define {lane_names.INT_VECTOR} {integers}",
                 # what a comparison gives: a type of its own in Clang; in GCC an opaque type that
                 # converts to this one (which its shuffles take as their mask)
                 "#if defined(__clang__)",
@@ -156,7 +154,6 @@ def width_open(width: Width, precision: Precision, sizes: tuple[int, ...] = ()) 
                 f"#define {lane_names.MASK_VECTOR} rg_vm_{width.name}",
                 f"#define {lane_names.WIDTH} {w}",
                 f"#define {lane_names.SPLAT}(x) (({lane_names.VECTOR}){{{splat}}})",
-                f"#define {lane_names.INT_SPLAT}(x) (({lane_names.INT_VECTOR}){{{splat}}})",
                 "#if defined(__clang__)",
                 f"#define {lane_names.TARGET} {target}".rstrip(),
                 "#else",
@@ -400,11 +397,9 @@ def width_close() -> str:
     """The end of one width's copy of the lane code: its names undefined, its guard closed."""
     names = (
         lane_names.VECTOR,
-        lane_names.INT_VECTOR,
         lane_names.MASK_VECTOR,
         lane_names.WIDTH,
         lane_names.SPLAT,
-        lane_names.INT_SPLAT,
         lane_names.TARGET,
         lane_names.PER_WIDTH,
     )

@@ -231,13 +231,11 @@ def lane_helper_source(real: str = "double") -> str:
     t = ROUTINES[real]
     f = t.suffix
     p1, p2, p3 = t.parts
-    v, vi, mask = lane_names.VECTOR, lane_names.INT_VECTOR, lane_names.MASK_VECTOR
+    v, mask = lane_names.VECTOR, lane_names.MASK_VECTOR
+    magic = 52 if real == "double" else 23  # the type's fraction bits: past 2^magic, reals are integers
 
     def k(value) -> str:
         return lane_names.splat(t.literal(value))
-
-    def i(text: str) -> str:
-        return f"{lane_names.INT_SPLAT}({text})"
 
     def within(x: str) -> str:
         return f"({x} <= {k(t.above)}) & ({x} >= {k(-t.above)})"
@@ -250,11 +248,16 @@ def lane_helper_source(real: str = "double") -> str:
                 "/* rg_sincos2's reduction, polynomials and quadrant on every lane of one angle x, "
                 "|x| <= the bound. */",
                 f"static {lane_names.TARGET} void {one}(const {v} *x, {v} *s, {v} *c) {{",
-                f"  {v} y, k, r, z, z2, {'z4, ' if t.needs_z4 else ''}ps, pc, sr, cr, w, ss, sc;",
-                f"  {vi} n;",
+                f"  {v} y, t, f, k, r, z, z2, {'z4, ' if t.needs_z4 else ''}ps, pc, sr, cr;",
+                f"  {mask} up, n, w, sign_s, sign_c;",
                 f"  y = *x * {k(2 / _PI)} + {k(t.offset)};",
-                f"  n = __builtin_convertvector(y, {vi});",
-                f"  k = __builtin_convertvector(n, {v}) - {k(t.offset - 0.5)};",
+                f"  /* floor(y), rg_sincos2's (int)y, without a conversion: y + 2^{magic} is y rounded to an",
+                "   * integer, one less where that is above y; n's low bits are the floor's */",
+                f"  t = y + {k(2.0**magic)};",
+                f"  f = t - {k(2.0**magic)};",
+                "  up = f > y;",
+                f"  n = ({mask})t + up;",
+                f"  k = (f - ({v})(up & ({mask}){k(1.0)})) - {k(t.offset - 0.5)};",
                 f"  r = ((*x - k * {k(p1)}) - k * {k(p2)}) - k * {k(p3)};",
                 "  z = r * r;",
                 "  z2 = z * z;",
@@ -263,11 +266,14 @@ def lane_helper_source(real: str = "double") -> str:
                 f"  pc = {t.polynomial(t.cos_terms, lane_names.splat).replace('[l]', '')};",
                 "  sr = r + (r * z) * ps;",
                 f"  cr = {k(1.0)} + z * pc;",
-                f"  w = __builtin_convertvector(n & {i('1')}, {v});",
-                f"  ss = __builtin_convertvector({i('1')} - (n & {i('2')}), {v});",
-                f"  sc = __builtin_convertvector({i('1')} - ((n + {i('1')}) & {i('2')}), {v});",
-                f"  *s = ss * (sr * ({k(1.0)} - w) + cr * w);",
-                f"  *c = sc * (cr * ({k(1.0)} - w) + sr * w);",
+                "  /* quadrant n mod 4: odd (w all ones) swaps sin and cos; bit 1 negates sin, bit 1 of n + 1",
+                "   * (bit 1 xor bit 0) cos. rg_sincos2's ss (sr (1 - w) + cr w) bit for bit: cr > 0, and sr",
+                "   * is never -0 */",
+                "  w = -(n & 1);",
+                f"  sign_s = -((n >> 1) & 1) & ({mask}){k(-0.0)};",
+                f"  sign_c = sign_s ^ (w & ({mask}){k(-0.0)});",
+                f"  *s = ({v})(((({mask})sr & ~w) | (({mask})cr & w)) ^ sign_s);",
+                f"  *c = ({v})(((({mask})cr & ~w) | (({mask})sr & w)) ^ sign_c);",
                 "}",
                 "",
                 "/* rg_sincos2 on every lane: two angles of W states, each lane computed as rg_sincos2 computes it. */",

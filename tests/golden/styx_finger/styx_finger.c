@@ -1035,9 +1035,7 @@ not_finite:
 
 #if defined(RG_LANES_X86)
 typedef double rg_v_avx512 __attribute__((vector_size(64)));
-typedef int rg_vi_avx512 __attribute__((vector_size(32)));
 #define rg_v rg_v_avx512
-#define rg_vi rg_vi_avx512
 #if defined(__clang__)
 typedef __typeof__((rg_v_avx512){0} < (rg_v_avx512){0}) rg_vm_avx512;
 #else
@@ -1046,7 +1044,6 @@ typedef long long rg_vm_avx512 __attribute__((vector_size(64)));
 #define rg_vm rg_vm_avx512
 #define RG_W 8
 #define RG_SPLAT(x) ((rg_v){(x), (x), (x), (x), (x), (x), (x), (x)})
-#define RG_ISPLAT(x) ((rg_vi){(x), (x), (x), (x), (x), (x), (x), (x)})
 #if defined(__clang__)
 #define RG_TARGET __attribute__((target("avx512f")))
 #else
@@ -1369,11 +1366,16 @@ static inline RG_TARGET __attribute__((unused)) void RG_L(rg_deinterleave2)(rg_v
 
 /* rg_sincos2's reduction, polynomials and quadrant on every lane of one angle x, |x| <= the bound. */
 static RG_TARGET void RG_L(rg_sincos1)(const rg_v *x, rg_v *s, rg_v *c) {
-  rg_v y, k, r, z, z2, z4, ps, pc, sr, cr, w, ss, sc;
-  rg_vi n;
+  rg_v y, t, f, k, r, z, z2, z4, ps, pc, sr, cr;
+  rg_vm up, n, w, sign_s, sign_c;
   y = *x * RG_SPLAT(0.6366197723675814) + RG_SPLAT(65536.5);
-  n = __builtin_convertvector(y, rg_vi);
-  k = __builtin_convertvector(n, rg_v) - RG_SPLAT(65536.0);
+  /* floor(y), rg_sincos2's (int)y, without a conversion: y + 2^52 is y rounded to an
+   * integer, one less where that is above y; n's low bits are the floor's */
+  t = y + RG_SPLAT(4503599627370496.0);
+  f = t - RG_SPLAT(4503599627370496.0);
+  up = f > y;
+  n = (rg_vm)t + up;
+  k = (f - (rg_v)(up & (rg_vm)RG_SPLAT(1.0))) - RG_SPLAT(65536.0);
   r = ((*x - k * RG_SPLAT(1.5707963267341256)) - k * RG_SPLAT(6.077100506303966e-11)) - k * RG_SPLAT(2.0222662487959506e-21);
   z = r * r;
   z2 = z * z;
@@ -1382,11 +1384,14 @@ static RG_TARGET void RG_L(rg_sincos1)(const rg_v *x, rg_v *s, rg_v *c) {
   pc = ((RG_SPLAT(-0.5) + z * RG_SPLAT(0.0416666666666666)) + z2 * (RG_SPLAT(-0.001388888888887411) + z * RG_SPLAT(2.480158728947673e-05))) + z4 * ((RG_SPLAT(-2.7557314351390663e-07) + z * RG_SPLAT(2.087572321298175e-09)) + z2 * RG_SPLAT(-1.1359647557788195e-11));
   sr = r + (r * z) * ps;
   cr = RG_SPLAT(1.0) + z * pc;
-  w = __builtin_convertvector(n & RG_ISPLAT(1), rg_v);
-  ss = __builtin_convertvector(RG_ISPLAT(1) - (n & RG_ISPLAT(2)), rg_v);
-  sc = __builtin_convertvector(RG_ISPLAT(1) - ((n + RG_ISPLAT(1)) & RG_ISPLAT(2)), rg_v);
-  *s = ss * (sr * (RG_SPLAT(1.0) - w) + cr * w);
-  *c = sc * (cr * (RG_SPLAT(1.0) - w) + sr * w);
+  /* quadrant n mod 4: odd (w all ones) swaps sin and cos; bit 1 negates sin, bit 1 of n + 1
+   * (bit 1 xor bit 0) cos. rg_sincos2's ss (sr (1 - w) + cr w) bit for bit: cr > 0, and sr
+   * is never -0 */
+  w = -(n & 1);
+  sign_s = -((n >> 1) & 1) & (rg_vm)RG_SPLAT(-0.0);
+  sign_c = sign_s ^ (w & (rg_vm)RG_SPLAT(-0.0));
+  *s = (rg_v)((((rg_vm)sr & ~w) | ((rg_vm)cr & w)) ^ sign_s);
+  *c = (rg_v)((((rg_vm)cr & ~w) | ((rg_vm)sr & w)) ^ sign_c);
 }
 
 /* rg_sincos2 on every lane: two angles of W states, each lane computed as rg_sincos2 computes it. */
@@ -2786,11 +2791,9 @@ static RG_TARGET int RG_L(rgb_discrete_dynamics_derivatives)(int n, const double
   return rg_status;
 }
 #undef rg_v
-#undef rg_vi
 #undef rg_vm
 #undef RG_W
 #undef RG_SPLAT
-#undef RG_ISPLAT
 #undef RG_TARGET
 #undef RG_L
 #endif
@@ -2798,9 +2801,7 @@ static RG_TARGET int RG_L(rgb_discrete_dynamics_derivatives)(int n, const double
 
 #if defined(RG_LANES_X86)
 typedef double rg_v_avx2 __attribute__((vector_size(32)));
-typedef int rg_vi_avx2 __attribute__((vector_size(16)));
 #define rg_v rg_v_avx2
-#define rg_vi rg_vi_avx2
 #if defined(__clang__)
 typedef __typeof__((rg_v_avx2){0} < (rg_v_avx2){0}) rg_vm_avx2;
 #else
@@ -2809,7 +2810,6 @@ typedef long long rg_vm_avx2 __attribute__((vector_size(32)));
 #define rg_vm rg_vm_avx2
 #define RG_W 4
 #define RG_SPLAT(x) ((rg_v){(x), (x), (x), (x)})
-#define RG_ISPLAT(x) ((rg_vi){(x), (x), (x), (x)})
 #if defined(__clang__)
 #define RG_TARGET __attribute__((target("avx2")))
 #else
@@ -2977,11 +2977,16 @@ static inline RG_TARGET __attribute__((unused)) void RG_L(rg_deinterleave2)(rg_v
 
 /* rg_sincos2's reduction, polynomials and quadrant on every lane of one angle x, |x| <= the bound. */
 static RG_TARGET void RG_L(rg_sincos1)(const rg_v *x, rg_v *s, rg_v *c) {
-  rg_v y, k, r, z, z2, z4, ps, pc, sr, cr, w, ss, sc;
-  rg_vi n;
+  rg_v y, t, f, k, r, z, z2, z4, ps, pc, sr, cr;
+  rg_vm up, n, w, sign_s, sign_c;
   y = *x * RG_SPLAT(0.6366197723675814) + RG_SPLAT(65536.5);
-  n = __builtin_convertvector(y, rg_vi);
-  k = __builtin_convertvector(n, rg_v) - RG_SPLAT(65536.0);
+  /* floor(y), rg_sincos2's (int)y, without a conversion: y + 2^52 is y rounded to an
+   * integer, one less where that is above y; n's low bits are the floor's */
+  t = y + RG_SPLAT(4503599627370496.0);
+  f = t - RG_SPLAT(4503599627370496.0);
+  up = f > y;
+  n = (rg_vm)t + up;
+  k = (f - (rg_v)(up & (rg_vm)RG_SPLAT(1.0))) - RG_SPLAT(65536.0);
   r = ((*x - k * RG_SPLAT(1.5707963267341256)) - k * RG_SPLAT(6.077100506303966e-11)) - k * RG_SPLAT(2.0222662487959506e-21);
   z = r * r;
   z2 = z * z;
@@ -2990,11 +2995,14 @@ static RG_TARGET void RG_L(rg_sincos1)(const rg_v *x, rg_v *s, rg_v *c) {
   pc = ((RG_SPLAT(-0.5) + z * RG_SPLAT(0.0416666666666666)) + z2 * (RG_SPLAT(-0.001388888888887411) + z * RG_SPLAT(2.480158728947673e-05))) + z4 * ((RG_SPLAT(-2.7557314351390663e-07) + z * RG_SPLAT(2.087572321298175e-09)) + z2 * RG_SPLAT(-1.1359647557788195e-11));
   sr = r + (r * z) * ps;
   cr = RG_SPLAT(1.0) + z * pc;
-  w = __builtin_convertvector(n & RG_ISPLAT(1), rg_v);
-  ss = __builtin_convertvector(RG_ISPLAT(1) - (n & RG_ISPLAT(2)), rg_v);
-  sc = __builtin_convertvector(RG_ISPLAT(1) - ((n + RG_ISPLAT(1)) & RG_ISPLAT(2)), rg_v);
-  *s = ss * (sr * (RG_SPLAT(1.0) - w) + cr * w);
-  *c = sc * (cr * (RG_SPLAT(1.0) - w) + sr * w);
+  /* quadrant n mod 4: odd (w all ones) swaps sin and cos; bit 1 negates sin, bit 1 of n + 1
+   * (bit 1 xor bit 0) cos. rg_sincos2's ss (sr (1 - w) + cr w) bit for bit: cr > 0, and sr
+   * is never -0 */
+  w = -(n & 1);
+  sign_s = -((n >> 1) & 1) & (rg_vm)RG_SPLAT(-0.0);
+  sign_c = sign_s ^ (w & (rg_vm)RG_SPLAT(-0.0));
+  *s = (rg_v)((((rg_vm)sr & ~w) | ((rg_vm)cr & w)) ^ sign_s);
+  *c = (rg_v)((((rg_vm)cr & ~w) | ((rg_vm)sr & w)) ^ sign_c);
 }
 
 /* rg_sincos2 on every lane: two angles of W states, each lane computed as rg_sincos2 computes it. */
@@ -4394,11 +4402,9 @@ static RG_TARGET int RG_L(rgb_discrete_dynamics_derivatives)(int n, const double
   return rg_status;
 }
 #undef rg_v
-#undef rg_vi
 #undef rg_vm
 #undef RG_W
 #undef RG_SPLAT
-#undef RG_ISPLAT
 #undef RG_TARGET
 #undef RG_L
 #endif
@@ -4406,9 +4412,7 @@ static RG_TARGET int RG_L(rgb_discrete_dynamics_derivatives)(int n, const double
 
 #if defined(RG_LANES_NEON)
 typedef double rg_v_neon __attribute__((vector_size(16)));
-typedef int rg_vi_neon __attribute__((vector_size(8)));
 #define rg_v rg_v_neon
-#define rg_vi rg_vi_neon
 #if defined(__clang__)
 typedef __typeof__((rg_v_neon){0} < (rg_v_neon){0}) rg_vm_neon;
 #else
@@ -4417,7 +4421,6 @@ typedef long long rg_vm_neon __attribute__((vector_size(16)));
 #define rg_vm rg_vm_neon
 #define RG_W 2
 #define RG_SPLAT(x) ((rg_v){(x), (x)})
-#define RG_ISPLAT(x) ((rg_vi){(x), (x)})
 #if defined(__clang__)
 #define RG_TARGET
 #else
@@ -4493,11 +4496,16 @@ static inline RG_TARGET __attribute__((unused)) void RG_L(rg_deinterleave1)(rg_v
 
 /* rg_sincos2's reduction, polynomials and quadrant on every lane of one angle x, |x| <= the bound. */
 static RG_TARGET void RG_L(rg_sincos1)(const rg_v *x, rg_v *s, rg_v *c) {
-  rg_v y, k, r, z, z2, z4, ps, pc, sr, cr, w, ss, sc;
-  rg_vi n;
+  rg_v y, t, f, k, r, z, z2, z4, ps, pc, sr, cr;
+  rg_vm up, n, w, sign_s, sign_c;
   y = *x * RG_SPLAT(0.6366197723675814) + RG_SPLAT(65536.5);
-  n = __builtin_convertvector(y, rg_vi);
-  k = __builtin_convertvector(n, rg_v) - RG_SPLAT(65536.0);
+  /* floor(y), rg_sincos2's (int)y, without a conversion: y + 2^52 is y rounded to an
+   * integer, one less where that is above y; n's low bits are the floor's */
+  t = y + RG_SPLAT(4503599627370496.0);
+  f = t - RG_SPLAT(4503599627370496.0);
+  up = f > y;
+  n = (rg_vm)t + up;
+  k = (f - (rg_v)(up & (rg_vm)RG_SPLAT(1.0))) - RG_SPLAT(65536.0);
   r = ((*x - k * RG_SPLAT(1.5707963267341256)) - k * RG_SPLAT(6.077100506303966e-11)) - k * RG_SPLAT(2.0222662487959506e-21);
   z = r * r;
   z2 = z * z;
@@ -4506,11 +4514,14 @@ static RG_TARGET void RG_L(rg_sincos1)(const rg_v *x, rg_v *s, rg_v *c) {
   pc = ((RG_SPLAT(-0.5) + z * RG_SPLAT(0.0416666666666666)) + z2 * (RG_SPLAT(-0.001388888888887411) + z * RG_SPLAT(2.480158728947673e-05))) + z4 * ((RG_SPLAT(-2.7557314351390663e-07) + z * RG_SPLAT(2.087572321298175e-09)) + z2 * RG_SPLAT(-1.1359647557788195e-11));
   sr = r + (r * z) * ps;
   cr = RG_SPLAT(1.0) + z * pc;
-  w = __builtin_convertvector(n & RG_ISPLAT(1), rg_v);
-  ss = __builtin_convertvector(RG_ISPLAT(1) - (n & RG_ISPLAT(2)), rg_v);
-  sc = __builtin_convertvector(RG_ISPLAT(1) - ((n + RG_ISPLAT(1)) & RG_ISPLAT(2)), rg_v);
-  *s = ss * (sr * (RG_SPLAT(1.0) - w) + cr * w);
-  *c = sc * (cr * (RG_SPLAT(1.0) - w) + sr * w);
+  /* quadrant n mod 4: odd (w all ones) swaps sin and cos; bit 1 negates sin, bit 1 of n + 1
+   * (bit 1 xor bit 0) cos. rg_sincos2's ss (sr (1 - w) + cr w) bit for bit: cr > 0, and sr
+   * is never -0 */
+  w = -(n & 1);
+  sign_s = -((n >> 1) & 1) & (rg_vm)RG_SPLAT(-0.0);
+  sign_c = sign_s ^ (w & (rg_vm)RG_SPLAT(-0.0));
+  *s = (rg_v)((((rg_vm)sr & ~w) | ((rg_vm)cr & w)) ^ sign_s);
+  *c = (rg_v)((((rg_vm)cr & ~w) | ((rg_vm)sr & w)) ^ sign_c);
 }
 
 /* rg_sincos2 on every lane: two angles of W states, each lane computed as rg_sincos2 computes it. */
@@ -5910,11 +5921,9 @@ static RG_TARGET int RG_L(rgb_discrete_dynamics_derivatives)(int n, const double
   return rg_status;
 }
 #undef rg_v
-#undef rg_vi
 #undef rg_vm
 #undef RG_W
 #undef RG_SPLAT
-#undef RG_ISPLAT
 #undef RG_TARGET
 #undef RG_L
 #endif
