@@ -633,12 +633,30 @@ def _check_ports(kernel: Kernel) -> None:
 
 
 # Operations printed on whole vectors in a lane kernel; any other is printed lane by lane, as the
-# scalar statement on each lane (comparisons, selections, <math.h> calls), so that every lane
-# computes what the single-state function computes.
+# scalar statement on each lane (selections by sign, <math.h> calls), so that every lane computes
+# what the single-state function computes.
 _VECTOR_OPERATIONS = frozenset(
     getattr(ca, op)
     for op in ("OP_ASSIGN", "OP_ADD", "OP_SUB", "OP_MUL", "OP_DIV", "OP_NEG", "OP_SQ", "OP_TWICE", "OP_INV")
 )
+# Comparisons, logic and the selection of CasADi's if_else on whole vectors, through masks: a
+# comparison of two vectors gives all ones or zero per lane ({m}), and its bits and 1.0's give
+# the 1.0 or 0.0 that C's scalar comparison gives; a condition is true where it is not 0 (NaN
+# too, as in C). fabs clears the sign bit, as <math.h>'s does.
+_MASKED_OPERATIONS = {
+    getattr(ca, op): pattern
+    for op, pattern in {
+        "OP_LT": "({v})(({m})({0} < {1}) & ({m}){one})",
+        "OP_LE": "({v})(({m})({0} <= {1}) & ({m}){one})",
+        "OP_EQ": "({v})(({m})({0} == {1}) & ({m}){one})",
+        "OP_NE": "({v})(({m})({0} != {1}) & ({m}){one})",
+        "OP_NOT": "({v})(({m})({0} == {zero}) & ({m}){one})",
+        "OP_AND": "({v})(({m})({0} != {zero}) & ({m})({1} != {zero}) & ({m}){one})",
+        "OP_OR": "({v})((({m})({0} != {zero}) | ({m})({1} != {zero})) & ({m}){one})",
+        "OP_IF_ELSE_ZERO": "({v})(({m})({0} != {zero}) & ({m}){1})",
+        "OP_FABS": "({v})(({m}){0} & ~({m}){minus_zero})",
+    }.items()
+}
 
 
 def _statement(
@@ -658,13 +676,18 @@ def _statement(
     arity, pattern = OPERATIONS[step.op]
     if len(step.args) != arity:
         raise KernelError(f"kernel {kernel.name!r}: {step.op_name} with {len(step.args)} operands, expected {arity}")
-    whole = lanes and step.op in _VECTOR_OPERATIONS
+    if lanes and step.op in _MASKED_OPERATIONS:
+        pattern = _MASKED_OPERATIONS[step.op]
+    whole = lanes and (step.op in _VECTOR_OPERATIONS or step.op in _MASKED_OPERATIONS)
     lane = f"[{lane_names.LANE_INDEX}]" if lanes and not whole else ""
     expression = pattern.format(
         *(f"{register}{r}{lane}" for r in step.args),
         fs=precision.math_suffix,
         one=_literal(1.0, precision, whole),
         zero=_literal(0.0, precision, whole),
+        minus_zero=_literal(-0.0, precision, whole),
+        v=lane_names.VECTOR,
+        m=lane_names.MASK_VECTOR,
     )
     if lane:
         index = lane_names.LANE_INDEX

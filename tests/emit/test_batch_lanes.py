@@ -209,6 +209,78 @@ def test_branched_tree_batches_are_single_calls_bit_for_bit(tree):
     assert len(seen) > 1 or not lanes_expected()
 
 
+@pytest.mark.parametrize("precision", ["double", "float"])
+def test_comparisons_and_selections_are_masks_on_whole_vectors(tmp_path_factory, precision):
+    """A lane kernel computes comparisons, logic, if_else and fabs on whole vectors through masks
+    (no loop over lanes), and each lane still gives what C's scalar statement gives: 1.0 or 0.0,
+    a condition true where it is not 0 (NaN too), fabs(-0.0) = +0.0. The states tie, flip and
+    divide 0 by 0 lane by lane; the kernel is one the batch entry points cover (named gravity)."""
+    import casadi as ca
+
+    from robotgen.symbolic.kernel import make_kernel
+
+    q = ca.SX.sym("q", 4)
+    a, b, c, d = (q[i] for i in range(4))
+    ratio = a / b  # NaN where a = b = 0, infinite where only b is
+    values = [
+        a < b,
+        a <= b,
+        a == b,
+        a != b,
+        ca.logic_not(a),
+        ca.logic_and(a, b),
+        ca.logic_or(a, c),
+        ca.if_else(a < c, c, d),
+        ca.fabs(a),
+        ca.logic_not(ratio),
+        ca.logic_and(ratio, c),
+        ca.if_else(ratio, c, 0),
+    ]
+    kernel = make_kernel("gravity", "masks", [("q", q)], [("gravity", ca.vertcat(*values), (len(values), 1))])
+    module, kernels = built(tmp_path_factory, f"lanes_masks_{precision}", [kernel], 4, ("gravity",), precision)
+    source = open(os.path.join(os.path.dirname(module.__file__), f"lanes_masks_{precision}.c")).read()
+    lane_kernel = source[source.index("RG_L(rgl_gravity)(") :]
+    assert "rg_l < RG_W" not in lane_kernel[: lane_kernel.index("\n}")]
+    n = 1023
+    rng = np.random.default_rng(8)
+    states = rng.choice([-1.0, -0.0, 0.0, 1.0, 2.0], (n, 4))
+    expected, failed = single_calls(module.gravity, [states], n, kernel.outputs)
+    assert not failed
+    with np.errstate(divide="ignore", invalid="ignore"):
+        x, y, z, w = states.T
+        r = x / y
+        closed = np.stack(
+            [
+                x < y,
+                x <= y,
+                x == y,
+                x != y,
+                x == 0,
+                (x != 0) & (y != 0),
+                (x != 0) | (z != 0),
+                np.where(x < z, z, w),
+                np.abs(x),
+                np.zeros(n),  # !NaN and !inf are 0, as !r for r nonzero
+                (r != 0) & (z != 0),
+                np.where(r != 0, z, 0.0),
+            ],
+            axis=1,
+        ).astype(float)
+    closed[:, 9] = r == 0
+    assert np.array_equal(expected[0], closed)
+    assert not np.signbit(expected[0][:, 8]).any()  # fabs(-0.0) is +0.0
+    for cap in WIDTHS:
+        got = np.full((n, len(values)), -7.0)
+        os.environ["ROBOTGEN_BATCH_LANES"] = str(cap)
+        try:
+            module.gravity(states, out=got)
+        finally:
+            del os.environ["ROBOTGEN_BATCH_LANES"]
+        same = np.all(got.view(np.uint64) == expected[0].view(np.uint64), axis=1)
+        assert same.all(), f"lanes {cap}: states {np.flatnonzero(~same)[:8]} differ from single calls"
+    assert len(widths(module)) > 1 or not lanes_expected()
+
+
 def test_a_singular_state_in_a_batch_is_zeroed_as_its_single_call(ur5):
     """Forward dynamics at a state where M's solve overflows returns status 2 and zeros, in a
     batch as alone; the other states of its block are written."""
