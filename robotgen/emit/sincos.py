@@ -223,11 +223,13 @@ def lane_helper_source(real: str = "double") -> str:
     bound, rg_sincos1 on each angle with no test per pair (a lane kernel's angles are all
     within on nearly every call), else RG_L(rg_sincos2) pair by pair. Each lane
     takes rg_sincos2's operations in its order, so its bits: the same reduction and polynomials
-    on vectors (RG_L(rg_sincos1), one angle), the quadrant from a vector of ints, and a lane
-    whose pair has an angle past the bound (or not finite) through libm, both angles, as
-    rg_sincos2 takes that pair. The polynomials see 0 in such a lane, so that no conversion to
-    int overflows. |x| <= bound is written x <= bound and x >= -bound (the same lanes, NaN in
-    neither), so that the test stays on vectors."""
+    on vectors (RG_L(rg_sincos1), one angle), and a lane whose pair has an angle past the bound
+    (or not finite) through libm, both angles, as rg_sincos2 takes that pair. rg_sincos2's
+    (int)y and the quadrant's arithmetic have exact vector forms without a conversion between
+    ints and reals (GCC 12 splits an 8-lane one in four): the floor by adding 2^52 (2^23), and
+    the choice and signs by masks on the bits. The polynomials see 0 in a lane past the bound.
+    |x| <= bound is written x <= bound and x >= -bound (the same lanes, NaN in neither), so
+    that the test stays on vectors."""
     t = ROUTINES[real]
     f = t.suffix
     p1, p2, p3 = t.parts
