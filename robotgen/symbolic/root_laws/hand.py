@@ -197,9 +197,9 @@ class Hand:
         )
         dadz, J, dtaudz, W, M, E, rpy, omega_n = parts(q, qd, qdd)
         D, Einv = angular(rpy, omega_n)
-        Minv_dtau = cholesky_solve_matrix(M, dtaudz)
-        L = ca.vertcat(ca.SX(6, N), cholesky_solve_matrix(M, J.T).T)  # J D^-1 (M symmetric)
-        dfdz = dadz - J @ Minv_dtau  # the acceleration rows
+        J_Minv = cholesky_solve_matrix(M, J.T).T  # J D^-1 (M symmetric): L's acceleration rows
+        L = ca.vertcat(ca.SX(6, N), J_Minv)
+        dfdz = dadz - J_Minv @ dtaudz  # the acceleration rows: (J D^-1) dtau/dz, 6 columns solved, not 12
         Jinv = ca.solve(J, ca.SX.eye(N))
         A1, A2 = dfdz[:, :N], dfdz[:, N:]
         right = A2 @ Jinv
