@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import casadi as ca
 
+from robotgen.symbolic.root_laws.hand import Linearisation, acceleration_row
 from robotgen.symbolic.root_laws.resolved_adaptive import (
     NU,
     NX,
@@ -237,15 +238,18 @@ def init_schedule(
     size: int,
     offsets: dict[str, tuple[int, int, int]],
     values: dict,
+    parts: Linearisation,
     T: float,
     terms: int,
 ) -> ScheduleBuilder:
-    """The reset's state with A = exp(F T) and B = int_0^T exp(F s) ds L (hand.discretise's
-    series to ``terms`` terms) as loops: each row of each term of the series as the row of the
-    term before times F times T/k (one loop over the rows of the terms laid end to end), then each entry of A and of
-    S = sum_k term_k T/(k+1), then each row of B = S L. The prologue linearises (F, L) and
-    writes the trajectory and P_0's diagonal; c and phi stay 0. ``values``: F (12 x 12), L
-    (12 x 6), q_d, qd_d, qdd_d and P0 (its diagonal)."""
+    """The reset's state with F's acceleration rows, A = exp(F T) and B = int_0^T exp(F s) ds L
+    (hand.discretise's series to ``terms`` terms) as loops: each acceleration row of F
+    (hand.acceleration_row, a 6 x 12 and three 6 x 6 products), then each row of each term of
+    the series as the row of the term before times F times T/k (one loop over the rows of the
+    terms laid end to end), then each entry of A and of S = sum_k term_k T/(k+1), then each row
+    of B = S L. The prologue writes the linearisation's ``parts`` (hand.linearisation_parts),
+    the trajectory and P_0's diagonal; c and phi stay 0. ``values``: q_d, qd_d, qdd_d and P0
+    (its diagonal)."""
     b = ScheduleBuilder(inputs, [size])
     n = offsets["P"][1]
 
@@ -255,8 +259,28 @@ def init_schedule(
     for name in ("q_d", "qd_d", "qdd_d"):
         b.prologue(new(name), values[name])
     b.prologue(Slice(OUTPUT, 0, offsets["P"][0], 0, 0, n + 1), values["P0"])
-    f = b.local(ca.densify(values["F"]).T)  # row-major
-    l_matrix = b.local(ca.densify(values["L"]).T)
+    f = b.local(size=NX * NX)  # F row-major: (p, Phi)'s rows here, the acceleration rows by the loop
+    b.prologue(Slice(LOCAL, f), ca.densify(parts.top).T)
+    read = (parts.dadz, parts.J_Minv, parts.dtaudz, parts.W, parts.Jinv, parts.E)
+    matrices = [b.local(ca.densify(m).T) for m in read]  # row-major
+    dadz_row, jm_row = ca.SX.sym("dadz_row", NX), ca.SX.sym("jm_row", NU)
+    dtaudz, w, jinv, e = ca.SX.sym("dtaudz", NU * NX), ca.SX.sym("W", 36), ca.SX.sym("Jinv", 36), ca.SX.sym("E", 9)
+    row_of_f = acceleration_row(
+        dadz_row.T,
+        jm_row.T,
+        ca.reshape(dtaudz, NX, NU).T,
+        ca.reshape(w, NU, NU).T,
+        ca.reshape(jinv, NU, NU).T,
+        ca.reshape(e, 3, 3).T,
+    )
+    b.loop(
+        body("acceleration_row", [dadz_row, jm_row, dtaudz, w, jinv, e], [row_of_f.T]),
+        RANGE,
+        NU,
+        [Slice(LOCAL, matrices[0], 0, NX), Slice(LOCAL, matrices[1], 0, NU), *(Slice(LOCAL, m) for m in matrices[2:])],
+        [Slice(LOCAL, f, NU * NX, NX)],
+    )
+    l_matrix = b.local(ca.densify(parts.L).T)
     series = b.local(ca.vertcat(ca.vec(ca.DM.eye(NX)), ca.SX.zeros((terms - 1) * NX * NX)))  # term_0 = I, then 0
     # row r of term k + 1 is row 12 k + r of the terms laid end to end: one RANGE over i = 12 k + r
     factors = b.local(ca.DM([T / k for k in range(1, terms) for _ in range(NX)]))

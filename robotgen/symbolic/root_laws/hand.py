@@ -160,7 +160,13 @@ class Hand:
 
     def linearisation(self, q: ca.SX, qd: ca.SX, qdd: ca.SX) -> tuple[ca.SX, ca.SX]:
         """F = df/dx and L = df/du (eqs 24-28) at the nominal (q, qd) with u the Newton-Euler
-        torque of the nominal acceleration qdd, by AD.
+        torque of the nominal acceleration qdd: linearisation_parts, and F's acceleration rows
+        one by one (acceleration_row)."""
+        parts = self.linearisation_parts(q, qd, qdd)
+        return parts.F, parts.L
+
+    def linearisation_parts(self, q: ca.SX, qd: ca.SX, qdd: ca.SX) -> Linearisation:
+        """What F and L are made of, by AD (Linearisation).
 
         f depends on u through qdd = D^-1 (u - H - G) (eq 15); rather than differentiate that
         solve, the derivatives of qdd come from Newton-Euler's: dqdd/dz = -D^-1 dtau/dz at
@@ -197,15 +203,49 @@ class Hand:
         )
         dadz, J, dtaudz, W, M, E, rpy, omega_n = parts(q, qd, qdd)
         D, Einv = angular(rpy, omega_n)
-        J_Minv = cholesky_solve_matrix(M, J.T).T  # J D^-1 (M symmetric): L's acceleration rows
-        L = ca.vertcat(ca.SX(6, N), J_Minv)
-        dfdz = dadz - J_Minv @ dtaudz  # the acceleration rows: (J D^-1) dtau/dz, 6 columns solved, not 12
-        Jinv = ca.solve(J, ca.SX.eye(N))
-        A1, A2 = dfdz[:, :N], dfdz[:, N:]
-        right = A2 @ Jinv
-        left = (A1 - right @ W) @ Jinv @ ca.diagcat(ca.SX.eye(3), E)
         top = ca.blockcat([[ca.SX(3, 6), ca.SX.eye(3), ca.SX(3, 3)], [ca.SX(3, 3), D, ca.SX(3, 3), Einv]])
-        return ca.vertcat(top, ca.horzcat(left, right)), L
+        J_Minv = cholesky_solve_matrix(M, J.T).T  # J D^-1 (M symmetric)
+        return Linearisation(top, dadz, J_Minv, dtaudz, W, ca.solve(J, ca.SX.eye(N)), E)
+
+
+@dataclasses.dataclass(frozen=True)
+class Linearisation:
+    """F and L's parts at the nominal: F's rows of (p, Phi) ``top`` (6 x 12), the derivatives
+    of the hand acceleration at the nominal qdd and of the Newton-Euler torques with respect to
+    z = (q, qd) (``dadz``, ``dtaudz``, 6 x 12), J D^-1 (``J_Minv``, L's acceleration rows),
+    W = d(J qd)/dq, J^-1 (``Jinv``) and the Euler-rate map E (eq 7)."""
+
+    top: ca.SX
+    dadz: ca.SX
+    J_Minv: ca.SX
+    dtaudz: ca.SX
+    W: ca.SX
+    Jinv: ca.SX
+    E: ca.SX
+
+    @property
+    def F(self) -> ca.SX:
+        """df/dx: ``top`` over the acceleration rows, each by acceleration_row."""
+        rows = [
+            acceleration_row(self.dadz[i, :], self.J_Minv[i, :], self.dtaudz, self.W, self.Jinv, self.E)
+            for i in range(N)
+        ]
+        return ca.vertcat(self.top, *rows)
+
+    @property
+    def L(self) -> ca.SX:
+        """df/du: zero over J D^-1."""
+        return ca.vertcat(ca.SX(6, N), self.J_Minv)
+
+
+def acceleration_row(dadz: ca.SX, J_Minv: ca.SX, dtaudz: ca.SX, W: ca.SX, Jinv: ca.SX, E: ca.SX) -> ca.SX:
+    """Row i of F's acceleration rows (1 x 12) from row i of dadz and of J D^-1: the row of
+    df/dz = da/dz - (J D^-1) dtau/dz, then times (dx/dz)^-1 (linearisation_parts):
+    [(df/dq - right W) J^-1 T^-1, right] with right = df/dqd J^-1."""
+    dfdz = dadz - J_Minv @ dtaudz
+    right = dfdz[:, N:] @ Jinv
+    left = (dfdz[:, :N] - right @ W) @ Jinv @ ca.diagcat(ca.SX.eye(3), E)
+    return ca.horzcat(left, right)
 
 
 HAND_POSE, HAND_DISTANCE = "hand_pose", "hand_distance"

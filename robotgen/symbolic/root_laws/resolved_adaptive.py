@@ -52,7 +52,15 @@ from robotgen.symbolic.leaf_kernels import leaf_kernels
 from robotgen.symbolic.op_count import count_operations
 from robotgen.symbolic.rigid_body.cholesky import cholesky_solve
 from robotgen.symbolic.rigid_body.rpy import rpy_of
-from robotgen.symbolic.root_laws.hand import Hand, discretise, hand_kernels, pose_rows, start_check, wrap
+from robotgen.symbolic.root_laws.hand import (
+    Hand,
+    Linearisation,
+    discretise,
+    hand_kernels,
+    pose_rows,
+    start_check,
+    wrap,
+)
 from robotgen.symbolic.root_laws.law import Controller, RootLaw, StateView
 
 NX, NU = 12, 6  # hand state and torques
@@ -348,20 +356,20 @@ def _looped_step(st: _Step):
     return step_schedule([port[1] for port in st.inputs], sizes, st.layout.offsets, prologue, weights)
 
 
-def _reset_parts(hand: Hand, s: AdaptiveSettings, i: Inputs) -> tuple[dict[str, ca.SX], ca.SX, ca.SX, ca.DM]:
-    """What the reset's state is made of: the feedforward from the measured q, the model
-    linearised there (F, L: eqs 24-28) and P_0's diagonal."""
+def _reset_parts(hand: Hand, s: AdaptiveSettings, i: Inputs) -> tuple[dict[str, ca.SX], Linearisation, ca.DM]:
+    """What the reset's state is made of: the feedforward from the measured q, the parts of the
+    model linearised there (F, L: eqs 24-28) and P_0's diagonal."""
     ff = feedforward(hand, i, i.q, max(2 * s.ik_iterations, 4))
-    F, L = hand.linearisation(ff["q_d"], ff["qd_d"], ff["qdd_d"])
+    parts = hand.linearisation_parts(ff["q_d"], ff["qd_d"], ff["qdd_d"])
     p_a, p_b, p_c = s.initial_covariance
-    return ff, F, L, ca.DM([p_a] * NX + [p_b] * NU + ([p_c] if s.affine else []))
+    return ff, parts, ca.DM([p_a] * NX + [p_b] * NU + ([p_c] if s.affine else []))
 
 
 def initial_state(hand: Hand, s: AdaptiveSettings, i: Inputs) -> ca.SX:
     """The state after a reset: the resolved desired joint trajectory (inverse kinematics from
     the measured q), the model linearised there and discretised (eqs 24-32), c = 0, P_0."""
-    ff, F, L, p0 = _reset_parts(hand, s, i)
-    A0, B0 = discretise(F, L, s.period, DISCRETISE_TERMS)
+    ff, parts, p0 = _reset_parts(hand, s, i)
+    A0, B0 = discretise(parts.F, parts.L, s.period, DISCRETISE_TERMS)
     return StateLayout.of(s).pack(
         {
             "A": A0,
@@ -378,13 +386,15 @@ def initial_state(hand: Hand, s: AdaptiveSettings, i: Inputs) -> ca.SX:
 
 
 def _looped_init(hand: Hand, s: AdaptiveSettings, i: Inputs):
-    """initial_state with its discretisation as loops (adaptive_loops.init_schedule)."""
+    """initial_state with F's acceleration rows and the discretisation as loops (adaptive_loops.init_schedule)."""
     from robotgen.symbolic.root_laws.adaptive_loops import init_schedule
 
-    ff, F, L, p0 = _reset_parts(hand, s, i)
-    values = {**ff, "F": F, "L": L, "P0": p0}
+    ff, parts, p0 = _reset_parts(hand, s, i)
+    values = {**ff, "P0": p0}
     layout = StateLayout.of(s)
-    return init_schedule([p[1] for p in i.ports()], layout.size, layout.offsets, values, s.period, DISCRETISE_TERMS)
+    return init_schedule(
+        [p[1] for p in i.ports()], layout.size, layout.offsets, values, parts, s.period, DISCRETISE_TERMS
+    )
 
 
 def kernels(system: RobotSystem) -> list[Kernel]:
