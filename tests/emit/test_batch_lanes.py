@@ -9,7 +9,6 @@ singular one: each state's outputs are what its single call leaves (untouched, z
 from __future__ import annotations
 
 import ctypes
-import importlib.util
 import os
 import platform
 import shutil
@@ -17,32 +16,16 @@ import subprocess
 
 import numpy as np
 import pytest
+from batch_states import built, single_calls, states
 from robots import PANDA, UR5, robots_dir
 
-from robotgen.emit import compile as emit_compile
 from robotgen.emit import lanes
-from robotgen.emit.build import emit
 from robotgen.frontend.urdf import load_urdf_system
 from robotgen.model.chain import Body, Joint, KinematicTree
 from robotgen.model.describe import system_nq
 from robotgen.symbolic import kernels_for, leaf_kernels
 
 WIDTHS = (1, 2, 4, 8, 16)  # caps tried; the module says which width each one gets
-
-
-def load(out, name):
-    spec = importlib.util.spec_from_file_location(name, out / name / f"{name}{emit_compile.extension_suffix()}")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
-
-
-def built(tmp_path_factory, name, kernels, nq, wanted, precision="double"):
-    out = tmp_path_factory.mktemp(name)
-    chosen = [k for k in kernels if k.name in wanted]
-    assert {k.name for k in chosen} == set(wanted)
-    emit(out / name, name, chosen, nq=nq, precision=precision)
-    return load(out, name), chosen
 
 
 def branched_tree(seed: int = 3, parents: tuple[int, ...] = (-1, 0, 1, 2, 1, 4, 5, 0, 7)) -> KinematicTree:
@@ -103,38 +86,6 @@ def widths(module) -> list[int]:
     library = ctypes.CDLL(module.__file__)
     select = getattr(library, f"{module.__name__}_batch_lanes")
     return sorted({select(cap) for cap in WIDTHS})
-
-
-def states(kernel, n: int, rng) -> list[np.ndarray]:
-    """n random states; every 7th state's angles past 1e5 (rg_sincos2 leaves them to libm), and
-    every 5th (from the 3rd) one angle past it, each coordinate in turn: its pair goes to libm,
-    the kernel's other angles do not."""
-    arrays = []
-    for port in kernel.inputs:
-        if port.name == "dt":
-            arrays.append(rng.uniform(1e-3, 1e-2, (n, 1)))
-            continue
-        a = rng.uniform(-3.0, 3.0, (n, port.size))
-        if port.name == "q":
-            a[::7] += 3e5
-            for k in range(3, n, 5):
-                a[k, (k // 5) % port.size] += 3e5
-        arrays.append(a)
-    return arrays
-
-
-def single_calls(fn, arrays, n, outputs):
-    """Each state's single call: its results, or the results it leaves in arrays holding -7
-    (untouched on status 1, zeros on status 2), and whether it raised."""
-    results = [np.full((n, p.size), -7.0) for p in outputs]
-    failed = []
-    for k in range(n):
-        out = tuple(r[k].reshape(p.rows, p.cols) if p.cols > 1 else r[k] for r, p in zip(results, outputs))
-        try:
-            fn(*(a[k] for a in arrays), out=out if len(out) > 1 else out[0])
-        except FloatingPointError:
-            failed.append(k)
-    return results, failed
 
 
 def lanes_expected() -> bool:
@@ -243,11 +194,11 @@ def test_comparisons_and_selections_are_masks_on_whole_vectors(tmp_path_factory,
     assert "rg_l < RG_W" not in lane_kernel[: lane_kernel.index("\n}")]
     n = 1023
     rng = np.random.default_rng(8)
-    states = rng.choice([-1.0, -0.0, 0.0, 1.0, 2.0], (n, 4))
-    expected, failed = single_calls(module.gravity, [states], n, kernel.outputs)
+    chosen = rng.choice([-1.0, -0.0, 0.0, 1.0, 2.0], (n, 4))
+    expected, failed = single_calls(module.gravity, [chosen], n, kernel.outputs)
     assert not failed
     with np.errstate(divide="ignore", invalid="ignore"):
-        x, y, z, w = states.T
+        x, y, z, w = chosen.T
         r = x / y
         closed = np.stack(
             [
@@ -273,7 +224,7 @@ def test_comparisons_and_selections_are_masks_on_whole_vectors(tmp_path_factory,
         got = np.full((n, len(values)), -7.0)
         os.environ["ROBOTGEN_BATCH_LANES"] = str(cap)
         try:
-            module.gravity(states, out=got)
+            module.gravity(chosen, out=got)
         finally:
             del os.environ["ROBOTGEN_BATCH_LANES"]
         same = np.all(got.view(np.uint64) == expected[0].view(np.uint64), axis=1)

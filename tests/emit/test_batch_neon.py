@@ -14,8 +14,8 @@ import subprocess
 
 import numpy as np
 import pytest
+from batch_states import built, single_calls, states
 from robots import PANDA, UR5, robots_dir
-from test_batch_lanes import built, single_calls, states
 
 from robotgen.emit import lanes
 from robotgen.frontend.urdf import load_urdf_system
