@@ -137,14 +137,7 @@ def _shared_reciprocals(steps: tuple[Instruction, ...]) -> tuple[Instruction, ..
     no value is divided into 1 twice. New registers are numbered above CasADi's, each written
     once."""
     defs = defining_steps(steps)
-    divisors = [
-        (step.args[1], defs[k][1])
-        if step.op == ca.OP_DIV
-        else (step.args[0], defs[k][0])
-        if step.op == ca.OP_INV
-        else None
-        for k, step in enumerate(steps)
-    ]
+    divisors = [_divisor(step, defs[k]) for k, step in enumerate(steps)]
     uses: dict[tuple[int, int], int] = {}
     for key in filter(None, divisors):
         uses[key] = uses.get(key, 0) + 1
@@ -174,6 +167,16 @@ def _shared_reciprocals(steps: tuple[Instruction, ...]) -> tuple[Instruction, ..
         if (step.target, k) in shared:
             add_reciprocal(step.target, k)
     return tuple(out)
+
+
+def _divisor(step: Instruction, defined_at: tuple[int, ...]) -> tuple[int, int] | None:
+    """The value (register, the step that wrote it) a division divides by or a reciprocal
+    (OP_INV) inverts; None for any other step."""
+    if step.op == ca.OP_DIV:
+        return step.args[1], defined_at[1]
+    if step.op == ca.OP_INV:
+        return step.args[0], defined_at[0]
+    return None
 
 
 def reads_first(program: Program) -> Program:

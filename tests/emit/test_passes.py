@@ -9,7 +9,7 @@ import casadi as ca
 
 from robotgen.emit import issue_order, sincos
 from robotgen.emit.passes import Order, Passes, Use, choose
-from robotgen.emit.sx_program import read_program
+from robotgen.emit.sx_program import defining_steps, read_program
 from robotgen.symbolic.kernel import Kernel, Port
 
 
@@ -63,3 +63,24 @@ def test_each_choice_applies_its_pass():
     assert sincos.SINCOS in [s.op for s in paired.instructions] and sincos.SINCOS not in [
         s.op for s in chain.instructions
     ]
+
+
+def test_a_value_is_divided_into_once():
+    """A value divided by more than once, counting a reciprocal the program forms (1/x0 and
+    x1/x0), gets one OP_INV and multiplications by it, the program's own reciprocal a copy of
+    it; a value divided by once (x2/x3, 1/x4) keeps its division."""
+    program = _program("divisions", lambda x: [1 / x[0], x[1] / x[0], x[2] / x[3], 1 / x[4]])
+    steps = program.instructions
+    defs = defining_steps(steps)
+
+    def element(k: int, operand: int) -> int:  # the input element step k's operand reads (-1: not an input)
+        writer = steps[defs[k][operand]]
+        return writer.element if writer.op == ca.OP_INPUT else -1
+
+    inverses = [k for k, s in enumerate(steps) if s.op == ca.OP_INV]
+    assert sorted(element(k, 0) for k in inverses) == [0, 4]
+    shared = next(k for k in inverses if element(k, 0) == 0)
+    readers = [steps[k].op for k in range(len(steps)) if shared in defs[k]]
+    assert sorted(readers) == sorted([ca.OP_MUL, ca.OP_ASSIGN])
+    divisions = [k for k, s in enumerate(steps) if s.op == ca.OP_DIV]
+    assert [(element(k, 0), element(k, 1)) for k in divisions] == [(2, 3)]
