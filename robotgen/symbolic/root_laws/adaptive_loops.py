@@ -244,12 +244,12 @@ def init_schedule(
 ) -> ScheduleBuilder:
     """The reset's state with F's acceleration rows, A = exp(F T) and B = int_0^T exp(F s) ds L
     (hand.discretise's series to ``terms`` terms) as loops: each acceleration row of F
-    (hand.acceleration_row, a 6 x 12 and three 6 x 6 products), then each row of each term of
-    the series as the row of the term before times F times T/k (one loop over the rows of the
-    terms laid end to end), then each entry of A and of S = sum_k term_k T/(k+1), then each row
-    of B = S L. The prologue writes the linearisation's ``parts`` (hand.linearisation_parts),
-    the trajectory and P_0's diagonal; c and phi stay 0. ``values``: q_d, qd_d, qdd_d and P0
-    (its diagonal)."""
+    (hand.acceleration_row, a 6 x 12 and three 6 x 6 products), then each row of each term
+    of the series as the row of the term before times F times T/k (one loop over the rows of
+    the terms laid end to end), then each entry of A and of S = sum_k term_k T/(k+1), then
+    each row of B = S L (S's last six columns times J D^-1: L's first rows are zero). The prologue writes the
+    linearisation's ``parts`` (hand.linearisation_parts), the trajectory and P_0's diagonal;
+    c and phi stay 0. ``values``: q_d, qd_d, qdd_d and P0 (its diagonal)."""
     b = ScheduleBuilder(inputs, [size])
     n = offsets["P"][1]
 
@@ -264,7 +264,9 @@ def init_schedule(
     read = (parts.dadz, parts.J_Minv, parts.dtaudz, parts.W, parts.Jinv, parts.E)
     matrices = [b.local(ca.densify(m).T) for m in read]  # row-major
     dadz_row, jm_row = ca.SX.sym("dadz_row", NX), ca.SX.sym("jm_row", NU)
-    dtaudz, w, jinv, e = ca.SX.sym("dtaudz", NU * NX), ca.SX.sym("W", 36), ca.SX.sym("Jinv", 36), ca.SX.sym("E", 9)
+    dtaudz, w, jinv, e = (
+        ca.SX.sym(name, size) for name, size in (("dtaudz", NU * NX), ("W", NU * NU), ("Jinv", NU * NU), ("E", 9))
+    )
     row_of_f = acceleration_row(
         dadz_row.T,
         jm_row.T,
@@ -280,7 +282,6 @@ def init_schedule(
         [Slice(LOCAL, matrices[0], 0, NX), Slice(LOCAL, matrices[1], 0, NU), *(Slice(LOCAL, m) for m in matrices[2:])],
         [Slice(LOCAL, f, NU * NX, NX)],
     )
-    l_matrix = b.local(ca.densify(parts.L).T)
     series = b.local(ca.vertcat(ca.vec(ca.DM.eye(NX)), ca.SX.zeros((terms - 1) * NX * NX)))  # term_0 = I, then 0
     # row r of term k + 1 is row 12 k + r of the terms laid end to end: one RANGE over i = 12 k + r
     factors = b.local(ca.DM([T / k for k in range(1, terms) for _ in range(NX)]))
@@ -304,13 +305,14 @@ def init_schedule(
         [Slice(LOCAL, series, 0, 1, 0, NX * NX)],
         [new("A", 1), Slice(LOCAL, s_matrix, 0, 1)],
     )
-    s_row, l_whole = ca.SX.sym("s_row", NX), ca.SX.sym("l", NX * NU)
-    b_row = (s_row.T @ ca.reshape(l_whole, NU, NX).T).T
+    # B = S L = S's last six columns times J D^-1 (L's first six rows are zero)
+    s_row, jm = ca.SX.sym("s_row", NU), ca.SX.sym("jm", NU * NU)
+    b_row = (s_row.T @ ca.reshape(jm, NU, NU).T).T
     b.loop(
-        body("input_matrix", [s_row, l_whole], [b_row, b_row]),
+        body("input_matrix", [s_row, jm], [b_row, b_row]),
         RANGE,
         NX,
-        [Slice(LOCAL, s_matrix, 0, NX), Slice(LOCAL, l_matrix)],
+        [Slice(LOCAL, s_matrix, NU, NX), Slice(LOCAL, matrices[1])],
         [new("B", NU), new("B0", NU)],
     )
     return b
