@@ -211,24 +211,64 @@ def test_comparisons_and_selections_are_masks_on_whole_vectors(tmp_path_factory,
                 (x != 0) | (z != 0),
                 np.where(x < z, z, w),
                 np.abs(x),
-                np.zeros(n),  # !NaN and !inf are 0, as !r for r nonzero
+                r == 0,  # !r: NaN and infinities are true, so !r is 1 only where r is 0
                 (r != 0) & (z != 0),
                 np.where(r != 0, z, 0.0),
             ],
             axis=1,
         ).astype(float)
-    closed[:, 9] = r == 0
     assert np.array_equal(expected[0], closed)
     assert not np.signbit(expected[0][:, 8]).any()  # fabs(-0.0) is +0.0
+    assert_every_width_gives(module.gravity, chosen, expected[0])
+    assert len(widths(module)) > 1 or not lanes_expected()
+
+
+def assert_every_width_gives(fn, states: np.ndarray, expected: np.ndarray) -> None:
+    """A one-port, one-output batch call at every cap gives ``expected`` (the single calls') bit for bit."""
     for cap in WIDTHS:
-        got = np.full((n, len(values)), -7.0)
+        got = np.full(expected.shape, -7.0)
         os.environ["ROBOTGEN_BATCH_LANES"] = str(cap)
         try:
-            module.gravity(chosen, out=got)
+            fn(states, out=got)
         finally:
             del os.environ["ROBOTGEN_BATCH_LANES"]
-        same = np.all(got.view(np.uint64) == expected[0].view(np.uint64), axis=1)
+        same = np.all(got.view(np.uint64) == expected.view(np.uint64), axis=1)
         assert same.all(), f"lanes {cap}: states {np.flatnonzero(~same)[:8]} differ from single calls"
+
+
+@pytest.mark.parametrize("precision", ["double", "float"])
+def test_lane_sines_where_the_quadrant_changes_are_the_single_calls(tmp_path_factory, precision):
+    """rg_sincos1 takes rg_sincos2's floor of 2x/pi + 1/2 by adding 2^52 (2^23) and its
+    quadrant's choice and signs by bits, where rg_sincos2 converts to int and multiplies by 0
+    and 1. The two must agree where they could part: angles a few units in the last place
+    either side of (k + 1/2) pi/2, where the floor steps, and at k pi/2, +-0, tiny angles and
+    the bound (past it, libm)."""
+    import casadi as ca
+
+    from robotgen.emit.sincos import ROUTINES
+    from robotgen.symbolic.kernel import make_kernel
+
+    real = np.float64 if precision == "double" else np.float32
+    q = ca.SX.sym("q", 4)
+    kernel = make_kernel("gravity", "sines", [("q", q)], [("gravity", ca.vertcat(ca.sin(q), ca.cos(q)), (8, 1))])
+    module, _ = built(tmp_path_factory, f"lanes_quadrants_{precision}", [kernel], 4, ("gravity",), precision)
+    edges = [real((k + 0.5) * np.pi / 2) for k in range(-9, 9)] + [real(k * np.pi / 2) for k in range(-8, 9)]
+    angles = list(edges)
+    for a in edges:
+        below = above = a
+        for _ in range(3):
+            below, above = np.nextafter(below, real(-np.inf)), np.nextafter(above, real(np.inf))
+            angles += [below, above]
+    bound = real(ROUTINES[precision].above)
+    tiny = real(1e-300 if precision == "double" else 1e-40)
+    angles += [real(0.0), real(-0.0), tiny, -tiny, bound, -bound, np.nextafter(bound, real(np.inf))]
+    rng = np.random.default_rng(9)
+    n = 4 * 255
+    chosen = rng.permutation(np.resize(np.array(angles, dtype=np.float64), n)).reshape(-1, 4)
+    expected, failed = single_calls(module.gravity, [chosen], len(chosen), kernel.outputs)
+    assert not failed
+    assert np.all(np.abs(expected[0] - np.concatenate([np.sin(chosen), np.cos(chosen)], axis=1)) < 2e-7)
+    assert_every_width_gives(module.gravity, chosen, expected[0])
     assert len(widths(module)) > 1 or not lanes_expected()
 
 
