@@ -2,8 +2,9 @@
 function called on random inputs with huge values, zeros, NaN and Inf among them, and on the
 spec's parameter defaults; every batch entry point (robotgen.emit.lanes) on BATCH states, one
 round in ten, each port in a heap block of exactly its states (a block's loads may read past a
-state's elements into the next states', never past the last). No finding is allowed (the sanitizers abort the program on the first
-one); a NaN or Inf result is not a finding (the inputs ask for it)."""
+state's elements into the next states', never past the last). No finding is allowed (the
+sanitizers abort the program on the first one); a NaN or Inf result is not a finding (the inputs
+ask for it)."""
 
 from __future__ import annotations
 
