@@ -2,8 +2,9 @@
 build` is handed, it answers exit 0, or exit 1 with located errors (FILE:LINE:COL) and nothing
 written; never a traceback, never an internal error.
 
-400 mutants run in `make test` (300 checked, 100 of chains also built); `pytest -m slow` runs 10^4 (derandomised, so a
-failure reproduces; Hypothesis shrinks it to the smallest mutant that fails). The mutants are
+400 mutants run in `make test`: 300 checked, and 100 of the chain specs, built too where check
+accepts them; `pytest -m slow` runs 10^4 (derandomised, so a failure reproduces; Hypothesis
+shrinks it to the smallest mutant that fails). The mutants are
 dumped back to YAML text, so the reader sees them as a user's file."""
 
 from __future__ import annotations
