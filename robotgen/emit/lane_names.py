@@ -1,7 +1,7 @@
 """The C names through which one printing of a kernel's lanes serves every vector width.
 
-A lane kernel (robotgen.emit.lanes) is printed once, in these names, and compiled once per
-width: before each copy, ``<name>.c`` defines them for that width (the vector type, its
+A lane kernel (robotgen.emit.lanes) is rendered once, in these names, and ``<name>.c`` holds
+a copy for each width: before each copy it defines them for that width (the vector type, its
 number of lanes, a broadcast, the instruction set the copy is compiled for, and a suffix that
 keeps each copy's functions apart)."""
 

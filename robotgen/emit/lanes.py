@@ -18,8 +18,8 @@ The widths (``WIDTHS``): AVX-512F, 8 doubles (16 floats), and AVX2, 4 (8), on x8
 compiled with ``__attribute__((target(...)))`` and chosen at run time by
 ``__builtin_cpu_supports``; NEON, 2 (4), on aarch64; elsewhere (a Cortex-M, a compiler that is
 not GCC or Clang) every state goes through the single-state function. The lane kernels are
-printed once and compiled once per width: ``<name>.c`` defines the names of
-robotgen.emit.lane_names for each width before its copy.
+rendered once and ``<name>.c`` holds a copy for each width, after that width's definitions
+of the names of robotgen.emit.lane_names.
 """
 
 from __future__ import annotations
